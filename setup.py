@@ -1,0 +1,34 @@
+"""ament_python package: ``colcon build`` on a ROS 2 install, ``pip install`` elsewhere."""
+
+from __future__ import annotations
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'folder_line'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
+    ],
+    # The ROS 2 stack (rclpy, message packages) comes from the ROS install or, for
+    # `make`, from requirements.txt: it is deliberately not listed here.
+    install_requires=['setuptools', 'numpy', 'PyYAML', 'matplotlib'],
+    zip_safe=True,
+    maintainer='folder_line team',
+    maintainer_email='folder-line@example.com',
+    description='Simulation of a folding/layup line as ROS 2 nodes',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [
+            'folder-line = folder_line.cli:main',
+        ],
+    },
+)
