@@ -16,6 +16,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
     ],
     # The ROS 2 stack (rclpy, message packages) comes from the ROS install or, for
     # `make`, from requirements.txt: it is deliberately not listed here.
@@ -29,6 +30,7 @@ setup(
     entry_points={
         'console_scripts': [
             'folder-line = folder_line.cli:main',
+            'line_clock = folder_line.nodes.line_clock:main',
         ],
     },
 )

@@ -1,8 +1,10 @@
-"""Atomic CSV output: a table is written whole or not at all."""
+"""Atomic file output: a CSV table or a JSON document is written whole or not at all."""
 
 from __future__ import annotations
 
 import csv
+import io
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -10,14 +12,33 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ['write_csv_atomic']
+__all__ = ['write_csv_atomic', 'write_json_atomic', 'write_text_atomic']
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
+    """Write ``text`` to ``path`` via a temporary file in the same directory and a rename,
+    so a failure (or a kill) never leaves a half-written file; the directory is created."""
+    dest = Path(path)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f'.{dest.name}.', suffix='.tmp', dir=dest.parent)
+    try:
+        with os.fdopen(fd, 'w', newline='', encoding='utf-8') as fh:
+            fh.write(text)
+        os.replace(tmp, dest)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return dest
+
+
+def write_json_atomic(path: str | os.PathLike[str], document: object) -> Path:
+    """Write a JSON document atomically (strict JSON: NaN or inf raise ValueError)."""
+    return write_text_atomic(path, json.dumps(document, indent=2, allow_nan=False) + '\n')
 
 
 def write_csv_atomic(path: str | os.PathLike[str], columns: Mapping[str, Sequence[object] | np.ndarray]) -> Path:
-    """Write equal-length columns to ``path`` with a header row.
+    """Write equal-length columns to ``path`` with a header row, atomically.
 
-    The file is written to a temporary name in the same directory and renamed
-    into place, so a failure (or a kill) never leaves a half-written CSV.
     Floats are written with ``repr`` precision (round-trip exact).
 
     Parameters
@@ -27,22 +48,14 @@ def write_csv_atomic(path: str | os.PathLike[str], columns: Mapping[str, Sequenc
     columns : mapping of str to sequence
         Column name -> values; all of the same length.
     """
-    dest = Path(path)
     names = list(columns)
     lengths = {len(columns[n]) for n in names}
     if len(lengths) > 1:
         msg = f'columns of unequal length: {dict((n, len(columns[n])) for n in names)}'
         raise ValueError(msg)
-    dest.parent.mkdir(parents=True, exist_ok=True)
     cols = [np.asarray(columns[n]).tolist() for n in names]
-    fd, tmp = tempfile.mkstemp(prefix=f'.{dest.name}.', suffix='.tmp', dir=dest.parent)
-    try:
-        with os.fdopen(fd, 'w', newline='', encoding='utf-8') as fh:
-            writer = csv.writer(fh)
-            writer.writerow(names)
-            writer.writerows(zip(*cols))
-        os.replace(tmp, dest)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return dest
+    buf = io.StringIO(newline='')
+    writer = csv.writer(buf)
+    writer.writerow(names)
+    writer.writerows(zip(*cols))
+    return write_text_atomic(path, buf.getvalue())

@@ -28,6 +28,16 @@ def _samples(text: str) -> int:
     return n
 
 
+def _duration(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'--duration={text!r}: must be a number of seconds') from None
+    if not 0.0 < value <= 1e9:
+        raise argparse.ArgumentTypeError(f'--duration={text!r}: must be in (0, 1e9] s')
+    return value
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
@@ -38,6 +48,14 @@ def _build_parser() -> argparse.ArgumentParser:
     kin.add_argument('--samples', type=_samples, default=360, metavar='N', help='number of samples (default 360)')
     kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
 
+    sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
+    sim.add_argument('--scene', default='folder', metavar='NAME|FILE',
+                     help='shipped scene name (folder, layup, line) or a scene YAML file (default folder)')
+    sim.add_argument('--duration', type=_duration, default=60.0, metavar='S', help='line time, s (default 60)')
+    sim.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
+                     help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)')
+    sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
     rep.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
     return parser
@@ -45,13 +63,29 @@ def _build_parser() -> argparse.ArgumentParser:
 
 def _cmd_kinematics(args: argparse.Namespace) -> int:
     from folder_line.tables import kinematics_table, print_summary
-    from folder_line.csvio import write_csv_atomic
+    from folder_line.atomic import write_csv_atomic
 
     table = kinematics_table(args.mechanism, args.params, args.samples)
     print_summary(args.mechanism, table, sys.stdout)
     if args.csv:
         dest = write_csv_atomic(args.csv, table)
         print(f'wrote {dest} ({args.samples} rows, {len(table)} columns)')
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from folder_line.atomic import write_json_atomic
+    from folder_line.core.line import simulate
+    from folder_line.scenes import load_scene, parse_set
+    from folder_line.sim_summary import print_summary
+
+    scene = load_scene(args.scene, parse_set(args.overrides))
+    result = simulate(scene, args.duration, sample_rate=0.0)
+    summary = result.summary()
+    print_summary(summary, sys.stdout)
+    if args.json:
+        dest = write_json_atomic(args.json, summary)
+        print(f'wrote {dest}')
     return 0
 
 
@@ -66,7 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``folder-line``; returns the process exit code."""
     parser = _build_parser()
     args = parser.parse_args(argv)
-    handler = {'kinematics': _cmd_kinematics, 'report': _cmd_report}[args.verb]
+    handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'report': _cmd_report}[args.verb]
     try:
         return handler(args)
     except FolderLineError as exc:

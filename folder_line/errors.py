@@ -15,6 +15,7 @@ __all__ = [
     'NotBracketedError',
     'NonFiniteValueError',
     'NoConvergenceError',
+    'IntegrationError',
 ]
 
 
@@ -119,4 +120,27 @@ class NoConvergenceError(RootFindingError, RuntimeError):
     def __init__(self, x: float, maxiter: int, width: float) -> None:
         self.x, self.maxiter, self.width = x, maxiter, width
         msg = f'no convergence in maxiter={maxiter} iterations: last iterate {x!r}, bracket width {width!r}'
+        super().__init__(msg)
+
+
+class IntegrationError(FolderLineError, RuntimeError):
+    """An integration cannot go on: non-finite state, step below resolution, too many steps.
+
+    Parameters
+    ----------
+    method : str
+        ``'rk4'`` or ``'dopri5'``.
+    step : int
+        Index of the step that failed (0 = first).
+    t : float
+        Time at the start of that step, s (or the unit of ``t``).
+    h : float
+        Step size tried, same unit.
+    reason : str
+        What happened and what to do about it.
+    """
+
+    def __init__(self, method: str, step: int, t: float, h: float, reason: str) -> None:
+        self.method, self.step, self.t, self.h, self.reason = method, step, t, h, reason
+        msg = f'{method}: step {step} starting at t={t!r} with h={h!r}: {reason}'
         super().__init__(msg)

@@ -14,7 +14,7 @@ from typing import IO
 import numpy as np
 
 from folder_line.core import cyclogram, delivery, knife, layup
-from folder_line.csvio import write_csv_atomic
+from folder_line.atomic import write_csv_atomic
 from folder_line.params import load_params
 from folder_line.tables import kinematics_table
 

@@ -4,6 +4,8 @@ Modules
 -------
 validate
     Checks shared by the frozen parameter dataclasses.
+constants
+    Standard gravity and machine epsilon, shared by the core and its effects.
 loop
     Planar loop-closure primitives (circle-circle intersection, branches, toggles).
 layup
@@ -16,6 +18,11 @@ cyclogram
     F: cycle timing of feed and knife (paper 001).
 delivery
     D: chain-and-carriage delivery transporter efficiency (paper 002).
+chain
+    D: the delivery chain's guide geometry (arc length over the stroke) and carriage
+    schedule (carriage k takes sheet k); no friction.
+belt
+    Belts geared to the master drive, with slow-downs: exact travel and its inverse.
 timebase
     Drift-free crank phase from integer nanoseconds.
 """

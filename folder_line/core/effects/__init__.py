@@ -1,0 +1,92 @@
+"""Effects a scene may list; the simulator runs only the listed ones.
+
+Each effect is a small module of this package defining a frozen dataclass
+``Params`` (no defaults: a listed effect must give every parameter) and the
+functions the simulator calls when, and only when, the scene lists the effect.
+The registry below says which machine sections an effect needs.
+
+| effect | machines | what it adds |
+|---|---|---|
+| chute_belts | layup | belts along the chutes at v_tr: exit speed sqrt(v_C² + v_tr²) (paper 000 eq. 25) |
+| leaf_flight | layup, container | flight from the chute exit to the floor, landing x, histogram |
+| guide_friction | layup | without belts: the leaf slides on the guide under gravity, Coulomb friction and the chute's swing |
+| leaf_damage | layup | leaves leaving at or above v_damage are counted as damaged |
+| motor_dynamics | (any) | the master drive from a motor torque-speed curve and inertia (an ODE) |
+| chain_friction | delivery | efficiency, rod and chain forces, sprocket torque (paper 002) |
+| feed_slip | feed_transporter | the signature accelerated from V_d to V_tr by friction |
+| stop_bounce | feed_transporter | restitution at the front stops, settle time and rebound |
+| faults | (any) | seeded missing, double and late sheets, belt slow-downs |
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from folder_line.errors import ParameterError
+
+__all__ = ['EFFECTS', 'EffectSpec', 'effect_module', 'parse_effect_params']
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """One entry of the registry.
+
+    Attributes
+    ----------
+    name : str
+        The name a scene lists.
+    machines : tuple of str
+        Machine sections the scene must have (empty: works with any).
+    summary : str
+        One line for error messages and docs.
+    """
+
+    name: str
+    machines: tuple[str, ...]
+    summary: str
+
+
+EFFECTS: dict[str, EffectSpec] = {spec.name: spec for spec in (
+    EffectSpec('chute_belts', ('layup',), 'belts along the chutes at v_tr (paper 000 eq. 25)'),
+    EffectSpec('leaf_flight', ('layup', 'container'), 'leaf flight from the chute exit to the container floor'),
+    EffectSpec('guide_friction', ('layup',), 'leaf braked by Coulomb friction on the guide (no belts)'),
+    EffectSpec('leaf_damage', ('layup',), 'leaves leaving at or above the damage speed are damaged'),
+    EffectSpec('motor_dynamics', (), 'master drive from a motor torque-speed curve and inertia (ODE)'),
+    EffectSpec('chain_friction', ('delivery',), 'delivery efficiency, forces and sprocket torque (paper 002)'),
+    EffectSpec('feed_slip', ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
+    EffectSpec('stop_bounce', ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
+    EffectSpec('faults', (), 'seeded missing, double and late sheets and belt slow-downs'),
+)}
+
+
+def effect_module(name: str) -> Any:
+    """The module implementing effect ``name``."""
+    if name not in EFFECTS:
+        raise ParameterError('effects', name, f'unknown effect; known: {", ".join(EFFECTS)}')
+    return importlib.import_module(f'{__name__}.{name}')
+
+
+def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
+    """Validated ``Params`` of effect ``name`` from the scene's mapping.
+
+    Raises
+    ------
+    ParameterError
+        Unknown effect (listing the known ones), unknown or missing parameter (naming it
+        as ``effects.<name>.<key>``), or a bad value.
+    """
+    cls = effect_module(name).Params
+    fields = [f.name for f in dataclasses.fields(cls)]
+    values = dict(values or {})
+    for key, value in values.items():
+        if key not in fields:
+            raise ParameterError(f'effects.{name}.{key}', value,
+                                 f'unknown parameter of effect {name}; its parameters: {", ".join(fields) or "none"}')
+    for key in fields:
+        if key not in values:
+            raise ParameterError(f'effects.{name}.{key}', None,
+                                 f'missing: effect {name} needs {", ".join(fields)}')
+    return cls(**values)

@@ -1,0 +1,582 @@
+"""``guide_friction`` — a leaf slides down a swinging chute against Coulomb friction (L, no belts).
+
+Paper 000 (MACHINES.md section L, "Results"): at the swing extremes the exit speeds
+v_C, v_E vanish, "leaves lose speed, stay longer on the guides O2C, O3E, are braked
+by friction, and the container edges fill unevenly". This effect models that leaf
+on the guide (MACHINES.md, "Effects: suggested models", guide_friction).
+
+Frame and equation
+------------------
+The chute turns about its pivot (O2 for transporter 3, O3 for transporter 4) with
+angle θ' measured counter-clockwise **from the downward vertical** (θ' = θ3 + π/2,
+resp. θ5 + π/2, in the project frame: x toward O3, y up), angular velocity
+ω = dθ'/dt and angular acceleration ε = dω/dt (from the six-bar, scaled by the
+master drive). The leaf is a point at distance s from the pivot along the unit
+vector t̂ = (sin θ', −cos θ') (pivot → exit); n̂ = ẑ × t̂ = (cos θ', sin θ'). In the
+inertial frame ``r = s t̂`` has acceleration
+
+    r̈ = (s̈ − ω² s) t̂ + (ε s + 2 ω ṡ) n̂ .
+
+Gravity (0, −g) has components ``g cos θ'`` along t̂ and ``−g sin θ'`` along n̂. The
+guide's walls push with N (per unit mass) along n̂ — the chute is a channel, so N
+may take either sign — and Coulomb friction ``μ |N|`` acts along −sign(ṡ) t̂. Hence
+
+    N  = ε s + 2 ω ṡ + g sin θ'                                    (normal push)
+    s̈ = g cos θ' + ω² s − μ |ε s + 2 ω ṡ + g sin θ'| sign(ṡ)      (sliding)
+
+— MACHINES.md's equation with these signs exactly. The chute must point downward
+over its whole swing (cos θ' > 0; checked by the simulator), so the driving force
+``D = g cos θ' + ω² s`` is > 0 for s >= 0: a leaf never slides back up, ṡ >= 0
+throughout, and sign(ṡ) = +1 while it moves.
+
+Stick–slip
+----------
+Two modes per leaf:
+
+* sliding (ṡ > 0): ``s̈ = D − μ |N|``;
+* stuck (ṡ = 0, s fixed): while ``σ(t) = D − μ |N|₀ <= 0`` with ``|N|₀`` the wall
+  push at rest (ṡ = 0): static friction holds the leaf.
+
+A sliding leaf sticks when ṡ reaches 0 (then σ <= 0 since ṡ was falling); it slips
+again at the first t with σ(t) > 0. A leaf entering at rest (``v0 = 0``) is stuck
+from its entry if σ(t_enter) <= 0. Events: ``leaf_stick`` at the stick time, and
+``leaf_slip`` at the slip time; both are localised by root-finding
+(:func:`folder_line.core.roots.brentq`): the stick time on the step's dense
+interpolant of ṡ (ṡ = 0), the slip time on σ(t) itself with the exact kinematics, in
+the bracket of the scan below.
+
+Integrator
+----------
+Classical fixed-step RK4 on (s, ṡ), step ``h`` (a Params field), all leaves advancing
+in lockstep (vectorised, each at its own time): the chute kinematics are evaluated
+twice per step (at t + h/2 and t + h, shared by the stages), the acceleration at the
+step's end is reused as the next step's first stage. Events inside a step are
+localised on the step's cubic Hermite interpolants (``s`` from s, ṡ at both ends;
+``ṡ`` from ṡ, s̈ at both ends; both O(h⁴)):
+
+* exit: ``s = l`` — vectorised bisection of the interpolant to the float resolution
+  of the step fraction (every leaf exits once, so this is the bulk);
+* stop: ``ṡ = 0`` — :func:`folder_line.core.roots.brentq` per event.
+
+|N| has a kink where N changes sign; a step across it would drop RK4 to third order
+(a stage sampled a distance δ on the wrong side of the kink costs ~ h μ |N'| δ), so
+a step whose end has N of the other sign is shortened to end on the zero of N:
+Illinois (modified regula falsi) iterations on the step length, each a full RK4
+sub-step, until |N| <= 1e-11 m/s² there. A stuck leaf's σ(t) is scanned on a grid of
+step h (vectorised over the stuck leaves, in blocks of 64 samples); the first sample
+with σ > 0 brackets the slip. Documented limits: a σ > 0 window shorter than h, or an
+N that touches zero and turns back within one step, is not seen; a leaf whose first
+step after a slip does not move (σ grazed 0) stays stuck without events (the pending
+slip is discarded and the scan resumes after that step).
+
+Accuracy and cost (default geometry): RK4 is fourth order here, with the kinks
+handled; at h = 2 ms exit times and exit speeds agree with
+``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-12) to ~1e-11 s and ~1e-10 m/s
+(tested). One hour of line time (57 600 leaves, ~200 lockstep steps) takes ~2 s.
+
+What the model shows (default geometry, μ = 0.5, v0 = 1 m/s; tested): leaves leaving
+within 5° of a swing extreme are slower than those leaving at mid-swing (4.03 vs
+4.15 m/s) and stayed longer on the guide (0.392 vs 0.375 s) — the paper's
+observation — because v_C → 0 and the centrifugal push ω² s fades there; friction
+itself brakes most where the chute swings fastest (the Coriolis push 2 ω ṡ on the
+wall), so the slowest leaves leave ~15–45° of crank *before* each extreme, after
+crossing mid-swing on the chute. The chutes hang within ±18.7° of the vertical, so
+gravity dominates: leaves stick only for μ >~ 1/tan(18.7°) ≈ 3 (or entering slowly).
+
+Suggested parameters: ``mu = 0.5`` (leaf on a steel guide), ``s0 = 0.0`` m (entry at
+the pivot, as with the belts), ``v0 = 1.0`` m/s (entry speed from the feeding belt),
+``h = 0.002`` s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from folder_line.core.constants import G
+from folder_line.core.roots import brent, brentq
+from folder_line.core.validate import in_range, non_negative
+from folder_line.errors import ParameterError
+
+__all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide',
+           'switching']
+
+#: |N| (m/s²) at which a step end counts as on the zero of N
+_KINK_NTOL = 1e-11
+#: Illinois iterations locating a zero of N
+_KINK_MAXITER = 12
+#: samples per block when scanning a stuck leaf's switching function
+_SCAN_BLOCK = 64
+#: bisection passes of the exit interpolant (step fraction in [0, 1] to 2**-55)
+_EXIT_BISECTIONS = 55
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of ``guide_friction``.
+
+    Attributes
+    ----------
+    mu : float
+        Coulomb friction coefficient between leaf and guide (>= 0; same for static
+        and kinetic friction). Suggested 0.5.
+    s0 : float
+        Entry point: distance from the chute's pivot, m (>= 0; must be shorter than
+        both chutes, checked by the simulator). Suggested 0.0.
+    v0 : float
+        Entry speed along the chute, m/s (>= 0). Suggested 1.0.
+    h : float
+        RK4 step, s, in (0, 0.05]. Suggested 0.002.
+    """
+
+    mu: float
+    s0: float
+    v0: float
+    h: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'mu', in_range('effects.guide_friction.mu', self.mu, 0.0, 100.0))
+        object.__setattr__(self, 's0', non_negative('effects.guide_friction.s0', self.s0))
+        object.__setattr__(self, 'v0', in_range('effects.guide_friction.v0', self.v0, 0.0, 1e3))
+        object.__setattr__(self, 'h', in_range('effects.guide_friction.h', self.h, 0.0, 0.05, lo_open=True))
+
+
+class ChuteState(NamedTuple):
+    """Kinematics of each leaf's chute at given times (arrays, or floats for one leaf).
+
+    Fields: ``sin``, ``cos`` — sin θ', cos θ' of the chute angle from the downward
+    vertical; ``omega`` — dθ'/dt, rad/s; ``eps`` — d²θ'/dt², rad/s².
+    """
+
+    sin: np.ndarray
+    cos: np.ndarray
+    omega: np.ndarray
+    eps: np.ndarray
+
+
+#: kin(t, chute) -> ChuteState: vectorised chute kinematics (chute 0: transporter 3, 1: transporter 4)
+KinFn = Callable[[np.ndarray, np.ndarray], ChuteState]
+#: kin1(t, chute) -> ChuteState of floats: the same for one leaf (fast scalar path)
+Kin1Fn = Callable[[float, int], ChuteState]
+
+
+@dataclass(frozen=True, eq=False)
+class SlideResult:
+    """Outcome of :func:`slide` for n leaves.
+
+    Attributes
+    ----------
+    exited : ndarray of bool, shape (n,)
+        The leaf reached the exit by ``t_end``.
+    t_exit : ndarray, shape (n,)
+        Exit time, s (where ``exited``; the entry time elsewhere).
+    v_exit : ndarray, shape (n,)
+        Speed along the chute at the exit, m/s (where ``exited``; 0 elsewhere).
+    stick_t, slip_t : ndarray
+        Times of the stick and slip events (<= t_end), s.
+    stick_leaf, slip_leaf : ndarray of int64
+        Index (into the input arrays) of the leaf of each event.
+    steps : int
+        RK4 iterations of the lockstep loop.
+    """
+
+    exited: np.ndarray
+    t_exit: np.ndarray
+    v_exit: np.ndarray
+    stick_t: np.ndarray
+    stick_leaf: np.ndarray
+    slip_t: np.ndarray
+    slip_leaf: np.ndarray
+    steps: int = field(default=0)
+
+
+def normal(s: npt.ArrayLike, v: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+    """Wall push per unit mass ``N = ε s + 2 ω ṡ + g sin θ'``, m/s²."""
+    return k.eps * s + 2.0 * k.omega * v + G * k.sin
+
+
+def acceleration(params: Params, s: npt.ArrayLike, v: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+    """``s̈ = g cos θ' + ω² s − μ |N|`` while sliding outward (ṡ >= 0), m/s²."""
+    return G * k.cos + k.omega * k.omega * s - params.mu * np.abs(normal(s, v, k))
+
+
+def switching(params: Params, s: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+    """``σ = g cos θ' + ω² s − μ |ε s + g sin θ'|`` of a leaf at rest: it slips where σ > 0, m/s²."""
+    return G * k.cos + k.omega * k.omega * s - params.mu * np.abs(k.eps * s + G * k.sin)
+
+
+def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
+    """Reject chutes the model cannot handle.
+
+    Parameters
+    ----------
+    params : Params
+        The effect's parameters.
+    l_min : float
+        The shorter chute, m: ``s0`` must be shorter.
+    cos_max_up : float
+        Smallest cos θ' over the swing of both chutes: must be > 0 (chutes point down).
+
+    Raises
+    ------
+    ParameterError
+        ``effects.guide_friction.s0`` not shorter than the chutes, or a chute that
+        points upward somewhere in its swing (a leaf could slide back out).
+    """
+    if not params.s0 < l_min:
+        raise ParameterError('effects.guide_friction.s0', params.s0,
+                             f'must be shorter than the shorter chute ({l_min!r} m)')
+    if not cos_max_up > 0.0:
+        raise ParameterError('effects.guide_friction', 'layup geometry',
+                             f'a chute points upward in its swing (cos of the angle from the downward vertical '
+                             f'reaches {cos_max_up:.6g}); the guide-friction model needs both chutes to point down')
+
+
+def _hermite(theta: np.ndarray, y0: np.ndarray, d0: np.ndarray, y1: np.ndarray, d1: np.ndarray,
+             h: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1]."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * y0 + (t3 - 2.0 * t2 + theta) * h * d0
+            + (3.0 * t2 - 2.0 * t3) * y1 + (t3 - t2) * h * d1)
+
+
+def _hermite1(theta: float, y0: float, d0: float, y1: float, d1: float, h: float) -> float:
+    t2 = theta * theta
+    t3 = t2 * theta
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * y0 + (t3 - 2.0 * t2 + theta) * h * d0
+            + (3.0 * t2 - 2.0 * t3) * y1 + (t3 - t2) * h * d1)
+
+
+def _rk4(params: Params, kin: KinFn, t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray,
+         ch: np.ndarray, hh: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One RK4 step of length hh per leaf: (s, ṡ, s̈, N) at t + hh."""
+    half = 0.5 * hh
+    km = kin(t + half, ch)
+    s2 = s + half * v
+    v2 = v + half * a
+    a2 = acceleration(params, s2, v2, km)
+    s3 = s + half * v2
+    v3 = v + half * a2
+    a3 = acceleration(params, s3, v3, km)
+    ke = kin(t + hh, ch)
+    s4 = s + hh * v3
+    v4 = v + hh * a3
+    a4 = acceleration(params, s4, v4, ke)
+    sixth = hh / 6.0
+    s1 = s + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4)
+    v1 = v + sixth * (a + 2.0 * a2 + 2.0 * a3 + a4)
+    return s1, v1, acceleration(params, s1, v1, ke), normal(s1, v1, ke)
+
+
+class _Active:
+    """Compact per-leaf state of the sliding leaves."""
+
+    __slots__ = ('a', 'ch', 'fresh', 'ids', 'length', 'n', 'pending', 's', 't', 'v')
+
+    def __init__(self, ids: np.ndarray, t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray,
+                 n: np.ndarray, ch: np.ndarray, length: np.ndarray, fresh: np.ndarray, pending: np.ndarray) -> None:
+        self.ids, self.t, self.s, self.v, self.a, self.n = ids, t, s, v, a, n
+        self.ch, self.length, self.fresh, self.pending = ch, length, fresh, pending
+
+    def take(self, m: np.ndarray) -> '_Active':
+        return _Active(*(getattr(self, k)[m] for k in ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh',
+                                                        'pending')))
+
+    @staticmethod
+    def concat(parts: list['_Active']) -> '_Active':
+        return _Active(*(np.concatenate([getattr(p, k) for p in parts]) for k in
+                         ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh', 'pending')))
+
+    @property
+    def size(self) -> int:
+        return int(self.ids.size)
+
+
+def _split_at_kink(params: Params, kin: KinFn, act: '_Active', cross: np.ndarray, hh: np.ndarray,
+                   s1: np.ndarray, v1: np.ndarray, a1: np.ndarray, n1: np.ndarray) -> None:
+    """Shorten the steps across which N changes sign so that they end on its zero (in place).
+
+    Illinois (modified regula falsi) iterations on the step length, each a full RK4
+    sub-step, until |N| at the end is below ``_KINK_NTOL`` or the bracket is a few ulp
+    wide.
+    """
+    rows = np.flatnonzero(cross)
+    na, nb = act.n[rows], n1[rows].copy()
+    ha, hb = np.zeros(rows.size), hh[rows].copy()
+    t, s, v, a, ch = act.t[rows], act.s[rows], act.v[rows], act.a[rows], act.ch[rows]
+    best = hb.copy()
+    out = (s1[rows], v1[rows], a1[rows], n1[rows])
+    side = np.zeros(rows.size)          # Illinois: which end was kept last (-1 a, +1 b)
+    live = np.ones(rows.size, dtype=bool)
+    for _ in range(_KINK_MAXITER):
+        hc = hb - nb * (hb - ha) / (nb - na)
+        hc = np.where((hc > ha) & (hc < hb), hc, 0.5 * (ha + hb))
+        r = _rk4(params, kin, t[live], s[live], v[live], a[live], ch[live], hc[live])
+        nc = np.zeros(rows.size)
+        nc[live] = r[3]
+        for k, arr in enumerate(out):
+            arr[live] = r[k]
+        best[live] = hc[live]
+        conv = live & ((np.abs(nc) <= _KINK_NTOL) | (hb - ha <= 4.0 * np.spacing(t + hb)))
+        same_a = live & (nc * na > 0.0)
+        same_b = live & ~same_a
+        # replace the end with the sign of nc; halve the other end's value if it was kept twice (Illinois)
+        nb_keep = same_a & (side == -1.0)
+        na_keep = same_b & (side == 1.0)
+        ha = np.where(same_a, hc, ha)
+        na = np.where(same_a, nc, na)
+        hb = np.where(same_b, hc, hb)
+        nb = np.where(same_b, nc, nb)
+        nb = np.where(nb_keep, 0.5 * nb, nb)
+        na = np.where(na_keep, 0.5 * na, na)
+        side = np.where(same_a, -1.0, np.where(same_b, 1.0, side))
+        live &= ~conv
+        if not live.any():
+            break
+    hh[rows] = best
+    s1[rows], v1[rows], a1[rows], n1[rows] = out
+
+
+def _exit_fraction(s0: np.ndarray, v0: np.ndarray, s1: np.ndarray, v1: np.ndarray, hh: np.ndarray,
+                   length: np.ndarray) -> np.ndarray:
+    """Step fraction where the Hermite interpolant of s reaches ``length`` (s0 < length <= s1): bisection."""
+    lo = np.zeros(s0.size)
+    hi = np.ones(s0.size)
+    for _ in range(_EXIT_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        above = _hermite(mid, s0, v0, s1, v1, hh) >= length
+        hi = np.where(above, mid, hi)
+        lo = np.where(above, lo, mid)
+    return hi
+
+
+def _slip_time(params: Params, kin1: Kin1Fn, s: float, ch: int, lo: float, hi: float) -> float:
+    """Root of σ in [lo, hi] (σ(lo) <= 0 < σ(hi) on the vectorised samples), by Brent's method."""
+
+    def sigma(t: float) -> float:
+        return float(switching(params, s, kin1(t, ch)))
+
+    f_lo, f_hi = sigma(lo), sigma(hi)
+    if f_lo > 0.0:      # the scalar and vector kinematics differ in the last bits at a zero
+        return lo
+    if not f_hi > 0.0:
+        return hi
+    return brent(sigma, lo, hi).root
+
+
+def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chute: npt.ArrayLike,
+          length: npt.ArrayLike, t_end: float) -> SlideResult:
+    """Integrate every leaf from its entry to the exit (or to ``t_end``), with stick–slip.
+
+    Parameters
+    ----------
+    params : Params
+        The effect's parameters.
+    kin : callable ``kin(t, chute) -> ChuteState``
+        Vectorised chute kinematics at the times ``t`` (s) for the chutes ``chute``
+        (0: transporter 3, 1: transporter 4).
+    kin1 : callable ``kin1(t, chute) -> ChuteState``
+        The same for one leaf, floats (used by the root-finding of slip times).
+    t_enter : array_like, shape (n,)
+        Entry times, s.
+    chute : array_like of int, shape (n,)
+        Chute of each leaf.
+    length : array_like, shape (n,)
+        Chute length of each leaf (l3 or l5), m (> s0).
+    t_end : float
+        End of the run, s: leaves still on a chute then have not exited.
+
+    Returns
+    -------
+    SlideResult
+    """
+    t_enter = np.asarray(t_enter, dtype=float)
+    chute = np.asarray(chute, dtype=np.int64)
+    length = np.broadcast_to(np.asarray(length, dtype=float), t_enter.shape).copy()
+    n = t_enter.size
+    h = params.h
+    exited = np.zeros(n, dtype=bool)
+    t_exit = t_enter.copy()
+    v_exit = np.zeros(n)
+    sticks: list[tuple[int, float]] = []
+    slips: list[tuple[int, float]] = []
+    # stuck leaves: (id, s, chute, length, scan from)
+    stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    ids = np.arange(n, dtype=np.int64)
+    s = np.full(n, params.s0)
+    v = np.full(n, params.v0)
+    k0 = kin(t_enter, chute) if n else None
+    a = acceleration(params, s, v, k0) if n else np.zeros(0)
+    nrm = normal(s, v, k0) if n else np.zeros(0)
+    fresh = np.full(n, params.v0 == 0.0)
+    if params.v0 == 0.0 and n:
+        at_rest = a <= 0.0       # σ(t_enter) <= 0: stuck from the entry
+        for i, t in zip(ids[at_rest].tolist(), t_enter[at_rest].tolist()):
+            sticks.append((i, t))
+        stuck.append((ids[at_rest], s[at_rest], chute[at_rest], length[at_rest], t_enter[at_rest]))
+        keep = ~at_rest
+    else:
+        keep = np.ones(n, dtype=bool)
+    act = _Active(ids, t_enter.copy(), s, v, a, nrm, chute, length, fresh, np.full(n, -1.0)).take(keep)
+    steps = 0
+
+    while act.size or stuck:
+        if stuck:
+            resumed = _resolve_stuck(params, kin, kin1, stuck, t_end)
+            stuck = []
+            if resumed is not None:
+                act = _Active.concat([act, resumed]) if act.size else resumed
+            continue
+        steps += 1
+        hh = np.full(act.size, h)
+        s1, v1, a1, n1 = _rk4(params, kin, act.t, act.s, act.v, act.a, act.ch, hh)
+        # split steps across a sign change of N (kink of |N|)
+        cross = (act.n * n1 < 0.0) & (np.abs(act.n) > _KINK_NTOL) & (np.abs(n1) > _KINK_NTOL)
+        if cross.any():
+            _split_at_kink(params, kin, act, cross, hh, s1, v1, a1, n1)
+        t1 = act.t + hh
+
+        halted = v1 <= 0.0
+        failed = halted & act.fresh              # did not get moving after a slip / from rest
+        stop = halted & ~act.fresh
+        out_exit = (s1 >= act.length) & ~failed
+        done = out_exit | halted | (t1 > t_end)
+        new_stuck: list[tuple[int, float, float]] = []      # (row, s, scan from)
+        restart: list[tuple[int, float, float]] = []        # (row, t, s): grazing stop, slide on from rest
+
+        if out_exit.any():
+            rows = np.flatnonzero(out_exit)
+            th = _exit_fraction(act.s[rows], act.v[rows], s1[rows], v1[rows], hh[rows], act.length[rows])
+            tx = act.t[rows] + th * hh[rows]
+            vx = _hermite(th, act.v[rows], act.a[rows], v1[rows], a1[rows], hh[rows])
+            ok = (tx <= t_end) & ~stop[rows]
+            ids_ok = act.ids[rows[ok]]
+            exited[ids_ok] = True
+            t_exit[ids_ok] = tx[ok]
+            v_exit[ids_ok] = vx[ok]
+            th_exit = dict(zip(rows[stop[rows]].tolist(), th[stop[rows]].tolist()))
+        else:
+            th_exit = {}
+        for row in np.flatnonzero(stop).tolist():
+            y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]),
+                                  float(hh[row]))
+            th_stop = brentq(lambda x: _hermite1(x, y0, d0, y1, d1, hr), 0.0, 1.0)
+            t0 = float(act.t[row])
+            if row in th_exit and th_exit[row] <= th_stop:
+                t_x = t0 + th_exit[row] * hr
+                if t_x <= t_end:
+                    i = int(act.ids[row])
+                    exited[i] = True
+                    t_exit[i] = t_x
+                    v_exit[i] = _hermite1(th_exit[row], y0, d0, y1, d1, hr)
+                continue
+            t_stop = t0 + th_stop * hr
+            if t_stop > t_end:
+                continue
+            s_stop = _hermite1(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
+            ch = int(act.ch[row])
+            if float(switching(params, s_stop, kin1(t_stop, ch))) <= 0.0:
+                sticks.append((int(act.ids[row]), t_stop))
+                new_stuck.append((row, s_stop, t_stop))
+            else:
+                restart.append((row, t_stop, s_stop))
+        for row in np.flatnonzero(failed).tolist():
+            if act.pending[row] < 0.0:              # stuck from its entry / after a grazing stop
+                sticks.append((int(act.ids[row]), float(act.t[row])))
+            new_stuck.append((row, float(act.s[row]), float(t1[row])))
+        # confirmed slips: leaves that got moving after their pending slip
+        conf = act.fresh & ~failed & (act.pending >= 0.0)
+        if conf.any():
+            slips.extend(zip(act.ids[conf].tolist(), act.pending[conf].tolist()))
+
+        if new_stuck:
+            rr = np.array([x[0] for x in new_stuck], dtype=np.int64)
+            stuck.append((act.ids[rr], np.array([x[1] for x in new_stuck]), act.ch[rr], act.length[rr],
+                          np.array([x[2] for x in new_stuck])))
+        nxt = _Active(act.ids, t1, s1, v1, a1, n1, act.ch, act.length, np.zeros(act.size, dtype=bool),
+                      np.full(act.size, -1.0))
+        parts = [nxt.take(~done)]
+        if restart:
+            rr = np.array([x[0] for x in restart], dtype=np.int64)
+            tr = np.array([x[1] for x in restart])
+            sr = np.array([x[2] for x in restart])
+            kr = kin(tr, act.ch[rr])
+            zr = np.zeros(rr.size)
+            parts.append(_Active(act.ids[rr], tr, sr, zr, acceleration(params, sr, zr, kr), normal(sr, zr, kr),
+                                 act.ch[rr], act.length[rr], np.ones(rr.size, dtype=bool), np.full(rr.size, -1.0)))
+        act = _Active.concat(parts)
+
+    st = np.array([x[1] for x in sticks], dtype=float)
+    si = np.array([x[0] for x in sticks], dtype=np.int64)
+    keep_st = st <= t_end
+    sl = np.array([x[1] for x in slips], dtype=float)
+    sli = np.array([x[0] for x in slips], dtype=np.int64)
+    return SlideResult(exited, t_exit, v_exit, st[keep_st], si[keep_st], sl, sli, steps)
+
+
+def _resolve_stuck(params: Params, kin: KinFn, kin1: Kin1Fn,
+                   stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+                   t_end: float) -> '_Active | None':
+    """Find when each stuck leaf slips (σ > 0), scanning σ on a grid of step h.
+
+    Returns the leaves that slip by ``t_end`` as fresh sliding leaves with a pending
+    slip event at the slip time (confirmed when their first step moves them).
+    """
+    ids = np.concatenate([x[0] for x in stuck])
+    s = np.concatenate([x[1] for x in stuck])
+    ch = np.concatenate([x[2] for x in stuck])
+    length = np.concatenate([x[3] for x in stuck])
+    t0 = np.concatenate([x[4] for x in stuck])
+    if ids.size == 0:
+        return None
+    h = params.h
+    slip = np.full(ids.size, -1.0)
+    open_ = np.ones(ids.size, dtype=bool)
+    offsets = np.arange(_SCAN_BLOCK + 1, dtype=float) * h
+    base = t0.copy()
+    first = True
+    while open_.any():
+        rows = np.flatnonzero(open_)
+        grid = base[rows, None] + offsets[None, :]
+        ks = kin(grid.ravel(), np.repeat(ch[rows], offsets.size))
+        sig = switching(params, np.repeat(s[rows], offsets.size), ks).reshape(grid.shape)
+        pos = sig > 0.0
+        if first:
+            # a leaf whose scan starts where σ > 0 already slips there (a re-scan after a failed start)
+            at0 = pos[:, 0] & (base[rows] <= t_end)
+            if at0.any():
+                r0 = rows[at0]
+                slip[r0] = base[r0]
+                open_[r0] = False
+        hit = pos[:, 1:].any(axis=1) & open_[rows]
+        for j in np.flatnonzero(hit).tolist():
+            r = int(rows[j])
+            k = int(np.argmax(pos[j, 1:])) + 1
+            lo, hi = float(grid[j, k - 1]), float(grid[j, k])
+            if lo > t_end:
+                open_[r] = False
+                continue
+            t_s = _slip_time(params, kin1, float(s[r]), int(ch[r]), lo, hi)
+            open_[r] = False
+            if t_s <= t_end:
+                slip[r] = t_s
+        miss = open_[rows] & ~hit
+        last = grid[:, -1]
+        over = miss & (last > t_end)
+        open_[rows[over]] = False
+        base[rows] = last
+        first = False
+    ok = slip >= 0.0
+    if not ok.any():
+        return None
+    r = np.flatnonzero(ok)
+    tr = slip[r]
+    kr = kin(tr, ch[r])
+    zr = np.zeros(r.size)
+    return _Active(ids[r], tr, s[r], zr, acceleration(params, s[r], zr, kr), normal(s[r], zr, kr), ch[r], length[r],
+                   np.ones(r.size, dtype=bool), tr.copy())

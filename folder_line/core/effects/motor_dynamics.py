@@ -1,0 +1,510 @@
+"""Effect ``motor_dynamics``: the master drive from a motor torque-speed curve and inertia.
+
+Source: MACHINES.md, "Effects: suggested models", ``motor_dynamics``
+(``J dω/dt = T_m(ω) - T_load(φ, ω)``, linear ``T_m = T_0 (1 - ω/ω_0)`` near the
+operating point, load from ``chain_friction`` plus viscous ``b ω``, start from
+standstill, stop by a brake torque).
+
+Equations
+---------
+State ``y = (Θ, ω)``: Θ the master phase in nominal seconds (the drive's phase,
+:mod:`folder_line.core.drive`), ω the master-shaft speed (rad/s)::
+
+    dΘ/dt = ω / ω_nom                                      (λ = ω / ω_nom)
+    J dω/dt = T_0 (1 - ω/ω_0) - b ω - T_load(Θ)            motor on,  0 <= t < t_stop
+    J dω/dt =                - b ω - T_load(Θ) - T_brake   braking,   t_stop <= t < t_rest
+    ω = 0, Θ = Θ(t_rest)                                   at rest,   t >= t_rest
+
+``T_load`` is the delivery's sprocket torque reflected to the master shaft
+(:func:`folder_line.core.effects.chain_friction.master_load_torque`) when the scene
+lists ``chain_friction``, else 0. Start at standstill: Θ(0) = 0, ω(0) = 0.
+
+Without position-dependent load the motor-on equation is linear:
+``ω(t) = ω_ss (1 - exp(-t/τ))`` with ``c = T_0/ω_0 + b``, ``τ = J/c``,
+``ω_ss = T_0 / c``, and ``Θ(t) = (ω_ss/ω_nom) (t - τ (1 - exp(-t/τ)))``. In general the
+steady speed solves ``T_0 (1 - ω/ω_0) = b ω + mean load``:
+``ω_ss = (T_0 - L̄)/c`` (:func:`steady_speed`; ``L̄`` the mean of ``T_load`` over Θ, a
+good estimate while the speed ripple is small), ``λ_ss = ω_ss/ω_nom``. Pick ``T_0``
+for ``λ_ss = 1`` with :func:`stall_torque_for`.
+
+Discontinuities, handled exactly
+--------------------------------
+* **Brake.** The run is integrated in segments: motor on over ``[0, min(t_stop,
+  duration)]``; from ``t_stop`` the brake segment, whose right-hand side is the ω > 0
+  branch (the brake and the load oppose the motion), ends at the root ω = 0 located on
+  the dense output (:class:`~folder_line.core.integrators.Terminal`); from then on the
+  shaft stands (the brake holds it; nothing drives it) and Θ is constant.
+  ``t_stop >= duration``: the motor never stops. ``T_brake = 0``: the shaft coasts
+  down on ``b`` and the load (it may never reach rest).
+* **Chain load.** The load jumps where a carriage enters or leaves the stroke; those
+  Θ are breaks of the integrator (:class:`~folder_line.core.integrators.Breaks`):
+  no step straddles one, so both methods keep their order.
+
+Periodic steady state (``periodic=True``, the default)
+------------------------------------------------------
+The load is periodic in Θ (period ``T``, one carriage per knife cycle) and the motor
+equation does not depend on t, so once the transient has died out the solution
+repeats: ``Θ(t + P) = Θ(t) + T``, ``ω(t + P) = ω(t)``. The integrator lands on the
+period marks Θ_k (a carriage entering the stroke; without load every
+``max(τ, h) λ_free`` nominal s). When ω at three consecutive marks agrees to
+``PERIODIC_TOL ω_nom`` and the two periods ``P`` to ``PERIODIC_TOL P``, integration
+stops and the last period is repeated up to ``t_stop`` (the brake segment is
+integrated again from there). The transient left out is below about
+``PERIODIC_TOL ω_nom / (1 - exp(-T/τ))``. An hour of line time then costs the
+transient's steps only (~8 s of it on the suggested scene values: 0.2-0.6 s of CPU);
+``periodic=False`` integrates the whole span (for benchmarks of the methods).
+
+Phase and tolerances: the error norm of ``dopri5`` is relative to ``|y|``, and Θ grows
+with time, so ``rtol`` bounds the *relative* phase error per step. ``rk4`` uses the
+fixed step ``h``; it is rejected up front when ``h c / J`` exceeds RK4's stability
+limit (2.785) on the linear part.
+
+Drive protocol (:class:`MotorDrive`): ``theta``, ``rate`` (λ = ω/ω_nom), ``rate_dot``
+(the right-hand side at the dense state, /ω_nom), ``time_of`` (the integrator's
+vectorised inverse of Θ). Times are clipped to ``[0, duration]`` (the drive knows
+nothing outside the run); ``time_of`` clips Θ to ``[0, Θ(duration)]`` -- a phase
+beyond the end of the run returns ``duration`` (callers drop such events), a phase on
+the rest plateau the time the shaft came to rest. Never NaN.
+
+The step loop is sequential Python (an ODE); the right-hand side is scalar
+(:meth:`~folder_line.core.effects.chain_friction.MasterLoad.torque_piece`, ~10 µs).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from folder_line.core import integrators as ig
+from folder_line.core.effects import chain_friction
+from folder_line.core.validate import in_range, non_negative, one_of, positive
+from folder_line.errors import ParameterError
+
+__all__ = [
+    'METHODS',
+    'PERIODIC_TOL',
+    'RK4_STABILITY',
+    'MotorDrive',
+    'Params',
+    'PeriodicTail',
+    'build_drive',
+    'stall_torque_for',
+    'steady_speed',
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+METHODS = ('rk4', 'dopri5')
+#: RK4 is stable for h·|λ| up to 2.785 on the negative real axis
+RK4_STABILITY = 2.785
+#: relative agreement of ω (and of the period) at three marks that counts as periodic
+PERIODIC_TOL = 1e-12
+#: longest run accepted, s (as core.line.MAX_DURATION)
+MAX_DURATION = 1e9
+#: step attempts allowed per integration
+MAX_STEPS = 20_000_000
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of ``motor_dynamics`` (no defaults: the scene gives them all).
+
+    Attributes
+    ----------
+    J : float
+        Inertia of the master shaft with everything geared to it, kg m² (> 0).
+    T_0 : float
+        Stall torque of the linear motor curve ``T_m = T_0 (1 - ω/ω_0)``, N m (> 0).
+    omega_0 : float
+        No-load speed, rad/s (> omega_nom).
+    omega_nom : float
+        Nominal master-shaft speed (λ = ω/omega_nom), rad/s (> 0).
+    b : float
+        Viscous load of the line, N m s (>= 0).
+    method : {'rk4', 'dopri5'}
+        Fixed-step RK4 (step ``h``) or adaptive DOPRI5 (``rtol``, ``atol``, max step ``h``).
+    h : float
+        RK4 step / DOPRI5 largest step, s (> 0).
+    rtol : float
+        DOPRI5 relative tolerance, in [100 eps, 1).
+    atol : float
+        DOPRI5 absolute tolerance (Θ in nominal s, ω in rad/s), > 0.
+    t_stop : float
+        Motor switched off and brake applied at this time, s (>= 0; ``>= duration``: never).
+    T_brake : float
+        Brake torque, N m (>= 0).
+    """
+
+    J: float
+    T_0: float
+    omega_0: float
+    omega_nom: float
+    b: float
+    method: str
+    h: float
+    rtol: float
+    atol: float
+    t_stop: float
+    T_brake: float
+
+    def __post_init__(self) -> None:
+        k = 'effects.motor_dynamics.'
+        for name in ('J', 'T_0', 'omega_0', 'omega_nom', 'h', 'atol'):
+            object.__setattr__(self, name, positive(k + name, getattr(self, name)))
+        for name in ('b', 't_stop', 'T_brake'):
+            object.__setattr__(self, name, non_negative(k + name, getattr(self, name)))
+        object.__setattr__(self, 'rtol', in_range(k + 'rtol', self.rtol, 100 * ig.EPS, 1.0, hi_open=True))
+        one_of(k + 'method', self.method, METHODS)
+        if not self.omega_nom < self.omega_0:
+            raise ParameterError(k + 'omega_nom', self.omega_nom,
+                                 f'must be < omega_0 = {self.omega_0!r} rad/s: the motor cannot reach its nominal '
+                                 'speed at or above its no-load speed')
+
+    @property
+    def damping(self) -> float:
+        """``c = T_0/ω_0 + b``: slope of the net torque against ω, N m s."""
+        return self.T_0 / self.omega_0 + self.b
+
+    @property
+    def tau(self) -> float:
+        """Mechanical time constant ``J / c``, s."""
+        return self.J / self.damping
+
+    @property
+    def omega_free(self) -> float:
+        """Steady speed without chain load, ``T_0 / c``, rad/s."""
+        return self.T_0 / self.damping
+
+
+def steady_speed(params: Params, mean_load: float = 0.0) -> float:
+    """Steady speed ``(T_0 - mean_load) / (T_0/ω_0 + b)``, rad/s (mean_load in N m)."""
+    return (params.T_0 - float(mean_load)) / params.damping
+
+
+def stall_torque_for(omega_0: float, omega_nom: float, b: float, mean_load: float = 0.0,
+                     lam: float = 1.0) -> float:
+    """The ``T_0`` (N m) whose steady speed is ``lam omega_nom`` with viscous ``b`` and ``mean_load``.
+
+    Solves ``T_0 (1 - ω/ω_0) = b ω + mean_load`` at ``ω = lam omega_nom`` (rad/s; needs ω < ω_0).
+    """
+    w = lam * omega_nom
+    if not 0.0 < w < omega_0:
+        raise ParameterError('lam', lam, f'needs 0 < lam omega_nom < omega_0 = {omega_0!r}')
+    return (b * w + mean_load) / (1.0 - w / omega_0)
+
+
+@dataclass(frozen=True)
+class PeriodicTail:
+    """The repeated last period: on ``[t_b, t_end]``, ``y(t) = y(t_a + s) + n (dTheta, 0)``.
+
+    Attributes
+    ----------
+    t_a, t_b : float
+        The base period ``[t_a, t_b]`` of the integrated solution, s.
+    theta_a, theta_b : float
+        Θ at ``t_a`` and ``t_b`` (``dTheta = theta_b - theta_a``), nominal s.
+    t_end : float
+        End of the tail (motor switched off, or the end of the run), s.
+    """
+
+    t_a: float
+    t_b: float
+    theta_a: float
+    theta_b: float
+    t_end: float
+
+    @property
+    def period(self) -> float:
+        """Period in time ``P = t_b - t_a``, s."""
+        return self.t_b - self.t_a
+
+    @property
+    def dtheta(self) -> float:
+        """Θ advance per period, nominal s."""
+        return self.theta_b - self.theta_a
+
+
+class MotorDrive:
+    """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.drive`).
+
+    Built by :func:`build_drive`. Attributes of interest for benchmarks:
+
+    Attributes
+    ----------
+    params : Params
+    duration : float
+        Run length, s.
+    solution : DenseSolution
+        The integrated motor-on part (with the periodic shortcut: up to the end of the
+        base period; without: the whole run including brake and rest).
+    brake_solution : DenseSolution or None
+        Brake (and rest) segment when a periodic tail sits in between, else None (it is
+        part of ``solution``).
+    tail : PeriodicTail or None
+        The repeated period, if the shortcut was taken.
+    load : MasterLoad or None
+        The chain load.
+    t_stop : float
+        Motor off, s (``inf`` if at or after ``duration``).
+    t_rest : float
+        Standstill reached, s (``inf`` if not within the run).
+    nfev, steps, rejected : int
+        Cost of all integrations.
+    """
+
+    def __init__(self, params: Params, duration: float, solution: ig.DenseSolution,
+                 brake_solution: ig.DenseSolution | None, tail: PeriodicTail | None,
+                 load: chain_friction.MasterLoad | None, t_stop: float, t_rest: float) -> None:
+        self.params = params
+        self.duration = duration
+        self.solution = solution
+        self.brake_solution = brake_solution
+        self.tail = tail
+        self.load = load
+        self.t_stop = t_stop
+        self.t_rest = t_rest
+        parts = [s for s in (solution, brake_solution) if s is not None]
+        self.nfev = sum(s.nfev for s in parts)
+        self.steps = sum(s.steps for s in parts)
+        self.rejected = sum(s.rejected for s in parts)
+        self.theta_end = float(self._component(duration, 0))
+
+    # evaluation -------------------------------------------------------------------------
+    def _component(self, t: npt.ArrayLike, j: int) -> FloatArray:
+        """Θ (j = 0, nominal s) or ω (j = 1, rad/s) at times clipped to [0, duration]."""
+        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if self.tail is None:
+            return self.solution.component(tt, j)
+        tl = self.tail
+        out = np.empty(tt.shape)
+        head = tt <= tl.t_b
+        in_tail = ~head & (tt <= tl.t_end)
+        after = ~head & ~in_tail
+        if head.any():
+            out[head] = self.solution.component(tt[head], j)
+        if in_tail.any():
+            x = tt[in_tail] - tl.t_a
+            n = np.floor(x / tl.period)
+            tb = tl.t_a + np.clip(x - n * tl.period, 0.0, tl.period)
+            out[in_tail] = self.solution.component(tb, j) + (n * tl.dtheta if j == 0 else 0.0)
+        if after.any():
+            assert self.brake_solution is not None
+            out[after] = self.brake_solution.component(tt[after], j)
+        return out
+
+    def theta(self, t: npt.ArrayLike) -> FloatArray:
+        """Master phase Θ(t), nominal s (t clipped to [0, duration])."""
+        return self._component(t, 0)
+
+    def rate(self, t: npt.ArrayLike) -> FloatArray:
+        """Speed factor λ = ω/ω_nom (t clipped to [0, duration])."""
+        return self._component(t, 1) / self.params.omega_nom
+
+    def omega(self, t: npt.ArrayLike) -> FloatArray:
+        """Master-shaft speed ω(t), rad/s (t clipped to [0, duration])."""
+        return self._component(t, 1)
+
+    def rate_dot(self, t: npt.ArrayLike) -> FloatArray:
+        """dλ/dt, 1/s: the right-hand side at the dense state, divided by ω_nom."""
+        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        theta, omega = self._component(tt, 0), self._component(tt, 1)
+        p = self.params
+        load = self.load.torque(theta) if self.load is not None else np.zeros(tt.shape)
+        on = tt < self.t_stop
+        rest = tt >= self.t_rest
+        drive = np.where(on, p.T_0 * (1.0 - omega / p.omega_0), -p.T_brake)
+        acc = (drive - p.b * omega - load) / p.J
+        return np.where(rest & ~on, 0.0, acc) / p.omega_nom
+
+    def time_of(self, theta: npt.ArrayLike) -> FloatArray:
+        """Earliest t with Θ(t) = theta, s; theta clipped to [0, Θ(duration)] (never NaN)."""
+        th = np.asarray(theta, dtype=float)
+        if not np.all(np.isfinite(th)):
+            raise ParameterError('theta', theta, 'must be finite')
+        th = np.clip(th, 0.0, self.theta_end)
+        if self.tail is None:
+            return np.minimum(self.solution.inverse(th, 0), self.duration)
+        tl = self.tail
+        out = np.empty(th.shape)
+        theta_tail_end = float(self._component(tl.t_end, 0))
+        head = th <= tl.theta_b
+        in_tail = ~head & (th <= theta_tail_end)
+        after = ~head & ~in_tail
+        if head.any():
+            out[head] = self.solution.inverse(th[head], 0)
+        if in_tail.any():
+            n = np.floor((th[in_tail] - tl.theta_a) / tl.dtheta)
+            r = np.clip(th[in_tail] - n * tl.dtheta, tl.theta_a, tl.theta_b)
+            out[in_tail] = np.minimum(self.solution.inverse(r, 0) + n * tl.period, tl.t_end)
+        if after.any():
+            assert self.brake_solution is not None
+            out[after] = self.brake_solution.inverse(th[after], 0)
+        return np.minimum(out, self.duration)
+
+    # summaries --------------------------------------------------------------------------
+    def mean_rate(self, t0: float, t1: float) -> float:
+        """Mean λ over [t0, t1]: ``(Θ(t1) - Θ(t0)) / (t1 - t0)``."""
+        th = self.theta(np.array([t0, t1]))
+        return float((th[1] - th[0]) / (t1 - t0))
+
+    def summary(self) -> dict[str, Any]:
+        """Figures for reports: cost, steady λ, stop and rest times."""
+        out: dict[str, Any] = {
+            'method': self.params.method, 'nfev': self.nfev, 'steps': self.steps, 'rejected': self.rejected,
+            'theta_end': self.theta_end, 't_stop': self.t_stop, 't_rest': self.t_rest,
+            'lambda_free': self.params.omega_free / self.params.omega_nom,
+        }
+        if self.tail is not None:
+            out['t_periodic'] = float(self.tail.t_b)
+            out['lambda_steady'] = float(self.tail.dtheta / self.tail.period)
+        if self.load is not None:
+            out['load_mean'] = float(self.load.mean)
+            out['load_peak'] = float(self.load.peak)
+            out['lambda_estimate'] = steady_speed(self.params, self.load.mean) / self.params.omega_nom
+        return out
+
+
+def _integrate(p: Params, fun: Any, span: tuple[float, float], y0: FloatArray, breaks: ig.Breaks | None,
+               terminal: ig.Terminal | None = None) -> ig.DenseSolution:
+    if p.method == 'rk4':
+        return ig.rk4(fun, span, y0, p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
+    return ig.dopri5(fun, span, y0, rtol=p.rtol, atol=p.atol, max_step=p.h, breaks=breaks, terminal=terminal,
+                     max_steps=MAX_STEPS)
+
+
+def _check_load(p: Params, load: chain_friction.MasterLoad) -> None:
+    if load.params.P_k > 0.0 and load.locked_u.size:
+        u = load.locked_u
+        raise ParameterError('delivery.alpha_m_deg', load.delivery.alpha_m_deg,
+                             f'the delivery self-locks (or stalls) on the stroke at u in '
+                             f'[{u.min():.4g}, {u.max():.4g}]: the motor cannot drive it against '
+                             f'P_k = {load.params.P_k!r} N')
+    if not load.peak < p.T_0:
+        raise ParameterError('effects.motor_dynamics.T_0', p.T_0,
+                             f'must exceed the peak chain load on the master shaft, {load.peak:.6g} N m: '
+                             'otherwise the line stalls at standstill')
+
+
+def build_drive(scene: Any, duration: float, *, periodic: bool = True) -> MotorDrive:
+    """Integrate the motor once over ``[0, duration]`` and return the drive.
+
+    Parameters
+    ----------
+    scene : Scene
+        Lists ``motor_dynamics`` (and possibly ``chain_friction``).
+    duration : float
+        Run length, s (> 0).
+    periodic : bool
+        Take the periodic-steady-state shortcut (module docstring).
+
+    Returns
+    -------
+    MotorDrive
+
+    Raises
+    ------
+    ParameterError
+        The scene does not list ``motor_dynamics``; RK4 step beyond its stability limit;
+        stall torque not above the peak chain load; a self-locking delivery.
+    IntegrationError
+        The integration failed (too many steps, non-finite state).
+    """
+    p: Params | None = scene.effect('motor_dynamics')
+    if p is None:
+        raise ParameterError('effects', 'motor_dynamics', f'scene {scene.name!r} does not list motor_dynamics')
+    duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
+    if p.method == 'rk4' and p.h * p.damping / p.J > RK4_STABILITY:
+        raise ParameterError('effects.motor_dynamics.h', p.h,
+                             f'RK4 is unstable here: h (T_0/omega_0 + b)/J = {p.h * p.damping / p.J:.4g} > '
+                             f'{RK4_STABILITY}; use h < {RK4_STABILITY * p.J / p.damping:.4g} s or method dopri5')
+    load = chain_friction.master_load(scene, p.omega_nom) if scene.has('chain_friction') else None
+    if load is not None:
+        _check_load(p, load)
+    J, T0, w0, b, Tb, wn = p.J, p.T_0, p.omega_0, p.b, p.T_brake, p.omega_nom
+    if load is not None:
+        load_torque = load.torque_piece
+        next_break = load.next_break
+        is_mark = load.is_entry
+    else:
+        # period marks: the Θ advance over one time constant (or one largest step, if longer) at the free speed
+        mark = max(p.tau, p.h) * p.omega_free / wn
+
+        def load_torque(theta: float, piece: tuple[float, float]) -> float:
+            return 0.0
+
+        def next_break(v: float) -> float:
+            k = math.floor(v / mark) + 1
+            bk = k * mark
+            return bk if bk > v else (k + 1) * mark
+
+        def is_mark(v: float) -> bool:
+            return True
+
+    # with breaks the integrator passes the current piece; without (no load, no periodic marks) it does not
+    def rhs_on(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
+        w = y[1]
+        return np.array([w / wn, (T0 * (1.0 - w / w0) - b * w - load_torque(y[0], piece)) / J])
+
+    def rhs_brake(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
+        w = y[1]
+        return np.array([w / wn, (-b * w - load_torque(y[0], piece) - Tb) / J])
+
+    marks: list[tuple[float, float]] = []
+
+    def on_break(t: float, y: FloatArray, brk: float) -> bool:
+        if not is_mark(brk):
+            return False
+        marks.append((t, float(y[1])))
+        del marks[:-3]
+        if len(marks) < 3:
+            return False
+        (ta, wa), (tb, wb), (tc, wc) = marks
+        tol = PERIODIC_TOL * wn
+        return (abs(wc - wb) <= tol and abs(wb - wa) <= tol
+                and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb))
+
+    t_on_end = min(p.t_stop, duration)
+    y0 = np.zeros(2)
+    parts: list[ig.DenseSolution] = []
+    tail: PeriodicTail | None = None
+    y_stop = y0
+    if t_on_end > 0.0:
+        use_breaks = load is not None or periodic
+        breaks = ig.Breaks(0, next_break, on_break if periodic else None) if use_breaks else None
+        sol_on = _integrate(p, rhs_on, (0.0, t_on_end), y0, breaks)
+        parts.append(sol_on)
+        y_stop = sol_on.y[-1].copy()
+        if sol_on.status == 'stopped' and sol_on.t_end < t_on_end:
+            (ta, _), (tb, _) = marks[-2], marks[-1]
+            th = sol_on.component(np.array([ta, tb]), 0)
+            tail = PeriodicTail(t_a=ta, t_b=tb, theta_a=float(th[0]), theta_b=float(th[1]), t_end=t_on_end)
+            x = t_on_end - ta
+            n = math.floor(x / tail.period)
+            ts = ta + min(max(x - n * tail.period, 0.0), tail.period)
+            y_stop = np.array([float(sol_on.component(ts, 0)) + n * tail.dtheta, float(sol_on.component(ts, 1))])
+    t_stop = p.t_stop if p.t_stop < duration else math.inf
+    t_rest = math.inf
+    after: list[ig.DenseSolution] = []
+    if p.t_stop < duration:
+        if y_stop[1] > 0.0:
+            brk = ig.Breaks(0, next_break) if load is not None else None
+            sol_b = _integrate(p, rhs_brake, (p.t_stop, duration), y_stop, brk, ig.Terminal(1, 0.0))
+            after.append(sol_b)
+            if sol_b.status == 'terminal':
+                t_rest = sol_b.t_end
+                if t_rest < duration:
+                    after.append(ig.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
+        else:
+            t_rest = p.t_stop
+            after.append(ig.constant_solution(p.t_stop, duration, [y_stop[0], 0.0]))
+    if tail is None:
+        solution = ig.concatenate(parts + after)
+        brake_solution = None
+    else:
+        solution = parts[0]
+        brake_solution = ig.concatenate(after) if after else None
+    return MotorDrive(p, duration, solution, brake_solution, tail, load, t_stop, t_rest)

@@ -1,0 +1,203 @@
+"""``stop_bounce`` — restitution at the front stops, settle time and rebound (F).
+
+Source: MACHINES.md, "Effects: suggested models", *stop_bounce (F)*; section F
+(paper 001): "bounce of the signature off the front stops must be minimal (lowest
+impact force); it is damped mainly by fixed, pre-tensioned polymer strings over the
+signature". The paper gives no model; this one is ours.
+
+Model
+-----
+The signature hits the stops at speed ``V`` and rebounds at ``e V`` (coefficient of
+restitution ``e`` in [0, 1)). Moving away from the stops it is braked at ``a_f``
+(friction of the table and the strings; the feed belt under it pulls it back at the
+same rate), so it travels::
+
+    rebound distance   x_n = (e^n V)² / (2 a_f)
+
+stops, and is driven back onto the stops, arriving at the speed it left with,
+``e^n V``, after ``2 e^n V / a_f``. The next rebound is at ``e^{n+1} V``, and so on.
+An impact slower than ``v_rest`` does not rebound (the strings hold the signature):
+the signature is settled. So the n-th bounce (n = 1, 2, ...) happens iff the impact
+before it, at ``e^{n-1} V``, is at least ``v_rest`` (and ``e > 0``), and the number of
+bounces is, in closed form::
+
+    N = 0                                   if e = 0 or V < v_rest
+    N = 1 + floor(ln(v_rest / V) / ln e)    otherwise
+
+(corrected by one where rounding of the logarithms puts ``e^{N-1} V`` on the wrong
+side of ``v_rest``). The settle time after the first impact is the finite geometric
+sum::
+
+    t_settle = sum_{n=1..N} 2 e^n V / a_f = (2 V / a_f) e (1 - e^N) / (1 - e)
+
+and the n-th bounce starts at ``(2 V / a_f) e (1 - e^{n-1}) / (1 - e)`` after the
+first impact.
+
+Constraints (evaluated by :mod:`folder_line.core.constraints`):
+``settled_before_knife`` = knife contact − settled (s) and ``rebound`` = ``tolerance``
+− first rebound distance (m), the fold tolerance at the stops.
+
+Events: one ``bounce`` per bounce (value: its rebound distance) up to
+:data:`MAX_BOUNCE_EVENTS` per signature — past that the bounces are sub-micrometre
+and only counted (the settle time always includes all ``N``) — then ``settled``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from folder_line.core.validate import in_range, positive
+from folder_line.errors import ParameterError
+
+__all__ = ['MAX_BOUNCE_EVENTS', 'BounceSchedule', 'Params', 'bounce_count', 'bounce_schedule', 'first_rebound',
+           'settle_time']
+
+#: at most this many ``bounce`` events per signature (the count and the settle time are exact)
+MAX_BOUNCE_EVENTS = 16
+
+
+@dataclass(frozen=True)
+class Params:
+    """Impact at the front stops.
+
+    Attributes
+    ----------
+    e : float
+        Coefficient of restitution, dimensionless, in [0, 1).
+    a_f : float
+        Deceleration of the rebounding signature (table, strings, belt), m/s² (> 0).
+    tolerance : float
+        Largest admissible rebound distance (fold tolerance), m (> 0).
+    v_rest : float
+        Impacts slower than this do not rebound, m/s (> 0).
+    """
+
+    e: float
+    a_f: float
+    tolerance: float
+    v_rest: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'e', in_range('effects.stop_bounce.e', self.e, 0.0, 1.0, hi_open=True))
+        object.__setattr__(self, 'a_f', positive('effects.stop_bounce.a_f', self.a_f))
+        object.__setattr__(self, 'tolerance', positive('effects.stop_bounce.tolerance', self.tolerance))
+        object.__setattr__(self, 'v_rest', positive('effects.stop_bounce.v_rest', self.v_rest))
+
+
+def _speeds(V: npt.ArrayLike) -> np.ndarray:
+    v = np.asarray(V, dtype=float)
+    if not (np.all(np.isfinite(v)) and np.all(v >= 0.0)):
+        raise ParameterError('V', V, 'impact speed must be finite and >= 0 (m/s)')
+    return v
+
+
+def bounce_count(params: Params, V: npt.ArrayLike) -> np.ndarray:
+    """Number of bounces N after an impact at ``V`` (closed form via logarithms).
+
+    Parameters
+    ----------
+    params : Params
+        Restitution.
+    V : array_like
+        Impact speed, m/s (>= 0).
+
+    Returns
+    -------
+    ndarray of int64
+        N >= 0, shaped like ``V``: the largest N with ``e^{N-1} V >= v_rest`` (0 if
+        ``e = 0`` or ``V < v_rest``).
+    """
+    v = _speeds(V)
+    e, vr = params.e, params.v_rest
+    bouncing = v >= vr
+    if e == 0.0 or not np.any(bouncing):
+        return np.zeros(v.shape, dtype=np.int64)
+    ratio = np.where(bouncing, vr / np.where(bouncing, v, 1.0), 1.0)  # in (0, 1]
+    k = np.floor(np.log(ratio) / math.log(e))  # >= 0
+    k = np.clip(k, 0.0, 1e15)  # int64-safe; e -> 1 with v_rest -> 0 is unphysical anyway
+    # fix the rounding of the logarithms: want e^k V >= v_rest > e^(k+1) V
+    k = np.where(e ** k * v < vr, k - 1.0, k)
+    k = np.where(e ** (k + 1.0) * v >= vr, k + 1.0, k)
+    return np.where(bouncing, k.astype(np.int64) + 1, 0)
+
+
+def first_rebound(params: Params, V: npt.ArrayLike) -> np.ndarray:
+    """Rebound distance of the first bounce, ``(e V)² / (2 a_f)`` (0 if none), m."""
+    v = _speeds(V)
+    n = bounce_count(params, v)
+    ev = params.e * v
+    return np.where(n > 0, ev * ev / (2.0 * params.a_f), 0.0)
+
+
+def settle_time(params: Params, V: npt.ArrayLike) -> np.ndarray:
+    """Time from the first impact until the signature rests at the stops, s.
+
+    ``(2 V / a_f) e (1 - e^N) / (1 - e)`` with N from :func:`bounce_count` (0 if N = 0).
+    """
+    v = _speeds(V)
+    n = bounce_count(params, v)
+    e = params.e
+    return np.where(n > 0, (2.0 * v / params.a_f) * e * (1.0 - e ** n.astype(float)) / (1.0 - e), 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class BounceSchedule:
+    """The bounces of many impacts, flattened (one row per emitted bounce).
+
+    Attributes
+    ----------
+    index : ndarray of int64
+        Which impact (index into the ``V`` given) each row belongs to.
+    n : ndarray of int64
+        Bounce number, 1-based.
+    dt : ndarray
+        Start of the bounce after the first impact, s.
+    rebound : ndarray
+        Its rebound distance ``(e^n V)² / (2 a_f)``, m.
+    count : ndarray of int64
+        N per impact (all bounces, also those not emitted).
+    settle : ndarray
+        Settle time per impact, s.
+    """
+
+    index: np.ndarray
+    n: np.ndarray
+    dt: np.ndarray
+    rebound: np.ndarray
+    count: np.ndarray
+    settle: np.ndarray
+
+
+def bounce_schedule(params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUNCE_EVENTS) -> BounceSchedule:
+    """Every bounce (up to ``max_events`` per impact) of impacts at speeds ``V``, vectorised.
+
+    Parameters
+    ----------
+    params : Params
+        Restitution.
+    V : array_like, shape (M,)
+        Impact speeds, m/s.
+    max_events : int
+        Most bounce rows per impact (>= 0).
+
+    Returns
+    -------
+    BounceSchedule
+    """
+    v = _speeds(V).ravel()
+    count = bounce_count(params, v)
+    e, af = params.e, params.a_f
+    settle = np.where(count > 0, (2.0 * v / af) * e * (1.0 - e ** count.astype(float)) / (1.0 - e), 0.0)
+    emitted = np.minimum(count, max_events)
+    index = np.repeat(np.arange(v.size, dtype=np.int64), emitted)
+    starts = np.cumsum(emitted) - emitted
+    n = np.arange(index.size, dtype=np.int64) - np.repeat(starts, emitted) + 1
+    vi = v[index]
+    nf = n.astype(float)
+    dt = (2.0 * vi / af) * e * (1.0 - e ** (nf - 1.0)) / (1.0 - e)
+    speed = e ** nf * vi
+    return BounceSchedule(index, n, dt, speed * speed / (2.0 * af), count, settle)

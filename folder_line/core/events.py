@@ -1,0 +1,200 @@
+"""Exact line events and sampled joint states: the simulator's two outputs.
+
+Events are rows of one structured array, sorted by time. Their times come from
+closed forms or root-finding, never from the sampling grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    'EVENT_DTYPE',
+    'EVENT_KINDS',
+    'ConstraintSeries',
+    'JointSamples',
+    'event_kind',
+    'empty_events',
+    'make_events',
+    'merge_events',
+    'stack_samples',
+    'SubResult',
+]
+
+#: Every event kind; an event's ``kind`` field is the index in this tuple.
+#: ``value`` holds, per kind: the speed (m/s) for ``at_stops`` and ``leaf_exit``,
+#: the rebound distance (m) for ``bounce``, the landing x (m) for ``leaf_landed``
+#: and ``leaf_spilled``, the exit speed (m/s) for ``leaf_damaged``, the delay (s)
+#: for ``fault_late``, the speed factor for ``belt_slowdown_start``; 0 otherwise.
+EVENT_KINDS: tuple[str, ...] = (
+    'sheet_handover',       # F: signature taken over by the 2nd (feed) transporter
+    'at_stops',             # F: signature reaches the front stops
+    'bounce',               # F: rebound off the front stops (stop_bounce)
+    'settled',              # F: signature at rest at the front stops
+    'knife_contact',        # F: knife edge reaches the signature (knife window opens)
+    'knife_exit',           # F: knife leaves the table (window closes)
+    'released_on_pile',     # D: carriage releases the sheet onto the pile
+    'leaf_enter',           # L: leaf enters a chute
+    'leaf_exit',            # L: leaf leaves a chute exit
+    'leaf_landed',          # L: leaf lands on the container floor (value: x)
+    'leaf_spilled',         # L: leaf lands outside the container walls (value: x)
+    'leaf_damaged',         # L: leaf left a chute at or above the damage speed
+    'leaf_stick',           # L: leaf sticks on the guide (guide_friction)
+    'leaf_slip',            # L: leaf starts sliding again (guide_friction)
+    'fault_missing',        # faults: a sheet is missing from the stream
+    'fault_double',         # faults: two sheets arrive together
+    'fault_late',           # faults: a sheet is delayed (value: delay, s)
+    'belt_slowdown_start',  # faults: a belt slows down (value: speed factor)
+    'belt_slowdown_end',    # faults: the belt is back at speed
+)
+
+_KIND_INDEX = {name: i for i, name in enumerate(EVENT_KINDS)}
+
+#: t: time, s; kind: index into EVENT_KINDS; sheet: sheet/leaf id (-1 if none);
+#: cycle: machine cycle index (-1 if none); value: see EVENT_KINDS
+EVENT_DTYPE = np.dtype([('t', 'f8'), ('kind', 'i2'), ('sheet', 'i8'), ('cycle', 'i8'), ('value', 'f8')])
+
+
+def event_kind(name: str) -> int:
+    """Index of an event kind by name (KeyError names the kinds if unknown)."""
+    try:
+        return _KIND_INDEX[name]
+    except KeyError:
+        msg = f'event kind {name!r} unknown; known: {", ".join(EVENT_KINDS)}'
+        raise KeyError(msg) from None
+
+
+def empty_events() -> np.ndarray:
+    """An event table with no rows."""
+    return np.zeros(0, dtype=EVENT_DTYPE)
+
+
+def make_events(kind: str, t: npt.ArrayLike, *, sheet: npt.ArrayLike = -1, cycle: npt.ArrayLike = -1,
+                value: npt.ArrayLike = 0.0) -> np.ndarray:
+    """Rows of one kind; scalars broadcast against ``t``.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`EVENT_KINDS`.
+    t : array_like
+        Event times, s; must be finite.
+    sheet, cycle : array_like of int
+        Sheet (or leaf) ids and cycle indices.
+    value : array_like of float
+        Kind-specific value (see :data:`EVENT_KINDS`); must be finite.
+    """
+    t = np.asarray(t, dtype=float).ravel()
+    out = np.zeros(t.size, dtype=EVENT_DTYPE)
+    out['t'] = t
+    out['kind'] = event_kind(kind)
+    out['sheet'] = np.broadcast_to(np.asarray(sheet, dtype=np.int64).ravel() if np.ndim(sheet) else sheet, t.shape)
+    out['cycle'] = np.broadcast_to(np.asarray(cycle, dtype=np.int64).ravel() if np.ndim(cycle) else cycle, t.shape)
+    out['value'] = np.broadcast_to(np.asarray(value, dtype=float).ravel() if np.ndim(value) else value, t.shape)
+    if not (np.all(np.isfinite(out['t'])) and np.all(np.isfinite(out['value']))):
+        msg = f'{kind} events: times and values must be finite'
+        raise ValueError(msg)
+    return out
+
+
+def merge_events(tables: Iterable[np.ndarray]) -> np.ndarray:
+    """Concatenate event tables and sort by time, then kind, then sheet (stable, deterministic)."""
+    tables = [tb for tb in tables if tb.size]
+    if not tables:
+        return empty_events()
+    allev = np.concatenate(tables)
+    order = np.lexsort((allev['sheet'], allev['kind'], allev['t']))
+    return allev[order]
+
+
+@dataclass(frozen=True, eq=False)
+class JointSamples:
+    """Joint states of one machine sampled on a time grid (a JointState stream).
+
+    Attributes
+    ----------
+    machine : str
+        Machine (node) name, e.g. ``'crank_drive'``.
+    names : tuple of str
+        Joint names, J of them.
+    t : ndarray, shape (N,)
+        Sample times, s.
+    position, velocity : ndarray, shape (N, J)
+        Positions (rad or m) and velocities (rad/s or m/s) per joint.
+    effort : ndarray, shape (N, J), or None
+        Efforts (N·m or N) where the scene computes them.
+    """
+
+    machine: str
+    names: tuple[str, ...]
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class ConstraintSeries:
+    """One cyclogram constraint evaluated every cycle (or every sheet/leaf).
+
+    Attributes
+    ----------
+    name : str
+        Constraint name, e.g. ``'feed_window'``.
+    unit : str
+        Unit of the margin: ``'s'``, ``'m'``, ``'m/s'`` or ``'sheets'``.
+    cycle : ndarray of int64
+        Cycle (or leaf) index of each evaluation.
+    margin : ndarray of float64
+        Margin per evaluation; negative means violated. Always finite.
+    description : str
+        What is checked, in words.
+    """
+
+    name: str
+    unit: str
+    cycle: np.ndarray
+    margin: np.ndarray
+    description: str = ''
+
+    @property
+    def violated(self) -> np.ndarray:
+        """Boolean mask of the violated evaluations."""
+        return self.margin < 0.0
+
+
+def stack_samples(machine: str, names: Sequence[str], t: np.ndarray, positions: Sequence[np.ndarray],
+                  velocities: Sequence[np.ndarray], efforts: Sequence[np.ndarray] | None = None) -> JointSamples:
+    """Build :class:`JointSamples` from per-joint columns."""
+    pos = np.column_stack(positions) if positions else np.zeros((t.size, 0))
+    vel = np.column_stack(velocities) if velocities else np.zeros((t.size, 0))
+    eff = np.column_stack(efforts) if efforts is not None else None
+    return JointSamples(machine, tuple(names), t, pos, vel, eff)
+
+
+@dataclass(frozen=True, eq=False)
+class SubResult:
+    """What one part of the line (L, or F with D) hands back to :func:`folder_line.core.line.simulate`.
+
+    Attributes
+    ----------
+    events : ndarray of EVENT_DTYPE
+        Exact events, any order (merged and sorted by the caller).
+    samples : dict of str to JointSamples
+        Node name (``crank_drive``, ``belt_conveyor``, ``feed_transporter``) -> joint
+        states on the common sample grid; joints of the same node from several parts
+        are concatenated by the caller.
+    constraints : list of ConstraintSeries
+        Constraints evaluated per cycle (or per leaf).
+    summary : dict
+        JSON-ready figures of this part (ints, floats, lists, dicts only).
+    """
+
+    events: np.ndarray
+    samples: dict[str, JointSamples]
+    constraints: list[ConstraintSeries]
+    summary: dict[str, object]

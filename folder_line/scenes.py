@@ -1,0 +1,164 @@
+"""Scene files: ``config/scenes/<name>.yaml`` (or any path), merged with the defaults.
+
+A scene file's machine sections may give any subset of a machine's keys; the rest
+come from ``config/<section>.yaml``. ``--set KEY=VALUE`` overrides are applied last:
+``<machine>.<key>`` (``feed_transporter.V_tr=5.833``), ``<effect>.<key>`` for a
+listed effect (``feed_slip.mu=0.2``), ``sheets.<key>``, ``drive.<key>``, ``seed``,
+``sample_rate``. The merged mapping is validated by
+:func:`folder_line.core.scene.parse_scene`.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import yaml
+
+from folder_line.core.effects import EFFECTS
+from folder_line.core.scene import MACHINE_KINDS, Scene, parse_scene
+from folder_line.errors import ParameterError
+from folder_line.params import config_dir, read_yaml_mapping
+
+__all__ = ['list_scenes', 'load_scene', 'parse_set', 'resolve_scene', 'scene_mapping']
+
+
+def list_scenes() -> list[str]:
+    """Names of the scenes shipped in ``config/scenes``."""
+    return sorted(p.stem for p in (config_dir() / 'scenes').glob('*.yaml'))
+
+
+def resolve_scene(name_or_path: str | os.PathLike[str]) -> Path:
+    """Path of a scene given by name (``folder``) or by file path."""
+    text = str(name_or_path)
+    path = Path(text)
+    if path.suffix in ('.yaml', '.yml') or os.sep in text or path.is_file():
+        if not path.is_file():
+            raise ParameterError('--scene', text, 'no such file')
+        return path
+    shipped = config_dir() / 'scenes' / f'{text}.yaml'
+    if not shipped.is_file():
+        raise ParameterError('--scene', text, f'no such scene; shipped scenes: {", ".join(list_scenes())}')
+    return shipped
+
+
+def parse_set(items: Iterable[str]) -> dict[str, Any]:
+    """``['feed_transporter.V_tr=5.833', ...]`` -> ``{'feed_transporter.V_tr': 5.833}`` (values as YAML scalars)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition('=')
+        key = key.strip()
+        if not sep or not key:
+            raise ParameterError('--set', item, 'must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833')
+        try:
+            value = yaml.safe_load(raw) if raw.strip() else None
+        except yaml.YAMLError:
+            value = raw
+        if isinstance(value, str):  # YAML 1.1 reads 1e9 as a string; a user means the number
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+        if isinstance(value, (dict, list)):
+            raise ParameterError(key, raw, 'must be a single value')
+        out[key] = value
+    return out
+
+
+def _effects_mapping(raw: Any) -> dict[str, Any]:
+    if raw is None:
+        return {}
+    if isinstance(raw, list):  # effects: [name, {name: params}, ...]
+        out: dict[str, Any] = {}
+        for item in raw:
+            if isinstance(item, str):
+                out[item] = {}
+            elif isinstance(item, Mapping) and len(item) == 1:
+                out.update({k: dict(v or {}) for k, v in item.items()})
+            else:
+                raise ParameterError('effects', item, 'each entry must be a name or {name: {params}}')
+        return out
+    if isinstance(raw, Mapping):
+        return {k: dict(v or {}) for k, v in raw.items()}
+    raise ParameterError('effects', raw, 'must be a list or a mapping of effect names')
+
+
+def scene_mapping(name_or_path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The complete mapping of a scene: file, defaults and overrides merged (not yet validated)."""
+    path = resolve_scene(name_or_path)
+    data = read_yaml_mapping(path, '--scene')
+    data = copy.deepcopy(data)
+    data.setdefault('name', path.stem)
+    machines_in = data.get('machines')
+    if not isinstance(machines_in, Mapping) or not machines_in:
+        raise ParameterError('machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINE_KINDS)}')
+    machines: dict[str, dict[str, Any]] = {}
+    for section, values in machines_in.items():
+        if section not in MACHINE_KINDS:
+            raise ParameterError('machines', section, f'unknown machine; known: {", ".join(MACHINE_KINDS)}')
+        if values is not None and not isinstance(values, Mapping):
+            raise ParameterError(f'machines.{section}', values, 'must be a mapping of key: value')
+        merged = read_yaml_mapping(config_dir() / f'{section}.yaml', f'{section} defaults')
+        for key, value in (values or {}).items():
+            if key not in merged:
+                raise ParameterError(f'{section}.{key}', value, f'unknown key; known: {", ".join(merged)}')
+            merged[key] = value
+        machines[section] = merged
+    data['machines'] = machines
+    sheets = read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets defaults')
+    sheets.update(data.get('sheets') or {})
+    data['sheets'] = sheets
+    data['effects'] = _effects_mapping(data.get('effects'))
+    data.setdefault('drive', {'profile': 'constant'})
+    for key, value in (overrides or {}).items():
+        _apply(data, key, value)
+    return data
+
+
+def _apply(data: dict[str, Any], key: str, value: Any) -> None:
+    if key in ('seed', 'sample_rate'):
+        data[key] = value
+        return
+    head, sep, field = key.partition('.')
+    if not sep or not field or '.' in field:
+        raise ParameterError(key, value, 'must be SECTION.KEY (a machine, a listed effect, sheets or drive), '
+                             'seed or sample_rate')
+    if head in MACHINE_KINDS:
+        section = data['machines'].get(head)
+        if section is None:
+            raise ParameterError(key, value, f'scene {data["name"]!r} has no machine {head!r}; '
+                                 f'it has {", ".join(data["machines"])}')
+    elif head in EFFECTS:
+        section = data['effects'].get(head)
+        if section is None:
+            raise ParameterError(key, value, f'scene {data["name"]!r} does not list effect {head!r}; '
+                                 f'it lists {", ".join(data["effects"]) or "none"}')
+    elif head in ('sheets', 'drive'):
+        section = data[head]
+    else:
+        raise ParameterError(key, value, f'unknown section {head!r}; machines: {", ".join(MACHINE_KINDS)}; '
+                             f'effects: {", ".join(EFFECTS)}; or sheets, drive')
+    if head in MACHINE_KINDS or head == 'sheets':
+        if field not in section:
+            raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')
+    section[field] = value
+
+
+def load_scene(name_or_path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None) -> Scene:
+    """Load, merge and validate a scene.
+
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A shipped scene name (``folder``, ``layup``, ``line``) or a YAML file.
+    overrides : mapping, optional
+        ``{'feed_transporter.V_tr': 5.833, ...}`` as from ``--set``.
+
+    Raises
+    ------
+    ParameterError, AssemblyError
+        Naming the offending key and value.
+    """
+    return parse_scene(scene_mapping(name_or_path, overrides))
