@@ -17,6 +17,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     # The ROS 2 stack (rclpy, message packages) comes from the ROS install or, for
     # `make`, from requirements.txt: it is deliberately not listed here.
@@ -31,6 +32,11 @@ setup(
         'console_scripts': [
             'folder-line = folder_line.cli:main',
             'line_clock = folder_line.nodes.line_clock:main',
+            'crank_drive = folder_line.nodes.crank_drive:main',
+            'belt_conveyor = folder_line.nodes.belt_conveyor:main',
+            'feed_transporter = folder_line.nodes.feed_transporter:main',
+            'sheet_counter = folder_line.nodes.sheet_counter:main',
+            'supervisor = folder_line.nodes.supervisor:main',
         ],
     },
 )

@@ -38,6 +38,16 @@ def _duration(text: str) -> float:
     return value
 
 
+def _rtf(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be a number') from None
+    if not 0.0 < value <= 1000.0:
+        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be in (0, 1000]')
+    return value
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
@@ -55,6 +65,15 @@ def _build_parser() -> argparse.ArgumentParser:
     sim.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
                      help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)')
     sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+
+    run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
+    run.add_argument('--scene', default='folder', metavar='NAME|FILE', help='scene (default folder)')
+    run.add_argument('--duration', type=_duration, default=20.0, metavar='S', help='line time, s (default 20)')
+    run.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
+                     help='override a scene value (repeatable)')
+    run.add_argument('--rtf', type=_rtf, default=1.0, metavar='X', help='real-time factor (default 1)')
+    run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+    run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
     rep.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
@@ -89,6 +108,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from folder_line.run import RunConfig, print_run_summary, run_line
+
+    cfg = RunConfig(scene=args.scene, duration=args.duration, overrides=tuple(args.overrides), rtf=args.rtf,
+                    out=Path(args.out), processes=args.processes)
+    result = run_line(cfg, sys.stdout)
+    print_run_summary(result.summary, cfg.out, sys.stdout)
+    if result.summary.get('interrupted'):
+        print('interrupted: the line was stopped early', file=sys.stderr)
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from folder_line.report import write_report
 
@@ -100,7 +131,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``folder-line``; returns the process exit code."""
     parser = _build_parser()
     args = parser.parse_args(argv)
-    handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'report': _cmd_report}[args.verb]
+    handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'run': _cmd_run,
+               'report': _cmd_report}[args.verb]
     try:
         return handler(args)
     except FolderLineError as exc:

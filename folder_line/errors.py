@@ -16,6 +16,7 @@ __all__ = [
     'NonFiniteValueError',
     'NoConvergenceError',
     'IntegrationError',
+    'TransitionError',
 ]
 
 
@@ -143,4 +144,23 @@ class IntegrationError(FolderLineError, RuntimeError):
     def __init__(self, method: str, step: int, t: float, h: float, reason: str) -> None:
         self.method, self.step, self.t, self.h, self.reason = method, step, t, h, reason
         msg = f'{method}: step {step} starting at t={t!r} with h={h!r}: {reason}'
+        super().__init__(msg)
+
+
+class TransitionError(FolderLineError):
+    """The supervisor refuses a command in its current state.
+
+    Parameters
+    ----------
+    state : str
+        Current PackML state.
+    command : str
+        The refused command.
+    reason : str
+        Why, and from which states the command is legal.
+    """
+
+    def __init__(self, state: str, command: str, reason: str) -> None:
+        self.state, self.command, self.reason = state, command, reason
+        msg = f'{command!r} refused in state {state}: {reason}'
         super().__init__(msg)

@@ -166,8 +166,15 @@ class ChainPath:
         return ((c[3] * tau + c[2]) * tau + c[1]) * tau + c[0]
 
     def position(self, s: npt.ArrayLike) -> FloatArray:
-        """Stroke position ``u`` at chain travel ``s`` from the stroke start (in [0, S], clipped)."""
-        ss = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        """Stroke position ``u`` at chain travel ``s`` from the stroke start (in [0, S], clipped).
+
+        One element goes through :meth:`position1` (the same operations in plain
+        Python, bit for bit the same result, ~20 times faster than the array path).
+        """
+        sa = np.asarray(s, dtype=float)
+        if sa.size == 1:
+            return np.full(sa.shape, self.position1(float(sa.reshape(-1)[0])))
+        ss = np.clip(sa, 0.0, self.length)
         i = np.clip(np.searchsorted(self._s, ss, side='right') - 1, 0, self._du.size - 1)
         c = self._c[:, i]
         tau = (ss - c[0]) / (self._s[i + 1] - c[0])
@@ -281,6 +288,14 @@ class ChainSchedule:
             entry or the exit (to rounding) counts as there, not as off the stroke.
         """
         th = np.asarray(Theta, dtype=float)
+        if th.size == 1:  # one node tick: the same operations on Python floats, bit for bit
+            v = float(th.reshape(-1)[0])
+            x1 = v - self.theta_enter0
+            p1 = x1 - math.floor(x1 / self.T) * self.T
+            s1 = 4.0 * EPS * (abs(v) + abs(self.theta_enter0) + self.T)
+            if p1 >= self.T - s1:
+                p1 = p1 - self.T
+            return np.full(th.shape, self.v_A * p1), np.full(th.shape, self.v_A * s1)
         x = th - self.theta_enter0
         ph = x - np.floor(x / self.T) * self.T
         slack = 4.0 * EPS * (np.abs(th) + abs(self.theta_enter0) + self.T)

@@ -59,6 +59,18 @@ exit speed is >= v_damage emit ``leaf_damaged``.
 
 Events are kept only up to ``duration``; a leaf still on a chute or in the air then
 has not exited or landed.
+
+Held line
+---------
+The leaf stream comes from upstream and is in line time, so it does not stop when
+the supervisor holds the master drive (:mod:`folder_line.core.drive`): with belts a
+leaf entering a standing chute waits on the standing belt and leaves when it runs
+again; without belts (the paper's picture) it drops at the exit with the chute's
+swing velocity, 0 while held. The crank and the belts stand still.
+
+:class:`LayupLine` computes the events, constraints and summary once per scene,
+drive and duration and samples the joint states at any times;
+:func:`simulate_layup` is its thin wrapper.
 """
 
 from __future__ import annotations
@@ -67,6 +79,7 @@ import math
 from typing import Any, Optional
 
 import numpy as np
+import numpy.typing as npt
 
 from folder_line.core import rng as rng_mod
 from folder_line.core.drive import Drive
@@ -83,7 +96,7 @@ from folder_line.core.layup import TAU, LayupModel, LayupParams, sweep, swing_ex
 from folder_line.core.machines import StreamParams
 from folder_line.errors import ParameterError
 
-__all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics', 'leaf_stream', 'simulate_layup']
+__all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics', 'LayupLine', 'leaf_stream', 'simulate_layup']
 
 #: half-width of the crank-angle window about a swing extreme for the summary, rad (5°)
 EXTREME_WINDOW = math.radians(5.0)
@@ -229,6 +242,247 @@ def _stats(x: np.ndarray) -> Optional[dict[str, float]]:
     return {'leaves': int(x.size), 'mean': float(np.mean(x)), 'min': float(np.min(x)), 'max': float(np.max(x))}
 
 
+class LayupLine:
+    """The layup part of the line on a drive over ``[0, duration]``: built once, sampled anywhere.
+
+    Construction computes the events, constraints and summary (:func:`simulate_layup`
+    documents them); :meth:`sample` gives the joint states at any times.
+
+    Parameters
+    ----------
+    scene : Scene
+        Validated scene with a ``layup`` machine (and ``container`` for ``leaf_flight``).
+    drive : Drive
+        The master drive.
+    duration : float
+        Line time, s (> 0).
+
+    Attributes
+    ----------
+    events : ndarray of EVENT_DTYPE
+        Sorted by time.
+    constraints : list of ConstraintSeries
+    summary : dict
+    nodes : dict of str to tuple of str
+        Node -> joint names of this part.
+    kinematics : LayupKinematics
+    """
+
+    def __init__(self, scene: Any, drive: Drive, duration: float) -> None:
+        lp: LayupParams = scene.machine('layup')
+        kin = LayupKinematics(lp, drive)
+        duration = float(duration)
+        theta_end = float(np.asarray(drive.theta(np.asarray(duration)), dtype=float))
+        belts_on = scene.has('chute_belts')
+        friction_on = scene.has('guide_friction') and not belts_on
+        flight_on = scene.has('leaf_flight')
+        damage_on = scene.has('leaf_damage')
+        faults_on = scene.has('faults')
+        sw = sweep(lp)
+
+        # ------------------------------------------------------------------ stream
+        slot, t_nom = leaf_stream(scene.sheets, duration, scene.seed)
+        in_run = (t_nom >= 0.0) & (t_nom <= duration)
+        tables: list[np.ndarray] = []
+        belts = effect_module('chute_belts') if belts_on else None
+        slow = None
+        if faults_on:
+            faults = effect_module('faults')
+            fp = scene.effect('faults')
+            sf = faults.draw_sheet_faults(fp, int(slot.size), rng_mod.stream(scene.seed, 'layup.faults'))
+            sub = faults.SheetFaults(sf.missing[in_run], sf.double[in_run], sf.delay[in_run])
+            if belts_on:
+                slow = faults.draw_slowdowns(fp, duration, 60.0 / lp.n_kr,
+                                             rng_mod.stream(scene.seed, 'layup.belt_slowdowns'))
+            ids_run, t_run = slot[in_run], t_nom[in_run]
+            tables.append(faults.fault_events(sub, t_run, ids_run, kin.cycle(t_run), slow if slow is not None
+                                              else _empty_slowdowns(faults), duration))
+            present = ~sub.missing
+            dbl = present & sub.double
+            ids = np.concatenate([ids_run[present], ids_run[dbl]])
+            t_in = np.concatenate([(t_run + sub.delay)[present], (t_run + sub.delay)[dbl]])
+            order = np.lexsort((ids, t_in))
+            ids, t_in = ids[order], t_in[order]
+        else:
+            ids, t_in = slot[in_run], t_nom[in_run]
+        entered = t_in <= duration
+        ids, t_in = ids[entered], t_in[entered]
+        chute = (ids % 2).astype(np.int64)
+        length = np.where(chute == 1, lp.l5, lp.l3)
+        n = int(ids.size)
+        if n:
+            tables.append(make_events('leaf_enter', t_in, sheet=ids, cycle=kin.cycle(t_in)))
+
+        # ------------------------------------------------------------------ exit
+        profile = None
+        v_along = np.zeros(n)
+        if belts_on:
+            v_tr = belts.check_belt_speed(lp.v_tr)
+            if slow is not None:
+                profile = belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
+            else:
+                profile = belts.belt_profile(v_tr, drive, duration)
+            t_out, exited = belts.exit_times(profile, drive, length, t_in, theta_end)
+            if exited.any():
+                v_along[exited] = belts.belt_speed(profile, drive, t_out[exited])
+        elif friction_on:
+            gf = effect_module('guide_friction')
+            gp = scene.effect('guide_friction')
+            gf.check_geometry(gp, min(lp.l3, lp.l5), min(-sw.yC[1] / lp.l3, -sw.yE[1] / lp.l5))
+
+            def kin_vec(t: np.ndarray, ch: np.ndarray) -> Any:
+                q = kin.chute(t, ch)
+                return gf.ChuteState(q['sin'], q['cos'], q['omega'], q['eps'])
+
+            def kin_one(t: float, ch: int) -> Any:
+                return gf.ChuteState(*kin.chute_scalar(t, ch))
+
+            res = gf.slide(gp, kin_vec, kin_one, t_in, chute, length, duration)
+            t_out, exited = res.t_exit, res.exited
+            v_along = np.where(exited, res.v_exit, 0.0)
+            if res.stick_t.size:
+                tables.append(make_events('leaf_stick', res.stick_t, sheet=ids[res.stick_leaf],
+                                          cycle=kin.cycle(res.stick_t)))
+            if res.slip_t.size:
+                tables.append(make_events('leaf_slip', res.slip_t, sheet=ids[res.slip_leaf],
+                                          cycle=kin.cycle(res.slip_t)))
+        else:
+            t_out, exited = t_in.copy(), np.ones(n, dtype=bool)
+
+        xi = np.flatnonzero(exited)
+        t_x, id_x, ch_x = t_out[xi], ids[xi], chute[xi]
+        q = kin.chute(t_x, ch_x)
+        u = v_along[xi]
+        vp = q['v_perp']
+        if belts_on:
+            speed = belts.absolute_speed(vp, u)
+        else:
+            speed = np.sqrt(vp * vp + u * u)
+        # t̂ = (sin, −cos), n̂ = (cos, sin)
+        vx = u * q['sin'] + vp * q['cos']
+        vy = -u * q['cos'] + vp * q['sin']
+        cyc_x = kin.cycle(t_x)
+        if xi.size:
+            tables.append(make_events('leaf_exit', t_x, sheet=id_x, cycle=cyc_x, value=speed))
+
+        constraints: list[ConstraintSeries] = []
+        n_damaged = 0
+        upper = None
+        if damage_on:
+            dmg_mod = effect_module('leaf_damage')
+            dp = scene.effect('leaf_damage')
+            bad = dmg_mod.damaged(dp, speed)
+            n_damaged = int(bad.sum())
+            if n_damaged:
+                tables.append(make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad]))
+            if belts_on:
+                upper = dmg_mod.upper_margin(dp, speed)
+        if belts_on:
+            bp = scene.effect('chute_belts')
+            desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
+            if upper is not None:
+                desc += f' and < v_damage = {scene.effect("leaf_damage").v_damage:g} m/s'
+            constraints.append(ConstraintSeries('chute_speed', 'm/s', id_x.astype(np.int64),
+                                                belts.speed_margin(bp, speed, upper), desc + ' (per leaf)'))
+
+        # ------------------------------------------------------------------ flight
+        summary_flight: dict[str, Any] = {}
+        n_landed = n_spilled = 0
+        if flight_on:
+            lf = effect_module('leaf_flight')
+            fpar = scene.effect('leaf_flight')
+            cont = scene.machine('container')
+            lowest = min(sw.yC[0], sw.yE[0])
+            if not cont.y_floor < lowest:
+                raise ParameterError('container.y_floor', cont.y_floor,
+                                     f'must be below the lowest chute exit (y = {lowest!r} m)')
+            t_f, x_land = lf.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
+            t_land = t_x + t_f
+            down = t_land <= duration
+            inside = (x_land >= cont.x_left) & (x_land <= cont.x_right)
+            li, si = down & inside, down & ~inside
+            n_landed, n_spilled = int(li.sum()), int(si.sum())
+            if n_landed:
+                tables.append(make_events('leaf_landed', t_land[li], sheet=id_x[li], cycle=kin.cycle(t_land[li]),
+                                          value=x_land[li]))
+            if n_spilled:
+                tables.append(make_events('leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]),
+                                          value=x_land[si]))
+            hist = lf.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
+            summary_flight = {
+                'landing_histogram': {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]},
+                'landing_cv': hist.cv,
+                'landing_x': _stats(x_land[li]),
+                'spilled_left': int((si & (x_land < cont.x_left)).sum()),
+                'spilled_right': int((si & (x_land > cont.x_right)).sum()),
+            }
+
+        # ------------------------------------------------------------------ summary
+        summary = _summary(kin, lp, theta_end, n, t_x, speed, u, q['phi'], n_landed, n_spilled, n_damaged)
+        summary.update(summary_flight)
+        if friction_on:
+            summary['guide_friction'] = {'steps': int(res.steps), 'sticks': int(res.stick_t.size),
+                                         'slips': int(res.slip_t.size),
+                                         'exit_speed_along': _stats(u)}
+        self.scene = scene
+        self.drive = drive
+        self.duration = duration
+        self.kinematics = kin
+        self.profile = profile
+        self.events = merge_events(tables)
+        self.constraints = constraints
+        self.summary = summary
+        self.nodes: dict[str, tuple[str, ...]] = {'crank_drive': ('layup_crank', 'transporter3', 'transporter4')}
+        if belts_on:
+            self.nodes['belt_conveyor'] = ('chute_belts',)
+
+    def result(self, t_samples: npt.ArrayLike) -> SubResult:
+        """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
+        t = np.asarray(t_samples, dtype=float)
+        samples = self.sample(t) if t.size else {}
+        return SubResult(events=self.events, samples=samples, constraints=self.constraints, summary=self.summary)
+
+    def sample(self, t: npt.ArrayLike, theta: np.ndarray | None = None,
+               lam: np.ndarray | None = None) -> dict[str, JointSamples]:
+        """Joint states of every node of the layup at times ``t`` (see :func:`simulate_layup`).
+
+        Parameters
+        ----------
+        t : array_like, shape (N,)
+            Line times, s, in [0, duration].
+        theta, lam : ndarray, optional
+            ``drive.theta(t)`` and ``drive.rate(t)`` if already at hand.
+        """
+        t = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(t, theta, lam)
+        return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
+
+    def _drive_state(self, t: np.ndarray, theta: np.ndarray | None,
+                     lam: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        if theta is None:
+            theta = np.asarray(self.drive.theta(t), dtype=float)
+        if lam is None:
+            lam = np.asarray(self.drive.rate(t), dtype=float)
+        return theta, lam
+
+    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
+                    lam: np.ndarray | None = None) -> JointSamples:
+        """Joint states of one node (``crank_drive``; ``belt_conveyor`` with belts) at ``t``."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(t, theta, lam)
+        kin = self.kinematics
+        if node == 'crank_drive':
+            phi = kin.wrap(theta * kin.turns_rate)
+            st = kin.model.arrays(phi, accelerations=False)  # θ, ω do not depend on the accelerations
+            return stack_samples('crank_drive', ['layup_crank', 'transporter3', 'transporter4'], t,
+                                 [phi, st.theta3, st.theta5], [kin.omega * lam, st.omega3 * lam, st.omega5 * lam])
+        if node == 'belt_conveyor' and self.profile is not None:
+            pr = self.profile
+            return stack_samples('belt_conveyor', ['chute_belts'], t, [pr.v_tr * pr.phase.at(t, theta)],
+                                 [pr.v_tr * lam * pr.phase.factor(t)])
+        raise KeyError(f'node {node!r} has no layup joints; nodes: {", ".join(self.nodes)}')
+
+
 def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
     """Simulate the layup part of the line.
 
@@ -278,175 +532,7 @@ def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndar
         with ``leaf_flight``; a guide-friction entry point beyond a chute, or a chute
         pointing upward, with ``guide_friction``.
     """
-    lp: LayupParams = scene.machine('layup')
-    kin = LayupKinematics(lp, drive)
-    duration = float(duration)
-    theta_end = float(np.asarray(drive.theta(np.asarray(duration)), dtype=float))
-    belts_on = scene.has('chute_belts')
-    friction_on = scene.has('guide_friction') and not belts_on
-    flight_on = scene.has('leaf_flight')
-    damage_on = scene.has('leaf_damage')
-    faults_on = scene.has('faults')
-    sw = sweep(lp)
-
-    # ------------------------------------------------------------------ stream
-    slot, t_nom = leaf_stream(scene.sheets, duration, scene.seed)
-    in_run = (t_nom >= 0.0) & (t_nom <= duration)
-    tables: list[np.ndarray] = []
-    belts = effect_module('chute_belts') if belts_on else None
-    slow = None
-    if faults_on:
-        faults = effect_module('faults')
-        fp = scene.effect('faults')
-        sf = faults.draw_sheet_faults(fp, int(slot.size), rng_mod.stream(scene.seed, 'layup.faults'))
-        sub = faults.SheetFaults(sf.missing[in_run], sf.double[in_run], sf.delay[in_run])
-        if belts_on:
-            slow = faults.draw_slowdowns(fp, duration, 60.0 / lp.n_kr,
-                                         rng_mod.stream(scene.seed, 'layup.belt_slowdowns'))
-        ids_run, t_run = slot[in_run], t_nom[in_run]
-        tables.append(faults.fault_events(sub, t_run, ids_run, kin.cycle(t_run), slow if slow is not None
-                                          else _empty_slowdowns(faults), duration))
-        present = ~sub.missing
-        dbl = present & sub.double
-        ids = np.concatenate([ids_run[present], ids_run[dbl]])
-        t_in = np.concatenate([(t_run + sub.delay)[present], (t_run + sub.delay)[dbl]])
-        order = np.lexsort((ids, t_in))
-        ids, t_in = ids[order], t_in[order]
-    else:
-        ids, t_in = slot[in_run], t_nom[in_run]
-    entered = t_in <= duration
-    ids, t_in = ids[entered], t_in[entered]
-    chute = (ids % 2).astype(np.int64)
-    length = np.where(chute == 1, lp.l5, lp.l3)
-    n = int(ids.size)
-    if n:
-        tables.append(make_events('leaf_enter', t_in, sheet=ids, cycle=kin.cycle(t_in)))
-
-    # ------------------------------------------------------------------ exit
-    profile = None
-    v_along = np.zeros(n)
-    if belts_on:
-        v_tr = belts.check_belt_speed(lp.v_tr)
-        if slow is not None:
-            profile = belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
-        else:
-            profile = belts.belt_profile(v_tr, drive, duration)
-        t_out, exited = belts.exit_times(profile, drive, length, t_in, theta_end)
-        if exited.any():
-            v_along[exited] = belts.belt_speed(profile, drive, t_out[exited])
-    elif friction_on:
-        gf = effect_module('guide_friction')
-        gp = scene.effect('guide_friction')
-        gf.check_geometry(gp, min(lp.l3, lp.l5), min(-sw.yC[1] / lp.l3, -sw.yE[1] / lp.l5))
-
-        def kin_vec(t: np.ndarray, ch: np.ndarray) -> Any:
-            q = kin.chute(t, ch)
-            return gf.ChuteState(q['sin'], q['cos'], q['omega'], q['eps'])
-
-        def kin_one(t: float, ch: int) -> Any:
-            return gf.ChuteState(*kin.chute_scalar(t, ch))
-
-        res = gf.slide(gp, kin_vec, kin_one, t_in, chute, length, duration)
-        t_out, exited = res.t_exit, res.exited
-        v_along = np.where(exited, res.v_exit, 0.0)
-        if res.stick_t.size:
-            tables.append(make_events('leaf_stick', res.stick_t, sheet=ids[res.stick_leaf],
-                                      cycle=kin.cycle(res.stick_t)))
-        if res.slip_t.size:
-            tables.append(make_events('leaf_slip', res.slip_t, sheet=ids[res.slip_leaf],
-                                      cycle=kin.cycle(res.slip_t)))
-    else:
-        t_out, exited = t_in.copy(), np.ones(n, dtype=bool)
-
-    xi = np.flatnonzero(exited)
-    t_x, id_x, ch_x = t_out[xi], ids[xi], chute[xi]
-    q = kin.chute(t_x, ch_x)
-    u = v_along[xi]
-    vp = q['v_perp']
-    if belts_on:
-        speed = belts.absolute_speed(vp, u)
-    else:
-        speed = np.sqrt(vp * vp + u * u)
-    # t̂ = (sin, −cos), n̂ = (cos, sin)
-    vx = u * q['sin'] + vp * q['cos']
-    vy = -u * q['cos'] + vp * q['sin']
-    cyc_x = kin.cycle(t_x)
-    if xi.size:
-        tables.append(make_events('leaf_exit', t_x, sheet=id_x, cycle=cyc_x, value=speed))
-
-    constraints: list[ConstraintSeries] = []
-    n_damaged = 0
-    upper = None
-    if damage_on:
-        dmg_mod = effect_module('leaf_damage')
-        dp = scene.effect('leaf_damage')
-        bad = dmg_mod.damaged(dp, speed)
-        n_damaged = int(bad.sum())
-        if n_damaged:
-            tables.append(make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad]))
-        if belts_on:
-            upper = dmg_mod.upper_margin(dp, speed)
-    if belts_on:
-        bp = scene.effect('chute_belts')
-        desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
-        if upper is not None:
-            desc += f' and < v_damage = {scene.effect("leaf_damage").v_damage:g} m/s'
-        constraints.append(ConstraintSeries('chute_speed', 'm/s', id_x.astype(np.int64),
-                                            belts.speed_margin(bp, speed, upper), desc + ' (per leaf)'))
-
-    # ------------------------------------------------------------------ flight
-    summary_flight: dict[str, Any] = {}
-    n_landed = n_spilled = 0
-    if flight_on:
-        lf = effect_module('leaf_flight')
-        fpar = scene.effect('leaf_flight')
-        cont = scene.machine('container')
-        lowest = min(sw.yC[0], sw.yE[0])
-        if not cont.y_floor < lowest:
-            raise ParameterError('container.y_floor', cont.y_floor,
-                                 f'must be below the lowest chute exit (y = {lowest!r} m)')
-        t_f, x_land = lf.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
-        t_land = t_x + t_f
-        down = t_land <= duration
-        inside = (x_land >= cont.x_left) & (x_land <= cont.x_right)
-        li, si = down & inside, down & ~inside
-        n_landed, n_spilled = int(li.sum()), int(si.sum())
-        if n_landed:
-            tables.append(make_events('leaf_landed', t_land[li], sheet=id_x[li], cycle=kin.cycle(t_land[li]),
-                                      value=x_land[li]))
-        if n_spilled:
-            tables.append(make_events('leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]),
-                                      value=x_land[si]))
-        hist = lf.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
-        summary_flight = {
-            'landing_histogram': {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]},
-            'landing_cv': hist.cv,
-            'landing_x': _stats(x_land[li]),
-            'spilled_left': int((si & (x_land < cont.x_left)).sum()),
-            'spilled_right': int((si & (x_land > cont.x_right)).sum()),
-        }
-
-    # ------------------------------------------------------------------ samples
-    samples: dict[str, JointSamples] = {}
-    ts = np.asarray(t_samples, dtype=float)
-    if ts.size:
-        phi, st, lam, _ = kin.state(ts)
-        samples['crank_drive'] = stack_samples(
-            'crank_drive', ['layup_crank', 'transporter3', 'transporter4'], ts,
-            [phi, st.theta3, st.theta5], [kin.omega * lam, st.omega3 * lam, st.omega5 * lam])
-        if belts_on:
-            samples['belt_conveyor'] = stack_samples('belt_conveyor', ['chute_belts'], ts,
-                                                     [belts.belt_position(profile, drive, ts)],
-                                                     [belts.belt_speed(profile, drive, ts)])
-
-    # ------------------------------------------------------------------ summary
-    summary = _summary(kin, lp, theta_end, n, t_x, speed, u, q['phi'], n_landed, n_spilled, n_damaged)
-    summary.update(summary_flight)
-    if friction_on:
-        summary['guide_friction'] = {'steps': int(res.steps), 'sticks': int(res.stick_t.size),
-                                     'slips': int(res.slip_t.size),
-                                     'exit_speed_along': _stats(u)}
-    return SubResult(events=merge_events(tables), samples=samples, constraints=constraints, summary=summary)
+    return LayupLine(scene, drive, duration).result(t_samples)
 
 
 def _summary(kin: LayupKinematics, lp: LayupParams, theta_end: float, n: int, t_x: np.ndarray, speed: np.ndarray,

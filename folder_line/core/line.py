@@ -1,31 +1,51 @@
-"""The batch line simulation: ``simulate(scene, duration)``.
+"""The line model and the batch line simulation: ``LineModel``, ``simulate(scene, duration)``.
 
-Runs the parts of the line the scene has — L (:mod:`folder_line.core.layup_sim`) and
-F with D (:mod:`folder_line.core.folder_sim`) — on one master drive, and returns
-(a) joint states sampled at the scene's rate, (b) the exact event list and (c) the
-cyclogram constraints evaluated per cycle. Only the effects the scene lists run.
+:class:`LineModel` builds the parts of the line the scene has — L
+(:class:`folder_line.core.layup_sim.LayupLine`) and F with D
+(:class:`folder_line.core.folder_sim.FolderLine`) — on one master drive, once:
+the drive (with the supervisor's commands, :func:`make_drive`), (b) the exact event
+list and (c) the cyclogram constraints evaluated per cycle. Joint states are then
+sampled at any times (:meth:`LineModel.sample`, one node at a time: what a node's
+timer tick needs). Only the effects the scene lists run.
+
+:func:`simulate` is ``LineModel(scene, duration, commands).result(duration, rate)``:
+(a) joint states sampled at the scene's rate, (b) events and (c) constraints.
+
+What a node publishes at stamp t depends only on the scene, t and the commands:
+every event time is a closed form or a root in the drive's phase, each sheet's and
+leaf's on its own, and the random draws are prefix-consistent (a longer run extends
+them, never reshuffles), so a model built for a longer horizon agrees with a shorter
+one on everything up to the shorter one's end. One exception: with
+``motor_dynamics`` the motor ODE's last step before the horizon is cut at the
+horizon; while the motor has not settled into its periodic steady state (the first
+~8 s of a start, or of a restart) a different horizon may change Θ there at the
+level of the integrator's tolerance.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
-from folder_line.core.drive import Drive, build_drive
+import numpy.typing as npt
+
+from folder_line.core.drive import Command, Drive, check_commands, commanded_drive, theta_rate
 from folder_line.core.events import (
     EVENT_KINDS,
     ConstraintSeries,
     JointSamples,
-    SubResult,
     merge_events,
 )
 from folder_line.core.scene import Scene
-from folder_line.core.validate import in_range
+from folder_line.core.validate import as_float, in_range
 
-__all__ = ['LineResult', 'make_drive', 'sample_times', 'simulate']
+__all__ = ['NODES', 'LineModel', 'LineResult', 'make_drive', 'sample_times', 'simulate']
+
+#: the machine nodes that carry joints, in publishing order
+NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
 
 MAX_DURATION = 1e9  # s (~32 years): far beyond any run; time stays float64-exact to ~1e-7 s
 
@@ -109,13 +129,19 @@ class LineResult:
         return out
 
 
-def make_drive(scene: Scene, duration: float) -> Drive:
-    """The master drive of a scene: the motor ODE if it lists ``motor_dynamics``."""
+def make_drive(scene: Scene, duration: float, commands: Iterable[Command] = ()) -> Drive:
+    """The master drive of a scene under the supervisor's commands.
+
+    The motor ODE if the scene lists ``motor_dynamics``
+    (:func:`folder_line.core.effects.motor_dynamics.build_drive`), else the drive
+    profile with the ramp generator (:func:`folder_line.core.drive.commanded_drive`).
+    Without commands both are exactly the drives of a run without a supervisor.
+    """
     if scene.has('motor_dynamics'):
         from folder_line.core.effects import motor_dynamics
 
-        return motor_dynamics.build_drive(scene, duration)
-    return build_drive(scene.drive)
+        return motor_dynamics.build_drive(scene, duration, commands=commands)
+    return commanded_drive(scene.drive, commands)
 
 
 def sample_times(duration: float, rate: float) -> np.ndarray:
@@ -126,24 +152,214 @@ def sample_times(duration: float, rate: float) -> np.ndarray:
     return np.arange(n, dtype=float) / rate
 
 
-def _merge_samples(parts: list[SubResult]) -> dict[str, JointSamples]:
-    merged: dict[str, JointSamples] = {}
-    for part in parts:
-        for node, js in part.samples.items():
-            if node not in merged:
-                merged[node] = js
-                continue
-            prev = merged[node]
-            eff = None
-            if prev.effort is not None or js.effort is not None:
-                eff = np.hstack([prev.effort if prev.effort is not None else np.zeros_like(prev.position),
-                                 js.effort if js.effort is not None else np.zeros_like(js.position)])
-            merged[node] = JointSamples(node, prev.names + js.names, prev.t, np.hstack([prev.position, js.position]),
-                                        np.hstack([prev.velocity, js.velocity]), eff)
+def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
+    """Joints of one node from several parts, concatenated in part order (efforts 0 where a part has none)."""
+    merged = parts[0]
+    for js in parts[1:]:
+        prev = merged
+        eff = None
+        if prev.effort is not None or js.effort is not None:
+            eff = np.hstack([prev.effort if prev.effort is not None else np.zeros_like(prev.position),
+                             js.effort if js.effort is not None else np.zeros_like(js.position)])
+        merged = JointSamples(node, prev.names + js.names, prev.t, np.hstack([prev.position, js.position]),
+                              np.hstack([prev.velocity, js.velocity]), eff)
     return merged
 
 
-def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None) -> LineResult:
+class LineModel:
+    """The line of a scene over ``[0, horizon]``: built once, sampled anywhere.
+
+    Construction computes everything that depends only on the scene, the horizon and
+    the commands: the master drive, every event in ``[0, horizon]``, the constraints
+    and the parts' summaries. :meth:`sample` then gives a node's joint states at any
+    times in ``[0, horizon]`` (bit for bit what :func:`simulate` samples at the same
+    times), :meth:`events_between` the events of a tick.
+
+    Parameters
+    ----------
+    scene : Scene
+        Validated scene.
+    horizon : float
+        Line time the model covers, s (> 0).
+    commands : iterable of Command
+        The supervisor's commands, sorted by effective time (ParameterError
+        otherwise; :mod:`folder_line.core.drive`). Events before the earliest
+        command's time are the same, bit for bit, with and without it.
+
+    Attributes
+    ----------
+    scene : Scene
+    horizon : float
+    commands : tuple of Command
+    drive : Drive
+    events : ndarray of EVENT_DTYPE
+        All events in ``[0, horizon]``, sorted by time (then kind, then sheet).
+    constraints : list of ConstraintSeries
+    parts : dict of str to dict
+        Per part (``'folder'``, ``'layup'``) its summary figures.
+    """
+
+    def __init__(self, scene: Scene, horizon: float, commands: Iterable[Command] = ()) -> None:
+        self.scene = scene
+        self.horizon = in_range('horizon', horizon, 0.0, MAX_DURATION, lo_open=True)
+        self.commands = check_commands(commands)
+        self.drive = make_drive(scene, self.horizon, self.commands)
+        self._parts: dict[str, Any] = {}
+        if scene.has_folder:
+            from folder_line.core.folder_sim import FolderLine
+
+            self._parts['folder'] = FolderLine(scene, self.drive, self.horizon)
+        if scene.has_layup:
+            from folder_line.core.layup_sim import LayupLine
+
+            self._parts['layup'] = LayupLine(scene, self.drive, self.horizon)
+        parts = list(self._parts.values())
+        self.events = merge_events(p.events for p in parts)
+        self._event_t = np.ascontiguousarray(self.events['t'])
+        self.constraints: list[ConstraintSeries] = [c for p in parts for c in p.constraints]
+        self.parts: dict[str, dict[str, Any]] = {name: p.summary for name, p in self._parts.items()}
+        nodes: dict[str, list[Any]] = {}
+        for p in parts:
+            for node in p.nodes:
+                nodes.setdefault(node, []).append(p)
+        self._node_parts = {node: nodes[node] for node in NODES if node in nodes}
+        self._nodes = {node: tuple(name for p in ps for name in p.nodes[node])
+                       for node, ps in self._node_parts.items()}
+        self._theta_end = float(np.asarray(self.drive.theta(np.array(self.horizon))))
+        self._cycle = self._cycle_definition()
+
+    # ------------------------------------------------------------------ joint states
+
+    @property
+    def nodes(self) -> dict[str, tuple[str, ...]]:
+        """Node -> its joint names (in the order of :meth:`sample`'s columns); nodes without joints absent."""
+        return dict(self._nodes)
+
+    def _drive_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return theta_rate(self.drive, t)
+
+    def sample(self, node: str, t: npt.ArrayLike) -> JointSamples:
+        """Joint states of one node at line times ``t``.
+
+        Parameters
+        ----------
+        node : {'crank_drive', 'belt_conveyor', 'feed_transporter'}
+            A node of :attr:`nodes`.
+        t : array_like, shape (N,)
+            Line times, s, in ``[0, horizon]`` (a node's tick: one element).
+
+        Returns
+        -------
+        JointSamples
+            Positions and velocities shaped (N, J) (efforts where the scene computes
+            them), the joints of L and F of the same node concatenated F first, as
+            :func:`simulate` does.
+
+        Raises
+        ------
+        KeyError
+            ``node`` has no joints in this scene (the message lists the nodes).
+        """
+        parts = self._node_parts.get(node)
+        if parts is None:
+            msg = f'node {node!r} has no joints in scene {self.scene.name!r}; nodes: {", ".join(self._nodes)}'
+            raise KeyError(msg)
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(tt)
+        return _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
+
+    def sample_all(self, t: npt.ArrayLike) -> dict[str, JointSamples]:
+        """Joint states of every node at line times ``t`` (node -> JointSamples)."""
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(tt)
+        return {node: _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
+                for node, parts in self._node_parts.items()}
+
+    # ------------------------------------------------------------------ events
+
+    def events_between(self, t0: float, t1: float) -> np.ndarray:
+        """The events with ``t0 < t <= t1`` (a tick's; ``t0`` may be ``-inf``), in table order."""
+        if math.isnan(t0) or math.isnan(t1):
+            raise ValueError(f'events_between: times must not be NaN, got ({t0!r}, {t1!r})')
+        i0, i1 = np.searchsorted(self._event_t, [t0, t1], side='right')
+        return self.events[i0:max(i0, i1)]
+
+    # ------------------------------------------------------------------ machine cycles
+
+    def _cycle_definition(self) -> tuple[str, float, float]:
+        """(what, first cycle start Θ_0, period in Θ) of the line's machine cycle."""
+        if 'folder' in self._parts:
+            timing = self._parts['folder'].timing
+            return 'knife_exit', float(timing.knife.t_out), float(timing.T)
+        lp = self.scene.machine('layup')
+        return 'crank_turn', 0.0, 60.0 / float(lp.n_kr)
+
+    def _start_phase(self, k: int) -> float:
+        """Θ at which machine cycle k (>= 0) starts: for the folder the knife exit that ends cycle
+        k - 1 (the same expression as the ``knife_exit`` events, so the times agree bit for bit)."""
+        what, th0, period = self._cycle
+        if what == 'knife_exit':
+            return th0 if k == 0 else float((k - 1) * period + (period + th0))
+        return float(k * period)
+
+    def _start_time(self, k: int) -> float:
+        """Line time at which cycle k starts (``inf`` if not within the horizon)."""
+        th = self._start_phase(k)
+        if th > self._theta_end:
+            return math.inf
+        return float(np.asarray(self.drive.time_of(np.array(th))))
+
+    def cycle_index(self, t: float) -> int:
+        """The machine cycle running at line time ``t``: the last one started at or before ``t`` (-1 before
+        the first start). The folder's cycle k starts at the knife exit that ends cycle k - 1 (cycle 0 at
+        the first knife exit phase ``t_out``, where the feed window opens); without F, the layup crank's
+        turn k starts at ``Θ = k 60/n_kr``."""
+        t = as_float('t', t)
+        _, th0, period = self._cycle
+        theta = float(np.asarray(self.drive.theta(np.array(min(max(t, 0.0), self.horizon)))))
+        k = max(int(math.floor((theta - th0) / period)), -1)
+        while self._start_time(k + 1) <= t:
+            k += 1
+        while k >= 0 and self._start_time(k) > t:
+            k -= 1
+        return k
+
+    def next_cycle_boundary(self, t: float) -> float:
+        """The start of the next machine cycle strictly after line time ``t``, s (see :meth:`cycle_index`).
+
+        ``inf`` if no cycle starts after ``t`` within the horizon (the line is held,
+        or the horizon comes first).
+        """
+        return self._start_time(self.cycle_index(t) + 1)
+
+    # ------------------------------------------------------------------ batch
+
+    def result(self, duration: float | None = None, sample_rate: float | None = None) -> LineResult:
+        """The batch result of ``duration`` s (default: the horizon), sampled at ``sample_rate`` Hz.
+
+        For a duration other than the horizon a model of that duration is built (the
+        events, constraints and summaries of a run are those of its own length).
+
+        Parameters
+        ----------
+        duration : float, optional
+            Line time, s (> 0); default :attr:`horizon`.
+        sample_rate : float, optional
+            Joint-state rate, Hz; default the scene's; 0 for events only.
+        """
+        duration = self.horizon if duration is None else in_range('duration', duration, 0.0, MAX_DURATION,
+                                                                  lo_open=True)
+        if duration != self.horizon:
+            return LineModel(self.scene, duration, self.commands).result(duration, sample_rate)
+        rate = self.scene.sample_rate if sample_rate is None else in_range('sample_rate', sample_rate, 0.0, 1e6)
+        t = sample_times(duration, rate)
+        return LineResult(scene=self.scene, duration=duration, events=self.events,
+                          samples=self.sample_all(t) if t.size else {},
+                          constraints=list(self.constraints), parts=dict(self.parts))
+
+
+def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None,
+             commands: Iterable[Command] = ()) -> LineResult:
     """Simulate ``duration`` seconds of line time.
 
     Parameters
@@ -154,6 +370,8 @@ def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None)
         Line time, s (> 0).
     sample_rate : float, optional
         Joint-state rate, Hz; default the scene's; 0 for events only.
+    commands : iterable of Command
+        Supervisor commands with their effective times (:class:`LineModel`).
 
     Returns
     -------
@@ -161,20 +379,4 @@ def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None)
     """
     duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
     rate = scene.sample_rate if sample_rate is None else in_range('sample_rate', sample_rate, 0.0, 1e6)
-    drive = make_drive(scene, duration)
-    t = sample_times(duration, rate)
-    parts: dict[str, SubResult] = {}
-    if scene.has_folder:
-        from folder_line.core.folder_sim import simulate_folder
-
-        parts['folder'] = simulate_folder(scene, drive, duration, t)
-    if scene.has_layup:
-        from folder_line.core.layup_sim import simulate_layup
-
-        parts['layup'] = simulate_layup(scene, drive, duration, t)
-    results = list(parts.values())
-    return LineResult(scene=scene, duration=duration,
-                      events=merge_events(r.events for r in results),
-                      samples=_merge_samples(results),
-                      constraints=[c for r in results for c in r.constraints],
-                      parts={name: r.summary for name, r in parts.items()})
+    return LineModel(scene, duration, commands).result(duration, rate)

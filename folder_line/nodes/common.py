@@ -47,7 +47,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_node_name import validate_node_name
@@ -60,6 +60,10 @@ __all__ = [
     'DIAGNOSTICS_TOPIC',
     'SUPERVISOR_STATE_TOPIC',
     'SHEET_COUNT_TOPIC',
+    'SHEET_RATE_TOPIC',
+    'LANDING_TOPIC',
+    'COMMANDS_TOPIC',
+    'COMMANDS_QOS',
     'JOINT_STATES_TOPIC_PATTERN',
     'TopicInfo',
     'TOPICS',
@@ -101,6 +105,17 @@ SUPERVISOR_STATE_TOPIC = '/line/supervisor/state'
 SHEET_COUNT_TOPIC = '/line/sheet_counter/count'
 """Number of sheets delivered so far (``std_msgs/msg/UInt64``)."""
 
+SHEET_RATE_TOPIC = '/line/sheet_counter/rate'
+"""Sheets (or leaves) per second over the counter's window (``std_msgs/msg/Float64``)."""
+
+LANDING_TOPIC = '/line/sheet_counter/landing_x'
+"""Landing x of each leaf on the container floor, m (``std_msgs/msg/Float64``; layup scenes)."""
+
+COMMANDS_TOPIC = '/line/supervisor/commands'
+"""The supervisor's drive commands (``sensor_msgs/msg/TimeReference``: ``source`` = hold, unhold,
+stop or start; ``time_ref`` = effective sim time). Reliable, transient-local, keep-all, so
+a node that starts late still learns every command."""
+
 JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
 """Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
 
@@ -133,6 +148,10 @@ TOPICS: tuple[TopicInfo, ...] = (
     TopicInfo(DIAGNOSTICS_TOPIC, 'diagnostic_msgs/msg/DiagnosticArray', 'constraint margins and faults'),
     TopicInfo(SUPERVISOR_STATE_TOPIC, 'std_msgs/msg/String', 'state of the line supervisor'),
     TopicInfo(SHEET_COUNT_TOPIC, 'std_msgs/msg/UInt64', 'sheets delivered so far'),
+    TopicInfo(SHEET_RATE_TOPIC, 'std_msgs/msg/Float64', 'sheets (or leaves) per second over the counter window'),
+    TopicInfo(LANDING_TOPIC, 'std_msgs/msg/Float64', 'landing x of each leaf, m (layup scenes)'),
+    TopicInfo(COMMANDS_TOPIC, 'sensor_msgs/msg/TimeReference',
+              'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time'),
 )
 
 
@@ -152,6 +171,10 @@ def joint_states_topic(node_name: str) -> str:
     validate_node_name(node_name)
     return JOINT_STATES_TOPIC_PATTERN.format(node=node_name)
 
+
+COMMANDS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_ALL)
+"""QoS of the supervisor's command topic: every command reaches every node, late joiners too."""
 
 CLOCK_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 """QoS of the ``/clock`` publisher: reliable, so that it also matches the best-effort

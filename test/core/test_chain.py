@@ -189,3 +189,24 @@ def test_stroke_travel_membership(scene: Scene) -> None:
     assert np.all(np.abs(a_e) <= 1e-12)
     two = chain.schedule(make_scene(chain_p={'pitch': 0.25}))
     assert two.max_on_stroke == math.ceil(two.S / 0.25) + 1 == 4
+
+
+@settings(max_examples=300, deadline=None)
+@given(s=st.floats(-0.05, 1.5), theta=st.floats(-5.0, 4000.0))
+def test_one_element_fast_paths_are_the_array_paths_bit_for_bit(s: float, theta: float) -> None:
+    """A node's tick evaluates one element through plain-Python paths: same operations, same bits."""
+    sc = make_scene()
+    path, sch = chain.chain_path(sc), chain.schedule(sc)
+    many_s = np.array([s, 0.1, 0.7])
+    assert path.position(np.array([s])).tobytes() == path.position(many_s)[:1].tobytes()
+    assert path.position(np.array(s)).shape == ()
+    many_th = np.array([theta, 1.0, 2.0])
+    a1, s1 = sch.stroke_travel(np.array([theta]))
+    a3, s3 = sch.stroke_travel(many_th)
+    assert a1.tobytes() == a3[:1].tobytes() and s1.tobytes() == s3[:1].tobytes()
+    # the boundary case of the wrap: a phase a hair below a whole period
+    edge = sch.theta_enter0 + 7 * sch.T - np.array([0.0, 1e-15, 1e-13])
+    for e in edge:
+        one = sch.stroke_travel(np.array([e]))
+        vec = sch.stroke_travel(np.array([e, 0.0]))
+        assert one[0].tobytes() == vec[0][:1].tobytes()

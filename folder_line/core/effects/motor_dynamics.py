@@ -54,6 +54,22 @@ integrated again from there). The transient left out is below about
 transient's steps only (~8 s of it on the suggested scene values: 0.2-0.6 s of CPU);
 ``periodic=False`` integrates the whole span (for benchmarks of the methods).
 
+Supervisor commands (switching times)
+-------------------------------------
+:func:`build_drive` takes the supervisor's commands
+(:class:`folder_line.core.drive.Command`): ``hold``/``stop`` at ``t`` switch the motor
+off and apply the brake from ``t`` (the brake segment above, from the state at ``t``);
+``unhold``/``start`` switch it on again from the state at ``t`` (standstill or still
+coasting down). The scene's ``t_stop`` is one more motor-off switch. Switches that do
+not change the motor's state are ignored. The run is a list of
+:class:`MotorSegment`; a motor-on segment from ``t_0`` is *integrated* up to the
+scene's ``t_stop`` (if later) or the end of the run, never to a command's time, and
+*evaluated* only up to the next switch; a brake segment is integrated until
+standstill. Hence Θ(t) before a command's time is the same, bit for bit, with or
+without that command. Limits: each on-segment finds its own periodic tail (a restart
+re-integrates its transient, ~8 s of line time); the brake holds the shaft at rest
+whatever the load (the load never drives the shaft backwards).
+
 Phase and tolerances: the error norm of ``dopri5`` is relative to ``|y|``, and Θ grows
 with time, so ``rtol`` bounds the *relative* phase error per step. ``rk4`` uses the
 fixed step ``h``; it is rejected up front when ``h c / J`` exceeds RK4's stability
@@ -72,14 +88,16 @@ The step loop is sequential Python (an ODE); the right-hand side is scalar
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core import integrators as ig
+from folder_line.core.drive import Command, check_commands
 from folder_line.core.effects import chain_friction
 from folder_line.core.validate import in_range, non_negative, one_of, positive
 from folder_line.errors import ParameterError
@@ -89,6 +107,7 @@ __all__ = [
     'PERIODIC_TOL',
     'RK4_STABILITY',
     'MotorDrive',
+    'MotorSegment',
     'Params',
     'PeriodicTail',
     'build_drive',
@@ -228,62 +247,45 @@ class PeriodicTail:
         return self.theta_b - self.theta_a
 
 
-class MotorDrive:
-    """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.drive`).
-
-    Built by :func:`build_drive`. Attributes of interest for benchmarks:
+@dataclass(frozen=True, eq=False)
+class MotorSegment:
+    """A stretch of constant motor state: motor on, or off with the brake applied.
 
     Attributes
     ----------
-    params : Params
-    duration : float
-        Run length, s.
+    t0, t1 : float
+        The segment holds for ``t0 <= t < t1`` (``t1``: the next switch, or the end
+        of the run), s.
+    on : bool
+        Motor on (else off, braking, then at rest).
+    theta0 : float
+        Θ(t0), nominal s.
     solution : DenseSolution
-        The integrated motor-on part (with the periodic shortcut: up to the end of the
-        base period; without: the whole run including brake and rest).
-    brake_solution : DenseSolution or None
-        Brake (and rest) segment when a periodic tail sits in between, else None (it is
-        part of ``solution``).
+        Motor on: the integration from ``t0`` (up to the base period if ``tail``);
+        off: the brake integration from ``t0`` and the rest after it, up to the end of
+        the run.
     tail : PeriodicTail or None
-        The repeated period, if the shortcut was taken.
-    load : MasterLoad or None
-        The chain load.
-    t_stop : float
-        Motor off, s (``inf`` if at or after ``duration``).
+        Motor on: the repeated period, if the shortcut was taken.
     t_rest : float
-        Standstill reached, s (``inf`` if not within the run).
-    nfev, steps, rejected : int
-        Cost of all integrations.
+        Off: standstill reached, s (``inf`` if not within the run); on: ``inf``.
     """
 
-    def __init__(self, params: Params, duration: float, solution: ig.DenseSolution,
-                 brake_solution: ig.DenseSolution | None, tail: PeriodicTail | None,
-                 load: chain_friction.MasterLoad | None, t_stop: float, t_rest: float) -> None:
-        self.params = params
-        self.duration = duration
-        self.solution = solution
-        self.brake_solution = brake_solution
-        self.tail = tail
-        self.load = load
-        self.t_stop = t_stop
-        self.t_rest = t_rest
-        parts = [s for s in (solution, brake_solution) if s is not None]
-        self.nfev = sum(s.nfev for s in parts)
-        self.steps = sum(s.steps for s in parts)
-        self.rejected = sum(s.rejected for s in parts)
-        self.theta_end = float(self._component(duration, 0))
+    t0: float
+    t1: float
+    on: bool
+    theta0: float
+    solution: ig.DenseSolution
+    tail: PeriodicTail | None
+    t_rest: float
 
-    # evaluation -------------------------------------------------------------------------
-    def _component(self, t: npt.ArrayLike, j: int) -> FloatArray:
-        """Θ (j = 0, nominal s) or ω (j = 1, rad/s) at times clipped to [0, duration]."""
-        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
-        if self.tail is None:
-            return self.solution.component(tt, j)
+    def component(self, tt: FloatArray, j: int) -> FloatArray:
+        """Θ (j = 0) or ω (j = 1) at times ``tt`` of this segment."""
         tl = self.tail
+        if tl is None:
+            return self.solution.component(tt, j)
         out = np.empty(tt.shape)
         head = tt <= tl.t_b
-        in_tail = ~head & (tt <= tl.t_end)
-        after = ~head & ~in_tail
+        in_tail = ~head
         if head.any():
             out[head] = self.solution.component(tt[head], j)
         if in_tail.any():
@@ -291,9 +293,142 @@ class MotorDrive:
             n = np.floor(x / tl.period)
             tb = tl.t_a + np.clip(x - n * tl.period, 0.0, tl.period)
             out[in_tail] = self.solution.component(tb, j) + (n * tl.dtheta if j == 0 else 0.0)
-        if after.any():
-            assert self.brake_solution is not None
-            out[after] = self.brake_solution.component(tt[after], j)
+        return out
+
+    def state1(self, t: float) -> tuple[float, float]:
+        """``(Θ, ω)`` at one time of the segment in plain Python: the same operations as
+        :meth:`component` (dense-output lookup, Horner's rule, the tail's shift), so the
+        same values bit for bit, at a few µs (a node's tick)."""
+        lists = self.__dict__.get('_lists')
+        sol = self.solution
+        if lists is None:  # built on first use
+            lists = (sol.t.tolist(), sol.h.tolist(), [sol.coef[:, i, :].T.tolist() for i in range(sol.steps)])
+            object.__setattr__(self, '_lists', lists)
+        tl = self.tail
+        shift = None
+        if tl is not None and t > tl.t_b:
+            x = t - tl.t_a
+            shift = math.floor(x / tl.period)
+            t = tl.t_a + min(max(x - shift * tl.period, 0.0), tl.period)
+        ts, hs, cs = lists
+        i = min(max(bisect.bisect_right(ts, t) - 1, 0), len(hs) - 1)
+        x = (t - ts[i]) / hs[i]
+        y = []
+        for c in cs[i]:  # per component, c[k] the coefficient of x^k
+            acc = c[4]
+            for k in (3, 2, 1, 0):
+                acc = acc * x + c[k]
+            y.append(acc)
+        if shift is None:
+            return y[0], y[1]
+        return y[0] + shift * tl.dtheta, y[1] + 0.0  # type: ignore[union-attr]
+
+    def state(self, t: float) -> FloatArray:
+        """``(Θ, ω)`` at time ``t`` of the segment (its end included): where the
+        integration ended exactly there, its end state."""
+        tl = self.tail
+        sol = self.solution
+        if tl is not None and t > tl.t_b:
+            x = t - tl.t_a
+            n = math.floor(x / tl.period)
+            ts = tl.t_a + min(max(x - n * tl.period, 0.0), tl.period)
+            return np.array([float(sol.component(ts, 0)) + n * tl.dtheta, float(sol.component(ts, 1))])
+        if t == sol.t_end:
+            return sol.y[-1].copy()
+        return np.array([float(sol.component(t, 0)), float(sol.component(t, 1))])
+
+    def inverse(self, th: FloatArray) -> FloatArray:
+        """Earliest times of this segment with Θ = ``th`` (``th`` within the segment's Θ range)."""
+        tl = self.tail
+        if tl is None:
+            return np.minimum(self.solution.inverse(th, 0), self.t1)
+        out = np.empty(th.shape)
+        head = th <= tl.theta_b
+        in_tail = ~head
+        if head.any():
+            out[head] = self.solution.inverse(th[head], 0)
+        if in_tail.any():
+            n = np.floor((th[in_tail] - tl.theta_a) / tl.dtheta)
+            r = np.clip(th[in_tail] - n * tl.dtheta, tl.theta_a, tl.theta_b)
+            out[in_tail] = np.minimum(self.solution.inverse(r, 0) + n * tl.period, tl.t_end)
+        return np.minimum(out, self.t1)
+
+
+class MotorDrive:
+    """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.drive`).
+
+    Built by :func:`build_drive`: a list of :class:`MotorSegment` (motor on / off),
+    switched at the scene's ``t_stop`` and at the supervisor's commands.
+
+    Attributes
+    ----------
+    params : Params
+    duration : float
+        Run length, s.
+    segments : list of MotorSegment
+        In time order; segment i holds on ``[t0_i, t0_{i+1})``.
+    switches : list of (float, bool)
+        Effective switches ``(t, motor on after t)`` within the run.
+    solution : DenseSolution
+        The first motor-on integration (with the periodic shortcut: up to the end of its
+        base period); without the shortcut and without commands, the whole run
+        including brake and rest (as before commands existed).
+    brake_solution : DenseSolution or None
+        The second segment's solution when the first one has a periodic tail, else None.
+    tail : PeriodicTail or None
+        The first segment's repeated period, if the shortcut was taken.
+    load : MasterLoad or None
+        The chain load.
+    t_stop : float
+        First motor-off switch, s (``inf`` if none within the run).
+    t_rest : float
+        First standstill after a motor-off, s (``inf`` if none within the run).
+    nfev, steps, rejected : int
+        Cost of all integrations.
+    """
+
+    def __init__(self, params: Params, duration: float, segments: list[MotorSegment],
+                 load: chain_friction.MasterLoad | None, switches: list[tuple[float, bool]],
+                 solution: ig.DenseSolution | None = None, commanded: bool = False) -> None:
+        self.params = params
+        self.duration = duration
+        self.segments = segments
+        self.switches = switches
+        self.commanded = commanded
+        self.load = load
+        first = segments[0]
+        self.tail = first.tail
+        self.solution = solution if solution is not None else first.solution
+        self.brake_solution = segments[1].solution if first.tail is not None and len(segments) > 1 else None
+        off = [s for s in segments if not s.on]
+        self.t_stop = off[0].t0 if off else math.inf
+        self.t_rest = next((s.t_rest for s in off if math.isfinite(s.t_rest)), math.inf)
+        self.nfev = sum(s.solution.nfev for s in segments)
+        self.steps = sum(s.solution.steps for s in segments)
+        self.rejected = sum(s.solution.rejected for s in segments)
+        self._t0 = np.array([s.t0 for s in segments])
+        self._t0_list = self._t0.tolist()
+        self._theta0 = np.array([s.theta0 for s in segments])
+        self._on = np.array([s.on for s in segments])
+        self._rest = np.array([s.t_rest for s in segments])
+        self.theta_end = float(self._component(duration, 0))
+
+    # evaluation -------------------------------------------------------------------------
+    def _segment_index(self, tt: FloatArray) -> npt.NDArray[np.intp]:
+        return np.maximum(np.searchsorted(self._t0, tt, side='right') - 1, 0)
+
+    def _component(self, t: npt.ArrayLike, j: int) -> FloatArray:
+        """Θ (j = 0, nominal s) or ω (j = 1, rad/s) at times clipped to [0, duration]."""
+        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if len(self.segments) == 1:
+            return self.segments[0].component(tt, j)
+        idx = self._segment_index(tt)
+        if tt.size == 1:
+            return self.segments[int(idx.reshape(-1)[0])].component(tt, j)
+        out = np.empty(tt.shape)
+        for k in np.unique(idx):
+            m = idx == k
+            out[m] = self.segments[k].component(tt[m], j)
         return out
 
     def theta(self, t: npt.ArrayLike) -> FloatArray:
@@ -303,6 +438,17 @@ class MotorDrive:
     def rate(self, t: npt.ArrayLike) -> FloatArray:
         """Speed factor λ = ω/ω_nom (t clipped to [0, duration])."""
         return self._component(t, 1) / self.params.omega_nom
+
+    def theta_rate(self, t: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """``(Θ(t), λ(t))`` at once: the same values as :meth:`theta` and :meth:`rate`, bit for bit;
+        one element (a node's tick) goes through :meth:`MotorSegment.state1` (a few µs)."""
+        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if tt.size != 1:
+            return self._component(tt, 0), self._component(tt, 1) / self.params.omega_nom
+        tv = float(tt.reshape(-1)[0])
+        k = 0 if len(self.segments) == 1 else max(bisect.bisect_right(self._t0_list, tv) - 1, 0)
+        th, w = self.segments[k].state1(tv)
+        return np.full(tt.shape, th), np.full(tt.shape, w) / self.params.omega_nom
 
     def omega(self, t: npt.ArrayLike) -> FloatArray:
         """Master-shaft speed ω(t), rad/s (t clipped to [0, duration])."""
@@ -314,8 +460,9 @@ class MotorDrive:
         theta, omega = self._component(tt, 0), self._component(tt, 1)
         p = self.params
         load = self.load.torque(theta) if self.load is not None else np.zeros(tt.shape)
-        on = tt < self.t_stop
-        rest = tt >= self.t_rest
+        idx = self._segment_index(tt)
+        on = self._on[idx]
+        rest = tt >= self._rest[idx]
         drive = np.where(on, p.T_0 * (1.0 - omega / p.omega_0), -p.T_brake)
         acc = (drive - p.b * omega - load) / p.J
         return np.where(rest & ~on, 0.0, acc) / p.omega_nom
@@ -326,23 +473,15 @@ class MotorDrive:
         if not np.all(np.isfinite(th)):
             raise ParameterError('theta', theta, 'must be finite')
         th = np.clip(th, 0.0, self.theta_end)
-        if self.tail is None:
-            return np.minimum(self.solution.inverse(th, 0), self.duration)
-        tl = self.tail
-        out = np.empty(th.shape)
-        theta_tail_end = float(self._component(tl.t_end, 0))
-        head = th <= tl.theta_b
-        in_tail = ~head & (th <= theta_tail_end)
-        after = ~head & ~in_tail
-        if head.any():
-            out[head] = self.solution.inverse(th[head], 0)
-        if in_tail.any():
-            n = np.floor((th[in_tail] - tl.theta_a) / tl.dtheta)
-            r = np.clip(th[in_tail] - n * tl.dtheta, tl.theta_a, tl.theta_b)
-            out[in_tail] = np.minimum(self.solution.inverse(r, 0) + n * tl.period, tl.t_end)
-        if after.any():
-            assert self.brake_solution is not None
-            out[after] = self.brake_solution.inverse(th[after], 0)
+        # the last segment starting below th (on a plateau: the earliest time)
+        idx = np.maximum(np.searchsorted(self._theta0, th, side='left') - 1, 0)
+        if len(self.segments) == 1 or th.size == 1:
+            out = self.segments[int(idx.reshape(-1)[0]) if th.size else 0].inverse(th)
+        else:
+            out = np.empty(th.shape)
+            for k in np.unique(idx):
+                m = idx == k
+                out[m] = self.segments[k].inverse(th[m])
         return np.minimum(out, self.duration)
 
     # summaries --------------------------------------------------------------------------
@@ -365,6 +504,8 @@ class MotorDrive:
             out['load_mean'] = float(self.load.mean)
             out['load_peak'] = float(self.load.peak)
             out['lambda_estimate'] = steady_speed(self.params, self.load.mean) / self.params.omega_nom
+        if self.commanded:
+            out['switches'] = [[float(t), bool(on)] for t, on in self.switches]
         return out
 
 
@@ -389,8 +530,25 @@ def _check_load(p: Params, load: chain_friction.MasterLoad) -> None:
                              'otherwise the line stalls at standstill')
 
 
-def build_drive(scene: Any, duration: float, *, periodic: bool = True) -> MotorDrive:
-    """Integrate the motor once over ``[0, duration]`` and return the drive.
+def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> list[tuple[float, bool]]:
+    """Effective motor switches ``(t, on after t)`` before ``duration``: the scene's ``t_stop`` (motor off)
+    and the commands (``hold``/``stop`` off, ``unhold``/``start`` on), in time order, the scene's
+    switch first among equal times; switches that change nothing dropped."""
+    raw: list[tuple[float, int, bool]] = [(float(t_stop), 0, False)]
+    raw += [(c.t, 1, c.running) for c in check_commands(commands)]
+    raw.sort(key=lambda r: (r[0], r[1]))  # stable: commands keep their order
+    out: list[tuple[float, bool]] = []
+    on = True
+    for t, _, state in raw:
+        if t < duration and state != on:
+            on = state
+            out.append((t, on))
+    return out
+
+
+def build_drive(scene: Any, duration: float, *, periodic: bool = True,
+                commands: Iterable[Command] = ()) -> MotorDrive:
+    """Integrate the motor over ``[0, duration]``, segment by segment, and return the drive.
 
     Parameters
     ----------
@@ -400,6 +558,11 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True) -> MotorD
         Run length, s (> 0).
     periodic : bool
         Take the periodic-steady-state shortcut (module docstring).
+    commands : iterable of Command
+        Supervisor commands (:class:`folder_line.core.drive.Command`, sorted by time):
+        ``hold``/``stop`` switch the motor off and apply the brake from their time,
+        ``unhold``/``start`` switch it on again from the state there. The scene's
+        ``t_stop`` is one more motor-off switch.
 
     Returns
     -------
@@ -409,14 +572,25 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True) -> MotorD
     ------
     ParameterError
         The scene does not list ``motor_dynamics``; RK4 step beyond its stability limit;
-        stall torque not above the peak chain load; a self-locking delivery.
+        stall torque not above the peak chain load; a self-locking delivery; commands
+        not sorted by time.
     IntegrationError
         The integration failed (too many steps, non-finite state).
+
+    Notes
+    -----
+    Segments (module docstring, "Supervisor commands"): a motor-on segment starting at
+    ``t_0`` is integrated up to the scene's ``t_stop`` if that is later, else to
+    ``duration`` -- never to a command's time -- and only *evaluated* up to the next
+    switch; a brake segment is integrated from its start until standstill (or
+    ``duration``). So the drive before a command's time does not depend on that
+    command: adding a command leaves Θ(t) for earlier t unchanged bit for bit.
     """
     p: Params | None = scene.effect('motor_dynamics')
     if p is None:
         raise ParameterError('effects', 'motor_dynamics', f'scene {scene.name!r} does not list motor_dynamics')
     duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
+    commands = check_commands(commands)
     if p.method == 'rk4' and p.h * p.damping / p.J > RK4_STABILITY:
         raise ParameterError('effects.motor_dynamics.h', p.h,
                              f'RK4 is unstable here: h (T_0/omega_0 + b)/J = {p.h * p.damping / p.J:.4g} > '
@@ -453,58 +627,66 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True) -> MotorD
         w = y[1]
         return np.array([w / wn, (-b * w - load_torque(y[0], piece) - Tb) / J])
 
-    marks: list[tuple[float, float]] = []
+    def motor_on(t0: float, t1: float, y0: FloatArray) -> MotorSegment:
+        """Motor on from state y0 at t0, evaluated up to t1 (integrated further: see Notes)."""
+        t_int = p.t_stop if t0 < p.t_stop < duration else duration
+        marks: list[tuple[float, float]] = []
 
-    def on_break(t: float, y: FloatArray, brk: float) -> bool:
-        if not is_mark(brk):
-            return False
-        marks.append((t, float(y[1])))
-        del marks[:-3]
-        if len(marks) < 3:
-            return False
-        (ta, wa), (tb, wb), (tc, wc) = marks
-        tol = PERIODIC_TOL * wn
-        return (abs(wc - wb) <= tol and abs(wb - wa) <= tol
-                and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb))
+        def on_break(t: float, y: FloatArray, brk: float) -> bool:
+            if not is_mark(brk):
+                return False
+            marks.append((t, float(y[1])))
+            del marks[:-3]
+            if len(marks) < 3:
+                return False
+            (ta, wa), (tb, wb), (tc, wc) = marks
+            tol = PERIODIC_TOL * wn
+            return (abs(wc - wb) <= tol and abs(wb - wa) <= tol
+                    and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb))
 
-    t_on_end = min(p.t_stop, duration)
-    y0 = np.zeros(2)
-    parts: list[ig.DenseSolution] = []
-    tail: PeriodicTail | None = None
-    y_stop = y0
-    if t_on_end > 0.0:
         use_breaks = load is not None or periodic
         breaks = ig.Breaks(0, next_break, on_break if periodic else None) if use_breaks else None
-        sol_on = _integrate(p, rhs_on, (0.0, t_on_end), y0, breaks)
-        parts.append(sol_on)
-        y_stop = sol_on.y[-1].copy()
-        if sol_on.status == 'stopped' and sol_on.t_end < t_on_end:
+        sol = _integrate(p, rhs_on, (t0, t_int), y0, breaks)
+        tail: PeriodicTail | None = None
+        if sol.status == 'stopped' and sol.t_end < t_int:
             (ta, _), (tb, _) = marks[-2], marks[-1]
-            th = sol_on.component(np.array([ta, tb]), 0)
-            tail = PeriodicTail(t_a=ta, t_b=tb, theta_a=float(th[0]), theta_b=float(th[1]), t_end=t_on_end)
-            x = t_on_end - ta
-            n = math.floor(x / tail.period)
-            ts = ta + min(max(x - n * tail.period, 0.0), tail.period)
-            y_stop = np.array([float(sol_on.component(ts, 0)) + n * tail.dtheta, float(sol_on.component(ts, 1))])
-    t_stop = p.t_stop if p.t_stop < duration else math.inf
-    t_rest = math.inf
-    after: list[ig.DenseSolution] = []
-    if p.t_stop < duration:
-        if y_stop[1] > 0.0:
+            th = sol.component(np.array([ta, tb]), 0)
+            tail = PeriodicTail(t_a=ta, t_b=tb, theta_a=float(th[0]), theta_b=float(th[1]), t_end=t_int)
+        return MotorSegment(t0, t1, True, float(y0[0]), sol, tail, math.inf)
+
+    def motor_off(t0: float, t1: float, y0: FloatArray) -> MotorSegment:
+        """Brake from state y0 at t0 until standstill (or the end of the run), then rest."""
+        t_rest = math.inf
+        if y0[1] > 0.0:
             brk = ig.Breaks(0, next_break) if load is not None else None
-            sol_b = _integrate(p, rhs_brake, (p.t_stop, duration), y_stop, brk, ig.Terminal(1, 0.0))
-            after.append(sol_b)
+            sol_b = _integrate(p, rhs_brake, (t0, duration), y0, brk, ig.Terminal(1, 0.0))
+            parts = [sol_b]
             if sol_b.status == 'terminal':
                 t_rest = sol_b.t_end
                 if t_rest < duration:
-                    after.append(ig.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
+                    parts.append(ig.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
+            sol = ig.concatenate(parts) if len(parts) > 1 else sol_b
         else:
-            t_rest = p.t_stop
-            after.append(ig.constant_solution(p.t_stop, duration, [y_stop[0], 0.0]))
-    if tail is None:
-        solution = ig.concatenate(parts + after)
-        brake_solution = None
-    else:
-        solution = parts[0]
-        brake_solution = ig.concatenate(after) if after else None
-    return MotorDrive(p, duration, solution, brake_solution, tail, load, t_stop, t_rest)
+            t_rest = t0
+            sol = ig.constant_solution(t0, duration, [y0[0], 0.0])
+        return MotorSegment(t0, t1, False, float(y0[0]), sol, None, t_rest)
+
+    switches = _switches(p.t_stop, duration, commands)
+    bounds = [t for t, _ in switches] + [duration]
+    segments: list[MotorSegment] = []
+    y = np.zeros(2)
+    t0, on = 0.0, True
+    for i, t1 in enumerate(bounds):
+        if t1 > t0:
+            seg = motor_on(t0, t1, y) if on else motor_off(t0, t1, y)
+            segments.append(seg)
+            if i < len(switches):
+                y = seg.state(t1)
+                y[1] = max(y[1], 0.0)  # a dense output a hair below 0 at the brake's end is standstill
+        if i < len(switches):
+            t0, on = t1, switches[i][1]
+    solution = None
+    if not commands and segments[0].tail is None:
+        # as before commands existed: the whole run as one solution (on, brake, rest)
+        solution = ig.concatenate([s.solution for s in segments]) if len(segments) > 1 else segments[0].solution
+    return MotorDrive(p, duration, segments, load, switches, solution, commanded=bool(commands))

@@ -1,0 +1,76 @@
+"""Node ``sheet_counter``: the pile of the delivery and the floor of the layup container.
+
+Counts sheets released on the pile (folder scenes) or leaves landed in the container
+(layup scenes), and publishes, every tick at stamp ``t``:
+
+* ``/line/sheet_counter/count`` (``std_msgs/UInt64``): sheets counted up to ``t``;
+* ``/line/sheet_counter/rate`` (``std_msgs/Float64``): sheets per second over the last
+  ``rate_window`` s of sim time (over the elapsed time while ``t`` is shorter);
+
+and, per landed leaf, ``/line/sheet_counter/landing_x`` (``std_msgs/Float64``, m), besides
+its ``released_on_pile``, ``leaf_landed`` and ``leaf_spilled`` events on ``/line/events``.
+Other parameters: see :mod:`folder_line.nodes.machine`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from std_msgs.msg import Float64, UInt64
+
+from folder_line.core.events import EVENT_KINDS
+from folder_line.nodes.common import LANDING_TOPIC, SHEET_COUNT_TOPIC, SHEET_RATE_TOPIC, ParamSpec, run_node
+from folder_line.nodes.machine import MachineNode
+
+__all__ = ['SheetCounter', 'counted_kinds', 'main']
+
+COUNTED = ('released_on_pile', 'leaf_landed')
+
+
+def counted_kinds() -> np.ndarray:
+    """Event-kind indices the counter counts."""
+    return np.array([EVENT_KINDS.index(k) for k in COUNTED], dtype=np.int16)
+
+
+class SheetCounter(MachineNode):
+    """The ``sheet_counter`` node."""
+
+    NODE_NAME = 'sheet_counter'
+    EXTRA_SPECS = (ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s',
+                             bounds=(0.0, 3600.0), low_open=True),)
+
+    def setup(self) -> None:
+        self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, 100)
+        self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, 100)
+        self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, 1000)
+        self._landed = EVENT_KINDS.index('leaf_landed')
+
+    def on_model(self) -> None:
+        self._times = self.model.events[np.isin(self.model.events['kind'], counted_kinds())]['t']
+
+    def count_at(self, t: float) -> int:
+        """Sheets counted with event time <= t."""
+        return int(np.searchsorted(self._times, t, side='right'))
+
+    def rate_at(self, t: float) -> float:
+        """Sheets per second over ``(t - window, t]`` (the elapsed time if shorter), 0 at t = 0."""
+        window = min(self.values['rate_window'], t)
+        if window <= 0.0:
+            return 0.0
+        return (self.count_at(t) - self.count_at(t - window)) / window
+
+    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
+        self._count_pub.publish(UInt64(data=self.count_at(t)))
+        self._rate_pub.publish(Float64(data=self.rate_at(t)))
+        for row in events[events['kind'] == self._landed]:
+            self._landing_pub.publish(Float64(data=float(row['value'])))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run ``sheet_counter`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
+    return run_node(SheetCounter, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
