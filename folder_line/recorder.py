@@ -18,6 +18,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
+from folder_line.nodes.supervisor import STATE_QOS
 from folder_line.nodes.common import (
     CLOCK_TOPIC,
     COMMANDS_QOS,
@@ -70,17 +71,22 @@ class LineRecorder(Node):
         self.counts: Counter[str] = Counter()
         self.event_counts: Counter[str] = Counter()
         self.sim_time = 0.0
+        self.clock_wall: tuple[float, float] | None = None  # wall time (s) of the first and latest /clock
         self.state = ''
         self.sheet_count = 0
         qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
         for topic, cls in LINE_TOPICS.items():
-            self.create_subscription(cls, topic, self._callback(topic), COMMANDS_QOS if topic == COMMANDS_TOPIC else qos)
+            self.create_subscription(cls, topic, self._callback(topic),
+                                     COMMANDS_QOS if topic == COMMANDS_TOPIC else
+                                     STATE_QOS if topic == SUPERVISOR_STATE_TOPIC else qos)
 
     def _callback(self, topic: str) -> Callable[[Any], None]:
         def on_message(msg: Any) -> None:
             self.counts[topic] += 1
             if topic == CLOCK_TOPIC:
                 self.sim_time = max(self.sim_time, time_msg_to_ns(msg.clock) / NS_PER_S)
+                now = time.monotonic()
+                self.clock_wall = (now, now) if self.clock_wall is None else (self.clock_wall[0], now)
             elif topic == EVENTS_TOPIC:
                 self.event_counts[msg.source.split(' ', 1)[0]] += 1
             elif topic == SUPERVISOR_STATE_TOPIC:

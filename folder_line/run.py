@@ -68,16 +68,34 @@ class RunResult:
 
 
 def _node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
-    params: dict[str, Any] = {'scene': cfg.scene, 'overrides': ';'.join(cfg.overrides),
-                              'horizon': cfg.duration + 1.0, 'rate': cfg.rate}
+    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + 1.0, 'rate': cfg.rate}
+    if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
+        params['overrides'] = ';'.join(cfg.overrides)
     return params
 
 
-def _progress(stream: IO[str], fraction: float, t: float, total: float, width: int = 40) -> None:
-    done = int(width * min(max(fraction, 0.0), 1.0))
-    bar = '#' * done + '.' * (width - done)
-    stream.write(f'\r[{bar}] {t:7.2f} / {total:g} s of line time')
-    stream.flush()
+class _Progress:
+    """A progress bar on a terminal; on a pipe or file, one line per tenth."""
+
+    def __init__(self, stream: IO[str], total: float, width: int = 40) -> None:
+        self.stream, self.total, self.width = stream, total, width
+        self.tty = hasattr(stream, 'isatty') and stream.isatty()
+        self.tenths = -1
+
+    def show(self, t: float) -> None:
+        fraction = min(max(t / self.total, 0.0), 1.0)
+        done = int(self.width * fraction)
+        line = f'[{"#" * done}{"." * (self.width - done)}] {t:7.2f} / {self.total:g} s of line time'
+        if self.tty:
+            self.stream.write('\r' + line)
+        elif int(10 * fraction) > self.tenths:
+            self.tenths = int(10 * fraction)
+            self.stream.write(line + '\n')
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write('\n')
 
 
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
@@ -140,18 +158,19 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             executor.add_node(clock)
             done = clock.done.done
         last_draw = 0.0
+        progress = _Progress(stream, cfg.duration)
         while not done() and not interrupted:
             executor.spin_once(timeout_sec=0.05)
             now = time.perf_counter()
             if now - last_draw > 0.2:
-                _progress(stream, recorder.sim_time / cfg.duration, recorder.sim_time, cfg.duration)
+                progress.show(recorder.sim_time)
                 last_draw = now
         # let the last messages arrive
         deadline = time.perf_counter() + 1.0
         while time.perf_counter() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        _progress(stream, recorder.sim_time / cfg.duration, recorder.sim_time, cfg.duration)
-        stream.write('\n')
+        progress.show(recorder.sim_time)
+        progress.close()
         result.counts = dict(recorder.counts)
         result.summary = _summary(cfg, scene, recorder, time.perf_counter() - t_wall, interrupted)
     finally:
@@ -186,7 +205,8 @@ def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted
         'sim_time_reached_s': recorder.sim_time,
         'wall_time_s': wall,
         'rtf_requested': cfg.rtf,
-        'rtf_achieved': recorder.sim_time / wall if wall > 0 else 0.0,
+        'rtf_achieved': (recorder.sim_time / (recorder.clock_wall[1] - recorder.clock_wall[0])
+                         if recorder.clock_wall and recorder.clock_wall[1] > recorder.clock_wall[0] else 0.0),
         'mode': 'processes' if cfg.processes else 'in-process',
         'interrupted': interrupted,
         'messages': dict(sorted(recorder.counts.items())),

@@ -90,6 +90,13 @@ def _per_cycle_min(cycles: np.ndarray, margins: np.ndarray) -> tuple[np.ndarray,
     return uc.astype(np.int64), m
 
 
+def _contact_time(cc: np.ndarray, tc: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Knife-contact time of each cycle in ``c`` (all judged cycles are in ``cc``)."""
+    if c.size == 0:
+        return np.zeros(0)
+    return tc[np.searchsorted(cc, c)]
+
+
 def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: Any, drive: Drive | None = None,
                                 *, plan: Any = None) -> list[ConstraintSeries]:
     """Per-cycle margins of the folder's (and delivery's) constraints.
@@ -155,7 +162,7 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
         margin = np.zeros(0)
     c, m = _per_cycle_min(cyc, margin)
     out.append(ConstraintSeries('feed_window', 's', c, m, 'feed done within t_allowed of the knife exit: '
-                                '(window start + t_allowed) - t_at_stops'))
+                                '(window start + t_allowed) - t_at_stops', t=_contact_time(cc, tc, c)))
 
     # settled_before_knife
     bouncing = scene.has('stop_bounce')
@@ -167,7 +174,8 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     margin = np.where(is_set, t_contact - t_set, late_bound)
     c, m = _per_cycle_min(cyc, margin)
     out.append(ConstraintSeries('settled_before_knife', 's', c, m,
-                                'signature at rest at the front stops before the knife contact: t_contact - t_settled'))
+                                'signature at rest at the front stops before the knife contact: t_contact - t_settled',
+                                t=_contact_time(cc, tc, c)))
 
     # one_per_cycle
     in_time = at_stops & (t_stop <= t_contact)
@@ -176,7 +184,7 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
         np.add.at(counts, ic[in_time], 1)
     out.append(ConstraintSeries('one_per_cycle', 'sheets', cc.astype(np.int64),
                                 0.0 - np.abs(counts - 1).astype(float),
-                                'exactly one signature at the stops at the knife contact: -|count - 1|'))
+                                'exactly one signature at the stops at the knife contact: -|count - 1|', t=tc.copy()))
 
     # rebound
     if bouncing:
@@ -185,7 +193,8 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
         rb, _ = _lookup(bounce['sheet'], bounce['value'], sheet, reduce='max')
         c, m = _per_cycle_min(cyc[at_stops], tol - rb[at_stops])
         out.append(ConstraintSeries('rebound', 'm', c, m,
-                                    'first rebound off the stops within the fold tolerance: tolerance - rebound'))
+                                    'first rebound off the stops within the fold tolerance: tolerance - rebound',
+                                    t=_contact_time(cc, tc, c)))
 
     # release_at_min_speed
     if 'delivery' in scene.machines:
@@ -201,8 +210,10 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
             u = plan.path.position(travel - plan.chain.L_transfer)
             kv = evaluate_stroke(plan.params, u, return_section='geometric').K_v
             c, m = _per_cycle_min(rel['cycle'], RELEASE_KV_TOL - (kv - plan.K_v_rel))
+            uc, first_rel = np.unique(rel['cycle'], return_index=True)
+            t_rel = rel['t'][first_rel][np.searchsorted(uc, c)]
         else:
-            c, m = np.zeros(0, dtype=np.int64), np.zeros(0)
+            c, m, t_rel = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
         out.append(ConstraintSeries('release_at_min_speed', '1', c, m,
-                                    'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)'))
+                                    'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)', t=t_rel))
     return out

@@ -6,7 +6,7 @@ closed forms or root-finding, never from the sampling grid.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -153,6 +153,9 @@ class ConstraintSeries:
         Margin per evaluation; negative means violated. Always finite.
     description : str
         What is checked, in words.
+    t : ndarray of float64
+        Line time at which each evaluation is decided, s (a folder cycle's knife
+        contact, a release, a leaf's exit): what a live supervisor knows by then.
     """
 
     name: str
@@ -160,6 +163,16 @@ class ConstraintSeries:
     cycle: np.ndarray
     margin: np.ndarray
     description: str = ''
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        if self.t.shape != self.margin.shape:
+            msg = f'constraint {self.name}: t has shape {self.t.shape}, margin {self.margin.shape}'
+            raise ValueError(msg)
+
+    def decided_by(self, t: float) -> np.ndarray:
+        """Mask of the evaluations decided at or before line time ``t``."""
+        return self.t <= t
 
     @property
     def violated(self) -> np.ndarray:

@@ -383,7 +383,8 @@ class LayupLine:
             if upper is not None:
                 desc += f' and < v_damage = {scene.effect("leaf_damage").v_damage:g} m/s'
             constraints.append(ConstraintSeries('chute_speed', 'm/s', id_x.astype(np.int64),
-                                                belts.speed_margin(bp, speed, upper), desc + ' (per leaf)'))
+                                                belts.speed_margin(bp, speed, upper), desc + ' (per leaf)',
+                                                t=np.asarray(t_x, dtype=float)))
 
         # ------------------------------------------------------------------ flight
         summary_flight: dict[str, Any] = {}

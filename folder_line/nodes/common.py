@@ -44,6 +44,7 @@ import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -69,6 +70,7 @@ __all__ = [
     'TOPICS',
     'joint_states_topic',
     'CLOCK_QOS',
+    'PUBLISH_DEPTH',
     'NS_PER_S',
     'TIME_MSG_MAX_NS',
     'seconds_to_ns',
@@ -176,7 +178,11 @@ COMMANDS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_ALL)
 """QoS of the supervisor's command topic: every command reaches every node, late joiners too."""
 
-CLOCK_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+PUBLISH_DEPTH = 1000
+"""History depth of every line publisher: a reliable subscriber (the recorder) that falls
+behind by up to this many messages still gets them all."""
+
+CLOCK_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 """QoS of the ``/clock`` publisher: reliable, so that it also matches the best-effort
 subscription every node's ``TimeSource`` makes, and recorders that want every tick."""
 
@@ -640,6 +646,9 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         pass
     except (FolderLineError, ParameterException) as err:
         print(f'{name}: error: {err}', file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+    except RCLError as err:  # e.g. a --ros-args rule rcl cannot parse
+        print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
         return EXIT_BAD_PARAMETER
     finally:
         for signum, handler in previous.items():

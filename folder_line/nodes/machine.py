@@ -39,6 +39,7 @@ from folder_line.nodes.common import (
     COMMANDS_TOPIC,
     EVENTS_TOPIC,
     NS_PER_S,
+    PUBLISH_DEPTH,
     ParamSpec,
     declare_parameters,
     joint_states_topic,
@@ -144,9 +145,9 @@ class MachineNode(Node):
         self._horizon_logged = False
         self.published_joint_states = 0
         self.published_events = 0
-        self._joint_pub = (self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), 100)
+        self._joint_pub = (self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), PUBLISH_DEPTH)
                            if self.joints else None)
-        self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, 1000)
+        self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, PUBLISH_DEPTH)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
         self._timer = self.create_timer(1.0 / self.values['rate'], self._tick)
         self.add_post_set_parameters_callback(self._apply)

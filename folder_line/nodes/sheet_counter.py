@@ -1,7 +1,7 @@
 """Node ``sheet_counter``: the pile of the delivery and the floor of the layup container.
 
-Counts sheets released on the pile (folder scenes) or leaves landed in the container
-(layup scenes), and publishes, every tick at stamp ``t``:
+Counts sheets released on the pile (scenes with the delivery) or, without a delivery,
+leaves landed in the container (layup scenes), and publishes, every tick at stamp ``t``:
 
 * ``/line/sheet_counter/count`` (``std_msgs/UInt64``): sheets counted up to ``t``;
 * ``/line/sheet_counter/rate`` (``std_msgs/Float64``): sheets per second over the last
@@ -20,17 +20,21 @@ import numpy as np
 from std_msgs.msg import Float64, UInt64
 
 from folder_line.core.events import EVENT_KINDS
-from folder_line.nodes.common import LANDING_TOPIC, SHEET_COUNT_TOPIC, SHEET_RATE_TOPIC, ParamSpec, run_node
+from folder_line.nodes.common import (
+    LANDING_TOPIC,
+    PUBLISH_DEPTH,
+    SHEET_COUNT_TOPIC,
+    SHEET_RATE_TOPIC,
+    ParamSpec,
+    run_node,
+)
 from folder_line.nodes.machine import MachineNode
 
-__all__ = ['SheetCounter', 'counted_kinds', 'main']
+__all__ = ['SheetCounter', 'counted_kind', 'main']
 
-COUNTED = ('released_on_pile', 'leaf_landed')
-
-
-def counted_kinds() -> np.ndarray:
-    """Event-kind indices the counter counts."""
-    return np.array([EVENT_KINDS.index(k) for k in COUNTED], dtype=np.int16)
+def counted_kind(has_delivery: bool) -> int:
+    """Event-kind index the counter counts: sheets on the pile, else leaves in the container."""
+    return EVENT_KINDS.index('released_on_pile' if has_delivery else 'leaf_landed')
 
 
 class SheetCounter(MachineNode):
@@ -41,13 +45,14 @@ class SheetCounter(MachineNode):
                              bounds=(0.0, 3600.0), low_open=True),)
 
     def setup(self) -> None:
-        self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, 100)
-        self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, 100)
-        self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, 1000)
+        self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, PUBLISH_DEPTH)
+        self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, PUBLISH_DEPTH)
+        self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, PUBLISH_DEPTH)
         self._landed = EVENT_KINDS.index('leaf_landed')
 
     def on_model(self) -> None:
-        self._times = self.model.events[np.isin(self.model.events['kind'], counted_kinds())]['t']
+        ev = self.model.events
+        self._times = ev[ev['kind'] == counted_kind(self.model.scene.has_delivery)]['t']
 
     def count_at(self, t: float) -> int:
         """Sheets counted with event time <= t."""

@@ -22,6 +22,7 @@ speed (λ >= 0.99), RESETTING and CLEARING at the next tick.
 
 from __future__ import annotations
 
+import math
 import sys
 from typing import Any, Callable
 
@@ -39,6 +40,7 @@ from folder_line.nodes.common import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
     NS_PER_S,
+    PUBLISH_DEPTH,
     SUPERVISOR_STATE_TOPIC,
     ParamSpec,
     ns_to_time_msg,
@@ -60,7 +62,8 @@ SERVICES: dict[str, tuple[str, str | None, bool]] = {
 }
 
 SPEED_REACHED = 0.99
-STATE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class Supervisor(MachineNode):
@@ -77,7 +80,7 @@ class Supervisor(MachineNode):
         self.packml = PackML('STARTING')
         self._pending: float | None = 0.0  # effective time of the drive command the acting state waits for
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
-        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 100)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, PUBLISH_DEPTH)
         self._cmd_pub = self.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
         self._next_diag_ns = 0
         for name in SERVICES:
@@ -105,6 +108,8 @@ class Supervisor(MachineNode):
             self._pending = None
             return True, f'{command}: {self.packml.state}'
         t_eff = self.model.next_cycle_boundary(earliest) if at_boundary else earliest
+        if not math.isfinite(t_eff):  # no further cycle within the horizon (or the line stands): now
+            t_eff = earliest
         msg = TimeReference()
         msg.header.stamp = ns_to_time_msg(round(now * NS_PER_S))
         msg.header.frame_id = self.NODE_NAME
@@ -144,7 +149,8 @@ class Supervisor(MachineNode):
         arr = DiagnosticArray()
         arr.header.stamp = ns_to_time_msg(stamp_ns)
         for c in self.model.constraints:
-            n = int(np.searchsorted(c.t, t, side='right'))
+            decided = c.decided_by(t)
+            n = int(np.count_nonzero(decided))
             status = DiagnosticStatus()
             status.name = f'folder_line/{c.name}'
             status.hardware_id = self.model.scene.name
@@ -153,15 +159,16 @@ class Supervisor(MachineNode):
                 status.message = 'no cycle evaluated yet'
                 status.values = [KeyValue(key='unit', value=c.unit), KeyValue(key='evaluations', value='0')]
             else:
-                done = c.margin[:n]
+                done = c.margin[decided]
+                i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
                 violations = int(np.count_nonzero(done < 0.0))
-                last = float(done[-1])
+                last = float(c.margin[i_last])
                 status.level = (DiagnosticStatus.ERROR if last < 0.0
                                 else DiagnosticStatus.WARN if violations else DiagnosticStatus.OK)
-                status.message = (f'violated in cycle {int(c.cycle[n - 1])}' if last < 0.0
+                status.message = (f'violated in cycle {int(c.cycle[i_last])}' if last < 0.0
                                   else f'{violations} violations so far' if violations else 'ok')
                 values: dict[str, Any] = {
-                    'margin': repr(last), 'unit': c.unit, 'cycle': str(int(c.cycle[n - 1])),
+                    'margin': repr(last), 'unit': c.unit, 'cycle': str(int(c.cycle[i_last])),
                     'min_margin': repr(float(done.min())), 'violations': str(violations), 'evaluations': str(n),
                 }
                 status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
