@@ -24,6 +24,11 @@ topic                               type                               meaning
                                     DiagnosticArray``
 ``/line/supervisor/state``          ``std_msgs/msg/String``            state of the line's supervisor
 ``/line/sheet_counter/count``       ``std_msgs/msg/UInt64``            sheets delivered so far
+``/line/sheet_counter/rate``        ``std_msgs/msg/Float64``           sheets (or leaves) per second
+``/line/sheet_counter/landing_x``   ``std_msgs/msg/Float64``           landing x of each leaf, m (layup)
+``/line/supervisor/commands``       ``sensor_msgs/msg/TimeReference``  drive commands: ``source`` = hold, unhold,
+                                                                       stop or start; ``time_ref`` = effective
+                                                                       sim time
 ==================================  =================================  ==========================================
 
 The table is also data (:data:`TOPICS`) so that tests and bag tools use the
