@@ -19,7 +19,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = 'folder_line'
-PACKAGE_FILES = ('setup.py', 'setup.cfg', 'package.xml', 'resource', 'config', PACKAGE)
+PACKAGE_FILES = ('setup.py', 'setup.cfg', 'package.xml', 'resource', 'config', 'launch', PACKAGE)
 
 
 def console_scripts() -> dict[str, str]:
@@ -85,7 +85,7 @@ def test_ament_index_package_xml_and_config_are_installed(install: Path) -> None
     share = install / PACKAGE / 'share'
     assert (share / 'ament_index' / 'resource_index' / 'packages' / PACKAGE).is_file()
     assert (share / PACKAGE / 'package.xml').read_bytes() == (REPO / 'package.xml').read_bytes()
-    for pattern in ('config/*.yaml', 'config/scenes/*.yaml'):
+    for pattern in ('config/*.yaml', 'config/scenes/*.yaml', 'launch/*.launch.py'):
         expected = sorted(REPO.glob(pattern))
         if pattern == 'config/*.yaml':
             assert expected  # the package has configuration

@@ -1,0 +1,40 @@
+"""launch/line.launch.py cannot run here (no launch_ros in the wheels); check what can be checked."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+from folder_line.run import LINE_NODES
+
+REPO = Path(__file__).resolve().parent.parent
+LAUNCH = REPO / 'launch' / 'line.launch.py'
+
+
+def _literal(tree: ast.Module, name: str) -> object:
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == name for t in node.targets):
+            return ast.literal_eval(node.value)
+    raise AssertionError(f'{name} not found')
+
+
+def test_launch_file_starts_every_line_node_with_an_installed_executable() -> None:
+    tree = ast.parse(LAUNCH.read_text())
+    assert tuple(_literal(tree, 'MACHINE_NODES')) == LINE_NODES
+    scripts = set(re.findall(r"'(\w+) = folder_line\.nodes\.\w+:main'", (REPO / 'setup.py').read_text()))
+    assert set(LINE_NODES) | {'line_clock'} <= scripts
+    assert 'def generate_launch_description' in LAUNCH.read_text()
+
+
+def test_launch_arguments_match_node_parameters() -> None:
+    from folder_line.nodes.machine import MACHINE_SPECS
+
+    tree = ast.parse(LAUNCH.read_text())
+    args = {name for name, _, _ in _literal(tree, 'ARGUMENTS')}
+    assert {spec.name for spec in MACHINE_SPECS} <= args
+    assert {'rtf', 'duration'} <= args
+
+
+def test_launch_file_is_installed() -> None:
+    assert "glob('launch/*.launch.py')" in (REPO / 'setup.py').read_text()
