@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: run test bench clean
+.PHONY: run report test bench clean
 
 $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -15,6 +15,10 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	@touch $(STAMP)
 
 run: $(STAMP)
+	$(BIN)/folder-line run --scene folder --duration 20 --out $(OUT)
+
+# the kinematics/efficiency/cyclogram report of the defaults, with plots
+report: $(STAMP)
 	$(BIN)/folder-line report --out $(OUT)
 
 test: $(STAMP)
