@@ -7,7 +7,7 @@ closed forms or root-finding, never from the sampling grid.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +23,7 @@ __all__ = [
     'merge_events',
     'stack_samples',
     'SubResult',
+    'LinePart',
 ]
 
 #: Every event kind; an event's ``kind`` field is the index in this tuple.
@@ -211,3 +212,52 @@ class SubResult:
     samples: dict[str, JointSamples]
     constraints: list[ConstraintSeries]
     summary: dict[str, object]
+
+
+class LinePart:
+    """Base of one part of the line (:class:`~folder_line.core.folder_sim.FolderLine`,
+    :class:`~folder_line.core.layup_sim.LayupLine`): built once, sampled anywhere.
+
+    A subclass sets ``drive``, ``events``, ``constraints``, ``summary`` and ``nodes``
+    (node -> joint names) and implements :meth:`sample_node`.
+    """
+
+    drive: Any
+    events: np.ndarray
+    constraints: list[ConstraintSeries]
+    summary: dict[str, object]
+    nodes: dict[str, tuple[str, ...]]
+
+    def result(self, t_samples: npt.ArrayLike) -> SubResult:
+        """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
+        t = np.asarray(t_samples, dtype=float)
+        samples = self.sample(t) if t.size else {}
+        return SubResult(events=self.events, samples=samples, constraints=self.constraints, summary=self.summary)
+
+    def sample(self, t: npt.ArrayLike, theta: np.ndarray | None = None,
+               lam: np.ndarray | None = None) -> dict[str, JointSamples]:
+        """Joint states of every node of this part at times ``t``.
+
+        Parameters
+        ----------
+        t : array_like, shape (N,)
+            Line times, s, in [0, duration].
+        theta, lam : ndarray, optional
+            ``drive.theta(t)`` and ``drive.rate(t)`` if already at hand.
+        """
+        t = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(t, theta, lam)
+        return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
+
+    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
+                    lam: np.ndarray | None = None) -> JointSamples:
+        """Joint states of one node at ``t`` (subclass)."""
+        raise NotImplementedError
+
+    def _drive_state(self, t: np.ndarray, theta: np.ndarray | None,
+                     lam: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        if theta is None:
+            theta = np.asarray(self.drive.theta(t), dtype=float)
+        if lam is None:
+            lam = np.asarray(self.drive.rate(t), dtype=float)
+        return theta, lam

@@ -97,7 +97,15 @@ from folder_line.core.belt import BeltPhase
 from folder_line.core.chain import ChainPath, ChainSchedule
 from folder_line.core.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.drive import Drive
-from folder_line.core.events import JointSamples, SubResult, event_kind, make_events, merge_events, stack_samples
+from folder_line.core.events import (
+    JointSamples,
+    LinePart,
+    SubResult,
+    event_kind,
+    make_events,
+    merge_events,
+    stack_samples,
+)
 from folder_line.core.machines import ChainParams
 from folder_line.core.rng import stream
 from folder_line.errors import ParameterError
@@ -217,7 +225,7 @@ class _Sheets:
 # --------------------------------------------------------------------------- simulation
 
 
-class FolderLine:
+class FolderLine(LinePart):
     """The folder (and its delivery) on a drive over ``[0, duration]``: built once, sampled anywhere.
 
     Construction computes everything that depends only on the scene, the drive and
@@ -456,35 +464,6 @@ class FolderLine:
         }
 
     # ------------------------------------------------------------------ joint states
-
-    def result(self, t_samples: npt.ArrayLike) -> SubResult:
-        """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
-        t = np.asarray(t_samples, dtype=float)
-        samples = self.sample(t) if t.size else {}
-        return SubResult(events=self.events, samples=samples, constraints=self.constraints, summary=self.summary)
-
-    def sample(self, t: npt.ArrayLike, theta: np.ndarray | None = None,
-               lam: np.ndarray | None = None) -> dict[str, JointSamples]:
-        """Joint states of every node at times ``t`` (module docstring, "Joint samples").
-
-        Parameters
-        ----------
-        t : array_like, shape (N,)
-            Line times, s, in [0, duration].
-        theta, lam : ndarray, optional
-            ``drive.theta(t)`` and ``drive.rate(t)`` if already at hand.
-        """
-        t = np.asarray(t, dtype=float).reshape(-1)
-        theta, lam = self._drive_state(t, theta, lam)
-        return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
-
-    def _drive_state(self, t: np.ndarray, theta: np.ndarray | None,
-                     lam: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        if theta is None:
-            theta = np.asarray(self.drive.theta(t), dtype=float)
-        if lam is None:
-            lam = np.asarray(self.drive.rate(t), dtype=float)
-        return theta, lam
 
     def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
                     lam: np.ndarray | None = None) -> JointSamples:

@@ -672,7 +672,7 @@ class LayupModel:
         """ε3, ε5 for one chunk from the twice-differentiated loop equations."""
         xA, yA, xB, yB, xC, yC, xE, yE, _, _, w3, w5 = o[:12]
         mg1, mg2 = o[16], o[17]
-        R, a, b = self._R, self._a, self._b
+        a, b = self._a, self._b
         # loop 1: ε3 (A × B) = ω3² (B - A)·B + (B - A)·Ä - |dB/dt - dA/dt|²,
         # Ä = α R (-sin, cos) - ω² R (cos, sin),  A × B = S1/2 = margin1 · O2B · l2
         rc = xA - a                      # R cos

@@ -85,6 +85,7 @@ from folder_line.core import rng as rng_mod
 from folder_line.core.drive import Drive
 from folder_line.core.effects import effect_module
 from folder_line.core.events import (
+    LinePart,
     ConstraintSeries,
     JointSamples,
     SubResult,
@@ -242,7 +243,7 @@ def _stats(x: np.ndarray) -> Optional[dict[str, float]]:
     return {'leaves': int(x.size), 'mean': float(np.mean(x)), 'min': float(np.min(x)), 'max': float(np.max(x))}
 
 
-class LayupLine:
+class LayupLine(LinePart):
     """The layup part of the line on a drive over ``[0, duration]``: built once, sampled anywhere.
 
     Construction computes the events, constraints and summary (:func:`simulate_layup`
@@ -436,35 +437,6 @@ class LayupLine:
         self.nodes: dict[str, tuple[str, ...]] = {'crank_drive': ('layup_crank', 'transporter3', 'transporter4')}
         if belts_on:
             self.nodes['belt_conveyor'] = ('chute_belts',)
-
-    def result(self, t_samples: npt.ArrayLike) -> SubResult:
-        """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
-        t = np.asarray(t_samples, dtype=float)
-        samples = self.sample(t) if t.size else {}
-        return SubResult(events=self.events, samples=samples, constraints=self.constraints, summary=self.summary)
-
-    def sample(self, t: npt.ArrayLike, theta: np.ndarray | None = None,
-               lam: np.ndarray | None = None) -> dict[str, JointSamples]:
-        """Joint states of every node of the layup at times ``t`` (see :func:`simulate_layup`).
-
-        Parameters
-        ----------
-        t : array_like, shape (N,)
-            Line times, s, in [0, duration].
-        theta, lam : ndarray, optional
-            ``drive.theta(t)`` and ``drive.rate(t)`` if already at hand.
-        """
-        t = np.asarray(t, dtype=float).reshape(-1)
-        theta, lam = self._drive_state(t, theta, lam)
-        return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
-
-    def _drive_state(self, t: np.ndarray, theta: np.ndarray | None,
-                     lam: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        if theta is None:
-            theta = np.asarray(self.drive.theta(t), dtype=float)
-        if lam is None:
-            lam = np.asarray(self.drive.rate(t), dtype=float)
-        return theta, lam
 
     def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
                     lam: np.ndarray | None = None) -> JointSamples:
