@@ -12,23 +12,33 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ['write_csv_atomic', 'write_json_atomic', 'write_text_atomic']
+__all__ = ['write_bytes_atomic', 'write_csv_atomic', 'write_json_atomic', 'write_text_atomic']
+
+_umask = os.umask(0)
+os.umask(_umask)
+_MODE = 0o666 & ~_umask
 
 
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` via a temporary file in the same directory and a rename,
+def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` via a temporary file in the same directory and a rename,
     so a failure (or a kill) never leaves a half-written file; the directory is created."""
     dest = Path(path)
     dest.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f'.{dest.name}.', suffix='.tmp', dir=dest.parent)
     try:
-        with os.fdopen(fd, 'w', newline='', encoding='utf-8') as fh:
-            fh.write(text)
+        os.fchmod(fd, _MODE)  # mkstemp makes 0600; an output is as readable as any file the user writes
+        with os.fdopen(fd, 'wb') as fh:
+            fh.write(data)
         os.replace(tmp, dest)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return dest
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
+    """:func:`write_bytes_atomic` of UTF-8 text (newlines written as given)."""
+    return write_bytes_atomic(path, text.encode('utf-8'))
 
 
 def write_json_atomic(path: str | os.PathLike[str], document: object) -> Path:

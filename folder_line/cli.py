@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 from folder_line.errors import FolderLineError
 
@@ -48,6 +48,19 @@ def _rtf(text: str) -> float:
     return value
 
 
+def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{option}={text!r}: must be a number') from None
+        if not 0.0 < value <= hi:
+            raise argparse.ArgumentTypeError(f'{option}={text!r}: must be in (0, {hi:g}] {unit}'.rstrip())
+        return value
+
+    return parse
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
@@ -75,8 +88,31 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
+    mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
+    mon.add_argument('--rate', type=_positive('--rate', 60.0, 'Hz'), default=4.0, metavar='HZ',
+                     help='screen refreshes per second (default 4)')
+    mon.add_argument('--once', action='store_true',
+                     help='print one plain-text snapshot after collecting for the rate window, then exit')
+    mon.add_argument('--window', type=_positive('--window', 600.0, 's'), default=2.0, metavar='S',
+                     help='window of the topic rates, s of wall time (default 2)')
+    mon.add_argument('--timeout', type=_positive('--timeout', 3600.0, 's'), default=10.0, metavar='S',
+                     help='with --once: longest wait for the first message, s (default 10)')
+
+    bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
+    bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
+    bag_info = bag_sub.add_parser('info', help='topics, counts, line time and custom data of a bag')
+    bag_info.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    bag_repair = bag_sub.add_parser('repair', help='rebuild metadata.yaml from the MCAP files present, '
+                                    'salvaging an unfinished last file')
+    bag_repair.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
     rep.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+
+    ana = sub.add_parser('analyze', help='replay analysis of a recorded run: report.md and plots (no ROS needed)')
+    ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
+    ana.add_argument('--out', metavar='DIR', help='output directory (default RUN_DIR/analysis)')
+    ana.add_argument('--csv', action='store_true', help='also write one CSV per topic to DIR/csv/')
     return parser
 
 
@@ -120,10 +156,36 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    from folder_line.monitor import run_monitor
+
+    return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
+
+
+def _cmd_bag(args: argparse.Namespace) -> int:
+    from folder_line.bag import bag_info_lines, read_bag, repair
+
+    if args.bag_verb == 'repair':
+        result = repair(args.dir)
+        print(f'repaired {args.dir}: {result.describe()}')
+        print(f'wrote {result.metadata}')
+        return 0
+    for line in bag_info_lines(read_bag(args.dir)):
+        print(line)
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from folder_line.report import write_report
 
     write_report(Path(args.out), sys.stdout)
+    return 0
+
+
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from folder_line.analysis import analyze, print_analysis
+
+    print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
     return 0
 
 
@@ -132,7 +194,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
     handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'run': _cmd_run,
-               'report': _cmd_report}[args.verb]
+               'monitor': _cmd_monitor, 'report': _cmd_report, 'bag': _cmd_bag, 'analyze': _cmd_analyze}[args.verb]
     try:
         return handler(args)
     except FolderLineError as exc:

@@ -16,6 +16,7 @@ import numpy as np
 from folder_line.core import cyclogram, delivery, knife, layup
 from folder_line.atomic import write_csv_atomic
 from folder_line.params import load_params
+from folder_line.plots import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.tables import kinematics_table
 
 __all__ = ['Check', 'published_checks', 'write_report']
@@ -78,37 +79,20 @@ def published_checks(p: dict[str, object] | None = None) -> list[Check]:
 
 
 def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
-    import matplotlib.pyplot as plt
-
-    phi = np.linspace(0.0, 2.0 * math.pi, 721)
-    st = layup.LayupModel(lay).arrays(phi, accelerations=False)
-    deg = np.degrees(phi)
+    plt = pyplot()
     ext = layup.swing_extremes(lay)
 
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    ax1.plot(deg, st.vC, label='$v_C$ (exit of transporter 3)')
-    ax1.plot(deg, st.vE, '--', label='$v_E$ (exit of transporter 4)')
-    ax1.axhline(0.0, color='k', lw=0.5)
-    for e in ext:
-        ax1.axvline(math.degrees(e.phi), color='grey', ls=':', lw=1)
+    st = exit_speed_curves(ax1, ax2, lay, lay.v_tr)
     ax1.set_ylabel('swing speed, m/s')
     ax1.set_title('L: exit speeds without belts (paper Fig. 4): zero at the swing extremes')
     ax1.legend(loc='upper right')
-    ax2.plot(deg, st.vaC, label=r'$v_{aC}=\sqrt{v_C^2+v_{tr}^2}$')
-    ax2.plot(deg, st.vaE, '--', label=r'$v_{aE}$')
-    ax2.plot(deg, np.abs(st.vC), color='C2', lw=0.8, label='$|v_C|$ without belts')
-    ax2.axhline(lay.v_tr, color='k', lw=0.5)
-    for e in ext:
-        ax2.axvline(math.degrees(e.phi), color='grey', ls=':', lw=1)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel('crank angle $\\varphi$, deg')
     ax2.set_title(f'L: with belts at $v_{{tr}}$ = {lay.v_tr:g} m/s (paper Fig. 5): never below $v_{{tr}}$')
     ax2.legend(loc='center right')
-    ax2.set_xlim(0, 360)
     fig.tight_layout()
-    speeds = out / 'layup_speeds.png'
-    fig.savefig(speeds, dpi=110)
-    plt.close(fig)
+    speeds = save_figure(fig, out / 'layup_speeds.png')
 
     fig, ax = plt.subplots(figsize=(7, 7))
     ax.plot(st.xC, st.yC, color='C0', lw=2, label='path of exit C')
@@ -130,14 +114,11 @@ def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
     ax.legend(loc='upper right', fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    geometry = out / 'layup_geometry.png'
-    fig.savefig(geometry, dpi=110)
-    plt.close(fig)
-    return [speeds, geometry]
+    return [speeds, save_figure(fig, out / 'layup_geometry.png')]
 
 
 def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path) -> Path:
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     tm = cyclogram.cycle_timing(cy, kn)
     t = np.linspace(tm.knife.t_in, tm.knife.t_in + tm.T, 1001)
@@ -151,10 +132,9 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
     ax1.set_ylabel('s, mm')
     ax1.set_title(f'F: crank-slider knife at {kn.n_k:g} rev/h (T = {tm.T * 1e3:.1f} ms)')
     ax1.legend(loc='upper right', fontsize=8)
-    colours = {'knife': 'tab:red', 'feed': 'tab:green', 'dwell': 'tab:blue'}
     for ph in tm.timeline:
         a, b = 1e3 * (ph.t_start - tm.knife.t_in), 1e3 * (ph.t_end - tm.knife.t_in)
-        ax2.barh(3, b - a, left=a, color=colours[ph.name], alpha=0.6)
+        ax2.barh(3, b - a, left=a, color=PHASE_COLOURS[ph.name], alpha=0.6)
         ax2.text((a + b) / 2, 3, f'{ph.name}\n{(b - a):.1f} ms', ha='center', va='center', fontsize=8)
     feed0 = 1e3 * (tm.knife.t_out - tm.knife.t_in)
     cases = (('V_tr = V_d', tm.V_d), ('paper V_tr', PAPER_V_TR), ('model V_tr,min', tm.V_tr_min))
@@ -169,47 +149,26 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
     ax2.set_title('cyclogram (paper Figs. 1-2); dotted: end of the feed window less the 10 % reserve', fontsize=9)
     ax2.set_xlim(0, 1e3 * tm.T)
     fig.tight_layout()
-    path = out / 'knife_cyclogram.png'
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out / 'knife_cyclogram.png')
 
 
 def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    u = np.linspace(0.0, 2.0, 2001)
+    plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    for mode, style in (('paper_mirror', '-'), ('geometric', '--')):
-        ev = delivery.evaluate_stroke(dl, u, return_section=mode)
-        ax1.plot(u, ev.eta, style, label=f'eta ({mode} return section)')
-        ax2.plot(u, ev.K_v, style, label=f'K_v ({mode})')
-    ev = delivery.evaluate_stroke(dl, u, return_section='paper_mirror')
-    ax1.plot(u, ev.eta_A, ':', lw=1, label='eta_A')
-    ax1.plot(u, ev.eta_B, ':', lw=1, label='eta_B')
-    ax1.axvline(1.0, color='grey', lw=0.8)
+    stroke_curves(ax1, ax2, dl, ('paper_mirror', 'geometric'))
     ax1.set_ylabel('instantaneous efficiency')
     ax1.set_title(f'D: efficiency along the stroke (paper Fig. 2), Lambda = {dl.Lambda:g}, '
                   f'alpha_m = {dl.alpha_m_deg:g} deg, {dl.law}')
     ax1.legend(fontsize=8, loc='lower left')
-    ax1.grid(alpha=0.3)
-    ax2.axvline(1.0, color='grey', lw=0.8)
     ax2.set_ylabel('carriage speed ratio K_v')
     ax2.set_xlabel('stroke position u (deceleration section 0..1, acceleration section 1..2)')
     ax2.legend(fontsize=8)
-    ax2.grid(alpha=0.3)
     fig.tight_layout()
-    path = out / 'delivery_efficiency.png'
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out / 'delivery_efficiency.png')
 
 
 def write_report(out: Path, stream: IO[str]) -> list[Path]:
     """Print the report of the defaults and write ``report.md``, CSV tables and PNG plots to ``out``."""
-    import matplotlib
-
-    matplotlib.use('Agg')
     p = _defaults()
     out.mkdir(parents=True, exist_ok=True)
     checks = published_checks(p)

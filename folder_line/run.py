@@ -6,11 +6,21 @@ With ``processes=True``: one process per node, started from the node executables
 as a launch file would, and stopped with SIGINT. Either way a recorder in this
 process subscribes to every line topic, counts what arrives and compares it with
 what the batch simulation (``simulate``) of the same scene says.
+
+The recorder hands every message to a :class:`folder_line.bag.BagWriter`: the run's
+bag is ``<out>/bag/`` (rosbag2, MCAP, one file per second of line time, the complete
+scene and its effects in the metadata). Loss accounting: in-process, every node
+counts what it publishes (``published_counts()``), read at the end of the run, so
+``run.json`` has ``published`` and ``lost`` (= published - recorded) per topic. With
+``processes=True`` the publishers live in other processes and their counts are not
+collected: ``published`` and ``lost`` are ``null`` there, and ``loss_accounting`` says so.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,10 +31,16 @@ from typing import IO, Any, Callable
 
 from folder_line.atomic import write_json_atomic
 
-__all__ = ['LINE_NODES', 'RunConfig', 'RunResult', 'print_run_summary', 'run_line']
+__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'print_run_summary', 'run_line']
 
 #: the nodes of the line, in start order (the clock last, so nobody misses t = 0)
 LINE_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
+
+#: the run's bag, under ``cfg.out``
+BAG_DIR = 'bag'
+
+_PROCESSES_LOSS = ('unavailable with --processes: the publishers run in other processes and their '
+                   'counts are not collected')
 
 
 @dataclass(frozen=True)
@@ -67,6 +83,61 @@ class RunResult:
     exit_codes: dict[str, int] = field(default_factory=dict)
 
 
+def _clock_publish_rate(cfg: RunConfig) -> float:
+    """``/clock`` messages per wall second: one per node tick (``rate`` Hz of sim time at ``rtf``).
+
+    A node's timer runs on sim time and fires at most once per ``/clock`` message, so
+    fewer messages than ``rate * rtf`` per wall second would lower the nodes' rate in sim
+    time (``line_clock`` allows at most 1000 per second).
+    """
+    return min(1000.0, max(1.0, cfg.rate * cfg.rtf))
+
+
+#: real-time factor of the clock while the processes wait for each other (sim time all but stands)
+_HOLD_RTF = 1e-6
+
+
+def _start_processes_line(cfg: RunConfig, recorder: Any, executor: Any, env: dict[str, str],
+                          procs: dict[str, Any], logs: Path, stream: IO[str]) -> None:
+    """Start ``line_clock`` as a process once every node process hears it, then let sim time run.
+
+    DDS discovery between processes takes from 0.1 s to several seconds here (Fast DDS
+    repeats its announcements every few seconds), so a clock started at full speed would
+    run for a while before some node, or the recorder, hears it. The clock starts at the
+    nodes' first tick (``1/rate`` s, a grid point of every node's timer) at a real-time
+    factor that all but stops sim time; once every node that publishes has published at
+    that tick (so it hears the clock) and the recorder hears the clock, ``rtf`` is set to
+    ``cfg.rtf`` through the clock's parameter service, and the line runs from there.
+    """
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from folder_line.nodes.common import CLOCK_TOPIC, SHEET_COUNT_TOPIC, SUPERVISOR_STATE_TOPIC, joint_states_topic
+
+    t0 = min(1.0 / cfg.rate, 0.5 * cfg.duration)
+    clock_cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args',
+                 '-p', f'start_time:={t0!r}', '-p', f'duration:={cfg.duration - t0!r}', '-p', f'rtf:={_HOLD_RTF!r}',
+                 '-p', f'publish_rate:={_clock_publish_rate(cfg)!r}']
+    with open(logs / 'line_clock.log', 'wb') as log:
+        procs['line_clock'] = subprocess.Popen(clock_cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
+    topics = [joint_states_topic(n) for n in LINE_NODES] + [SHEET_COUNT_TOPIC, SUPERVISOR_STATE_TOPIC]
+    expected = [CLOCK_TOPIC] + [t for t in topics if recorder.count_publishers(t) > 0]
+    client = AsyncParameterClient(recorder, 'line_clock')
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline and not (client.services_are_ready()
+                                               and all(recorder.counts[t] for t in expected)):
+        if procs['line_clock'].poll() is not None:
+            return
+        executor.spin_once(timeout_sec=0.05)
+    deaf = [t for t in expected if not recorder.counts[t]]
+    if deaf:
+        print(f'warning: starting the line although nothing arrived yet on {", ".join(deaf)}', file=stream)
+    future = client.set_parameters([Parameter('rtf', value=float(cfg.rtf))])
+    while time.monotonic() < deadline + 10.0 and not future.done():
+        executor.spin_once(timeout_sec=0.05)
+    recorder.clock_wall = None  # the achieved real-time factor counts from here
+
+
 def _node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
     params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + 1.0, 'rate': cfg.rate}
     if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
@@ -98,18 +169,51 @@ class _Progress:
             self.stream.write('\n')
 
 
+def _clear_previous_bag(path: Path) -> None:
+    """Remove the bag of a previous run at ``path``; refuse anything that is not one."""
+    from folder_line.bag import BagError
+
+    if not path.exists():
+        return
+    ours = path.is_dir() and all(
+        p.is_file() and (p.name == 'metadata.yaml' or p.suffix in ('.mcap', '.truncated', '.tmp'))
+        for p in path.iterdir())
+    if not ours:
+        msg = f'{path}: exists and is not a bag of a previous run; move it away or choose another --out'
+        raise BagError(msg)
+    shutil.rmtree(path)
+
+
+def _published_counts(nodes: list[Any]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for node in nodes:
+        for topic, n in node.published_counts().items():
+            counts[topic] = counts.get(topic, 0) + n
+    return counts
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
-    """Run the line for ``cfg.duration`` s of sim time; write ``run.json`` to ``cfg.out``."""
+    """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``."""
     import rclpy
+    import yaml
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
+    from folder_line.bag import BagWriter
+    from folder_line.core.scene import parse_scene
     from folder_line.nodes.line_clock import LineClock
-    from folder_line.recorder import LineRecorder
-    from folder_line.scenes import load_scene, parse_set
+    from folder_line.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.scenes import parse_set, scene_mapping
 
-    scene = load_scene(cfg.scene, parse_set(cfg.overrides))  # fail early, before any node starts
+    mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
+    scene = parse_scene(mapping)  # fail early, before any node starts
     cfg.out.mkdir(parents=True, exist_ok=True)
+    bag_path = cfg.out / BAG_DIR
+    _clear_previous_bag(bag_path)
+    bag = BagWriter(bag_path, scene_source=yaml.safe_dump(mapping, sort_keys=False), effects=list(scene.effects),
+                    scene_name=scene.name, topics=LINE_TOPICS,
+                    custom={'folder_line.scene_arg': str(cfg.scene), 'folder_line.overrides': json.dumps(cfg.overrides),
+                            'folder_line.mode': 'processes' if cfg.processes else 'in-process'})
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     result = RunResult()
@@ -125,21 +229,22 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     previous = signal.signal(signal.SIGINT, on_signal)
     t_wall = time.perf_counter()
     try:
-        recorder = LineRecorder(context=ctx)
+        recorder = LineRecorder(sink=bag.write, context=ctx)
         executor.add_node(recorder)
         if cfg.processes:
             env = dict(os.environ)
+            logs = cfg.out / 'logs'  # each process's stderr
+            logs.mkdir(exist_ok=True)
             for name in LINE_NODES:
                 args = [f'{k}:={v}' for k, v in _node_parameters(cfg, name).items()]
                 cmd = [sys.executable, '-m', f'folder_line.nodes.{name}', '--ros-args']
                 for a in args:
                     cmd += ['-p', a]
-                procs[name] = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
+                with open(logs / f'{name}.log', 'wb') as log:
+                    procs[name] = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
             recorder.wait_for_publishers(len(LINE_NODES), executor, timeout=30.0)
-            clock_cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args',
-                         '-p', f'duration:={cfg.duration}', '-p', f'rtf:={cfg.rtf}']
-            procs['line_clock'] = subprocess.Popen(clock_cmd, env=env, stdout=subprocess.DEVNULL,
-                                                   stderr=subprocess.PIPE)
+            _start_processes_line(cfg, recorder, executor, env, procs, logs, stream)
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
             from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
@@ -153,7 +258,9 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 nodes.append(node)
                 executor.add_node(node)
             clock = LineClock(parameter_overrides=[Parameter('duration', value=float(cfg.duration)),
-                                                   Parameter('rtf', value=float(cfg.rtf))], context=ctx)
+                                                   Parameter('rtf', value=float(cfg.rtf)),
+                                                   Parameter('publish_rate', value=_clock_publish_rate(cfg))],
+                              context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
             done = clock.done.done
@@ -165,6 +272,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             if now - last_draw > 0.2:
                 progress.show(recorder.sim_time)
                 last_draw = now
+        if interrupted and not cfg.processes:
+            executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
         # let the last messages arrive
         deadline = time.perf_counter() + 1.0
         while time.perf_counter() < deadline:
@@ -172,7 +281,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         progress.show(recorder.sim_time)
         progress.close()
         result.counts = dict(recorder.counts)
+        published = None if cfg.processes else _published_counts(nodes)
+        bag.close(published)
         result.summary = _summary(cfg, scene, recorder, time.perf_counter() - t_wall, interrupted)
+        result.summary.update(_bag_summary(bag, published))
     finally:
         for name, proc in procs.items():
             if proc.poll() is None:
@@ -185,6 +297,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 proc.wait()
             result.exit_codes[name] = proc.returncode
         executor.shutdown()
+        bag.close()  # no-op after a normal end; after an error, finishes what was recorded
         for node in nodes:
             node.destroy_node()
         ctx.try_shutdown()
@@ -218,6 +331,18 @@ def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted
     }
 
 
+def _bag_summary(bag: Any, published: dict[str, int] | None) -> dict[str, Any]:
+    recorded = dict(sorted(bag.counts.items()))
+    out: dict[str, Any] = {
+        'bag': {'path': str(bag.path), 'segments': len(bag.files), 'messages': recorded},
+        'published': None if published is None else {t: published.get(t, 0) for t in recorded},
+        'lost': None if published is None else {t: published.get(t, 0) - n for t, n in recorded.items()},
+    }
+    out['loss_accounting'] = (_PROCESSES_LOSS if published is None else
+                              'in-process: published counted by the nodes, recorded counted in the bag')
+    return out
+
+
 def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -> None:
     """Human-readable end of ``folder-line run``."""
     print(f"scene {summary['scene']}: {summary['sim_time_reached_s']:.3f} s of line time in "
@@ -227,4 +352,13 @@ def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -
     print('messages received per topic:', file=stream)
     for topic, n in summary['messages'].items():
         print(f'  {topic:<40} {n}', file=stream)
+    if 'bag' in summary:
+        lost = summary.get('lost')
+        if lost is None:
+            print(f"lost messages: unknown ({summary.get('loss_accounting', '')})", file=stream)
+        elif any(lost.values()):
+            print('lost messages: ' + ', '.join(f'{t} {n}' for t, n in lost.items() if n), file=stream)
+        else:
+            print('lost messages: 0 on every topic', file=stream)
+        print(f"wrote {summary['bag']['path']} ({summary['bag']['segments']} segments)", file=stream)
     print(f'wrote {out_dir / "run.json"}', file=stream)

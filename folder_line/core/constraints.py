@@ -14,6 +14,18 @@ belongs to the cycle its ``sheet_handover`` row names. Where a judged sheet's
 table ends — its time is bounded by the table's last time, which is after the
 knife contact: the margin is then reported as that (negative) bound.
 
+Causal evaluation (``causal=True``, what the live supervisor uses,
+:mod:`folder_line.core.supervision`): each judged cycle sees only the rows at or
+before its own knife contact — its decision time, the ``t`` of the series — as if
+the table ended there. A sheet handed over after its cycle's knife contact is not
+judged (the cycle had no sheet when it was decided); a sheet's ``at_stops``,
+``settled`` or ``bounce`` after its cycle's knife contact is "still on its way" (bound ``-spacing(t_contact)``
+instead of the actual lateness: the sign is the batch evaluation's, the size is what
+is known at the decision). Each cycle's result then depends only on the rows up to
+its decision time, so evaluating a stream cycle by cycle, in any batching, gives the
+same margins as one causal call on the whole table. For every cycle whose sheets are
+all at rest by the knife contact, the causal and the batch margins are equal.
+
 Constraints (margin >= 0 passes; every margin finite)
 -----------------------------------------------------
 ``feed_window`` (s), per cycle (worst sheet)
@@ -40,6 +52,7 @@ Constraints (margin >= 0 passes; every margin finite)
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -48,10 +61,13 @@ from folder_line.core.cyclogram import CycleTiming
 from folder_line.core.drive import Drive
 from folder_line.core.events import ConstraintSeries, event_kind
 
-__all__ = ['FOLDER_CONSTRAINTS', 'RELEASE_KV_TOL', 'evaluate_folder_constraints']
+__all__ = ['FOLDER_CONSTRAINTS', 'LAYUP_CONSTRAINTS', 'RELEASE_KV_TOL', 'FolderEvaluation', 'chute_speed_series',
+           'evaluate_folder_constraints', 'evaluate_layup_constraints', 'folder_evaluation']
 
 #: names of the constraints :func:`evaluate_folder_constraints` may return, in order
 FOLDER_CONSTRAINTS = ('feed_window', 'settled_before_knife', 'one_per_cycle', 'rebound', 'release_at_min_speed')
+#: names of the constraints :func:`evaluate_layup_constraints` may return
+LAYUP_CONSTRAINTS = ('chute_speed',)
 #: how far above the stroke's minimum K_v a release may be, dimensionless
 RELEASE_KV_TOL = 1e-6
 
@@ -97,9 +113,41 @@ def _contact_time(cc: np.ndarray, tc: np.ndarray, c: np.ndarray) -> np.ndarray:
     return tc[np.searchsorted(cc, c)]
 
 
+@dataclass(frozen=True, eq=False)
+class FolderEvaluation:
+    """:func:`folder_evaluation`'s result: the constraints and the signature counts behind ``one_per_cycle``.
+
+    Attributes
+    ----------
+    constraints : list of ConstraintSeries
+        As :func:`evaluate_folder_constraints` returns them.
+    cycle : ndarray of int64
+        The judged cycles (those with a ``knife_contact`` row), ascending.
+    signatures : ndarray of int64
+        Signatures of each judged cycle at the front stops by its knife contact
+        (1 nominal; 0 a missing or late one: starvation; 2 a double).
+    t : ndarray of float64
+        Knife contact (decision time) of each judged cycle, s.
+    """
+
+    constraints: list[ConstraintSeries]
+    cycle: np.ndarray
+    signatures: np.ndarray
+    t: np.ndarray
+
+
 def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: Any, drive: Drive | None = None,
-                                *, plan: Any = None) -> list[ConstraintSeries]:
+                                *, plan: Any = None, causal: bool = False) -> list[ConstraintSeries]:
     """Per-cycle margins of the folder's (and delivery's) constraints.
+
+    ``folder_evaluation(...).constraints`` (:func:`folder_evaluation`).
+    """
+    return folder_evaluation(events, timing, scene, drive, plan=plan, causal=causal).constraints
+
+
+def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive: Drive | None = None,
+                      *, plan: Any = None, causal: bool = False) -> FolderEvaluation:
+    """Per-cycle margins of the folder's (and delivery's) constraints, with the signature counts.
 
     Parameters
     ----------
@@ -115,12 +163,15 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     plan : DeliveryPlan, optional
         :func:`folder_line.core.folder_sim.delivery_plan` of the scene, if already at
         hand (it is derived from the scene otherwise).
+    causal : bool, optional
+        Judge each cycle on the rows up to its knife contact only (module docstring);
+        default False: on the whole table (the batch simulator's view).
 
     Returns
     -------
-    list of ConstraintSeries
-        In the order of :data:`FOLDER_CONSTRAINTS`; ``rebound`` only with
-        ``stop_bounce``, ``release_at_min_speed`` only with a delivery. Cycles in
+    FolderEvaluation
+        ``constraints`` in the order of :data:`FOLDER_CONSTRAINTS`; ``rebound`` only
+        with ``stop_bounce``, ``release_at_min_speed`` only with a delivery. Cycles in
         ascending order; margins finite.
     """
     ev = np.asarray(events)
@@ -139,6 +190,8 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     if cc.size:
         pos = np.minimum(np.searchsorted(cc, hand['cycle']), cc.size - 1)
         judged = cc[pos] == hand['cycle']
+        if causal:  # a sheet handed over after its cycle's knife contact is not known there
+            judged &= hand['t'] <= tc[pos]
     else:
         pos = np.zeros(hand.size, dtype=np.int64)
         judged = np.zeros(hand.size, dtype=bool)
@@ -149,8 +202,11 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
 
     stops = _rows(ev, 'at_stops')
     t_stop, at_stops = _lookup(stops['sheet'], stops['t'], sheet)
+    if causal:  # what is known at each cycle's knife contact
+        at_stops &= t_stop <= t_contact
     # a sheet not yet at the stops when the table ends arrives after t_last (>= its knife contact)
-    late_bound = np.minimum(t_contact - t_last, -np.spacing(np.abs(t_contact) + 1.0))
+    t_end = t_contact if causal else t_last
+    late_bound = np.minimum(t_contact - t_end, -np.spacing(np.abs(t_contact) + 1.0))
     out: list[ConstraintSeries] = []
 
     # feed_window
@@ -169,6 +225,8 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     if bouncing:
         settled = _rows(ev, 'settled')
         t_set, is_set = _lookup(settled['sheet'], settled['t'], sheet)
+        if causal:
+            is_set &= t_set <= t_contact
     else:
         t_set, is_set = t_stop, at_stops
     margin = np.where(is_set, t_contact - t_set, late_bound)
@@ -190,6 +248,9 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     if bouncing:
         tol = float(scene.effect('stop_bounce').tolerance)
         bounce = _rows(ev, 'bounce')
+        if causal and bounce.size:  # only the rebounds before the sheet's knife contact
+            t_cut, known = _lookup(sheet, t_contact, bounce['sheet'])
+            bounce = bounce[known & (bounce['t'] <= t_cut)]
         rb, _ = _lookup(bounce['sheet'], bounce['value'], sheet, reduce='max')
         c, m = _per_cycle_min(cyc[at_stops], tol - rb[at_stops])
         out.append(ConstraintSeries('rebound', 'm', c, m,
@@ -216,4 +277,54 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
             c, m, t_rel = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
         out.append(ConstraintSeries('release_at_min_speed', '1', c, m,
                                     'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)', t=t_rel))
-    return out
+    return FolderEvaluation(constraints=out, cycle=cc.astype(np.int64), signatures=counts, t=tc.copy())
+
+
+def chute_speed_series(scene: Any, leaf: np.ndarray, t_exit: np.ndarray, speed: np.ndarray) -> ConstraintSeries | None:
+    """The layup's ``chute_speed`` constraint per exited leaf, or None without ``chute_belts``.
+
+    Margin ``speed - v_min`` (:func:`folder_line.core.effects.chute_belts.speed_margin`),
+    with ``leaf_damage`` the smaller of it and ``nextafter(v_damage, 0) - speed``
+    (:func:`folder_line.core.effects.leaf_damage.upper_margin`): the absolute exit
+    speed must lie in ``[v_min, v_damage)``.
+
+    Parameters
+    ----------
+    scene : Scene
+        For ``chute_belts`` (``v_min``) and ``leaf_damage`` (``v_damage``).
+    leaf, t_exit, speed : ndarray, shape (N,)
+        Leaf ids, exit times (s, the decision times) and absolute exit speeds (m/s).
+
+    Returns
+    -------
+    ConstraintSeries or None
+        ``cycle`` = the leaf id, in the given order.
+    """
+    if not scene.has('chute_belts'):
+        return None
+    from folder_line.core.effects import effect_module
+
+    belts = effect_module('chute_belts')
+    bp = scene.effect('chute_belts')
+    speed = np.asarray(speed, dtype=float)
+    upper = None
+    desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
+    if scene.has('leaf_damage'):
+        dp = scene.effect('leaf_damage')
+        upper = effect_module('leaf_damage').upper_margin(dp, speed)
+        desc += f' and < v_damage = {dp.v_damage:g} m/s'
+    return ConstraintSeries('chute_speed', 'm/s', np.asarray(leaf, dtype=np.int64),
+                            belts.speed_margin(bp, speed, upper), desc + ' (per leaf)',
+                            t=np.asarray(t_exit, dtype=float))
+
+
+def evaluate_layup_constraints(events: np.ndarray, scene: Any) -> list[ConstraintSeries]:
+    """The layup's constraints from any event table: ``chute_speed`` from the ``leaf_exit`` rows.
+
+    A ``leaf_exit`` row carries the leaf's absolute exit speed (``value``), so the
+    margin of each exited leaf is decided at its exit (the row's time), in the
+    table's row order. Empty list without ``chute_belts``.
+    """
+    ex = _rows(np.asarray(events), 'leaf_exit')
+    series = chute_speed_series(scene, ex['sheet'], ex['t'], ex['value'])
+    return [] if series is None else [series]

@@ -82,6 +82,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core import rng as rng_mod
+from folder_line.core.constraints import chute_speed_series
 from folder_line.core.drive import Drive
 from folder_line.core.effects import effect_module
 from folder_line.core.events import (
@@ -368,7 +369,6 @@ class LayupLine(LinePart):
 
         constraints: list[ConstraintSeries] = []
         n_damaged = 0
-        upper = None
         if damage_on:
             dmg_mod = effect_module('leaf_damage')
             dp = scene.effect('leaf_damage')
@@ -376,16 +376,10 @@ class LayupLine(LinePart):
             n_damaged = int(bad.sum())
             if n_damaged:
                 tables.append(make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad]))
-            if belts_on:
-                upper = dmg_mod.upper_margin(dp, speed)
-        if belts_on:
-            bp = scene.effect('chute_belts')
-            desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
-            if upper is not None:
-                desc += f' and < v_damage = {scene.effect("leaf_damage").v_damage:g} m/s'
-            constraints.append(ConstraintSeries('chute_speed', 'm/s', id_x.astype(np.int64),
-                                                belts.speed_margin(bp, speed, upper), desc + ' (per leaf)',
-                                                t=np.asarray(t_x, dtype=float)))
+        # the same code as the supervisor's (constraints.evaluate_layup_constraints on the leaf_exit rows)
+        chute_series = chute_speed_series(scene, id_x, t_x, speed)
+        if chute_series is not None:
+            constraints.append(chute_series)
 
         # ------------------------------------------------------------------ flight
         summary_flight: dict[str, Any] = {}

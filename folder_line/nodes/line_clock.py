@@ -144,6 +144,7 @@ class LineClock(Node):
         self._end = start + seconds_to_ns(values['duration']) if values['duration'] > 0.0 else None
         self._timeline = SimTimeline(start, self._now_wall(), values['rtf'])
         self._last: int | None = None
+        self.published_clock = 0
         self.done: Future = Future()
         self._publisher = self.create_publisher(ClockMsg, CLOCK_TOPIC, CLOCK_QOS)
         self._timer = self.create_timer(1.0 / values['publish_rate'], self._tick, clock=self._wall)
@@ -151,6 +152,10 @@ class LineClock(Node):
         self.get_logger().info(
             f'publishing {CLOCK_TOPIC} at {values["publish_rate"]:g} Hz, rtf {values["rtf"]:g}, '
             f'from {values["start_time"]:g} s' + (f' for {values["duration"]:g} s' if self._end else ''))
+
+    def published_counts(self) -> dict[str, int]:
+        """Messages published so far, per topic (the recorder's loss accounting)."""
+        return {CLOCK_TOPIC: self.published_clock}
 
     def _now_wall(self) -> int:
         return self._wall.now().nanoseconds
@@ -171,6 +176,7 @@ class LineClock(Node):
             sim, stop = TIME_MSG_MAX_NS, 'sim time reached the largest builtin_interfaces/Time'
         if self._last is None or sim > self._last:
             self._publisher.publish(ClockMsg(clock=ns_to_time_msg(sim)))
+            self.published_clock += 1
             self._last = sim
         if stop is not None:
             self._timer.cancel()

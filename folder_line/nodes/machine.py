@@ -11,7 +11,8 @@ publishes, at the stamp ``t`` of that tick,
 * the exact events of its machines with times in ``(t_prev, t]`` on
   ``/line/events`` as ``sensor_msgs/TimeReference``: ``time_ref`` is the event time
   (nearest ns), ``header.stamp`` the tick's stamp, ``header.frame_id`` the node,
-  ``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'`` (:func:`event_source`).
+  ``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'``
+  (:func:`folder_line.event_text.event_source`, re-exported here).
 
 So what a node publishes at stamp ``t`` depends only on the scene, ``t`` and the
 supervisor's commands (``/line/supervisor/commands``, each with its effective
@@ -23,7 +24,6 @@ from __future__ import annotations
 
 import functools
 import math
-import re
 from typing import Any, Iterable, Mapping
 
 import numpy as np
@@ -34,6 +34,8 @@ from sensor_msgs.msg import JointState, TimeReference
 from folder_line.core.drive import Command
 from folder_line.core.events import EVENT_KINDS
 from folder_line.core.line import LineModel
+from folder_line.errors import ParameterError
+from folder_line.event_text import event_source, parse_event_source
 from folder_line.nodes.common import (
     COMMANDS_QOS,
     COMMANDS_TOPIC,
@@ -85,8 +87,6 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('rate', 200.0, 'Publishing rate in simulated time', unit='Hz', bounds=(1.0, 5000.0)),
 )
 
-_SOURCE = re.compile(r'^(?P<kind>\w+) sheet=(?P<sheet>-?\d+) cycle=(?P<cycle>-?\d+) value=(?P<value>\S+)$')
-
 
 def parse_overrides(text: str) -> dict[str, Any]:
     """``'a.b=1;c=2'`` -> ``{'a.b': 1, 'c': 2}`` (empty items ignored)."""
@@ -99,22 +99,17 @@ def line_model(scene: str, overrides: str, horizon: float, commands: tuple[Comma
     return LineModel(load_scene(scene, parse_overrides(overrides)), horizon, commands)
 
 
-def event_source(kind: str, sheet: int, cycle: int, value: float) -> str:
-    """``TimeReference.source`` of an event: ``'<kind> sheet=<id> cycle=<k> value=<repr>'``."""
-    return f'{kind} sheet={int(sheet)} cycle={int(cycle)} value={float(value)!r}'
-
-
-def parse_event_source(source: str) -> tuple[str, int, int, float]:
-    """Inverse of :func:`event_source` (ValueError on anything else)."""
-    m = _SOURCE.match(source)
-    if m is None or m['kind'] not in EVENT_KINDS:
-        msg = f'not an event source: {source!r}'
-        raise ValueError(msg)
-    return m['kind'], int(m['sheet']), int(m['cycle']), float(m['value'])
+#: what :mod:`folder_line.scenes` calls the node parameters in its errors (the CLI's options)
+_CLI_NAMES = {'--scene': 'scene', '--set': 'overrides'}
 
 
 def _check_scene(values: Mapping[str, Any]) -> None:
-    load_scene(values['scene'], parse_overrides(values['overrides']))
+    try:
+        load_scene(values['scene'], parse_overrides(values['overrides']))
+    except ParameterError as err:  # name the node's parameter, not the CLI option
+        if err.key not in _CLI_NAMES:
+            raise
+        raise ParameterError(_CLI_NAMES[err.key], err.value, err.reason) from None
 
 
 class MachineNode(Node):
@@ -166,6 +161,16 @@ class MachineNode(Node):
 
     def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
         """Subclass hook: called every tick with this node's events of ``(t_prev, t]``."""
+
+    def published_counts(self) -> dict[str, int]:
+        """Messages this node has published so far, per topic (the recorder's loss accounting).
+
+        Subclasses with more publishers add theirs.
+        """
+        counts = {EVENTS_TOPIC: self.published_events}
+        if self._joint_pub is not None:
+            counts[joint_states_topic(self.NODE_NAME)] = self.published_joint_states
+        return counts
 
     # ------------------------------------------------------------------ internals
 

@@ -49,6 +49,7 @@ class SheetCounter(MachineNode):
         self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, PUBLISH_DEPTH)
         self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, PUBLISH_DEPTH)
         self._landed = EVENT_KINDS.index('leaf_landed')
+        self.published_count = self.published_rate = self.published_landing = 0
 
     def on_model(self) -> None:
         ev = self.model.events
@@ -67,9 +68,16 @@ class SheetCounter(MachineNode):
 
     def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
         self._count_pub.publish(UInt64(data=self.count_at(t)))
+        self.published_count += 1
         self._rate_pub.publish(Float64(data=self.rate_at(t)))
+        self.published_rate += 1
         for row in events[events['kind'] == self._landed]:
             self._landing_pub.publish(Float64(data=float(row['value'])))
+            self.published_landing += 1
+
+    def published_counts(self) -> dict[str, int]:
+        return {**super().published_counts(), SHEET_COUNT_TOPIC: self.published_count,
+                SHEET_RATE_TOPIC: self.published_rate, LANDING_TOPIC: self.published_landing}
 
 
 def main(args: list[str] | None = None) -> int:
