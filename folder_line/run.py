@@ -83,14 +83,18 @@ class RunResult:
     exit_codes: dict[str, int] = field(default_factory=dict)
 
 
-def _clock_publish_rate(cfg: RunConfig) -> float:
-    """``/clock`` messages per wall second: one per node tick (``rate`` Hz of sim time at ``rtf``).
+def _clock_publish_rate(cfg: RunConfig, per_tick: int = 1) -> float:
+    """``/clock`` messages per wall second: ``per_tick`` per node tick (``rate`` Hz of sim time at ``rtf``).
 
     A node's timer runs on sim time and fires at most once per ``/clock`` message, so
     fewer messages than ``rate * rtf`` per wall second would lower the nodes' rate in sim
-    time (``line_clock`` allows at most 1000 per second).
+    time (``line_clock`` allows at most 1000 per second). One per tick suffices when the
+    clock starts with the line (its messages then fall just after the ticks' grid
+    points); a clock whose ``rtf`` is changed on the way has an arbitrary phase, and with
+    one message per tick a message just before a grid point, jittered across it, skips a
+    tick: two per tick put one in every grid interval.
     """
-    return min(1000.0, max(1.0, cfg.rate * cfg.rtf))
+    return min(1000.0, max(1.0, per_tick * cfg.rate * cfg.rtf))
 
 
 #: real-time factor of the clock while the processes wait for each other (sim time all but stands)
@@ -117,7 +121,7 @@ def _start_processes_line(cfg: RunConfig, recorder: Any, executor: Any, env: dic
     t0 = min(1.0 / cfg.rate, 0.5 * cfg.duration)
     clock_cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args',
                  '-p', f'start_time:={t0!r}', '-p', f'duration:={cfg.duration - t0!r}', '-p', f'rtf:={_HOLD_RTF!r}',
-                 '-p', f'publish_rate:={_clock_publish_rate(cfg)!r}']
+                 '-p', f'publish_rate:={_clock_publish_rate(cfg, per_tick=2)!r}']
     with open(logs / 'line_clock.log', 'wb') as log:
         procs['line_clock'] = subprocess.Popen(clock_cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
     topics = [joint_states_topic(n) for n in LINE_NODES] + [SHEET_COUNT_TOPIC, SUPERVISOR_STATE_TOPIC]

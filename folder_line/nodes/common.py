@@ -41,6 +41,7 @@ import math
 import signal
 import sys
 import threading
+import time
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any, Callable, Iterable, Mapping, Sequence, Union
@@ -92,6 +93,7 @@ __all__ = [
     'EXIT_OK',
     'EXIT_BAD_PARAMETER',
     'SPIN_PERIOD',
+    'LINGER',
     'run_node',
 ]
 
@@ -592,6 +594,10 @@ EXIT_BAD_PARAMETER = 2
 SPIN_PERIOD = 0.1
 """Longest wall time, s, that :func:`run_node` waits before it looks at a stop request."""
 
+LINGER = 0.2
+"""Wall time, s, that :func:`run_node` keeps a node that is ``done`` alive before destroying it, so
+that subscribers in other processes still get its last messages."""
+
 
 def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
@@ -600,7 +606,7 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     single-threaded executor until SIGINT or SIGTERM, until the context is shut
     down from elsewhere, or, if the node has a ``done`` attribute holding an
     ``rclpy.task.Future``, until that future completes (a node that finishes on its
-    own, like ``line_clock`` with a ``duration``).
+    own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
 
     Signals are handled synchronously, in the spinning thread: rclpy's own
     handlers are not installed (``SignalHandlerOptions.NO``); a Python handler only
@@ -670,5 +676,11 @@ def _spin(node: Node, stop: threading.Event) -> None:
         executor.add_node(node)
         while not stop.is_set() and node.context.ok() and not (done is not None and done.done()):
             executor.spin_once(timeout_sec=SPIN_PERIOD)
+        if done is not None and done.done():
+            # a subscriber in another process reads the last messages out of this process's
+            # shared memory (Fast DDS), which goes with it: linger before the node is destroyed
+            deadline = time.monotonic() + LINGER
+            while not stop.is_set() and node.context.ok() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=min(SPIN_PERIOD, max(deadline - time.monotonic(), 0.0)))
     finally:
         executor.shutdown()

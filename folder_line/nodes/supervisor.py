@@ -165,6 +165,7 @@ class Supervisor(MachineNode):
                            double=v['double_sheet'], state='STARTING', t_start=None,
                            model_factory=lambda commands: line_model(*key, commands))
         self._latency_ns = seconds_to_ns(v['event_latency'])
+        self._last_heard: dict[str, float] = {}
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_violations = self._n_balances = 0
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
@@ -204,6 +205,7 @@ class Supervisor(MachineNode):
 
         def on_joints(msg: JointState) -> None:
             stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
+            self._last_heard[node] = max(stamp, self._last_heard.get(node, stamp))
             self.logic.heard(node, stamp)
             bad = _non_finite(msg.position, msg.velocity, msg.effort)
             if bad:
@@ -263,10 +265,26 @@ class Supervisor(MachineNode):
         if self._rows:
             rows, self._rows = self._rows, []
             self.logic.feed(np.array(rows, dtype=EVENT_DTYPE))
-        watermark = (now_ns - self._latency_ns) / NS_PER_S
+        watermark = self._watermark(now_ns)
         if watermark > self.logic.now:
             self.logic.tick(watermark)
         self._publish_outputs()
+
+    def _watermark(self, now_ns: int) -> float:
+        """Line time up to which every event is taken to have arrived.
+
+        ``event_latency`` behind the clock, and not past the previous tick of the
+        slowest machine node heard (a node publishes a tick's joint states, then its
+        events: a busy executor can deliver them late), but never more than
+        ``stale_periods`` ticks behind that, so a dead node still goes stale.
+        """
+        period = 1.0 / self.values['rate']
+        ahead = (now_ns - self._latency_ns) / NS_PER_S
+        if not self._last_heard:
+            return ahead
+        slowest = min(self._last_heard.values()) - period
+        floor = ahead - self.values['stale_periods'] * period
+        return max(min(ahead, slowest), floor)
 
     def _publish_state(self) -> None:
         self._state_pub.publish(String(data=self.packml.state))

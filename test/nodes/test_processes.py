@@ -82,10 +82,11 @@ def test_one_process_per_node(ros: Ros, node_env: dict[str, str], tmp_path: Path
             {n: e.read_text() for n, (_, e) in procs.items()}
         # Discovery between processes takes 0.1 s to a few s here, so the clock starts at the nodes'
         # first tick (one period) with sim time all but standing, and runs once every node has
-        # published at that tick (so it hears the clock): as `folder-line run --processes` does.
+        # published at that tick (so it hears the clock): as `folder-line run --processes` does. Two
+        # clock messages per tick: after the rtf change the clock's phase is arbitrary (see run.py).
         t0 = 1.0 / RATE
         procs['line_clock'] = start('line_clock', node_env, tmp_path, f'start_time:={t0}',
-                                    f'duration:={DURATION - t0}', 'rtf:=1e-06', 'publish_rate:=200.0')
+                                    f'duration:={DURATION - t0}', 'rtf:=1e-06', 'publish_rate:=400.0')
         first_ns = round(t0 * NS_PER_S)
         assert ros.spin_until(lambda: all(len(received[n]) for n in JOINT_NODES) and len(counts) and len(states),
                               timeout=60.0), {n: e.read_text() for n, (_, e) in procs.items()}
@@ -123,7 +124,7 @@ def test_one_process_per_node(ros: Ros, node_env: dict[str, str], tmp_path: Path
             stamps = np.array([time_msg_to_ns(m.header.stamp) for m in msgs])
             assert np.all(np.diff(stamps) > 0)
             # 200 Hz of sim time: one message per 5 ms tick; a tick lost to load costs one
-            assert 0.9 * RATE * DURATION <= len(stamps) <= RATE * DURATION, (name, len(stamps))
+            assert 0.75 * RATE * DURATION <= len(stamps) <= RATE * DURATION, (name, len(stamps))
             assert stamps[0] - first_ns < 100_000 and stamps[-1] == end_ns
             gaps = np.diff(stamps)
             assert np.median(gaps) == np.clip(np.median(gaps), 4_000_000, 6_000_000)
@@ -144,7 +145,8 @@ def test_one_process_per_node(ros: Ros, node_env: dict[str, str], tmp_path: Path
         assert states.messages and all(m.data == 'EXECUTE' for m in states.messages)
         sim = np.array([time_msg_to_ns(m.clock) for m in clock.messages])
         assert sim[-1] == end_ns and np.all(np.diff(sim) > 0)
-        assert 0.9 * 200.0 * DURATION <= len(sim) <= 200.0 * DURATION + 10  # 200 Hz of wall time at rtf 1
+        running = sim[sim > first_ns + 100_000]  # after the start (before: the wait for every process)
+        assert 0.6 * 400.0 * DURATION <= len(running) <= 400.0 * DURATION + 2  # 400 Hz of wall time at rtf 1
 
         for name in MACHINES:
             procs[name][0].send_signal(signal.SIGINT)

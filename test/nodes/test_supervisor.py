@@ -23,6 +23,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from folder_line.core.drive import Command
+from folder_line.core.events import EVENT_KINDS
 from folder_line.core.line import LineModel
 from folder_line.nodes.common import (
     COMMANDS_QOS,
@@ -131,7 +132,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert effective_in_message(message) == pytest.approx(boundary, abs=5e-7)
     cycle = free._parts['folder'].timing.T
     assert t_request + LEAD < boundary <= t_request + LEAD + cycle
-    knife_exits = free.events[free.events['kind'] == 5]['t']  # the boundary is a knife exit
+    knife_exits = free.events[free.events['kind'] == EVENT_KINDS.index('knife_exit')]['t']  # boundaries
     assert boundary in knife_exits
 
     # HOLDING, then HELD once the drive stands still
