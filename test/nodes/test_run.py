@@ -56,7 +56,7 @@ def test_run_with_one_process_per_node(tmp_path: Path) -> None:
         ['crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor', 'line_clock'], 0)
     # the clock starts once every process hears it, so the first ticks are not lost to discovery
     for topic in TICK_TOPICS:
-        assert summary['messages'][topic] >= 0.9 * RATE * duration, (topic, summary['messages'])
+        assert summary['messages'][topic] >= 0.75 * RATE * duration, (topic, summary['messages'])
     assert summary['sheets_counted'] == summary['expected_from_simulate']['sheets_counted'] > 0
     logs = sorted((tmp_path / 'logs').iterdir())
     assert len(logs) == 6
