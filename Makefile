@@ -27,6 +27,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python bench/bench_layup.py
 	$(BIN)/python bench/bench_line.py
+	$(BIN)/python bench/bench_nodes.py
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info .pytest_cache .hypothesis
