@@ -28,26 +28,6 @@ def _samples(text: str) -> int:
     return n
 
 
-def _duration(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'--duration={text!r}: must be a number of seconds') from None
-    if not 0.0 < value <= 1e9:
-        raise argparse.ArgumentTypeError(f'--duration={text!r}: must be in (0, 1e9] s')
-    return value
-
-
-def _rtf(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be a number') from None
-    if not 0.0 < value <= 1000.0:
-        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be in (0, 1000]')
-    return value
-
-
 def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
     def parse(text: str) -> float:
         try:
@@ -59,6 +39,10 @@ def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
         return value
 
     return parse
+
+
+_duration = _positive('--duration', 1e9, 's')
+_rtf = _positive('--rtf', 1000.0, '')
 
 
 def _build_parser() -> argparse.ArgumentParser:
