@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -20,22 +19,14 @@ from folder_line.core import knife as knife_mod
 from folder_line.core.chain import ChainPath
 from folder_line.core.cyclogram import cycle_timing
 from folder_line.core.delivery import LAWS, evaluate_stroke
-from folder_line.core.scene import Scene, parse_scene
+from folder_line.core.scene import Scene
+from _scenes import folder_scene
 from folder_line.errors import ParameterError
-from folder_line.params import config_dir, load_params, read_yaml_mapping
 
 
 def make_scene(*, delivery: dict[str, Any] | None = None, chain_p: dict[str, Any] | None = None) -> Scene:
     """The shipped knife, cyclogram, feed transporter and delivery; no effects."""
-    machines: dict[str, Any] = {}
-    for sec in ('knife', 'cyclogram', 'delivery'):
-        machines[sec] = dataclasses.asdict(load_params(sec))
-    for sec in ('feed_transporter', 'delivery_chain'):
-        machines[sec] = read_yaml_mapping(config_dir() / f'{sec}.yaml', sec)
-    machines['delivery'].update(delivery or {})
-    machines['delivery_chain'].update(chain_p or {})
-    return parse_scene({'name': 'chain', 'machines': machines,
-                        'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'), 'effects': {}})
+    return folder_scene('chain', {}, delivery=delivery, chain=chain_p)
 
 
 @pytest.fixture(scope='module')

@@ -13,8 +13,8 @@ from folder_line.core import chain
 from folder_line.core.delivery import STATE_OK, evaluate, evaluate_stroke
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.scene import Scene, parse_scene
+from _scenes import folder_scene
 from folder_line.errors import ParameterError
-from folder_line.params import config_dir, load_params, read_yaml_mapping
 
 CF = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
 MOTOR = dict(J=0.5, T_0=264.6, omega_0=157.08, omega_nom=152.4, b=0.03, method='dopri5', h=0.01,
@@ -23,18 +23,10 @@ MOTOR = dict(J=0.5, T_0=264.6, omega_0=157.08, omega_nom=152.4, b=0.03, method='
 
 def make_scene(cf_params: dict[str, Any] | None = None, *, delivery: dict[str, Any] | None = None,
                chain: dict[str, Any] | None = None, motor: bool = True) -> Scene:
-    machines: dict[str, Any] = {}
-    for sec in ('knife', 'cyclogram', 'delivery'):
-        machines[sec] = dataclasses.asdict(load_params(sec))
-    for sec in ('feed_transporter', 'delivery_chain'):
-        machines[sec] = read_yaml_mapping(config_dir() / f'{sec}.yaml', sec)
-    machines['delivery'].update(delivery or {})
-    machines['delivery_chain'].update(chain or {})
     effects: dict[str, Any] = {'chain_friction': {**CF, **(cf_params or {})}}
     if motor:
         effects['motor_dynamics'] = MOTOR
-    return parse_scene({'name': 'chain', 'machines': machines,
-                        'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'), 'effects': effects})
+    return folder_scene('chain', effects, delivery=delivery, chain=chain)
 
 
 @pytest.fixture(scope='module')

@@ -16,8 +16,8 @@ from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.events import EVENT_KINDS
 from folder_line.core.line import make_drive, simulate
 from folder_line.core.scene import Scene, parse_scene
+from _scenes import folder_scene
 from folder_line.errors import ParameterError
-from folder_line.params import config_dir, load_params, read_yaml_mapping
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
 MOTOR: dict[str, Any] = dict(J=0.5, T_0=264.6, omega_0=157.08, omega_nom=152.4, b=0.03, method='dopri5',
@@ -27,17 +27,10 @@ CHAIN: dict[str, Any] = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
 
 def make_scene(motor: dict[str, Any] | None = None, *, chain: bool = True,
                chain_params: dict[str, Any] | None = None, delivery: dict[str, Any] | None = None) -> Scene:
-    machines: dict[str, Any] = {}
-    for sec in ('knife', 'cyclogram', 'delivery'):
-        machines[sec] = dataclasses.asdict(load_params(sec))
-    for sec in ('feed_transporter', 'delivery_chain'):
-        machines[sec] = read_yaml_mapping(config_dir() / f'{sec}.yaml', sec)
-    machines['delivery'].update(delivery or {})
     effects: dict[str, Any] = {'motor_dynamics': {**MOTOR, **(motor or {})}}
     if chain:
         effects['chain_friction'] = {**CHAIN, **(chain_params or {})}
-    return parse_scene({'name': 'motor', 'machines': machines,
-                        'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'), 'effects': effects})
+    return folder_scene('motor', effects, delivery=delivery)
 
 
 def closed_form(p: dict[str, Any], t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
