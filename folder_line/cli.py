@@ -46,6 +46,8 @@ _rtf = _positive('--rtf', 1000.0, '')
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from folder_line.accuracy.bench import STUDIES
+
     parser = argparse.ArgumentParser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
 
@@ -97,7 +99,32 @@ def _build_parser() -> argparse.ArgumentParser:
     ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
     ana.add_argument('--out', metavar='DIR', help='output directory (default RUN_DIR/analysis)')
     ana.add_argument('--csv', action='store_true', help='also write one CSV per topic to DIR/csv/')
+
+    bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
+    bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
+    acc = bench_sub.add_parser('accuracy', help='error against CPU time per simulated second for every accuracy '
+                                                'knob: CSV, markdown, Pareto plot')
+    acc.add_argument('--out', default='out/accuracy', metavar='DIR', help='output directory (default ./out/accuracy)')
+    acc.add_argument('--quick', action='store_true', help='fewer knob settings, shorter spans (under a minute)')
+    acc.add_argument('--only', action='append', metavar='STUDY', default=[], choices=STUDIES,
+                     help=f'run only this study (repeatable): {", ".join(STUDIES)}')
     return parser
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from folder_line.accuracy.bench import run_benchmark
+    from folder_line.accuracy.output import write_outputs
+    from folder_line.errors import ParameterError
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():  # before any work: the results would have nowhere to go
+        raise ParameterError('--out', args.out, 'exists and is not a directory')
+    result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
+    command = 'folder-line bench accuracy' + (' --quick' if args.quick else '') + ''.join(
+        f' --only {s}' for s in args.only)
+    for path in write_outputs(result, out, command):
+        print(f'wrote {path}')
+    return 0
 
 
 def _cmd_kinematics(args: argparse.Namespace) -> int:
@@ -178,7 +205,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
     handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'run': _cmd_run,
-               'monitor': _cmd_monitor, 'report': _cmd_report, 'bag': _cmd_bag, 'analyze': _cmd_analyze}[args.verb]
+               'monitor': _cmd_monitor, 'report': _cmd_report, 'bag': _cmd_bag, 'analyze': _cmd_analyze,
+               'bench': _cmd_bench}[args.verb]
     try:
         return handler(args)
     except FolderLineError as exc:
