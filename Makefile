@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: run report test bench clean
+.PHONY: run report test bench accuracy clean
 
 $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -28,6 +28,10 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_layup.py
 	$(BIN)/python bench/bench_line.py
 	$(BIN)/python bench/bench_nodes.py
+
+# what accuracy costs in CPU time (about 3 min); docs/accuracy.md quotes this run
+accuracy: $(STAMP)
+	$(BIN)/folder-line bench accuracy --out docs/accuracy
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info .pytest_cache .hypothesis
