@@ -59,7 +59,9 @@ time and the step size at the first non-finite stage (an unstable step on a stif
 problem overflows after a few steps). :func:`dopri5` treats a non-finite trial as a
 rejection (the step shrinks, like scipy, which sees a NaN error norm); if the step
 falls below ``10 ulp(t)`` it raises. Both raise if ``max_steps`` would be exceeded (a
-stalled or absurdly stiff run). numpy's floating-point warnings are switched off while
+stalled or absurdly stiff run) -- before the first step when the span alone needs more
+steps of ``h`` (``max_step``) and nothing can end the run early (no ``terminal``, no
+``on_break``). numpy's floating-point warnings are switched off while
 a method runs (the right-hand side included): overflow and invalid operations show up
 as non-finite values, which are checked after every step and reported with the step
 and the time.
@@ -583,6 +585,11 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
     nfev += 1
     if not np.all(np.isfinite(f)):
         raise IntegrationError('rk4', 0, t0, h, f'the right-hand side is not finite at the initial state: {f!r}')
+    if terminal is None and (breaks is None or breaks.on_break is None) \
+            and (t1 - t0) / (h * (1.0 + RK4_SNAP)) > max_steps + 1:
+        # the run cannot end early, so it is bound to exceed max_steps: say so before the first step
+        raise IntegrationError('rk4', 0, t0, h, f'more than max_steps={max_steps} steps '
+                               f'(the span {t_span!r} needs ~{(t1 - t0) / h:.3g} steps of h)')
     status = 'finished'
     landing_err = 0.0
     t_piece, k_piece = t0, 0
@@ -787,6 +794,11 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
         if not (math.isfinite(h_abs) and h_abs > 0.0):
             raise ValueError(f'dopri5: first_step must be finite and > 0, got {first_step!r}')
         h_abs = min(h_abs, t_bound - t0)
+    if terminal is None and (breaks is None or breaks.on_break is None) and (t_bound - t0) / max_step > max_steps:
+        # every step is at most max_step and the run cannot end early: bound to exceed max_steps
+        raise IntegrationError('dopri5', 0, t0, max_step, f'more than max_steps={max_steps} step attempts '
+                               f'(the span {t_span!r} needs at least {(t_bound - t0) / max_step:.3g} steps '
+                               f'of max_step)')
     K = np.empty((7, y.size))
     t = t0
     rejected = 0

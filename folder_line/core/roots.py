@@ -285,7 +285,12 @@ def find_sign_changes(f: Callable[[float], float], grid: ArrayLike, *, values: A
     5. After refinement, a rising and a falling crossing (in either order)
        closer than ``2 (xtol + rtol |x|)`` are the two halves of a touch that
        rounding split into a sign change pair; both are dropped (a touch is
-       reported not at all, never twice).
+       reported not at all, never twice). A touch whose *values* are noisy
+       (cancellation, e.g. ``x*x - 2*a*x + a*a``) is split wider, about
+       ``2 sqrt(noise / |f''/2|)``; if a sample lands inside that band it is a
+       genuine sign change pair of the float function and is reported as two
+       crossings. Give ``ftol`` at the noise level of ``f`` (rule 1) and such a
+       touch is not reported.
 
     Parameters
     ----------

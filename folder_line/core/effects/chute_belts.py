@@ -191,7 +191,8 @@ def exit_times(profile: BeltProfile, drive: Drive, length: npt.ArrayLike, t_ente
     t_enter = np.asarray(t_enter, dtype=float)
     length = np.broadcast_to(np.asarray(length, dtype=float), t_enter.shape)
     ph = profile.phase
-    theta_x = ph.theta_of(ph.at(t_enter) + length / profile.v_tr)
+    with np.errstate(over='ignore'):  # a subnormal v_tr: the travel time overflows to inf, the leaf never exits
+        theta_x = ph.theta_of(ph.at(t_enter) + length / profile.v_tr)
     reached = theta_x <= theta_end
     t_exit = t_enter.copy()
     if reached.any():
