@@ -109,6 +109,8 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     """
     from folder_line.plots import DPI, pyplot
 
+    from matplotlib import ticker
+
     plt = pyplot()
     panels = _panels(rows)
     ncol = min(3, len(panels))
@@ -133,6 +135,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
         ax.set_xlabel('CPU s per simulated s')
         ax.set_ylabel(f'max error ({unit})')
         ax.grid(True, which='major', alpha=0.3)
+        ax.xaxis.set_minor_formatter(ticker.NullFormatter())  # a panel spanning < 1 decade would print them
         ax.legend(fontsize=7, loc='best')
     for ax in list(axes.flat)[len(panels):]:
         ax.axis('off')

@@ -434,7 +434,8 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
                'feed_transporter': feed_transporter.FeedTransporter,
                'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
     ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx,
+               signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor(context=ctx)
     nodes: list[Any] = []
     with tempfile.TemporaryDirectory(prefix='folder_line_publishing_') as tmp:

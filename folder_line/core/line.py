@@ -41,13 +41,17 @@ from folder_line.core.events import (
 )
 from folder_line.core.scene import Scene
 from folder_line.core.validate import as_float, in_range
+from folder_line.errors import ParameterError
 
-__all__ = ['NODES', 'LineModel', 'LineResult', 'make_drive', 'sample_times', 'simulate']
+__all__ = ['MAX_CYCLES', 'NODES', 'LineModel', 'LineResult', 'check_size', 'make_drive', 'sample_times', 'simulate']
 
 #: the machine nodes that carry joints, in publishing order
 NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
 
 MAX_DURATION = 1e9  # s (~32 years): far beyond any run; time stays float64-exact to ~1e-7 s
+#: most knife cycles or leaves a model is built for: every event up to the horizon is held in
+#: memory (~0.3 kB per cycle), so 1e7 of them take ~3 GB and ~10 min of CPU
+MAX_CYCLES = 1e7
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +170,36 @@ def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
     return merged
 
 
+def check_size(scene: Scene, span: float, theta_end: float, key: str = 'horizon') -> None:
+    """Refuse a span whose event table would not fit in memory (:data:`MAX_CYCLES`), before the events are built.
+
+    Parameters
+    ----------
+    scene : Scene
+    span : float
+        Line time, s.
+    theta_end : float
+        The master phase at ``span`` (nominal s): ``theta_end / period`` knife cycles run
+        (a held line runs none). Leaves enter in line time, one per ``sheets.interval``.
+    key : str
+        The caller's name of the span, for the error.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``key`` and the span.
+    """
+    counts: list[tuple[float, str]] = []
+    if scene.has_folder:
+        counts.append((theta_end / float(scene.machines['knife'].period), 'knife cycles'))
+    if scene.has_layup:
+        counts.append((span / float(scene.sheets.interval), 'leaves'))
+    for n, what in counts:
+        if n > MAX_CYCLES:
+            raise ParameterError(key, span, f'the model would hold every event of {n:.3g} {what} (more than '
+                                 f'{MAX_CYCLES:.0e}, ~{n * 3e-7:.0f} GB); simulate shorter spans')
+
+
 class LineModel:
     """The line of a scene over ``[0, horizon]``: built once, sampled anywhere.
 
@@ -204,6 +238,7 @@ class LineModel:
         self.horizon = in_range('horizon', horizon, 0.0, MAX_DURATION, lo_open=True)
         self.commands = check_commands(commands)
         self.drive = make_drive(scene, self.horizon, self.commands)
+        check_size(scene, self.horizon, float(np.asarray(self.drive.theta(np.array(self.horizon)))))
         self._parts: dict[str, Any] = {}
         if scene.has_folder:
             from folder_line.core.folder_sim import FolderLine
@@ -379,4 +414,10 @@ def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None,
     """
     duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
     rate = scene.sample_rate if sample_rate is None else in_range('sample_rate', sample_rate, 0.0, 1e6)
-    return LineModel(scene, duration, commands).result(duration, rate)
+    try:
+        model = LineModel(scene, duration, commands)
+    except ParameterError as exc:
+        if exc.key != 'horizon':
+            raise
+        raise ParameterError('duration', duration, exc.reason) from None
+    return model.result(duration, rate)
