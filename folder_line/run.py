@@ -31,7 +31,7 @@ from typing import IO, Any, Callable
 
 from folder_line.atomic import write_json_atomic
 
-__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'print_run_summary', 'run_line']
+__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'print_run_summary', 'run_line', 'wait_until_matched']
 
 #: the nodes of the line, in start order (the clock last, so nobody misses t = 0)
 LINE_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
@@ -196,6 +196,34 @@ def _published_counts(nodes: list[Any]) -> dict[str, int]:
     return counts
 
 
+def wait_until_matched(nodes: list[Any], executor: Any, timeout: float) -> bool:
+    """Spin ``executor`` until every line-topic publisher and subscription of ``nodes`` has matched all
+    its peers among ``nodes``, or ``timeout`` s of wall time pass; True if they all matched.
+
+    Starting sim time before that loses the first ticks' messages to subscribers not yet
+    discovered (the supervisor would judge cycle 0 without its events and hold the line).
+    """
+    from collections import Counter
+
+    from folder_line.recorder import LINE_TOPICS
+
+    pubs = [p for n in nodes for p in n.publishers if p.topic_name in LINE_TOPICS]
+    subs = [s for n in nodes for s in n.subscriptions if s.topic_name in LINE_TOPICS]
+    n_pubs = Counter(p.topic_name for p in pubs)
+    n_subs = Counter(s.topic_name for s in subs)
+
+    def matched() -> bool:
+        return (all(s.get_publisher_count() >= n_pubs[s.topic_name] for s in subs)
+                and all(p.get_subscription_count() >= n_subs[p.topic_name] for p in pubs))
+
+    deadline = time.monotonic() + timeout
+    while not matched():
+        if time.monotonic() > deadline:
+            return False
+        executor.spin_once(timeout_sec=0.01)
+    return True
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``."""
     import rclpy
@@ -261,6 +289,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 node = classes[name](parameter_overrides=overrides, context=ctx)
                 nodes.append(node)
                 executor.add_node(node)
+            # sim time starts once every line topic is matched among the nodes and the recorder
+            wait_until_matched([*nodes, recorder], executor, timeout=10.0)
             clock = LineClock(parameter_overrides=[Parameter('duration', value=float(cfg.duration)),
                                                    Parameter('rtf', value=float(cfg.rtf)),
                                                    Parameter('publish_rate', value=_clock_publish_rate(cfg))],

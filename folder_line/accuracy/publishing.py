@@ -333,29 +333,6 @@ def check_published(cost: LiveCost, min_fraction: float = MIN_PUBLISHED) -> None
         raise FolderLineError(msg)
 
 
-def _wait_until_matched(nodes: list[Any], executor: Any, timeout: float) -> bool:
-    """Spin until every line-topic publisher and subscription of ``nodes`` has matched all its peers here."""
-    from collections import Counter
-
-    from folder_line.recorder import LINE_TOPICS
-
-    pubs = [p for n in nodes for p in n.publishers if p.topic_name in LINE_TOPICS]
-    subs = [s for n in nodes for s in n.subscriptions if s.topic_name in LINE_TOPICS]
-    n_pubs = Counter(p.topic_name for p in pubs)
-    n_subs = Counter(s.topic_name for s in subs)
-
-    def matched() -> bool:
-        return (all(s.get_publisher_count() >= n_pubs[s.topic_name] for s in subs)
-                and all(p.get_subscription_count() >= n_subs[p.topic_name] for p in pubs))
-
-    deadline = time.monotonic() + timeout
-    while not matched():
-        if time.monotonic() > deadline:
-            return False
-        executor.spin_once(timeout_sec=0.01)
-    return True
-
-
 def default_rtf(rate: float) -> float:
     """Real-time factor for ``rate``: ``TICKS_PER_WALL_S`` ticks per wall second, at most ``RTF_MAX``.
 
@@ -412,7 +389,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
     from folder_line.nodes.line_clock import LineClock
     from folder_line.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.run import LINE_NODES, RunConfig, _clock_publish_rate, _node_parameters
+    from folder_line.run import LINE_NODES, RunConfig, _clock_publish_rate, _node_parameters, wait_until_matched
     from folder_line.scenes import scene_mapping
 
     if not (math.isfinite(rate) and 1.0 <= rate <= 5000.0):
@@ -456,7 +433,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
             # sim time starts once every publisher and subscription of the line topics are matched
             # (as --processes does): events published before would be lost, and the supervisor would
             # judge the first cycles without them and hold the line
-            _wait_until_matched(nodes, executor, timeout=10.0)
+            wait_until_matched(nodes, executor, timeout=10.0)
             clock = LineClock(parameter_overrides=[Parameter('duration', value=float(duration)),
                                                    Parameter('rtf', value=float(rtf)),
                                                    Parameter('publish_rate', value=clock_rate)], context=ctx)

@@ -207,6 +207,17 @@ class MachineNode(Node):
         t_prev = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
         self._last_ns = stamp_ns
         stamp = ns_to_time_msg(stamp_ns)
+        # events first: a supervisor that has heard this tick's joint states may take its events as sent
+        events = self.model.events_between(t_prev, t)
+        mine = events[np.isin(events['kind'], self.kinds)] if events.size else events
+        for row in mine:
+            ref = TimeReference()
+            ref.header.stamp = stamp
+            ref.header.frame_id = self.NODE_NAME
+            ref.time_ref = ns_to_time_msg(max(0, round(float(row['t']) * NS_PER_S)))
+            ref.source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
+            self._event_pub.publish(ref)
+            self.published_events += 1
         if self._joint_pub is not None:
             js = self.model.sample(self.NODE_NAME, np.array([t]))
             msg = JointState()
@@ -218,14 +229,4 @@ class MachineNode(Node):
             msg.effort = [] if js.effort is None else js.effort[0].tolist()
             self._joint_pub.publish(msg)
             self.published_joint_states += 1
-        events = self.model.events_between(t_prev, t)
-        mine = events[np.isin(events['kind'], self.kinds)] if events.size else events
-        for row in mine:
-            ref = TimeReference()
-            ref.header.stamp = stamp
-            ref.header.frame_id = self.NODE_NAME
-            ref.time_ref = ns_to_time_msg(max(0, round(float(row['t']) * NS_PER_S)))
-            ref.source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
-            self._event_pub.publish(ref)
-            self.published_events += 1
         self.publish_extra(stamp_ns, t, mine)

@@ -166,6 +166,7 @@ class Supervisor(MachineNode):
                            model_factory=lambda commands: line_model(*key, commands))
         self._latency_ns = seconds_to_ns(v['event_latency'])
         self._last_heard: dict[str, float] = {}
+        self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_violations = self._n_balances = 0
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
@@ -274,16 +275,23 @@ class Supervisor(MachineNode):
         """Line time up to which every event is taken to have arrived.
 
         ``event_latency`` behind the clock, and not past the previous tick of the
-        slowest machine node heard (a node publishes a tick's joint states, then its
-        events: a busy executor can deliver them late), but never more than
-        ``stale_periods`` ticks behind that, so a dead node still goes stale.
+        slowest machine node (a node publishes a tick's events, then its joint states:
+        joint states of tick k+1 heard mean the events of tick k were sent a tick
+        earlier), but never more than ``stale_periods`` ticks behind the *freshest*
+        node, so a dead node still goes stale while the others run. Staleness is
+        measured against the other nodes, not the clock: when the whole executor
+        stalls (a garbage-collection pause, a loaded machine) every node falls behind
+        together and the watermark waits instead of overtaking events still queued.
+        Before every machine node has been heard the slowest is taken as not yet started.
         """
         period = 1.0 / self.values['rate']
+        window = self.values['stale_periods'] * period
         ahead = (now_ns - self._latency_ns) / NS_PER_S
-        if not self._last_heard:
-            return ahead
-        slowest = min(self._last_heard.values()) - period
-        floor = ahead - self.values['stale_periods'] * period
+        heard = self._last_heard
+        if not heard:
+            return ahead - window
+        slowest = min(heard.values()) - period if len(heard) == len(self._joint_nodes) else -math.inf
+        floor = min(ahead, max(heard.values()) - period) - window
         return max(min(ahead, slowest), floor)
 
     def _publish_state(self) -> None:
