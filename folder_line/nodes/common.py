@@ -38,6 +38,7 @@ same names and types.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 import threading
@@ -598,8 +599,12 @@ LINGER = 0.2
 """Wall time, s, that :func:`run_node` keeps a node that is ``done`` alive before destroying it, so
 that subscribers in other processes still get its last messages."""
 
+TEARDOWN_TIMEOUT = 5.0
+"""Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
 
-def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
+
+def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None, *,
+             teardown_timeout: float | None = None) -> int:
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
 
     The node is built by ``node_factory()`` in the default context and spun by a
@@ -618,12 +623,24 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     A second SIGINT while stopping raises ``KeyboardInterrupt``, still caught.
     Called from another thread, it installs no signal handler at all.
 
+    Teardown. Destroying the node can hang inside the middleware: with both cores
+    busy, one of 20 runs of ``folder-line run --processes`` (120 node stops) hung in
+    ``Node.destroy_node`` (rcl's node finalisation with Fast DDS) until killed. When
+    the node runs as a process of its own (``args`` from ``sys.argv``, the main
+    thread), its work is done by then, so a watchdog ends the process after
+    ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
+    stderr and the exit code it would have returned.
+
     Parameters
     ----------
     node_factory : callable
         Usually the node class; called with no arguments.
     args : sequence of str, optional
         Command line for ``rclpy.init`` (``None``: ``sys.argv``).
+    teardown_timeout : float, optional
+        Seconds allowed for the teardown before the process exits anyway; default
+        :data:`TEARDOWN_TIMEOUT` for a process's own node (``args`` None, main thread),
+        else no watchdog (a test calling this must not lose its process).
 
     Returns
     -------
@@ -641,6 +658,25 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         stop.set()
 
     in_main_thread = threading.current_thread() is threading.main_thread()
+    if teardown_timeout is None and args is None and in_main_thread:
+        teardown_timeout = TEARDOWN_TIMEOUT
+    watchdog: threading.Timer | None = None
+
+    def arm(code: int) -> None:
+        nonlocal watchdog
+        if teardown_timeout is None or watchdog is not None:
+            return
+
+        def expire() -> None:
+            print(f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
+                  'exiting anyway (the node had stopped)', file=sys.stderr, flush=True)
+            sys.stdout.flush()
+            os._exit(code)
+
+        watchdog = threading.Timer(teardown_timeout, expire)
+        watchdog.daemon = True
+        watchdog.start()
+
     previous: dict[int, Any] = {}
     if in_main_thread:
         for signum in (signal.SIGINT, signal.SIGTERM):
@@ -652,6 +688,7 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
             try:
                 _spin(node, stop)
             finally:
+                arm(EXIT_OK)
                 node.destroy_node()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -662,6 +699,8 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
         return EXIT_BAD_PARAMETER
     finally:
+        if watchdog is not None:
+            watchdog.cancel()
         for signum, handler in previous.items():
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     return EXIT_OK

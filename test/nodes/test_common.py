@@ -396,3 +396,47 @@ def test_run_node_lets_other_errors_through() -> None:
 
     with pytest.raises(RuntimeError, match='a bug'):
         run_node(factory, args=[])
+
+
+_HANGING_TEARDOWN = '''
+import sys, time
+sys.path.insert(0, {repo!r})
+from rclpy.node import Node
+from rclpy.task import Future
+from folder_line.nodes.common import run_node
+
+class Hanging(Node):
+    """Done at once; its teardown hangs as the middleware's sometimes does."""
+    NODE_NAME = 'hanging'
+
+    def __init__(self):
+        super().__init__(self.NODE_NAME)
+        self.done = Future()
+        self.done.set_result(True)
+
+    def destroy_node(self):
+        time.sleep(30.0)
+
+sys.exit(run_node(Hanging, teardown_timeout={timeout!r}))
+'''
+
+
+@pytest.mark.parametrize('timeout', [0.5, None])
+def test_a_node_process_whose_teardown_hangs_exits_after_the_timeout(timeout: float | None) -> None:
+    """A node process (args from sys.argv) whose destroy_node hangs exits with 0 and one warning
+    after the teardown timeout (given, or the default TEARDOWN_TIMEOUT), not after the hang's 30 s."""
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    repo = str(Path(__file__).resolve().parents[2])
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, '-c', _HANGING_TEARDOWN.format(repo=repo, timeout=timeout)],
+                          capture_output=True, text=True, timeout=60)
+    elapsed = time.monotonic() - t0
+    limit = common.TEARDOWN_TIMEOUT if timeout is None else timeout
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count('hanging: the middleware did not finish tearing the node down in '
+                             f'{limit:g} s; exiting anyway') == 1, proc.stderr
+    assert limit <= elapsed < limit + 10.0
