@@ -743,7 +743,8 @@ def measure_rows(cases: Sequence[EventCase], quick: bool = False, *, min_s: floa
                 cpu = cpu_per_call(_timed(case, method, value), min_s=min_s, repeats=repeats)
                 rows.append(Row(study=STUDY, method=f'{method} [{case.name}]', knob=KNOBS[method],
                                 value=float(value), error=err, cpu_s_per_sim_s=cpu / case.span,
-                                quantity=f'event time, {case.name} ({case.n_events} events)', unit='s', reference=REFERENCE))
+                                quantity=f'event time, {case.name} ({case.n_events} events)', unit='s',
+                                reference=REFERENCE))
     return rows
 
 

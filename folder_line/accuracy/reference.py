@@ -115,7 +115,8 @@ def _newton2(f, x: mp.mpf, y: mp.mpf, what: str, phi: float | mp.mpf) -> tuple[m
         y += dy
         if max(abs(dx), abs(dy)) <= step_tol:
             return x, y
-    raise AssemblyError(f'mpmath reference, {what}', float(phi), f'Newton did not converge in {_MAX_ITER} steps (a toggle?)')
+    raise AssemblyError(f'mpmath reference, {what}', float(phi),
+                        f'Newton did not converge in {_MAX_ITER} steps (a toggle?)')
 
 
 def _fourbar(phi: float | mp.mpf, P: tuple[mp.mpf, ...], omega: mp.mpf) -> MpFourbar:

@@ -1,4 +1,5 @@
-"""Accuracy study ``fourbar``: the closed form vs ``solve_ivp`` on the layup's crank-rocker, and the equal-error ratio."""
+"""Accuracy study ``fourbar``: the closed form vs ``solve_ivp`` on the layup's crank-rocker, and the
+equal-error ratio."""
 
 from __future__ import annotations
 
