@@ -166,6 +166,7 @@ class Supervisor(MachineNode):
                            model_factory=lambda commands: line_model(*key, commands))
         self._latency_ns = seconds_to_ns(v['event_latency'])
         self._last_heard: dict[str, float] = {}
+        self._prev_heard: dict[str, float] = {}  # the tick before the latest, per node
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_violations = self._n_balances = 0
@@ -206,7 +207,11 @@ class Supervisor(MachineNode):
 
         def on_joints(msg: JointState) -> None:
             stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
-            self._last_heard[node] = max(stamp, self._last_heard.get(node, stamp))
+            last = self._last_heard.get(node)
+            if last is None or stamp > last:
+                if last is not None:
+                    self._prev_heard[node] = last
+                self._last_heard[node] = stamp
             self.logic.heard(node, stamp)
             bad = _non_finite(msg.position, msg.velocity, msg.effort)
             if bad:
@@ -274,15 +279,17 @@ class Supervisor(MachineNode):
     def _watermark(self, now_ns: int) -> float:
         """Line time up to which every event is taken to have arrived.
 
-        ``event_latency`` behind the clock, and not past the previous tick of the
-        slowest machine node (a node publishes a tick's events, then its joint states:
-        joint states of tick k+1 heard mean the events of tick k were sent a tick
-        earlier), but never more than ``stale_periods`` ticks behind the *freshest*
-        node, so a dead node still goes stale while the others run. Staleness is
-        measured against the other nodes, not the clock: when the whole executor
-        stalls (a garbage-collection pause, a loaded machine) every node falls behind
-        together and the watermark waits instead of overtaking events still queued.
-        Before every machine node has been heard the slowest is taken as not yet started.
+        ``event_latency`` behind the clock, and not past the previous tick heard from
+        the slowest machine node: a node publishes a tick's events, then its joint
+        states, so once the joint states of its next tick are in, the events up to this
+        tick were sent a whole tick earlier (the ticks heard, not a nominal period: a
+        node's first tick carries every event before it). Never more than
+        ``stale_periods`` ticks behind the *freshest* node, so a dead node still goes
+        stale while the others run. Staleness is measured against the other nodes, not
+        the clock: when the whole executor stalls (a garbage-collection pause, a loaded
+        machine) every node falls behind together and the watermark waits instead of
+        overtaking events still queued. Until every machine node has been heard twice,
+        the slowest counts as not started.
         """
         period = 1.0 / self.values['rate']
         window = self.values['stale_periods'] * period
@@ -290,7 +297,8 @@ class Supervisor(MachineNode):
         heard = self._last_heard
         if not heard:
             return ahead - window
-        slowest = min(heard.values()) - period if len(heard) == len(self._joint_nodes) else -math.inf
+        prev = self._prev_heard
+        slowest = min(prev.values()) if len(prev) == len(self._joint_nodes) else -math.inf
         floor = min(ahead, max(heard.values()) - period) - window
         return max(min(ahead, slowest), floor)
 

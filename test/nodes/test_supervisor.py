@@ -280,3 +280,48 @@ def test_diagnostics_one_status_per_constraint(ros: Ros, overrides: str) -> None
     else:
         assert all(s.level == DiagnosticStatus.OK for s in last.values())
         assert float(values['min_margin']) > 0.0 and values['violations'] == '0'
+
+
+def test_watermark_waits_for_the_previous_tick_of_the_slowest_node_and_not_for_the_clock(ros: Ros) -> None:
+    """The decision watermark (rate 200 Hz, stale_periods 10, event_latency 0.03 s): at most the tick
+    before the latest heard from the slowest node; a whole-process stall (every node silent) holds it
+    however far the clock runs; a dead node is passed stale_periods ticks behind the freshest."""
+    from folder_line.nodes.common import ns_to_time_msg
+
+    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(horizon=HORIZON)))
+    nodes = ('crank_drive', 'belt_conveyor', 'feed_transporter')
+    assert set(sup.model.nodes) == set(nodes)
+    callbacks = {n: sup._on_joints(n) for n in nodes}
+
+    def hear(node: str, t: float) -> None:
+        msg = JointState()
+        msg.header.stamp = ns_to_time_msg(round(t * 1e9))
+        callbacks[node](msg)
+
+    def watermark(clock: float) -> float:
+        return sup._watermark(round(clock * 1e9))
+
+    period, window, latency = 0.005, 10 * 0.005, 0.03
+    assert watermark(1.0) == pytest.approx(1.0 - latency - window)  # nothing heard: the stale window
+    # a node's first tick at 0.0744 carries every event before it: not a tick to wait past yet
+    for n in nodes:
+        hear(n, 0.0744)
+    assert watermark(0.08) == pytest.approx(min(0.08 - latency, 0.0744 - period) - window)  # the floor only
+    for n in nodes:
+        hear(n, 0.0844)  # the tick at 0.0794 was skipped
+    assert watermark(0.2) == pytest.approx(0.0744)  # the previous tick heard, not 0.0844 - period
+    hear('crank_drive', 0.0894)
+    hear('belt_conveyor', 0.0894)
+    assert watermark(0.2) == pytest.approx(0.0744)  # feed_transporter's previous tick is still 0.0744
+    # a stall of the whole process: the clock runs on, nobody is heard, the watermark waits
+    assert watermark(50.0) == pytest.approx(0.0744)
+    # the feed dies, the others run on: passed stale_periods ticks behind the freshest
+    for k in range(1, 40):
+        hear('crank_drive', 0.0894 + k * period)
+        hear('belt_conveyor', 0.0894 + k * period)
+    freshest = 0.0894 + 39 * period
+    assert watermark(freshest + 0.001) == pytest.approx(min(freshest + 0.001 - latency, freshest - period) - window)
+    # and never ahead of event_latency behind the clock
+    hear('feed_transporter', freshest)
+    hear('feed_transporter', freshest + period)
+    assert watermark(freshest) == pytest.approx(freshest - latency)
