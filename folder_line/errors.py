@@ -16,6 +16,7 @@ __all__ = [
     'NonFiniteValueError',
     'NoConvergenceError',
     'IntegrationError',
+    'MeasurementError',
     'TransitionError',
 ]
 
@@ -145,6 +146,12 @@ class IntegrationError(FolderLineError, RuntimeError):
         self.method, self.step, self.t, self.h, self.reason = method, step, t, h, reason
         msg = f'{method}: step {step} starting at t={t!r} with h={h!r}: {reason}'
         super().__init__(msg)
+
+
+class MeasurementError(FolderLineError, RuntimeError):
+    """A benchmark measurement would not mean what it claims (``folder-line bench accuracy``):
+    a method missed or doubled an event, a live line skipped the ticks whose cost it measures,
+    a reference failed its own check."""
 
 
 class TransitionError(FolderLineError):

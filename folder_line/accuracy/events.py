@@ -60,7 +60,7 @@ than most watches, so the cheapest settings pay for some ticks they would not ne
 Missed and double events are failures, not numbers: every method's detections are
 counted per object (rising crossings of g between consecutive ticks; the core
 detector's reported sign changes; exact times within the span) and
-:func:`check_counts` raises :class:`~folder_line.errors.FolderLineError` unless each
+:func:`check_counts` raises :class:`~folder_line.errors.MeasurementError` unless each
 object whose event lies in the span is detected exactly once and no other object at all.
 
 Reference and how it is checked
@@ -104,7 +104,7 @@ from folder_line.core.events import event_kind
 from folder_line.core.folder_sim import FolderLine
 from folder_line.core.layup_sim import LayupLine
 from folder_line.core.line import make_drive
-from folder_line.errors import FolderLineError
+from folder_line.errors import MeasurementError, ParameterError
 from folder_line.scenes import load_scene
 
 __all__ = [
@@ -256,14 +256,14 @@ def _bracket(g_mp: Callable[[int, mp.mpf], mp.mpf], k: int, a: float) -> tuple[m
     """``[a, a + s]`` with ``g(a) < 0 < g(a + s)``, s = 0.05 s doubled as needed."""
     lo = mp.mpf(a)
     if not g_mp(k, lo) < 0:
-        raise FolderLineError(f'events reference: g({a!r}) of object {k} is not negative')
+        raise MeasurementError(f'events reference: g({a!r}) of object {k} is not negative')
     step = mp.mpf('0.05')
     for _ in range(12):
         hi = lo + step
         if g_mp(k, hi) > 0:
             return lo, hi
         step *= 2
-    raise FolderLineError(f'events reference: no sign change of g within {float(step)} s after {a!r} (object {k})')
+    raise MeasurementError(f'events reference: no sign change of g within {float(step)} s after {a!r} (object {k})')
 
 
 def reference_roots(g_mp: Callable[[int, mp.mpf], mp.mpf], t_start: Sequence[float]) -> tuple[mp.mpf, ...]:
@@ -323,10 +323,10 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
     scene = load_scene('folder', {'drive.profile': 'ramp', 'drive.t_ramp': float(t_ramp)})
     drive = make_drive(scene, span)
     if not isinstance(drive, RampDrive):
-        raise FolderLineError(f'events: the folder scene with a ramp profile gave a {type(drive).__name__}')
+        raise MeasurementError(f'events: the folder scene with a ramp profile gave a {type(drive).__name__}')
     fl = FolderLine(scene, drive, span)
     if not fl.belt.plain or scene.has('feed_slip'):
-        raise FolderLineError('events: the front-stops case needs a plain feed belt without feed_slip')
+        raise MeasurementError('events: the front-stops case needs a plain feed belt without feed_slip')
     ev = fl.events
     hand = ev[ev['kind'] == event_kind('sheet_handover')]
     stops = ev[ev['kind'] == event_kind('at_stops')]
@@ -387,7 +387,7 @@ def exit_states(line: LayupLine) -> tuple[IntArray, _Flight]:
     landing events.
     """
     if line.profile is None:
-        raise FolderLineError('events: the leaf-landing case needs chute_belts')
+        raise MeasurementError('events: the leaf-landing case needs chute_belts')
     ev = line.events
     ex = ev[ev['kind'] == event_kind('leaf_exit')]
     ids = ex['sheet'].astype(np.int64)
@@ -649,7 +649,7 @@ def detect_exact(case: EventCase, batch: int) -> Detection:
     """
     b = int(batch)
     if b < 1:
-        raise FolderLineError(f'events: batch must be >= 1, got {batch!r}')
+        raise ParameterError('batch', batch, 'must be a whole number >= 1')
     n = case.t_start.size
     idx = np.arange(n, dtype=np.int64)
     t = np.concatenate([case.exact(idx[i:i + b]) for i in range(0, n, b)]) if n else np.zeros(0)
@@ -668,7 +668,7 @@ def detect(case: EventCase, method: str, value: float) -> Detection:
     elif method == EXACT:
         det = detect_exact(case, int(value))
     else:
-        raise FolderLineError(f'events: unknown method {method!r}; known: {", ".join(METHODS)}')
+        raise ParameterError('method', method, f'unknown; known: {", ".join(METHODS)}')
     check_counts(case, det, f'{method} at {KNOBS[method]} {value:g}')
     return det
 
@@ -678,7 +678,7 @@ def check_counts(case: EventCase, det: Detection, label: str) -> None:
 
     Raises
     ------
-    FolderLineError
+    MeasurementError
         Naming the missed, doubled and spurious objects (ids) and the method.
     """
     exp = case.expected
@@ -687,7 +687,7 @@ def check_counts(case: EventCase, det: Detection, label: str) -> None:
     spurious = case.ids[~exp & (det.count > 0)]
     bad_time = case.ids[exp & (det.count == 1) & ~np.isfinite(det.t)]
     if missed.size or double.size or spurious.size or bad_time.size:
-        raise FolderLineError(
+        raise MeasurementError(
             f'events [{case.name}] {label}: {missed.size} missed (ids {missed[:10].tolist()}), '
             f'{double.size} detected more than once (ids {double[:10].tolist()}), '
             f'{spurious.size} detected but not in the span (ids {spurious[:10].tolist()}), '
@@ -704,7 +704,7 @@ def max_error(case: EventCase, t: FloatArray) -> float:
     """Largest ``|t − t_ref|`` over the events in the span, s."""
     e = errors(case, t)
     if e.size == 0 or not np.all(np.isfinite(e)):
-        raise FolderLineError(f'events [{case.name}]: no finite detection time for some event')
+        raise MeasurementError(f'events [{case.name}]: no finite detection time for some event')
     return float(np.max(np.abs(e)))
 
 
@@ -731,7 +731,7 @@ def measure_rows(cases: Sequence[EventCase], quick: bool = False, *, min_s: floa
 
     Raises
     ------
-    FolderLineError
+    MeasurementError
         A method missed or doubled an event (:func:`check_counts`).
     """
     rows: list[Row] = []

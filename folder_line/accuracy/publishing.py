@@ -59,7 +59,7 @@ messages each joint node published in the measured span are counted: fewer than
 ticks, and a cost measured on skipped ticks would understate the cost, so
 :func:`run` (through :func:`measured_cost`) then measures again at half the
 real-time factor, and a quarter (also when the supervisor ended other than in
-EXECUTE), and raises :class:`~folder_line.errors.FolderLineError` if ticks are still
+EXECUTE), and raises :class:`~folder_line.errors.MeasurementError` if ticks are still
 skipped. The row's ``reference`` gives the rtf, the share of ticks published and the
 supervisor's final state. Both methods share the cost of their rate: the
 interpolation itself is done offline, on the bag, and is not included.
@@ -81,7 +81,7 @@ from numpy.typing import NDArray
 
 from folder_line.accuracy.measure import Row
 from folder_line.core.line import LineModel
-from folder_line.errors import FolderLineError, ParameterError
+from folder_line.errors import MeasurementError, ParameterError
 
 __all__ = [
     'FINE_RATE',
@@ -320,7 +320,7 @@ def check_published(cost: LiveCost, min_fraction: float = MIN_PUBLISHED) -> None
 
     Raises
     ------
-    FolderLineError
+    MeasurementError
         A node published fewer; the message names it, the counts and the setup.
     """
     owed = cost.ticks_owed
@@ -330,7 +330,7 @@ def check_published(cost: LiveCost, min_fraction: float = MIN_PUBLISHED) -> None
         msg = (f'publishing at {cost.rate:g} Hz (rtf {cost.rtf:g}, /clock at {cost.clock_rate:g} Hz): '
                f'{worst} published {short[worst]} of {owed:.0f} ticks ({short[worst] / owed:.1%} < '
                f'{min_fraction:.0%}) in {cost.span:.3f} s of sim time; the cost of skipped ticks is not measured')
-        raise FolderLineError(msg)
+        raise MeasurementError(msg)
 
 
 def default_rtf(rate: float) -> float:
@@ -461,7 +461,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     if start is None or end is None or end[0] <= start[0]:
         msg = (f'the live line at {rate:g} Hz (rtf {rtf:g}) did not reach {duration:.3f} s of sim time '
                f'within {3.0 * duration / rtf + 30.0:.0f} s of wall time')
-        raise FolderLineError(msg)
+        raise MeasurementError(msg)
     return LiveCost(rate=float(rate), rtf=rtf, clock_rate=clock_rate, t_start=start[0], t_end=end[0],
                     cpu_s=end[1] - start[1], wall_s=end[2] - start[2],
                     published={n: end[3][n] - start[3][n] for n in joint_nodes}, supervisor_state=state)
@@ -497,7 +497,7 @@ def measured_cost(rate: float, *, span_ticks: int = 600, warmup_wall: float = 0.
 
     Raises
     ------
-    FolderLineError
+    MeasurementError
         The last attempt still skipped more than ``1 - MIN_PUBLISHED`` of the ticks.
     """
     rtf = default_rtf(rate)
@@ -527,7 +527,7 @@ def run(quick: bool = False) -> list[Row]:
 
     Raises
     ------
-    FolderLineError
+    MeasurementError
         The live line skipped more than 10 % of its ticks even at a quarter of the
         real-time factor.
     """

@@ -14,7 +14,7 @@ from folder_line.core.effects import leaf_flight
 from folder_line.core.events import event_kind
 from folder_line.core.layup_sim import LayupLine
 from folder_line.core.line import make_drive
-from folder_line.errors import FolderLineError
+from folder_line.errors import MeasurementError
 from folder_line.scenes import load_scene
 
 EPS = float(np.finfo(float).eps)
@@ -191,19 +191,19 @@ def _bouncing(case: E.EventCase, d: float) -> E.EventCase:
 
 
 def test_double_events_are_failures(case: E.EventCase) -> None:
-    with pytest.raises(FolderLineError, match='more than once'):
+    with pytest.raises(MeasurementError, match='more than once'):
         E.detect(_bouncing(case, 5e-4), E.SAMPLING, 1e4)
-    with pytest.raises(FolderLineError, match='more than once'):
+    with pytest.raises(MeasurementError, match='more than once'):
         E.detect(_bouncing(case, 0.02), E.ROOT, 1e-9)
 
 
 def test_missed_and_spurious_events_are_failures(case: E.EventCase) -> None:
     short = dataclasses.replace(case, span=0.6 * case.span)  # events after it cannot be detected
     for method, value in ((E.SAMPLING, 1e3), (E.INTERP, 1e4), (E.ROOT, 1e-6), (E.EXACT, 4.0)):
-        with pytest.raises(FolderLineError, match='missed'):
+        with pytest.raises(MeasurementError, match='missed'):
             E.detect(short, method, value)
     none = dataclasses.replace(case, expected=np.zeros_like(case.expected))
-    with pytest.raises(FolderLineError, match='not in the span'):
+    with pytest.raises(MeasurementError, match='not in the span'):
         E.detect(none, E.SAMPLING, 1e3)
 
 

@@ -24,7 +24,7 @@ import pytest
 from folder_line.accuracy import publishing as pub
 from folder_line.core.knife import KnifeParams
 from folder_line.core.line import LineModel
-from folder_line.errors import FolderLineError, ParameterError
+from folder_line.errors import MeasurementError, ParameterError
 from folder_line.scenes import load_scene
 
 DURATION = 2.0  # s of line time the errors are measured over
@@ -180,7 +180,7 @@ def test_published_check_threshold() -> None:
 
     pub.check_published(cost(90))  # 90 of 100 owed: enough
     assert cost(90).published_fraction == pytest.approx(0.9)
-    with pytest.raises(FolderLineError, match=r'belt_conveyor published 89 of 100 ticks'):
+    with pytest.raises(MeasurementError, match=r'belt_conveyor published 89 of 100 ticks'):
         pub.check_published(cost(89))
 
 
@@ -206,7 +206,7 @@ def test_live_cost_refuses_a_starved_line() -> None:
     # the nodes tick at most once per /clock message: 50 messages per wall s for 200 ticks owed
     cost = pub.live_cost(1000.0, rtf=0.2, clock_rate=50.0, span_ticks=100, warmup_wall=0.3)
     assert cost.published_fraction <= 0.3
-    with pytest.raises(FolderLineError, match='the cost of skipped ticks is not measured'):
+    with pytest.raises(MeasurementError, match='the cost of skipped ticks is not measured'):
         pub.check_published(cost)
 
 
