@@ -37,6 +37,7 @@ same names and types.
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import signal
@@ -684,7 +685,18 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     try:
         with rclpy.init(args=None if args is None else list(args),
                         signal_handler_options=SignalHandlerOptions.NO):
-            node = node_factory()
+            try:
+                node = node_factory()
+            except (FolderLineError, ParameterException) as err:
+                refused = f'{name}: error: {err}'
+            else:
+                refused = None
+            if refused is not None:
+                # the half-built node hangs off the traceback, which is gone now: collect it while the
+                # context is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
+                gc.collect()
+                print(refused, file=sys.stderr)
+                return EXIT_BAD_PARAMETER
             try:
                 _spin(node, stop)
             finally:
