@@ -52,7 +52,9 @@ def test_run_in_process(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
 
 def test_run_with_one_process_per_node(tmp_path: Path) -> None:
     duration = 1.5
-    assert main(['run', '--processes', '--duration', str(duration), '--out', str(tmp_path)]) == 0
+    # half speed: six processes on two cores, each must stay within the supervisor's stale window (see
+    # test_processes.py); at rtf 1 a lagging process could get the line held
+    assert main(['run', '--processes', '--duration', str(duration), '--rtf', '0.5', '--out', str(tmp_path)]) == 0
     summary = json.loads((tmp_path / 'run.json').read_text())
     assert summary['mode'] == 'processes'
     assert summary['exit_codes'] == dict.fromkeys(
