@@ -31,7 +31,8 @@ from typing import IO, Any, Callable
 
 from folder_line.atomic import write_json_atomic
 
-__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'print_run_summary', 'run_line', 'wait_until_matched']
+__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'print_run_summary', 'run_line',
+           'wait_until_matched']
 
 #: the nodes of the line, in start order (the clock last, so nobody misses t = 0)
 LINE_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
@@ -224,6 +225,25 @@ def wait_until_matched(nodes: list[Any], executor: Any, timeout: float) -> bool:
     return True
 
 
+def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
+    """Build the five machine nodes of :data:`LINE_NODES` in ``context`` with the run's parameters
+    (scene, overrides, horizon, rate) and add them to ``executor``; returns them in that order."""
+    from rclpy.parameter import Parameter
+
+    from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
+
+    classes = {'crank_drive': crank_drive.CrankDrive, 'belt_conveyor': belt_conveyor.BeltConveyor,
+               'feed_transporter': feed_transporter.FeedTransporter,
+               'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
+    nodes = []
+    for name in LINE_NODES:
+        overrides = [Parameter(k, value=v) for k, v in _node_parameters(cfg, name).items()]
+        node = classes[name](parameter_overrides=overrides, context=context)
+        executor.add_node(node)
+        nodes.append(node)
+    return nodes
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``."""
     import rclpy
@@ -279,16 +299,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             _start_processes_line(cfg, recorder, executor, env, procs, logs, stream)
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
-            from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
-
-            classes = {'crank_drive': crank_drive.CrankDrive, 'belt_conveyor': belt_conveyor.BeltConveyor,
-                       'feed_transporter': feed_transporter.FeedTransporter,
-                       'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
-            for name in LINE_NODES:
-                overrides = [Parameter(k, value=v) for k, v in _node_parameters(cfg, name).items()]
-                node = classes[name](parameter_overrides=overrides, context=ctx)
-                nodes.append(node)
-                executor.add_node(node)
+            nodes += add_machine_nodes(cfg, ctx, executor)
             # sim time starts once every line topic is matched among the nodes and the recorder
             wait_until_matched([*nodes, recorder], executor, timeout=10.0)
             clock = LineClock(parameter_overrides=[Parameter('duration', value=float(cfg.duration)),

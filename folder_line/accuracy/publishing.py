@@ -386,10 +386,9 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
 
     from folder_line.bag import BagWriter
     from folder_line.core.scene import parse_scene
-    from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
     from folder_line.nodes.line_clock import LineClock
     from folder_line.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.run import LINE_NODES, RunConfig, _clock_publish_rate, _node_parameters, wait_until_matched
+    from folder_line.run import RunConfig, _clock_publish_rate, add_machine_nodes, wait_until_matched
     from folder_line.scenes import scene_mapping
 
     if not (math.isfinite(rate) and 1.0 <= rate <= 5000.0):
@@ -407,9 +406,6 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     clock_rate = _clock_publish_rate(cfg) if clock_rate is None else float(clock_rate)
     mapping = scene_mapping(scene)
     parsed = parse_scene(mapping)
-    classes = {'crank_drive': crank_drive.CrankDrive, 'belt_conveyor': belt_conveyor.BeltConveyor,
-               'feed_transporter': feed_transporter.FeedTransporter,
-               'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
     ctx = rclpy.Context()
     rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx,
                signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
@@ -422,14 +418,9 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
             recorder = LineRecorder(sink=bag.write, context=ctx)
             nodes.append(recorder)
             executor.add_node(recorder)
-            joint_nodes = {}
-            for name in LINE_NODES:
-                node = classes[name](parameter_overrides=[Parameter(k, value=v) for k, v in
-                                                          _node_parameters(cfg, name).items()], context=ctx)
-                nodes.append(node)
-                executor.add_node(node)
-                if name in _JOINT_NODES:
-                    joint_nodes[name] = node
+            machines = add_machine_nodes(cfg, ctx, executor)
+            nodes += machines
+            joint_nodes = {n.NODE_NAME: n for n in machines if n.NODE_NAME in _JOINT_NODES}
             # sim time starts once every publisher and subscription of the line topics are matched
             # (as --processes does): events published before would be lost, and the supervisor would
             # judge the first cycles without them and hold the line
