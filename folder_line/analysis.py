@@ -498,11 +498,11 @@ def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
     It matters only for a scene with ``motor_dynamics``, whose drive is integrated up to
     the horizon; without ``run.json`` the line time reached is used.
     """
-    from folder_line.run import RunConfig, _node_parameters
+    from folder_line.run import RunConfig, node_parameters
 
     horizon = t_end
     if run is not None and isinstance(run.get('duration_s'), (int, float)) and run['duration_s'] > 0:
-        horizon = float(_node_parameters(RunConfig(duration=float(run['duration_s'])), 'crank_drive')['horizon'])
+        horizon = float(node_parameters(RunConfig(duration=float(run['duration_s'])), 'crank_drive')['horizon'])
     return max(horizon, t_end, 1e-3)
 
 
@@ -575,8 +575,7 @@ def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[dict[str, An
 #: the live supervisor node's parameters as ``folder-line run`` starts it (its defaults, and the
 #: rate of :class:`folder_line.run.RunConfig`); a bag's custom data ``folder_line.supervisor``
 #: (JSON) overrides them. test/test_analysis.py keeps them equal to the node's.
-SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'stale_periods': 10.0, 'enforce': True,
-                                       'event_latency': 0.03, 'double_sheet': 'hold', 'watch': ''}
+SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
 #: custom data key of the supervisor's parameters in a bag
 KEY_SUPERVISOR = 'folder_line.supervisor'
 
@@ -598,12 +597,12 @@ def supervisor_parameters(rec: Recording) -> dict[str, Any]:
 def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) -> tuple[list[dict[str, Any]], Any]:
     """Replay the recorded inputs through :func:`folder_line.core.supervision.replay`.
 
-    The live supervisor node is fed the events, the joint-state stamps of the nodes
-    with joints (liveness), the ``/clock`` messages and the operator's commands, and
-    decides at a watermark ``event_latency`` behind its clock; all of these are in the
-    bag (the operator's commands and the first watermark in the supervisor's
-    ``/diagnostics`` statuses). Its parameters: :func:`supervisor_parameters`, updated
-    from ``params``.
+    The live supervisor node runs in lockstep: at every tick it is fed the events up to
+    that tick (all of them: it waits until every machine node's tick is complete), the
+    NaN/inf values found and the operator's commands, and decides exactly at the tick.
+    All of these are in the bag (the operator's commands, lost participants and the
+    first watermark in the supervisor's ``/diagnostics`` statuses). Its parameters:
+    :func:`supervisor_parameters`, updated from ``params``.
 
     Returns
     -------
@@ -611,8 +610,6 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         The transitions ``{'t', 'from', 'to', 'cause'}`` (decision time, s) and the
         replayed supervisor (its ``violations``, ``commands``, ``balances``).
     """
-    import inspect
-
     from folder_line.core import supervision
     from folder_line.core.line import LineModel
 
@@ -621,7 +618,6 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
     scene = rec.scene
     horizon = _live_horizon(rec.run, rec.t_end)
     period = 1.0 / float(p['rate'])
-    latency = float(p['event_latency'])
     base = LineModel(scene, horizon)
     cache: dict[tuple[Command, ...], Any] = {(): base}
 
@@ -633,28 +629,19 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
     starts = [float(v['t_start']) for _, _, v in rec.supervisor_status if 't_start' in v]
     if starts:
         t_start = starts[0]
-    else:  # the first tick published the first /diagnostics, stamped with its time; t_start is its watermark
-        first = int(rec.diagnostics_ns.min()) if rec.diagnostics_ns.size else 0
-        t_start = max((first - round(latency * NS_PER_S)) / NS_PER_S, 0.0)
+    else:  # the first tick published the first /diagnostics, stamped with its time: the first watermark
+        t_start = int(rec.diagnostics_ns.min()) / NS_PER_S if rec.diagnostics_ns.size else 0.0
     operator = [(float(v['t']), v['command']) for _, name, v in rec.supervisor_status
                 if name.endswith('/operator') and 't' in v and 'command' in v]
-    nodes = list(base.nodes)
+    lost = [(float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
+            for _, name, v in rec.supervisor_status
+            if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')]
     kwargs: dict[str, Any] = {
-        'periods': dict.fromkeys(nodes, period), 'expected': [w.strip() for w in str(p['watch']).split(',')
-                                                              if w.strip()],
-        'clock_ticks': True, 'stale_periods': float(p['stale_periods']), 'lead': float(p['command_lead']),
-        'check_period': period, 'enforce': bool(p['enforce']), 'double': str(p['double_sheet']),
-        'state': 'STARTING', 't_start': t_start, 'model_factory': model_factory,
+        'periods': {}, 'lead': float(p['command_lead']), 'check_period': period, 'enforce': bool(p['enforce']),
+        'double': str(p['double_sheet']), 'state': 'STARTING', 't_start': t_start, 'model_factory': model_factory,
     }
-    accepted = inspect.signature(supervision.Supervisor).parameters
-    kwargs = {k: v for k, v in kwargs.items() if k in accepted}
-    replay_kw: dict[str, Any] = {}
-    if 'clock' in inspect.signature(supervision.replay).parameters:
-        replay_kw['clock'] = rec.clock
-    sup = supervision.replay(scene, horizon, rec.events,
-                             heard={n: rec.joints[n].t for n in nodes if n in rec.joints},
-                             bad_values=rec.bad_values, operator=operator,
-                             until=max(rec.t_end - latency, t_start), **replay_kw, **kwargs)
+    sup = supervision.replay(scene, horizon, rec.events, bad_values=rec.bad_values, operator=operator, lost=lost,
+                             until=max(rec.t_end, t_start), **kwargs)
     out = [{'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
            for tr in sup.transitions]
     return out, sup

@@ -16,6 +16,7 @@ from folder_line.errors import FolderLineError
 __all__ = ['main']
 
 EXIT_USAGE = 2
+EXIT_RUN_FAILED = 1
 
 
 def _samples(text: str) -> int:
@@ -42,7 +43,19 @@ def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
 
 
 _duration = _positive('--duration', 1e9, 's')
-_rtf = _positive('--rtf', 1000.0, '')
+
+
+def _rtf(text: str) -> float:
+    """``--rtf``: a ceiling in [0.001, 1000], or ``max`` (0.0: as fast as the line allows)."""
+    if text.strip().lower() == 'max':
+        return 0.0
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be a number in [0.001, 1000] or max') from None
+    if not 1e-3 <= value <= 1000.0:
+        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be in [0.001, 1000] or max')
+    return value
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -70,7 +83,13 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument('--duration', type=_duration, default=20.0, metavar='S', help='line time, s (default 20)')
     run.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
                      help='override a scene value (repeatable)')
-    run.add_argument('--rtf', type=_rtf, default=1.0, metavar='X', help='real-time factor (default 1)')
+    run.add_argument('--rtf', type=_rtf, default=1.0, metavar='X|max',
+                     help='real-time factor ceiling (default 1); max: as fast as the slowest node allows')
+    run.add_argument('--clock', choices=('lockstep', 'wall'), default='lockstep',
+                     help='lockstep: sim time waits for every node, the answer never depends on load (default); '
+                          'wall: paced by the wall clock for hardware in the loop, late ticks counted')
+    run.add_argument('--lost-timeout', type=_positive('--lost-timeout', 3600.0, 's'), default=3.0, metavar='S',
+                     help='wall time a tick waits for a node before the node is declared lost (default 3)')
     run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
@@ -158,12 +177,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from folder_line.run import RunConfig, print_run_summary, run_line
 
+    if args.clock == 'wall' and args.rtf == 0.0:
+        print("folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)",
+              file=sys.stderr)
+        return EXIT_USAGE
     cfg = RunConfig(scene=args.scene, duration=args.duration, overrides=tuple(args.overrides), rtf=args.rtf,
-                    out=Path(args.out), processes=args.processes)
+                    out=Path(args.out), processes=args.processes, clock=args.clock, lost_timeout=args.lost_timeout)
     result = run_line(cfg, sys.stdout)
     print_run_summary(result.summary, cfg.out, sys.stdout)
-    if result.summary.get('interrupted'):
-        print('interrupted: the line was stopped early', file=sys.stderr)
+    verdict = result.summary['outcome']
+    if not verdict['ok']:
+        print(f'folder-line: run failed: {verdict["message"]}', file=sys.stderr)
+        return EXIT_RUN_FAILED
     return 0
 
 

@@ -1,23 +1,36 @@
-"""``folder-line run``: start the line's nodes, let it run, stop cleanly, report.
+"""``folder-line run``: start the line's nodes, let it run in lockstep, stop cleanly, report.
 
 In-process (default): ``line_clock`` and the five machine nodes in one process on
-one executor in a private context, as a component container would run them.
-With ``processes=True``: one process per node, started from the node executables
-as a launch file would, and stopped with SIGINT. Either way a recorder in this
-process subscribes to every line topic, counts what arrives and compares it with
-what the batch simulation (``simulate``) of the same scene says.
+one executor (``rclpy.experimental.EventsExecutor``) in a private context, as a
+component container would run them. With ``processes=True``: one process per node,
+started from the node executables as a launch file would, and stopped with SIGINT;
+each child dies with this process (``PR_SET_PDEATHSIG``), so a killed ``run`` leaves
+nothing behind. Either way a recorder in this process (``line_recorder``, a lockstep
+participant) subscribes to every line topic, hands every message to a
+:class:`folder_line.bag.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
+of line time) and compares what arrived with the batch simulation (``simulate``).
 
-The recorder hands every message to a :class:`folder_line.bag.BagWriter`: the run's
-bag is ``<out>/bag/`` (rosbag2, MCAP, one file per second of line time, the complete
-scene and its effects in the metadata). Loss accounting: in-process, every node
-counts what it publishes (``published_counts()``), read at the end of the run, so
-``run.json`` has ``published`` and ``lost`` (= published - recorded) per topic. With
-``processes=True`` the publishers live in other processes and their counts are not
-collected: ``published`` and ``lost`` are ``null`` there, and ``loss_accounting`` says so.
+Time is lockstep by default (:mod:`folder_line.nodes.lockstep`): sim time advances a
+tick only when every participant, the recorder included, has finished the previous
+one, so a busy machine slows sim time down and never changes what is published.
+``clock='wall'`` paces by the wall clock instead and counts late participants.
+
+The outcome is honest (:func:`outcome`): the run succeeds only when the line reached
+the end of ``duration`` in the state the scene expects (EXECUTE, as ``simulate``
+says) with no participant lost; otherwise one line names the state, the cause, the
+cycle and the node, and ``folder-line run`` exits non-zero. SIGTERM is handled like
+SIGINT: the bag is closed, ``run.json`` written and every child ended.
+
+Loss accounting: in-process, every node counts what it publishes (``published_counts()``),
+so ``run.json`` has ``published`` and ``lost`` (= published - recorded) per topic. With
+``processes=True`` the publishers live in other processes: ``published`` and ``lost``
+are ``null`` there, and ``loss_accounting`` says so (the lockstep itself guarantees that
+every acknowledged message was recorded).
 """
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import shutil
@@ -31,11 +44,10 @@ from typing import IO, Any, Callable
 
 from folder_line.atomic import write_json_atomic
 
-__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'print_run_summary', 'run_line',
-           'wait_until_matched']
+__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'clock_parameters',
+           'node_parameters', 'other_line', 'outcome', 'print_run_summary', 'run_line', 'wait_until_matched']
 
-#: the nodes of the line, in start order (the clock last, so nobody misses t = 0)
-LINE_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
+from folder_line.interfaces import MACHINE_NODES as LINE_NODES  # noqa: E402  (the nodes, in start order)
 
 #: the run's bag, under ``cfg.out``
 BAG_DIR = 'bag'
@@ -57,13 +69,17 @@ class RunConfig:
     overrides : tuple of str
         ``MACHINE.KEY=VALUE`` items.
     rtf : float
-        Real-time factor of ``line_clock``.
+        Real-time factor ceiling of ``line_clock``; 0 = as fast as the line allows (lockstep).
     rate : float
         Publishing rate of the machine nodes, Hz of sim time.
     out : Path
         Output directory.
     processes : bool
         One process per node instead of one executor.
+    clock : {'lockstep', 'wall'}
+        Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
+    lost_timeout : float
+        Wall seconds a tick may wait for a participant before it is declared lost.
     """
 
     scene: str = 'folder'
@@ -73,6 +89,8 @@ class RunConfig:
     rate: float = 200.0
     out: Path = Path('out')
     processes: bool = False
+    clock: str = 'lockstep'
+    lost_timeout: float = 3.0
 
 
 @dataclass
@@ -84,67 +102,10 @@ class RunResult:
     exit_codes: dict[str, int] = field(default_factory=dict)
 
 
-def _clock_publish_rate(cfg: RunConfig, per_tick: int = 1) -> float:
-    """``/clock`` messages per wall second: ``per_tick`` per node tick (``rate`` Hz of sim time at ``rtf``).
-
-    A node's timer runs on sim time and fires at most once per ``/clock`` message, so
-    fewer messages than ``rate * rtf`` per wall second would lower the nodes' rate in sim
-    time (``line_clock`` allows at most 1000 per second). One per tick suffices when the
-    clock starts with the line (its messages then fall just after the ticks' grid
-    points); a clock whose ``rtf`` is changed on the way has an arbitrary phase, and with
-    one message per tick a message just before a grid point, jittered across it, skips a
-    tick: two per tick put one in every grid interval.
-    """
-    return min(1000.0, max(1.0, per_tick * cfg.rate * cfg.rtf))
-
-
-#: real-time factor of the clock while the processes wait for each other (sim time all but stands)
-_HOLD_RTF = 1e-6
-
-
-def _start_processes_line(cfg: RunConfig, recorder: Any, executor: Any, env: dict[str, str],
-                          procs: dict[str, Any], logs: Path, stream: IO[str]) -> None:
-    """Start ``line_clock`` as a process once every node process hears it, then let sim time run.
-
-    DDS discovery between processes takes from 0.1 s to several seconds here (Fast DDS
-    repeats its announcements every few seconds), so a clock started at full speed would
-    run for a while before some node, or the recorder, hears it. The clock starts at the
-    nodes' first tick (``1/rate`` s, a grid point of every node's timer) at a real-time
-    factor that all but stops sim time; once every node that publishes has published at
-    that tick (so it hears the clock) and the recorder hears the clock, ``rtf`` is set to
-    ``cfg.rtf`` through the clock's parameter service, and the line runs from there.
-    """
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
-
-    from folder_line.nodes.common import CLOCK_TOPIC, SHEET_COUNT_TOPIC, SUPERVISOR_STATE_TOPIC, joint_states_topic
-
-    t0 = min(1.0 / cfg.rate, 0.5 * cfg.duration)
-    clock_cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args',
-                 '-p', f'start_time:={t0!r}', '-p', f'duration:={cfg.duration - t0!r}', '-p', f'rtf:={_HOLD_RTF!r}',
-                 '-p', f'publish_rate:={_clock_publish_rate(cfg, per_tick=2)!r}']
-    with open(logs / 'line_clock.log', 'wb') as log:
-        procs['line_clock'] = subprocess.Popen(clock_cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
-    topics = [joint_states_topic(n) for n in LINE_NODES] + [SHEET_COUNT_TOPIC, SUPERVISOR_STATE_TOPIC]
-    expected = [CLOCK_TOPIC] + [t for t in topics if recorder.count_publishers(t) > 0]
-    client = AsyncParameterClient(recorder, 'line_clock')
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline and not (client.services_are_ready()
-                                               and all(recorder.counts[t] for t in expected)):
-        if procs['line_clock'].poll() is not None:
-            return
-        executor.spin_once(timeout_sec=0.05)
-    deaf = [t for t in expected if not recorder.counts[t]]
-    if deaf:
-        print(f'warning: starting the line although nothing arrived yet on {", ".join(deaf)}', file=stream)
-    future = client.set_parameters([Parameter('rtf', value=float(cfg.rtf))])
-    while time.monotonic() < deadline + 10.0 and not future.done():
-        executor.spin_once(timeout_sec=0.05)
-    recorder.clock_wall = None  # the achieved real-time factor counts from here
-
-
-def _node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
-    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + 1.0, 'rate': cfg.rate}
+def node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
+    """The parameters ``run`` gives machine node ``name`` (scene, overrides, horizon, rate, lost_timeout)."""
+    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + 1.0, 'rate': cfg.rate,
+                              'lost_timeout': cfg.lost_timeout}
     if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
     return params
@@ -197,6 +158,12 @@ def _published_counts(nodes: list[Any]) -> dict[str, int]:
     return counts
 
 
+def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
+    """The parameters ``run`` gives ``line_clock``."""
+    return {'rate': cfg.rate, 'rtf': float(cfg.rtf), 'clock': cfg.clock, 'duration': float(cfg.duration),
+            'participants': ','.join(participants), 'lost_timeout': cfg.lost_timeout}
+
+
 def wait_until_matched(nodes: list[Any], executor: Any, timeout: float) -> bool:
     """Spin ``executor`` until every line-topic publisher and subscription of ``nodes`` has matched all
     its peers among ``nodes``, or ``timeout`` s of wall time pass; True if they all matched.
@@ -237,74 +204,121 @@ def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
                'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
     nodes = []
     for name in LINE_NODES:
-        overrides = [Parameter(k, value=v) for k, v in _node_parameters(cfg, name).items()]
+        overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name).items()]
         node = classes[name](parameter_overrides=overrides, context=context)
         executor.add_node(node)
         nodes.append(node)
     return nodes
 
 
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Ask the kernel to SIGTERM this (child) process when its parent dies (Linux ``PR_SET_PDEATHSIG``)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass
+
+
+def other_line(node: Any, executor: Any, wait: float = 0.5) -> str | None:
+    """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
+    is not ours, seen within ``wait`` s of discovery."""
+    from folder_line.nodes.common import CLOCK_TOPIC
+    from folder_line.nodes.lockstep import PARTICIPANTS_TOPIC
+
+    deadline = time.monotonic() + wait
+    while True:
+        for topic in (CLOCK_TOPIC, PARTICIPANTS_TOPIC):
+            infos = node.get_publishers_info_by_topic(topic)
+            if infos:
+                who = infos[0].node_namespace.rstrip('/') + '/' + infos[0].node_name
+                return f'{topic} is already published on ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")} by {who}'
+        if time.monotonic() >= deadline:
+            return None
+        executor.spin_once(timeout_sec=0.05)
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
-    """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``."""
+    """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``.
+
+    Raises
+    ------
+    folder_line.errors.FolderLineError
+        Bad scene or overrides, an ``--out`` that holds something else, or another line on this
+        ROS domain (checked before anything is written).
+    """
     import rclpy
     import yaml
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.experimental import EventsExecutor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
     from folder_line.core.scene import parse_scene
+    from folder_line.errors import FolderLineError
     from folder_line.nodes.line_clock import LineClock
+    from folder_line.interfaces import RECORDER
     from folder_line.recorder import LINE_TOPICS, LineRecorder
     from folder_line.scenes import parse_set, scene_mapping
 
     mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
     scene = parse_scene(mapping)  # fail early, before any node starts
-    cfg.out.mkdir(parents=True, exist_ok=True)
-    bag_path = cfg.out / BAG_DIR
-    _clear_previous_bag(bag_path)
-    bag = BagWriter(bag_path, scene_source=yaml.safe_dump(mapping, sort_keys=False), effects=list(scene.effects),
-                    scene_name=scene.name, topics=LINE_TOPICS,
-                    custom={'folder_line.scene_arg': str(cfg.scene), 'folder_line.overrides': json.dumps(cfg.overrides),
-                            'folder_line.mode': 'processes' if cfg.processes else 'in-process'})
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    executor = EventsExecutor(context=ctx)
     result = RunResult()
     procs: dict[str, subprocess.Popen[bytes]] = {}
     nodes: list[Any] = []
-    executor = SingleThreadedExecutor(context=ctx)
-    interrupted = False
+    bag = None
+    interrupted: list[str] = []
+    participants = (*LINE_NODES, RECORDER)
 
     def on_signal(signum: int, frame: object) -> None:
-        nonlocal interrupted
-        interrupted = True
+        interrupted.append(signal.Signals(signum).name)
 
-    previous = signal.signal(signal.SIGINT, on_signal)
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall = time.perf_counter()
     try:
-        recorder = LineRecorder(sink=bag.write, context=ctx)
+        probe = rclpy.create_node('folder_line_run_probe', context=ctx)
+        executor.add_node(probe)
+        other = other_line(probe, executor)
+        executor.remove_node(probe)
+        probe.destroy_node()
+        if other is not None:
+            msg = (f'another line is running: {other}; stop it, or give this run its own '
+                   'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)')
+            raise FolderLineError(msg)
+        cfg.out.mkdir(parents=True, exist_ok=True)
+        bag_path = cfg.out / BAG_DIR
+        _clear_previous_bag(bag_path)
+        bag = BagWriter(bag_path, scene_source=yaml.safe_dump(mapping, sort_keys=False), effects=list(scene.effects),
+                        scene_name=scene.name, topics=LINE_TOPICS,
+                        custom={'folder_line.scene_arg': str(cfg.scene),
+                                'folder_line.overrides': json.dumps(cfg.overrides),
+                                'folder_line.mode': 'processes' if cfg.processes else 'in-process',
+                                'folder_line.clock': cfg.clock})
+        recorder = LineRecorder(sink=bag.write, context=ctx, lost_timeout=cfg.lost_timeout)
         executor.add_node(recorder)
+        clock_params = clock_parameters(cfg, participants)
         if cfg.processes:
             env = dict(os.environ)
             logs = cfg.out / 'logs'  # each process's stderr
             logs.mkdir(exist_ok=True)
-            for name in LINE_NODES:
-                args = [f'{k}:={v}' for k, v in _node_parameters(cfg, name).items()]
+            commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in LINE_NODES}
+            commands['line_clock'] = [f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}'
+                                      for k, v in clock_params.items()]
+            for name, args in commands.items():
                 cmd = [sys.executable, '-m', f'folder_line.nodes.{name}', '--ros-args']
                 for a in args:
                     cmd += ['-p', a]
                 # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
                 with open(logs / f'{name}.log', 'wb') as log:
-                    procs[name] = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
-            recorder.wait_for_publishers(len(LINE_NODES), executor, timeout=30.0)
-            _start_processes_line(cfg, recorder, executor, env, procs, logs, stream)
+                    procs[name] = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log,
+                                                   preexec_fn=_die_with_parent)
+            clock = None
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
             nodes += add_machine_nodes(cfg, ctx, executor)
-            # sim time starts once every line topic is matched among the nodes and the recorder
-            wait_until_matched([*nodes, recorder], executor, timeout=10.0)
-            clock = LineClock(parameter_overrides=[Parameter('duration', value=float(cfg.duration)),
-                                                   Parameter('rtf', value=float(cfg.rtf)),
-                                                   Parameter('publish_rate', value=_clock_publish_rate(cfg))],
+            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()],
                               context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
@@ -317,18 +331,24 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             if now - last_draw > 0.2:
                 progress.show(recorder.sim_time)
                 last_draw = now
-        if interrupted and not cfg.processes:
+                if recorder.count_publishers('/clock') > 1:
+                    interrupted.append('another /clock publisher appeared on this ROS domain')
+        if interrupted and clock is not None:
             executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
-        # let the last messages arrive
-        deadline = time.perf_counter() + 1.0
+        # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
+        deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
         while time.perf_counter() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+            executor.spin_once(timeout_sec=0.02)
         progress.show(recorder.sim_time)
         progress.close()
         result.counts = dict(recorder.counts)
         published = None if cfg.processes else _published_counts(nodes)
         bag.close(published)
-        result.summary = _summary(cfg, scene, recorder, time.perf_counter() - t_wall, interrupted)
+        lost = dict(recorder.lost)
+        if clock is not None:
+            lost.update({n: t for n, t in clock.lost.items() if n not in lost})
+        result.summary = _summary(cfg, scene, recorder, time.perf_counter() - t_wall, interrupted, lost,
+                                  None if clock is None else clock.rtf_achieved)
         result.summary.update(_bag_summary(bag, published))
     finally:
         for name, proc in procs.items():
@@ -342,31 +362,80 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 proc.wait()
             result.exit_codes[name] = proc.returncode
         executor.shutdown()
-        bag.close()  # no-op after a normal end; after an error, finishes what was recorded
+        if bag is not None:
+            bag.close()  # no-op after a normal end; after an error, finishes what was recorded
         for node in nodes:
             node.destroy_node()
         ctx.try_shutdown()
-        signal.signal(signal.SIGINT, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if procs:
         result.summary['exit_codes'] = result.exit_codes
+        clock_code = result.exit_codes.get('line_clock')
+        if clock_code not in (0, None) and not result.summary.get('lost_participants'):
+            result.summary['lost_participants'] = {'line_clock': result.summary['sim_time_reached_s']}
+    result.summary['outcome'] = outcome(result.summary)
     write_json_atomic(cfg.out / 'run.json', result.summary)
     return result
 
 
-def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted: bool) -> dict[str, Any]:
+def outcome(summary: dict[str, Any]) -> dict[str, Any]:
+    """Whether the run ended as the scene expects, and if not, one line that says why.
+
+    ``ok`` only when sim time reached ``duration``, the run was not interrupted, no
+    participant was lost and the supervisor ended in the state ``simulate`` expects
+    (EXECUTE: the scenes start the line and nothing stops it unless a constraint is
+    violated, which ``simulate`` reports as a violation).
+    """
+    expected = 'EXECUTE' if summary['expected_from_simulate']['violations'] == 0 else None
+    problems: list[str] = []
+    lost = summary.get('lost_participants') or {}
+    for node, t in lost.items():
+        problems.append(f'participant {node} lost at {t:.6f} s')
+    if summary.get('interrupted'):
+        problems.append(f'interrupted ({summary["interrupted"]}) at {summary["sim_time_reached_s"]:.6f} s')
+    elif summary['sim_time_reached_s'] < summary['duration_s']:
+        problems.append(f'sim time stopped at {summary["sim_time_reached_s"]:.6f} s of {summary["duration_s"]:g} s')
+    state = summary['supervisor_state']
+    cause = summary.get('cause')
+    if expected is not None and state != expected:
+        what = f'line ended {state or "with no supervisor state"}'
+        if cause:
+            what += f': {cause}'
+        problems.insert(0, what)
+    elif expected is None and state == 'EXECUTE':
+        problems.append('simulate expects violations, yet the line ended in EXECUTE')
+    ok = not problems
+    return {'ok': ok, 'expected_state': expected, 'state': state,
+            'message': 'line ended EXECUTE as the scene expects' if ok else '; '.join(problems)}
+
+
+def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted: list[str],
+             lost: dict[str, float], rtf: float | None) -> dict[str, Any]:
     from folder_line.core.line import simulate
 
     expected = simulate(scene, min(recorder.sim_time, cfg.duration) or cfg.duration, sample_rate=0.0).summary()
+    cause = None
+    for st in recorder.diagnostics:  # the first violation that changed the state, with its cycle and node
+        values = {kv.key: kv.value for kv in st.values}
+        if st.name == 'folder_line/supervisor/violation' and values.get('action') not in (None, 'none'):
+            constraint = values.get('constraint', '')
+            node = constraint.split(':', 1)[1] if constraint.startswith('lost:') else None
+            cause = (f'{constraint} in cycle {values.get("cycle")} at {float(values.get("t", "nan")):.6f} s '
+                     f'-> {values.get("action")}' + (f' (node {node})' if node else ''))
+            break
     return {
         'scene': scene.name,
         'duration_s': cfg.duration,
         'sim_time_reached_s': recorder.sim_time,
         'wall_time_s': wall,
-        'rtf_requested': cfg.rtf,
-        'rtf_achieved': (recorder.sim_time / (recorder.clock_wall[1] - recorder.clock_wall[0])
-                         if recorder.clock_wall and recorder.clock_wall[1] > recorder.clock_wall[0] else 0.0),
+        'rtf_requested': cfg.rtf if cfg.rtf > 0 else 'max',
+        'rtf_achieved': rtf if rtf is not None else recorder.rtf_achieved(),
         'mode': 'processes' if cfg.processes else 'in-process',
-        'interrupted': interrupted,
+        'clock': cfg.clock,
+        'interrupted': ', '.join(interrupted) if interrupted else False,
+        'lost_participants': lost,
+        'cause': cause,
         'messages': dict(sorted(recorder.counts.items())),
         'events_received': dict(sorted(recorder.event_counts.items())),
         'sheets_counted': recorder.sheet_count,
@@ -391,7 +460,8 @@ def _bag_summary(bag: Any, published: dict[str, int] | None) -> dict[str, Any]:
 def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -> None:
     """Human-readable end of ``folder-line run``."""
     print(f"scene {summary['scene']}: {summary['sim_time_reached_s']:.3f} s of line time in "
-          f"{summary['wall_time_s']:.1f} s ({summary['mode']}, rtf {summary['rtf_achieved']:.2f})", file=stream)
+          f"{summary['wall_time_s']:.1f} s ({summary['mode']}, {summary['clock']} clock, rtf achieved "
+          f"{summary['rtf_achieved']:.2f}, ceiling {summary['rtf_requested']})", file=stream)
     print(f"supervisor: {summary['supervisor_state']}   sheets counted: {summary['sheets_counted']} "
           f"(simulate: {summary['expected_from_simulate']['sheets_counted']})", file=stream)
     print('messages received per topic:', file=stream)

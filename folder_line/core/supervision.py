@@ -443,6 +443,9 @@ class Supervisor:
         self._release_done = -math.inf   # last release time judged
         self._exit_done = -math.inf      # last leaf exit time judged
         self._bad: list[tuple[float, str, int]] = []
+        self._lost: list[tuple[float, str, float]] = []
+        self.blind_from = math.inf  # no judgement from here on: a participant was lost
+        self.lost_nodes: list[str] = []
         self._due: list[_Item] = []
         self._timing = None
         self._plan = None
@@ -551,6 +554,21 @@ class Supervisor:
         if stamps.size:
             self._clock_pending.append(stamps)
 
+    def lost(self, node: str, t: float, waited: float) -> None:
+        """Participant ``node`` stopped answering: nothing of it is known after ``t`` (s).
+
+        It is decided at ``t`` (or at once if that passed): ``abort`` with cause
+        ``lost:<node>`` (margin: minus the wall seconds ``waited``, unit ``wall s``).
+        From ``t`` on no cycle, release or leaf exit is judged any more: its input may be
+        missing, and a judgement is never made on missing input (the balance at the stop
+        still counts what was received, and says so in its detail).
+        """
+        t = as_float('t', t)
+        if not math.isfinite(t):
+            raise ParameterError('t', t, 'the time a node was lost must be finite')
+        self._lost.append((max(t, self.now), str(node), float(waited)))
+        self.blind_from = min(self.blind_from, max(t, self.now))
+
     def bad_value(self, topic: str, t: float, count: int = 1) -> None:
         """A message of ``topic`` stamped ``t`` (s) carried ``count`` NaN/inf values."""
         t = float(t)
@@ -627,6 +645,10 @@ class Supervisor:
                 tb, topic, count = min(self._bad)
                 if tb <= W:
                     cands.append((tb, 2, 'bad', (topic, count)))
+            if self._lost:
+                tl, node, waited = min(self._lost)
+                if tl <= W:
+                    cands.append((tl, 2, 'lost', (node, waited)))
             for node in self._nodes:
                 s = self._stale_candidate(node, W)
                 if s is not None:
@@ -646,6 +668,12 @@ class Supervisor:
                 topic, count = arg
                 self._interlock(when, f'finite:{topic}', -float(count), 'values',
                                 f'{count} non-finite value(s) on {topic}')
+            elif what == 'lost':
+                self._lost.remove(min(self._lost))
+                node, waited = arg
+                self.lost_nodes.append(node)
+                self._interlock(when, f'lost:{node}', -waited, 'wall s',
+                                f'participant {node} lost: no answer for {waited:.3g} s of wall time')
             else:
                 node, last = arg
                 st = self._nodes[node]
@@ -716,6 +744,8 @@ class Supervisor:
             self._release_done = max(self._release_done, it.t)
         else:
             self._exit_done = max(self._exit_done, it.t)
+        if it.t >= self.blind_from:
+            return  # a participant was lost: its input may be missing, so nothing is judged
         for name, unit, margin in it.margins:
             st = self.stats.get(name)
             if st is None:
@@ -1004,7 +1034,8 @@ class Supervisor:
 
 def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str, Iterable[float]] | None = None,
            clock: Iterable[float] = (), bad_values: Iterable[tuple[float, str, int]] = (),
-           operator: Iterable[tuple[float, str]] = (), until: float | None = None, **params: Any) -> Supervisor:
+           operator: Iterable[tuple[float, str]] = (), lost: Iterable[tuple[float, str, float]] = (),
+           until: float | None = None, **params: Any) -> Supervisor:
     """Run a :class:`Supervisor` over a recorded stream.
 
     Parameters
@@ -1023,6 +1054,8 @@ def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str
     operator : iterable of (float, str)
         Operator commands ``(t, command)`` (the live ``operator_log``; refused ones
         are refused again).
+    lost : iterable of (float, str, float)
+        Participants lost ``(t, node, waited wall s)`` (the live ``lost:<node>`` violations).
     until : float, optional
         The live run's last watermark, s (default: the latest input time).
     **params
@@ -1040,16 +1073,18 @@ def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str
     clk = np.sort(np.asarray(list(clock), dtype=float))
     bad = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
     ops = sorted(((float(t), str(name)) for t, name in operator), key=lambda x: x[0])
+    gone = sorted((float(t), str(n), float(w)) for t, n, w in lost)
     times = [ev['t'][-1]] if ev.size else []
     times += [float(a[-1]) for a in hd.values() if a.size] + [b[0] for b in bad] + [o[0] for o in ops]
+    times += [g[0] for g in gone]
     times += [float(clk[-1])] if clk.size else []
     end = float(until) if until is not None else (max(times) if times else 0.0)
     i_ev = i_c = 0
     i_h = dict.fromkeys(hd, 0)
-    i_b = 0
+    i_b = i_g = 0
 
     def feed_to(t: float) -> None:
-        nonlocal i_ev, i_b, i_c
+        nonlocal i_ev, i_b, i_c, i_g
         j = int(np.searchsorted(ev['t'], t, side='right'))
         sup.feed(ev[i_ev:j])
         i_ev = max(i_ev, j)
@@ -1063,6 +1098,9 @@ def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str
         while i_b < len(bad) and bad[i_b][0] <= t:
             sup.bad_value(bad[i_b][1], bad[i_b][0], bad[i_b][2])
             i_b += 1
+        while i_g < len(gone) and gone[i_g][0] <= t:
+            sup.lost(gone[i_g][1], gone[i_g][0], gone[i_g][2])
+            i_g += 1
 
     if sup.t_start is None:
         raise ParameterError('t_start', None, "replay needs the live run's t_start")

@@ -53,7 +53,8 @@ from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -605,7 +606,7 @@ TEARDOWN_TIMEOUT = 5.0
 
 
 def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None, *,
-             teardown_timeout: float | None = None) -> int:
+             teardown_timeout: float | None = None, exit_code: Callable[[Node], int] | None = None) -> int:
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
 
     The node is built by ``node_factory()`` in the default context and spun by a
@@ -642,6 +643,9 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         Seconds allowed for the teardown before the process exits anyway; default
         :data:`TEARDOWN_TIMEOUT` for a process's own node (``args`` None, main thread),
         else no watchdog (a test calling this must not lose its process).
+    exit_code : callable, optional
+        ``exit_code(node)``: the exit code of a node that ran (default 0), e.g. non-zero
+        when ``line_clock`` lost a participant.
 
     Returns
     -------
@@ -697,11 +701,14 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
                 gc.collect()
                 print(refused, file=sys.stderr)
                 return EXIT_BAD_PARAMETER
+            code = EXIT_OK
             try:
                 _spin(node, stop)
+                code = EXIT_OK if exit_code is None else exit_code(node)
             finally:
-                arm(EXIT_OK)
+                arm(code)
                 node.destroy_node()
+            return code
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (FolderLineError, ParameterException) as err:
@@ -722,7 +729,7 @@ def _spin(node: Node, stop: threading.Event) -> None:
     done = getattr(node, 'done', None)
     if not isinstance(done, Future):
         done = None
-    executor = SingleThreadedExecutor(context=node.context)
+    executor = EventsExecutor(context=node.context)
     try:
         executor.add_node(node)
         while not stop.is_set() and node.context.ok() and not (done is not None and done.done()):

@@ -1,23 +1,33 @@
 """What the machine nodes share: the scene, the line model, the tick.
 
-``crank_drive``, ``belt_conveyor``, ``feed_transporter`` and ``sheet_counter`` are
-:class:`MachineNode` subclasses. Each builds the line model of its scene once
-(:class:`folder_line.core.line.LineModel`, shared by the nodes of one process),
-and on every tick of a timer on its own clock (simulated time from ``/clock``)
-publishes, at the stamp ``t`` of that tick,
+``crank_drive``, ``belt_conveyor``, ``feed_transporter``, ``sheet_counter`` and the
+``supervisor`` are :class:`MachineNode` subclasses. Each builds the line model of its
+scene once (:class:`folder_line.core.line.LineModel`, shared by the nodes of one
+process) and is a lockstep participant (:mod:`folder_line.nodes.lockstep`): on
+every tick ``t`` of ``/clock`` it publishes
 
-* its joints' states at ``t`` on ``/line/<node>/joint_states`` (if the scene gives
-  the node joints), and
 * the exact events of its machines with times in ``(t_prev, t]`` on
   ``/line/events`` as ``sensor_msgs/TimeReference``: ``time_ref`` is the event time
-  (nearest ns), ``header.stamp`` the tick's stamp, ``header.frame_id`` the node,
+  (nearest ns), ``header.stamp`` the tick, ``header.frame_id`` the node,
   ``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'``
-  (:func:`folder_line.event_text.event_source`, re-exported here).
+  (:func:`folder_line.event_text.event_source`, re-exported here);
+* its joints' states on ``/line/<node>/joint_states`` at every point of its own
+  grid (``rate`` Hz of sim time) in ``(t_prev, t]``, stamped with that grid point,
+  so the clock's tick rate changes how many messages go out per tick, never what
+  they hold;
 
-So what a node publishes at stamp ``t`` depends only on the scene, ``t`` and the
-supervisor's commands (``/line/supervisor/commands``, each with its effective
-time): a command rebuilds the model, which leaves everything before the command's
-effective time unchanged.
+then acknowledges the tick on ``/line/<node>/tick_done``. In lockstep, a machine
+node runs tick ``t`` only once the supervisor's previous tick is complete (its
+acknowledgement and every drive command it counts are in), so every command
+decided before ``t`` is applied: what a node publishes at stamp ``t`` depends only
+on the scene, ``t`` and the supervisor's commands (``/line/supervisor/commands``,
+each with its effective time), never on the load of the machine.
+
+Inputs that are malformed, unknown or out of order (a command of an unknown kind,
+from anyone but the supervisor, or effective before the last tick published) are
+rejected: logged once per kind, counted (:attr:`MachineNode.rejected`, in the
+supervisor's diagnostics), and the node goes on. ``use_sim_time`` cannot be turned
+off: it is refused at start and at run time.
 """
 
 from __future__ import annotations
@@ -29,6 +39,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.task import Future
 from sensor_msgs.msg import JointState, TimeReference
 
 from folder_line.core.drive import Command
@@ -41,14 +52,13 @@ from folder_line.nodes.common import (
     COMMANDS_TOPIC,
     EVENTS_TOPIC,
     NS_PER_S,
-    PUBLISH_DEPTH,
     ParamSpec,
     declare_parameters,
     joint_states_topic,
     ns_to_time_msg,
-    sim_time_overrides,
     time_msg_to_ns,
 )
+from folder_line.nodes.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.scenes import load_scene, parse_set
 
 __all__ = ['EVENT_OWNER', 'MACHINE_SPECS', 'MachineNode', 'event_source', 'line_model', 'parse_event_source',
@@ -84,8 +94,14 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
               '(e.g. "feed_transporter.V_tr=5.833;seed=3")', read_only=True),
     ParamSpec('horizon', 3600.0, 'Line time the model is built for; the node stops publishing after it',
               unit='s', bounds=(0.0, 1e7), low_open=True, read_only=True),
-    ParamSpec('rate', 200.0, 'Publishing rate in simulated time', unit='Hz', bounds=(1.0, 5000.0)),
+    ParamSpec('rate', 200.0, 'Joint-state rate in simulated time (its own grid; changing it is harmless)',
+              unit='Hz', bounds=(1.0, 10000.0)),
+    ParamSpec('lost_timeout', 3.0, 'Wall time a tick waits for the supervisor before it is declared lost',
+              unit='s', bounds=(0.1, 3600.0), read_only=True),
 )
+
+#: the drive command kinds a machine node accepts
+COMMAND_KINDS = ('hold', 'unhold', 'stop', 'start')
 
 
 def parse_overrides(text: str) -> dict[str, Any]:
@@ -104,6 +120,9 @@ _CLI_NAMES = {'--scene': 'scene', '--set': 'overrides'}
 
 
 def _check_scene(values: Mapping[str, Any]) -> None:
+    if values.get('use_sim_time') is False:
+        raise ParameterError('use_sim_time', False, 'a line node runs on the line\'s simulated time (/clock); '
+                             'it cannot be turned off')
     try:
         load_scene(values['scene'], parse_overrides(values['overrides']))
     except ParameterError as err:  # name the node's parameter, not the CLI option
@@ -118,16 +137,30 @@ class MachineNode(Node):
     Parameters
     ----------
     parameter_overrides : iterable of Parameter, optional
-        Starting parameter values (``use_sim_time`` is forced on).
+        Starting parameter values (``use_sim_time`` is on; false is refused).
     **kwargs
         Passed to ``rclpy.node.Node``.
+
+    Attributes
+    ----------
+    done : rclpy.task.Future
+        Completes when the clock's last tick (its announced end) is done.
+    rejected : dict of str to int
+        Inputs rejected so far, per kind.
     """
 
     NODE_NAME = 'machine'
     EXTRA_SPECS: tuple[ParamSpec, ...] = ()
 
     def __init__(self, *, parameter_overrides: Iterable[Parameter] | None = None, **kwargs: Any) -> None:
-        super().__init__(self.NODE_NAME, parameter_overrides=sim_time_overrides(parameter_overrides), **kwargs)
+        overrides = list(parameter_overrides or [])
+        super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
+        # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
+        if self.get_parameter('use_sim_time').value is False and (
+                any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides):
+            raise ParameterError('use_sim_time', False, 'a line node runs on the line\'s simulated time (/clock); '
+                                 'it cannot be turned off')
+        self.set_parameters([Parameter('use_sim_time', value=True)])
         self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_scene)
         self._key = (self.values['scene'], self.values['overrides'], self.values['horizon'])
         self.commands: tuple[Command, ...] = ()
@@ -136,15 +169,20 @@ class MachineNode(Node):
         self.joints = self.model.nodes.get(self.NODE_NAME, ())
         self.kinds = np.array([EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME],
                               dtype=np.int16)
-        self._last_ns: int | None = None
+        self._last_ns: int | None = None      # the latest tick published
+        self._grid_ns: int | None = None      # the latest grid point published
+        self._period_ns = round(NS_PER_S / self.values['rate'])
         self._horizon_logged = False
+        self.rejected: dict[str, int] = {}
         self.published_joint_states = 0
         self.published_events = 0
-        self._joint_pub = (self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), PUBLISH_DEPTH)
+        self.done: Future = Future()
+        self._joint_pub = (self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), LINE_QOS)
                            if self.joints else None)
-        self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, PUBLISH_DEPTH)
+        self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
-        self._timer = self.create_timer(1.0 / self.values['rate'], self._tick)
+        self.lockstep = Participant(self, self.depends, self._on_tick, needs=self.needs, on_lost=self.on_lost,
+                                    on_reject=self.reject, lost_timeout=self.values['lost_timeout'])
         self.add_post_set_parameters_callback(self._apply)
         self.setup()
         self.on_model()
@@ -153,14 +191,28 @@ class MachineNode(Node):
 
     # ------------------------------------------------------------------ hooks
 
+    def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
+        """The producers this node waits for: in lockstep, the supervisor's commands."""
+        return {'supervisor': ('commands',)} if a.clock == 'lockstep' else {}
+
+    def needs(self, stamp: int, previous: int | None) -> int | None:
+        """Tick ``stamp`` runs once the producers' ``previous`` tick is complete."""
+        return previous
+
+    def on_lost(self, producer: str, waited: float, stamp: int) -> None:
+        """A producer this node waits for was declared lost (logged by the participant)."""
+
     def setup(self) -> None:
         """Subclass hook: create extra publishers."""
 
     def on_model(self) -> None:
         """Subclass hook: the line model was (re)built (at start and after each command)."""
 
+    def publish_sample(self, stamp_ns: int, t: float) -> None:
+        """Subclass hook: called at every grid point ``t`` (after the joint states)."""
+
     def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
-        """Subclass hook: called every tick with this node's events of ``(t_prev, t]``."""
+        """Subclass hook: called every tick with this node's events of ``(t_prev, t]`` (after the samples)."""
 
     def published_counts(self) -> dict[str, int]:
         """Messages this node has published so far, per topic (the recorder's loss accounting).
@@ -172,42 +224,69 @@ class MachineNode(Node):
             counts[joint_states_topic(self.NODE_NAME)] = self.published_joint_states
         return counts
 
+    def reject(self, kind: str, reason: str) -> None:
+        """Count a rejected input of ``kind``; log the first of each kind."""
+        n = self.rejected.get(kind, 0)
+        self.rejected[kind] = n + 1
+        if n == 0:
+            self.get_logger().warning(f'rejected {kind}: {reason} (further rejections of this kind are only counted)')
+
+    def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
+        """Publish and count (the tick's acknowledgement carries the counts)."""
+        self.lockstep.publish(publisher, msg, stream)
+
     # ------------------------------------------------------------------ internals
 
     def _apply(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
             if parameter.name == 'rate':
-                self._timer.timer_period_ns = round(NS_PER_S / parameter.value)
+                self._period_ns = round(NS_PER_S / parameter.value)
 
     def _on_command(self, msg: TimeReference) -> None:
+        if msg.header.frame_id != 'supervisor':
+            self.reject('command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the '
+                        'supervisor only')
+            return
+        if msg.source not in COMMAND_KINDS:
+            self.reject('command', f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)})')
+            return
         command = Command(t=time_msg_to_ns(msg.time_ref) / NS_PER_S, kind=msg.source)
         if command in self.commands:
+            self.reject('command', f'{command.kind} at {command.t:.9f} s repeated')
             return
         if self._last_ns is not None and command.t * NS_PER_S < self._last_ns:
-            self.get_logger().error(f'command {command.kind} effective at {command.t:.9f} s arrived after '
-                                    f'stamp {self._last_ns / NS_PER_S:.9f} s was published: history diverges')
+            self.reject('command', f'{command.kind} effective at {command.t:.9f} s arrived after stamp '
+                        f'{self._last_ns / NS_PER_S:.9f} s was published')
+            return
         self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
         self.model = line_model(*self._key, self.commands)
         self.on_model()
+        self.lockstep.received('supervisor', 'commands')
 
-    def _tick(self) -> None:
-        now = self.get_clock().now().nanoseconds
-        if self._last_ns is not None and now <= self._last_ns:
-            return
-        if now > self.horizon_ns:
+    def _on_tick(self, stamp_ns: int) -> None:
+        if stamp_ns > self.horizon_ns:
             if not self._horizon_logged:
-                self.get_logger().warning(f'sim time passed the horizon {self.values["horizon"]:g} s: not publishing')
+                self.get_logger().error(f'sim time {stamp_ns / NS_PER_S:.9f} s passed the horizon '
+                                        f'{self.values["horizon"]:g} s: publishing nothing more')
                 self._horizon_logged = True
             return
-        self.publish_at(now)
+        self.publish_at(stamp_ns)
+        if self.lockstep.ended and not self.done.done():
+            self.done.set_result(stamp_ns)
+
+    def grid_points(self, stamp_ns: int) -> list[int]:
+        """This node's grid points in ``(last grid point, stamp_ns]`` (the first tick is one)."""
+        if self._grid_ns is None:
+            return [stamp_ns]
+        first = self._grid_ns + self._period_ns
+        return list(range(first, stamp_ns + 1, self._period_ns))
 
     def publish_at(self, stamp_ns: int) -> None:
-        """Publish everything of stamp ``stamp_ns`` (sim time, ns)."""
+        """Publish everything of the tick at ``stamp_ns`` (sim time, ns)."""
         t = stamp_ns / NS_PER_S
         t_prev = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
         self._last_ns = stamp_ns
         stamp = ns_to_time_msg(stamp_ns)
-        # events first: a supervisor that has heard this tick's joint states may take its events as sent
         events = self.model.events_between(t_prev, t)
         mine = events[np.isin(events['kind'], self.kinds)] if events.size else events
         for row in mine:
@@ -216,17 +295,23 @@ class MachineNode(Node):
             ref.header.frame_id = self.NODE_NAME
             ref.time_ref = ns_to_time_msg(max(0, round(float(row['t']) * NS_PER_S)))
             ref.source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
-            self._event_pub.publish(ref)
+            self.publish(self._event_pub, ref, 'events')
             self.published_events += 1
-        if self._joint_pub is not None:
-            js = self.model.sample(self.NODE_NAME, np.array([t]))
-            msg = JointState()
-            msg.header.stamp = stamp
-            msg.header.frame_id = self.NODE_NAME
-            msg.name = list(js.names)
-            msg.position = js.position[0].tolist()
-            msg.velocity = js.velocity[0].tolist()
-            msg.effort = [] if js.effort is None else js.effort[0].tolist()
-            self._joint_pub.publish(msg)
-            self.published_joint_states += 1
+        points = self.grid_points(stamp_ns)
+        if points:
+            self._grid_ns = points[-1]
+            times = np.array(points, dtype=float) / NS_PER_S
+            js = self.model.sample(self.NODE_NAME, times) if self._joint_pub is not None else None
+            for i, g in enumerate(points):
+                if js is not None:
+                    msg = JointState()
+                    msg.header.stamp = ns_to_time_msg(g)
+                    msg.header.frame_id = self.NODE_NAME
+                    msg.name = list(js.names)
+                    msg.position = js.position[i].tolist()
+                    msg.velocity = js.velocity[i].tolist()
+                    msg.effort = [] if js.effort is None else js.effort[i].tolist()
+                    self.publish(self._joint_pub, msg)
+                    self.published_joint_states += 1
+                self.publish_sample(g, float(times[i]))
         self.publish_extra(stamp_ns, t, mine)

@@ -2,59 +2,65 @@
 
 The node is an adapter around :class:`folder_line.core.supervision.Supervisor` (the
 logic, pure and replayable offline): it feeds it what it hears and publishes what it
-decides.
+decides. It is a lockstep participant (:mod:`folder_line.nodes.lockstep`) that waits,
+at every tick ``t``, for every machine participant's tick ``t`` to be complete: their
+acknowledgements are in and so is every event they count. Only then is the logic
+advanced to ``t`` (the watermark is exact), so a cycle is never judged on missing
+input, however busy the machine; a slow node only slows sim time down.
 
 Inputs
 ------
 * ``/line/events``: the exact events the machine nodes publish (``time_ref`` = the
-  event time); judged cycle by cycle with the same constraint code as the batch
-  simulator (:mod:`folder_line.core.constraints`, causal evaluation);
-* ``/line/<node>/joint_states`` of every node of the scene with joints: the header
-  stamp is the node's tick (liveness: ``stale_periods`` periods of the node's
-  ``rate``, taken to be this node's, and as many ``/clock`` messages); every value is
-  checked for NaN/inf;
-* ``/clock``: the clock messages (liveness counts them);
-* ``/line/sheet_counter/rate`` and ``/line/sheet_counter/landing_x``: checked for
-  NaN/inf (stamped with this node's clock: they carry no header). The sheet counter
-  is not watched for liveness: it publishes no stamped periodic message.
+  event time), counted per publishing node (``header.frame_id``, which must be the
+  node that owns the event kind); judged cycle by cycle with the same constraint
+  code as the batch simulator (:mod:`folder_line.core.constraints`, causal evaluation);
+* ``/line/<node>/joint_states`` of every node of the scene with joints, and
+  ``/line/sheet_counter/rate`` and ``/line/sheet_counter/landing_x``: checked for NaN/inf;
+* ``/line/<node>/tick_done``: the machine participants' acknowledgements.
 
-Decisions lag the clock by ``event_latency`` (the watermark: every event up to
-``t - event_latency`` is taken to have arrived; the logic counts the inputs that came
-later, ``late`` in the diagnostics). A timing violation commands ``hold`` at the next
-machine cycle boundary at least ``command_lead`` after the violating cycle's decision
-(HOLDING, HELD at standstill), a missing sheet ``suspend`` (SUSPENDING, SUSPENDED), a
-double sheet ``double_sheet`` (hold or abort), a stale node or a NaN/inf ``abort``
-(``stop`` of the drive ``command_lead`` after the decision; ABORTING, ABORTED, which
-only ``clear`` leaves). With ``enforce`` false nothing is commanded, only reported.
+A participant that does not complete a tick within ``lost_timeout`` s of wall time is
+*lost*: the logic aborts with cause ``lost:<node>`` (ABORTING, then ABORTED at
+standstill) and judges nothing after that time. A malformed, unknown or out-of-order
+input on any subscribed topic is rejected, logged once per kind and counted in the
+``folder_line/supervisor/inputs`` diagnostic; the node keeps running.
+
+A timing violation commands ``hold`` at the next machine cycle boundary at least
+``command_lead`` after the violating cycle's decision (HOLDING, HELD at standstill),
+a missing sheet ``suspend`` (SUSPENDING, SUSPENDED), a double sheet ``double_sheet``
+(hold or abort), a NaN/inf ``abort`` (``stop`` of the drive ``command_lead`` after
+the decision; ABORTING, ABORTED, which only ``clear`` leaves). With ``enforce`` false
+nothing is commanded, only reported.
 
 Outputs
 -------
-* ``/line/supervisor/state`` (``std_msgs/String``): the PackML state, every tick and
-  on every accepted command.
+* ``/line/supervisor/state`` (``std_msgs/String``, transient-local: a late
+  ``ros2 topic echo`` gets the current state): the PackML state at every point of
+  its grid (``rate``) and on every accepted command.
 * ``/line/supervisor/commands`` (``sensor_msgs/TimeReference``): drive commands
   (``source`` = hold, unhold, stop or start; ``time_ref`` = effective sim time;
-  ``header.stamp`` = the time of the decision).
+  ``header.stamp`` = the time of the decision; ``header.frame_id`` = ``supervisor``).
 * ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``) at ``diag_rate`` Hz of sim
   time: one status per cyclogram constraint of the scene, with the margin of the
   latest evaluated cycle, the smallest margin so far, the unit, and the counts of
-  evaluations and violations as key/values (from the line model under the commands
-  issued); level OK, WARN (violated before) or ERROR (violated in the latest cycle).
-  And, as they happen (stamped with their time), one array per event of the logic:
-  ``folder_line/supervisor/violation`` (ERROR: ``t``, ``cycle``, ``constraint``,
-  ``margin``, ``unit``, ``action``, ``state``), ``folder_line/supervisor/balance`` at
-  every stop (``fed``, ``delivered``, ``in_machine`` and where; OK, or ERROR if a sheet
-  is lost), ``folder_line/supervisor/operator`` per operator command; each also
-  carries ``t_start``, ``watermark`` and ``late`` so that a bag of the run replays
-  through :func:`folder_line.core.supervision.replay`.
+  evaluations and violations as key/values; level OK, WARN (violated before) or
+  ERROR (violated in the latest cycle); and ``folder_line/supervisor/inputs`` with the
+  rejected inputs per kind. And, as they happen (stamped with their time), one array
+  per event of the logic: ``folder_line/supervisor/violation`` (ERROR: ``t``,
+  ``cycle``, ``constraint``, ``margin``, ``unit``, ``action``, ``state``),
+  ``folder_line/supervisor/balance`` at every stop (``fed``, ``delivered``,
+  ``in_machine`` and where; OK, or ERROR if a sheet is lost),
+  ``folder_line/supervisor/operator`` per operator command; each also carries
+  ``t_start``, ``watermark`` and ``late`` so that a bag of the run replays through
+  :func:`folder_line.core.supervision.replay`.
 * Services (``std_srvs/Trigger``) ``/line/supervisor/{start,stop,hold,unhold,suspend,
   unsuspend,reset,clear,abort}``: a legal command answers ``success`` with its
   effective time and publishes a drive command; an illegal one answers
   ``success = False`` with the reason (:class:`folder_line.core.packml.PackML`).
-  Hold, suspend and stop take effect at the next cycle boundary at least
-  ``command_lead`` s after the request, so the line stops between two sheets; start,
-  unhold, unsuspend and abort take effect ``command_lead`` s after it. The request is
-  applied at the watermark (``event_latency`` behind the clock), so that it is
-  ordered with the automatic decisions exactly as in a replay.
+  A command is timed at the clock: decided at the latest tick the supervisor
+  completed, it takes effect at the next cycle boundary at least ``command_lead`` s
+  later (hold, suspend, stop), or ``command_lead`` s later (start, unhold,
+  unsuspend, abort). ``command_lead`` must exceed the clock's tick step (the machine
+  nodes may already be one tick further); a command that cannot be timed so is refused.
 
 The scene's drive starts the line at t = 0, so the supervisor starts in STARTING
 and enters EXECUTE when the drive reaches speed. Acting states end on the check grid
@@ -72,18 +78,15 @@ from typing import Any, Callable
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
 from folder_line.core.drive import Command
 from folder_line.core.events import EVENT_DTYPE, EVENT_KINDS
-from folder_line.core.supervision import DRIVE_COMMANDS, SPEED_REACHED, STALE_PERIODS, Balance, Violation
+from folder_line.core.supervision import DRIVE_COMMANDS, SPEED_REACHED, Balance, Violation
 from folder_line.core.supervision import Supervisor as Logic
-from folder_line.errors import ParameterError
 from folder_line.nodes.common import (
-    CLOCK_TOPIC,
     COMMANDS_QOS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -100,7 +103,8 @@ from folder_line.nodes.common import (
     seconds_to_ns,
     time_msg_to_ns,
 )
-from folder_line.nodes.machine import MachineNode, line_model, parse_event_source
+from folder_line.nodes.lockstep import LINE_QOS, MACHINE_NODES, Announcement
+from folder_line.nodes.machine import EVENT_OWNER, MachineNode, line_model, parse_event_source
 
 __all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
@@ -112,7 +116,6 @@ SERVICES: dict[str, tuple[str, str | None, bool]] = {
 
 STATE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-_INPUT_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def _non_finite(*arrays: Any) -> int:
@@ -131,58 +134,54 @@ class Supervisor(MachineNode):
     NODE_NAME = 'supervisor'
     EXTRA_SPECS = (
         ParamSpec('command_lead', 0.1, 'Earliest effective time of a drive command after its decision, in sim '
-                  'time (must exceed event_latency)', unit='s', bounds=(0.0, 60.0), read_only=True),
+                  'time (must exceed the clock\'s tick step)', unit='s', bounds=(0.001, 60.0), read_only=True),
         ParamSpec('diag_rate', 1.0, 'Rate of /diagnostics in sim time', unit='Hz', bounds=(0.01, 1000.0)),
-        ParamSpec('stale_periods', STALE_PERIODS, 'A node not heard within this many of its periods (and '
-                  'clock messages) is stale: abort', bounds=(0.0, 1e6), low_open=True, read_only=True),
         ParamSpec('enforce', True, 'Command hold, suspend and abort on violations (false: only report)',
                   read_only=True),
-        ParamSpec('event_latency', 0.03, 'Decisions lag the clock by this much: events up to t - event_latency '
-                  'are taken to be in', unit='s', bounds=(0.0, 60.0), read_only=True),
         ParamSpec('double_sheet', 'hold', 'What a double sheet leads to', choices=('hold', 'abort'),
                   read_only=True),
-        ParamSpec('watch', '', 'Nodes expected from the start, comma-separated (the others are watched once '
-                  'heard)', read_only=True),
     )
 
     def setup(self) -> None:
         v = self.values
-        if v['command_lead'] <= v['event_latency']:
-            raise ParameterError('command_lead', v['command_lead'],
-                                 f'must exceed event_latency = {v["event_latency"]!r} s (a command must reach the '
-                                 f'nodes before they publish past its effective time)')
         joint_nodes = list(self.model.nodes)
-        expected = [w.strip() for w in v['watch'].split(',') if w.strip()]
-        unknown = sorted(set(expected) - set(joint_nodes))
-        if unknown:
-            raise ParameterError('watch', v['watch'], f'only nodes with joint states in this scene can be watched: '
-                                 f'{", ".join(joint_nodes)}')
-        period = 1.0 / v['rate']
         key = self._key
-        self.logic = Logic(self.model.scene, v['horizon'], periods=dict.fromkeys(joint_nodes, period),
-                           expected=expected, clock_ticks=True, stale_periods=v['stale_periods'],
-                           lead=v['command_lead'], check_period=period, enforce=v['enforce'],
-                           double=v['double_sheet'], state='STARTING', t_start=None,
-                           model_factory=lambda commands: line_model(*key, commands))
-        self._latency_ns = seconds_to_ns(v['event_latency'])
-        self._last_heard: dict[str, float] = {}
-        self._prev_heard: dict[str, float] = {}  # the tick before the latest, per node
+        self.logic = Logic(self.model.scene, v['horizon'], periods={}, lead=v['command_lead'],
+                           check_period=1.0 / v['rate'], enforce=v['enforce'], double=v['double_sheet'],
+                           state='STARTING', t_start=None, model_factory=lambda commands: line_model(*key, commands))
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_violations = self._n_balances = 0
+        self._n_rejected = 0
+        self._clock_step: int | None = None
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
-        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, PUBLISH_DEPTH)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
         self._cmd_pub = self.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
         self._next_diag_ns = 0
         self.published_state = self.published_diagnostics = self.published_commands = 0
-        self.create_subscription(TimeReference, EVENTS_TOPIC, self._on_event, _INPUT_QOS)
+        self.create_subscription(TimeReference, EVENTS_TOPIC, self._on_event, LINE_QOS)
         for node in joint_nodes:
-            self.create_subscription(JointState, joint_states_topic(node), self._on_joints(node), _INPUT_QOS)
-        self.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, _INPUT_QOS)
+            self.create_subscription(JointState, joint_states_topic(node), self._on_joints(node), LINE_QOS)
         for topic in (SHEET_RATE_TOPIC, LANDING_TOPIC):
-            self.create_subscription(Float64, topic, self._on_float(topic), _INPUT_QOS)
+            self.create_subscription(Float64, topic, self._on_float(topic), LINE_QOS)
         for name in SERVICES:
             self.create_service(Trigger, f'/line/supervisor/{name}', self._service(name))
+
+    def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
+        """Every machine participant, with its events."""
+        return {n: ('events',) for n in MACHINE_NODES if n != self.NODE_NAME}
+
+    def needs(self, stamp: int, previous: int | None) -> int | None:
+        """Tick ``stamp`` runs once every machine participant's tick ``stamp`` is complete."""
+        if previous is not None:
+            step = stamp - previous
+            self._clock_step = step if self._clock_step is None else max(self._clock_step, step)
+        return stamp
+
+    def on_lost(self, producer: str, waited: float, stamp: int) -> None:
+        """A machine participant stopped answering: abort, naming it (decided at the last complete tick)."""
+        t = max(self.logic.now, 0.0) if math.isfinite(self.logic.now) else 0.0
+        self.logic.lost(producer, t, waited)
 
     @property
     def packml(self) -> Any:
@@ -194,38 +193,41 @@ class Supervisor(MachineNode):
     def _on_event(self, msg: TimeReference) -> None:
         try:
             kind, sheet, cycle, value = parse_event_source(msg.source)
-        except ValueError:
-            self.get_logger().warning(f'ignoring an event I cannot parse: {msg.source!r}')
+        except ValueError as err:
+            self.reject('event', f'cannot parse {msg.source[:60]!r}: {err}')
+            return
+        owner = EVENT_OWNER[kind]
+        if msg.header.frame_id != owner:
+            self.reject('event', f'{kind} from {msg.header.frame_id[:40]!r}: only {owner} publishes it')
+            return
+        t_ns = time_msg_to_ns(msg.time_ref)
+        last = self.lockstep.ledger.complete(owner) if self.lockstep.ledger is not None else None
+        if last is not None and t_ns <= last:
+            self.reject('event', f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick was '
+                        'complete')
             return
         if not math.isfinite(value):
-            self.logic.bad_value(EVENTS_TOPIC, time_msg_to_ns(msg.header.stamp) / NS_PER_S)
-            return
-        self._rows.append((time_msg_to_ns(msg.time_ref) / NS_PER_S, EVENT_KINDS.index(kind), sheet, cycle, value))
+            self.logic.bad_value(EVENTS_TOPIC, max(time_msg_to_ns(msg.header.stamp) / NS_PER_S, self.logic.now))
+        else:
+            self._rows.append((t_ns / NS_PER_S, EVENT_KINDS.index(kind), sheet, cycle, value))
+        self.lockstep.received(owner, 'events')
 
     def _on_joints(self, node: str) -> Callable[[JointState], None]:
         topic = joint_states_topic(node)
 
         def on_joints(msg: JointState) -> None:
-            stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
-            last = self._last_heard.get(node)
-            if last is None or stamp > last:
-                if last is not None:
-                    self._prev_heard[node] = last
-                self._last_heard[node] = stamp
-            self.logic.heard(node, stamp)
             bad = _non_finite(msg.position, msg.velocity, msg.effort)
             if bad:
-                self.logic.bad_value(topic, stamp, bad)
+                stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
+                self.logic.bad_value(topic, max(stamp, self.logic.now) if math.isfinite(stamp) else self.logic.now,
+                                     bad)
 
         return on_joints
-
-    def _on_clock(self, msg: ClockMsg) -> None:
-        self.logic.clock(time_msg_to_ns(msg.clock) / NS_PER_S)
 
     def _on_float(self, topic: str) -> Callable[[Float64], None]:
         def on_float(msg: Float64) -> None:
             if not math.isfinite(msg.data):
-                self.logic.bad_value(topic, max(self.get_clock().now().nanoseconds / NS_PER_S, self.logic.now))
+                self.logic.bad_value(topic, max(self.logic.now, 0.0))
 
         return on_float
 
@@ -239,9 +241,13 @@ class Supervisor(MachineNode):
         return handle
 
     def request(self, name: str) -> tuple[bool, str]:
-        """Apply service ``name`` now (at the watermark); returns (success, message)."""
+        """Apply service ``name`` at the latest tick completed; returns (success, message)."""
         at_boundary = SERVICES[name][2]
-        self._step(self.get_clock().now().nanoseconds)
+        lead_ns = seconds_to_ns(self.values['command_lead'])
+        if SERVICES[name][1] is not None and self._clock_step is not None and self._clock_step >= lead_ns:
+            return False, (f'{name}: refused: the clock steps {self._clock_step / NS_PER_S:g} s per tick, not less '
+                           f'than command_lead = {self.values["command_lead"]:g} s, so the command could take effect '
+                           'in a tick the machines already published')
         out = self.logic.command(name)
         self._publish_outputs()
         self._publish_status('operator', out.ok, f'{name}: {"accepted" if out.ok else out.message}',
@@ -258,52 +264,27 @@ class Supervisor(MachineNode):
 
     # ------------------------------------------------------------------ tick
 
-    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
-        self._step(stamp_ns)
-        self._publish_state()
-        if stamp_ns >= self._next_diag_ns:
-            self._diag_pub.publish(self.diagnostics(stamp_ns, t))
-            self.published_diagnostics += 1
-            self._next_diag_ns = stamp_ns + round(NS_PER_S / self.values['diag_rate'])
-
-    def _step(self, now_ns: int) -> None:
-        """Feed what arrived, advance the watermark to ``now - event_latency``, publish what was decided."""
+    def publish_at(self, stamp_ns: int) -> None:
+        """Advance the logic to the tick (every machine participant's input up to it is in), then publish."""
         if self._rows:
             rows, self._rows = self._rows, []
             self.logic.feed(np.array(rows, dtype=EVENT_DTYPE))
-        watermark = self._watermark(now_ns)
-        if watermark > self.logic.now:
-            self.logic.tick(watermark)
+        self.logic.tick(stamp_ns / NS_PER_S)
         self._publish_outputs()
+        super().publish_at(stamp_ns)
 
-    def _watermark(self, now_ns: int) -> float:
-        """Line time up to which every event is taken to have arrived.
+    def publish_sample(self, stamp_ns: int, t: float) -> None:
+        self._publish_state()
 
-        ``event_latency`` behind the clock, and not past the previous tick heard from
-        the slowest machine node: a node publishes a tick's events, then its joint
-        states, so once the joint states of its next tick are in, the events up to this
-        tick were sent a whole tick earlier (the ticks heard, not a nominal period: a
-        node's first tick carries every event before it). Never more than
-        ``stale_periods`` ticks behind the *freshest* node, so a dead node still goes
-        stale while the others run. Staleness is measured against the other nodes, not
-        the clock: when the whole executor stalls (a garbage-collection pause, a loaded
-        machine) every node falls behind together and the watermark waits instead of
-        overtaking events still queued. Until every machine node has been heard twice,
-        the slowest counts as not started.
-        """
-        period = 1.0 / self.values['rate']
-        window = self.values['stale_periods'] * period
-        ahead = (now_ns - self._latency_ns) / NS_PER_S
-        heard = self._last_heard
-        if not heard:
-            return ahead - window
-        prev = self._prev_heard
-        slowest = min(prev.values()) if len(prev) == len(self._joint_nodes) else -math.inf
-        floor = min(ahead, max(heard.values()) - period) - window
-        return max(min(ahead, slowest), floor)
+    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
+        if stamp_ns >= self._next_diag_ns:
+            arr = self.diagnostics(stamp_ns, t)
+            self.publish(self._diag_pub, arr)
+            self.published_diagnostics += 1
+            self._next_diag_ns = stamp_ns + round(NS_PER_S / self.values['diag_rate'])
 
     def _publish_state(self) -> None:
-        self._state_pub.publish(String(data=self.packml.state))
+        self.publish(self._state_pub, String(data=self.packml.state))
         self.published_state += 1
 
     def _publish_outputs(self) -> None:
@@ -324,7 +305,7 @@ class Supervisor(MachineNode):
         msg.header.frame_id = self.NODE_NAME
         msg.time_ref = ns_to_time_msg(round(command.t * NS_PER_S))
         msg.source = command.kind
-        self._cmd_pub.publish(msg)  # also reaches this node's own subscription, which rebuilds the model
+        self.publish(self._cmd_pub, msg, 'commands')  # also reaches this node's own subscription (its model)
         self.published_commands += 1
 
     def _publish_status(self, what: str, ok: bool, message: str, values: dict[str, Any],
@@ -341,7 +322,8 @@ class Supervisor(MachineNode):
         status.values = [KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v))
                          for k, v in {**values, **extra}.items()]
         arr.status.append(status)
-        self._diag_pub.publish(arr)
+        arr.header.frame_id = self.NODE_NAME
+        self.publish(self._diag_pub, arr)
         self.published_diagnostics += 1
 
     def _publish_violation(self, v: Violation) -> None:
@@ -368,6 +350,17 @@ class Supervisor(MachineNode):
         """One status per constraint, from the cycles evaluated by time ``t``."""
         arr = DiagnosticArray()
         arr.header.stamp = ns_to_time_msg(stamp_ns)
+        arr.header.frame_id = self.NODE_NAME
+        inputs = DiagnosticStatus(name='folder_line/supervisor/inputs', hardware_id=self.model.scene.name)
+        total = sum(self.rejected.values())
+        inputs.level = DiagnosticStatus.WARN if total else DiagnosticStatus.OK
+        inputs.message = f'{total} inputs rejected' if total else 'no input rejected'
+        inputs.values = [KeyValue(key=k, value=str(n)) for k, n in sorted(self.rejected.items())]
+        lost = self.logic.lost_nodes
+        if lost:
+            inputs.level = DiagnosticStatus.ERROR
+            inputs.message += f'; participants lost: {", ".join(lost)}'
+            inputs.values.append(KeyValue(key='lost', value=','.join(lost)))
         for c in self.model.constraints:
             decided = c.decided_by(t)
             n = int(np.count_nonzero(decided))
@@ -393,6 +386,7 @@ class Supervisor(MachineNode):
                 }
                 status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
             arr.status.append(status)
+        arr.status.append(inputs)  # last: the constraints keep their places in the array
         return arr
 
 

@@ -1,0 +1,180 @@
+"""Lockstep bookkeeping: who has finished which tick, and has everything they sent arrived.
+
+The live line runs in lockstep (as Gazebo's lockstep and CARLA's synchronous mode
+do): the clock publishes tick ``k + 1`` only when every participant has finished
+tick ``k``. A participant finishes a tick by publishing an acknowledgement after
+all of that tick's messages; the acknowledgement carries the participant's
+cumulative counts of what it has published, per *stream* (``messages``: every
+message of the line's topics; ``events``: the line events; ``commands``: drive
+commands). Messages on different topics are not ordered with respect to each
+other, so an acknowledgement alone does not mean its messages are in: a consumer
+counts what it has received from each producer, and a tick of that producer is
+*complete* for it once its acknowledgement is in and the received counts reach
+the acknowledged ones. :class:`TickLedger` keeps that book; it is pure (no ROS,
+no clock) so that it can be tested exhaustively.
+
+Counts travel as text, ``'messages=12 events=3 commands=0'``
+(:func:`format_counts`, :func:`parse_counts`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping
+
+__all__ = ['STREAMS', 'TickLedger', 'format_counts', 'parse_counts']
+
+#: the counted streams, in the order :func:`format_counts` writes them
+STREAMS: tuple[str, ...] = ('messages', 'events', 'commands')
+
+_MAX_COUNT = 2**63 - 1
+
+
+def format_counts(counts: Mapping[str, int]) -> str:
+    """``{'messages': 12, 'events': 3}`` -> ``'messages=12 events=3 commands=0'`` (every stream, in order)."""
+    return ' '.join(f'{s}={int(counts.get(s, 0))}' for s in STREAMS)
+
+
+def parse_counts(text: str) -> dict[str, int]:
+    """The counts of :func:`format_counts`; raises ``ValueError`` with the reason on anything else.
+
+    Every stream of :data:`STREAMS` must appear exactly once with a count in ``[0, 2**63)``;
+    nothing else may.
+    """
+    if len(text) > 200:
+        raise ValueError(f'counts text of {len(text)} characters (at most 200)')
+    out: dict[str, int] = {}
+    for item in text.split():
+        key, sep, value = item.partition('=')
+        if not sep or key not in STREAMS or key in out:
+            raise ValueError(f'unexpected item {item[:40]!r} in counts {text[:80]!r}')
+        if not value.isdigit() or len(value) > 19 or int(value) > _MAX_COUNT:
+            raise ValueError(f'count {item[:40]!r} is not an integer in [0, 2**63)')
+        out[key] = int(value)
+    missing = [s for s in STREAMS if s not in out]
+    if missing:
+        raise ValueError(f'counts {text[:80]!r} lack {", ".join(missing)}')
+    return out
+
+
+@dataclass
+class _Producer:
+    acks: deque[tuple[int, dict[str, int]]] = field(default_factory=deque)  # not yet complete, in order
+    last_ack: int | None = None      # latest acknowledged stamp, ns
+    last_counts: dict[str, int] = field(default_factory=dict)
+    complete: int | None = None      # latest stamp whose messages are all in, ns
+    received: dict[str, int] = field(default_factory=dict)
+    lost: bool = False
+
+
+class TickLedger:
+    """What one consumer knows of its producers' ticks (see the module docstring).
+
+    Parameters
+    ----------
+    producers : iterable of str
+        The participants whose ticks this consumer waits for.
+    streams : iterable of str
+        The streams this consumer counts (a subset of :data:`STREAMS`); an
+        acknowledged stream it does not count is not waited for.
+    """
+
+    def __init__(self, producers: Iterable[str], streams: Iterable[str] = ()) -> None:
+        self._streams = tuple(streams)
+        unknown = sorted(set(self._streams) - set(STREAMS))
+        if unknown:
+            raise ValueError(f'streams {unknown}: not among {STREAMS}')
+        self._p: dict[str, _Producer] = {p: _Producer(received=dict.fromkeys(self._streams, 0)) for p in producers}
+
+    @property
+    def producers(self) -> tuple[str, ...]:
+        """Every producer, lost ones included."""
+        return tuple(self._p)
+
+    @property
+    def live(self) -> tuple[str, ...]:
+        """The producers not declared lost."""
+        return tuple(p for p, st in self._p.items() if not st.lost)
+
+    def knows(self, producer: str) -> bool:
+        """Whether ``producer`` is one of this ledger's producers."""
+        return producer in self._p
+
+    def ack(self, producer: str, stamp_ns: int, counts: Mapping[str, int]) -> str | None:
+        """Take ``producer``'s acknowledgement of the tick at ``stamp_ns``.
+
+        Returns None if taken (a repeated acknowledgement of the latest tick, as at
+        start-up, is taken and changes nothing), else the reason it is refused: an
+        unknown or lost producer, a stamp older than the latest acknowledged one, or
+        counts that go backwards.
+        """
+        st = self._p.get(producer)
+        if st is None:
+            return f'{producer!r} is not a participant here'
+        if st.lost:
+            return f'{producer!r} was declared lost'
+        if st.last_ack is not None:
+            if stamp_ns < st.last_ack:
+                return f'tick {stamp_ns} ns is older than the acknowledged {st.last_ack} ns'
+            if stamp_ns == st.last_ack:
+                return None
+            if any(int(counts.get(s, 0)) < st.last_counts.get(s, 0) for s in self._streams):
+                return f'counts {dict(counts)} go backwards from {st.last_counts}'
+        st.last_ack = stamp_ns
+        st.last_counts = {s: int(counts.get(s, 0)) for s in self._streams}
+        st.acks.append((stamp_ns, st.last_counts))
+        self._settle(st)
+        return None
+
+    def received(self, producer: str, stream: str, n: int = 1) -> bool:
+        """Count ``n`` messages of ``stream`` received from ``producer``; False if it is not counted here."""
+        st = self._p.get(producer)
+        if st is None or stream not in st.received:
+            return False
+        st.received[stream] += n
+        if st.acks:
+            self._settle(st)
+        return True
+
+    def _settle(self, st: _Producer) -> None:
+        while st.acks and all(st.received[s] >= n for s, n in st.acks[0][1].items()):
+            st.complete = st.acks.popleft()[0]
+
+    def complete(self, producer: str) -> int | None:
+        """Latest tick (ns) of ``producer`` whose messages are all in (None: none yet)."""
+        return self._p[producer].complete
+
+    def last_ack(self, producer: str) -> int | None:
+        """Latest tick (ns) ``producer`` acknowledged."""
+        return self._p[producer].last_ack
+
+    def complete_through(self, stamp_ns: int) -> bool:
+        """Whether every live producer's ticks up to ``stamp_ns`` are complete."""
+        return all(st.lost or (st.complete is not None and st.complete >= stamp_ns) for st in self._p.values())
+
+    def waiting_for(self, stamp_ns: int) -> list[str]:
+        """The live producers whose tick ``stamp_ns`` is not complete yet, in order."""
+        return [p for p, st in self._p.items()
+                if not st.lost and (st.complete is None or st.complete < stamp_ns)]
+
+    def missing(self, producer: str) -> dict[str, int]:
+        """Per stream, how many acknowledged messages of ``producer`` have not arrived (positive only)."""
+        st = self._p[producer]
+        if not st.acks:
+            return {}
+        want = st.acks[-1][1]
+        return {s: n - st.received[s] for s, n in want.items() if n > st.received[s]}
+
+    def lose(self, producer: str) -> bool:
+        """Declare ``producer`` lost: it is no longer waited for. False if it already was."""
+        st = self._p[producer]
+        if st.lost:
+            return False
+        st.lost = True
+        st.acks.clear()
+        return True
+
+    def is_lost(self, producer: str) -> bool:
+        """Whether ``producer`` was declared lost."""
+        return self._p[producer].lost

@@ -1,0 +1,315 @@
+"""The lockstep protocol of the live line, on standard messages.
+
+``line_clock`` owns simulated time and publishes it tick by tick on ``/clock``
+(``rosgraph_msgs/Clock``). In ``lockstep`` mode (the default) it publishes tick
+``k + 1`` only once every *participant* has finished tick ``k``; when the machine
+cannot keep up, simulated time slows down instead of dropping a tick (Gazebo's
+lockstep, CARLA's synchronous mode). In ``wall`` mode (hardware in the loop) it
+paces ticks by the wall clock and counts the late participants instead.
+
+Topics
+------
+``/line/participants`` (``std_msgs/String``, reliable, transient-local)
+    Published once by ``line_clock`` before its first tick:
+    ``'clock=lockstep end=<ns or none> participants=crank_drive,...,line_recorder'``
+    (:func:`format_announcement`). Every participant waits for it, so the set of
+    participants has one source: ``line_clock``'s ``participants`` parameter.
+``/line/<node>/tick_done`` (``sensor_msgs/TimeReference``)
+    A participant's acknowledgement of a tick, published after all that tick's
+    messages: ``header.stamp`` = ``time_ref`` = the tick, ``header.frame_id`` = the
+    participant, ``source`` = its cumulative published counts
+    (:func:`folder_line.core.lockstep.format_counts`). Consumers that must not act on
+    missing input (the supervisor, the machine nodes for the supervisor's commands,
+    the recorder) count what they received from each producer and wait until the
+    counts reach the acknowledged ones (:class:`folder_line.core.lockstep.TickLedger`).
+
+Data publishers of the line are reliable and transient-local with a deep history,
+so a subscriber that matches late (discovery between processes takes up to seconds)
+still gets every message of the first ticks.
+
+A participant that stops answering (killed, crashed, SIGSTOP) is declared *lost*
+after ``lost_timeout`` s of wall time (``startup_timeout`` for the first tick) by
+whoever waits for it; it is named in the log and in ``/diagnostics``, and the
+others go on without it. A participant that is only slow is waited for.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import TimeReference
+from std_msgs.msg import String
+
+from folder_line.core.lockstep import TickLedger, format_counts, parse_counts
+from folder_line.interfaces import KNOWN_PARTICIPANTS, MACHINE_NODES, RECORDER
+from folder_line.nodes.common import CLOCK_TOPIC, NS_PER_S, PUBLISH_DEPTH, ns_to_time_msg, time_msg_to_ns
+
+__all__ = [
+    'CLOCK_MODES',
+    'KNOWN_PARTICIPANTS',
+    'DEFAULT_PARTICIPANTS',
+    'LINE_QOS',
+    'MACHINE_NODES',
+    'PARTICIPANTS_QOS',
+    'PARTICIPANTS_TOPIC',
+    'RECORDER',
+    'TICK_QOS',
+    'Announcement',
+    'Participant',
+    'format_announcement',
+    'parse_announcement',
+    'tick_done_topic',
+]
+
+PARTICIPANTS_TOPIC = '/line/participants'
+TICK_DONE_PATTERN = '/line/{node}/tick_done'
+
+#: what ``line_clock`` waits for when started by hand with no ``participants``
+DEFAULT_PARTICIPANTS: tuple[str, ...] = MACHINE_NODES
+CLOCK_MODES: tuple[str, ...] = ('lockstep', 'wall')
+
+LINE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+"""QoS of every data publisher and subscription of the line: reliable, transient-local, 1000 deep."""
+TICK_QOS = LINE_QOS
+PARTICIPANTS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CLOCK_SUB_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def tick_done_topic(node: str) -> str:
+    """``/line/<node>/tick_done``."""
+    return TICK_DONE_PATTERN.format(node=node)
+
+
+@dataclass(frozen=True)
+class Announcement:
+    """What ``line_clock`` announces on :data:`PARTICIPANTS_TOPIC`."""
+
+    clock: str
+    end_ns: int | None
+    participants: tuple[str, ...]
+
+
+def format_announcement(a: Announcement) -> str:
+    """``'clock=lockstep end=20000000000 participants=crank_drive,supervisor'``."""
+    end = 'none' if a.end_ns is None else str(a.end_ns)
+    return f'clock={a.clock} end={end} participants={",".join(a.participants)}'
+
+
+def parse_announcement(text: str) -> Announcement:
+    """Inverse of :func:`format_announcement`; ``ValueError`` with the reason on anything else."""
+    if len(text) > 1000:
+        raise ValueError(f'announcement of {len(text)} characters (at most 1000)')
+    fields = dict(item.partition('=')[::2] for item in text.split())
+    if set(fields) != {'clock', 'end', 'participants'}:
+        raise ValueError(f'announcement {text[:80]!r}: needs exactly clock=, end= and participants=')
+    if fields['clock'] not in CLOCK_MODES:
+        raise ValueError(f'clock={fields["clock"][:20]!r}: must be one of {", ".join(CLOCK_MODES)}')
+    end = None if fields['end'] == 'none' else fields['end']
+    if end is not None and not (end.isdigit() and len(end) <= 19):
+        raise ValueError(f'end={end[:25]!r}: must be none or integer ns')
+    names = tuple(n for n in fields['participants'].split(',') if n)
+    bad = [n for n in names if n not in KNOWN_PARTICIPANTS]
+    if bad or len(set(names)) != len(names) or not names:
+        raise ValueError(f'participants={fields["participants"][:80]!r}: must be distinct names among '
+                         f'{", ".join(KNOWN_PARTICIPANTS)}')
+    return Announcement(fields['clock'], None if end is None else int(end), names)
+
+
+Depends = Callable[[Announcement], Mapping[str, tuple[str, ...]]]
+"""A participant's dependencies once the participants are known: producer -> counted streams."""
+
+
+class Participant:
+    """The lockstep protocol of one participant node (composed into the node).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The participant (its name is the participant's name).
+    depends : callable
+        Announcement -> the producers it waits for, with the streams it counts from each.
+    on_tick : callable
+        ``on_tick(stamp_ns)``: publish everything of that tick (through :meth:`publish`).
+    needs : callable, optional
+        ``needs(stamp_ns, previous_ns) -> ns``: the producers' tick that must be
+        complete before this tick may run (default: ``previous_ns``, the tick before).
+    on_lost : callable, optional
+        ``on_lost(producer, waited_s, stamp_ns)`` when a producer is declared lost.
+    lost_timeout, startup_timeout : float
+        Wall seconds a tick may wait for a producer before it is declared lost (the first tick).
+    """
+
+    def __init__(self, node: Node, depends: Depends, on_tick: Callable[[int], None], *,
+                 needs: Callable[[int, int | None], int | None] | None = None,
+                 on_lost: Callable[[str, float, int], None] | None = None,
+                 on_reject: Callable[[str, str], None] | None = None,
+                 lost_timeout: float = 3.0, startup_timeout: float = 60.0) -> None:
+        self.node = node
+        self.name = node.get_name()
+        self._depends = depends
+        self._on_tick = on_tick
+        self._needs = needs or (lambda stamp, previous: previous)
+        self._on_lost = on_lost
+        self._on_reject = on_reject
+        self.lost_timeout = lost_timeout
+        self.startup_timeout = startup_timeout
+        self.announcement: Announcement | None = None
+        self.ledger: TickLedger | None = None
+        self.counts: dict[str, int] = {'messages': 0, 'events': 0, 'commands': 0}
+        self.pending: list[int] = []
+        self.last_done: int | None = None
+        self.ticks = 0
+        self.ended = False
+        self._waiting_since: float | None = None
+        self._ack_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
+        node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, PARTICIPANTS_QOS)
+        node.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
+        self._timer = node.create_timer(0.1, self._check_lost, clock=_steady(node))
+
+    # ------------------------------------------------------------------ publishing
+
+    def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
+        """Publish ``msg`` and count it (``messages``, and ``stream`` if given)."""
+        publisher.publish(msg)
+        self.counts['messages'] += 1
+        if stream is not None:
+            self.counts[stream] += 1
+
+    def received(self, producer: str, stream: str, n: int = 1) -> None:
+        """Count a message of ``stream`` from ``producer`` (a no-op if not waited for), then advance."""
+        if self.ledger is not None and self.ledger.received(producer, stream, n) and self.pending:
+            self.advance()
+
+    # ------------------------------------------------------------------ inputs
+
+    def _reject(self, kind: str, reason: str) -> None:
+        if self._on_reject is not None:
+            self._on_reject(kind, reason)
+
+    def _on_announcement(self, msg: String) -> None:
+        try:
+            a = parse_announcement(msg.data)
+        except ValueError as err:
+            self._reject('announcement', str(err))
+            return
+        if self.announcement is not None:
+            if a != self.announcement:
+                self._reject('announcement', 'a second, different announcement (another line_clock?)')
+            return
+        if self.name not in a.participants:
+            self.node.get_logger().warning(f'{self.name} is not among the participants {",".join(a.participants)}: '
+                                           'line_clock will not wait for it')
+        self.announcement = a
+        deps = {p: s for p, s in self._depends(a).items() if p in a.participants and p != self.name}
+        self.ledger = TickLedger(deps, {s for streams in deps.values() for s in streams})
+        self._streams = deps
+        for producer in deps:
+            self.node.create_subscription(TimeReference, tick_done_topic(producer), self._on_ack(producer), TICK_QOS)
+        self.advance()
+
+    def _on_ack(self, producer: str) -> Callable[[TimeReference], None]:
+        def on_ack(msg: TimeReference) -> None:
+            if msg.header.frame_id != producer:
+                self._reject('tick_done', f'frame_id {msg.header.frame_id[:40]!r} on {producer}\'s topic')
+                return
+            try:
+                counts = parse_counts(msg.source)
+            except ValueError as err:
+                self._reject('tick_done', str(err))
+                return
+            assert self.ledger is not None
+            refused = self.ledger.ack(producer, time_msg_to_ns(msg.header.stamp), counts)
+            if refused is not None:
+                self._reject('tick_done', refused)
+                return
+            if self.pending:
+                self.advance()
+
+        return on_ack
+
+    def _on_clock(self, msg: ClockMsg) -> None:
+        stamp = time_msg_to_ns(msg.clock)
+        if self.last_done is not None and stamp <= self.last_done:
+            if stamp == self.last_done:
+                self._ack(stamp)  # line_clock repeats a tick until everyone answered it
+            else:
+                self._reject('clock', f'tick {stamp} ns is older than the last tick done {self.last_done} ns')
+            return
+        if self.pending and stamp <= self.pending[-1]:
+            return  # a repeated tick still pending
+        self.pending.append(stamp)
+        if self._waiting_since is None:
+            self._waiting_since = time.monotonic()
+        self.advance()
+
+    # ------------------------------------------------------------------ ticks
+
+    def required(self, stamp: int) -> int | None:
+        """The producers' tick that must be complete before tick ``stamp`` runs."""
+        return self._needs(stamp, self.last_done)
+
+    def advance(self) -> None:
+        """Run every pending tick whose inputs are complete, in order."""
+        if self.ledger is None or self.ended:
+            return
+        while self.pending:
+            stamp = self.pending[0]
+            need = self.required(stamp)
+            if need is not None and not self.ledger.complete_through(need):
+                return
+            self.pending.pop(0)
+            self._on_tick(stamp)
+            self.last_done = stamp
+            self.ticks += 1
+            self._ack(stamp)
+            self._waiting_since = time.monotonic() if self.pending else None
+            a = self.announcement
+            if a is not None and a.end_ns is not None and stamp >= a.end_ns:
+                self.ended = True
+                self.pending.clear()
+                return
+
+    def _ack(self, stamp: int) -> None:
+        ack = TimeReference()
+        ack.header.stamp = ns_to_time_msg(stamp)
+        ack.header.frame_id = self.name
+        ack.time_ref = ack.header.stamp
+        ack.source = format_counts(self.counts)
+        self._ack_pub.publish(ack)
+
+    def _check_lost(self) -> None:
+        if self.ledger is None or not self.pending or self._waiting_since is None:
+            return
+        waited = time.monotonic() - self._waiting_since
+        limit = self.startup_timeout if self.last_done is None else self.lost_timeout
+        if waited <= limit:
+            return
+        need = self.required(self.pending[0])
+        if need is None:
+            return
+        for producer in self.ledger.waiting_for(need):
+            self.ledger.lose(producer)
+            self.node.get_logger().error(
+                f'participant {producer} lost: tick {need / NS_PER_S:.9f} s not complete after {waited:.1f} s of '
+                f'wall time (limit {limit:g} s); going on without it')
+            if self._on_lost is not None:
+                self._on_lost(producer, waited, need)
+        self.advance()
+
+    def destroy(self) -> None:
+        """Cancel the wall timer (the node destroys its entities)."""
+        self._timer.cancel()
+
+
+def _steady(node: Node) -> Any:
+    from rclpy.clock import Clock
+    from rclpy.clock_type import ClockType
+
+    return Clock(clock_type=ClockType.STEADY_TIME)
