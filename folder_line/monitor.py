@@ -62,6 +62,7 @@ from folder_line.nodes.common import (
     SUPERVISOR_STATE_TOPIC,
     time_msg_to_ns,
 )
+from folder_line.nodes.lockstep import PARTICIPANTS_TOPIC
 from folder_line.recorder import LINE_TOPICS
 
 __all__ = [
@@ -412,6 +413,10 @@ class MonitorState:
             self.commands.append((msg.source, t))
             del self.commands[:-8]
             return f'{msg.source} effective at {t:.3f} s'
+        if topic == PARTICIPANTS_TOPIC:  # 'clock=lockstep end=... participants=a,b'
+            fields = dict(item.partition('=')[::2] for item in str(msg.data).split())
+            names = [n for n in fields.get('participants', '').split(',') if n]
+            return f'{fields.get("clock", "?")} clock, {len(names)} participants'
         return type(msg).__name__
 
     def _take_diagnostics(self, msg: Any) -> str:
@@ -574,7 +579,8 @@ at ten times that rate."""
 def _subscription_qos(topic: str) -> QoSProfile:
     if topic == COMMANDS_TOPIC:  # every command so far, late joiner too
         return COMMANDS_QOS
-    durability = DurabilityPolicy.TRANSIENT_LOCAL if topic == SUPERVISOR_STATE_TOPIC else DurabilityPolicy.VOLATILE
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if topic in (SUPERVISOR_STATE_TOPIC, PARTICIPANTS_TOPIC)
+                  else DurabilityPolicy.VOLATILE)
     return QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=durability)
 
 

@@ -89,6 +89,9 @@ def sample_messages() -> dict[str, Any]:
         '/line/sheet_counter/rate': Float64(data=13.888888888888889),
         '/line/sheet_counter/landing_x': Float64(data=-0.0),
         '/line/supervisor/commands': cmd,
+        '/line/sheet_counter/joint_states': JointState(name=['pile_table'], position=[-0.0125], velocity=[0.0],
+                                                       effort=[]),
+        '/line/participants': String(data='clock=lockstep end=none participants=crank_drive,line_recorder'),
     }
 
 

@@ -31,9 +31,19 @@ def test_launch_arguments_match_node_parameters() -> None:
     from folder_line.nodes.machine import MACHINE_SPECS
 
     tree = ast.parse(LAUNCH.read_text())
+    from folder_line.nodes.line_clock import SPECS as CLOCK_SPECS
+
     args = {name for name, _, _ in _literal(tree, 'ARGUMENTS')}
     assert {spec.name for spec in MACHINE_SPECS} <= args
-    assert {'rtf', 'duration'} <= args
+    clock = {spec.name for spec in CLOCK_SPECS}
+    assert {'rtf', 'duration', 'rate', 'clock', 'lost_timeout'} <= args & clock
+
+
+def test_launch_ends_the_whole_line_with_line_clock() -> None:
+    text = LAUNCH.read_text()
+    # the clock waits for exactly the machine nodes the file starts, and its exit shuts every node down
+    assert "'participants': ','.join(MACHINE_NODES)" in text
+    assert 'OnProcessExit' in text and 'Shutdown' in text
 
 
 def test_launch_file_is_installed() -> None:

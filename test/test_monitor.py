@@ -210,13 +210,13 @@ NS = 1_000_000_000
 
 def test_the_supervisors_own_diagnostics_render_as_one_row_per_constraint() -> None:
     model = line_model('folder', '', 10.0, ())
-    fake = SimpleNamespace(model=model)
+    fake = SimpleNamespace(model=model, NODE_NAME='supervisor', rejected={}, logic=SimpleNamespace(lost_nodes=[]))
     state = MonitorState()
     state.ingest(DIAGNOSTICS_TOPIC, Supervisor.diagnostics(fake, 0, 0.0), 1.0)  # nothing evaluated yet
     state.ingest(DIAGNOSTICS_TOPIC, Supervisor.diagnostics(fake, 5 * NS, 5.0), 2.0)
     lines = state.render(140)
     names = [c.name for c in model.constraints]
-    assert names and list(state.constraints) == [f'folder_line/{n}' for n in names]
+    assert names and list(state.constraints) == [f'folder_line/{n}' for n in names] + ['folder_line/supervisor/inputs']
     for c in model.constraints:
         decided = c.decided_by(5.0)
         words = row(lines, f'folder_line/{c.name}')

@@ -112,10 +112,16 @@ def test_installed_scripts_run_from_the_install_space(install: Path, tmp_path: P
     cli = subprocess.run([str(lib / 'folder-line'), '--help'],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
     assert cli.returncode == 0 and 'usage' in cli.stdout.lower(), cli.stdout + cli.stderr
-    clock = subprocess.run([str(lib / 'line_clock'), '--ros-args', '-p', 'duration:=0.2', '-p', 'rtf:=10.0'],
+    # a lockstep line of one participant, as `ros2 run` of a subset would start it: both end with the duration
+    node = subprocess.Popen([str(lib / 'crank_drive'), '--ros-args', '-p', 'horizon:=1.0'], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    clock = subprocess.run([str(lib / 'line_clock'), '--ros-args', '-p', 'duration:=0.2', '-p', 'rtf:=0.0',
+                            '-p', 'participants:=crank_drive'],
                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    node_out, _ = node.communicate(timeout=60)
     assert clock.returncode == 0, clock.stdout + clock.stderr
-    assert 'duration reached' in clock.stdout + clock.stderr
+    assert 'duration reached (41 ticks' in clock.stdout + clock.stderr, clock.stdout + clock.stderr
+    assert node.returncode == 0, node_out
 
 
 def test_ament_index_finds_the_installed_share_directory(install: Path, tmp_path: Path) -> None:

@@ -142,6 +142,10 @@ class Participant:
         complete before this tick may run (default: ``previous_ns``, the tick before).
     on_lost : callable, optional
         ``on_lost(producer, waited_s, stamp_ns)`` when a producer is declared lost.
+    on_reject : callable, optional
+        ``on_reject(kind, reason)`` for a malformed, foreign or out-of-order input.
+    on_end : callable, optional
+        ``on_end(stamp_ns)`` once the announced last tick is done (after its acknowledgement).
     lost_timeout, startup_timeout : float
         Wall seconds a tick may wait for a producer before it is declared lost (the first tick).
     """
@@ -150,6 +154,7 @@ class Participant:
                  needs: Callable[[int, int | None], int | None] | None = None,
                  on_lost: Callable[[str, float, int], None] | None = None,
                  on_reject: Callable[[str, str], None] | None = None,
+                 on_end: Callable[[int], None] | None = None,
                  lost_timeout: float = 3.0, startup_timeout: float = 60.0) -> None:
         self.node = node
         self.name = node.get_name()
@@ -158,6 +163,7 @@ class Participant:
         self._needs = needs or (lambda stamp, previous: previous)
         self._on_lost = on_lost
         self._on_reject = on_reject
+        self._on_end = on_end
         self.lost_timeout = lost_timeout
         self.startup_timeout = startup_timeout
         self.announcement: Announcement | None = None
@@ -274,6 +280,8 @@ class Participant:
             if a is not None and a.end_ns is not None and stamp >= a.end_ns:
                 self.ended = True
                 self.pending.clear()
+                if self._on_end is not None:
+                    self._on_end(stamp)
                 return
 
     def _ack(self, stamp: int) -> None:

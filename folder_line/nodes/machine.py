@@ -182,7 +182,8 @@ class MachineNode(Node):
         self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
         self.lockstep = Participant(self, self.depends, self._on_tick, needs=self.needs, on_lost=self.on_lost,
-                                    on_reject=self.reject, lost_timeout=self.values['lost_timeout'])
+                                    on_reject=self.reject, on_end=self._on_end,
+                                    lost_timeout=self.values['lost_timeout'])
         self.add_post_set_parameters_callback(self._apply)
         self.setup()
         self.on_model()
@@ -271,7 +272,9 @@ class MachineNode(Node):
                 self._horizon_logged = True
             return
         self.publish_at(stamp_ns)
-        if self.lockstep.ended and not self.done.done():
+
+    def _on_end(self, stamp_ns: int) -> None:
+        if not self.done.done():
             self.done.set_result(stamp_ns)
 
     def grid_points(self, stamp_ns: int) -> list[int]:
