@@ -80,7 +80,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from folder_line.accuracy.measure import Row
-from folder_line.core.line import LineModel
+from folder_line.core.line import NODES, LineModel
 from folder_line.errors import MeasurementError, ParameterError
 
 __all__ = [
@@ -125,7 +125,7 @@ RTF_MAX = 2.0
 #: least fraction of the owed ticks that must have been published for a cost to count
 MIN_PUBLISHED = 0.9
 #: the machine nodes with joints in the folder scene (their JointState messages are counted)
-_JOINT_NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
+_JOINT_NODES = NODES
 
 
 # --------------------------------------------------------------------------- error
@@ -355,8 +355,9 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
 
     Builds the line as ``folder-line run`` does in-process (:func:`folder_line.run.run_line`):
     a private rclpy context, the recorder writing the bag (to a temporary directory), the
-    five nodes with the run's parameters and ``rate``, then ``line_clock``; spins one
-    ``SingleThreadedExecutor`` until the clock's ``duration`` is reached; shuts down.
+    five nodes with the run's parameters and ``rate``, then ``line_clock`` in lockstep with
+    all six as participants; spins one ``EventsExecutor`` until the clock's ``duration`` is
+    reached; shuts down.
 
     Parameters
     ----------
@@ -365,8 +366,8 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     rtf : float, optional
         Real-time factor; default :func:`default_rtf`.
     clock_rate : float, optional
-        ``/clock`` messages per wall second; default as ``folder-line run``:
-        ``min(1000, rate x rtf)`` (one per tick). A lower one starves the nodes (tests).
+        Ticks of ``line_clock`` per second of sim time; default ``rate`` as ``folder-line run``
+        (a lower one sends several joint states per tick, the same ones).
     span_ticks : int
         Length of the measured span in ticks of the nodes (sim span ``span_ticks / rate``).
     warmup_wall : float
@@ -381,14 +382,15 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     """
     import rclpy
     import yaml
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.experimental import EventsExecutor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
+    from folder_line.interfaces import RECORDER
     from folder_line.core.scene import parse_scene
     from folder_line.nodes.line_clock import LineClock
     from folder_line.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.run import RunConfig, _clock_publish_rate, add_machine_nodes, wait_until_matched
+    from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
     from folder_line.scenes import scene_mapping
 
     if not (math.isfinite(rate) and 1.0 <= rate <= 5000.0):
@@ -403,13 +405,13 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     warmup = warmup_wall * rtf
     duration = warmup + span_ticks / rate
     cfg = RunConfig(scene=scene, duration=duration, rtf=rtf, rate=float(rate))
-    clock_rate = _clock_publish_rate(cfg) if clock_rate is None else float(clock_rate)
+    clock_rate = float(rate) if clock_rate is None else float(clock_rate)
     mapping = scene_mapping(scene)
     parsed = parse_scene(mapping)
     ctx = rclpy.Context()
     rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx,
                signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    executor = SingleThreadedExecutor(context=ctx)
+    executor = EventsExecutor(context=ctx)
     nodes: list[Any] = []
     with tempfile.TemporaryDirectory(prefix='folder_line_publishing_') as tmp:
         bag = BagWriter(Path(tmp) / 'bag', scene_source=yaml.safe_dump(mapping, sort_keys=False),
@@ -421,13 +423,8 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
             machines = add_machine_nodes(cfg, ctx, executor)
             nodes += machines
             joint_nodes = {n.NODE_NAME: n for n in machines if n.NODE_NAME in _JOINT_NODES}
-            # sim time starts once every publisher and subscription of the line topics are matched
-            # (as --processes does): events published before would be lost, and the supervisor would
-            # judge the first cycles without them and hold the line
-            wait_until_matched(nodes, executor, timeout=10.0)
-            clock = LineClock(parameter_overrides=[Parameter('duration', value=float(duration)),
-                                                   Parameter('rtf', value=float(rtf)),
-                                                   Parameter('publish_rate', value=clock_rate)], context=ctx)
+            params = {**clock_parameters(cfg, (*LINE_NODES, RECORDER)), 'rate': clock_rate}
+            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
             deadline = time.monotonic() + 30.0 + 3.0 * duration / rtf
