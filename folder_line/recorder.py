@@ -42,6 +42,7 @@ LINE_TOPICS: dict[str, type] = {
     joint_states_topic('crank_drive'): JointState,
     joint_states_topic('belt_conveyor'): JointState,
     joint_states_topic('feed_transporter'): JointState,
+    joint_states_topic('sheet_counter'): JointState,
     EVENTS_TOPIC: TimeReference,
     DIAGNOSTICS_TOPIC: DiagnosticArray,
     SUPERVISOR_STATE_TOPIC: String,

@@ -643,7 +643,7 @@ STIFF: dict[str, Any] = {'J': 0.001, 'T_0': 1600.0, 'omega_0': 160.0, 'omega_nom
 def motor_scene(**over: Any) -> Any:
     """The layup machine (cheapest) with motor_dynamics only: no position-dependent load."""
     return parse_scene({'name': 'motor', 'machines': {'layup': dataclasses.asdict(LAYUP)},
-                        'sheets': {'interval': 0.0625, 'jitter': 0.0, 'phase': 0.0},
+                        'sheets': {'interval': 0.0625, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0005},
                         'effects': {'motor_dynamics': {**MOTOR, **over}}})
 
 
@@ -942,7 +942,7 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
         'name': 'random', 'machines': machines, 'effects': effects,
         'drive': {'profile': profile, 't_ramp': draw(st.floats(0.01, 1.0)), 't_brake': draw(st.floats(0.01, 1.0))},
         'sheets': {'interval': draw(st.floats(0.02, 0.5)), 'jitter': draw(st.floats(0.0, 0.99)),
-                   'phase': draw(st.floats(0.0, 0.3))},
+                   'phase': draw(st.floats(0.0, 0.3)), 'thickness': draw(st.floats(1e-5, 0.01))},
         'seed': draw(st.integers(0, 2 ** 62)), 'sample_rate': draw(st.floats(0.0, 400.0)),
     }
 

@@ -25,4 +25,7 @@ belt
     Belts geared to the master drive, with slow-downs: exact travel and its inverse.
 timebase
     Drift-free crank phase from integer nanoseconds.
+pile
+    The sheet counter's table (delivery pile or container floor), lowered by one sheet
+    thickness per counted sheet.
 """

@@ -4,7 +4,8 @@
 (:class:`folder_line.core.layup_sim.LayupLine`) and F with D
 (:class:`folder_line.core.folder_sim.FolderLine`) — on one master drive, once:
 the drive (with the supervisor's commands, :func:`make_drive`), (b) the exact event
-list and (c) the cyclogram constraints evaluated per cycle. Joint states are then
+list and (c) the cyclogram constraints evaluated per cycle; and, from the events, the
+sheet counter's table (:mod:`folder_line.core.pile`). Joint states are then
 sampled at any times (:meth:`LineModel.sample`, one node at a time: what a node's
 timer tick needs). Only the effects the scene lists run.
 
@@ -39,14 +40,16 @@ from folder_line.core.events import (
     JointSamples,
     merge_events,
 )
+from folder_line.core.pile import pile_table
 from folder_line.core.scene import Scene
 from folder_line.core.validate import as_float, in_range
 from folder_line.errors import ParameterError
 
 __all__ = ['MAX_CYCLES', 'NODES', 'LineModel', 'LineResult', 'check_size', 'make_drive', 'sample_times', 'simulate']
 
-#: the machine nodes that carry joints, in publishing order
-NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
+#: the machine nodes that carry joints, in publishing order (``sheet_counter``: the table under the
+#: counted sheets, :mod:`folder_line.core.pile`, in every scene)
+NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')
 
 MAX_DURATION = 1e9  # s (~32 years): far beyond any run; time stays float64-exact to ~1e-7 s
 #: most knife cycles or leaves a model is built for: every event up to the horizon is held in
@@ -253,8 +256,9 @@ class LineModel:
         self._event_t = np.ascontiguousarray(self.events['t'])
         self.constraints: list[ConstraintSeries] = [c for p in parts for c in p.constraints]
         self.parts: dict[str, dict[str, Any]] = {name: p.summary for name, p in self._parts.items()}
+        table = pile_table(scene.has_delivery, self.events, scene.sheets.thickness)
         nodes: dict[str, list[Any]] = {}
-        for p in parts:
+        for p in [*parts, table]:
             for node in p.nodes:
                 nodes.setdefault(node, []).append(p)
         self._node_parts = {node: nodes[node] for node in NODES if node in nodes}
@@ -278,7 +282,7 @@ class LineModel:
 
         Parameters
         ----------
-        node : {'crank_drive', 'belt_conveyor', 'feed_transporter'}
+        node : {'crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter'}
             A node of :attr:`nodes`.
         t : array_like, shape (N,)
             Line times, s, in ``[0, horizon]`` (a node's tick: one element).
@@ -288,7 +292,9 @@ class LineModel:
         JointSamples
             Positions and velocities shaped (N, J) (efforts where the scene computes
             them), the joints of L and F of the same node concatenated F first, as
-            :func:`simulate` does.
+            :func:`simulate` does. ``sheet_counter``: one joint, ``pile_table`` with
+            the delivery, else ``container_floor`` (m, m/s; no effort;
+            :mod:`folder_line.core.pile`).
 
         Raises
         ------

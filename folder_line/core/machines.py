@@ -106,13 +106,20 @@ class StreamParams:
     phase : float
         Delay of every arrival after its nominal time, s (>= 0): L, of the first leaf;
         F, of the handover after the feed window opens.
+    thickness : float
+        Thickness of one counted sheet as it lies stacked, m, in (0, 0.1]: F with D, a
+        folded signature on the delivery's pile; otherwise a leaf on the container
+        floor. The sheet counter's table sinks by it per sheet
+        (:mod:`folder_line.core.pile`).
     """
 
     interval: float
     jitter: float
     phase: float
+    thickness: float
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'interval', positive('sheets.interval', self.interval))
         object.__setattr__(self, 'jitter', in_range('sheets.jitter', self.jitter, 0.0, 1.0, hi_open=True))
         object.__setattr__(self, 'phase', non_negative('sheets.phase', self.phase))
+        object.__setattr__(self, 'thickness', in_range('sheets.thickness', self.thickness, 0.0, 0.1, lo_open=True))

@@ -52,8 +52,9 @@ def test_nodes_and_joint_names_are_simulates(runs: dict[str, Any], name: str) ->
     model, res = runs[name]
     assert model.nodes == {node: js.names for node, js in res.samples.items()}
     assert list(model.nodes) == [n for n in NODES if n in res.samples]
+    assert model.nodes['sheet_counter'] == (('container_floor',) if name == 'layup' else ('pile_table',))
     with pytest.raises(KeyError, match='nodes'):
-        model.sample('sheet_counter', np.array([1.0]))
+        model.sample('supervisor', np.array([1.0]))
     if name == 'layup':
         with pytest.raises(KeyError, match='feed_transporter'):
             model.sample('feed_transporter', np.array([1.0]))
