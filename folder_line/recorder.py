@@ -1,7 +1,15 @@
 """The line recorder: one node that subscribes to every topic of the line.
 
 It counts the messages per topic, follows sim time, the supervisor's state and the
-sheet count, and hands every message to an optional sink (the bag writer).
+sheet count, and hands every message to an optional sink (the bag writer). It is a
+lockstep participant (``line_recorder``, :mod:`folder_line.nodes.lockstep`): it
+acknowledges tick ``t`` once every other participant's tick ``t`` is complete here,
+i.e. every message they published up to ``t`` has been recorded, so ``line_clock``
+never runs ahead of the bag. A repeated ``/clock`` tick (the clock repeats its first
+tick until every participant answered it) is recorded once. A message that arrives
+before the ``/clock`` of its tick (DDS orders nothing across topics) is held until
+that ``/clock`` is recorded (:meth:`LineRecorder.flush`), so every message's log time
+in the bag is its tick: the bag does not depend on the load.
 """
 
 from __future__ import annotations
@@ -10,14 +18,25 @@ import time
 from collections import Counter
 from typing import Any, Callable
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import Executor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
+from folder_line.nodes.lockstep import (
+    CLOCK_SUB_QOS,
+    LINE_QOS,
+    MACHINE_NODES,
+    PARTICIPANTS_QOS,
+    PARTICIPANTS_TOPIC,
+    RECORDER,
+    Announcement,
+    Participant,
+)
+from folder_line.event_text import parse_event_source
+from folder_line.nodes.machine import COMMAND_KINDS, EVENT_OWNER
 from folder_line.nodes.supervisor import STATE_QOS
 from folder_line.nodes.common import (
     CLOCK_TOPIC,
@@ -50,9 +69,39 @@ LINE_TOPICS: dict[str, type] = {
     SHEET_RATE_TOPIC: Float64,
     LANDING_TOPIC: Float64,
     COMMANDS_TOPIC: TimeReference,
+    PARTICIPANTS_TOPIC: String,
+}
+
+#: topic -> the participant that publishes it (None: the ``header.frame_id`` says; absent: not a participant's)
+_PRODUCER: dict[str, str | None] = {
+    **{joint_states_topic(n): None for n in MACHINE_NODES},
+    EVENTS_TOPIC: None,
+    DIAGNOSTICS_TOPIC: None,
+    SUPERVISOR_STATE_TOPIC: 'supervisor',
+    COMMANDS_TOPIC: None,
+    SHEET_COUNT_TOPIC: 'sheet_counter',
+    SHEET_RATE_TOPIC: 'sheet_counter',
+    LANDING_TOPIC: 'sheet_counter',
 }
 
 Sink = Callable[[str, Any, int], None]
+
+
+def _could_publish(producer: str, topic: str, msg: Any) -> bool:
+    """Whether ``producer`` could have published ``msg``: only such messages count towards its ticks.
+
+    A malformed event or command that bears a participant's name (its consumers reject it) must
+    not make the recorder believe that participant's tick is complete before it is.
+    """
+    if topic == EVENTS_TOPIC:
+        try:
+            kind = parse_event_source(msg.source)[0]
+        except ValueError:
+            return False
+        return EVENT_OWNER.get(kind) == producer
+    if topic == COMMANDS_TOPIC:
+        return producer == 'supervisor' and msg.source in COMMAND_KINDS
+    return True
 
 
 class LineRecorder(Node):
@@ -66,8 +115,8 @@ class LineRecorder(Node):
         Passed to ``rclpy.node.Node`` (``context`` ...).
     """
 
-    def __init__(self, sink: Sink | None = None, **kwargs: Any) -> None:
-        super().__init__('line_recorder', **kwargs)
+    def __init__(self, sink: Sink | None = None, *, lost_timeout: float = 3.0, **kwargs: Any) -> None:
+        super().__init__(RECORDER, **kwargs)
         self.sink = sink
         self.counts: Counter[str] = Counter()
         self.event_counts: Counter[str] = Counter()
@@ -75,18 +124,46 @@ class LineRecorder(Node):
         self.clock_wall: tuple[float, float] | None = None  # wall time (s) of the first and latest /clock
         self.state = ''
         self.sheet_count = 0
-        qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+        self.lost: dict[str, float] = {}
+        self.diagnostics: list[Any] = []  # the ERROR statuses seen (lost participants, violations, ...)
+        self._last_clock = -1
+        self._held: list[tuple[str, Any, int]] = []  # messages of a tick whose /clock is not recorded yet
+        self._sim_origin = 0.0
         for topic, cls in LINE_TOPICS.items():
-            self.create_subscription(cls, topic, self._callback(topic),
-                                     COMMANDS_QOS if topic == COMMANDS_TOPIC else
-                                     STATE_QOS if topic == SUPERVISOR_STATE_TOPIC else qos)
+            qos = (COMMANDS_QOS if topic == COMMANDS_TOPIC else STATE_QOS if topic == SUPERVISOR_STATE_TOPIC
+                   else PARTICIPANTS_QOS if topic == PARTICIPANTS_TOPIC else CLOCK_SUB_QOS if topic == CLOCK_TOPIC
+                   else LINE_QOS)
+            self.create_subscription(cls, topic, self._callback(topic), qos)
+        self.lockstep = Participant(self, self._depends, lambda stamp: None, needs=lambda stamp, previous: stamp,
+                                    on_lost=self._on_lost, lost_timeout=lost_timeout)
+
+    def rtf_achieved(self) -> float:
+        """Sim seconds per wall second between the first and the latest tick recorded (0 before two)."""
+        if self.clock_wall is None or self.clock_wall[1] <= self.clock_wall[0]:
+            return 0.0
+        return (self.sim_time - self._sim_origin) / (self.clock_wall[1] - self.clock_wall[0])
+
+    @staticmethod
+    def _depends(a: Announcement) -> dict[str, tuple[str, ...]]:
+        return {n: ('messages',) for n in MACHINE_NODES}
+
+    def _on_lost(self, producer: str, waited: float, stamp: int) -> None:
+        self.lost[producer] = stamp / NS_PER_S
 
     def _callback(self, topic: str) -> Callable[[Any], None]:
+        producer = _PRODUCER.get(topic, '')
+
         def on_message(msg: Any) -> None:
-            self.counts[topic] += 1
             if topic == CLOCK_TOPIC:
-                self.sim_time = max(self.sim_time, time_msg_to_ns(msg.clock) / NS_PER_S)
+                stamp = time_msg_to_ns(msg.clock)
+                if stamp <= self._last_clock:
+                    return  # a repeated tick: recorded once
+                first = self._last_clock < 0
+                self._last_clock = stamp
+                self.sim_time = max(self.sim_time, stamp / NS_PER_S)
                 now = time.monotonic()
+                if first:  # the first tick waits for everyone to start: the rate counts from it
+                    self._sim_origin = self.sim_time
                 self.clock_wall = (now, now) if self.clock_wall is None else (self.clock_wall[0], now)
             elif topic == EVENTS_TOPIC:
                 self.event_counts[msg.source.split(' ', 1)[0]] += 1
@@ -94,10 +171,46 @@ class LineRecorder(Node):
                 self.state = msg.data
             elif topic == SHEET_COUNT_TOPIC:
                 self.sheet_count = msg.data
+            elif topic == DIAGNOSTICS_TOPIC:
+                self.diagnostics.extend(st for st in msg.status if st.level == DiagnosticStatus.ERROR)
+            self.counts[topic] += 1
+            source = '' if producer == '' else msg.header.frame_id if producer is None else producer
             if self.sink is not None:
-                self.sink(topic, msg, time.time_ns())
+                if source and self._ahead(source):
+                    self._held.append((topic, msg, time.time_ns()))
+                else:
+                    self.sink(topic, msg, time.time_ns())
+                    if topic == CLOCK_TOPIC:
+                        self.flush()
+            if source and _could_publish(source, topic, msg):
+                self.lockstep.received(source, 'messages')
 
         return on_message
+
+    def _ahead(self, producer: str) -> bool:
+        """Whether a message of ``producer`` arriving now belongs to a tick whose ``/clock`` is not recorded yet.
+
+        In lockstep a producer publishes tick ``t`` after ``/clock`` ``t``, which comes after this
+        recorder completed the producer's tick before; so a message that arrives when the producer's
+        latest complete tick is the latest ``/clock`` recorded here belongs to the next tick. It is held
+        until that ``/clock`` is recorded, so that its log time in the bag is its tick whatever the order
+        in which DDS delivers the topics (the bag does not depend on the load).
+        """
+        if self._last_clock < 0:
+            return True
+        a, ledger = self.lockstep.announcement, self.lockstep.ledger
+        if a is None or a.clock != 'lockstep' or ledger is None or not ledger.knows(producer) \
+                or ledger.is_lost(producer):
+            return False
+        complete = ledger.complete(producer)
+        return complete is not None and complete >= self._last_clock
+
+    def flush(self) -> None:
+        """Hand the held messages to the sink (at a recorded ``/clock``, and before the bag is closed)."""
+        held, self._held = self._held, []
+        if self.sink is not None:
+            for topic, msg, received in held:
+                self.sink(topic, msg, received)
 
     def wait_for_publishers(self, n_nodes: int, executor: Executor, timeout: float) -> bool:
         """Spin until ``n_nodes`` publishers of ``/line/events`` are matched (True) or ``timeout`` s pass."""
