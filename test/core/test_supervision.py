@@ -552,3 +552,40 @@ def test_the_tick_that_issues_a_command_does_not_build_the_model_under_it() -> N
         assert len(new) == 1 and built == [()]  # decided with the model in use, nothing built under the new one
         sup.tick(new[0].t + 0.2)
         assert built == [(), (new[0],)]
+
+
+# --------------------------------------------------------------------------- lost participants (lockstep)
+
+
+def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> None:
+    """``lost`` at 0.4 s: abort at once with cause lost:<node>; a late sheet after 0.4 s is not judged."""
+    scene = load_scene('folder_faults')
+    free = LineModel(scene, H)
+    sup = Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    sup.feed(free.events_between(-math.inf, 0.4))
+    sup.tick(0.4)
+    assert sup.state == 'EXECUTE'
+    sup.lost('feed_transporter', 0.4, 3.25)
+    sup.feed(free.events_between(0.4, 3.0))  # what the others still sent (the feed's are missing)
+    sup.tick(3.0)
+    assert [tr.target for tr in sup.transitions] == ['EXECUTE', 'ABORTING', 'ABORTED']
+    aborting = sup.transitions[1]
+    assert aborting.t == 0.4 and 'participant feed_transporter lost' in aborting.cause
+    (v,) = sup.violations  # folder_faults has a late sheet in cycle 13 (about 0.9 s): not judged
+    assert (v.t, v.constraint, v.margin, v.unit, v.action) == (0.4, 'lost:feed_transporter', -3.25, 'wall s', 'abort')
+    assert sup.lost_nodes == ['feed_transporter'] and sup.blind_from == 0.4
+    assert all(st.last_t < 0.4 for st in sup.stats.values() if st.name != 'lost:feed_transporter')
+    again = replay(scene, H, free.events_between(-math.inf, 3.0), lost=[(0.4, 'feed_transporter', 3.25)],
+                   until=3.0, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    _same(again, sup)
+
+
+def test_without_a_lost_participant_the_late_sheet_holds_the_line() -> None:
+    """The control of the test above: the same stream, nobody lost, holds in cycle 13."""
+    scene = load_scene('folder_faults')
+    free = LineModel(scene, H)
+    sup = Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    sup.feed(free.events_between(-math.inf, 3.0))
+    sup.tick(3.0)
+    assert 'HOLDING' in [tr.target for tr in sup.transitions]
+    assert any(v.constraint == 'feed_window' and v.cycle == 13 for v in sup.violations)
