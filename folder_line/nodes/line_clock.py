@@ -295,7 +295,7 @@ class LineClock(Node):
             nxt = self._next_stamp()
             if nxt is None:
                 self._finish('duration reached')
-            elif time.monotonic() >= self._due(nxt) - 1e-4:
+            elif time.monotonic() >= self._due(nxt):  # never early: rtf is a ceiling
                 self._publish(nxt)
             else:
                 self._advance()
@@ -328,6 +328,10 @@ class LineClock(Node):
         if self.mode == 'wall' and stamp >= self._next_lateness:
             self._next_lateness = stamp + NS_PER_S
             self._report_lateness(stamp)
+        if self.mode == 'lockstep' and self.first_done_wall is not None and self._all_answered():
+            # every participant was lost: no answer will come to advance the clock; its pacer does
+            self._pacer.timer_period_ns = 1
+            self._pacer.reset()
 
     def _on_watch(self) -> None:
         """Repeat the first tick until everyone answered it; declare silent participants lost."""

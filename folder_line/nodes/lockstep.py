@@ -175,7 +175,9 @@ class Participant:
         self.ended = False
         self._waiting_since: float | None = None
         self._ack_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
-        node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, PARTICIPANTS_QOS)
+        # a deep queue (compatible with the depth-1 publisher): a malformed or foreign announcement arriving
+        # right after line_clock's must not push it out of the queue before it is taken
+        node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, LINE_QOS)
         node.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
         self._timer = node.create_timer(0.1, self._check_lost, clock=_steady(node))
 

@@ -201,10 +201,14 @@ class Supervisor(MachineNode):
             self.reject('event', f'{kind} from {msg.header.frame_id[:40]!r}: only {owner} publishes it')
             return
         t_ns = time_msg_to_ns(msg.time_ref)
-        last = self.lockstep.ledger.complete(owner) if self.lockstep.ledger is not None else None
-        if last is not None and t_ns <= last:
-            self.reject('event', f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick was '
-                        'complete')
+        # late: its tick (header.stamp) was complete already. Not its time_ref: an event just after a tick is
+        # published at the next tick, yet its time rounded to the ns can be that tick's stamp
+        tick_ns = time_msg_to_ns(msg.header.stamp)
+        ledger = self.lockstep.ledger
+        last = ledger.complete(owner) if ledger is not None and ledger.knows(owner) else None
+        if last is not None and tick_ns <= last:
+            self.reject('event', f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick '
+                        f'{tick_ns / NS_PER_S:.9f} s was complete')
             return
         if not math.isfinite(value):
             self.logic.bad_value(EVENTS_TOPIC, max(time_msg_to_ns(msg.header.stamp) / NS_PER_S, self.logic.now))

@@ -381,6 +381,18 @@ def test_run_node_returns_0_when_the_node_is_done() -> None:
     assert built[0].done.result() == 3
 
 
+def test_run_node_returns_the_exit_code_the_node_asks_for() -> None:
+    """As ``line_clock`` exits 3 after it lost a participant: ``exit_code(node)`` once the node is done."""
+    seen: list[Any] = []
+
+    def code(node: Node) -> int:
+        seen.append(node.done.result())  # type: ignore[attr-defined]
+        return 3
+
+    assert run_node(Finishing, args=[], exit_code=code) == 3
+    assert seen == [3]
+
+
 def test_run_node_returns_2_with_one_line_naming_the_parameter(capsys: pytest.CaptureFixture[str]) -> None:
     def factory() -> Node:
         return Probe(parameter_overrides=[Parameter('offset', value=math.inf)])

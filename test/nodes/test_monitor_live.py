@@ -1,8 +1,11 @@
 """``folder-line monitor`` against a running line over real DDS: the ``--once`` snapshot, and the curses view in tmux.
 
-The line (the five machine nodes and ``line_clock``, as ``folder-line run`` runs them
-in-process) spins in a thread of this process for the whole module; the monitor runs
-as a separate process in the same ROS domain (see ``conftest.py``).
+The line (the five machine nodes and ``line_clock`` in lockstep, as ``folder-line run``
+runs them in-process) spins in a thread of this process for the whole module; the
+monitor runs as a separate process in the same ROS domain (see ``conftest.py``). The
+monitor takes no part in the lockstep: the line runs as fast as its nodes answer, up
+to rtf 1, whatever the monitor does; how fast that is depends on the machine, so the
+rates shown are only required to be positive.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from folder_line.nodes.sheet_counter import SheetCounter
 from folder_line.nodes.supervisor import Supervisor
 
 REPO = Path(__file__).resolve().parents[2]
-JOINT_TOPICS = [joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter')]
+JOINT_TOPICS = [joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')]
 DURATION = 600.0  # s of sim time: longer than the module needs; the line is stopped at the end
 
 
@@ -47,7 +50,9 @@ class Line:
         self.executor = SingleThreadedExecutor(context=self.context)
         params = [Parameter('scene', value='folder'), Parameter('horizon', value=DURATION + 1.0),
                   Parameter('rate', value=200.0)]
-        self.supervisor = Supervisor(parameter_overrides=params, context=self.context)
+        # diagnostics every 0.1 s of sim time: a snapshot has some however slowly a loaded machine runs the line
+        self.supervisor = Supervisor(parameter_overrides=[*params, Parameter('diag_rate', value=10.0)],
+                                     context=self.context)
         self.nodes = [cls(parameter_overrides=params, context=self.context)
                       for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)]
         self.nodes += [self.supervisor, LineClock(parameter_overrides=[Parameter('duration', value=DURATION)],
@@ -70,9 +75,14 @@ class Line:
             time.sleep(0.05)
         return True
 
-    def stop(self) -> None:
+    def halt(self) -> None:
+        """Stop spinning (the nodes stay)."""
         self._stop.set()
         self._thread.join(timeout=10.0)
+        assert not self._thread.is_alive()
+
+    def stop(self) -> None:
+        self.halt()
         self.executor.shutdown()
         for node in self.nodes:
             node.destroy_node()
@@ -97,27 +107,38 @@ def monitor_cmd(*args: str) -> list[str]:
 # --------------------------------------------------------------------------- --once
 
 
-def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[str, str]) -> None:
+def snapshot(node_env: dict[str, str]) -> tuple[list[str], dict[str, list[str]]]:
+    """One ``--once`` snapshot: its lines, and its topic rows split into words."""
     t0 = time.monotonic()
     proc = subprocess.run(monitor_cmd('--once', '--window', '1.5'), env=node_env, capture_output=True, text=True,
                           timeout=60, check=False)
-    took = time.monotonic() - t0
     assert proc.returncode == 0, proc.stderr
-    out = proc.stdout
-    print(f'--once took {took:.2f} s:\n{out}')
-    lines = out.splitlines()
+    assert 'traceback' not in proc.stderr.lower()
+    print(f'--once took {time.monotonic() - t0:.2f} s:\n{proc.stdout}')
+    lines = proc.stdout.splitlines()
+    return lines, {line.split()[0]: line.split() for line in lines if line.startswith('/')}
+
+
+def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[str, str]) -> None:
+    # the window starts at the first message, the transient-local announcement; a new process may discover
+    # the line's other publishers (a few hundred endpoints) only seconds later: a snapshot without them is
+    # taken again (at most twice more)
+    for _ in range(3):
+        lines, rows = snapshot(node_env)
+        if all(rows[topic][2] != '0' for topic in [*JOINT_TOPICS, '/diagnostics']):
+            break
     assert lines[0].startswith('folder-line monitor |') and '| supervisor EXECUTE' in lines[0]
-    rows = {line.split()[0]: line.split() for line in lines if line.startswith('/')}
-    for topic in JOINT_TOPICS:  # 200 Hz of sim time at rtf 1; well above zero even on a loaded machine
-        assert float(rows[topic][1]) > 20.0, rows[topic]
+    for topic in JOINT_TOPICS:  # 200 Hz of sim time at most (rtf 1), as fast as the machine allows
+        assert float(rows[topic][1]) > 0.0, rows[topic]
         assert int(rows[topic][2]) > 0
-    assert float(rows['/clock'][1]) > 20.0
+    assert float(rows['/clock'][1]) > 0.0
+    # the announcement, transient-local: received once however late the monitor came
+    assert rows['/line/participants'][2:] == ['1', 'lockstep', 'clock,', '5', 'participants']
     names = [c.name for c in line.supervisor.model.constraints]
     assert names
     for name in names:  # one row per constraint: level, margin, smallest margin, unit
         words = next(x.split() for x in lines if x.startswith(f'folder_line/{name} '))
         assert words[1] in ('OK', 'WARN', 'ERROR') and re.fullmatch(r'[+-]\d\.\d{4}e[+-]\d\d', words[3]), words
-    assert 'traceback' not in proc.stderr.lower()
 
 
 def test_once_without_a_line_says_so_and_exits_0(node_env: dict[str, str]) -> None:
@@ -171,7 +192,7 @@ def live_rows(text: str) -> bool:
     """The header, the joint_states rows with rates above zero and the constraints are on the screen."""
     rows = {w[0]: w for w in (line.split() for line in text.splitlines()) if w and w[0].startswith('/')}
     return (text.startswith('folder-line monitor |') and 'supervisor EXECUTE' in text
-            and all(t in rows and float(rows[t][1]) > 0.0 for t in JOINT_TOPICS)
+            and all(t in rows and rows[t][1] != '-' and float(rows[t][1]) > 0.0 for t in JOINT_TOPICS)
             and 'CONSTRAINT' in text and 'folder_line/feed_window' in text)
 
 
@@ -207,3 +228,20 @@ def test_curses_view_in_tmux_quits_cleanly(line: Line, node_env: dict[str, str],
     assert re.search(r'^EXIT=0$', after, re.MULTILINE), after
     assert 'folder-line monitor' not in after  # the terminal is back: the view is gone with the alternate screen
     assert 'Traceback' not in err.read_text(), err.read_text()
+
+
+# --------------------------------------------------------------------------- the line itself
+
+
+def test_the_line_ran_in_lockstep_every_tick_of_the_grid(line: Line) -> None:
+    """Last in the module: the line is halted where it is; no node skipped a tick of the clock."""
+    line.halt()
+    clock = line.nodes[-1]
+    assert isinstance(clock, LineClock) and clock.lost == {} and clock.current is not None
+    step = 5_000_000  # 200 Hz
+    assert clock.ticks == clock.current // step + 1
+    for node in line.nodes[:-1]:
+        done = node.lockstep.last_done
+        assert done in (clock.current, clock.current - step), node.get_name()  # answered it, or not yet
+        assert node.lockstep.ticks == done // step + 1 and node.rejected == {}
+    assert line.supervisor.packml.state == 'EXECUTE' and line.supervisor.logic.violations == []
