@@ -730,10 +730,18 @@ def _drain(executor: SingleThreadedExecutor, state: MonitorState, budget: float)
         idle = idle + 1 if state.total == before else 0
 
 
+#: topics whose last messages a late subscriber gets at once (transient-local): they do not show the line runs
+_LATCHED = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC, COMMANDS_TOPIC)
+
+
 def _collect(executor: SingleThreadedExecutor, state: MonitorState, stop: threading.Event, timeout: float,
              window: float) -> None:
     deadline = time.monotonic() + timeout
-    while not stop.is_set() and state.total == 0 and time.monotonic() < deadline:
+
+    def live() -> bool:  # a message of the running line, not one a transient-local topic kept for late joiners
+        return any(st.count for topic, st in state.topics.items() if topic not in _LATCHED)
+
+    while not stop.is_set() and not live() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     if state.total == 0:
         return

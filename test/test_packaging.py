@@ -115,10 +115,15 @@ def test_installed_scripts_run_from_the_install_space(install: Path, tmp_path: P
     # a lockstep line of one participant, as `ros2 run` of a subset would start it: both end with the duration
     node = subprocess.Popen([str(lib / 'crank_drive'), '--ros-args', '-p', 'horizon:=1.0'], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    clock = subprocess.run([str(lib / 'line_clock'), '--ros-args', '-p', 'duration:=0.2', '-p', 'rtf:=0.0',
-                            '-p', 'participants:=crank_drive'],
-                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
-    node_out, _ = node.communicate(timeout=60)
+    try:
+        clock = subprocess.run([str(lib / 'line_clock'), '--ros-args', '-p', 'duration:=0.2', '-p', 'rtf:=0.0',
+                                '-p', 'participants:=crank_drive'],
+                               cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+        node_out, _ = node.communicate(timeout=60)
+    finally:  # never leave a node behind on this domain
+        if node.poll() is None:
+            node.kill()
+            node.wait()
     assert clock.returncode == 0, clock.stdout + clock.stderr
     assert 'duration reached (41 ticks' in clock.stdout + clock.stderr, clock.stdout + clock.stderr
     assert node.returncode == 0, node_out
