@@ -58,7 +58,7 @@ class SheetCounter(MachineNode):
 
     NODE_NAME = 'sheet_counter'
     EXTRA_SPECS = (ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s',
-                             bounds=(0.0, 3600.0), low_open=True),)
+                             bounds=(0.001, 3600.0)),)
 
     def setup(self) -> None:
         self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, LINE_QOS)
