@@ -220,20 +220,33 @@ def _die_with_parent() -> None:  # pragma: no cover - runs in the child between 
         pass
 
 
-def other_line(node: Any, executor: Any, wait: float = 0.5) -> str | None:
+#: wall seconds ``run`` looks for another line before it starts its own: DDS discovery between two
+#: processes takes 0.1 s, or up to the 3 s announcement period of Fast DDS when the first exchange is
+#: missed (measured here: 24 of 62 probes found a running line only after 0.75-3.1 s, none later)
+OTHER_LINE_WAIT = 4.0
+_NAME_WAIT = 1.0  # wall s to learn the node of a publisher found (DDS discovery reports its endpoint first)
+_UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoint whose node is not known yet
+
+
+def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
     is not ours, seen within ``wait`` s of discovery."""
     from folder_line.nodes.common import CLOCK_TOPIC
     from folder_line.nodes.lockstep import PARTICIPANTS_TOPIC
 
     deadline = time.monotonic() + wait
+    seen: float | None = None  # when a publisher was first seen: its node's name follows its endpoint
     while True:
         for topic in (CLOCK_TOPIC, PARTICIPANTS_TOPIC):
             infos = node.get_publishers_info_by_topic(topic)
-            if infos:
-                who = infos[0].node_namespace.rstrip('/') + '/' + infos[0].node_name
+            named = [i for i in infos if i.node_name != _UNKNOWN_NODE]
+            if named or (infos and seen is not None and time.monotonic() > seen + _NAME_WAIT):
+                who = (named[0].node_namespace.rstrip('/') + '/' + named[0].node_name if named
+                       else 'a node whose name is not known yet')
                 return f'{topic} is already published on ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")} by {who}'
-        if time.monotonic() >= deadline:
+            if infos and seen is None:
+                seen = time.monotonic()
+        if seen is None and time.monotonic() >= deadline:
             return None
         executor.spin_once(timeout_sec=0.05)
 
@@ -341,6 +354,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             executor.spin_once(timeout_sec=0.02)
         progress.show(recorder.sim_time)
         progress.close()
+        recorder.flush()
         result.counts = dict(recorder.counts)
         published = None if cfg.processes else _published_counts(nodes)
         bag.close(published)
@@ -351,9 +365,21 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                                   None if clock is None else clock.rtf_achieved)
         result.summary.update(_bag_summary(bag, published))
     finally:
+        if procs and not interrupted and procs['line_clock'].poll() is not None:
+            # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
+            # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
+            lost_nodes = set(result.summary.get('lost_participants') or ())
+            deadline = time.monotonic() + 15.0
+            for name, proc in procs.items():
+                if name not in lost_nodes:
+                    try:
+                        proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+                    except subprocess.TimeoutExpired:
+                        pass
         for name, proc in procs.items():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
+                proc.send_signal(signal.SIGCONT)  # a stopped child (SIGSTOP, Ctrl-Z) ends now, not in 15 s
         for name, proc in procs.items():
             try:
                 proc.wait(timeout=15)

@@ -235,8 +235,8 @@ class LineClock(Node):
             if msg.header.frame_id != name or self._ledger.ack(name, stamp, counts) is not None:
                 self.rejected += 1
                 return
+            self._heard[name] = time.monotonic()  # a repeated acknowledgement too: alive, waiting for another
             if stamp == self.current:
-                self._heard[name] = time.monotonic()
                 self._answered.add(name)
                 if self._all_answered():
                     self._advance()

@@ -30,11 +30,14 @@ still gets every message of the first ticks.
 A participant that stops answering (killed, crashed, SIGSTOP) is declared *lost*
 after ``lost_timeout`` s of wall time (``startup_timeout`` for the first tick) by
 whoever waits for it; it is named in the log and in ``/diagnostics``, and the
-others go on without it. A participant that is only slow is waited for.
+others go on without it. A participant that is only slow is waited for. One that
+waits for another repeats its latest acknowledgement every ``HEARTBEAT`` s, so
+that only the silent one is declared lost, not those held up by it.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
@@ -67,6 +70,7 @@ __all__ = [
 ]
 
 PARTICIPANTS_TOPIC = '/line/participants'
+HEARTBEAT = 0.1  # wall s: a participant that waits repeats its latest acknowledgement this often
 TICK_DONE_PATTERN = '/line/{node}/tick_done'
 
 #: what ``line_clock`` waits for when started by hand with no ``participants``
@@ -174,12 +178,16 @@ class Participant:
         self.ticks = 0
         self.ended = False
         self._waiting_since: float | None = None
+        # counted before the announcement (discovery between processes orders nothing): applied to the ledger
+        self._early: dict[tuple[str, str], int] = {}
+        self._heard: dict[str, float] = {}  # producer -> wall time of its latest acknowledgement (a repeat too)
+        self._last_ack: TimeReference | None = None
         self._ack_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
         # a deep queue (compatible with the depth-1 publisher): a malformed or foreign announcement arriving
         # right after line_clock's must not push it out of the queue before it is taken
         node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, LINE_QOS)
         node.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
-        self._timer = node.create_timer(0.1, self._check_lost, clock=_steady(node))
+        self._timer = node.create_timer(HEARTBEAT, self._check_lost, clock=_steady(node))
 
     # ------------------------------------------------------------------ publishing
 
@@ -191,8 +199,16 @@ class Participant:
             self.counts[stream] += 1
 
     def received(self, producer: str, stream: str, n: int = 1) -> None:
-        """Count a message of ``stream`` from ``producer`` (a no-op if not waited for), then advance."""
-        if self.ledger is not None and self.ledger.received(producer, stream, n) and self.pending:
+        """Count a message of ``stream`` from ``producer`` (a no-op if not waited for), then advance.
+
+        Before the announcement the count is kept (for known participants only) and given to the ledger
+        when it is built: a producer's first messages may arrive before ``line_clock``'s announcement.
+        """
+        if self.ledger is None:
+            if producer in KNOWN_PARTICIPANTS:
+                self._early[producer, stream] = self._early.get((producer, stream), 0) + n
+            return
+        if self.ledger.received(producer, stream, n) and self.pending:
             self.advance()
 
     # ------------------------------------------------------------------ inputs
@@ -218,6 +234,10 @@ class Participant:
         deps = {p: s for p, s in self._depends(a).items() if p in a.participants and p != self.name}
         self.ledger = TickLedger(deps, {s for streams in deps.values() for s in streams})
         self._streams = deps
+        self._heard = dict.fromkeys(deps, time.monotonic())
+        for (producer, stream), n in self._early.items():
+            self.ledger.received(producer, stream, n)
+        self._early.clear()
         for producer in deps:
             self.node.create_subscription(TimeReference, tick_done_topic(producer), self._on_ack(producer), TICK_QOS)
         self.advance()
@@ -237,6 +257,7 @@ class Participant:
             if refused is not None:
                 self._reject('tick_done', refused)
                 return
+            self._heard[producer] = time.monotonic()
             if self.pending:
                 self.advance()
 
@@ -293,11 +314,18 @@ class Participant:
         ack.time_ref = ack.header.stamp
         ack.source = format_counts(self.counts)
         self._ack_pub.publish(ack)
+        self._last_ack = ack
 
     def _check_lost(self) -> None:
+        """While a tick waits: repeat the latest acknowledgement (alive, waiting), and declare lost the producers
+        it waits for that acknowledged nothing, not even a repeat, for the limit: a producer that waits for
+        a lost one itself is not lost."""
         if self.ledger is None or not self.pending or self._waiting_since is None:
             return
-        waited = time.monotonic() - self._waiting_since
+        now = time.monotonic()
+        waited = now - self._waiting_since
+        if self._last_ack is not None and waited >= HEARTBEAT:
+            self._ack_pub.publish(self._last_ack)
         limit = self.startup_timeout if self.last_done is None else self.lost_timeout
         if waited <= limit:
             return
@@ -305,6 +333,8 @@ class Participant:
         if need is None:
             return
         for producer in self.ledger.waiting_for(need):
+            if now - self._heard.get(producer, -math.inf) <= limit:
+                continue
             self.ledger.lose(producer)
             self.node.get_logger().error(
                 f'participant {producer} lost: tick {need / NS_PER_S:.9f} s not complete after {waited:.1f} s of '

@@ -220,6 +220,9 @@ class Supervisor(MachineNode):
         topic = joint_states_topic(node)
 
         def on_joints(msg: JointState) -> None:
+            if msg.header.frame_id != node:
+                self.reject('joint_states', f'{topic} from {msg.header.frame_id[:40]!r}: only {node} publishes it')
+                return
             bad = _non_finite(msg.position, msg.velocity, msg.effort)
             if bad:
                 stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
