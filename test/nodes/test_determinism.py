@@ -1,156 +1,97 @@
-"""Determinism over real DDS: what the line published is the batch model under the recorded commands.
+"""Lockstep determinism over real DDS: the bag of a run is the batch model, whatever runs where.
 
-The whole line (the five machine nodes and ``line_clock``) runs in this process on
-one executor, as ``folder-line run`` runs it; mid-run the supervisor is asked to hold
-the line and later to unhold it through its services. Every joint state and every
-event received is then compared with a :class:`folder_line.core.line.LineModel` (and
-:func:`folder_line.core.line.simulate`) rebuilt offline from nothing but the scene
-and the drive commands recorded on ``/line/supervisor/commands``.
+``folder-line run`` at ``--rtf max`` records the line in lockstep: ``line_clock`` publishes
+tick ``k + 1`` only after every participant, the recorder included, acknowledged tick ``k``.
+So the same short run of the ``folder`` scene, once with every node on one executor and
+once with one process per node, gives the same bag message for message -- topic,
+publishing node, log time, publish time, header stamps and every value, read back with the
+independent ``mcap`` reader -- and that bag is the batch model
+(:class:`folder_line.core.line.LineModel`) tick by tick. A short ``line`` scene run (belts
+and leaves too) is the model as well.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import io
+import json
+from pathlib import Path
 
-import numpy as np
-from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import JointState, TimeReference
-from std_msgs.msg import UInt64
-from std_srvs.srv import Trigger
+import pytest
+from _line_runs import assert_bag_is_model, read_bag_mcap
 
-from folder_line.core.drive import Command
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import LineModel, sample_times, simulate
-from folder_line.nodes.belt_conveyor import BeltConveyor
-from folder_line.nodes.common import (
-    CLOCK_TOPIC,
-    COMMANDS_QOS,
-    COMMANDS_TOPIC,
-    EVENTS_TOPIC,
-    NS_PER_S,
-    SHEET_COUNT_TOPIC,
-    joint_states_topic,
-    time_msg_to_ns,
-)
-from folder_line.nodes.crank_drive import CrankDrive
-from folder_line.nodes.feed_transporter import FeedTransporter
-from folder_line.nodes.line_clock import LineClock
-from folder_line.nodes.machine import parse_event_source
-from folder_line.nodes.sheet_counter import SheetCounter
-from folder_line.nodes.supervisor import Supervisor
-from folder_line.scenes import load_scene
+from folder_line.interfaces import MACHINE_NODES
+from folder_line.run import RunConfig, run_line
 
-if TYPE_CHECKING:
-    from conftest import Ros
-
-RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
-JOINT_NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
-DURATION = 4.0
-HORIZON = DURATION + 1.0
-RTF = 1.0  # 200 Hz at rtf 2 is the in-process limit (bench_nodes): a loaded CI box skips ticks there
+DURATION = 2.0
+RATE = 200.0
+N_TICKS = round(DURATION * RATE) + 1  # ticks at 0, 5 ms, ..., DURATION
 
 
-def test_recorded_run_with_hold_and_unhold_is_the_model_under_the_recorded_commands(ros: Ros) -> None:
-    scene = load_scene('folder')
-    common = [Parameter('scene', value='folder'), Parameter('horizon', value=HORIZON)]
-    machines = [ros.add(cls(context=ros.context, parameter_overrides=common))
-                for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)]
-    # only the operator's commands here: automatic enforcement would add its own (and is tested elsewhere)
-    supervisor = ros.add(Supervisor(context=ros.context,
-                                    parameter_overrides=common + [Parameter('enforce', value=False)]))
-    nodes = machines + [supervisor]
-    listener = ros.node('listener')
-    joints = {n: ros.subscribe(listener, JointState, joint_states_topic(n), RELIABLE) for n in JOINT_NODES}
-    events = ros.subscribe(listener, TimeReference, EVENTS_TOPIC, RELIABLE)
-    commands = ros.subscribe(listener, TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
-    counts = ros.subscribe(listener, UInt64, SHEET_COUNT_TOPIC, RELIABLE)
-    clock_msgs = ros.subscribe(listener, ClockMsg, CLOCK_TOPIC, RELIABLE)
-    subs = list(listener.subscriptions)
-    hold = listener.create_client(Trigger, '/line/supervisor/hold')
-    unhold = listener.create_client(Trigger, '/line/supervisor/unhold')
-    assert ros.spin_until(lambda: all(s.get_publisher_count() >= 1 for s in subs[:4] + subs[5:6])
-                          and hold.service_is_ready() and unhold.service_is_ready(), timeout=20.0)
-    clock = ros.add(LineClock(context=ros.context, parameter_overrides=[
-        Parameter('duration', value=DURATION), Parameter('rtf', value=RTF),
-        Parameter('publish_rate', value=200.0 * RTF)]))
+def run(out: Path, scene: str, processes: bool) -> dict:
+    result = run_line(RunConfig(scene=scene, duration=DURATION, rtf=0.0, out=out, processes=processes),
+                      io.StringIO())
+    summary = json.loads((out / 'run.json').read_text())
+    assert summary == json.loads(json.dumps(result.summary))
+    return summary
 
-    def sim_time() -> float:
-        return time_msg_to_ns(clock_msgs.messages[-1].clock) / NS_PER_S if clock_msgs.messages else 0.0
 
-    def call(client: Any) -> tuple[bool, str]:
-        future = client.call_async(Trigger.Request())
-        assert ros.spin_until(future.done, timeout=20.0)
-        return future.result().success, future.result().message
+@pytest.fixture(scope='module')
+def folder_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same run of the folder scene in process and with one process per node."""
+    outs = {}
+    for mode in ('in-process', 'processes'):
+        outs[mode] = tmp_path_factory.mktemp(mode)
+        run(outs[mode], 'folder', mode == 'processes')
+    return outs
 
-    assert ros.spin_until(lambda: sim_time() >= 1.0, timeout=20.0)
-    ok, message = call(hold)
-    assert ok, message
-    assert ros.spin_until(lambda: supervisor.packml.state == 'HELD', timeout=20.0)
-    t_held = sim_time()
-    assert ros.spin_until(lambda: sim_time() >= t_held + 0.25, timeout=20.0)
-    ok, message = call(unhold)
-    assert ok, message
-    end_ns = round(DURATION * NS_PER_S)
 
-    def complete() -> bool:
-        return (clock.done.done() and all(n._last_ns == end_ns for n in nodes)
-                and all(len(joints[n.NODE_NAME]) == n.published_joint_states for n in machines[:3])
-                and len(events) == sum(n.published_events for n in machines))
+def check_summary(summary: dict, scene: str, mode: str) -> None:
+    assert summary['outcome'] == {'ok': True, 'expected_state': 'EXECUTE', 'state': 'EXECUTE',
+                                  'message': 'line ended EXECUTE as the scene expects'}
+    assert summary['scene'] == scene and summary['mode'] == mode and summary['clock'] == 'lockstep'
+    assert summary['sim_time_reached_s'] == DURATION and not summary['interrupted']
+    assert summary['lost_participants'] == {} and summary['cause'] is None
+    assert summary['rtf_requested'] == 'max'
+    messages = summary['messages']
+    for topic in ('/clock', '/line/supervisor/state', '/line/sheet_counter/count', '/line/sheet_counter/rate',
+                  *(f'/line/{n}/joint_states' for n in ('crank_drive', 'belt_conveyor', 'feed_transporter',
+                                                        'sheet_counter'))):
+        assert messages[topic] == N_TICKS, (topic, messages[topic])
+    assert messages['/line/participants'] == 1 and messages['/diagnostics'] == int(DURATION) + 1
+    assert summary['events_received'] == summary['expected_from_simulate']['events']
+    assert summary['sheets_counted'] == summary['expected_from_simulate']['sheets_counted'] > 0
+    assert summary['bag']['messages'] == {**dict.fromkeys(summary['bag']['messages'], 0), **messages}
 
-    assert ros.spin_until(complete, timeout=30.0)
-    assert supervisor.packml.state == 'EXECUTE'
 
-    # the model, offline, from the scene and the recorded commands alone
-    recorded = [Command(t=time_msg_to_ns(m.time_ref) / NS_PER_S, kind=m.source) for m in commands.messages]
-    assert [c.kind for c in recorded] == ['hold', 'unhold']
-    assert 1.0 < recorded[0].t < recorded[1].t < DURATION
-    model = LineModel(scene, HORIZON, recorded)
-    free = LineModel(scene, HORIZON)
+def test_in_process_and_processes_record_the_same_bag(folder_runs: dict[str, Path]) -> None:
+    summaries = {mode: json.loads((out / 'run.json').read_text()) for mode, out in folder_runs.items()}
+    for mode, summary in summaries.items():
+        check_summary(summary, 'folder', mode)
+    assert summaries['in-process']['published'] == summaries['in-process']['bag']['messages']
+    assert set(summaries['in-process']['lost'].values()) == {0}
+    assert summaries['processes']['published'] is None  # not collected across processes
+    assert summaries['processes']['exit_codes'] == dict.fromkeys((*MACHINE_NODES, 'line_clock'), 0)
+    for log in (folder_runs['processes'] / 'logs').iterdir():
+        assert 'Traceback' not in log.read_text() and 'ERROR' not in log.read_text(), log.read_text()
 
-    differs = 0
-    for name, received in joints.items():
-        msgs = received.messages
-        stamps = [time_msg_to_ns(m.header.stamp) for m in msgs]
-        assert len(msgs) >= 0.75 * DURATION * 200.0 and np.all(np.diff(stamps) > 0) and stamps[-1] == end_ns
-        for m, stamp in zip(msgs, stamps):
-            expect = model.sample(name, [stamp / NS_PER_S])
-            np.testing.assert_allclose(m.position, expect.position[0], rtol=1e-9, atol=1e-9)
-            np.testing.assert_allclose(m.velocity, expect.velocity[0], rtol=1e-9, atol=1e-9)
-            np.testing.assert_allclose(m.effort, expect.effort[0], rtol=1e-9, atol=1e-9)
-        t = np.array(stamps) / NS_PER_S
-        differs += int(np.count_nonzero(np.abs(np.array([m.position for m in msgs])
-                                               - free.sample(name, t).position).max(axis=1) > 1e-3))
-    assert differs > 100  # the commands changed what was published: the comparison above could fail
+    bags = {mode: read_bag_mcap(out / 'bag') for mode, out in folder_runs.items()}
+    a, b = bags['in-process'], bags['processes']
+    assert sorted(a) == sorted(b)
+    assert sum(map(len, a.values())) == sum(summaries['in-process']['messages'].values()) > 8 * N_TICKS
+    for key in sorted(a):
+        assert len(a[key]) == len(b[key]), key
+        for i, (x, y) in enumerate(zip(a[key], b[key])):
+            assert (x.log_ns, x.publish_ns, x.value) == (y.log_ns, y.publish_ns, y.value), (key, i)
 
-    # the held line stood still between standstill and the unhold's effective time
-    still = LineModel(scene, HORIZON, recorded[:1]).drive
-    t_still = recorded[0].t + scene.drive.t_brake
-    assert still.rate(np.array([t_still]))[0] == 0.0
-    held = [m for m in joints['crank_drive'].messages
-            if t_still * NS_PER_S <= time_msg_to_ns(m.header.stamp) <= recorded[1].t * NS_PER_S]
-    assert len(held) > 20 and all(list(m.velocity) == [0.0, 0.0] for m in held)
 
-    # events: every one up to the end, once, with the model's time (nearest ns) and value
-    got = sorted(parse_event_source(m.source)[:3] + (time_msg_to_ns(m.time_ref), parse_event_source(m.source)[3])
-                 for m in events.messages)
-    table = model.events[model.events['t'] <= DURATION]
-    expect_rows = sorted((EVENT_KINDS[r['kind']], int(r['sheet']), int(r['cycle']), round(float(r['t']) * NS_PER_S),
-                          float(r['value'])) for r in table)
-    assert got == expect_rows
-    assert len(got) > 200
-    shifted = free.events[free.events['t'] <= DURATION]
-    assert len(shifted) != len(table) or not np.array_equal(shifted['t'], table['t'])
+@pytest.mark.parametrize('mode', ['in-process', 'processes'])
+def test_folder_run_is_the_batch_model(folder_runs: dict[str, Path], mode: str) -> None:
+    assert_bag_is_model(read_bag_mcap(folder_runs[mode] / 'bag'), 'folder', DURATION, RATE)
 
-    # the batch simulation with the same commands says the same
-    result = simulate(scene, DURATION, commands=recorded)
-    assert np.array_equal(result.events, table)
-    grid = sample_times(DURATION, scene.sample_rate)
-    for name in JOINT_NODES:
-        batch = result.samples[name]
-        np.testing.assert_array_equal(batch.t, grid)
-        np.testing.assert_allclose(batch.position, model.sample(name, grid).position, rtol=1e-9, atol=1e-9)
-        np.testing.assert_allclose(batch.velocity, model.sample(name, grid).velocity, rtol=1e-9, atol=1e-9)
-    assert result.summary()['sheets_counted'] == counts.messages[-1].data > 0
-    assert counts.messages[-1].data < free.result(DURATION, 0.0).summary()['sheets_counted']
+
+def test_line_scene_run_is_the_batch_model(tmp_path: Path) -> None:
+    summary = run(tmp_path, 'line', processes=False)
+    check_summary(summary, 'line', 'in-process')
+    assert summary['messages']['/line/sheet_counter/landing_x'] > 0  # the layup's leaves land
+    assert summary['published'] == summary['bag']['messages']
+    assert_bag_is_model(read_bag_mcap(tmp_path / 'bag'), 'line', DURATION, RATE)
