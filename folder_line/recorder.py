@@ -29,7 +29,6 @@ from folder_line.nodes.lockstep import (
     CLOCK_SUB_QOS,
     LINE_QOS,
     MACHINE_NODES,
-    PARTICIPANTS_QOS,
     PARTICIPANTS_TOPIC,
     RECORDER,
     Announcement,
@@ -131,7 +130,7 @@ class LineRecorder(Node):
         self._sim_origin = 0.0
         for topic, cls in LINE_TOPICS.items():
             qos = (COMMANDS_QOS if topic == COMMANDS_TOPIC else STATE_QOS if topic == SUPERVISOR_STATE_TOPIC
-                   else PARTICIPANTS_QOS if topic == PARTICIPANTS_TOPIC else CLOCK_SUB_QOS if topic == CLOCK_TOPIC
+                   else CLOCK_SUB_QOS if topic == CLOCK_TOPIC
                    else LINE_QOS)
             self.create_subscription(cls, topic, self._callback(topic), qos)
         self.lockstep = Participant(self, self._depends, lambda stamp: None, needs=lambda stamp, previous: stamp,

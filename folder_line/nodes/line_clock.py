@@ -70,7 +70,6 @@ from folder_line.nodes.common import (
     ns_to_time_msg,
     run_node,
     seconds_to_ns,
-    sim_time_overrides,
     time_msg_to_ns,
 )
 from folder_line.nodes.lockstep import (
@@ -154,8 +153,8 @@ class LineClock(Node):
     NODE_NAME = NODE_NAME
 
     def __init__(self, *, parameter_overrides: Iterable[Parameter] | None = None, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, parameter_overrides=sim_time_overrides(parameter_overrides, use_sim_time=False),
-                         **kwargs)
+        # use_sim_time is off by default; on, from the constructor or --ros-args, it is refused
+        super().__init__(NODE_NAME, parameter_overrides=list(parameter_overrides or []), **kwargs)
         if self.get_parameter('use_sim_time').value:
             raise ParameterError('use_sim_time', True, 'line_clock publishes /clock and runs on the wall clock')
         v = self.values = declare_parameters(self, SPECS, cross_check=_check)

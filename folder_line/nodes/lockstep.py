@@ -187,6 +187,15 @@ class Participant:
         # right after line_clock's must not push it out of the queue before it is taken
         node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, LINE_QOS)
         node.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
+        # the node's sim clock (use_sim_time) is fed from this subscription: rclpy's TimeSource would take
+        # every /clock message a second time through a subscription of its own
+        self._time_source = getattr(node, '_time_source', None)
+        own = getattr(self._time_source, '_clock_sub', None)
+        if own is not None:
+            node.destroy_subscription(own)
+            self._time_source._clock_sub = None  # type: ignore[union-attr]
+        else:
+            self._time_source = None
         self._timer = node.create_timer(HEARTBEAT, self._check_lost, clock=_steady(node))
 
     # ------------------------------------------------------------------ publishing
@@ -264,6 +273,8 @@ class Participant:
         return on_ack
 
     def _on_clock(self, msg: ClockMsg) -> None:
+        if self._time_source is not None:
+            self._time_source.clock_callback(msg)
         stamp = time_msg_to_ns(msg.clock)
         if self.last_done is not None and stamp <= self.last_done:
             if stamp == self.last_done:
