@@ -262,7 +262,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     """
     import rclpy
     import yaml
-    from rclpy.experimental import EventsExecutor
+    from folder_line.nodes.common import events_executor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
@@ -277,7 +277,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     scene = parse_scene(mapping)  # fail early, before any node starts
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    executor = EventsExecutor(context=ctx)
+    executor = events_executor(ctx)
     result = RunResult()
     procs: dict[str, subprocess.Popen[bytes]] = {}
     nodes: list[Any] = []

@@ -382,7 +382,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     """
     import rclpy
     import yaml
-    from rclpy.experimental import EventsExecutor
+    from folder_line.nodes.common import events_executor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
@@ -411,7 +411,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     ctx = rclpy.Context()
     rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx,
                signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    executor = EventsExecutor(context=ctx)
+    executor = events_executor(ctx)
     nodes: list[Any] = []
     with tempfile.TemporaryDirectory(prefix='folder_line_publishing_') as tmp:
         bag = BagWriter(Path(tmp) / 'bag', scene_source=yaml.safe_dump(mapping, sort_keys=False),

@@ -98,6 +98,7 @@ __all__ = [
     'SPIN_PERIOD',
     'LINGER',
     'run_node',
+    'events_executor',
 ]
 
 # --------------------------------------------------------------------------- topics
@@ -610,7 +611,7 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
 
     The node is built by ``node_factory()`` in the default context and spun by a
-    single-threaded executor until SIGINT or SIGTERM, until the context is shut
+    events executor (:func:`events_executor`) until SIGINT or SIGTERM, until the context is shut
     down from elsewhere, or, if the node has a ``done`` attribute holding an
     ``rclpy.task.Future``, until that future completes (a node that finishes on its
     own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
@@ -725,11 +726,29 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     return EXIT_OK
 
 
+def events_executor(context: Any) -> Any:
+    """An ``rclpy.experimental.EventsExecutor`` for ``context``: the line's executor.
+
+    It costs a third of ``SingleThreadedExecutor``'s CPU per message here (``bench/bench_nodes.py``).
+    Its constructor enables ``faulthandler`` on ``sys.stderr``, which fails where ``sys.stderr`` has
+    no file descriptor (a captured stream, a notebook): the process's own stderr is used then.
+    """
+    try:
+        sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        saved, sys.stderr = sys.stderr, sys.__stderr__
+        try:
+            return EventsExecutor(context=context)
+        finally:
+            sys.stderr = saved
+    return EventsExecutor(context=context)
+
+
 def _spin(node: Node, stop: threading.Event) -> None:
     done = getattr(node, 'done', None)
     if not isinstance(done, Future):
         done = None
-    executor = EventsExecutor(context=node.context)
+    executor = events_executor(node.context)
     try:
         executor.add_node(node)
         while not stop.is_set() and node.context.ok() and not (done is not None and done.done()):
