@@ -28,7 +28,8 @@ for ``Θ mod T`` in ``[t_in, t_out]`` (``t_in < 0 < t_out``,
                                                                               cycle k+1 starts)
 
 * ``sheet_handover`` of sheet k at ``Θ_h = kT + t_out + phase`` (``sheets.phase``;
-  a late fault adds its delay, in nominal s);
+  a late fault adds its delay, in nominal s); a slot with ``Θ_h < 0`` (before the
+  line starts) feeds nothing;
 * ``at_stops`` after ``L_feed`` of feed-belt travel: without ``feed_slip`` the
   signature rides the belt from the hand-over, ``ΔΘ = L_feed / V_tr`` (the belt
   moves ``V_tr dΘ``; a belt slow-down of factor f over ``[t_s, t_e)`` makes it
@@ -279,6 +280,9 @@ class FolderLine(LinePart):
         # ---- hand-over slots, faults and the signatures fed
         slots = _indices(t_out + phase, T, theta_end)
         theta_nom = slots * T + (t_out + phase)
+        # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing:
+        # the line starts at Θ = 0, and its first cycle then runs empty (one_per_cycle flags it)
+        slots, theta_nom = slots[theta_nom >= 0.0], theta_nom[theta_nom >= 0.0]
         tables: list[np.ndarray] = []
         slowdowns = None
         if faults_p is not None:
