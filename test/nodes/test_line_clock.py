@@ -346,7 +346,7 @@ def test_a_silent_participant_is_declared_lost_and_the_clock_goes_on(ros: Ros) -
     values = {kv.key: kv.value for kv in status.values}
     assert status.level == DiagnosticStatus.ERROR and status.message == 'participant crank_drive lost at 0.010000000 s'
     assert (values['node'], values['tick'], values['limit_s']) == ('crank_drive', '0.01', '0.5')
-    assert float(values['waited_wall_s']) > 0.5
+    assert float(values['waited_wall_s']) >= 0.5  # waited > 0.5, printed to the ms
     # it answers after all: refused (it is lost), counted, and the clock is not disturbed
     silent.ack(10 * MS)
     assert ros.spin_until(lambda: clock.rejected == 1, timeout=10.0)
