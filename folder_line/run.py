@@ -45,7 +45,7 @@ from typing import IO, Any, Callable
 from folder_line.atomic import write_json_atomic
 
 __all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'clock_parameters',
-           'node_parameters', 'other_line', 'outcome', 'print_run_summary', 'run_line', 'wait_until_matched']
+           'node_parameters', 'other_line', 'outcome', 'print_run_summary', 'run_line']
 
 from folder_line.interfaces import MACHINE_NODES as LINE_NODES  # noqa: E402  (the nodes, in start order)
 
@@ -162,34 +162,6 @@ def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str,
     """The parameters ``run`` gives ``line_clock``."""
     return {'rate': cfg.rate, 'rtf': float(cfg.rtf), 'clock': cfg.clock, 'duration': float(cfg.duration),
             'participants': ','.join(participants), 'lost_timeout': cfg.lost_timeout}
-
-
-def wait_until_matched(nodes: list[Any], executor: Any, timeout: float) -> bool:
-    """Spin ``executor`` until every line-topic publisher and subscription of ``nodes`` has matched all
-    its peers among ``nodes``, or ``timeout`` s of wall time pass; True if they all matched.
-
-    Starting sim time before that loses the first ticks' messages to subscribers not yet
-    discovered (the supervisor would judge cycle 0 without its events and hold the line).
-    """
-    from collections import Counter
-
-    from folder_line.recorder import LINE_TOPICS
-
-    pubs = [p for n in nodes for p in n.publishers if p.topic_name in LINE_TOPICS]
-    subs = [s for n in nodes for s in n.subscriptions if s.topic_name in LINE_TOPICS]
-    n_pubs = Counter(p.topic_name for p in pubs)
-    n_subs = Counter(s.topic_name for s in subs)
-
-    def matched() -> bool:
-        return (all(s.get_publisher_count() >= n_pubs[s.topic_name] for s in subs)
-                and all(p.get_subscription_count() >= n_subs[p.topic_name] for p in pubs))
-
-    deadline = time.monotonic() + timeout
-    while not matched():
-        if time.monotonic() > deadline:
-            return False
-        executor.spin_once(timeout_sec=0.01)
-    return True
 
 
 def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:

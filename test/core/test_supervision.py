@@ -557,11 +557,15 @@ def test_the_tick_that_issues_a_command_does_not_build_the_model_under_it() -> N
 # --------------------------------------------------------------------------- lost participants (lockstep)
 
 
+def _lockstep_supervisor() -> tuple[Any, LineModel, Supervisor]:
+    """The fault scene, its free model, and a supervisor as the lockstep node builds it (no staleness)."""
+    scene = load_scene('folder_faults')
+    return scene, LineModel(scene, H), Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+
+
 def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> None:
     """``lost`` at 0.4 s: abort at once with cause lost:<node>; a late sheet after 0.4 s is not judged."""
-    scene = load_scene('folder_faults')
-    free = LineModel(scene, H)
-    sup = Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    scene, free, sup = _lockstep_supervisor()
     sup.feed(free.events_between(-math.inf, 0.4))
     sup.tick(0.4)
     assert sup.state == 'EXECUTE'
@@ -582,9 +586,7 @@ def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> No
 
 def test_without_a_lost_participant_the_late_sheet_holds_the_line() -> None:
     """The control of the test above: the same stream, nobody lost, holds in cycle 13."""
-    scene = load_scene('folder_faults')
-    free = LineModel(scene, H)
-    sup = Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    _, free, sup = _lockstep_supervisor()
     sup.feed(free.events_between(-math.inf, 3.0))
     sup.tick(3.0)
     assert 'HOLDING' in [tr.target for tr in sup.transitions]
