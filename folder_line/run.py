@@ -234,14 +234,14 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     """
     import rclpy
     import yaml
-    from folder_line.nodes.common import events_executor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
     from folder_line.core.scene import parse_scene
     from folder_line.errors import FolderLineError
-    from folder_line.nodes.line_clock import LineClock
     from folder_line.interfaces import RECORDER
+    from folder_line.nodes.common import events_executor
+    from folder_line.nodes.line_clock import LineClock
     from folder_line.recorder import LINE_TOPICS, LineRecorder
     from folder_line.scenes import parse_set, scene_mapping
 

@@ -382,12 +382,12 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     """
     import rclpy
     import yaml
-    from folder_line.nodes.common import events_executor
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
-    from folder_line.interfaces import RECORDER
     from folder_line.core.scene import parse_scene
+    from folder_line.interfaces import RECORDER
+    from folder_line.nodes.common import events_executor
     from folder_line.nodes.line_clock import LineClock
     from folder_line.recorder import LINE_TOPICS, LineRecorder
     from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
