@@ -280,9 +280,6 @@ class FolderLine(LinePart):
         # ---- hand-over slots, faults and the signatures fed
         slots = _indices(t_out + phase, T, theta_end)
         theta_nom = slots * T + (t_out + phase)
-        # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing:
-        # the line starts at Θ = 0, and its first cycle then runs empty (one_per_cycle flags it)
-        slots, theta_nom = slots[theta_nom >= 0.0], theta_nom[theta_nom >= 0.0]
         tables: list[np.ndarray] = []
         slowdowns = None
         if faults_p is not None:
@@ -296,6 +293,9 @@ class FolderLine(LinePart):
             double = np.zeros(slots.size, dtype=bool)
             delay = np.zeros(slots.size)
         mult = np.where(missing, 0, np.where(double, 2, 1))
+        # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing:
+        # the line starts at Θ = 0, and its first cycle then runs empty (one_per_cycle flags it)
+        mult = np.where(theta_nom + delay < 0.0, 0, mult)
         cyc_all = np.repeat(slots, mult)
         theta_h_all = np.repeat(theta_nom + delay, mult)
         fed = theta_h_all <= theta_end
@@ -316,7 +316,8 @@ class FolderLine(LinePart):
             starts = np.searchsorted(cyc, slots, side='left')
             first_id[fed_slot] = ids[starts[fed_slot]]
             t_nom = np.asarray(drive.time_of(theta_nom), dtype=float) if slots.size else np.zeros(0)
-            tables.append(faults.fault_events(sf, t_nom, first_id, slots, slowdowns, duration))
+            table = faults.fault_events(sf, t_nom, first_id, slots, slowdowns, duration)
+            tables.append(table[table['t'] >= 0.0])  # a slot before the line starts has no fault either
 
         sheets = _feed(drive, duration, belt, ids, cyc, theta_h, t_h, V_d, V_tr, L, slip)
 

@@ -18,7 +18,7 @@ from folder_line.core.cyclogram import cycle_timing
 from folder_line.core.delivery import evaluate_stroke, stroke_minimum
 from folder_line.core.drive import ConstantDrive, RampDrive
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
-from folder_line.core.events import EVENT_KINDS
+from folder_line.core.events import EVENT_KINDS, event_kind
 from folder_line.core.belt import BeltPhase
 from folder_line.core.folder_sim import delivery_plan, simulate_folder
 from folder_line.core.line import sample_times, simulate
@@ -460,3 +460,31 @@ def test_one_hour_is_fast() -> None:
     with_samples = time.perf_counter() - t0
     print(f'\n1 h of folder: events {best:.3f} s, with 200 Hz samples {with_samples:.3f} s')
     assert with_samples < 6.0
+
+
+def test_a_hand_over_slot_before_the_line_starts_feeds_nothing() -> None:
+    """A knife whose exit phase is negative puts slot 0 before t = 0 (found by the random-scene hunt): no sheet,
+    no fault and no event happens before the line starts; the empty first cycle is flagged."""
+    from folder_line.core.cyclogram import cycle_timing
+    from folder_line.core.line import simulate
+    from folder_line.core.scene import parse_scene
+
+    faults = {'p_missing': 0.0, 'p_double': 0.0, 'p_late': 1.0, 'late_delay': 0.03125, 'p_slowdown': 0.0,
+              'slowdown_factor': 1.0, 'slowdown_duration': 0.0}
+    data = {'name': 'early slot',
+            'machines': {'knife': {'r_k': 0.04, 'L_k': 0.17375, 'e': -0.046875, 'n_k': 35884.0, 's_clear': 0.2079},
+                         'cyclogram': {'D_fc': 0.26738, 'n_c': 25000.0, 'L_feed': 0.23, 'L_a': 0.42, 'reserve': 0.0,
+                                       'dwell_frac': 0.0},
+                         'feed_transporter': {'V_tr': 1.0}},
+            'effects': {'faults': faults}, 'drive': {'profile': 'constant', 't_ramp': 1.0, 't_brake': 1.0},
+            'sheets': {'interval': 0.5, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0078125}, 'seed': 0}
+    scene = parse_scene(data)
+    timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+    assert timing.knife.t_out < 0.0  # the case: slot 0 at Θ = t_out < 0
+    for p_late in (1.0, 0.0):
+        faults['p_late'] = p_late
+        res = simulate(parse_scene(data), 0.3)
+        assert res.events.size and float(res.events['t'].min()) >= 0.0
+        handed = res.events[res.events['kind'] == event_kind('sheet_handover')]
+        # on time, slot 0 is before the start and feeds nothing; 31 ms late, its sheet comes after the start
+        assert (0 in handed['cycle'].tolist()) == (p_late == 1.0)
