@@ -210,7 +210,8 @@ def test_curses_view_in_tmux_quits_cleanly(line: Line, node_env: dict[str, str],
     tmux = Tmux(node_env, 110, 45, command)
     try:
         t0 = time.monotonic()
-        screen = tmux.wait_for(live_rows)
+        # every topic is discovered on its own (up to seconds apart under load): wait for the events too
+        screen = tmux.wait_for(lambda text: live_rows(text) and 'EVENT' in text)
         print(f'live after {time.monotonic() - t0:.2f} s:\n{screen}')
         assert 'JOINT' in screen and 'EVENT' in screen
         if key == 'q':  # a terminal too small, then big enough again
