@@ -341,6 +341,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
             # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
             lost_nodes = set(result.summary.get('lost_participants') or ())
+            for name in lost_nodes & set(procs):  # a stopped node can hold the others' shared-memory locks
+                if procs[name].poll() is None:
+                    procs[name].send_signal(signal.SIGCONT)
+                    procs[name].send_signal(signal.SIGINT)
             deadline = time.monotonic() + 15.0
             for name, proc in procs.items():
                 if name not in lost_nodes:

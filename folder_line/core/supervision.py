@@ -232,7 +232,10 @@ class Balance:
         ``on_chain`` (folder), ``on_chutes``, ``in_air`` (layup); and ``folded``.
     ok : bool
         ``fed == delivered + in_machine`` and every delivered sheet was fed (no
-        sheet lost, none counted twice).
+        sheet lost, none counted twice); False when ``missing``.
+    missing : str
+        Empty, or why the balance cannot be judged: ``'events of <node> not received
+        after <t> s'`` (a participant was lost: its counts stop there, the others' do not).
     """
 
     t: float
@@ -242,6 +245,7 @@ class Balance:
     in_machine: int
     detail: dict[str, int]
     ok: bool
+    missing: str = ''
 
 
 @dataclass(frozen=True)
@@ -1026,6 +1030,9 @@ class Supervisor:
             delivered += int(down)
             in_machine += int(on_chutes + in_air)
         ok &= fed == delivered + in_machine
+        if self.lost_nodes and t >= self.blind_from:
+            missing = (f'events of {", ".join(self.lost_nodes)} not received after {self.blind_from:.6f} s')
+            return Balance(float(t), state, fed, delivered, in_machine, detail, False, missing)
         return Balance(float(t), state, fed, delivered, in_machine, detail, bool(ok))
 
 

@@ -37,6 +37,7 @@ same names and types.
 
 from __future__ import annotations
 
+import faulthandler
 import gc
 import math
 import os
@@ -632,7 +633,9 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     the node runs as a process of its own (``args`` from ``sys.argv``, the main
     thread), its work is done by then, so a watchdog ends the process after
     ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
-    stderr and the exit code it would have returned.
+    stderr and the exit code it would have returned; if the hang holds the GIL (no Python
+    thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
+    exit code 1.
 
     Parameters
     ----------
@@ -682,6 +685,9 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         watchdog = threading.Timer(teardown_timeout, expire)
         watchdog.daemon = True
         watchdog.start()
+        # the middleware can hang holding the GIL (a peer process stopped while it holds a shared-memory lock),
+        # and then no Python thread runs: faulthandler's C thread ends the process all the same, with the stacks
+        faulthandler.dump_traceback_later(teardown_timeout + 2.0, exit=True)
 
     previous: dict[int, Any] = {}
     if in_main_thread:
@@ -721,6 +727,7 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
     finally:
         if watchdog is not None:
             watchdog.cancel()
+            faulthandler.cancel_dump_traceback_later()
         for signum, handler in previous.items():
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     return EXIT_OK

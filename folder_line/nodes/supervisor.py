@@ -341,6 +341,11 @@ class Supervisor(MachineNode):
                               'unit': v.unit, 'action': v.action, 'state': v.state}, stamp=v.t)
 
     def _publish_balance(self, b: Balance) -> None:
+        if b.missing:  # a participant was lost: no number is judged on what never arrived
+            self.get_logger().warning(f'sheet balance at {b.t:.6f} s ({b.state}) not judged: {b.missing}')
+            self._publish_status('balance', False, f'{b.state}: not judged: {b.missing}',
+                                 {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False}, stamp=b.t)
+            return
         if not b.ok:
             self.get_logger().error(f'sheet balance broken at {b.t:.6f} s ({b.state}): fed {b.fed}, delivered '
                                     f'{b.delivered}, in the machine {b.in_machine}')

@@ -591,3 +591,18 @@ def test_without_a_lost_participant_the_late_sheet_holds_the_line() -> None:
     sup.tick(3.0)
     assert 'HOLDING' in [tr.target for tr in sup.transitions]
     assert any(v.constraint == 'feed_window' and v.cycle == 13 for v in sup.violations)
+
+
+def test_the_balance_after_a_lost_participant_reads_not_judged() -> None:
+    """The feed is lost at 0.4 s: its hand-overs stop there while the others' events go on, so the balance at
+    ABORTED is not a number to judge: it says which events were not received."""
+    _, free, sup = _lockstep_supervisor()
+    sup.feed(free.events_between(-math.inf, 0.4))
+    sup.tick(0.4)
+    sup.lost('feed_transporter', 0.4, 1.5)
+    rest = free.events_between(0.4, 3.0)
+    sup.feed(rest[np.isin(rest['kind'], [event_kind(k) for k in ('knife_contact', 'knife_exit', 'released_on_pile')])])
+    sup.tick(3.0)
+    (b,) = sup.balances
+    assert b.state == 'ABORTED' and not b.ok
+    assert b.missing == 'events of feed_transporter not received after 0.400000 s'
