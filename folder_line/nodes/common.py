@@ -2,9 +2,9 @@
 
 A node of the line is a thin adapter (see ``STYLE.md``): it declares its
 parameters from a table of :class:`ParamSpec` with :func:`declare_parameters`
-(which installs the validation), takes ``t`` from its own clock (simulated
-time from ``/clock``, see :func:`sim_time_overrides`), calls the core, fills the
-message and publishes on one of the topics named here. Its module ends with::
+(which installs the validation), takes ``t`` from the ticks of ``/clock`` (lockstep,
+:mod:`folder_line.nodes.lockstep`; its own clock runs on that simulated time), calls the
+core, fills the message and publishes on one of the topics named here. Its module ends with::
 
     def main(args: list[str] | None = None) -> int:
         return run_node(MyNode, args)
@@ -571,11 +571,10 @@ def sim_time_overrides(parameter_overrides: Iterable[Parameter] | None = None, *
                        use_sim_time: bool = True) -> list[Parameter]:
     """Node ``parameter_overrides`` with ``use_sim_time`` set.
 
-    Every node of the line runs on simulated time from ``/clock`` (published by
-    ``line_clock``), so its constructor passes
-    ``parameter_overrides=sim_time_overrides(parameter_overrides)`` to ``Node``.
-    An explicit ``use_sim_time`` among ``parameter_overrides`` wins (tests use it);
-    constructor overrides take precedence over ``--ros-args -p``.
+    A helper for nodes outside the line (tests): the line's own nodes set
+    ``use_sim_time`` themselves and refuse it off (:class:`folder_line.nodes.machine.MachineNode`),
+    or refuse it on (``line_clock``). An explicit ``use_sim_time`` among
+    ``parameter_overrides`` wins; constructor overrides take precedence over ``--ros-args -p``.
 
     Parameters
     ----------
