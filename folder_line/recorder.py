@@ -19,7 +19,6 @@ from collections import Counter
 from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.executors import Executor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
@@ -210,12 +209,3 @@ class LineRecorder(Node):
         if self.sink is not None:
             for topic, msg, received in held:
                 self.sink(topic, msg, received)
-
-    def wait_for_publishers(self, n_nodes: int, executor: Executor, timeout: float) -> bool:
-        """Spin until ``n_nodes`` publishers of ``/line/events`` are matched (True) or ``timeout`` s pass."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.count_publishers(EVENTS_TOPIC) >= n_nodes:
-                return True
-            executor.spin_once(timeout_sec=0.1)
-        return False
