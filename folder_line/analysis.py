@@ -1317,7 +1317,8 @@ def analyze(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = N
         summary['replay_matches'] = transitions_agree(replayed, recorded)
         summary['replay_violations'] = [dataclasses.asdict(v) for v in sup.violations]
         summary['transitions_source'] = (
-            'the recorded events, joint-state stamps, clock and operator commands replayed through '
+            'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
+            'through '
             'folder_line.core.supervision.replay (decision times); '
             + ('they agree with the states recorded on /line/supervisor/state' if summary['replay_matches'] else
                'they do NOT agree with the states recorded on /line/supervisor/state: '

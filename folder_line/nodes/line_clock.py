@@ -82,6 +82,7 @@ from folder_line.nodes.lockstep import (
     TICK_QOS,
     Announcement,
     format_announcement,
+    participant_names,
     tick_done_topic,
 )
 
@@ -112,16 +113,10 @@ SPECS: tuple[ParamSpec, ...] = (
 
 def parse_participants(text: str) -> tuple[str, ...]:
     """``'crank_drive, supervisor'`` -> ``('crank_drive', 'supervisor')``; ParameterError naming ``participants``."""
-    names = tuple(n.strip() for n in text.split(',') if n.strip())
-    bad = [n for n in names if n not in KNOWN_PARTICIPANTS]
-    if bad:
-        raise ParameterError('participants', text, f'unknown node(s) {", ".join(bad)}; known: '
-                             f'{", ".join(KNOWN_PARTICIPANTS)}')
-    if len(set(names)) != len(names):
-        raise ParameterError('participants', text, 'names a node twice')
-    if not names:
-        raise ParameterError('participants', text, 'names no node: the clock would have nobody to wait for')
-    return names
+    try:
+        return participant_names(text)
+    except ValueError as err:
+        raise ParameterError('participants', text, str(err)) from None
 
 
 def _check(values: Mapping[str, Any]) -> None:

@@ -66,6 +66,7 @@ __all__ = [
     'Participant',
     'format_announcement',
     'parse_announcement',
+    'participant_names',
     'tick_done_topic',
 ]
 
@@ -118,12 +119,27 @@ def parse_announcement(text: str) -> Announcement:
     end = None if fields['end'] == 'none' else fields['end']
     if end is not None and not (end.isdigit() and len(end) <= 19):
         raise ValueError(f'end={end[:25]!r}: must be none or integer ns')
-    names = tuple(n for n in fields['participants'].split(',') if n)
-    bad = [n for n in names if n not in KNOWN_PARTICIPANTS]
-    if bad or len(set(names)) != len(names) or not names:
+    try:
+        names = participant_names(fields['participants'])
+    except ValueError:
         raise ValueError(f'participants={fields["participants"][:80]!r}: must be distinct names among '
-                         f'{", ".join(KNOWN_PARTICIPANTS)}')
+                         f'{", ".join(KNOWN_PARTICIPANTS)}') from None
     return Announcement(fields['clock'], None if end is None else int(end), names)
+
+
+def participant_names(text: str) -> tuple[str, ...]:
+    """``'crank_drive, supervisor'`` -> ``('crank_drive', 'supervisor')``: distinct known participants, at
+    least one; ``ValueError`` with the reason otherwise (``line_clock`` names its parameter in it)."""
+    names = tuple(n.strip() for n in text.split(',') if n.strip())
+    bad = [n for n in names if n not in KNOWN_PARTICIPANTS]
+    if bad:
+        raise ValueError(f'unknown node(s) {", ".join(b[:40] for b in bad[:5])}; known: '
+                         f'{", ".join(KNOWN_PARTICIPANTS)}')
+    if len(set(names)) != len(names):
+        raise ValueError('names a node twice')
+    if not names:
+        raise ValueError('names no node: the clock would have nobody to wait for')
+    return names
 
 
 Depends = Callable[[Announcement], Mapping[str, tuple[str, ...]]]
