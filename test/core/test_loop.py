@@ -215,7 +215,11 @@ def test_tracked_mode_raises_when_unassemblable() -> None:
        b1=st.floats(-5, 5), b2=st.floats(-5, 5))
 def test_solve2x2_matches_linalg(a11: float, a12: float, a21: float, a22: float, b1: float, b2: float) -> None:
     m = np.array([[a11, a12], [a21, a22]])
-    assume(abs(np.linalg.det(m)) > 1e-3 and np.linalg.cond(m) < 1e6)
+    # the filter only: LU-based det/cond divide by a zero pivot on singular inputs with subnormal entries
+    # (hypothesis found a21 = 2.2e-311), which warns; the closed-form determinant does not
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        well_posed = abs(a11 * a22 - a12 * a21) > 1e-3 and np.linalg.cond(m) < 1e6
+    assume(well_posed)
     x1, x2 = solve2x2(a11, a12, a21, a22, b1, b2)
     assert_allclose([x1, x2], np.linalg.solve(m, [b1, b2]), rtol=1e-9, atol=1e-9)
 
