@@ -15,10 +15,13 @@ What is measured
   each tick sends (published, the acknowledgements included, from the bag's counts
   and the acknowledgements' own count).
 * **Floor.** In the same run: a bare rclpy publish -> take of the same mix of messages
-  (JointState, TimeReference, String, UInt64, Float64, Clock) between two nodes on the
-  same executor, with no work in the callbacks: CPU per message, and per tick for the
-  line's message count. The ratio column is line CPU per tick / floor per tick (the
-  goal: <= 2).
+  (JointState, TimeReference, String, UInt64, Float64, Clock) on the same executor, with
+  no work in the callbacks, from one publisher node to ``k`` subscriber nodes that each
+  take every message: CPU per message for every ``k`` the line has. Two floors per tick:
+  the line's messages each taken once (``k = 1``), and each taken by as many subscribers
+  as it has in the line (read from the ROS graph of an in-process line,
+  :func:`line_fanout`): a message the clock, the recorder and the supervisor all take is
+  three takes. The ratio columns are the line's CPU per tick over each (the goal: <= 2).
 
 Under load: run it with two busy loops on both cores (``timeout 600 sh -c 'while :; do
 :; done' &`` twice) to see sim time slow down while the recorded answer stays the same.
@@ -34,6 +37,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 if __name__ == '__main__':
@@ -44,9 +48,9 @@ if __name__ == '__main__':
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
 
 
-def floor_per_message(n: int = 3000, executor_kind: str = 'events') -> float:
-    """CPU s per message of a bare publish -> take of the line's message mix (one publisher node, one
-    subscriber node, one executor, empty callbacks)."""
+def floor_per_message(n: int = 3000, executor_kind: str = 'events', fanout: int = 1) -> float:
+    """CPU s per message of a bare publish -> take of the line's message mix: one publisher node and
+    ``fanout`` subscriber nodes, each taking every message, on one executor, with empty callbacks."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -61,7 +65,7 @@ def floor_per_message(n: int = 3000, executor_kind: str = 'events') -> float:
     rclpy.init(context=ctx)
     ex = EventsExecutor(context=ctx) if executor_kind == 'events' else SingleThreadedExecutor(context=ctx)
     pub_node = rclpy.create_node('floor_pub', context=ctx)
-    sub_node = rclpy.create_node('floor_sub', context=ctx)
+    sub_nodes = [rclpy.create_node(f'floor_sub{k}', context=ctx) for k in range(fanout)]
     js = JointState(name=['a', 'b', 'c'], position=[1.0, 2.0, 3.0], velocity=[1.0, 2.0, 3.0])
     ack = TimeReference(source='messages=123456 events=1234 commands=0')
     mix = [(JointState, js), (TimeReference, ack), (String, String(data='EXECUTE')), (UInt64, UInt64(data=7)),
@@ -70,9 +74,10 @@ def floor_per_message(n: int = 3000, executor_kind: str = 'events') -> float:
     pubs = []
     for i, (cls, msg) in enumerate(mix):
         pubs.append((pub_node.create_publisher(cls, f'/floor/t{i}', qos), msg))
-        sub_node.create_subscription(cls, f'/floor/t{i}', lambda m: got.__setitem__(0, got[0] + 1), qos)
-    ex.add_node(pub_node)
-    ex.add_node(sub_node)
+        for sub_node in sub_nodes:
+            sub_node.create_subscription(cls, f'/floor/t{i}', lambda m: got.__setitem__(0, got[0] + 1), qos)
+    for node in (pub_node, *sub_nodes):
+        ex.add_node(node)
     end = time.monotonic() + 1.0
     while time.monotonic() < end:
         ex.spin_once(timeout_sec=0.05)
@@ -82,14 +87,49 @@ def floor_per_message(n: int = 3000, executor_kind: str = 'events') -> float:
         for p, m in pubs:
             p.publish(m)
             sent += 1
-        while got[0] < sent:
+        while got[0] < sent * fanout:
             ex.spin_once(timeout_sec=1.0)
     cpu = time.process_time() - c0
     ex.shutdown()
-    pub_node.destroy_node()
-    sub_node.destroy_node()
+    for node in (pub_node, *sub_nodes):
+        node.destroy_node()
     rclpy.try_shutdown(context=ctx)
     return cpu / sent
+
+
+def line_fanout(rate: float) -> dict[str, int]:
+    """Subscribers per topic of the in-process line (topic -> count), read from the ROS graph once every
+    participant has subscribed to everything it takes (the acknowledgements after the announcement)."""
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from folder_line.interfaces import KNOWN_PARTICIPANTS, RECORDER
+    from folder_line.nodes.common import events_executor
+    from folder_line.nodes.line_clock import LineClock
+    from folder_line.nodes.lockstep import tick_done_topic
+    from folder_line.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
+
+    cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
+    ctx = rclpy.Context()
+    rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx)
+    executor = events_executor(ctx)
+    recorder = LineRecorder(context=ctx)
+    executor.add_node(recorder)
+    nodes = [recorder, *add_machine_nodes(cfg, ctx, executor)]
+    params = clock_parameters(cfg, (*LINE_NODES, RECORDER))
+    clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], context=ctx)
+    nodes.append(clock)
+    executor.add_node(clock)
+    while not clock.done.done():
+        executor.spin_once(timeout_sec=0.05)
+    topics = [*LINE_TOPICS, *(tick_done_topic(p) for p in KNOWN_PARTICIPANTS)]
+    fanout = {t: clock.count_subscribers(t) for t in topics}
+    executor.shutdown()
+    for node in nodes:
+        node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+    return fanout
 
 
 def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, dict]:
@@ -110,17 +150,20 @@ def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, d
     return cpu, s['rtf_achieved'], s
 
 
-def line(duration: float, rate: float, processes: bool) -> dict[str, float]:
+def line(duration: float, rate: float, processes: bool) -> dict[str, Any]:
     """Runs of ``duration`` and ``2 duration``: the CPU per tick is their difference over the extra ticks, so
     start-up (imports, models, discovery) cancels out; the rtf reached is the longer run's."""
+    from folder_line.interfaces import KNOWN_PARTICIPANTS
+    from folder_line.nodes.lockstep import tick_done_topic
+
     cpu1, _, _ = _run(duration, rate, processes)
     cpu2, rtf, s = _run(2 * duration, rate, processes)
     ticks = round(2 * duration * rate) + 1
     extra = round(duration * rate)
-    recorded = sum(s['bag']['messages'].values())
-    acks = 6 * ticks  # five machine nodes and the recorder acknowledge every tick
-    return {'rtf': rtf, 'cpu_per_tick': (cpu2 - cpu1) / extra, 'messages_per_tick': (recorded + acks) / ticks,
-            'ticks': ticks}
+    per_topic = {t: n / ticks for t, n in s['bag']['messages'].items()}
+    # the five machine nodes and the recorder acknowledge every tick (the acknowledgements are not recorded)
+    per_topic.update({tick_done_topic(p): 1.0 for p in KNOWN_PARTICIPANTS})
+    return {'rtf': rtf, 'cpu_per_tick': (cpu2 - cpu1) / extra, 'per_topic': per_topic, 'ticks': ticks}
 
 
 def main() -> int:
@@ -130,21 +173,30 @@ def main() -> int:
     span = 1.0 if args.quick else 5.0
     print(f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
           f'Python {platform.python_version()}; load average {os.getloadavg()[0]:.2f}')
-    floor_events = floor_per_message(executor_kind='events')
+    fanout = line_fanout(200.0)
+    floors = {k: floor_per_message(executor_kind='events', fanout=k) for k in sorted({max(v, 1) for v in fanout.values()})}
     floor_single = floor_per_message(executor_kind='single')
-    print(f'floor (bare publish -> take, same message mix): EventsExecutor {floor_events * 1e6:.1f} us/message, '
-          f'SingleThreadedExecutor {floor_single * 1e6:.1f} us/message\n')
-    print('| setup | rate (Hz) | sim s | rtf reached | CPU per tick | messages per tick | floor per tick '
-          '(EventsExecutor) | CPU / floor |')
-    print('|---|---|---|---|---|---|---|---|')
+    print(f'floor (bare publish -> take, same message mix), EventsExecutor: '
+          + ', '.join(f'{floors[k] * 1e6:.1f} us/message with {k} subscriber{"s" if k > 1 else ""}' for k in floors)
+          + f'; SingleThreadedExecutor {floor_single * 1e6:.1f} us/message with 1')
+    print('subscribers per topic in the line: ' + ', '.join(f'{t} {k}' for t, k in fanout.items()) + '\n')
+    print('| setup | rate (Hz) | sim s | rtf reached | CPU per tick | messages per tick | deliveries per tick '
+          '| floor per tick, 1 subscriber | CPU / that | floor per tick, the line\'s subscribers | CPU / that |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|')
     for processes in (False, True):
         for rate in (200.0, 1000.0):
             duration = span if rate == 200.0 else span / 5  # the longer run is twice this
             r = line(duration, rate, processes)
-            floor = floor_events * r['messages_per_tick']
+            per_topic = r['per_topic']
+            messages = sum(per_topic.values())
+            deliveries = sum(n * fanout.get(t, 1) for t, n in per_topic.items())
+            floor1 = floors[1] * messages
+            floor_k = sum(n * floors[max(fanout.get(t, 1), 1)] for t, n in per_topic.items())
+            cpu = r['cpu_per_tick']
             print(f'| {"one process per node" if processes else "in process"} | {rate:g} | {2 * duration:g} | '
-                  f'{r["rtf"]:.2f} | {r["cpu_per_tick"] * 1e3:.2f} ms | {r["messages_per_tick"]:.1f} | '
-                  f'{floor * 1e3:.2f} ms | {r["cpu_per_tick"] / floor:.1f} |', flush=True)
+                  f'{r["rtf"]:.2f} | {cpu * 1e3:.2f} ms | {messages:.1f} | {deliveries:.1f} | '
+                  f'{floor1 * 1e3:.2f} ms | {cpu / floor1:.1f} | {floor_k * 1e3:.2f} ms | {cpu / floor_k:.1f} |',
+                  flush=True)
     return 0
 
 

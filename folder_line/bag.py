@@ -350,7 +350,7 @@ class _Segment:
 class BagWriter:
     """Writes the line's messages to a rosbag2 directory in MCAP storage, one file per segment.
 
-    Usable as the :class:`folder_line.recorder.LineRecorder` sink (``writer.write``)
+    Usable as the :class:`folder_line.recorder.LineRecorder` sink (``writer.write_serialized``)
     and as a context manager. See the module docstring for the layout, timestamps and
     crash safety.
 
@@ -672,6 +672,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
     if not (directory / METADATA_FILE).is_file():
         msg = f'{directory}: no {METADATA_FILE}; rebuild it with: folder-line bag repair {directory}'
         raise BagError(msg)
+    _read_metadata(directory)  # bounded, strict YAML before rosbags parses it
     with _OpenReader(Reader, directory) as reader:
         topics = {name: TopicSummary(info.msgtype or '', info.msgcount,
                                      info.connections[0].digest if info.connections else '')
@@ -684,8 +685,16 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
                        start_ns=start, end_ns=end)
 
 
+def _read_metadata(directory: Path) -> Any:
+    """``metadata.yaml`` read by :func:`folder_line.yamlio.load_yaml_file` (size, aliases, tags and
+    duplicate keys bounded); a :class:`~folder_line.errors.ParameterError` names the line and column."""
+    from folder_line.yamlio import METADATA_LIMIT, load_yaml_file
+
+    return load_yaml_file(directory / METADATA_FILE, 'bag metadata', METADATA_LIMIT, max_nodes=1_000_000)
+
+
 def _relative_paths(directory: Path) -> list[str]:
-    data = yaml.safe_load((directory / METADATA_FILE).read_text(encoding='utf-8'))
+    data = _read_metadata(directory)
     return list(data['rosbag2_bagfile_information'].get('relative_file_paths') or [])
 
 
@@ -935,9 +944,9 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
 
 def _old_custom(bag: Path) -> dict[str, str] | None:
     try:
-        data = yaml.safe_load((bag / METADATA_FILE).read_text(encoding='utf-8'))
+        data = _read_metadata(bag)
         custom = data['rosbag2_bagfile_information'].get('custom_data')
-    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+    except (FolderLineError, KeyError, TypeError, AttributeError):
         return None
     return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else None
 

@@ -1,7 +1,10 @@
 """The line recorder: one node that subscribes to every topic of the line.
 
 It counts the messages per topic, follows sim time, the supervisor's state and the
-sheet count, and hands every message to an optional sink (the bag writer). It is a
+sheet count, and hands every message to an optional sink (the bag writer) as the CDR
+bytes it was published as: the subscriptions are raw, so a message is never turned into
+Python objects and back to be recorded (only the few fields the recorder reads are
+deserialized, by rclpy). It is a
 lockstep participant (``line_recorder``, :mod:`folder_line.nodes.lockstep`): it
 acknowledges tick ``t`` once every other participant's tick ``t`` is complete here,
 i.e. every message they published up to ``t`` has been recorded, so ``line_clock``
@@ -20,9 +23,10 @@ from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
-from std_msgs.msg import Float64, String, UInt64
+from std_msgs.msg import Float64, Header, String, UInt64
 
 from folder_line.nodes.lockstep import (
     CLOCK_SUB_QOS,
@@ -82,7 +86,14 @@ _PRODUCER: dict[str, str | None] = {
     LANDING_TOPIC: 'sheet_counter',
 }
 
-Sink = Callable[[str, Any, int], None]
+#: ``sink(topic, cdr, log_ns, publish_ns)``: the message as published (CDR bytes), the tick it is
+#: recorded at (the latest ``/clock``, ns) and its own stamp (``header.stamp``, else the tick), ns
+Sink = Callable[[str, bytes, int, int], None]
+
+#: topics whose messages the recorder reads whole (few per tick); of the others it reads only the
+#: ``header`` (stamp and frame_id) if they have one, and nothing if not
+_READ_WHOLE = frozenset({CLOCK_TOPIC, EVENTS_TOPIC, DIAGNOSTICS_TOPIC, SUPERVISOR_STATE_TOPIC, SHEET_COUNT_TOPIC,
+                         COMMANDS_TOPIC})
 
 
 def _could_publish(producer: str, topic: str, msg: Any) -> bool:
@@ -108,7 +119,7 @@ class LineRecorder(Node):
     Parameters
     ----------
     sink : callable, optional
-        ``sink(topic, msg, receive_time_ns)`` for every message.
+        ``sink(topic, cdr, log_ns, publish_ns)`` for every message (:data:`Sink`).
     **kwargs
         Passed to ``rclpy.node.Node`` (``context`` ...).
     """
@@ -125,15 +136,16 @@ class LineRecorder(Node):
         self.lost: dict[str, float] = {}
         self.diagnostics: list[Any] = []  # the ERROR statuses seen (lost participants, violations, ...)
         self._last_clock = -1
-        self._held: list[tuple[str, Any, int]] = []  # messages of a tick whose /clock is not recorded yet
+        self._held: list[tuple[str, bytes, int]] = []  # (topic, cdr, publish ns) of a tick whose /clock is not in
         self._sim_origin = 0.0
         for topic, cls in LINE_TOPICS.items():
             qos = (COMMANDS_QOS if topic == COMMANDS_TOPIC else STATE_QOS if topic == SUPERVISOR_STATE_TOPIC
                    else CLOCK_SUB_QOS if topic == CLOCK_TOPIC
                    else LINE_QOS)
-            self.create_subscription(cls, topic, self._callback(topic), qos)
+            self.create_subscription(cls, topic, self._callback(topic, cls), qos, raw=True)
+        # the participant takes /clock from this node's own subscription (after the tick is recorded)
         self.lockstep = Participant(self, self._depends, lambda stamp: None, needs=lambda stamp, previous: stamp,
-                                    on_lost=self._on_lost, lost_timeout=lost_timeout)
+                                    on_lost=self._on_lost, lost_timeout=lost_timeout, clock_subscription=False)
 
     def rtf_achieved(self) -> float:
         """Sim seconds per wall second between the first and the latest tick recorded (0 before two)."""
@@ -148,14 +160,22 @@ class LineRecorder(Node):
     def _on_lost(self, producer: str, waited: float, stamp: int) -> None:
         self.lost[producer] = stamp / NS_PER_S
 
-    def _callback(self, topic: str) -> Callable[[Any], None]:
+    def _callback(self, topic: str, cls: type) -> Callable[[bytes], None]:
         producer = _PRODUCER.get(topic, '')
+        whole = topic in _READ_WHOLE
+        # CDR lays a struct's fields out in order, so a message whose first field is its std_msgs/Header
+        # starts with that header's bytes: the header alone is read from them
+        has_header = not whole and 'header' in getattr(cls, '_fields_and_field_types', {})
 
-        def on_message(msg: Any) -> None:
+        def on_message(data: bytes) -> None:
+            msg: Any = deserialize_message(data, cls) if whole else None
+            header = msg.header if whole and hasattr(msg, 'header') else \
+                deserialize_message(data, Header) if has_header else None
             if topic == CLOCK_TOPIC:
                 stamp = time_msg_to_ns(msg.clock)
                 if stamp <= self._last_clock:
-                    return  # a repeated tick: recorded once
+                    self.lockstep.on_clock(msg)  # a repeated tick: recorded once, answered again
+                    return
                 first = self._last_clock < 0
                 self._last_clock = stamp
                 self.sim_time = max(self.sim_time, stamp / NS_PER_S)
@@ -172,18 +192,28 @@ class LineRecorder(Node):
             elif topic == DIAGNOSTICS_TOPIC:
                 self.diagnostics.extend(st for st in msg.status if st.level == DiagnosticStatus.ERROR)
             self.counts[topic] += 1
-            source = '' if producer == '' else msg.header.frame_id if producer is None else producer
+            source = '' if producer == '' else producer if producer is not None else \
+                header.frame_id if header is not None else ''
             if self.sink is not None:
+                publish_ns = time_msg_to_ns(header.stamp) if header is not None else -1
                 if source and self._ahead(source):
-                    self._held.append((topic, msg, time.time_ns()))
+                    self._held.append((topic, data, publish_ns))
                 else:
-                    self.sink(topic, msg, time.time_ns())
+                    self._sink(topic, data, publish_ns)
                     if topic == CLOCK_TOPIC:
                         self.flush()
             if source and _could_publish(source, topic, msg):
                 self.lockstep.received(source, 'messages')
+            if topic == CLOCK_TOPIC:
+                self.lockstep.on_clock(msg)
 
         return on_message
+
+    def _sink(self, topic: str, data: bytes, publish_ns: int) -> None:
+        """Record at the latest tick; a message without a stamp of its own is stamped with it."""
+        assert self.sink is not None
+        log_ns = max(self._last_clock, 0)
+        self.sink(topic, data, log_ns, log_ns if publish_ns < 0 else publish_ns)
 
     def _ahead(self, producer: str) -> bool:
         """Whether a message of ``producer`` arriving now belongs to a tick whose ``/clock`` is not recorded yet.
@@ -207,5 +237,5 @@ class LineRecorder(Node):
         """Hand the held messages to the sink (at a recorded ``/clock``, and before the bag is closed)."""
         held, self._held = self._held, []
         if self.sink is not None:
-            for topic, msg, received in held:
-                self.sink(topic, msg, received)
+            for topic, data, publish_ns in held:
+                self._sink(topic, data, publish_ns)

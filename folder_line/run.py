@@ -281,7 +281,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                                 'folder_line.overrides': json.dumps(cfg.overrides),
                                 'folder_line.mode': 'processes' if cfg.processes else 'in-process',
                                 'folder_line.clock': cfg.clock})
-        recorder = LineRecorder(sink=bag.write, context=ctx, lost_timeout=cfg.lost_timeout)
+        recorder = LineRecorder(sink=bag.write_serialized, context=ctx, lost_timeout=cfg.lost_timeout)
         executor.add_node(recorder)
         clock_params = clock_parameters(cfg, participants)
         if cfg.processes:
@@ -311,7 +311,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         last_draw = 0.0
         progress = _Progress(stream, cfg.duration)
         while not done() and not interrupted:
-            executor.spin_once(timeout_sec=0.05)
+            if clock is not None:
+                executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
+            else:
+                executor.spin_once(timeout_sec=0.05)
             now = time.perf_counter()
             if now - last_draw > 0.2:
                 progress.show(recorder.sim_time)

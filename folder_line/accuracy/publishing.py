@@ -417,7 +417,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
         bag = BagWriter(Path(tmp) / 'bag', scene_source=yaml.safe_dump(mapping, sort_keys=False),
                         effects=list(parsed.effects), scene_name=parsed.name, topics=LINE_TOPICS)
         try:
-            recorder = LineRecorder(sink=bag.write, context=ctx)
+            recorder = LineRecorder(sink=bag.write_serialized, context=ctx)
             nodes.append(recorder)
             executor.add_node(recorder)
             machines = add_machine_nodes(cfg, ctx, executor)

@@ -168,6 +168,9 @@ class Participant:
         ``on_end(stamp_ns)`` once the announced last tick is done (after its acknowledgement).
     lost_timeout, startup_timeout : float
         Wall seconds a tick may wait for a producer before it is declared lost (the first tick).
+    clock_subscription : bool
+        Subscribe to ``/clock`` (default). A node that takes ``/clock`` itself passes False and
+        hands every message to :meth:`on_clock`: one delivery per tick instead of two.
     """
 
     def __init__(self, node: Node, depends: Depends, on_tick: Callable[[int], None], *,
@@ -175,7 +178,7 @@ class Participant:
                  on_lost: Callable[[str, float, int], None] | None = None,
                  on_reject: Callable[[str, str], None] | None = None,
                  on_end: Callable[[int], None] | None = None,
-                 lost_timeout: float = 3.0, startup_timeout: float = 60.0) -> None:
+                 lost_timeout: float = 3.0, startup_timeout: float = 60.0, clock_subscription: bool = True) -> None:
         self.node = node
         self.name = node.get_name()
         self._depends = depends
@@ -202,7 +205,8 @@ class Participant:
         # a deep queue (compatible with the depth-1 publisher): a malformed or foreign announcement arriving
         # right after line_clock's must not push it out of the queue before it is taken
         node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, LINE_QOS)
-        node.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
+        if clock_subscription:
+            node.create_subscription(ClockMsg, CLOCK_TOPIC, self.on_clock, CLOCK_SUB_QOS)
         # the node's sim clock (use_sim_time) is fed from this subscription: rclpy's TimeSource would take
         # every /clock message a second time through a subscription of its own
         self._time_source = getattr(node, '_time_source', None)
@@ -288,7 +292,8 @@ class Participant:
 
         return on_ack
 
-    def _on_clock(self, msg: ClockMsg) -> None:
+    def on_clock(self, msg: ClockMsg) -> None:
+        """A ``/clock`` tick (from the participant's own subscription, or handed on by its node)."""
         if self._time_source is not None:
             self._time_source.clock_callback(msg)
         stamp = time_msg_to_ns(msg.clock)
@@ -335,10 +340,12 @@ class Participant:
                 return
 
     def _ack(self, stamp: int) -> None:
-        ack = TimeReference()
-        ack.header.stamp = ns_to_time_msg(stamp)
-        ack.header.frame_id = self.name
-        ack.time_ref = ack.header.stamp
+        # one message object, refilled: publishing serializes it at once, and the heartbeat repeats the latest
+        ack = self._last_ack
+        if ack is None:
+            ack = TimeReference()
+            ack.header.frame_id = self.name
+        ack.header.stamp = ack.time_ref = ns_to_time_msg(stamp)
         ack.source = format_counts(self.counts)
         self._ack_pub.publish(ack)
         self._last_ack = ack

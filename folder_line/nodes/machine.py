@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import functools
 import math
+from array import array
 from typing import Any, Iterable, Mapping
 
 import numpy as np
@@ -167,16 +168,20 @@ class MachineNode(Node):
         self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_scene)
         self._key = (self.values['scene'], self.values['overrides'], self.values['horizon'])
         self.commands: tuple[Command, ...] = ()
-        self.model = line_model(*self._key, self.commands)
-        self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
-        self.joints = self.model.nodes.get(self.NODE_NAME, ())
         self.kinds = np.array([EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME],
                               dtype=np.int16)
+        self._set_model(line_model(*self._key, self.commands))
+        self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
+        self.joints = self.model.nodes.get(self.NODE_NAME, ())
         self._last_ns: int | None = None      # the latest tick published
         self._grid_ns: int | None = None      # the latest grid point published
         self._period_ns = round(NS_PER_S / self.values['rate'])
-        self._batch: tuple[int, int, list[tuple[list[float], list[float], list[float]]]] | None = None
+        self._batch: tuple[int, int, list[tuple[array[float], array[float], array[float]]]] | None = None
         self._names: list[str] = list(self.joints)
+        # one joint state message, refilled for every grid point (publishing serializes it at once)
+        self._joint_msg = JointState()
+        self._joint_msg.header.frame_id = self.NODE_NAME
+        self._joint_msg.name = self._names
         self._horizon_logged = False
         self.rejected: dict[str, int] = {}
         self.published_joint_states = 0
@@ -265,10 +270,17 @@ class MachineNode(Node):
                         f'{self._last_ns / NS_PER_S:.9f} s was published')
             return
         self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
-        self.model = line_model(*self._key, self.commands)
+        self._set_model(line_model(*self._key, self.commands))
         self._batch = None
         self.on_model()
         self.lockstep.received('supervisor', 'commands')
+
+    def _set_model(self, model: LineModel) -> None:
+        """Take a (re)built model, with this node's own events picked out once (a tick only slices them)."""
+        self.model = model
+        ev = model.events
+        self._own_events = ev[np.isin(ev['kind'], self.kinds)] if ev.size else ev
+        self._own_t = self._own_events['t']
 
     def _on_tick(self, stamp_ns: int) -> None:
         if stamp_ns > self.horizon_ns:
@@ -290,7 +302,7 @@ class MachineNode(Node):
         first = self._grid_ns + self._period_ns
         return list(range(first, stamp_ns + 1, self._period_ns))
 
-    def _joint_row(self, g: int) -> tuple[list[float], list[float], list[float]]:
+    def _joint_row(self, g: int) -> tuple[array[float], array[float], array[float]]:
         """Position, velocity, effort of this node's joints at grid point ``g`` (ns).
 
         The model is sampled :data:`SAMPLE_BATCH` grid points at a time (one numpy call
@@ -307,9 +319,12 @@ class MachineNode(Node):
         n = max(1, min(SAMPLE_BATCH, (self.horizon_ns - g) // self._period_ns + 1))
         times = np.array([g + k * self._period_ns for k in range(n)], dtype=float) / NS_PER_S
         js = self.model.sample(self.NODE_NAME, times)
-        self._names = list(js.names)
-        pos, vel = js.position.tolist(), js.velocity.tolist()
-        eff: list[list[float]] = [[] for _ in range(n)] if js.effort is None else js.effort.tolist()
+        if list(js.names) != self._names:
+            self._names = list(js.names)
+            self._joint_msg.name = self._names
+        # array('d') rows: the message takes them as they are (a list is checked value by value)
+        pos, vel = [array('d', row) for row in js.position], [array('d', row) for row in js.velocity]
+        eff = [array('d')] * n if js.effort is None else [array('d', row) for row in js.effort]
         rows = list(zip(pos, vel, eff))
         self._batch = (g, self._period_ns, rows)
         return rows[0]
@@ -320,8 +335,8 @@ class MachineNode(Node):
         t_prev = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
         self._last_ns = stamp_ns
         stamp = ns_to_time_msg(stamp_ns)
-        events = self.model.events_between(t_prev, t)
-        mine = events[np.isin(events['kind'], self.kinds)] if events.size else events
+        i0, i1 = np.searchsorted(self._own_t, (t_prev, t), side='right')  # this node's events of (t_prev, t]
+        mine = self._own_events[i0:max(i0, i1)]
         for row in mine:
             ref = TimeReference()
             ref.header.stamp = stamp
@@ -335,14 +350,9 @@ class MachineNode(Node):
             self._grid_ns = points[-1]
             for g in points:
                 if self._joint_pub is not None:
-                    position, velocity, effort = self._joint_row(g)
-                    msg = JointState()
+                    msg = self._joint_msg
+                    msg.position, msg.velocity, msg.effort = self._joint_row(g)
                     msg.header.stamp = ns_to_time_msg(g)
-                    msg.header.frame_id = self.NODE_NAME
-                    msg.name = self._names
-                    msg.position = position
-                    msg.velocity = velocity
-                    msg.effort = effort
                     self.publish(self._joint_pub, msg)
                     self.published_joint_states += 1
                 self.publish_sample(g, g / NS_PER_S)

@@ -119,6 +119,11 @@ STATE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIAB
 
 
 def _non_finite(*arrays: Any) -> int:
+    """NaN and inf values in ``arrays`` (sequences of float)."""
+    # a NaN or an inf makes the sum non-finite, so a finite sum (the usual case, in C) needs no count;
+    # a non-finite sum may come from an overflow of finite values, so the count itself is exact
+    if math.isfinite(sum(sum(a) for a in arrays)):
+        return 0
     return sum(int(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=float)))) for a in arrays if len(a))
 
 
