@@ -69,15 +69,15 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-import yaml
 
-from folder_line.atomic import write_csv_atomic, write_text_atomic
+from folder_line.atomic import claim_output_dir, write_csv_atomic, write_text_atomic
 from folder_line.core.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
 from folder_line.core.drive import Command, Drive
 from folder_line.core.events import EVENT_DTYPE, EVENT_KINDS, ConstraintSeries, event_kind
 from folder_line.core.scene import Scene, parse_scene
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.event_text import parse_event_source
+from folder_line.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
 
 __all__ = [
     'CLOCK_TOPIC',
@@ -258,9 +258,10 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
                              '(with metadata.yaml)')
     run = None
     if run_dir is not None and (run_dir / 'run.json').is_file():
+        text = read_text_bounded(run_dir / 'run.json', 'RUN_DIR|BAG', METADATA_LIMIT)
         try:
-            run = json.loads((run_dir / 'run.json').read_text(encoding='utf-8'))
-        except (OSError, ValueError) as exc:
+            run = json.loads(text)
+        except ValueError as exc:
             raise ParameterError('RUN_DIR|BAG', str(path), f'run.json cannot be read: {exc}') from None
     return bag, run
 
@@ -324,7 +325,7 @@ def read_recording(path: str | os.PathLike[str],
     contents = read_bag(bag_dir)
     if not contents.scene_source:
         raise ParameterError('RUN_DIR|BAG', str(path), 'the bag holds no scene (custom data folder_line.scene)')
-    mapping = yaml.safe_load(contents.scene_source)
+    mapping = load_yaml(contents.scene_source, 'RUN_DIR|BAG', f'{path} (its scene, custom data folder_line.scene)')
     if not isinstance(mapping, dict):
         raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
     scene = parse_scene(mapping)
@@ -1292,7 +1293,13 @@ def analyze(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = N
     collector = _CsvCollector() if csv else None
     rec = read_recording(path, collector)
     out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    with claim_output_dir(out_dir, '--out', files=('report.md', *FIGURES), dirs=('csv',) if csv else ()):
+        return _write_analysis(rec, out_dir, collector, gantt_cycles)
+
+
+def _write_analysis(rec: Recording, out_dir: Path, collector: _CsvCollector | None,
+                    gantt_cycles: int) -> AnalysisResult:
+    """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
     ev = _evaluate(rec)
 
     summary = dict(ev.summary)

@@ -1,7 +1,11 @@
 """The ``folder-line`` command: thin verbs over the core and the report.
 
 Every bad input ends in one line on stderr naming the parameter and its value,
-and exit code 2; nothing is left half-written.
+and exit code 2; nothing is left half-written. Output targets are checked before any
+work (:mod:`folder_line.atomic`): a file target must be a regular file or missing (a
+symbolic link to a regular file is followed, never replaced), an output folder must be a
+folder, and it is locked for the verb's duration so that a second process writing into
+it is refused.
 """
 
 from __future__ import annotations
@@ -11,7 +15,13 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from folder_line.errors import FolderLineError
+from folder_line.errors import FolderLineError, OutputError
+
+#: the option that names each verb's output, for errors raised where it is not known
+_OUTPUT_OPTION = {'kinematics': '--csv', 'simulate': '--json', 'run': '--out', 'report': '--out',
+                  'analyze': '--out', 'bench': '--out', 'bag': 'DIR'}
+#: longest error line printed, characters (each value in it is already cut to 80)
+_LINE_CHARS = 2000
 
 __all__ = ['main']
 
@@ -133,23 +143,24 @@ def _build_parser() -> argparse.ArgumentParser:
 def _cmd_bench(args: argparse.Namespace) -> int:
     from folder_line.accuracy.bench import run_benchmark
     from folder_line.accuracy.output import write_outputs
-    from folder_line.errors import ParameterError
+    from folder_line.atomic import claim_output_dir
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():  # before any work: the results would have nowhere to go
-        raise ParameterError('--out', args.out, 'exists and is not a directory')
-    result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
-    command = 'folder-line bench accuracy' + (' --quick' if args.quick else '') + ''.join(
-        f' --only {s}' for s in args.only)
-    for path in write_outputs(result, out, command):
-        print(f'wrote {path}')
+    files = ('accuracy.csv', 'accuracy.md', 'accuracy.png', 'accuracy.json')
+    with claim_output_dir(args.out, '--out', files) as out:  # before any work: the results need a place
+        result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
+        command = 'folder-line bench accuracy' + (' --quick' if args.quick else '') + ''.join(
+            f' --only {s}' for s in args.only)
+        for path in write_outputs(result, out, command):
+            print(f'wrote {path}')
     return 0
 
 
 def _cmd_kinematics(args: argparse.Namespace) -> int:
     from folder_line.tables import kinematics_table, print_summary
-    from folder_line.atomic import write_csv_atomic
+    from folder_line.atomic import check_output_file, write_csv_atomic
 
+    if args.csv:
+        check_output_file(args.csv, '--csv')
     table = kinematics_table(args.mechanism, args.params, args.samples)
     print_summary(args.mechanism, table, sys.stdout)
     if args.csv:
@@ -159,11 +170,13 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from folder_line.atomic import write_json_atomic
+    from folder_line.atomic import check_output_file, write_json_atomic
     from folder_line.core.line import simulate
     from folder_line.scenes import load_scene, parse_set
     from folder_line.sim_summary import print_summary
 
+    if args.json:
+        check_output_file(args.json, '--json')
     scene = load_scene(args.scene, parse_set(args.overrides))
     result = simulate(scene, args.duration, sample_rate=0.0)
     summary = result.summary()
@@ -175,7 +188,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from folder_line.run import RunConfig, print_run_summary, run_line
+    from folder_line.atomic import claim_output_dir
+    from folder_line.run import BAG_DIR, RunConfig, print_run_summary, run_line
 
     if args.clock == 'wall' and args.rtf == 0.0:
         print("folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)",
@@ -183,7 +197,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     cfg = RunConfig(scene=args.scene, duration=args.duration, overrides=tuple(args.overrides), rtf=args.rtf,
                     out=Path(args.out), processes=args.processes, clock=args.clock, lost_timeout=args.lost_timeout)
-    result = run_line(cfg, sys.stdout)
+    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(BAG_DIR, 'logs')):
+        result = run_line(cfg, sys.stdout)
     print_run_summary(result.summary, cfg.out, sys.stdout)
     verdict = result.summary['outcome']
     if not verdict['ok']:
@@ -212,9 +227,11 @@ def _cmd_bag(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from folder_line.report import write_report
+    from folder_line.atomic import claim_output_dir
+    from folder_line.report import REPORT_FILES, write_report
 
-    write_report(Path(args.out), sys.stdout)
+    with claim_output_dir(args.out, '--out', REPORT_FILES) as out:
+        write_report(out, sys.stdout)
     return 0
 
 
@@ -223,6 +240,13 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 
     print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
     return 0
+
+
+def _error(text: str) -> None:
+    """Print ``text`` as one line on stderr (newlines folded, cut to :data:`_LINE_CHARS`)."""
+    from folder_line.errors import shorten
+
+    print(f'folder-line: error: {shorten(" ".join(text.split()), _LINE_CHARS)}', file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -234,8 +258,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                'bench': _cmd_bench}[args.verb]
     try:
         return handler(args)
+    except OutputError as exc:
+        _error(str(exc.with_option(_OUTPUT_OPTION[args.verb])))
+        return EXIT_USAGE
     except FolderLineError as exc:
-        print(f'folder-line: error: {exc}', file=sys.stderr)
+        _error(str(exc))
+        return EXIT_USAGE
+    except OSError as exc:  # the OS refused a write deep inside a verb (a bag segment, a log)
+        where = f'{exc.filename!r}: ' if exc.filename is not None else ''
+        _error(f'{_OUTPUT_OPTION[args.verb]}: {where}{exc.strerror or exc}')
         return EXIT_USAGE
     except KeyboardInterrupt:
         return 130

@@ -7,9 +7,12 @@ them as one line and exit with code 2.
 
 from __future__ import annotations
 
+import reprlib
+
 __all__ = [
     'FolderLineError',
     'ParameterError',
+    'OutputError',
     'AssemblyError',
     'RootFindingError',
     'NotBracketedError',
@@ -18,7 +21,46 @@ __all__ = [
     'IntegrationError',
     'MeasurementError',
     'TransitionError',
+    'MESSAGE_VALUE_CHARS',
+    'bounded_repr',
+    'shorten',
 ]
+
+#: longest rendering of a user-given value (or key) inside an error message, characters
+MESSAGE_VALUE_CHARS = 80
+
+
+def shorten(text: str, limit: int = MESSAGE_VALUE_CHARS) -> str:
+    """``text`` cut to at most ``limit`` characters, the cut marked by an ellipsis (``...``)."""
+    if len(text) <= limit:
+        return text
+    return text[:max(limit - 3, 1)] + '...'
+
+
+class _BoundedRepr(reprlib.Repr):
+    """``reprlib`` with bounded work as well as bounded output: an int too long for ``repr``
+    (over 4300 digits raises ValueError) is described by its size, and nesting is cut early,
+    so that a YAML bomb of shared nested lists costs microseconds to describe."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxlevel = 3
+        self.maxstring = self.maxother = self.maxlong = MESSAGE_VALUE_CHARS
+        self.maxlist = self.maxtuple = self.maxset = self.maxfrozenset = self.maxdeque = self.maxarray = 6
+        self.maxdict = 4
+
+    def repr_int(self, x: int, level: int) -> str:
+        if x.bit_length() > 256:  # ~77 digits: repr of a huge int is slow or raises
+            return f'<int of about {int(x.bit_length() * 0.30103) + 1} digits>'
+        return super().repr_int(x, level)
+
+
+_REPR = _BoundedRepr()
+
+
+def bounded_repr(value: object, limit: int = MESSAGE_VALUE_CHARS) -> str:
+    """``repr(value)`` for an error message: at most ``limit`` characters, in bounded time."""
+    return shorten(_REPR.repr(value), limit)
 
 
 class FolderLineError(Exception):
@@ -42,8 +84,41 @@ class ParameterError(FolderLineError, ValueError):
         self.key = key
         self.value = value
         self.reason = reason
-        msg = f'{key}={value!r}: {reason}'
+        msg = f'{shorten(str(key))}={bounded_repr(value)}: {reason}'
         super().__init__(msg)
+
+
+class OutputError(FolderLineError, OSError):
+    """An output target cannot be written: it is not a regular file (or folder), it is in use
+    by another run, or the operating system refused the write.
+
+    Nothing was created or changed at the target when this is raised.
+
+    Parameters
+    ----------
+    option : str or None
+        The command-line option that named the target (``'--csv'``, ``'--out'``), or None
+        when not known where the error is raised (the command line fills it in).
+    path : str
+        The target.
+    reason : str
+        Why, e.g. ``'is a FIFO, not a regular file'`` or the OS reason (``strerror``).
+    """
+
+    def __init__(self, option: str | None, path: str, reason: str) -> None:
+        self.option, self.path, self.reason = option, path, reason
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        where = f'{self.option}={self.path!r}' if self.option else repr(self.path)
+        return f'{where}: {self.reason}'
+
+    def __str__(self) -> str:
+        return self._message()
+
+    def with_option(self, option: str) -> OutputError:
+        """The same error naming ``option`` (unless it already names one)."""
+        return self if self.option else OutputError(option, self.path, self.reason)
 
 
 class AssemblyError(FolderLineError, ValueError):

@@ -13,9 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
-
 from folder_line.errors import ParameterError
+from folder_line.yamlio import load_yaml_file
 
 __all__ = ['KINDS', 'config_dir', 'load_params', 'read_yaml_mapping']
 
@@ -55,15 +54,12 @@ def config_dir() -> Path:
 
 
 def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
-    """Read a YAML file that must hold a mapping (an empty file is an empty mapping)."""
-    try:
-        text = Path(path).read_text(encoding='utf-8')
-    except OSError as exc:
-        raise ParameterError(what, str(path), f'cannot read file: {exc.strerror}') from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ParameterError(what, str(path), f'not valid YAML: {exc}') from None
+    """Read a YAML file that must hold a mapping (an empty file is an empty mapping).
+
+    Read by :func:`folder_line.yamlio.load_yaml_file`: a regular UTF-8 file of at most
+    1 MiB, no tags, no duplicate keys, aliases bounded; errors name the line and column.
+    """
+    data = load_yaml_file(path, what)
     if data is None:
         return {}
     if not isinstance(data, dict):

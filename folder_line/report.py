@@ -14,12 +14,16 @@ from typing import IO
 import numpy as np
 
 from folder_line.core import cyclogram, delivery, knife, layup
-from folder_line.atomic import write_csv_atomic
+from folder_line.atomic import write_csv_atomic, write_text_atomic
 from folder_line.params import load_params
 from folder_line.plots import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.tables import kinematics_table
 
-__all__ = ['Check', 'published_checks', 'write_report']
+__all__ = ['REPORT_FILES', 'Check', 'published_checks', 'write_report']
+
+#: the files :func:`write_report` writes into its folder
+REPORT_FILES = ('report.md', 'layup.csv', 'knife.csv', 'delivery.csv', 'layup_speeds.png', 'layup_geometry.png',
+                'knife_cyclogram.png', 'delivery_efficiency.png')
 
 PAPER_V_TR = 0.230 / 0.025  # m/s, paper 001 eq. (5): 230 mm in 0.025 s
 
@@ -196,7 +200,7 @@ def write_report(out: Path, stream: IO[str]) -> list[Path]:
     written.append(_plot_knife(p['knife'], p['cyclogram'], out))
     written.append(_plot_delivery(p['delivery'], out))
     lines += ['', '## Plots', ''] + [f'![{w.stem}]({w.name})' for w in written if w.suffix == '.png']
-    (out / 'report.md').write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    write_text_atomic(out / 'report.md', '\n'.join(lines) + '\n')
 
     for line in lines:
         if not line.startswith('!['):

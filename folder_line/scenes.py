@@ -15,14 +15,16 @@ import os
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
-import yaml
-
 from folder_line.core.effects import EFFECTS
 from folder_line.core.scene import MACHINE_KINDS, Scene, parse_scene
 from folder_line.errors import ParameterError
 from folder_line.params import config_dir, read_yaml_mapping
+from folder_line.yamlio import load_yaml
 
-__all__ = ['list_scenes', 'load_scene', 'parse_set', 'resolve_scene', 'scene_mapping']
+__all__ = ['SET_VALUE_CHARS', 'list_scenes', 'load_scene', 'parse_set', 'resolve_scene', 'scene_mapping']
+
+#: longest VALUE of ``--set KEY=VALUE``, characters
+SET_VALUE_CHARS = 100
 
 
 def list_scenes() -> list[str]:
@@ -34,8 +36,8 @@ def resolve_scene(name_or_path: str | os.PathLike[str]) -> Path:
     """Path of a scene given by name (``folder``) or by file path."""
     text = str(name_or_path)
     path = Path(text)
-    if path.suffix in ('.yaml', '.yml') or os.sep in text or path.is_file():
-        if not path.is_file():
+    if path.suffix in ('.yaml', '.yml') or os.sep in text or (path.exists() and not path.is_dir()):
+        if not path.exists():  # anything else that is there (a FIFO, a folder) is refused by the reader
             raise ParameterError('--scene', text, 'no such file')
         return path
     shipped = config_dir() / 'scenes' / f'{text}.yaml'
@@ -52,9 +54,11 @@ def parse_set(items: Iterable[str]) -> dict[str, Any]:
         key = key.strip()
         if not sep or not key:
             raise ParameterError('--set', item, 'must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833')
+        if len(raw) > SET_VALUE_CHARS:
+            raise ParameterError(key, raw, f'value is {len(raw)} characters long; at most {SET_VALUE_CHARS}')
         try:
-            value = yaml.safe_load(raw) if raw.strip() else None
-        except yaml.YAMLError:
+            value = load_yaml(raw, key, '--set') if raw.strip() else None
+        except ParameterError:  # not a YAML scalar: the text as given
             value = raw
         if isinstance(value, str):  # YAML 1.1 reads 1e9 as a string; a user means the number
             try:
