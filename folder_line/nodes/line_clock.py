@@ -57,7 +57,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
-from folder_line.core.lockstep import TickLedger, parse_counts
+from folder_line.core.lockstep import TickLedger
 from folder_line.errors import ParameterError
 from folder_line.nodes.common import (
     CLOCK_QOS,
@@ -70,7 +70,6 @@ from folder_line.nodes.common import (
     ns_to_time_msg,
     run_node,
     seconds_to_ns,
-    time_msg_to_ns,
 )
 from folder_line.nodes.lockstep import (
     CLOCK_MODES,
@@ -83,6 +82,7 @@ from folder_line.nodes.lockstep import (
     Announcement,
     format_announcement,
     participant_names,
+    read_ack,
     tick_done_topic,
 )
 
@@ -180,7 +180,7 @@ class LineClock(Node):
         self.announcement = Announcement(self.mode, self._end, self.participants)
         announce.publish(String(data=format_announcement(self.announcement)))
         for name in self.participants:
-            self.create_subscription(TimeReference, tick_done_topic(name), self._on_ack(name), TICK_QOS)
+            self.create_subscription(TimeReference, tick_done_topic(name), self._on_ack(name), TICK_QOS, raw=True)
         self._pacer = self.create_timer(1.0, self._on_pacer, clock=self._wall)
         self._pacer.cancel()
         self._watch = self.create_timer(0.1, self._on_watch, clock=self._wall)
@@ -219,14 +219,13 @@ class LineClock(Node):
                 self._step = round(NS_PER_S / p.value)
 
     def _on_ack(self, name: str) -> Any:
-        def on_ack(msg: TimeReference) -> None:
-            stamp = time_msg_to_ns(msg.header.stamp)
+        def on_ack(data: bytes) -> None:
             try:
-                counts = parse_counts(msg.source)
+                frame_id, stamp, counts = read_ack(data)
             except ValueError:
                 self.rejected += 1
                 return
-            if msg.header.frame_id != name or self._ledger.ack(name, stamp, counts) is not None:
+            if frame_id != name or self._ledger.ack(name, stamp, counts) is not None:
                 self.rejected += 1
                 return
             self._heard[name] = time.monotonic()  # a repeated acknowledgement too: alive, waiting for another

@@ -27,6 +27,7 @@ from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
@@ -46,6 +47,7 @@ from folder_line.nodes.lockstep import (
     Announcement,
     format_announcement,
     parse_announcement,
+    read_ack,
     tick_done_topic,
 )
 
@@ -228,6 +230,33 @@ def test_a_malformed_announcement_is_refused_with_the_reason(text: str, words: s
     with pytest.raises(ValueError) as info:
         parse_announcement(text)
     assert words in str(info.value)
+
+
+@given(frame=st.text(max_size=60), stamp=st.integers(min_value=0, max_value=2**31 * NS_PER_S - 1),
+       counts=st.fixed_dictionaries({s: st.integers(min_value=0, max_value=2**63 - 1)
+                                     for s in ('messages', 'events', 'commands')}))
+def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
+        frame: str, stamp: int, counts: dict[str, int]) -> None:
+    # read_ack decodes the raw bytes with rosbags: checked against rclpy's own serialization
+    msg = TimeReference(source=format_counts(counts))
+    msg.header.frame_id = frame
+    msg.header.stamp = msg.time_ref = ns_to_time_msg(stamp)
+    assert read_ack(serialize_message(msg)) == (frame, stamp, counts)
+
+
+@given(data=st.binary(max_size=300))
+def test_bytes_that_are_no_acknowledgement_are_refused_with_a_reason(data: bytes) -> None:
+    good = TimeReference(source=format_counts({'messages': 1}))
+    try:
+        read_ack(data)
+    except ValueError as err:
+        assert str(err)  # a reason, and nothing but ValueError
+    else:  # random bytes may happen to be a valid acknowledgement: then it is one rclpy reads the same
+        assert deserialize_message(data, TimeReference).source.startswith('messages=')
+    with pytest.raises(ValueError, match='not a sensor_msgs/TimeReference'):
+        read_ack(serialize_message(good)[:-3])
+    with pytest.raises(ValueError, match="unexpected item 'garbage'"):
+        read_ack(serialize_message(TimeReference(source='garbage')))
 
 
 def test_topics_of_the_protocol() -> None:
