@@ -24,11 +24,13 @@ Crash safety. The writer rolls over to the next file when the line time reaches
 the next multiple of ``segment_s``: it finishes the open file (chunks, summary,
 footer), closes it and rewrites ``metadata.yaml`` (atomically) listing the finished
 files only. So after a SIGKILL of the writing process the directory opens with
-``rosbags`` as it is, with every message of every finished segment; only the open
-segment -- at most ``segment_s`` of line time -- is missing. :func:`repair`
-rebuilds ``metadata.yaml`` from the files present and salvages the complete chunks
-of an unfinished file. Files are not fsynced: this protects against a crash of the
-process, not of the operating system.
+``rosbags`` as it is, with every message of every finished segment. Within the open
+segment the writer closes the current chunk and hands it to the operating system
+every ``flush_s`` of line time (default 0.1 s), so :func:`repair` salvages the open
+file up to its last flushed chunk: a SIGKILL loses at most ``flush_s`` of line time
+plus the messages of the tick being written. :func:`repair` rebuilds
+``metadata.yaml`` from the files present. Files are not fsynced: this protects
+against a crash of the process, not of the operating system.
 
 ``custom_data`` (rosbag2 allows strings only): ``folder_line.scene`` (the complete
 scene as YAML), ``folder_line.scene_name``, ``folder_line.effects`` (JSON list),
@@ -311,13 +313,18 @@ def segment_files(directory: str | os.PathLike[str]) -> list[Path]:
 class _Segment:
     """One open ``.mcap`` file."""
 
-    def __init__(self, path: Path, chunk_size: int, custom: Mapping[str, str]) -> None:
+    def __init__(self, path: Path, chunk_size: int, custom: Mapping[str, str], flush_ns: int) -> None:
         import mcap
         from mcap.writer import CompressionType, Writer
 
         self.path = path
         self.stream: BinaryIO = path.open('xb')
         self.writer = Writer(self.stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        # python mcap's Writer ends a chunk only by size or at finish(); its chunk-ending method is
+        # private (name-mangled). Checked here, so that a changed library fails at once, not at a crash.
+        self._end_chunk: Callable[[], None] = getattr(self.writer, '_Writer__finalize_chunk')
+        self.flush_ns = flush_ns
+        self._next_flush_ns: int | None = None
         self.writer.start(profile='ros2', library=f'folder_line {__version__} (python mcap {mcap.__version__})')
         self.writer.add_metadata(MCAP_METADATA_NAME, dict(custom))
         self.schemas: dict[str, int] = {}
@@ -335,11 +342,21 @@ class _Segment:
             topic, 'cdr', self.schemas[msgtype], {'offered_qos_profiles': '[]', 'topic_type_hash': rihs01})
 
     def add(self, topic: str, log_ns: int, publish_ns: int, data: bytes, sequence: int) -> None:
+        if self._next_flush_ns is None:
+            self._next_flush_ns = log_ns + self.flush_ns
+        elif log_ns >= self._next_flush_ns:  # the messages before this tick go to disk (a SIGKILL keeps them)
+            self.flush()
+            self._next_flush_ns = log_ns + self.flush_ns
         self.writer.add_message(self.channels[topic], log_ns, data, publish_ns, sequence)
         if self.count == 0:
             self.start_ns = log_ns
         self.end_ns = log_ns
         self.count += 1
+
+    def flush(self) -> None:
+        """End the current chunk and hand the file's bytes to the operating system."""
+        self._end_chunk()
+        self.stream.flush()
 
     def finish(self) -> FileSummary:
         self.writer.finish()
@@ -363,7 +380,10 @@ class BagWriter:
     effects : list of str
         The scene's effects (stored as ``folder_line.effects``, JSON).
     segment_s : float
-        Line time per file, s, > 0 (default 1): a SIGKILL loses at most this much.
+        Line time per file, s, in [1e-6, 1e6] (default 1).
+    flush_s : float
+        Line time between two flushes of the open file, s, in [1e-6, 1e6] (default 0.1): a
+        SIGKILL loses at most this much (and the tick being written), after :func:`repair`.
     scene_name : str
         Stored as ``folder_line.scene_name``.
     topics : mapping of str to type or str, optional
@@ -387,11 +407,12 @@ class BagWriter:
     def __init__(self, directory: str | os.PathLike[str], *, scene_source: str, effects: Sequence[str],
                  segment_s: float = 1.0, scene_name: str = '', topics: Mapping[str, type | str] | None = None,
                  custom: Mapping[str, str] | None = None, clock_topic: str = '/clock',
-                 chunk_size: int = 1024 * 1024) -> None:
+                 chunk_size: int = 1024 * 1024, flush_s: float = 0.1) -> None:
         self.path = Path(directory)
-        if not (isinstance(segment_s, (int, float)) and 1e-6 <= segment_s <= 1e6):
-            msg = f'{self.path}: segment_s={segment_s!r} must be in [1e-6, 1e6] s'
-            raise BagError(msg)
+        for name, value in (('segment_s', segment_s), ('flush_s', flush_s)):
+            if not (isinstance(value, (int, float)) and 1e-6 <= value <= 1e6):
+                msg = f'{self.path}: {name}={value!r} must be in [1e-6, 1e6] s'
+                raise BagError(msg)
         if not (isinstance(chunk_size, int) and chunk_size > 0):
             msg = f'{self.path}: chunk_size={chunk_size!r} must be a positive whole number of bytes'
             raise BagError(msg)
@@ -399,6 +420,7 @@ class BagWriter:
             msg = f'{self.path}: exists and is not an empty directory; a bag is written to a new one'
             raise BagError(msg)
         self.segment_ns = round(float(segment_s) * NS_PER_S)
+        self.flush_ns = round(float(flush_s) * NS_PER_S)
         self.clock_topic = clock_topic
         self.chunk_size = chunk_size
         self.custom: dict[str, str] = {
@@ -532,7 +554,7 @@ class BagWriter:
             raise BagError(msg)
 
     def _open_segment(self, index: int) -> _Segment:
-        segment = _Segment(self.path / f'{self.path.name}_{index}.mcap', self.chunk_size, self.custom)
+        segment = _Segment(self.path / f'{self.path.name}_{index}.mcap', self.chunk_size, self.custom, self.flush_ns)
         for topic, msgtype in self.types.items():
             segment.add_channel(topic, msgtype)
         return segment
@@ -889,7 +911,8 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     Raises
     ------
     BagError
-        ``directory`` is not a directory, holds no ``.mcap`` file, or no file can be read.
+        ``directory`` is not a directory, holds no ``.mcap`` file, or no file holds a readable
+        message (then nothing is changed).
     """
     from rosbags.rosbag2 import Reader
 
@@ -902,11 +925,23 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
         msg = f'{bag}: no .mcap files: not a rosbag2 bag in MCAP storage'
         raise BagError(msg)
     result = RepairResult(metadata=bag / METADATA_FILE)
-    scans: list[tuple[Path, _Scan]] = []
+    # read everything first: a bag with nothing to salvage is left exactly as it was
+    found: list[tuple[Path, _Scan, tuple[list[Any], list[Any], int] | None]] = []
     for path in paths:
         scan = _scan_finished(path)
-        if scan is None:
+        if scan is not None:
+            found.append((path, scan, None))
+        else:
             scan, messages, metadata, good = _salvage(path)
+            found.append((path, scan, (messages, metadata, good)))
+    if not any(salvage is None or salvage[0] for _, _, salvage in found):
+        msg = (f'{bag}: none of the {len(paths)} .mcap files holds a readable message '
+               '(nothing was changed)')
+        raise BagError(msg)
+    scans: list[tuple[Path, _Scan]] = []
+    for path, scan, salvage in found:
+        if salvage is not None:
+            messages, metadata, good = salvage
             result.dropped[path.name] = path.stat().st_size - good
             if messages:
                 _rewrite(path, scan, messages, metadata)
@@ -916,9 +951,6 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
                 result.removed.append(path.name)
                 continue
         scans.append((path, scan))
-    if not scans:
-        msg = f'{bag}: none of the {len(paths)} .mcap files can be read'
-        raise BagError(msg)
 
     custom = _old_custom(bag)
     if custom is None:

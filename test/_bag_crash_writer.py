@@ -1,6 +1,6 @@
 """Writes a bag with a fake line clock until it is killed: the subject of test_bag_crash.py.
 
-``python test/_bag_crash_writer.py DIR --dt-ns N --segment-s S --chunk-size B [--block-after STEPS]``
+``python test/_bag_crash_writer.py DIR --dt-ns N --segment-s S --chunk-size B [--flush-s F] [--block-after STEPS]``
 
 Step ``i`` (from 0) writes ``/clock`` at ``t_i = i * dt``, then a ``JointState`` on
 ``/line/crank_drive/joint_states`` with ``position = [i]`` stamped ``t_i``, and on every
@@ -38,10 +38,12 @@ def main() -> int:
     parser.add_argument('--dt-ns', type=int, required=True)
     parser.add_argument('--segment-s', type=float, required=True)
     parser.add_argument('--chunk-size', type=int, required=True)
+    parser.add_argument('--flush-s', type=float, default=0.1)
     parser.add_argument('--block-after', type=int, default=0)
     args = parser.parse_args()
     writer = BagWriter(args.dir, scene_source='name: crash\n', effects=['faults'], scene_name='crash',
-                       segment_s=args.segment_s, topics=LINE_TOPICS, chunk_size=args.chunk_size)
+                       segment_s=args.segment_s, topics=LINE_TOPICS, chunk_size=args.chunk_size,
+                       flush_s=args.flush_s)
     i = 0
     while True:
         t_ns = i * args.dt_ns

@@ -11,6 +11,7 @@ the open segment (<= ``segment_s`` of line time) -- here exactly a tail of it.
 from __future__ import annotations
 
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -21,7 +22,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from folder_line.bag import read_bag, repair, segment_files
+from folder_line.bag import BagError, read_bag, repair, segment_files
 from folder_line.cli import main as cli_main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -163,7 +164,7 @@ def test_sigkill_while_writing_loses_at_most_the_open_segment(tmp_path: Path) ->
 
 def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
-    proc = _start(bag, '--block-after', '60', chunk_size=1024)
+    proc = _start(bag, '--block-after', '60', chunk_size=1024 * 1024)  # the recorder's chunk size
     try:
         assert _read_line(proc) == 'blocked 60'
     finally:
@@ -174,4 +175,53 @@ def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
     result = repair(bag)
     steps = _joint_steps(bag)
     assert result.salvaged.get('bag_0.mcap', 0) > 0
-    assert steps == list(range(len(steps))) and 0 < len(steps) < 60
+    # flushed every 0.1 s of line time: steps up to 0.5 s are on disk although no chunk was full
+    assert steps == list(range(len(steps))) and 50 <= len(steps) < 60
+
+
+FLUSH_NS = 100_000_000  # the writer's default flush_s, 0.1 s
+GOAL_NS = 200_000_000  # at most 0.2 s of line time lost to a SIGKILL
+
+
+def test_sigkill_at_ten_random_moments_loses_at_most_the_flush_interval(tmp_path: Path) -> None:
+    rng = random.Random(20261124)  # fixed: the same ten moments in every run
+    lost_ns = []
+    for k in range(10):
+        n_steps = rng.randrange(2, 1000)  # a moment within 10 s of line time
+        bag = tmp_path / f'bag{k}'
+        proc = _start(bag, '--block-after', str(n_steps), chunk_size=1024 * 1024)
+        try:
+            assert _read_line(proc) == f'blocked {n_steps}'
+        finally:
+            _kill(proc)
+        try:
+            repair(bag)
+        except BagError:  # killed before the first flush: nothing on disk, and repair changes nothing
+            steps = []
+        else:
+            steps = _joint_steps(bag)
+        assert steps == list(range(len(steps)))  # a prefix: nothing missing in between
+        lost = (n_steps - len(steps)) * DT_NS  # line time written but not in the repaired bag
+        assert 0 <= lost <= FLUSH_NS + DT_NS, (n_steps, steps[-1])
+        lost_ns.append(lost)
+    print(f'line time lost to SIGKILL after repair, 10 moments: worst {max(lost_ns) / 1e6:g} ms, '
+          f'mean {sum(lost_ns) / len(lost_ns) / 1e6:g} ms')
+    assert max(lost_ns) <= GOAL_NS
+
+
+def test_repair_of_a_bag_with_nothing_to_salvage_changes_nothing(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    bag = tmp_path / 'bag'
+    proc = _start(bag, '--block-after', '1', chunk_size=1024 * 1024)  # killed before its first flush
+    try:
+        assert _read_line(proc) == 'blocked 1'
+    finally:
+        _kill(proc)
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    assert 'bag_0.mcap' in before
+    with pytest.raises(BagError, match='holds a readable message'):
+        repair(bag)
+    assert cli_main(['bag', 'repair', str(bag)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'nothing was changed' in err
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
