@@ -12,6 +12,7 @@ import reprlib
 __all__ = [
     'FolderLineError',
     'ParameterError',
+    'InputFileError',
     'OutputError',
     'AssemblyError',
     'RootFindingError',
@@ -86,6 +87,26 @@ class ParameterError(FolderLineError, ValueError):
         self.reason = reason
         msg = f'{shorten(str(key))}={bounded_repr(value)}: {reason}'
         super().__init__(msg)
+
+
+class InputFileError(ParameterError):
+    """A file given as input cannot be read: not a regular file, too large, not UTF-8, not
+    the YAML we accept. Unlike other values the path is printed whole (the OS bounds its
+    length), since a path cut in the middle no longer says which file.
+
+    Parameters
+    ----------
+    what : str
+        The option or role of the file (``'--scene'``, ``'bag metadata'``).
+    path : str
+        The file.
+    reason : str
+        What is wrong, with the line and column where there is one.
+    """
+
+    def __init__(self, what: str, path: str, reason: str) -> None:
+        super().__init__(what, path, reason)
+        self.args = (f'{shorten(what)}={path!r}: {reason}',)
 
 
 class OutputError(FolderLineError, OSError):

@@ -17,7 +17,7 @@ from typing import Any, Iterable, Mapping
 
 from folder_line.core.effects import EFFECTS
 from folder_line.core.scene import MACHINE_KINDS, Scene, parse_scene
-from folder_line.errors import ParameterError
+from folder_line.errors import InputFileError, ParameterError
 from folder_line.params import config_dir, read_yaml_mapping
 from folder_line.yamlio import load_yaml
 
@@ -38,7 +38,7 @@ def resolve_scene(name_or_path: str | os.PathLike[str]) -> Path:
     path = Path(text)
     if path.suffix in ('.yaml', '.yml') or os.sep in text or (path.exists() and not path.is_dir()):
         if not path.exists():  # anything else that is there (a FIFO, a folder) is refused by the reader
-            raise ParameterError('--scene', text, 'no such file')
+            raise InputFileError('--scene', text, 'no such file')
         return path
     shipped = config_dir() / 'scenes' / f'{text}.yaml'
     if not shipped.is_file():

@@ -12,8 +12,8 @@ Every read is bounded before it starts:
   ``max_nodes`` nodes (a "billion laughs" bomb fails at composition, in bounded memory),
   and integers of more than :data:`MAX_INT_DIGITS` digits.
 
-Every failure is a :class:`~folder_line.errors.ParameterError` whose message is one line
-naming the file, the line and the column (1-based), e.g.
+Every failure is a :class:`~folder_line.errors.InputFileError` (a ``ParameterError``)
+whose message is one line naming the file, the line and the column (1-based), e.g.
 ``--scene='s.yaml': line 3, column 5: duplicate key 'V_tr' (first at line 2)``.
 """
 
@@ -29,7 +29,7 @@ import yaml
 from yaml.constructor import ConstructorError
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from folder_line.errors import ParameterError, bounded_repr, shorten
+from folder_line.errors import InputFileError, bounded_repr, shorten
 
 __all__ = ['BoundedLoader', 'MAX_ALIASES', 'MAX_DEPTH', 'MAX_INT_DIGITS', 'MAX_NODES', 'METADATA_LIMIT',
            'TEXT_LIMIT', 'load_yaml', 'load_yaml_file', 'read_text_bounded']
@@ -153,7 +153,7 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
 
     Raises
     ------
-    ParameterError
+    InputFileError
         Cannot be opened (the OS reason), not a regular file, too large, not UTF-8 (with
         the line and column of the first bad byte) or UTF-16.
     """
@@ -161,13 +161,13 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
     try:  # O_NONBLOCK: opening a FIFO must not wait for a writer
         fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK | getattr(os, 'O_CLOEXEC', 0))
     except OSError as exc:
-        raise ParameterError(what, name, f'cannot read file: {exc.strerror}') from None
+        raise InputFileError(what, name, f'cannot read file: {exc.strerror}') from None
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
-            raise ParameterError(what, name, f'is {_kind(info.st_mode)}, not a regular file')
+            raise InputFileError(what, name, f'is {_kind(info.st_mode)}, not a regular file')
         if info.st_size > limit:
-            raise ParameterError(what, name, f'is {info.st_size} bytes; at most {limit} are read')
+            raise InputFileError(what, name, f'is {info.st_size} bytes; at most {limit} are read')
         chunks: list[bytes] = []
         size = 0
         while size <= limit:  # the file may grow while we read: never read more than limit + 1
@@ -177,21 +177,21 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
             chunks.append(chunk)
             size += len(chunk)
     except OSError as exc:
-        raise ParameterError(what, name, f'cannot read file: {exc.strerror or errno.errorcode.get(exc.errno or 0)}'
+        raise InputFileError(what, name, f'cannot read file: {exc.strerror or errno.errorcode.get(exc.errno or 0)}'
                              ) from None
     finally:
         os.close(fd)
     data = b''.join(chunks)
     if len(data) > limit:
-        raise ParameterError(what, name, f'is over {limit} bytes; at most {limit} are read')
+        raise InputFileError(what, name, f'is over {limit} bytes; at most {limit} are read')
     if data[:2] in (b'\xff\xfe', b'\xfe\xff'):
-        raise ParameterError(what, name, 'is UTF-16 (byte-order mark); save it as UTF-8')
+        raise InputFileError(what, name, 'is UTF-16 (byte-order mark); save it as UTF-8')
     try:
         text = data.decode('utf-8')
     except UnicodeDecodeError as exc:
         line = data.count(b'\n', 0, exc.start) + 1
         column = exc.start - (data.rfind(b'\n', 0, exc.start) + 1) + 1
-        raise ParameterError(what, name, f'line {line}, column {column}: not UTF-8 '
+        raise InputFileError(what, name, f'line {line}, column {column}: not UTF-8 '
                              f'(byte 0x{data[exc.start]:02x}); save it as UTF-8') from None
     return text[1:] if text.startswith('\ufeff') else text
 
@@ -216,7 +216,7 @@ def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> 
 
     Raises
     ------
-    ParameterError
+    InputFileError
         One line: ``what='source': line L, column C: problem``.
     """
     loader: BoundedLoader | None = None
@@ -228,16 +228,16 @@ def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> 
         mark = exc.problem_mark or exc.context_mark
         problem = ' '.join(str(exc.problem or exc.context or 'invalid YAML').split())
         where = f'line {mark.line + 1}, column {mark.column + 1}: ' if mark is not None else ''
-        raise ParameterError(what, source, f'{where}{shorten(problem, 120)}') from None
+        raise InputFileError(what, source, f'{where}{shorten(problem, 120)}') from None
     except yaml.reader.ReaderError as exc:  # a character YAML does not allow (NUL, other controls)
         line, column = _position(text, exc.position)
-        raise ParameterError(what, source, f'line {line}, column {column}: character '
+        raise InputFileError(what, source, f'line {line}, column {column}: character '
                              f'U+{exc.character if isinstance(exc.character, int) else 0:04X} '
                              'is not allowed in YAML') from None
     except yaml.YAMLError as exc:
-        raise ParameterError(what, source, f'not valid YAML: {shorten(" ".join(str(exc).split()), 120)}') from None
+        raise InputFileError(what, source, f'not valid YAML: {shorten(" ".join(str(exc).split()), 120)}') from None
     except RecursionError:
-        raise ParameterError(what, source, f'nested too deeply (at most {MAX_DEPTH} levels)') from None
+        raise InputFileError(what, source, f'nested too deeply (at most {MAX_DEPTH} levels)') from None
     finally:
         if loader is not None:
             loader.dispose()
