@@ -68,7 +68,7 @@ def _check_ancestors(path: Path, option: str | None, target: str) -> None:
         except OSError as exc:
             raise OutputError(option, target, f'cannot look at {parent}: {_reason(exc)}') from None
         if not stat.S_ISDIR(info.st_mode):
-            raise OutputError(option, target, f'{parent} is {_kind(info.st_mode)}, not a folder')
+            raise OutputError(option, target, f'{parent} is {_kind(info.st_mode)}, not a directory')
         return
 
 
@@ -91,7 +91,7 @@ def check_output_file(path: str | os.PathLike[str], option: str | None = None) -
     ------
     OutputError
         ``path`` is a FIFO, device, socket or directory; a dangling link or a link to one of
-        those; or it lies under something that is not a folder.
+        those; or it lies under something that is not a directory.
     """
     dest = Path(path)
     try:
@@ -147,7 +147,7 @@ def check_output_dir(path: str | os.PathLike[str], option: str | None = None, fi
     except OSError as exc:
         raise OutputError(option, str(path), _reason(exc)) from None
     if not stat.S_ISDIR(info.st_mode):
-        raise OutputError(option, str(path), f'is {_kind(info.st_mode)}, not a folder')
+        raise OutputError(option, str(path), f'is {_kind(info.st_mode)}, not a directory')
     for name in files:
         check_output_file(dest / name, option)
     for name in dirs:
@@ -184,8 +184,10 @@ def _remove_dirs(created: list[Path]) -> None:
 
 @contextlib.contextmanager
 def claim_output_dir(path: str | os.PathLike[str], option: str | None = None, files: Iterable[str] = (),
-                     dirs: Iterable[str] = ()) -> Iterator[Path]:
+                     dirs: Iterable[str] = (), create: bool = True) -> Iterator[Path]:
     """Check (:func:`check_output_dir`), create and lock an output folder for the ``with`` block.
+
+    ``create=False`` claims a folder that must exist (a bag to repair): a missing one is refused.
 
     The lock is ``flock(LOCK_EX | LOCK_NB)`` on the folder itself (on a lock file
     :data:`LOCK_FILE` inside it where the file system refuses that); it ends with the block or
@@ -200,6 +202,8 @@ def claim_output_dir(path: str | os.PathLike[str], option: str | None = None, fi
     """
     files, dirs = tuple(files), tuple(dirs)
     dest = check_output_dir(path, option, files, dirs)
+    if not create and not dest.is_dir():
+        raise OutputError(option, str(path), 'no such directory')
     created = _make_dirs(dest, option, str(path))
     fd = -1
     try:

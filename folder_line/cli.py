@@ -11,11 +11,12 @@ it is refused.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, NoReturn, Sequence
 
-from folder_line.errors import FolderLineError, OutputError
+from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {'kinematics': '--csv', 'simulate': '--json', 'run': '--out', 'report': '--out',
@@ -33,9 +34,9 @@ def _samples(text: str) -> int:
     try:
         n = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f'--samples={text!r}: must be a whole number >= 2') from None
+        raise argparse.ArgumentTypeError(f'--samples={bounded_repr(text)}: must be a whole number >= 2') from None
     if n < 2 or n > 100_000_000:
-        raise argparse.ArgumentTypeError(f'--samples={text!r}: must be in [2, 100000000]')
+        raise argparse.ArgumentTypeError(f'--samples={bounded_repr(text)}: must be in [2, 100000000]')
     return n
 
 
@@ -44,9 +45,9 @@ def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'{option}={text!r}: must be a number') from None
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a number') from None
         if not 0.0 < value <= hi:
-            raise argparse.ArgumentTypeError(f'{option}={text!r}: must be in (0, {hi:g}] {unit}'.rstrip())
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in (0, {hi:g}] {unit}'.rstrip())
         return value
 
     return parse
@@ -62,16 +63,26 @@ def _rtf(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be a number in [0.001, 1000] or max') from None
+        raise argparse.ArgumentTypeError(f'--rtf={bounded_repr(text)}: must be a number in [0.001, 1000] or max'
+                                         ) from None
     if not 1e-3 <= value <= 1000.0:
-        raise argparse.ArgumentTypeError(f'--rtf={text!r}: must be in [0.001, 1000] or max')
+        raise argparse.ArgumentTypeError(f'--rtf={bounded_repr(text)}: must be in [0.001, 1000] or max')
     return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse`` whose usage errors are one line too (values cut, a pointer to ``--help``)."""
+
+    def error(self, message: str) -> NoReturn:
+        words = (shorten(w) for w in message.split())  # a value given on the command line is one word
+        text = shorten(' '.join(words), _LINE_CHARS)
+        self.exit(EXIT_USAGE, f'{self.prog}: error: {text} (see {self.prog} --help)\n')
 
 
 def _build_parser() -> argparse.ArgumentParser:
     from folder_line.accuracy.bench import STUDIES
 
-    parser = argparse.ArgumentParser(prog='folder-line', description='Simulate the folding/layup line.')
+    parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
 
     kin = sub.add_parser('kinematics', help='table of one mechanism over a crank turn (or the delivery stroke)')
@@ -214,10 +225,18 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def _cmd_bag(args: argparse.Namespace) -> int:
-    from folder_line.bag import bag_info_lines, read_bag, repair
+    from folder_line.atomic import check_output_dir, claim_output_dir
+    from folder_line.bag import METADATA_FILE, bag_info_lines, read_bag, repair
+    from folder_line.run import BAG_DIR
 
     if args.bag_verb == 'repair':
-        result = repair(args.dir)
+        bag = Path(args.dir)
+        check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
+        with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
+            if bag.is_dir() and bag.resolve().name == BAG_DIR:
+                claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))
+            claims.enter_context(claim_output_dir(bag, 'DIR', files=(METADATA_FILE,), create=False))
+            result = repair(args.dir)
         print(f'repaired {args.dir}: {result.describe()}')
         print(f'wrote {result.metadata}')
         return 0

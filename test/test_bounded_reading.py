@@ -219,3 +219,16 @@ def test_any_bytes_as_a_scene_are_one_bounded_line(tmp_path: Path, capsys: pytes
 def test_bounded_repr_is_bounded(value: object) -> None:
     assert len(bounded_repr(value)) <= 80
     assert len(str(ParameterError('k' * 1000, value, 'bad'))) <= 80 + 1 + 80 + 5
+
+
+@pytest.mark.parametrize('argv', [['simulate', '--duration', '9' * 5000],
+                                  ['kinematics', 'knife', '--samples', '7' * 5000],
+                                  ['run', '--rtf', 'x' * 5000], ['simulate', '--scene'], ['kinematics', 'gear' * 2000],
+                                  ['simulate', '--' + 'y' * 5000]])
+def test_usage_errors_are_one_short_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.count('\n') == 1 and err.startswith('folder-line') and ': error: ' in err, err
+    assert len(err) <= LINE_MAX and err.rstrip().endswith('--help)'), err

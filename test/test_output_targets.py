@@ -135,18 +135,18 @@ FILE_TARGETS: dict[str, tuple[Callable[[Path], None], str]] = {
     'link to a fifo': (_link_to(_fifo), 'is a symbolic link to a FIFO'),
     'link to a directory': (_link_to(_dir), 'is a symbolic link to a directory'),
     'dangling link': (_dangling, 'dangling'),
-    'under a file': (_under_a_file, 'is a regular file, not a folder'),
+    'under a file': (_under_a_file, 'is a regular file, not a directory'),
 }
 
 #: what stands where a folder is to be written
 DIR_TARGETS: dict[str, tuple[Callable[[Path], None], str]] = {
-    'regular file': (_file, 'is a regular file, not a folder'),
-    'fifo': (_fifo, 'is a FIFO, not a folder'),
-    'socket': (_socket, 'is a socket, not a folder'),
-    'device': (_device, 'is a character device, not a folder'),
-    'link to a fifo': (_link_to(_fifo), 'is a FIFO, not a folder'),
+    'regular file': (_file, 'is a regular file, not a directory'),
+    'fifo': (_fifo, 'is a FIFO, not a directory'),
+    'socket': (_socket, 'is a socket, not a directory'),
+    'device': (_device, 'is a character device, not a directory'),
+    'link to a fifo': (_link_to(_fifo), 'is a FIFO, not a directory'),
     'dangling link': (_dangling, 'dangling'),
-    'under a file': (_under_a_file, 'is a regular file, not a folder'),
+    'under a file': (_under_a_file, 'is a regular file, not a directory'),
 }
 
 FILE_VERBS = {
@@ -223,7 +223,7 @@ def test_folder_target_that_is_not_a_folder_is_refused_untouched(
 INNER = {
     'run': ('run.json', _fifo, 'is a FIFO'),
     'report': (REPORT_FILES[3], _dir, 'is a directory'),
-    'analyze': ('csv', _file, 'is a regular file, not a folder'),
+    'analyze': ('csv', _file, 'is a regular file, not a directory'),
     'bench': ('accuracy.json', _link_to(_fifo), 'is a symbolic link to a FIFO'),
 }
 
@@ -264,6 +264,31 @@ def test_a_symlinked_output_folder_is_followed(tmp_path: Path, run_dir: Path,
     assert (tmp_path / 'out').is_symlink() and (tmp_path / 'real' / 'report.md').is_file()
 
 
+@pytest.mark.parametrize('kind', [k for k in DIR_TARGETS if k != 'under a file'])
+def test_bag_repair_of_something_that_is_not_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                      kind: str) -> None:
+    make, why = DIR_TARGETS[kind]
+    make(tmp_path / 'bag')
+    before = snapshot(tmp_path)
+    line = refused(['bag', 'repair', str(tmp_path / 'bag')], capsys)
+    assert f"DIR='{tmp_path / 'bag'}'" in line and why in line, line
+    assert snapshot(tmp_path) == before
+
+
+def test_bag_repair_leaves_a_metadata_fifo_and_a_missing_folder_alone(tmp_path: Path, run_dir: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    (bag / 'bag_0.mcap').write_bytes((run_dir / 'bag' / 'bag_0.mcap').read_bytes())
+    os.mkfifo(bag / 'metadata.yaml')
+    before = snapshot(tmp_path)
+    line = refused(['bag', 'repair', str(bag)], capsys)
+    assert line == f"folder-line: error: DIR='{bag / 'metadata.yaml'}': is a FIFO, not a regular file"
+    line = refused(['bag', 'repair', str(tmp_path / 'missing')], capsys)
+    assert line == f"folder-line: error: DIR='{tmp_path / 'missing'}': no such directory"
+    assert snapshot(tmp_path) == before
+
+
 # --------------------------------------------------------------------------- folders are claimed
 
 
@@ -280,6 +305,21 @@ def test_a_folder_in_use_is_refused_and_keeps_what_it_holds(
     assert line == (f"folder-line: error: --out='{out}': is in use by another folder-line process; "
                     'wait for it to finish or choose another folder')
     assert snapshot(tmp_path) == before
+
+
+def test_bag_repair_is_refused_while_the_run_folder_is_in_use(tmp_path: Path, run_dir: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / 'out'
+    (out / 'bag').mkdir(parents=True)
+    (out / 'bag' / 'bag_0.mcap').write_bytes((run_dir / 'bag' / 'bag_0.mcap').read_bytes())
+    with claim_output_dir(out, '--out'):  # a run writing out/bag
+        before = snapshot(tmp_path)
+        line = refused(['bag', 'repair', str(out / 'bag')], capsys)
+        assert snapshot(tmp_path) == before
+    assert line == (f"folder-line: error: DIR='{out}': is in use by another folder-line process; "
+                    'wait for it to finish or choose another folder')
+    assert main(['bag', 'repair', str(out / 'bag')]) == 0  # released: repair does its work
+    assert (out / 'bag' / 'metadata.yaml').is_file()
 
 
 def test_another_process_is_refused_while_a_folder_is_claimed(tmp_path: Path) -> None:
