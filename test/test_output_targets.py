@@ -461,3 +461,19 @@ def test_permission_denied_injected(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     line = refused(argv, capsys)
     assert line.endswith(': Permission denied') and f"='{out}" in line, line
     assert snapshot(tmp_path, folder_mtimes=False) == before
+
+
+def test_a_write_refused_deep_inside_a_run_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    import folder_line.run
+
+    out = tmp_path / 'out'
+    segment = out / 'bag' / 'bag_0.mcap'
+
+    def full(cfg: Any, stream: Any) -> Any:  # the bag writer meets a full disk (no ROS needed to show the CLI)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(segment))
+
+    monkeypatch.setattr(folder_line.run, 'run_line', full)
+    line = refused(['run', '--duration', '1', '--out', str(out)], capsys)
+    assert line == f"folder-line: error: --out: '{segment}': No space left on device"
+    assert list(tmp_path.iterdir()) == []  # the folder the claim made, still empty, is gone
