@@ -237,11 +237,14 @@ def test_a_malformed_announcement_is_refused_with_the_reason(text: str, words: s
                                      for s in ('messages', 'events', 'commands')}))
 def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
         frame: str, stamp: int, counts: dict[str, int]) -> None:
-    # read_ack decodes the raw bytes with rosbags: checked against rclpy's own serialization
+    # read_ack decodes the raw bytes with rosbags: checked against rclpy's own serialization and deserialization
     msg = TimeReference(source=format_counts(counts))
     msg.header.frame_id = frame
     msg.header.stamp = msg.time_ref = ns_to_time_msg(stamp)
-    assert read_ack(serialize_message(msg)) == (frame, stamp, counts)
+    data = serialize_message(msg)
+    # a ROS string ends at its first NUL: rclpy reads '\x00' back as '' too
+    assert deserialize_message(data, TimeReference).header.frame_id == frame.split('\x00', 1)[0]
+    assert read_ack(data) == (frame.split('\x00', 1)[0], stamp, counts)
 
 
 @given(data=st.binary(max_size=300))
