@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import Callable, NoReturn, Sequence
 
+from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
 
 #: the option that names each verb's output, for errors raised where it is not known
@@ -40,34 +41,33 @@ def _samples(text: str) -> int:
     return n
 
 
-def _positive(option: str, hi: float, unit: str) -> Callable[[str], float]:
+def _limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
+    """An option in the physical range ``limit`` (:mod:`folder_line.core.limits`, the same bounds as the scene
+    loader's and the node parameters'); ``also``: one word that is also accepted, as 0.0 (``max``)."""
+    extra = f' or {also}' if also else ''
+
     def parse(text: str) -> float:
+        if also and text.strip().lower() == also:
+            return 0.0
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a number') from None
-        if not 0.0 < value <= hi:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in (0, {hi:g}] {unit}'.rstrip())
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a number in '
+                                             f'{limit.text()}{extra}') from None
+        if not limit.lo <= value <= limit.hi:  # NaN fails too
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
         return value
 
     return parse
 
 
-_duration = _positive('--duration', 1e9, 's')
-
-
-def _rtf(text: str) -> float:
-    """``--rtf``: a ceiling in [0.001, 1000], or ``max`` (0.0: as fast as the line allows)."""
-    if text.strip().lower() == 'max':
-        return 0.0
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'--rtf={bounded_repr(text)}: must be a number in [0.001, 1000] or max'
-                                         ) from None
-    if not 1e-3 <= value <= 1000.0:
-        raise argparse.ArgumentTypeError(f'--rtf={bounded_repr(text)}: must be in [0.001, 1000] or max')
-    return value
+_duration = _limited('--duration', DURATION)
+# the monitor's own knobs (display, not line physics)
+_MONITOR_RATE = Limit('monitor refresh rate', 0.1, 60.0, 'Hz', 'a screen refresh')
+_MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the rates are counted over')
+_MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
+#: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
+_rtf = _limited('--rtf', RTF, also='max')
 
 
 class _Parser(argparse.ArgumentParser):
@@ -109,19 +109,19 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument('--clock', choices=('lockstep', 'wall'), default='lockstep',
                      help='lockstep: sim time waits for every node, the answer never depends on load (default); '
                           'wall: paced by the wall clock for hardware in the loop, late ticks counted')
-    run.add_argument('--lost-timeout', type=_positive('--lost-timeout', 3600.0, 's'), default=3.0, metavar='S',
+    run.add_argument('--lost-timeout', type=_limited('--lost-timeout', LOST_TIMEOUT), default=3.0, metavar='S',
                      help='wall time a tick waits for a node before the node is declared lost (default 3)')
     run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
-    mon.add_argument('--rate', type=_positive('--rate', 60.0, 'Hz'), default=4.0, metavar='HZ',
+    mon.add_argument('--rate', type=_limited('--rate', _MONITOR_RATE), default=4.0, metavar='HZ',
                      help='screen refreshes per second (default 4)')
     mon.add_argument('--once', action='store_true',
                      help='print one plain-text snapshot after collecting for the rate window, then exit')
-    mon.add_argument('--window', type=_positive('--window', 600.0, 's'), default=2.0, metavar='S',
+    mon.add_argument('--window', type=_limited('--window', _MONITOR_WINDOW), default=2.0, metavar='S',
                      help='window of the topic rates, s of wall time (default 2)')
-    mon.add_argument('--timeout', type=_positive('--timeout', 3600.0, 's'), default=10.0, metavar='S',
+    mon.add_argument('--timeout', type=_limited('--timeout', _MONITOR_TIMEOUT), default=10.0, metavar='S',
                      help='with --once: longest wait for the first message, s (default 10)')
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')

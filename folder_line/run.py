@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import IO, Any, Callable
 
 from folder_line.atomic import write_json_atomic
+from folder_line.core.limits import HORIZON_MARGIN
 
 __all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'clock_parameters',
            'node_parameters', 'other_line', 'outcome', 'print_run_summary', 'run_line']
@@ -104,7 +105,7 @@ class RunResult:
 
 def node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
     """The parameters ``run`` gives machine node ``name`` (scene, overrides, horizon, rate, lost_timeout)."""
-    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + 1.0, 'rate': cfg.rate,
+    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + HORIZON_MARGIN, 'rate': cfg.rate,
                               'lost_timeout': cfg.lost_timeout}
     if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
@@ -237,6 +238,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     from rclpy.parameter import Parameter
 
     from folder_line.bag import BagWriter
+    from folder_line.core.line import check_size
     from folder_line.core.scene import parse_scene
     from folder_line.errors import FolderLineError
     from folder_line.interfaces import RECORDER
@@ -247,6 +249,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
 
     mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
     scene = parse_scene(mapping)  # fail early, before any node starts
+    check_size(scene, cfg.duration + HORIZON_MARGIN, cfg.duration + HORIZON_MARGIN, '--duration')
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)

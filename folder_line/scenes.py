@@ -142,8 +142,8 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     elif head in ('sheets', 'drive'):
         section = data[head]
     else:
-        raise ParameterError(key, value, f'unknown section {head!r}; machines: {", ".join(MACHINE_KINDS)}; '
-                             f'effects: {", ".join(EFFECTS)}; or sheets, drive')
+        raise ParameterError(key, value, f'unknown section; a section is a machine ({", ".join(MACHINE_KINDS)}), '
+                             'sheets, drive, or an effect the scene lists')
     if head in MACHINE_KINDS or head == 'sheets':
         if field not in section:
             raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')

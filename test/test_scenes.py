@@ -56,7 +56,7 @@ def test_set_overrides_machine_effect_and_top_level(tmp_path: Path) -> None:
     (['feed_transporter.V_x=1'], 'feed_transporter.V_x'),
     (['layup.R_kr=0.1'], "has no machine 'layup'"),
     (['feed_slip.mu=0.1'], "does not list effect 'feed_slip'"),
-    (['gearbox.ratio=2'], "unknown section 'gearbox'"),
+    (['gearbox.ratio=2'], 'gearbox.ratio=2: unknown section; a section is a machine (layup, '),
     (['V_tr=9'], 'must be SECTION.KEY'),
     (['feed_transporter.V_tr'], 'must be KEY=VALUE'),
     (['feed_transporter.V_tr=-1'], 'feed_transporter.V_tr=-1'),

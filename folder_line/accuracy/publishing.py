@@ -80,6 +80,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from folder_line.accuracy.measure import Row
+from folder_line.core.limits import TICK_RATE
 from folder_line.core.line import NODES, LineModel
 from folder_line.errors import MeasurementError, ParameterError
 
@@ -362,7 +363,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     Parameters
     ----------
     rate : float
-        Publishing rate of the machine nodes, Hz of sim time, in [1, 5000].
+        Publishing rate of the machine nodes, Hz of sim time, in the nodes' range (:data:`TICK_RATE`).
     rtf : float, optional
         Real-time factor; default :func:`default_rtf`.
     clock_rate : float, optional
@@ -393,8 +394,7 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
     from folder_line.scenes import scene_mapping
 
-    if not (math.isfinite(rate) and 1.0 <= rate <= 5000.0):
-        raise ParameterError('rate', rate, 'must be in [1, 5000] Hz (the nodes\' bounds)')
+    TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)
     if not (isinstance(span_ticks, int) and span_ticks >= 10):
         raise ParameterError('span_ticks', span_ticks, 'must be a whole number of ticks >= 10')

@@ -67,6 +67,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from folder_line.core.knife import KnifeParams, KnifeWindow, window
+from folder_line.core.limits import CYLINDER_SPEED
 from folder_line.core.validate import in_range, positive
 from folder_line.errors import ParameterError
 
@@ -124,7 +125,7 @@ class CyclogramParams:
     def __post_init__(self) -> None:
         values = {
             'D_fc': positive('cyclogram.D_fc', self.D_fc),
-            'n_c': positive('cyclogram.n_c', self.n_c),
+            'n_c': CYLINDER_SPEED.check('cyclogram.n_c', self.n_c),
             'L_feed': positive('cyclogram.L_feed', self.L_feed),
             'L_a': positive('cyclogram.L_a', self.L_a),
             'reserve': in_range('cyclogram.reserve', self.reserve, 0.0, 1.0, hi_open=True),

@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from folder_line.core.roots import brent
+from folder_line.core.limits import KNIFE_SPEED
 from folder_line.core.validate import as_float, positive
 from folder_line.errors import ParameterError
 
@@ -121,7 +122,7 @@ class KnifeParams:
         r = positive('knife.r_k', self.r_k)
         L = positive('knife.L_k', self.L_k)
         e = as_float('knife.e', self.e)
-        n = positive('knife.n_k', self.n_k)
+        n = KNIFE_SPEED.check('knife.n_k', self.n_k)
         s_clear = as_float('knife.s_clear', self.s_clear)
         if not L > r + abs(e):
             raise ParameterError('knife.L_k', self.L_k,

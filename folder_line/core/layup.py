@@ -59,6 +59,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.loop import TOGGLE_TOL
+from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
 from folder_line.core.validate import as_float, non_negative, positive
 from folder_line.errors import AssemblyError, ParameterError
 
@@ -241,8 +242,10 @@ class LayupParams:
             value = getattr(self, f.name)
             if f.name in ('a', 'b'):
                 x = as_float(key, value)
-            elif f.name == 'v_tr':
-                x = non_negative(key, value)
+            elif f.name == 'v_tr':  # 0: chutes without belts
+                x = 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
+            elif f.name == 'n_kr':
+                x = CRANK_SPEED.check(key, value)
             else:
                 x = positive(key, value)
             object.__setattr__(self, f.name, x)

@@ -26,6 +26,7 @@ level of the integrator's tolerance.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Any, Iterable
 
@@ -40,21 +41,40 @@ from folder_line.core.events import (
     JointSamples,
     merge_events,
 )
+from folder_line.core.limits import DURATION, HORIZON, SAMPLE_RATE
 from folder_line.core.pile import pile_table
 from folder_line.core.scene import Scene
-from folder_line.core.validate import as_float, in_range
+from folder_line.core.validate import as_float
 from folder_line.errors import ParameterError
 
-__all__ = ['MAX_CYCLES', 'NODES', 'LineModel', 'LineResult', 'check_size', 'make_drive', 'sample_times', 'simulate']
+__all__ = ['BYTES_PER_CYCLE', 'BYTES_PER_LEAF', 'MAX_CYCLES', 'MEMORY_SHARE', 'NODES', 'LineModel', 'LineResult',
+           'check_size', 'make_drive', 'memory_budget', 'sample_times', 'simulate']
 
 #: the machine nodes that carry joints, in publishing order (``sheet_counter``: the table under the
 #: counted sheets, :mod:`folder_line.core.pile`, in every scene)
 NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')
 
-MAX_DURATION = 1e9  # s (~32 years): far beyond any run; time stays float64-exact to ~1e-7 s
-#: most knife cycles or leaves a model is built for: every event up to the horizon is held in
-#: memory (~0.3 kB per cycle), so 1e7 of them take ~3 GB and ~10 min of CPU
+#: longest horizon of a model, s (:data:`folder_line.core.limits.HORIZON`)
+MAX_DURATION = HORIZON.hi
+#: peak memory of a model per knife cycle and per leaf, bytes: measured by ``bench/bench_memory.py`` (the
+#: growth of the peak RSS of ``simulate`` and its summary between 1 h and 4 h of line time: 1769 B per
+#: cycle of ``folder``, 609 B per leaf of ``line``), rounded up
+BYTES_PER_CYCLE = 1900
+BYTES_PER_LEAF = 700
+#: share of the machine's physical memory a model may take
+MEMORY_SHARE = 0.75
+#: most knife cycles or leaves a model is built for whatever the memory (~19 GB): beyond, the CPU time
+#: alone (~10 min per 1e7 cycles) says to simulate shorter spans
 MAX_CYCLES = 1e7
+
+
+def memory_budget() -> int:
+    """Bytes a model may take: :data:`MEMORY_SHARE` of this machine's physical memory."""
+    try:
+        physical = os.sysconf('SC_PHYS_PAGES') * os.sysconf('SC_PAGE_SIZE')
+    except (OSError, ValueError, AttributeError):  # not POSIX: assume a small machine
+        physical = 8 * 2**30
+    return int(MEMORY_SHARE * physical)
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,7 +194,11 @@ def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
 
 
 def check_size(scene: Scene, span: float, theta_end: float, key: str = 'horizon') -> None:
-    """Refuse a span whose event table would not fit in memory (:data:`MAX_CYCLES`), before the events are built.
+    """Refuse a span whose model would not fit in memory, before the events are built.
+
+    The need is the knife cycles times :data:`BYTES_PER_CYCLE` plus the leaves times
+    :data:`BYTES_PER_LEAF` (measured peak figures); it must fit :func:`memory_budget`, and
+    neither count may pass :data:`MAX_CYCLES`.
 
     Parameters
     ----------
@@ -190,17 +214,25 @@ def check_size(scene: Scene, span: float, theta_end: float, key: str = 'horizon'
     Raises
     ------
     ParameterError
-        Naming ``key`` and the span.
+        Naming ``key`` and the span, with the memory the model would need and the longest span that fits.
     """
-    counts: list[tuple[float, str]] = []
+    parts: list[tuple[float, str, int]] = []
     if scene.has_folder:
-        counts.append((theta_end / float(scene.machines['knife'].period), 'knife cycles'))
+        parts.append((theta_end / float(scene.machines['knife'].period), 'knife cycles', BYTES_PER_CYCLE))
     if scene.has_layup:
-        counts.append((span / float(scene.sheets.interval), 'leaves'))
-    for n, what in counts:
-        if n > MAX_CYCLES:
-            raise ParameterError(key, span, f'the model would hold every event of {n:.3g} {what} (more than '
-                                 f'{MAX_CYCLES:.0e}, ~{n * 3e-7:.0f} GB); simulate shorter spans')
+        parts.append((span / float(scene.sheets.interval), 'leaves', BYTES_PER_LEAF))
+    need = sum(n * b for n, _, b in parts)
+    budget = memory_budget()
+    too_many = [(n, what) for n, what, _ in parts if n > MAX_CYCLES]
+    if need <= budget and not too_many:
+        return
+    fits = span * min(budget / need if need > 0 else math.inf,
+                      *(MAX_CYCLES / n for n, _, _ in parts if n > 0))
+    counts = ' and '.join(f'{n:.3g} {what} x {b} B' for n, what, b in parts)
+    over = f', and more than {MAX_CYCLES:.0e} {too_many[0][1]}' if too_many else ''
+    raise ParameterError(key, span, f'the model would need about {need / 1e9:.3g} GB of memory ({counts}, the '
+                         f'measured peak per cycle and leaf){over}; this machine allows {budget / 1e9:.3g} GB '
+                         f'({MEMORY_SHARE:.0%} of its memory): at most {fits:.4g} s of this scene')
 
 
 class LineModel:
@@ -238,7 +270,7 @@ class LineModel:
 
     def __init__(self, scene: Scene, horizon: float, commands: Iterable[Command] = ()) -> None:
         self.scene = scene
-        self.horizon = in_range('horizon', horizon, 0.0, MAX_DURATION, lo_open=True)
+        self.horizon = HORIZON.check('horizon', horizon)
         self.commands = check_commands(commands)
         self.drive = make_drive(scene, self.horizon, self.commands)
         check_size(scene, self.horizon, float(np.asarray(self.drive.theta(np.array(self.horizon)))))
@@ -388,11 +420,10 @@ class LineModel:
         sample_rate : float, optional
             Joint-state rate, Hz; default the scene's; 0 for events only.
         """
-        duration = self.horizon if duration is None else in_range('duration', duration, 0.0, MAX_DURATION,
-                                                                  lo_open=True)
+        duration = self.horizon if duration is None else HORIZON.check('duration', duration)
         if duration != self.horizon:
             return LineModel(self.scene, duration, self.commands).result(duration, sample_rate)
-        rate = self.scene.sample_rate if sample_rate is None else in_range('sample_rate', sample_rate, 0.0, 1e6)
+        rate = self.scene.sample_rate if sample_rate is None else SAMPLE_RATE.check('sample_rate', sample_rate)
         t = sample_times(duration, rate)
         return LineResult(scene=self.scene, duration=duration, events=self.events,
                           samples=self.sample_all(t) if t.size else {},
@@ -418,8 +449,8 @@ def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None,
     -------
     LineResult
     """
-    duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
-    rate = scene.sample_rate if sample_rate is None else in_range('sample_rate', sample_rate, 0.0, 1e6)
+    duration = DURATION.check('duration', duration)
+    rate = scene.sample_rate if sample_rate is None else SAMPLE_RATE.check('sample_rate', sample_rate)
     try:
         model = LineModel(scene, duration, commands)
     except ParameterError as exc:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from folder_line.core.limits import LINEAR_SPEED, SHEET_INTERVAL
 from folder_line.core.validate import in_range, non_negative, positive
 from folder_line.errors import ParameterError
 
@@ -60,7 +61,7 @@ class FeedTransporterParams:
     V_tr: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'V_tr', in_range('feed_transporter.V_tr', self.V_tr, 0.0, 1e3, lo_open=True))
+        object.__setattr__(self, 'V_tr', LINEAR_SPEED.check('feed_transporter.V_tr', self.V_tr))
 
 
 @dataclass(frozen=True)
@@ -119,7 +120,7 @@ class StreamParams:
     thickness: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'interval', positive('sheets.interval', self.interval))
+        object.__setattr__(self, 'interval', SHEET_INTERVAL.check('sheets.interval', self.interval))
         object.__setattr__(self, 'jitter', in_range('sheets.jitter', self.jitter, 0.0, 1.0, hi_open=True))
         object.__setattr__(self, 'phase', non_negative('sheets.phase', self.phase))
         object.__setattr__(self, 'thickness', in_range('sheets.thickness', self.thickness, 0.0, 0.1, lo_open=True))

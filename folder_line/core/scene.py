@@ -17,7 +17,7 @@ from typing import Any, Mapping
 from folder_line.core.drive import DriveSpec
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.machines import StreamParams
-from folder_line.core.validate import in_range
+from folder_line.core.limits import SAMPLE_RATE
 from folder_line.errors import ParameterError
 
 __all__ = ['MACHINE_KINDS', 'SCENE_KEYS', 'Scene', 'parse_scene']
@@ -193,7 +193,7 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
     seed = data.get('seed', 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
         raise ParameterError('seed', seed, 'must be a whole number in [0, 2**63)')
-    rate = in_range('sample_rate', data.get('sample_rate', 0.0), 0.0, 1e6)
+    rate = SAMPLE_RATE.check('sample_rate', data.get('sample_rate', 0.0))
     return Scene(name=name, description=description, machines=MappingProxyType(machines), drive=drive,
                  sheets=sheets, effects=MappingProxyType(effects), seed=seed, sample_rate=rate,
                  source=MappingProxyType(dict(data)))

@@ -57,6 +57,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
+from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, TICK_RATE
 from folder_line.core.lockstep import TickLedger
 from folder_line.errors import ParameterError
 from folder_line.nodes.common import (
@@ -90,22 +91,22 @@ __all__ = ['EXIT_LOST', 'NODE_NAME', 'SPECS', 'LineClock', 'main', 'parse_partic
 
 NODE_NAME = 'line_clock'
 EXIT_LOST = 3
-MIN_RTF = 1e-3
+MIN_RTF = RTF.lo
 REPEAT_FIRST = 0.2  # wall s between repetitions of the first tick
 
 SPECS: tuple[ParamSpec, ...] = (
-    ParamSpec('rate', 200.0, 'Ticks per second of simulated time', unit='Hz', bounds=(1.0, 10000.0)),
+    ParamSpec('rate', 200.0, 'Ticks per second of simulated time', unit='Hz', bounds=TICK_RATE.bounds),
     ParamSpec('rtf', 1.0, 'Real-time factor ceiling: simulated seconds per wall second (0: as fast as the line '
-              'allows, lockstep only; else >= 0.001)', bounds=(0.0, 1000.0)),
+              f'allows, lockstep only; else >= {RTF.lo:g})', bounds=(0.0, RTF.hi)),
     ParamSpec('clock', 'lockstep', 'lockstep: wait for every participant each tick; wall: pace by the wall clock '
               'and count late participants', choices=CLOCK_MODES, read_only=True),
     ParamSpec('participants', ','.join(DEFAULT_PARTICIPANTS), 'Comma-separated nodes that acknowledge every tick '
               f'(of {", ".join(KNOWN_PARTICIPANTS)})', read_only=True),
-    ParamSpec('start_time', 0.0, 'Simulated time at start', unit='s', bounds=(0.0, 1e7), read_only=True),
+    ParamSpec('start_time', 0.0, 'Simulated time at start', unit='s', bounds=(0.0, DURATION.hi), read_only=True),
     ParamSpec('duration', 0.0, 'Simulated time to run for after start_time; 0 runs until interrupted',
-              unit='s', bounds=(0.0, 1e7), read_only=True),
+              unit='s', bounds=(0.0, DURATION.hi), read_only=True),
     ParamSpec('lost_timeout', 3.0, 'Wall time a tick waits for a participant before it is declared lost',
-              unit='s', bounds=(0.1, 3600.0), read_only=True),
+              unit='s', bounds=LOST_TIMEOUT.bounds, read_only=True),
     ParamSpec('startup_timeout', 60.0, 'Wall time the first tick waits for every participant', unit='s',
               bounds=(1.0, 3600.0), read_only=True),
 )
@@ -125,7 +126,7 @@ def _check(values: Mapping[str, Any]) -> None:
     parse_participants(values['participants'])
     rtf = values['rtf']
     if 0.0 < rtf < MIN_RTF:
-        raise ParameterError('rtf', rtf, f'must be 0 (no ceiling) or in [{MIN_RTF:g}, 1000]')
+        raise ParameterError('rtf', rtf, f'must be 0 (no ceiling) or in {RTF.text()}')
     if rtf == 0.0 and values['clock'] == 'wall':
         raise ParameterError('rtf', rtf, 'must be > 0 with clock=wall (the wall clock paces the ticks)')
 

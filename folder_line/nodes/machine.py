@@ -45,6 +45,7 @@ from sensor_msgs.msg import JointState, TimeReference
 
 from folder_line.core.drive import Command
 from folder_line.core.events import EVENT_KINDS
+from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
 from folder_line.core.line import LineModel
 from folder_line.errors import ParameterError
 from folder_line.event_text import event_source, parse_event_source
@@ -94,11 +95,11 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('overrides', '', 'Scene overrides, "MACHINE.KEY=VALUE" separated by ";" '
               '(e.g. "feed_transporter.V_tr=5.833;seed=3")', read_only=True),
     ParamSpec('horizon', 3600.0, 'Line time the model is built for; the node stops publishing after it',
-              unit='s', bounds=(0.001, 1e7), read_only=True),
+              unit='s', bounds=HORIZON.bounds, read_only=True),
     ParamSpec('rate', 200.0, 'Joint-state rate in simulated time (its own grid; changing it is harmless)',
-              unit='Hz', bounds=(1.0, 10000.0)),
+              unit='Hz', bounds=TICK_RATE.bounds),
     ParamSpec('lost_timeout', 3.0, 'Wall time a tick waits for the supervisor before it is declared lost',
-              unit='s', bounds=(0.1, 3600.0), read_only=True),
+              unit='s', bounds=LOST_TIMEOUT.bounds, read_only=True),
 )
 
 #: grid points of joint states sampled from the model in one call (see MachineNode._joint_row)

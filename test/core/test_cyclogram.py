@@ -16,6 +16,7 @@ from folder_line.core import cyclogram as cg
 from folder_line.core import knife as kn
 from folder_line.core.cyclogram import CyclogramParams
 from folder_line.core.knife import KnifeParams
+from folder_line.core.limits import KNIFE_SPEED
 from folder_line.errors import ParameterError
 from folder_line.params import load_params
 
@@ -216,7 +217,7 @@ def test_bad_reserve_argument(timing: cg.CycleTiming) -> None:
 
 
 @settings(max_examples=60, deadline=None)
-@given(n_k=st.floats(1e3, 1e6), dwell=st.floats(0.0, 0.3))
+@given(n_k=st.floats(1e3, KNIFE_SPEED.hi), dwell=st.floats(0.0, 0.3))  # the whole physical range above 1e3
 def test_cycle_scales_with_knife_speed(params: CyclogramParams, n_k: float, dwell: float) -> None:
     k = KnifeParams(r_k=0.04, L_k=0.16, e=0.0, n_k=n_k, s_clear=0.1656)
     p = dataclasses.replace(params, dwell_frac=dwell)

@@ -14,6 +14,7 @@ from numpy.testing import assert_allclose
 
 from folder_line.core import knife as kn
 from folder_line.core.knife import KnifeParams
+from folder_line.core.limits import KNIFE_SPEED
 from folder_line.errors import ParameterError
 from folder_line.params import load_params
 
@@ -79,7 +80,9 @@ def test_omega_and_period(ref: KnifeParams) -> None:
     ({'L_k': 0.04}, 'knife.L_k', 'cannot be assembled'),  # L = r
     ({'e': 0.12}, 'knife.L_k', 'cannot be assembled'),  # L = r + |e| exactly
     ({'e': -0.13}, 'knife.L_k', 'cannot be assembled'),
-    ({'n_k': 0.0}, 'knife.n_k', '> 0'),
+    ({'n_k': 0.0}, 'knife.n_k', 'must be in [1, 200000]'),
+    ({'n_k': 1e-300}, 'knife.n_k', 'must be in [1, 200000]'),
+    ({'n_k': 1e308}, 'knife.n_k', 'must be in [1, 200000]'),
     ({'n_k': math.inf}, 'knife.n_k', 'finite'),
     ({'e': math.nan}, 'knife.e', 'finite'),
     ({'s_clear': 0.2}, 'knife.s_clear', 'never'),  # = s_max
@@ -274,7 +277,7 @@ def test_level_just_above_s_min() -> None:
     assert w.phi_out - w.phi_in < 2 * math.pi
 
 
-@pytest.mark.parametrize('n_k', [1e-6, 1.0, 50000.0, 1e9, 1e15])
+@pytest.mark.parametrize('n_k', [KNIFE_SPEED.lo, 7.0, 50000.0, KNIFE_SPEED.hi])  # the physical range
 def test_window_scales_with_speed(ref: KnifeParams, n_k: float) -> None:
     w0 = kn.window(ref)
     w = kn.window(make(n_k=n_k))

@@ -31,6 +31,7 @@ from folder_line.core.layup import (
     sweep,
     swing_extremes,
 )
+from folder_line.core.limits import CRANK_SPEED
 from folder_line.core.loop import TOGGLE_TOL, circle_point_acceleration, circle_point_velocity, tracked_intersection
 from folder_line.errors import AssemblyError, ParameterError
 from folder_line.params import config_dir, load_params
@@ -108,12 +109,20 @@ def test_rejects_non_numbers_naming_the_key(field: str, bad: object) -> None:
     assert err.value.value is bad or (isinstance(bad, float) and math.isnan(bad))
 
 
-@pytest.mark.parametrize('field', ['R_kr', 'n_kr', 'l2', 'O2B', 'l3', 'l4', 'l5', 'O2O3'])
+@pytest.mark.parametrize('field', ['R_kr', 'l2', 'O2B', 'l3', 'l4', 'l5', 'O2O3'])
 @pytest.mark.parametrize('bad', [0.0, -0.1])
-def test_rejects_non_positive_lengths_and_speed(field: str, bad: float) -> None:
+def test_rejects_non_positive_lengths(field: str, bad: float) -> None:
     with pytest.raises(ParameterError, match=f'layup.{field}=') as err:
         params(**{field: bad})
     assert err.value.reason == 'must be > 0'
+
+
+@pytest.mark.parametrize('bad', [0.0, -0.1, 5e-324, 1e-300, 6000.1, 1e308])
+def test_crank_speed_outside_its_physical_range_is_refused(bad: float) -> None:
+    with pytest.raises(ParameterError, match='layup.n_kr=') as err:
+        params(n_kr=bad)
+    assert err.value.reason == f'must be in [{CRANK_SPEED.lo:g}, {CRANK_SPEED.hi:g}] rev/min'
+    assert params(n_kr=CRANK_SPEED.lo).n_kr == CRANK_SPEED.lo and params(n_kr=CRANK_SPEED.hi).n_kr == CRANK_SPEED.hi
 
 
 def test_belt_speed_may_be_zero_not_negative() -> None:

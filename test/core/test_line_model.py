@@ -296,19 +296,23 @@ def test_commands_reach_simulate(hold_run: dict[str, Any]) -> None:
     assert set(EVENT_KINDS) >= {'knife_exit', 'released_on_pile'}
 
 
-@pytest.mark.parametrize('name, what, period', [('folder', 'knife cycles', 3600.0 / 50000.0),
-                                                ('layup', 'leaves', None)])
-def test_a_span_too_long_for_memory_is_refused_before_any_work(name: str, what: str, period: float | None) -> None:
+@pytest.mark.parametrize('name, what, period, per', [('folder', 'knife cycles', 3600.0 / 50000.0, 'BYTES_PER_CYCLE'),
+                                                     ('layup', 'leaves', None, 'BYTES_PER_LEAF')])
+def test_a_span_too_long_for_memory_is_refused_before_any_work(name: str, what: str, period: float | None,
+                                                               per: str) -> None:
     """Every event up to the horizon is held in memory: 1e7 s of the folder is 1.4e8 knife cycles
-    (~42 GB). The model refuses it at once, naming the span, instead of exhausting the machine."""
+    (~270 GB at the measured peak per cycle). The model refuses it at once, naming the span and the
+    memory it would need, instead of exhausting the machine."""
     import time
 
-    from folder_line.core.line import MAX_CYCLES
+    from folder_line.core import line as line_mod
     from folder_line.errors import ParameterError
 
     scene = load_scene(name, {})
     period = scene.sheets.interval if period is None else period
-    limit = MAX_CYCLES * period
+    per_event = getattr(line_mod, per)
+    # the longest span: the machine's budget over the measured bytes per event, or MAX_CYCLES events
+    limit = min(line_mod.MAX_CYCLES, line_mod.memory_budget() / per_event) * period
     t0 = time.process_time()
     with pytest.raises(ParameterError, match=f'horizon=.*{what}') as info:
         LineModel(scene, 1e7)
@@ -316,10 +320,29 @@ def test_a_span_too_long_for_memory_is_refused_before_any_work(name: str, what: 
     with pytest.raises(ParameterError) as info:
         simulate(scene, 1.01 * limit, sample_rate=0.0)
     assert info.value.key == 'duration' and info.value.value == 1.01 * limit
+    assert f'at most {limit:.4g} s of this scene' in info.value.reason
     assert time.process_time() - t0 < 1.0  # refused up front, not after building events
     # just below the limit the check lets it through (checked without building: it is the same test)
-    from folder_line.core.line import check_size
+    line_mod.check_size(scene, 0.99 * limit, 0.99 * limit)
+    with pytest.raises(ParameterError, match=r'span=.*this machine allows .* GB \(75% of its memory\): at most'):
+        line_mod.check_size(scene, 1.01 * limit, 1.01 * limit, 'span')
 
-    check_size(scene, 0.99 * limit, 0.99 * limit)
-    with pytest.raises(ParameterError, match="span=.*simulate shorter spans"):
-        check_size(scene, 1.01 * limit, 1.01 * limit, 'span')
+
+def test_the_refusal_states_the_memory_the_model_would_need(monkeypatch: pytest.MonkeyPatch) -> None:
+    from folder_line.core import line as line_mod
+    from folder_line.errors import ParameterError
+
+    monkeypatch.setattr(line_mod, 'memory_budget', lambda: 10**9)  # a machine that allows 1 GB
+    scene = load_scene('line', {})
+    span = 36000.0
+    cycles = span / float(scene.machines['knife'].period)
+    leaves = span / float(scene.sheets.interval)
+    need = cycles * line_mod.BYTES_PER_CYCLE + leaves * line_mod.BYTES_PER_LEAF
+    with pytest.raises(ParameterError) as info:
+        line_mod.check_size(scene, span, span, 'duration')
+    reason = info.value.reason
+    assert f'about {need / 1e9:.3g} GB of memory' in reason, reason
+    assert f'{cycles:.3g} knife cycles x {line_mod.BYTES_PER_CYCLE} B' in reason
+    assert f'{leaves:.3g} leaves x {line_mod.BYTES_PER_LEAF} B' in reason
+    assert f'at most {span * 1e9 / need:.4g} s of this scene' in reason
+    line_mod.check_size(scene, span * 0.99e9 / need, span * 0.99e9 / need)  # what it says fits, fits

@@ -57,6 +57,7 @@ from folder_line.core.delivery import (
     evaluate_stroke_point,
 )
 from folder_line.core.roots import find_sign_changes
+from folder_line.core.limits import MOTOR_SPEED
 from folder_line.core.validate import non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
@@ -289,7 +290,7 @@ class MasterLoad:
         self.schedule = schedule(scene)
         self.path = chain_path(scene)
         sch = self.schedule
-        self.omega_nom = positive('effects.motor_dynamics.omega_nom', omega_nom)
+        self.omega_nom = MOTOR_SPEED.check('effects.motor_dynamics.omega_nom', omega_nom)
         self.omega_sprocket = sch.v_A / self.params.r
         self.ratio = self.omega_sprocket / self.omega_nom
         self.period = sch.T

@@ -104,6 +104,7 @@ import numpy.typing as npt
 from folder_line.core import integrators as ig
 from folder_line.core.drive import Command, check_commands
 from folder_line.core.effects import chain_friction
+from folder_line.core.limits import HORIZON
 from folder_line.core.validate import in_range, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
@@ -130,8 +131,8 @@ RK4_STABILITY = 2.785
 RK4_STEP_LIMIT = 2.21
 #: relative agreement of ω (and of the period) at three marks that counts as periodic
 PERIODIC_TOL = 1e-12
-#: longest run accepted, s (as core.line.MAX_DURATION)
-MAX_DURATION = 1e9
+#: longest run accepted, s (as core.line.MAX_DURATION: :data:`folder_line.core.limits.HORIZON`)
+MAX_DURATION = HORIZON.hi
 #: step attempts allowed per integration
 MAX_STEPS = 20_000_000
 
