@@ -36,7 +36,10 @@ against a crash of the process, not of the operating system.
 scene as YAML), ``folder_line.scene_name``, ``folder_line.effects`` (JSON list),
 ``folder_line.version``, ``folder_line.segment_s``, any extra keys given to the
 writer, ``folder_line.published`` (JSON ``{topic: count}``, publisher-side counts,
-written at close when known) and ``folder_line.repair`` (what :func:`repair` did).
+written at close when known), ``folder_line.repair`` (what :func:`repair` did) and
+``folder_line.complete`` (``false`` while the writer has the bag open -- so a bag left by a
+crash or a failed write is marked partial --, ``true`` once closed, ``repaired`` after
+:func:`repair`).
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ from folder_line.atomic import write_text_atomic
 from folder_line.errors import FolderLineError
 
 __all__ = [
+    'KEY_COMPLETE',
     'KEY_EFFECTS',
     'KEY_PUBLISHED',
     'KEY_REPAIR',
@@ -94,6 +98,8 @@ KEY_VERSION = 'folder_line.version'
 KEY_SEGMENT_S = 'folder_line.segment_s'
 KEY_PUBLISHED = 'folder_line.published'
 KEY_REPAIR = 'folder_line.repair'
+#: ``'false'`` while the writer has the bag open, ``'true'`` once it closed it, ``'repaired'`` after :func:`repair`
+KEY_COMPLETE = 'folder_line.complete'
 
 NS_PER_S = 1_000_000_000
 _SPLIT = re.compile(r'_(\d+)\.mcap$')
@@ -426,7 +432,7 @@ class BagWriter:
         self.custom: dict[str, str] = {
             KEY_SCENE_NAME: str(scene_name), KEY_SCENE: str(scene_source),
             KEY_EFFECTS: json.dumps([str(e) for e in effects]), KEY_VERSION: __version__,
-            KEY_SEGMENT_S: repr(float(segment_s)),
+            KEY_SEGMENT_S: repr(float(segment_s)), KEY_COMPLETE: 'false',
         }
         for key, value in (custom or {}).items():
             if not isinstance(value, str):
@@ -538,6 +544,7 @@ class BagWriter:
             self.custom[KEY_PUBLISHED] = json.dumps({str(k): int(v) for k, v in sorted(published.items())})
         self._finish_segment()
         self._closed = True
+        self.custom[KEY_COMPLETE] = 'true'
         self._write_metadata()
 
     def __enter__(self) -> BagWriter:
@@ -725,7 +732,13 @@ def bag_info_lines(contents: BagContents) -> list[str]:
     names = ', '.join(contents.files[:3]) + (', ...' if len(contents.files) > 3 else '')
     span = (f'{contents.start_ns / NS_PER_S:.3f} .. {contents.end_ns / NS_PER_S:.3f} s '
             f'({contents.duration_ns / NS_PER_S:.3f} s)')
-    lines = [f'bag        {contents.path}', f'files      {len(contents.files)} ({names})',
+    state = contents.custom.get(KEY_COMPLETE)
+    state_text = {'true': 'complete (closed by its writer)',
+                  'false': 'INCOMPLETE: its writer did not close it (killed, or a write failed); the files listed '
+                           'are whole, the rest is salvaged by: folder-line bag repair DIR',
+                  'repaired': 'repaired after its writer stopped (see folder_line.repair)'}.get(
+                      state or '', 'not recorded (written before folder_line.complete existed)')
+    lines = [f'bag        {contents.path}', f'state      {state_text}', f'files      {len(contents.files)} ({names})',
              f'line time  {span}', f'messages   {contents.message_count}', 'topics:']
     published = contents.published
     for name, t in contents.topics.items():
@@ -967,6 +980,8 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
                                                  type_hash)
         meta.add_file(FileSummary(path.name, scan.start_ns, scan.end_ns, scan.count))
     result.files = list(meta.files)
+    if custom.get(KEY_COMPLETE) != 'true':
+        custom[KEY_COMPLETE] = 'repaired'
     custom[KEY_REPAIR] = result.describe()
     write_text_atomic(result.metadata, meta.render(topics, custom))
     with _OpenReader(Reader, bag):

@@ -297,9 +297,11 @@ def test_repair_rebuilds_missing_metadata(tmp_path: Path) -> None:
     assert after.files == before.files and after.topics == before.topics
     assert (after.start_ns, after.end_ns, after.message_count) == (before.start_ns, before.end_ns, before.message_count)
     # custom data from the MCAP files: everything but what is known at close only
-    assert {k: v for k, v in after.custom.items() if k != 'folder_line.repair'} == \
-        {k: v for k, v in before.custom.items() if k != KEY_PUBLISHED}
+    at_close = (KEY_PUBLISHED, 'folder_line.complete', 'folder_line.repair')
+    assert {k: v for k, v in after.custom.items() if k not in at_close} == \
+        {k: v for k, v in before.custom.items() if k not in at_close}
     assert after.custom['folder_line.repair'].endswith('nothing dropped')
+    assert (before.custom['folder_line.complete'], after.custom['folder_line.complete']) == ('true', 'repaired')
     assert _positions(bag) == list(range(300))
     # with its metadata present, repair keeps its custom data (published counts included)
     repair(kept)

@@ -22,7 +22,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from folder_line.bag import BagError, read_bag, repair, segment_files
+from folder_line.bag import BagError, bag_info_lines, read_bag, repair, segment_files
 from folder_line.cli import main as cli_main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -172,7 +172,11 @@ def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
     contents = read_bag(bag)  # opens: no finished segment yet, metadata from the start
     assert contents.message_count == 0 and contents.files == ()
     assert contents.scene_name == 'crash'
+    assert contents.custom['folder_line.complete'] == 'false'  # marked partial: its writer never closed it
+    assert any(line.startswith('state      INCOMPLETE') and 'folder-line bag repair' in line
+               for line in bag_info_lines(contents))
     result = repair(bag)
+    assert read_bag(bag).custom['folder_line.complete'] == 'repaired'
     steps = _joint_steps(bag)
     assert result.salvaged.get('bag_0.mcap', 0) > 0
     # flushed every 0.1 s of line time: steps up to 0.5 s are on disk although no chunk was full
