@@ -297,9 +297,9 @@ def test_before_any_message() -> None:
 
 
 @pytest.mark.parametrize('argv, text', [
-    (['--rate', '0'], "--rate='0': must be in (0, 60] Hz"),
+    (['--rate', '0'], "--rate='0': must be in [0.1, 60] Hz"),
     (['--rate', 'fast'], "--rate='fast': must be a number"),
-    (['--window', '-1'], "--window='-1': must be in (0, 600] s"),
+    (['--window', '-1'], "--window='-1': must be in [0.01, 600] s"),
 ])
 def test_bad_options_exit_2_naming_the_value(argv: list[str], text: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:

@@ -384,7 +384,7 @@ def test_a_node_refuses_to_start_on_the_wall_clock(ros: Ros, cls: type[MachineNo
 BAD_STARTS = [
     ('scene:=nope', "scene='nope': no such scene; shipped scenes: folder, "),
     ('scene:=/nonexistent/scene.yaml', "scene='/nonexistent/scene.yaml': no such file"),
-    ('overrides:=feed_transporter.V_tr=-1', 'feed_transporter.V_tr=-1: must be in (0, 1000]'),
+    ('overrides:=feed_transporter.V_tr=-1', 'feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
     ('use_sim_time:=false', "use_sim_time=False: a line node runs on the line's simulated time (/clock)"),
     ('overrides:=feed_transporter.V_tr', "overrides='feed_transporter.V_tr': must be KEY=VALUE"),
     ('rate:=nan', 'Invalid parameter value (nan) for parameter. Reason: Parameter rate out of range'),

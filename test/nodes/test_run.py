@@ -71,7 +71,7 @@ def test_run_in_process(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> No
 
 
 @pytest.mark.parametrize(('item', 'line'), [
-    ('feed_transporter.V_tr=-1', 'folder-line: error: feed_transporter.V_tr=-1: must be in (0, 1000]'),
+    ('feed_transporter.V_tr=-1', 'folder-line: error: feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
     ('V_tr', "folder-line: error: --set='V_tr': must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833"),
 ])
 def test_run_refuses_a_bad_set_with_one_line(tmp_path: Path, capfd: pytest.CaptureFixture[str], item: str,
