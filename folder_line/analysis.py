@@ -70,7 +70,13 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from folder_line.atomic import claim_output_dir, write_csv_atomic, write_text_atomic
+from folder_line.atomic import (
+    check_output_file,
+    claim_output_dir,
+    describe_path,
+    write_csv_atomic,
+    write_text_atomic,
+)
 from folder_line.core.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
 from folder_line.core.drive import Command, Drive
 from folder_line.core.events import EVENT_DTYPE, EVENT_KINDS, ConstraintSeries, event_kind
@@ -247,10 +253,12 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
 
     p = Path(path)
     if not p.is_dir():
-        raise ParameterError('RUN_DIR|BAG', str(path), 'no such directory')
+        what = 'no such directory' if not os.path.lexists(p) else \
+            f'{describe_path(p)}, not a run directory or a bag directory'
+        raise ParameterError('RUN_DIR|BAG', str(path), what)
     if (p / BAG_DIR).is_dir():
         bag, run_dir = p / BAG_DIR, p
-    elif (p / 'metadata.yaml').is_file() or any(p.glob('*.mcap')):
+    elif os.path.lexists(p / 'metadata.yaml') or any(p.glob('*.mcap')):  # read_bag says what is wrong with it
         bag = p
         run_dir = p.parent if p.name == BAG_DIR else None
     else:
@@ -1300,6 +1308,9 @@ def analyze(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = N
 def _write_analysis(rec: Recording, out_dir: Path, collector: _CsvCollector | None,
                     gantt_cycles: int) -> AnalysisResult:
     """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
+    if collector is not None:  # every CSV target is checked before anything is written
+        for topic in rec.bag.topics:
+            check_output_file(out_dir / 'csv' / csv_name(topic), '--out')
     ev = _evaluate(rec)
 
     summary = dict(ev.summary)

@@ -32,8 +32,8 @@ import numpy as np
 
 from folder_line.errors import OutputError
 
-__all__ = ['check_output_dir', 'check_output_file', 'claim_output_dir', 'write_bytes_atomic', 'write_csv_atomic',
-           'write_json_atomic', 'write_text_atomic']
+__all__ = ['check_output_dir', 'check_output_file', 'claim_output_dir', 'describe_path', 'write_bytes_atomic',
+           'write_csv_atomic', 'write_json_atomic', 'write_text_atomic']
 
 _umask = os.umask(0)
 os.umask(_umask)
@@ -50,6 +50,17 @@ def _kind(mode: int) -> str:
         if test(mode):
             return name
     return 'a special file'
+
+
+def describe_path(path: str | os.PathLike[str]) -> str:
+    """What is at ``path``, for a message: ``'is a FIFO'``, ``'is a regular file'``, ``'does not exist'``..."""
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        return 'is a symbolic link to nothing (dangling)' if os.path.islink(path) else 'does not exist'
+    except OSError as exc:
+        return f'cannot be looked at: {_reason(exc)}'
+    return f'is {_kind(info.st_mode)}'
 
 
 def _reason(exc: OSError) -> str:

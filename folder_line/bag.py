@@ -523,11 +523,17 @@ class BagWriter:
         if topic not in self.types:
             msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
             raise BagError(msg)
-        if log_ns >= self._boundary_ns:
-            self._roll(log_ns)
-        assert self._segment is not None
-        self._segment.add(topic, log_ns, log_ns if publish_ns is None else publish_ns, data,
-                          self.counts[topic] % 2**32)
+        try:
+            if log_ns >= self._boundary_ns:
+                self._roll(log_ns)
+            assert self._segment is not None
+            self._segment.add(topic, log_ns, log_ns if publish_ns is None else publish_ns, data,
+                              self.counts[topic] % 2**32)
+        except OSError as exc:
+            if exc.filename is None:  # a write into the open file: name it
+                where = self._segment.path if self._segment is not None else self.path
+                raise OSError(exc.errno, exc.strerror, str(where)) from exc
+            raise
         self.counts[topic] += 1
 
     def close(self, published: Mapping[str, int] | None = None) -> None:
@@ -698,10 +704,20 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
     if not directory.is_dir():
         msg = f'{directory}: not a bag directory'
         raise BagError(msg)
-    if not (directory / METADATA_FILE).is_file():
+    meta = directory / METADATA_FILE
+    if not os.path.lexists(meta):
         msg = f'{directory}: no {METADATA_FILE}; rebuild it with: folder-line bag repair {directory}'
         raise BagError(msg)
-    _read_metadata(directory)  # bounded, strict YAML before rosbags parses it
+    if not meta.is_file():
+        from folder_line.atomic import describe_path
+
+        msg = f'{meta}: {describe_path(meta)}, not a regular file'
+        raise BagError(msg)
+    data = _read_metadata(directory)  # bounded, strict YAML before rosbags parses it
+    if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'), dict):
+        msg = (f'{meta}: line 1, column 1: not rosbag2 metadata (a mapping with rosbag2_bagfile_information); '
+               f'rebuild it with: folder-line bag repair {directory}')
+        raise BagError(msg)
     with _OpenReader(Reader, directory) as reader:
         topics = {name: TopicSummary(info.msgtype or '', info.msgcount,
                                      info.connections[0].digest if info.connections else '')

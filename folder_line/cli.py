@@ -261,6 +261,29 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+#: argument -> how the command line names it, for an OS error on a path it gave
+_PATH_ARGUMENTS = {'scene': '--scene', 'params': '--params', 'json': '--json', 'csv': '--csv', 'out': '--out',
+                   'path': 'RUN_DIR|BAG', 'dir': 'DIR'}
+
+
+def _os_error_text(args: argparse.Namespace, exc: OSError) -> str:
+    """One line for an OS error: the argument that named the path (the one it is, or lies under), the path
+    and the OS reason; a write without a path is the verb's output's."""
+    from folder_line.errors import path_repr
+
+    reason = exc.strerror or str(exc)
+    if exc.filename is None:
+        return f'{_OUTPUT_OPTION[args.verb]}: {reason}'
+    path = str(exc.filename)
+    label = ''
+    for attr, option in _PATH_ARGUMENTS.items():
+        given = getattr(args, attr, None)
+        if isinstance(given, str) and given and (path == given or path.startswith(given.rstrip('/') + '/')):
+            label = f'{option}: '
+            break
+    return f'{label}{path_repr(path)}: {reason}'
+
+
 def _error(text: str) -> None:
     """Print ``text`` as one line on stderr (newlines folded, cut to :data:`_LINE_CHARS`)."""
     from folder_line.errors import shorten
@@ -283,9 +306,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except FolderLineError as exc:
         _error(str(exc))
         return EXIT_USAGE
-    except OSError as exc:  # the OS refused a write deep inside a verb (a bag segment, a log)
-        where = f'{exc.filename!r}: ' if exc.filename is not None else ''
-        _error(f'{_OUTPUT_OPTION[args.verb]}: {where}{exc.strerror or exc}')
+    except OSError as exc:  # the OS refused to open, read or write a path deep inside a verb
+        _error(_os_error_text(args, exc))
         return EXIT_USAGE
     except KeyboardInterrupt:
         return 130

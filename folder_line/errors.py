@@ -14,6 +14,7 @@ __all__ = [
     'ParameterError',
     'InputFileError',
     'OutputError',
+    'path_repr',
     'AssemblyError',
     'RootFindingError',
     'NotBracketedError',
@@ -36,6 +37,20 @@ def shorten(text: str, limit: int = MESSAGE_VALUE_CHARS) -> str:
     if len(text) <= limit:
         return text
     return text[:max(limit - 3, 1)] + '...'
+
+
+#: longest path printed whole in a message, characters (a longer one keeps its start and its end)
+PATH_CHARS = 240
+
+
+def path_repr(path: object, limit: int = PATH_CHARS) -> str:
+    """``repr`` of a path for a message: whole up to ``limit`` characters, else its start and its end
+    (where the file's name is) around an ellipsis, so that the reason after it is still read."""
+    text = repr(str(path))
+    if len(text) <= limit:
+        return text
+    half = (limit - 3) // 2
+    return text[:half] + '...' + text[-half:]
 
 
 class _BoundedRepr(reprlib.Repr):
@@ -91,8 +106,8 @@ class ParameterError(FolderLineError, ValueError):
 
 class InputFileError(ParameterError):
     """A file given as input cannot be read: not a regular file, too large, not UTF-8, not
-    the YAML we accept. Unlike other values the path is printed whole (the OS bounds its
-    length), since a path cut in the middle no longer says which file.
+    the YAML we accept. Unlike other values the path is printed whole up to
+    :data:`PATH_CHARS` characters; a longer one keeps its start and its end (its file name).
 
     Parameters
     ----------
@@ -106,7 +121,7 @@ class InputFileError(ParameterError):
 
     def __init__(self, what: str, path: str, reason: str) -> None:
         super().__init__(what, path, reason)
-        self.args = (f'{shorten(what)}={path!r}: {reason}',)
+        self.args = (f'{shorten(what)}={path_repr(path)}: {reason}',)
 
 
 class OutputError(FolderLineError, OSError):
@@ -131,7 +146,7 @@ class OutputError(FolderLineError, OSError):
         super().__init__(self._message())
 
     def _message(self) -> str:
-        where = f'{self.option}={self.path!r}' if self.option else repr(self.path)
+        where = f'{self.option}={path_repr(self.path)}' if self.option else path_repr(self.path)
         return f'{where}: {self.reason}'
 
     def __str__(self) -> str:

@@ -134,6 +134,8 @@ class LineRecorder(Node):
         self.state = ''
         self.sheet_count = 0
         self.lost: dict[str, float] = {}
+        #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
+        self.write_error: OSError | None = None
         self.diagnostics: list[Any] = []  # the ERROR statuses seen (lost participants, violations, ...)
         self._last_clock = -1
         self._held: list[tuple[str, bytes, int]] = []  # (topic, cdr, publish ns) of a tick whose /clock is not in
@@ -210,10 +212,17 @@ class LineRecorder(Node):
         return on_message
 
     def _sink(self, topic: str, data: bytes, publish_ns: int) -> None:
-        """Record at the latest tick; a message without a stamp of its own is stamped with it."""
+        """Record at the latest tick; a message without a stamp of its own is stamped with it. A write the
+        OS refuses is kept in :attr:`write_error` (for ``run`` to end the line with it), not raised into
+        the executor."""
         assert self.sink is not None
+        if self.write_error is not None:
+            return
         log_ns = max(self._last_clock, 0)
-        self.sink(topic, data, log_ns, log_ns if publish_ns < 0 else publish_ns)
+        try:
+            self.sink(topic, data, log_ns, log_ns if publish_ns < 0 else publish_ns)
+        except OSError as exc:
+            self.write_error = exc
 
     def _ahead(self, producer: str) -> bool:
         """Whether a message of ``producer`` arriving now belongs to a tick whose ``/clock`` is not recorded yet.

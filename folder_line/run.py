@@ -249,7 +249,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
 
     mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
     scene = parse_scene(mapping)  # fail early, before any node starts
-    check_size(scene, cfg.duration + HORIZON_MARGIN, cfg.duration + HORIZON_MARGIN, '--duration')
+    check_size(scene, cfg.duration, cfg.duration + HORIZON_MARGIN, '--duration')  # the nodes' horizon's cycles
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)
@@ -257,6 +257,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     procs: dict[str, subprocess.Popen[bytes]] = {}
     nodes: list[Any] = []
     bag = None
+    recorder: Any = None
     interrupted: list[str] = []
     participants = (*LINE_NODES, RECORDER)
 
@@ -324,6 +325,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 last_draw = now
                 if recorder.count_publishers('/clock') > 1:
                     interrupted.append('another /clock publisher appeared on this ROS domain')
+            if recorder.write_error is not None:
+                interrupted.append('the bag could not be written')
         if interrupted and clock is not None:
             executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
         # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
@@ -333,6 +336,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         progress.show(recorder.sim_time)
         progress.close()
         recorder.flush()
+        if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
+            raise recorder.write_error
         result.counts = dict(recorder.counts)
         published = None if cfg.processes else _published_counts(nodes)
         bag.close(published)
@@ -370,7 +375,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                 proc.wait()
             result.exit_codes[name] = proc.returncode
         executor.shutdown()
-        if bag is not None:
+        if bag is not None and (recorder is None or recorder.write_error is None):
             bag.close()  # no-op after a normal end; after an error, finishes what was recorded
         for node in nodes:
             node.destroy_node()

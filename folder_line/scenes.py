@@ -54,6 +54,8 @@ def parse_set(items: Iterable[str]) -> dict[str, Any]:
         key = key.strip()
         if not sep or not key:
             raise ParameterError('--set', item, 'must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833')
+        if not raw.strip():
+            raise ParameterError(key, raw, 'needs a value (KEY=VALUE)')
         if len(raw) > SET_VALUE_CHARS:
             raise ParameterError(key, raw, f'value is {len(raw)} characters long; at most {SET_VALUE_CHARS}')
         try:

@@ -477,3 +477,68 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(tmp_path: Path, monkeypat
     line = refused(['run', '--duration', '1', '--out', str(out)], capsys)
     assert line == f"folder-line: error: --out: '{segment}': No space left on device"
     assert list(tmp_path.iterdir()) == []  # the folder the claim made, still empty, is gone
+
+
+# --------------------------------------------------------------------------- found by a hostile trial
+
+
+def test_analyze_checks_every_csv_target_before_it_writes_anything(tmp_path: Path, run_dir: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    from folder_line.analysis import csv_name
+
+    out = tmp_path / 'analysis'
+    (out / 'csv').mkdir(parents=True)
+    os.mkfifo(out / 'csv' / csv_name('/clock'))
+    before = snapshot(out, folder_mtimes=False)  # (the claim's write probe touches the folder's mtime)
+    line = refused(['analyze', str(run_dir), '--out', str(out), '--csv'], capsys)
+    assert 'clock.csv' in line and 'is a FIFO, not a regular file' in line
+    assert snapshot(out, folder_mtimes=False) == before  # no figure, no CSV written before the refusal
+
+
+def test_a_very_long_path_keeps_its_end_and_the_os_reason(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with _cwd(tmp_path):
+        name = 'f/' + 'a' * 5000
+        line = refused(['kinematics', 'layup', '--samples', '4', '--csv', name], capsys)
+        assert len(line) < 400 and line.endswith("aaa': File name too long"), line
+        line = refused(['simulate', '--duration', '1', '--scene', 'in/' + 'b' * 300 + '.yaml'], capsys)
+        assert line.startswith("folder-line: error: --scene='in/bbb") and len(line) < 400, line
+
+
+@pytest.mark.parametrize(('make', 'words'), [
+    (_fifo, 'metadata.yaml: is a FIFO, not a regular file'),
+    (_dir, 'metadata.yaml: is a directory, not a regular file'),
+    (lambda p: p.write_text(''), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
+    (lambda p: p.write_text('- 1\n- 2\n'), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
+], ids=['fifo', 'directory', 'empty', 'list'])
+def test_bag_info_names_what_is_wrong_with_the_metadata(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                        make: Callable[[Path], None], words: str) -> None:
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    make(bag / 'metadata.yaml')
+    before = snapshot(bag)
+    for argv in (['bag', 'info', str(bag)], ['analyze', str(bag), '--out', str(tmp_path / 'a')]):
+        line = refused(argv, capsys)
+        assert words in line, line
+    assert snapshot(bag) == before and not (tmp_path / 'a').exists()
+
+
+@pytest.mark.parametrize(('make', 'words'), [(_file, 'is a regular file'), (_fifo, 'is a FIFO'),
+                                             (_dangling, 'is a symbolic link to nothing (dangling)')],
+                         ids=['file', 'fifo', 'dangling'])
+def test_analyze_says_what_its_path_is_when_it_is_no_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                            make: Callable[[Path], None], words: str) -> None:
+    target = tmp_path / 'x'
+    make(target)
+    line = refused(['analyze', str(target)], capsys)
+    assert f"RUN_DIR|BAG='{target}': {words}, not a run directory or a bag directory" in line, line
+
+
+def test_a_set_item_without_a_value_is_named(capsys: pytest.CaptureFixture[str]) -> None:
+    line = refused(['simulate', '--duration', '1', '--set', 'knife.n_k='], capsys)
+    assert line == "folder-line: error: knife.n_k='': needs a value (KEY=VALUE)"
+
+
+def test_run_names_the_duration_it_was_given(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    line = refused(['run', '--duration', '1e7', '--out', str(tmp_path / 'out')], capsys)
+    assert line.startswith('folder-line: error: --duration=10000000.0: the model would need about ')
+    assert not (tmp_path / 'out').exists()

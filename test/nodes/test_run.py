@@ -229,3 +229,31 @@ def test_hostile_inputs_are_rejected_and_the_line_runs_on(ros: Ros, node_env: di
     assert status.level == 1 and status.message.endswith('inputs rejected'), status.message  # WARN
     for kind in ('command', 'event', 'tick_done', 'announcement', 'joint_states'):
         assert int(rejected.get(kind, '0')) > 0, (kind, rejected)
+
+
+def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(tmp_path: Path,
+                                                                             capfd: pytest.CaptureFixture[str]) -> None:
+    """The recorder's write fails (ENOSPC on a 64 KiB tmpfs): the run stops, prints one error line naming
+    the bag file and the OS reason (no FATAL callback dump from the executor), exits 2, and the bag is
+    left as far as it got, marked partial and repairable."""
+    import subprocess
+
+    if os.geteuid() != 0:
+        pytest.skip('mounting a tmpfs needs root')
+    disk = tmp_path / 'small'
+    disk.mkdir()
+    mount = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=64k', 'tmpfs', str(disk)], capture_output=True,
+                           text=True, check=False)
+    if mount.returncode != 0:
+        pytest.skip(f'cannot mount a tmpfs here: {mount.stderr.strip()}')
+    try:
+        out = disk / 'run'
+        assert main(['run', '--duration', '2', '--rtf', 'max', '--out', str(out)]) == 2
+        err = [line for line in capfd.readouterr().err.splitlines() if not line.startswith('[INFO]')]
+        assert err == [f"folder-line: error: --out: '{out / 'bag' / 'bag_0.mcap'}': No space left on device"], err
+        from folder_line.bag import read_bag
+
+        assert read_bag(out / 'bag').custom['folder_line.complete'] == 'false'
+        assert not (out / 'run.json').exists()
+    finally:
+        subprocess.run(['umount', '-l', str(disk)], check=False)
