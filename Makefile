@@ -22,6 +22,7 @@ report: $(STAMP)
 	$(BIN)/folder-line report --out $(OUT)
 
 test: $(STAMP)
+	$(BIN)/ruff format --check --quiet .
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)

@@ -37,8 +37,9 @@ def best_of(fn, repeats: int) -> float:  # noqa: ANN001
     return best
 
 
-def fourbar_numpy(phi: np.ndarray, R: float, a: float, b: float, l2: float, p: float, w: float
-                  ) -> tuple[np.ndarray, ...]:
+def fourbar_numpy(
+    phi: np.ndarray, R: float, a: float, b: float, l2: float, p: float, w: float
+) -> tuple[np.ndarray, ...]:
     """Plain NumPy closed form of the crank-rocker O1-A-B-O2: B, θ3 and ω3 (reference for scale)."""
     c, s = np.cos(phi), np.sin(phi)
     ax = a + R * c
@@ -60,10 +61,10 @@ def main(argv: list[str] | None = None) -> int:
     p = load_params('layup')
     model = LayupModel(p)
     rng = np.random.default_rng(12345)
-    phi = rng.uniform(0.0, TAU, n)                  # [0, 2π): exercises the exact reduction
-    phi_red = rng.uniform(-math.pi, math.pi, n)     # already reduced
+    phi = rng.uniform(0.0, TAU, n)  # [0, 2π): exercises the exact reduction
+    phi_red = rng.uniform(-math.pi, math.pi, n)  # already reduced
 
-    model.arrays(phi[:1000])                        # warm up
+    model.arrays(phi[:1000])  # warm up
     t_pv = best_of(lambda: model.arrays(phi, accelerations=False), 7)
     t_pv_red = best_of(lambda: model.arrays(phi_red, accelerations=False), 7)
     t_pva = best_of(lambda: model.arrays(phi, accelerations=True), 7)
@@ -87,8 +88,12 @@ def main(argv: list[str] | None = None) -> int:
     rate_4 = n / t_4bar
     rows = [
         ('six-bar vectorised, positions + velocities, phi in [0, 2pi)', f'{n:.0e}', t_pv * 1e3, f'{rate:.3g} angles/s'),
-        ('six-bar vectorised, positions + velocities, phi in [-pi, pi]', f'{n:.0e}', t_pv_red * 1e3,
-         f'{n / t_pv_red:.3g} angles/s'),
+        (
+            'six-bar vectorised, positions + velocities, phi in [-pi, pi]',
+            f'{n:.0e}',
+            t_pv_red * 1e3,
+            f'{n / t_pv_red:.3g} angles/s',
+        ),
         ('six-bar vectorised, + accelerations', f'{n:.0e}', t_pva * 1e3, f'{n / t_pva:.3g} angles/s'),
         ('four-bar plain NumPy closed form (B, theta3, omega3)', f'{n:.0e}', t_4bar * 1e3, f'{rate_4:.3g} evals/s'),
         ('six-bar scalar LayupModel.point', '1', t_point * 1e3, f'{t_point * 1e6:.2f} us/call'),
@@ -99,9 +104,11 @@ def main(argv: list[str] | None = None) -> int:
     print('|---|---:|---:|---:|')
     for name, nn, ms, thr in rows:
         print(f'| {name} | {nn} | {ms:.4g} | {thr} |')
-    print(f'\nsix-bar / plain four-bar throughput ratio: {rate / rate_4:.2f} '
-          f'(target six-bar >= 1e7 angles/s: {"met" if rate >= 1e7 else "NOT met"}; '
-          f'scalar <= 5 us: {"met" if t_point <= 5e-6 else "NOT met"})')
+    print(
+        f'\nsix-bar / plain four-bar throughput ratio: {rate / rate_4:.2f} '
+        f'(target six-bar >= 1e7 angles/s: {"met" if rate >= 1e7 else "NOT met"}; '
+        f'scalar <= 5 us: {"met" if t_point <= 5e-6 else "NOT met"})'
+    )
     return 0
 
 

@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 import platform
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -45,12 +46,14 @@ def main() -> None:
 
     folder = variant('folder', ['stop_bounce', 'chain_friction'])
     t_hour = best_of(lambda: simulate(folder, hour, sample_rate=0.0), rep)
-    print(f'folder scene, {hour:g} s of line time ({hour / 0.072:.0f} cycles), exact events: {t_hour:.3f} s '
-          f'(target for 3600 s: <= 2 s)\n')
+    print(
+        f'folder scene, {hour:g} s of line time ({hour / 0.072:.0f} cycles), exact events: {t_hour:.3f} s '
+        f'(target for 3600 s: <= 2 s)\n'
+    )
 
     print('| duration, s | events only, s | per 1000 cycles, ms | with 200 Hz samples, s |')
     print('|---:|---:|---:|---:|')
-    for d in ([36.0, 360.0] if args.quick else [36.0, 360.0, 3600.0, 36000.0]):
+    for d in [36.0, 360.0] if args.quick else [36.0, 360.0, 3600.0, 36000.0]:
         te = best_of(lambda: simulate(folder, d, sample_rate=0.0), rep)
         ts = best_of(lambda: simulate(folder, d, sample_rate=200.0), rep) if d <= 3600.0 else float('nan')
         ts_text = f'{ts:.3f}' if ts == ts else '—'
@@ -74,8 +77,15 @@ def main() -> None:
         ('layup', ['guide_friction', 'leaf_flight', 'leaf_damage'], None),
     ]
     base: dict[str, tuple[float, float]] = {}
-    faults_params = {'p_missing': 0.001, 'p_double': 0.001, 'p_late': 0.001, 'late_delay': 0.001,
-                     'p_slowdown': 0.0001, 'slowdown_factor': 0.9, 'slowdown_duration': 0.5}
+    faults_params = {
+        'p_missing': 0.001,
+        'p_double': 0.001,
+        'p_late': 0.001,
+        'late_delay': 0.001,
+        'p_slowdown': 0.0001,
+        'slowdown_factor': 0.9,
+        'slowdown_duration': 0.5,
+    }
     guide = {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.002}
     for name, effects, over in steps:
         line = scene_mapping('line')
@@ -91,14 +101,18 @@ def main() -> None:
             base[name] = (te, ts)
         scale = d / dd
         b = base[name]
-        print(f'| {name} | {", ".join(effects) or "none"}{"" if scale == 1 else f" (timed over {dd:g} s, scaled)"} '
-              f'| {te * scale:.3f} | {te * scale / b[0]:.2f} | {ts * scale:.3f} | {ts * scale / b[1]:.2f} |')
+        print(
+            f'| {name} | {", ".join(effects) or "none"}{"" if scale == 1 else f" (timed over {dd:g} s, scaled)"} '
+            f'| {te * scale:.3f} | {te * scale / b[0]:.2f} | {ts * scale:.3f} | {ts * scale / b[1]:.2f} |'
+        )
 
     no_cf = variant('folder', ['stop_bounce'])
     t_without = best_of(lambda: simulate(no_cf, d, sample_rate=200.0), rep)
     t_with = best_of(lambda: simulate(folder, d, sample_rate=200.0), rep)
-    print(f'\nNot listing chain_friction (200 Hz samples, {d:g} s): {t_without:.3f} s vs {t_with:.3f} s listed: '
-          f'{t_with / t_without:.2f} x faster without.')
+    print(
+        f'\nNot listing chain_friction (200 Hz samples, {d:g} s): {t_without:.3f} s vs {t_with:.3f} s listed: '
+        f'{t_with / t_without:.2f} x faster without.'
+    )
 
 
 if __name__ == '__main__':

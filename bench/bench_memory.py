@@ -18,9 +18,11 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+
+
 def _peak(scene: str, duration: float) -> tuple[int, int, int]:
     """(peak RSS bytes, knife cycles, leaves) of one batch run in a fresh process."""
-    code = '''
+    code = """
 import json, resource, sys
 sys.path.insert(0, sys.argv[3])
 from folder_line.core.events import EVENT_KINDS
@@ -33,9 +35,10 @@ kinds = result.events["kind"]
 print(json.dumps({"rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
                   "cycles": int((kinds == EVENT_KINDS.index("knife_contact")).sum()),
                   "leaves": int((kinds == EVENT_KINDS.index("leaf_enter")).sum())}))
-'''
-    out = subprocess.run([sys.executable, '-c', code, scene, repr(duration), str(REPO)], capture_output=True,
-                         text=True, check=True).stdout
+"""
+    out = subprocess.run(
+        [sys.executable, '-c', code, scene, repr(duration), str(REPO)], capture_output=True, text=True, check=True
+    ).stdout
     d = json.loads(out)
     return d['rss'], d['cycles'], d['leaves']
 
@@ -57,11 +60,15 @@ def main() -> int:
     per_leaf = rss / leaves
     rss, cycles_line, leaves_line = growth('line', d1, d2)
     predicted = cycles_line * BYTES_PER_CYCLE + leaves_line * BYTES_PER_LEAF
-    print(f'peak memory per knife cycle (folder, {d1:g} -> {d2:g} s): {per_cycle:.0f} B '
-          f'(BYTES_PER_CYCLE = {BYTES_PER_CYCLE})')
+    print(
+        f'peak memory per knife cycle (folder, {d1:g} -> {d2:g} s): {per_cycle:.0f} B '
+        f'(BYTES_PER_CYCLE = {BYTES_PER_CYCLE})'
+    )
     print(f'peak memory per leaf (layup, {d1:g} -> {d2:g} s): {per_leaf:.0f} B (BYTES_PER_LEAF = {BYTES_PER_LEAF})')
-    print(f'line, {d1:g} -> {d2:g} s: {rss / 1e6:.0f} MB measured, {predicted / 1e6:.0f} MB from the two figures '
-          f'({cycles_line} cycles, {leaves_line} leaves)')
+    print(
+        f'line, {d1:g} -> {d2:g} s: {rss / 1e6:.0f} MB measured, {predicted / 1e6:.0f} MB from the two figures '
+        f'({cycles_line} cycles, {leaves_line} leaves)'
+    )
     if per_cycle > BYTES_PER_CYCLE or per_leaf > BYTES_PER_LEAF:
         print('the constants are below what is measured: raise them', file=sys.stderr)
         return 1

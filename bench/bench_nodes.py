@@ -68,8 +68,14 @@ def floor_per_message(n: int = 3000, executor_kind: str = 'events', fanout: int 
     sub_nodes = [rclpy.create_node(f'floor_sub{k}', context=ctx) for k in range(fanout)]
     js = JointState(name=['a', 'b', 'c'], position=[1.0, 2.0, 3.0], velocity=[1.0, 2.0, 3.0])
     ack = TimeReference(source='messages=123456 events=1234 commands=0')
-    mix = [(JointState, js), (TimeReference, ack), (String, String(data='EXECUTE')), (UInt64, UInt64(data=7)),
-           (Float64, Float64(data=1.5)), (Clock, Clock())]
+    mix = [
+        (JointState, js),
+        (TimeReference, ack),
+        (String, String(data='EXECUTE')),
+        (UInt64, UInt64(data=7)),
+        (Float64, Float64(data=1.5)),
+        (Clock, Clock()),
+    ]
     got = [0]
     pubs = []
     for i, (cls, msg) in enumerate(mix):
@@ -142,8 +148,16 @@ def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, d
         with open(os.devnull, 'w') as quiet:
             result = run_line(cfg, quiet)
         self1, kids1 = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (self1.ru_utime + self1.ru_stime - self0.ru_utime - self0.ru_stime
-           + kids1.ru_utime + kids1.ru_stime - kids0.ru_utime - kids0.ru_stime)
+    cpu = (
+        self1.ru_utime
+        + self1.ru_stime
+        - self0.ru_utime
+        - self0.ru_stime
+        + kids1.ru_utime
+        + kids1.ru_stime
+        - kids0.ru_utime
+        - kids0.ru_stime
+    )
     s = result.summary
     if not s['outcome']['ok']:
         raise SystemExit(f'the line did not end as expected: {s["outcome"]["message"]}')
@@ -171,17 +185,25 @@ def main() -> int:
     parser.add_argument('--quick', action='store_true', help='shorter spans')
     args = parser.parse_args()
     span = 1.0 if args.quick else 5.0
-    print(f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
-          f'Python {platform.python_version()}; load average {os.getloadavg()[0]:.2f}')
+    print(
+        f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
+        f'Python {platform.python_version()}; load average {os.getloadavg()[0]:.2f}'
+    )
     fanout = line_fanout(200.0)
-    floors = {k: floor_per_message(executor_kind='events', fanout=k) for k in sorted({max(v, 1) for v in fanout.values()})}
+    floors = {
+        k: floor_per_message(executor_kind='events', fanout=k) for k in sorted({max(v, 1) for v in fanout.values()})
+    }
     floor_single = floor_per_message(executor_kind='single')
-    print(f'floor (bare publish -> take, same message mix), EventsExecutor: '
-          + ', '.join(f'{floors[k] * 1e6:.1f} us/message with {k} subscriber{"s" if k > 1 else ""}' for k in floors)
-          + f'; SingleThreadedExecutor {floor_single * 1e6:.1f} us/message with 1')
+    print(
+        'floor (bare publish -> take, same message mix), EventsExecutor: '
+        + ', '.join(f'{floors[k] * 1e6:.1f} us/message with {k} subscriber{"s" if k > 1 else ""}' for k in floors)
+        + f'; SingleThreadedExecutor {floor_single * 1e6:.1f} us/message with 1'
+    )
     print('subscribers per topic in the line: ' + ', '.join(f'{t} {k}' for t, k in fanout.items()) + '\n')
-    print('| setup | rate (Hz) | sim s | rtf reached | CPU per tick | messages per tick | deliveries per tick '
-          '| floor per tick, 1 subscriber | CPU / that | floor per tick, the line\'s subscribers | CPU / that |')
+    print(
+        '| setup | rate (Hz) | sim s | rtf reached | CPU per tick | messages per tick | deliveries per tick '
+        "| floor per tick, 1 subscriber | CPU / that | floor per tick, the line's subscribers | CPU / that |"
+    )
     print('|---|---|---|---|---|---|---|---|---|---|---|')
     for processes in (False, True):
         for rate in (200.0, 1000.0):
@@ -193,10 +215,12 @@ def main() -> int:
             floor1 = floors[1] * messages
             floor_k = sum(n * floors[max(fanout.get(t, 1), 1)] for t, n in per_topic.items())
             cpu = r['cpu_per_tick']
-            print(f'| {"one process per node" if processes else "in process"} | {rate:g} | {2 * duration:g} | '
-                  f'{r["rtf"]:.2f} | {cpu * 1e3:.2f} ms | {messages:.1f} | {deliveries:.1f} | '
-                  f'{floor1 * 1e3:.2f} ms | {cpu / floor1:.1f} | {floor_k * 1e3:.2f} ms | {cpu / floor_k:.1f} |',
-                  flush=True)
+            print(
+                f'| {"one process per node" if processes else "in process"} | {rate:g} | {2 * duration:g} | '
+                f'{r["rtf"]:.2f} | {cpu * 1e3:.2f} ms | {messages:.1f} | {deliveries:.1f} | '
+                f'{floor1 * 1e3:.2f} ms | {cpu / floor1:.1f} | {floor_k * 1e3:.2f} ms | {cpu / floor_k:.1f} |',
+                flush=True,
+            )
     return 0
 
 

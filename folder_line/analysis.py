@@ -64,9 +64,10 @@ import functools
 import json
 import math
 import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -129,11 +130,11 @@ JOINT_STATES_PREFIX, JOINT_STATES_SUFFIX = '/line/', '/joint_states'
 #: figure file -> what it shows (the captions of report.md)
 FIGURES: dict[str, str] = {
     'exit_speeds.png': 'L: exit speeds against the crank angle, recorded (points) over the model (lines); '
-                       'paper L figs. 4-5',
+    'paper L figs. 4-5',
     'efficiency.png': 'D: efficiency, carriage speed ratio and sprocket torque at the recorded carriage '
-                      'positions along the stroke; paper D fig. 2',
+    'positions along the stroke; paper D fig. 2',
     'cyclogram.png': 'F: the first cycles as a Gantt chart of the operations А, Б, В, Г with their margins; '
-                     'paper F figs. 1-2',
+    'paper F figs. 1-2',
     'margins.png': 'margins of every constraint over all cycles (violations in red)',
     'landing.png': 'L: where the leaves landed across the container',
 }
@@ -253,8 +254,11 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
 
     p = Path(path)
     if not p.is_dir():
-        what = 'no such directory' if not os.path.lexists(p) else \
-            f'{describe_path(p)}, not a run directory or a bag directory'
+        what = (
+            'no such directory'
+            if not os.path.lexists(p)
+            else f'{describe_path(p)}, not a run directory or a bag directory'
+        )
         raise ParameterError('RUN_DIR|BAG', str(path), what)
     if (p / BAG_DIR).is_dir():
         bag, run_dir = p / BAG_DIR, p
@@ -262,8 +266,9 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
         bag = p
         run_dir = p.parent if p.name == BAG_DIR else None
     else:
-        raise ParameterError('RUN_DIR|BAG', str(path), f'neither a run directory (with {BAG_DIR}/) nor a bag '
-                             '(with metadata.yaml)')
+        raise ParameterError(
+            'RUN_DIR|BAG', str(path), f'neither a run directory (with {BAG_DIR}/) nor a bag (with metadata.yaml)'
+        )
     run = None
     if run_dir is not None and (run_dir / 'run.json').is_file():
         text = read_text_bounded(run_dir / 'run.json', 'RUN_DIR|BAG', METADATA_LIMIT)
@@ -305,12 +310,14 @@ class _Joints:
         eff = np.array(self.eff).reshape(n, j) if has_eff else None
         t = np.asarray(self.t, dtype=np.int64) / NS_PER_S
         order = np.argsort(t, kind='stable')
-        return RecordedJoints(self.node, self.names, t[order], pos[order], vel[order],
-                              None if eff is None else eff[order])
+        return RecordedJoints(
+            self.node, self.names, t[order], pos[order], vel[order], None if eff is None else eff[order]
+        )
 
 
-def read_recording(path: str | os.PathLike[str],
-                   on_message: Callable[[str, int, Any], None] | None = None) -> Recording:
+def read_recording(
+    path: str | os.PathLike[str], on_message: Callable[[str, int, Any], None] | None = None
+) -> Recording:
     """Decode a run's bag: events, joint states, states, commands, counts (one pass over the bag).
 
     Parameters
@@ -362,13 +369,16 @@ def read_recording(path: str | os.PathLike[str],
                 continue
             ev_rows.append((_time_ns(msg.time_ref), EVENT_KINDS.index(kind), sheet, cycle, value))
         elif topic.startswith(JOINT_STATES_PREFIX) and topic.endswith(JOINT_STATES_SUFFIX):
-            node = topic[len(JOINT_STATES_PREFIX):-len(JOINT_STATES_SUFFIX)]
+            node = topic[len(JOINT_STATES_PREFIX) : -len(JOINT_STATES_SUFFIX)]
             acc = joints.get(node)
             if acc is None:
                 acc = joints[node] = _Joints(node, msg.name)
             acc.add(msg)
-            bad = sum(int(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=float))))
-                      for a in (msg.position, msg.velocity, msg.effort) if len(a))
+            bad = sum(
+                int(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=float))))
+                for a in (msg.position, msg.velocity, msg.effort)
+                if len(a)
+            )
             if bad:
                 bad_values.append((_time_ns(msg.header.stamp) / NS_PER_S, topic, bad))
         elif topic == DIAGNOSTICS_TOPIC:
@@ -396,12 +406,24 @@ def read_recording(path: str | os.PathLike[str],
     order = np.lexsort((events['sheet'], events['kind'], ns))
     cmds = tuple(sorted((Command(t=t / NS_PER_S, kind=k) for t, k in commands), key=lambda c: c.t))
     t_end = (max(clock) if clock else contents.end_ns) / NS_PER_S
-    return Recording(bag=contents, run=run, scene=scene, t_end=t_end, events=events[order], event_ns=ns[order],
-                     joints={node: acc.done() for node, acc in joints.items()}, states=states, commands=cmds,
-                     sheet_count=sheet_count, landing_x=np.asarray(landing, dtype=float), bad_events=bad_events,
-                     clock=np.asarray(clock, dtype=np.int64) / NS_PER_S,
-                     diagnostics_ns=np.asarray(diag_ns, dtype=np.int64), supervisor_status=status,
-                     bad_values=bad_values)
+    return Recording(
+        bag=contents,
+        run=run,
+        scene=scene,
+        t_end=t_end,
+        events=events[order],
+        event_ns=ns[order],
+        joints={node: acc.done() for node, acc in joints.items()},
+        states=states,
+        commands=cmds,
+        sheet_count=sheet_count,
+        landing_x=np.asarray(landing, dtype=float),
+        bad_events=bad_events,
+        clock=np.asarray(clock, dtype=np.int64) / NS_PER_S,
+        diagnostics_ns=np.asarray(diag_ns, dtype=np.int64),
+        supervisor_status=status,
+        bad_values=bad_values,
+    )
 
 
 # --------------------------------------------------------------------------- CSV
@@ -556,8 +578,9 @@ def _evaluate(rec: Recording) -> _Evaluation:
         cycles = math.floor(theta_end * (lp.n_kr / 60.0))
         sheets = int(rec.events_of('leaf_landed').size)
     n_viol = sum(int(np.count_nonzero(c.violated)) for c in constraints)
-    summary = LineResult(scene=scene, duration=max(rec.t_end, 1e-9), events=rec.events, samples={},
-                         constraints=constraints, parts={}).summary(max_violations=max(n_viol, 1))
+    summary = LineResult(
+        scene=scene, duration=max(rec.t_end, 1e-9), events=rec.events, samples={}, constraints=constraints, parts={}
+    ).summary(max_violations=max(n_viol, 1))
     summary['cycles'] = cycles
     summary['sheets_counted'] = sheets
     return _Evaluation(drive, timing, plan, constraints, signatures, cycles, sheets, summary)
@@ -640,24 +663,46 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         t_start = starts[0]
     else:  # the first tick published the first /diagnostics, stamped with its time: the first watermark
         t_start = int(rec.diagnostics_ns.min()) / NS_PER_S if rec.diagnostics_ns.size else 0.0
-    operator = [(float(v['t']), v['command']) for _, name, v in rec.supervisor_status
-                if name.endswith('/operator') and 't' in v and 'command' in v]
-    lost = [(float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
-            for _, name, v in rec.supervisor_status
-            if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')]
+    operator = [
+        (float(v['t']), v['command'])
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/operator') and 't' in v and 'command' in v
+    ]
+    lost = [
+        (float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')
+    ]
     kwargs: dict[str, Any] = {
-        'periods': {}, 'lead': float(p['command_lead']), 'check_period': period, 'enforce': bool(p['enforce']),
-        'double': str(p['double_sheet']), 'state': 'STARTING', 't_start': t_start, 'model_factory': model_factory,
+        'periods': {},
+        'lead': float(p['command_lead']),
+        'check_period': period,
+        'enforce': bool(p['enforce']),
+        'double': str(p['double_sheet']),
+        'state': 'STARTING',
+        't_start': t_start,
+        'model_factory': model_factory,
     }
-    sup = supervision.replay(scene, horizon, rec.events, bad_values=rec.bad_values, operator=operator, lost=lost,
-                             until=max(rec.t_end, t_start), **kwargs)
-    out = [{'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
-           for tr in sup.transitions]
+    sup = supervision.replay(
+        scene,
+        horizon,
+        rec.events,
+        bad_values=rec.bad_values,
+        operator=operator,
+        lost=lost,
+        until=max(rec.t_end, t_start),
+        **kwargs,
+    )
+    out = [
+        {'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
+        for tr in sup.transitions
+    ]
     return out, sup
 
 
-def transitions_agree(replayed: Sequence[Mapping[str, Any]], recorded: Sequence[Mapping[str, Any]],
-                      initial: str = 'STARTING') -> bool:
+def transitions_agree(
+    replayed: Sequence[Mapping[str, Any]], recorded: Sequence[Mapping[str, Any]], initial: str = 'STARTING'
+) -> bool:
     """Whether the recorded state sequence is the replayed one, as the state topic can show it.
 
     The supervisor publishes its state once per tick: states it passes through within
@@ -731,8 +776,15 @@ def exit_speed_data(rec: Recording) -> dict[str, np.ndarray] | None:
             keep = belts.t[i] == t
             v_belt = np.where(keep, belts.column('chute_belts', 'velocity')[i], 0.0)
     vC, vE = w3 * lp.l3, w5 * lp.l5
-    data = {'t': t, 'phi': phi, 'vC': vC, 'vE': vE, 'v_belt': v_belt,
-            'vaC': np.sqrt(vC * vC + v_belt * v_belt), 'vaE': np.sqrt(vE * vE + v_belt * v_belt)}
+    data = {
+        't': t,
+        'phi': phi,
+        'vC': vC,
+        'vE': vE,
+        'v_belt': v_belt,
+        'vaC': np.sqrt(vC * vC + v_belt * v_belt),
+        'vaE': np.sqrt(vE * vE + v_belt * v_belt),
+    }
     return {k: v[keep] for k, v in data.items()}
 
 
@@ -760,21 +812,39 @@ def _plot_exit_speeds(rec: Recording, ev: _Evaluation, out: Path) -> Path | None
     if exits.size:
         kin_phi = _wrap(2.0 * math.pi * (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float))
         c_e = exits['sheet'] % 2 == 1
-        ax2.plot(np.degrees(kin_phi[~c_e]), exits['value'][~c_e], 'v', ms=6, color='C3',
-                 label=f'leaf exits at C ({int(np.count_nonzero(~c_e))})')
-        ax2.plot(np.degrees(kin_phi[c_e]), exits['value'][c_e], '^', ms=6, color='C4',
-                 label=f'leaf exits at E ({int(np.count_nonzero(c_e))})')
+        ax2.plot(
+            np.degrees(kin_phi[~c_e]),
+            exits['value'][~c_e],
+            'v',
+            ms=6,
+            color='C3',
+            label=f'leaf exits at C ({int(np.count_nonzero(~c_e))})',
+        )
+        ax2.plot(
+            np.degrees(kin_phi[c_e]),
+            exits['value'][c_e],
+            '^',
+            ms=6,
+            color='C4',
+            label=f'leaf exits at E ({int(np.count_nonzero(c_e))})',
+        )
     if scene.has('chute_belts'):
         vmin = float(scene.effect('chute_belts').v_min)
         ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
     ax1.set_ylabel('swing speed across the chute, m/s')
-    ax1.set_title(f'L: exit speeds, {n_samples} recorded samples over {rec.t_end:.3f} s '
-                  '(lines: model at nominal speed; paper Fig. 4)', fontsize=10)
+    ax1.set_title(
+        f'L: exit speeds, {n_samples} recorded samples over {rec.t_end:.3f} s '
+        '(lines: model at nominal speed; paper Fig. 4)',
+        fontsize=10,
+    )
     ax1.legend(loc='upper right', fontsize=8)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel(r'crank angle $\varphi$, deg')
-    belt = (f'recorded belt speed {data["v_belt"].min():.3f}..{data["v_belt"].max():.3f} m/s'
-            if scene.has('chute_belts') and data['v_belt'].size else 'no belts')
+    belt = (
+        f'recorded belt speed {data["v_belt"].min():.3f}..{data["v_belt"].max():.3f} m/s'
+        if scene.has('chute_belts') and data['v_belt'].size
+        else 'no belts'
+    )
     ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
     ax2.legend(loc='lower right', fontsize=8, ncol=2)
     fig.tight_layout()
@@ -815,8 +885,16 @@ def efficiency_data(rec: Recording, ev: _Evaluation) -> dict[str, np.ndarray] | 
     torque = np.zeros(0)
     if ft.effort is not None and rec.scene.has('chain_friction'):
         torque = ft.column('chain', 'effort')[on]
-    return {'t': ft.t[on], 'x': x[on], 'u': u, 'eta': at.eta, 'K_v_model': at.K_v, 'K_v': kv,
-            'moving': moving, 'torque': torque}
+    return {
+        't': ft.t[on],
+        'x': x[on],
+        'u': u,
+        'eta': at.eta,
+        'K_v_model': at.K_v,
+        'K_v': kv,
+        'moving': moving,
+        'torque': torque,
+    }
 
 
 def _plot_efficiency(rec: Recording, ev: _Evaluation, out: Path) -> Path | None:
@@ -833,18 +911,36 @@ def _plot_efficiency(rec: Recording, ev: _Evaluation, out: Path) -> Path | None:
     ax_eta, ax_kv = axes[0], axes[1]
     stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
     k = _thin(data['u'].size)
-    ax_eta.plot(data['u'][k], data['eta'][k], 'o', ms=3, color='k', alpha=0.6,
-                label=f'at the recorded carriage positions ({data["u"].size})')
+    ax_eta.plot(
+        data['u'][k],
+        data['eta'][k],
+        'o',
+        ms=3,
+        color='k',
+        alpha=0.6,
+        label=f'at the recorded carriage positions ({data["u"].size})',
+    )
     m = data['moving'][k]
-    ax_kv.plot(data['u'][k][m], data['K_v'][k][m], 'o', ms=3, color='k', alpha=0.6,
-               label='recorded carriage speed / chain speed')
+    ax_kv.plot(
+        data['u'][k][m],
+        data['K_v'][k][m],
+        'o',
+        ms=3,
+        color='k',
+        alpha=0.6,
+        label='recorded carriage speed / chain speed',
+    )
     for ax in axes:
         ax.axvline(plan.u_rel, color='tab:purple', ls='--', lw=1)
     ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color='tab:purple', va='bottom', fontsize=8)
     ax_eta.set_ylabel('efficiency $\\eta$')
-    ax_eta.set_title(f'D: efficiency along the stroke (paper Fig. 2), recorded over {rec.t_end:.3f} s; '
-                     f'min eta at the samples {data["eta"].min():.3f}' if data['eta'].size else
-                     'D: efficiency along the stroke (paper Fig. 2)', fontsize=10)
+    ax_eta.set_title(
+        f'D: efficiency along the stroke (paper Fig. 2), recorded over {rec.t_end:.3f} s; '
+        f'min eta at the samples {data["eta"].min():.3f}'
+        if data['eta'].size
+        else 'D: efficiency along the stroke (paper Fig. 2)',
+        fontsize=10,
+    )
     ax_eta.legend(fontsize=8, loc='lower left')
     ax_kv.set_ylabel('carriage speed ratio $K_v$')
     ax_kv.legend(fontsize=8, loc='lower left')
@@ -860,8 +956,7 @@ def _plot_efficiency(rec: Recording, ev: _Evaluation, out: Path) -> Path | None:
         tq = np.asarray(chain_friction.sprocket_torque(rec.scene, theta[on]), dtype=float)
         order = np.argsort(u_m)
         ax_t.plot(u_m[order], tq[order], color='C2', label='model: all carriages on the stroke')
-        ax_t.plot(data['u'][k], data['torque'][k], 'o', ms=3, color='k', alpha=0.6,
-                  label='recorded (effort on chain)')
+        ax_t.plot(data['u'][k], data['torque'][k], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
         ax_t.set_ylabel('sprocket torque $M_1$, N m')
         ax_t.legend(fontsize=8, loc='upper right')
         ax_t.grid(alpha=0.3)
@@ -880,8 +975,10 @@ OPERATIONS = (
 
 
 _MARGIN_FORMAT = {
-    'feed_window': ('feed', 1e3, 'ms'), 'settled_before_knife': ('settled', 1e3, 'ms'),
-    'one_per_cycle': ('sheets', 1.0, ''), 'rebound': ('rebound', 1e3, 'mm'),
+    'feed_window': ('feed', 1e3, 'ms'),
+    'settled_before_knife': ('settled', 1e3, 'ms'),
+    'one_per_cycle': ('sheets', 1.0, ''),
+    'rebound': ('rebound', 1e3, 'mm'),
     'release_at_min_speed': ('K_v at release', 1.0, ''),
 }
 
@@ -936,12 +1033,26 @@ def cycle_rows(rec: Recording, ev: _Evaluation, n: int = GANTT_CYCLES) -> list[d
         for s in hand[hand['cycle'] == k]:
             sid = int(s['sheet'])
             t_a = first_time(stops, 'sheet', sid)
-            sheets.append({'sheet': sid, 'handover': float(s['t']), 'at_stops': t_a,
-                           'settled': first_time(settled, 'sheet', sid) if bouncing else t_a,
-                           'release': first_time(release, 'sheet', sid)})
-        out.append({'cycle': k, 'start': t0, 'contact': tc, 'exit': first_time(exits, 'cycle', k),
-                    'deadline': float(np.asarray(drive.time_of(np.asarray(th_dead)))), 'sheets': sheets,
-                    'margins': {name: m[k] for name, m in margins.items() if k in m and name in FOLDER_CONSTRAINTS}})
+            sheets.append(
+                {
+                    'sheet': sid,
+                    'handover': float(s['t']),
+                    'at_stops': t_a,
+                    'settled': first_time(settled, 'sheet', sid) if bouncing else t_a,
+                    'release': first_time(release, 'sheet', sid),
+                }
+            )
+        out.append(
+            {
+                'cycle': k,
+                'start': t0,
+                'contact': tc,
+                'exit': first_time(exits, 'cycle', k),
+                'deadline': float(np.asarray(drive.time_of(np.asarray(th_dead)))),
+                'sheets': sheets,
+                'margins': {name: m[k] for name, m in margins.items() if k in m and name in FOLDER_CONSTRAINTS},
+            }
+        )
     return out
 
 
@@ -983,23 +1094,43 @@ def _plot_cyclogram(rec: Recording, ev: _Evaluation, out: Path, n: int) -> Path 
         h = 0.6 / n_s
         for j, s in enumerate(row['sheets']):
             y = i - 0.3 + h * (j + 0.5)
-            segs = [('А', s['handover'], s['at_stops'], None),
-                    ('Б', s['at_stops'], s['settled'], '////'),
-                    ('Б', s['settled'], row['contact'] if s['settled'] is not None and
-                     s['settled'] <= row['contact'] else None, None)]
+            segs = [
+                ('А', s['handover'], s['at_stops'], None),
+                ('Б', s['at_stops'], s['settled'], '////'),
+                (
+                    'Б',
+                    s['settled'],
+                    row['contact'] if s['settled'] is not None and s['settled'] <= row['contact'] else None,
+                    None,
+                ),
+            ]
             if s['release'] is not None and row['exit'] is not None:
                 segs.append(('Г', row['exit'], s['release'], None))
             for letter, a, b, hatch in segs:
                 if a is None or b is None or b < a:
                     continue
-                ax.barh(y, (b - a) * ms, left=(a - t0) * ms, height=h * 0.9, color=colours[letter],
-                        alpha=0.45 if hatch else 0.8, hatch=hatch, edgecolor='white' if hatch else None)
+                ax.barh(
+                    y,
+                    (b - a) * ms,
+                    left=(a - t0) * ms,
+                    height=h * 0.9,
+                    color=colours[letter],
+                    alpha=0.45 if hatch else 0.8,
+                    hatch=hatch,
+                    edgecolor='white' if hatch else None,
+                )
                 x_max = max(x_max, (b - t0) * ms)
         if not row['sheets']:
             ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
         if row['exit'] is not None:
-            ax.barh(i, (row['exit'] - row['contact']) * ms, left=(row['contact'] - t0) * ms, height=0.6,
-                    color=colours['В'], alpha=0.8)
+            ax.barh(
+                i,
+                (row['exit'] - row['contact']) * ms,
+                left=(row['contact'] - t0) * ms,
+                height=0.6,
+                color=colours['В'],
+                alpha=0.8,
+            )
             x_max = max(x_max, (row['exit'] - t0) * ms)
         ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
         x_max = max(x_max, (row['deadline'] - t0) * ms)
@@ -1027,10 +1158,16 @@ def _plot_cyclogram(rec: Recording, ev: _Evaluation, out: Path, n: int) -> Path 
     handles.append(plt.Line2D([0], [0], color='k', lw=2))
     labels.append('feed deadline of the cycle (window start + t_allowed)')
     fig.legend(handles, labels, loc='lower center', ncol=2, fontsize=8, frameon=False)
-    shown = (f'the first {len(rows)}' if [r['cycle'] for r in rows] == list(range(len(rows))) else
-             f'the first {n} and the first violated')
-    ax.set_title(f'F: cyclogram of {shown} of {ev.cycles} cycles (paper F figs. 1-2), '
-                 f'T = {timing.T * ms:.1f} ms; hatched: bouncing at the stops', fontsize=10)
+    shown = (
+        f'the first {len(rows)}'
+        if [r['cycle'] for r in rows] == list(range(len(rows)))
+        else f'the first {n} and the first violated'
+    )
+    ax.set_title(
+        f'F: cyclogram of {shown} of {ev.cycles} cycles (paper F figs. 1-2), '
+        f'T = {timing.T * ms:.1f} ms; hatched: bouncing at the stops',
+        fontsize=10,
+    )
     ax.grid(axis='x', alpha=0.3)
     fig.tight_layout(rect=(0.0, 0.85 / fig.get_figheight(), 1.0, 1.0))
     return save_figure(fig, out / 'cyclogram.png')
@@ -1061,7 +1198,7 @@ def _plot_margins(ev: _Evaluation, out: Path) -> Path:
     cols = 2 if n > 1 else 1
     nrows = math.ceil(n / cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(5.2 * cols, 3.0 * nrows + 0.4), squeeze=False)
-    for ax in axes.ravel()[len(series):]:
+    for ax in axes.ravel()[len(series) :]:
         ax.axis('off')
     if not series:
         axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
@@ -1069,16 +1206,22 @@ def _plot_margins(ev: _Evaluation, out: Path) -> Path:
         scale, unit = _DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
         m = c.margin * scale
         nv = int(np.count_nonzero(c.violated))
-        ax.set_title(f'{c.name}: {c.margin.size} evaluations, {nv} violated', fontsize=9,
-                     color='tab:red' if nv else 'k')
+        ax.set_title(
+            f'{c.name}: {c.margin.size} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k'
+        )
         ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
         ax.set_ylabel('count')
         if m.size == 0:
             ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
             continue
         edges = _margin_bins(m, c.unit)
-        ax.hist([m[m >= 0.0], m[m < 0.0]], bins=edges, stacked=True, color=['C0', 'tab:red'],
-                label=['passed', f'violated ({nv})' if nv else '_nolegend_'])
+        ax.hist(
+            [m[m >= 0.0], m[m < 0.0]],
+            bins=edges,
+            stacked=True,
+            color=['C0', 'tab:red'],
+            label=['passed', f'violated ({nv})' if nv else '_nolegend_'],
+        )
         if edges[0] <= 0.0 <= edges[-1]:
             ax.axvline(0.0, color='k', lw=1)
         ax.axvline(float(m.min()), color='tab:orange', ls='--', lw=1, label=f'min {m.min():.4g}')
@@ -1109,9 +1252,15 @@ def landing_data(rec: Recording) -> dict[str, Any] | None:
     cont = scene.machine('container')
     x = rec.events_of('leaf_landed')['value']
     hist = effect_module('leaf_flight').histogram(x, cont.x_left, cont.x_right, cont.bins)
-    return {'x': x, 'spilled': rec.events_of('leaf_spilled')['value'], 'edges': np.asarray(hist.edges),
-            'counts': np.asarray(hist.counts), 'cv': hist.cv, 'x_left': float(cont.x_left),
-            'x_right': float(cont.x_right)}
+    return {
+        'x': x,
+        'spilled': rec.events_of('leaf_spilled')['value'],
+        'edges': np.asarray(hist.edges),
+        'counts': np.asarray(hist.counts),
+        'cv': hist.cv,
+        'x_left': float(cont.x_left),
+        'x_right': float(cont.x_right),
+    }
 
 
 def _plot_landing(rec: Recording, out: Path) -> Path | None:
@@ -1123,20 +1272,42 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 4.5))
     edges, counts = data['edges'], data['counts']
-    ax.bar(edges[:-1], counts, width=np.diff(edges), align='edge', color='C0', edgecolor='white',
-           label=f'landed ({int(counts.sum())})')
+    ax.bar(
+        edges[:-1],
+        counts,
+        width=np.diff(edges),
+        align='edge',
+        color='C0',
+        edgecolor='white',
+        label=f'landed ({int(counts.sum())})',
+    )
     if data['spilled'].size:
-        ax.plot(data['spilled'], np.zeros(data['spilled'].size), 'x', color='tab:red', ms=8, mew=2,
-                label=f'spilled over a wall ({data["spilled"].size})')
-    ax.plot(data['x'], np.full(data['x'].size, -0.04 * max(counts.max(initial=1), 1)), '|', color='k', ms=10,
-            label='landing x of each leaf')
+        ax.plot(
+            data['spilled'],
+            np.zeros(data['spilled'].size),
+            'x',
+            color='tab:red',
+            ms=8,
+            mew=2,
+            label=f'spilled over a wall ({data["spilled"].size})',
+        )
+    ax.plot(
+        data['x'],
+        np.full(data['x'].size, -0.04 * max(counts.max(initial=1), 1)),
+        '|',
+        color='k',
+        ms=10,
+        label='landing x of each leaf',
+    )
     for wall in (data['x_left'], data['x_right']):
         ax.axvline(wall, color='k', lw=3)
     width = data['x_right'] - data['x_left']
     ax.set_xlim(data['x_left'] - 0.1 * width, data['x_right'] + 0.1 * width)
     cv = 'n/a' if data['cv'] is None else f'{data["cv"]:.3f}'
-    ax.set_title(f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}) '
-                 f'over {rec.t_end:.3f} s', fontsize=10)
+    ax.set_title(
+        f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}) over {rec.t_end:.3f} s',
+        fontsize=10,
+    )
     ax.set_xlabel('x on the container floor, m (thick lines: the walls)')
     ax.set_ylabel('leaves per bin')
     from matplotlib.ticker import MaxNLocator
@@ -1188,33 +1359,51 @@ def _fmt(x: float) -> str:
     return f'{x:.6g}'
 
 
-def _report_lines(rec: Recording, ev: _Evaluation, summary: dict[str, Any], figures: Mapping[str, Path],
-                  csv_files: Mapping[str, Path]) -> list[str]:
+def _report_lines(
+    rec: Recording, ev: _Evaluation, summary: dict[str, Any], figures: Mapping[str, Path], csv_files: Mapping[str, Path]
+) -> list[str]:
     scene = rec.scene
     bag = rec.bag
-    lines = [f'# Analysis of the run: scene `{scene.name}`', '',
-             f'- bag: `{bag.path}` ({len(bag.files)} files, {bag.message_count} messages)',
-             f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
-             f'- line time reached: {rec.t_end:.9g} s; drive commands recorded: '
-             + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
-             ('- numbers: the recorded events judged by the line\'s constraint code '
-              '(`folder_line.core.constraints`), as `simulate(scene, line time reached)` judges its own'), '',
-             '## Summary', '', '| quantity | value |', '|---|---|',
-             f'| cycles | {summary["cycles"]} |',
-             f'| sheets counted | {summary["sheets_counted"]} |',
-             (f'| sheets counted by sheet_counter (last /line/sheet_counter/count) | '
-              f'{"-" if rec.sheet_count is None else rec.sheet_count} |'),
-             f'| events | {int(rec.events.size)} |',
-             f'| violations | {summary["violations"]["count"]} |']
+    lines = [
+        f'# Analysis of the run: scene `{scene.name}`',
+        '',
+        f'- bag: `{bag.path}` ({len(bag.files)} files, {bag.message_count} messages)',
+        f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
+        f'- line time reached: {rec.t_end:.9g} s; drive commands recorded: '
+        + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
+        (
+            "- numbers: the recorded events judged by the line's constraint code "
+            '(`folder_line.core.constraints`), as `simulate(scene, line time reached)` judges its own'
+        ),
+        '',
+        '## Summary',
+        '',
+        '| quantity | value |',
+        '|---|---|',
+        f'| cycles | {summary["cycles"]} |',
+        f'| sheets counted | {summary["sheets_counted"]} |',
+        (
+            f'| sheets counted by sheet_counter (last /line/sheet_counter/count) | '
+            f'{"-" if rec.sheet_count is None else rec.sheet_count} |'
+        ),
+        f'| events | {int(rec.events.size)} |',
+        f'| violations | {summary["violations"]["count"]} |',
+    ]
     if rec.bad_events:
         lines.append(f'| /line/events messages that are not events | {rec.bad_events} |')
     lines += ['', '## Events', '', '| kind | count |', '|---|---|']
     lines += [f'| {k} | {n} |' for k, n in summary['events'].items()]
-    lines += ['', '## Constraints', '',
-              '| constraint | unit | evaluations | min margin | at cycle | violations |', '|---|---|---|---|---|---|']
+    lines += [
+        '',
+        '## Constraints',
+        '',
+        '| constraint | unit | evaluations | min margin | at cycle | violations |',
+        '|---|---|---|---|---|---|',
+    ]
     for name, m in summary['min_margin'].items():
-        lines.append(f'| {name} | {m["unit"]} | {m["evaluations"]} | {_fmt(m["margin"])} | {m["cycle"]} | '
-                     f'{m["violations"]} |')
+        lines.append(
+            f'| {name} | {m["unit"]} | {m["evaluations"]} | {_fmt(m["margin"])} | {m["cycle"]} | {m["violations"]} |'
+        )
     if not summary['min_margin']:
         lines.append('| (none evaluated) | | | | | |')
     lines += ['', '## Violations', '']
@@ -1222,8 +1411,11 @@ def _report_lines(rec: Recording, ev: _Evaluation, summary: dict[str, Any], figu
     if viol:
         decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist())) for c in ev.constraints}
         lines += ['| cycle | constraint | margin | unit | decided at t, s |', '|---|---|---|---|---|']
-        lines += [f'| {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
-                  f'{decided.get(v["constraint"], {}).get(v["cycle"], float("nan")):.9g} |' for v in viol]
+        lines += [
+            f'| {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
+            f'{decided.get(v["constraint"], {}).get(v["cycle"], float("nan")):.9g} |'
+            for v in viol
+        ]
     else:
         lines.append('No constraint was violated.')
     lines += ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
@@ -1233,20 +1425,33 @@ def _report_lines(rec: Recording, ev: _Evaluation, summary: dict[str, Any], figu
         shown.setdefault(tr['to'], tr['t'])
     if summary['transitions']:
         lines += ['| t, s | from | to | cause | first recorded on /line/supervisor/state, s |', '|---|---|---|---|---|']
-        lines += [f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | '
-                  f'{shown[tr["to"]]:.9g} |' if tr['to'] in shown else
-                  f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | - |'
-                  for tr in summary['transitions']]
+        lines += [
+            f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | '
+            f'{shown[tr["to"]]:.9g} |'
+            if tr['to'] in shown
+            else f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | - |'
+            for tr in summary['transitions']
+        ]
     else:
         lines.append('No state transition.')
-    lines += ['', 'Recorded states: ' + (' -> '.join(f'{tr["to"]} ({tr["t"]:.3f} s)' for tr in recorded)
-                                         or 'none') + '.']
+    lines += [
+        '',
+        'Recorded states: ' + (' -> '.join(f'{tr["to"]} ({tr["t"]:.3f} s)' for tr in recorded) or 'none') + '.',
+    ]
     decided = summary.get('replay_violations')
     if decided:
-        lines += ['', '### Violations as the supervisor decided them (replay, causal)', '',
-                  '| t, s | cycle | constraint | margin | unit | action | state |', '|---|---|---|---|---|---|---|']
-        lines += [f'| {v["t"]:.9g} | {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
-                  f'{v["action"]} | {v["state"]} |' for v in decided]
+        lines += [
+            '',
+            '### Violations as the supervisor decided them (replay, causal)',
+            '',
+            '| t, s | cycle | constraint | margin | unit | action | state |',
+            '|---|---|---|---|---|---|---|',
+        ]
+        lines += [
+            f'| {v["t"]:.9g} | {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
+            f'{v["action"]} | {v["state"]} |'
+            for v in decided
+        ]
     lines += ['', '## Messages', '']
     published = rec.bag.published
     lost = summary.get('lost')
@@ -1260,8 +1465,14 @@ def _report_lines(rec: Recording, ev: _Evaluation, summary: dict[str, Any], figu
     elif rec.run is None:
         lines += ['', 'No run.json: lost messages unknown.']
     if csv_files:
-        lines += ['', '## CSV', '', f'One file per topic in `csv/` ({len(csv_files)} files): '
-                  + ', '.join(f'`{p.name}`' for p in csv_files.values()) + '.']
+        lines += [
+            '',
+            '## CSV',
+            '',
+            f'One file per topic in `csv/` ({len(csv_files)} files): '
+            + ', '.join(f'`{p.name}`' for p in csv_files.values())
+            + '.',
+        ]
     lines += ['', '## Figures', '']
     for name, path in figures.items():
         lines += [f'**{name}**: {FIGURES[name]}.', '', f'![{path.stem}]({path.name})', '']
@@ -1271,8 +1482,13 @@ def _report_lines(rec: Recording, ev: _Evaluation, summary: dict[str, Any], figu
     return lines
 
 
-def analyze(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None, csv: bool = False, *,
-            gantt_cycles: int = GANTT_CYCLES) -> AnalysisResult:
+def analyze(
+    path: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
+    csv: bool = False,
+    *,
+    gantt_cycles: int = GANTT_CYCLES,
+) -> AnalysisResult:
     """Analyse a recorded run: figures, ``report.md`` and, with ``csv``, one CSV per topic.
 
     Parameters
@@ -1305,8 +1521,9 @@ def analyze(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = N
         return _write_analysis(rec, out_dir, collector, gantt_cycles)
 
 
-def _write_analysis(rec: Recording, out_dir: Path, collector: _CsvCollector | None,
-                    gantt_cycles: int) -> AnalysisResult:
+def _write_analysis(
+    rec: Recording, out_dir: Path, collector: _CsvCollector | None, gantt_cycles: int
+) -> AnalysisResult:
     """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
     if collector is not None:  # every CSV target is checked before anything is written
         for topic in rec.bag.topics:
@@ -1328,8 +1545,10 @@ def _write_analysis(rec: Recording, out_dir: Path, collector: _CsvCollector | No
     if replayed is None:
         summary['transitions'] = recorded
         summary['replay_matches'] = None
-        summary['transitions_source'] = ('the states published on /line/supervisor/state (the replay through '
-                                         f'folder_line.core.supervision.replay failed: {why})')
+        summary['transitions_source'] = (
+            'the states published on /line/supervisor/state (the replay through '
+            f'folder_line.core.supervision.replay failed: {why})'
+        )
     else:
         summary['transitions'] = replayed
         summary['replay_matches'] = transitions_agree(replayed, recorded)
@@ -1338,34 +1557,54 @@ def _write_analysis(rec: Recording, out_dir: Path, collector: _CsvCollector | No
             'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
             'through '
             'folder_line.core.supervision.replay (decision times); '
-            + ('they agree with the states recorded on /line/supervisor/state' if summary['replay_matches'] else
-               'they do NOT agree with the states recorded on /line/supervisor/state: '
-               + ' -> '.join(t['to'] for t in recorded)))
+            + (
+                'they agree with the states recorded on /line/supervisor/state'
+                if summary['replay_matches']
+                else 'they do NOT agree with the states recorded on /line/supervisor/state: '
+                + ' -> '.join(t['to'] for t in recorded)
+            )
+        )
 
     figures: dict[str, Path] = {}
-    for name, draw in (('exit_speeds.png', lambda: _plot_exit_speeds(rec, ev, out_dir)),
-                       ('efficiency.png', lambda: _plot_efficiency(rec, ev, out_dir)),
-                       ('cyclogram.png', lambda: _plot_cyclogram(rec, ev, out_dir, gantt_cycles)),
-                       ('margins.png', lambda: _plot_margins(ev, out_dir)),
-                       ('landing.png', lambda: _plot_landing(rec, out_dir))):
+    for name, draw in (
+        ('exit_speeds.png', lambda: _plot_exit_speeds(rec, ev, out_dir)),
+        ('efficiency.png', lambda: _plot_efficiency(rec, ev, out_dir)),
+        ('cyclogram.png', lambda: _plot_cyclogram(rec, ev, out_dir, gantt_cycles)),
+        ('margins.png', lambda: _plot_margins(ev, out_dir)),
+        ('landing.png', lambda: _plot_landing(rec, out_dir)),
+    ):
         written = draw()
         if written is not None:
             figures[name] = written
     csv_files = collector.write(out_dir / 'csv', list(rec.bag.topics)) if collector is not None else {}
-    report = write_text_atomic(out_dir / 'report.md',
-                               '\n'.join(_report_lines(rec, ev, summary, figures, csv_files)) + '\n')
-    return AnalysisResult(out=out_dir, report=report, figures=figures, csv=csv_files, summary=summary,
-                          recording=rec, constraints=ev.constraints)
+    report = write_text_atomic(
+        out_dir / 'report.md', '\n'.join(_report_lines(rec, ev, summary, figures, csv_files)) + '\n'
+    )
+    return AnalysisResult(
+        out=out_dir,
+        report=report,
+        figures=figures,
+        csv=csv_files,
+        summary=summary,
+        recording=rec,
+        constraints=ev.constraints,
+    )
 
 
 def print_analysis(result: AnalysisResult, stream: Any) -> None:
     """What ``folder-line analyze`` prints: the headline numbers and the files written."""
     s = result.summary
-    print(f"scene {s['scene']}: {s['t_end']:.3f} s of line time, {s['cycles']} cycles, "
-          f"{s['sheets_counted']} sheets counted, {s['violations']['count']} violations", file=stream)
+    print(
+        f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles, '
+        f'{s["sheets_counted"]} sheets counted, {s["violations"]["count"]} violations',
+        file=stream,
+    )
     for name, m in s['min_margin'].items():
-        print(f"  {name:<24} min margin {m['margin']:.6g} {m['unit']} (cycle {m['cycle']}), "
-              f"{m['violations']} of {m['evaluations']} violated", file=stream)
+        print(
+            f'  {name:<24} min margin {m["margin"]:.6g} {m["unit"]} (cycle {m["cycle"]}), '
+            f'{m["violations"]} of {m["evaluations"]} violated',
+            file=stream,
+        )
     if s['transitions']:
         print('states: ' + ' -> '.join(t['to'] for t in s['transitions']), file=stream)
     print(f'wrote {result.report}', file=stream)

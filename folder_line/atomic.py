@@ -25,15 +25,23 @@ import json
 import os
 import stat
 import tempfile
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from folder_line.errors import OutputError
 
-__all__ = ['check_output_dir', 'check_output_file', 'claim_output_dir', 'describe_path', 'write_bytes_atomic',
-           'write_csv_atomic', 'write_json_atomic', 'write_text_atomic']
+__all__ = [
+    'check_output_dir',
+    'check_output_file',
+    'claim_output_dir',
+    'describe_path',
+    'write_bytes_atomic',
+    'write_csv_atomic',
+    'write_json_atomic',
+    'write_text_atomic',
+]
 
 _umask = os.umask(0)
 os.umask(_umask)
@@ -45,8 +53,14 @@ LOCK_FILE = '.folder-line.lock'
 
 
 def _kind(mode: int) -> str:
-    for test, name in ((stat.S_ISDIR, 'a directory'), (stat.S_ISFIFO, 'a FIFO'), (stat.S_ISCHR, 'a character device'),
-                       (stat.S_ISBLK, 'a block device'), (stat.S_ISSOCK, 'a socket'), (stat.S_ISREG, 'a regular file')):
+    for test, name in (
+        (stat.S_ISDIR, 'a directory'),
+        (stat.S_ISFIFO, 'a FIFO'),
+        (stat.S_ISCHR, 'a character device'),
+        (stat.S_ISBLK, 'a block device'),
+        (stat.S_ISSOCK, 'a socket'),
+        (stat.S_ISREG, 'a regular file'),
+    ):
         if test(mode):
             return name
     return 'a special file'
@@ -116,19 +130,22 @@ def check_output_file(path: str | os.PathLike[str], option: str | None = None) -
         try:
             target = os.stat(dest)
         except OSError:
-            raise OutputError(option, str(path), 'is a symbolic link to nothing (dangling); '
-                              'a link is never replaced') from None
+            raise OutputError(
+                option, str(path), 'is a symbolic link to nothing (dangling); a link is never replaced'
+            ) from None
         if not stat.S_ISREG(target.st_mode):
-            raise OutputError(option, str(path), f'is a symbolic link to {_kind(target.st_mode)}, '
-                              'not to a regular file') from None
+            raise OutputError(
+                option, str(path), f'is a symbolic link to {_kind(target.st_mode)}, not to a regular file'
+            ) from None
         return Path(os.path.realpath(dest))
     if not stat.S_ISREG(info.st_mode):
         raise OutputError(option, str(path), f'is {_kind(info.st_mode)}, not a regular file')
     return dest
 
 
-def check_output_dir(path: str | os.PathLike[str], option: str | None = None, files: Iterable[str] = (),
-                     dirs: Iterable[str] = ()) -> Path:
+def check_output_dir(
+    path: str | os.PathLike[str], option: str | None = None, files: Iterable[str] = (), dirs: Iterable[str] = ()
+) -> Path:
     """Refuse an output folder that is not one, or that holds something a verb would not overwrite.
 
     Parameters
@@ -194,8 +211,13 @@ def _remove_dirs(created: list[Path]) -> None:
 
 
 @contextlib.contextmanager
-def claim_output_dir(path: str | os.PathLike[str], option: str | None = None, files: Iterable[str] = (),
-                     dirs: Iterable[str] = (), create: bool = True) -> Iterator[Path]:
+def claim_output_dir(
+    path: str | os.PathLike[str],
+    option: str | None = None,
+    files: Iterable[str] = (),
+    dirs: Iterable[str] = (),
+    create: bool = True,
+) -> Iterator[Path]:
     """Check (:func:`check_output_dir`), create and lock an output folder for the ``with`` block.
 
     ``create=False`` claims a folder that must exist (a bag to repair): a missing one is refused.
@@ -222,8 +244,11 @@ def claim_output_dir(path: str | os.PathLike[str], option: str | None = None, fi
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise OutputError(option, str(path), 'is in use by another folder-line process; wait for it to '
-                              'finish or choose another folder') from None
+            raise OutputError(
+                option,
+                str(path),
+                'is in use by another folder-line process; wait for it to finish or choose another folder',
+            ) from None
         except OSError:  # flock on a directory not supported here: lock a file inside it
             os.close(fd)
             fd = -1
@@ -231,8 +256,11 @@ def claim_output_dir(path: str | os.PathLike[str], option: str | None = None, fi
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                raise OutputError(option, str(path), 'is in use by another folder-line process; wait for it '
-                                  'to finish or choose another folder') from None
+                raise OutputError(
+                    option,
+                    str(path),
+                    'is in use by another folder-line process; wait for it to finish or choose another folder',
+                ) from None
         probe, probe_path = tempfile.mkstemp(prefix='.folder-line-probe.', dir=dest)
         os.close(probe)
         os.unlink(probe_path)

@@ -49,9 +49,10 @@ import json
 import os
 import re
 import shutil
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Iterator, Mapping, Sequence
+from typing import Any, BinaryIO
 
 import numpy as np
 import yaml
@@ -147,9 +148,20 @@ def _time_ns(stamp: Any) -> int:
 # leaves alignment padding uninitialised, so a bag's bytes would depend on memory.
 
 _NUMPY_DTYPES: dict[str, str] = {
-    'bool': 'bool', 'byte': 'uint8', 'char': 'uint8', 'octet': 'uint8', 'int8': 'int8', 'uint8': 'uint8',
-    'int16': 'int16', 'uint16': 'uint16', 'int32': 'int32', 'uint32': 'uint32', 'int64': 'int64',
-    'uint64': 'uint64', 'float32': 'float32', 'float64': 'float64',
+    'bool': 'bool',
+    'byte': 'uint8',
+    'char': 'uint8',
+    'octet': 'uint8',
+    'int8': 'int8',
+    'uint8': 'uint8',
+    'int16': 'int16',
+    'uint16': 'uint16',
+    'int32': 'int32',
+    'uint32': 'uint32',
+    'int64': 'int64',
+    'uint64': 'uint64',
+    'float32': 'float32',
+    'float64': 'float64',
 }
 
 
@@ -232,8 +244,12 @@ class FileSummary:
 
     def entry(self) -> dict[str, Any]:
         """The file's entry of ``files`` in ``metadata.yaml``."""
-        return {'path': self.path, 'starting_time': {'nanoseconds_since_epoch': self.start_ns},
-                'duration': {'nanoseconds': self.end_ns - self.start_ns}, 'message_count': self.count}
+        return {
+            'path': self.path,
+            'starting_time': {'nanoseconds_since_epoch': self.start_ns},
+            'duration': {'nanoseconds': self.end_ns - self.start_ns},
+            'message_count': self.count,
+        }
 
 
 @dataclass(frozen=True)
@@ -287,10 +303,18 @@ class _Metadata:
             'starting_time': {'nanoseconds_since_epoch': start},
             'message_count': sum(f.count for f in self.files),
             'topics_with_message_count': [
-                {'topic_metadata': {'name': name, 'type': t.type, 'serialization_format': 'cdr',
-                                    'offered_qos_profiles': [], 'type_description_hash': t.type_hash},
-                 'message_count': t.count}
-                for name, t in topics.items()],
+                {
+                    'topic_metadata': {
+                        'name': name,
+                        'type': t.type,
+                        'serialization_format': 'cdr',
+                        'offered_qos_profiles': [],
+                        'type_description_hash': t.type_hash,
+                    },
+                    'message_count': t.count,
+                }
+                for name, t in topics.items()
+            ],
             'compression_format': '',
             'compression_mode': '',
             'custom_data': dict(custom),
@@ -306,6 +330,7 @@ class _Metadata:
 
 def segment_files(directory: str | os.PathLike[str]) -> list[Path]:
     """The ``.mcap`` files of a bag directory in split order (``<name>_<i>.mcap`` by ``i``)."""
+
     def key(path: Path) -> tuple[int, str]:
         m = _SPLIT.search(path.name)
         return (int(m.group(1)) if m else -1, path.name)
@@ -328,7 +353,7 @@ class _Segment:
         self.writer = Writer(self.stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         # python mcap's Writer ends a chunk only by size or at finish(); its chunk-ending method is
         # private (name-mangled). Checked here, so that a changed library fails at once, not at a crash.
-        self._end_chunk: Callable[[], None] = getattr(self.writer, '_Writer__finalize_chunk')
+        self._end_chunk: Callable[[], None] = self.writer._Writer__finalize_chunk
         self.flush_ns = flush_ns
         self._next_flush_ns: int | None = None
         self.writer.start(profile='ros2', library=f'folder_line {__version__} (python mcap {mcap.__version__})')
@@ -345,7 +370,8 @@ class _Segment:
             self.schemas[msgtype] = self.writer.register_schema(msgtype, 'ros2msg', text.encode())
         _, rihs01 = _definition(msgtype)
         self.channels[topic] = self.writer.register_channel(
-            topic, 'cdr', self.schemas[msgtype], {'offered_qos_profiles': '[]', 'topic_type_hash': rihs01})
+            topic, 'cdr', self.schemas[msgtype], {'offered_qos_profiles': '[]', 'topic_type_hash': rihs01}
+        )
 
     def add(self, topic: str, log_ns: int, publish_ns: int, data: bytes, sequence: int) -> None:
         if self._next_flush_ns is None:
@@ -410,10 +436,20 @@ class BagWriter:
         ``directory`` exists and is not an empty directory, or a parameter is out of range.
     """
 
-    def __init__(self, directory: str | os.PathLike[str], *, scene_source: str, effects: Sequence[str],
-                 segment_s: float = 1.0, scene_name: str = '', topics: Mapping[str, type | str] | None = None,
-                 custom: Mapping[str, str] | None = None, clock_topic: str = '/clock',
-                 chunk_size: int = 1024 * 1024, flush_s: float = 0.1) -> None:
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        *,
+        scene_source: str,
+        effects: Sequence[str],
+        segment_s: float = 1.0,
+        scene_name: str = '',
+        topics: Mapping[str, type | str] | None = None,
+        custom: Mapping[str, str] | None = None,
+        clock_topic: str = '/clock',
+        chunk_size: int = 1024 * 1024,
+        flush_s: float = 0.1,
+    ) -> None:
         self.path = Path(directory)
         for name, value in (('segment_s', segment_s), ('flush_s', flush_s)):
             if not (isinstance(value, (int, float)) and 1e-6 <= value <= 1e6):
@@ -430,17 +466,21 @@ class BagWriter:
         self.clock_topic = clock_topic
         self.chunk_size = chunk_size
         self.custom: dict[str, str] = {
-            KEY_SCENE_NAME: str(scene_name), KEY_SCENE: str(scene_source),
-            KEY_EFFECTS: json.dumps([str(e) for e in effects]), KEY_VERSION: __version__,
-            KEY_SEGMENT_S: repr(float(segment_s)), KEY_COMPLETE: 'false',
+            KEY_SCENE_NAME: str(scene_name),
+            KEY_SCENE: str(scene_source),
+            KEY_EFFECTS: json.dumps([str(e) for e in effects]),
+            KEY_VERSION: __version__,
+            KEY_SEGMENT_S: repr(float(segment_s)),
+            KEY_COMPLETE: 'false',
         }
         for key, value in (custom or {}).items():
             if not isinstance(value, str):
                 msg = f'{self.path}: custom data {key}={value!r} must be a string'
                 raise BagError(msg)
             self.custom[str(key)] = value
-        declared = {topic: kind if isinstance(kind, str) else msgtype_of(kind)
-                    for topic, kind in (topics or {}).items()}
+        declared = {
+            topic: kind if isinstance(kind, str) else msgtype_of(kind) for topic, kind in (topics or {}).items()
+        }
         for msgtype in declared.values():
             _definition(msgtype)  # an unknown type fails before anything is written
         self.types: dict[str, str] = dict(declared)
@@ -527,8 +567,9 @@ class BagWriter:
             if log_ns >= self._boundary_ns:
                 self._roll(log_ns)
             assert self._segment is not None
-            self._segment.add(topic, log_ns, log_ns if publish_ns is None else publish_ns, data,
-                              self.counts[topic] % 2**32)
+            self._segment.add(
+                topic, log_ns, log_ns if publish_ns is None else publish_ns, data, self.counts[topic] % 2**32
+            )
         except OSError as exc:
             if exc.filename is None:  # a write into the open file: name it
                 where = self._segment.path if self._segment is not None else self.path
@@ -592,8 +633,7 @@ class BagWriter:
         self._segment = self._open_segment(index)
 
     def _write_metadata(self) -> None:
-        topics = {t: TopicSummary(self.types[t], self._complete[t], _definition(self.types[t])[1])
-                  for t in self.types}
+        topics = {t: TopicSummary(self.types[t], self._complete[t], _definition(self.types[t])[1]) for t in self.types}
         write_text_atomic(self.path / METADATA_FILE, self._meta.render(topics, self.custom))
 
 
@@ -715,19 +755,25 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
         raise BagError(msg)
     data = _read_metadata(directory)  # bounded, strict YAML before rosbags parses it
     if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'), dict):
-        msg = (f'{meta}: line 1, column 1: not rosbag2 metadata (a mapping with rosbag2_bagfile_information); '
-               f'rebuild it with: folder-line bag repair {directory}')
+        msg = (
+            f'{meta}: line 1, column 1: not rosbag2 metadata (a mapping with rosbag2_bagfile_information); '
+            f'rebuild it with: folder-line bag repair {directory}'
+        )
         raise BagError(msg)
     with _OpenReader(Reader, directory) as reader:
-        topics = {name: TopicSummary(info.msgtype or '', info.msgcount,
-                                     info.connections[0].digest if info.connections else '')
-                  for name, info in reader.topics.items()}
+        topics = {
+            name: TopicSummary(
+                info.msgtype or '', info.msgcount, info.connections[0].digest if info.connections else ''
+            )
+            for name, info in reader.topics.items()
+        }
         count = reader.message_count
         start, end = (reader.start_time, reader.end_time - 1) if count else (0, 0)
         custom = dict(reader.storage.metadata.custom or {})
         files = tuple(Path(p).name for p in _relative_paths(directory))
-    return BagContents(path=directory, topics=topics, custom=custom, files=files, message_count=count,
-                       start_ns=start, end_ns=end)
+    return BagContents(
+        path=directory, topics=topics, custom=custom, files=files, message_count=count, start_ns=start, end_ns=end
+    )
 
 
 def _read_metadata(directory: Path) -> Any:
@@ -746,16 +792,25 @@ def _relative_paths(directory: Path) -> list[str]:
 def bag_info_lines(contents: BagContents) -> list[str]:
     """Human-readable summary of a bag (``folder-line bag info``)."""
     names = ', '.join(contents.files[:3]) + (', ...' if len(contents.files) > 3 else '')
-    span = (f'{contents.start_ns / NS_PER_S:.3f} .. {contents.end_ns / NS_PER_S:.3f} s '
-            f'({contents.duration_ns / NS_PER_S:.3f} s)')
+    span = (
+        f'{contents.start_ns / NS_PER_S:.3f} .. {contents.end_ns / NS_PER_S:.3f} s '
+        f'({contents.duration_ns / NS_PER_S:.3f} s)'
+    )
     state = contents.custom.get(KEY_COMPLETE)
-    state_text = {'true': 'complete (closed by its writer)',
-                  'false': 'INCOMPLETE: its writer did not close it (killed, or a write failed); the files listed '
-                           'are whole, the rest is salvaged by: folder-line bag repair DIR',
-                  'repaired': 'repaired after its writer stopped (see folder_line.repair)'}.get(
-                      state or '', 'not recorded (written before folder_line.complete existed)')
-    lines = [f'bag        {contents.path}', f'state      {state_text}', f'files      {len(contents.files)} ({names})',
-             f'line time  {span}', f'messages   {contents.message_count}', 'topics:']
+    state_text = {
+        'true': 'complete (closed by its writer)',
+        'false': 'INCOMPLETE: its writer did not close it (killed, or a write failed); the files listed '
+        'are whole, the rest is salvaged by: folder-line bag repair DIR',
+        'repaired': 'repaired after its writer stopped (see folder_line.repair)',
+    }.get(state or '', 'not recorded (written before folder_line.complete existed)')
+    lines = [
+        f'bag        {contents.path}',
+        f'state      {state_text}',
+        f'files      {len(contents.files)} ({names})',
+        f'line time  {span}',
+        f'messages   {contents.message_count}',
+        'topics:',
+    ]
     published = contents.published
     for name, t in contents.topics.items():
         extra = '' if published is None else f'  (published {published.get(name, "?")})'
@@ -845,10 +900,13 @@ def _scan_finished(path: Path) -> _Scan | None:
             if summary is None or summary.statistics is None:
                 return None
             stats = summary.statistics
-            scan = _Scan(schemas=dict(summary.schemas), channels=dict(summary.channels),
-                         counts=dict(stats.channel_message_counts),
-                         start_ns=stats.message_start_time if stats.message_count else 0,
-                         end_ns=stats.message_end_time if stats.message_count else 0)
+            scan = _Scan(
+                schemas=dict(summary.schemas),
+                channels=dict(summary.channels),
+                counts=dict(stats.channel_message_counts),
+                start_ns=stats.message_start_time if stats.message_count else 0,
+                end_ns=stats.message_end_time if stats.message_count else 0,
+            )
             for record in reader.iter_metadata():
                 if record.name == MCAP_METADATA_NAME:
                     scan.custom = dict(record.metadata)
@@ -908,9 +966,10 @@ def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any]) 
         for record in metadata:
             writer.add_metadata(record.name, dict(record.metadata))
         schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in scan.schemas.items()}
-        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0),
-                                                    dict(c.metadata))
-                       for cid, c in scan.channels.items()}
+        channel_ids = {
+            cid: writer.register_channel(c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0), dict(c.metadata))
+            for cid, c in scan.channels.items()
+        }
         for m in messages:
             writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
         writer.finish()
@@ -964,8 +1023,7 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
             scan, messages, metadata, good = _salvage(path)
             found.append((path, scan, (messages, metadata, good)))
     if not any(salvage is None or salvage[0] for _, _, salvage in found):
-        msg = (f'{bag}: none of the {len(paths)} .mcap files holds a readable message '
-               '(nothing was changed)')
+        msg = f'{bag}: none of the {len(paths)} .mcap files holds a readable message (nothing was changed)'
         raise BagError(msg)
     scans: list[tuple[Path, _Scan]] = []
     for path, scan, salvage in found:
@@ -992,8 +1050,9 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
             msgtype = schema.name if schema is not None else ''
             old = topics.get(channel.topic)
             type_hash = dict(channel.metadata).get('topic_type_hash', '') or (old.type_hash if old else '')
-            topics[channel.topic] = TopicSummary(msgtype, (old.count if old else 0) + scan.counts.get(cid, 0),
-                                                 type_hash)
+            topics[channel.topic] = TopicSummary(
+                msgtype, (old.count if old else 0) + scan.counts.get(cid, 0), type_hash
+            )
         meta.add_file(FileSummary(path.name, scan.start_ns, scan.end_ns, scan.count))
     result.files = list(meta.files)
     if custom.get(KEY_COMPLETE) != 'true':

@@ -13,15 +13,23 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, NoReturn, Sequence
+from typing import NoReturn
 
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
 
 #: the option that names each verb's output, for errors raised where it is not known
-_OUTPUT_OPTION = {'kinematics': '--csv', 'simulate': '--json', 'run': '--out', 'report': '--out',
-                  'analyze': '--out', 'bench': '--out', 'bag': 'DIR'}
+_OUTPUT_OPTION = {
+    'kinematics': '--csv',
+    'simulate': '--json',
+    'run': '--out',
+    'report': '--out',
+    'analyze': '--out',
+    'bench': '--out',
+    'bag': 'DIR',
+}
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
 
@@ -52,8 +60,9 @@ def _limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], fl
         try:
             value = float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a number in '
-                                             f'{limit.text()}{extra}') from None
+            raise argparse.ArgumentTypeError(
+                f'{option}={bounded_repr(text)}: must be a number in {limit.text()}{extra}'
+            ) from None
         if not limit.lo <= value <= limit.hi:  # NaN fails too
             raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
         return value
@@ -92,44 +101,93 @@ def _build_parser() -> argparse.ArgumentParser:
     kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
 
     sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
-    sim.add_argument('--scene', default='folder', metavar='NAME|FILE',
-                     help='shipped scene name (folder, layup, line) or a scene YAML file (default folder)')
+    sim.add_argument(
+        '--scene',
+        default='folder',
+        metavar='NAME|FILE',
+        help='shipped scene name (folder, layup, line) or a scene YAML file (default folder)',
+    )
     sim.add_argument('--duration', type=_duration, default=60.0, metavar='S', help='line time, s (default 60)')
-    sim.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
-                     help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)')
+    sim.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='MACHINE.KEY=VALUE',
+        help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
+    )
     sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
     run.add_argument('--scene', default='folder', metavar='NAME|FILE', help='scene (default folder)')
     run.add_argument('--duration', type=_duration, default=20.0, metavar='S', help='line time, s (default 20)')
-    run.add_argument('--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE',
-                     help='override a scene value (repeatable)')
-    run.add_argument('--rtf', type=_rtf, default=1.0, metavar='X|max',
-                     help='real-time factor ceiling (default 1); max: as fast as the slowest node allows')
-    run.add_argument('--clock', choices=('lockstep', 'wall'), default='lockstep',
-                     help='lockstep: sim time waits for every node, the answer never depends on load (default); '
-                          'wall: paced by the wall clock for hardware in the loop, late ticks counted')
-    run.add_argument('--lost-timeout', type=_limited('--lost-timeout', LOST_TIMEOUT), default=3.0, metavar='S',
-                     help='wall time a tick waits for a node before the node is declared lost (default 3)')
+    run.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='MACHINE.KEY=VALUE',
+        help='override a scene value (repeatable)',
+    )
+    run.add_argument(
+        '--rtf',
+        type=_rtf,
+        default=1.0,
+        metavar='X|max',
+        help='real-time factor ceiling (default 1); max: as fast as the slowest node allows',
+    )
+    run.add_argument(
+        '--clock',
+        choices=('lockstep', 'wall'),
+        default='lockstep',
+        help='lockstep: sim time waits for every node, the answer never depends on load (default); '
+        'wall: paced by the wall clock for hardware in the loop, late ticks counted',
+    )
+    run.add_argument(
+        '--lost-timeout',
+        type=_limited('--lost-timeout', LOST_TIMEOUT),
+        default=3.0,
+        metavar='S',
+        help='wall time a tick waits for a node before the node is declared lost (default 3)',
+    )
     run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
-    mon.add_argument('--rate', type=_limited('--rate', _MONITOR_RATE), default=4.0, metavar='HZ',
-                     help='screen refreshes per second (default 4)')
-    mon.add_argument('--once', action='store_true',
-                     help='print one plain-text snapshot after collecting for the rate window, then exit')
-    mon.add_argument('--window', type=_limited('--window', _MONITOR_WINDOW), default=2.0, metavar='S',
-                     help='window of the topic rates, s of wall time (default 2)')
-    mon.add_argument('--timeout', type=_limited('--timeout', _MONITOR_TIMEOUT), default=10.0, metavar='S',
-                     help='with --once: longest wait for the first message, s (default 10)')
+    mon.add_argument(
+        '--rate',
+        type=_limited('--rate', _MONITOR_RATE),
+        default=4.0,
+        metavar='HZ',
+        help='screen refreshes per second (default 4)',
+    )
+    mon.add_argument(
+        '--once',
+        action='store_true',
+        help='print one plain-text snapshot after collecting for the rate window, then exit',
+    )
+    mon.add_argument(
+        '--window',
+        type=_limited('--window', _MONITOR_WINDOW),
+        default=2.0,
+        metavar='S',
+        help='window of the topic rates, s of wall time (default 2)',
+    )
+    mon.add_argument(
+        '--timeout',
+        type=_limited('--timeout', _MONITOR_TIMEOUT),
+        default=10.0,
+        metavar='S',
+        help='with --once: longest wait for the first message, s (default 10)',
+    )
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
     bag_info = bag_sub.add_parser('info', help='topics, counts, line time and custom data of a bag')
     bag_info.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
-    bag_repair = bag_sub.add_parser('repair', help='rebuild metadata.yaml from the MCAP files present, '
-                                    'salvaging an unfinished last file')
+    bag_repair = bag_sub.add_parser(
+        'repair', help='rebuild metadata.yaml from the MCAP files present, salvaging an unfinished last file'
+    )
     bag_repair.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
 
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
@@ -142,12 +200,20 @@ def _build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
-    acc = bench_sub.add_parser('accuracy', help='error against CPU time per simulated second for every accuracy '
-                                                'knob: CSV, markdown, Pareto plot')
+    acc = bench_sub.add_parser(
+        'accuracy',
+        help='error against CPU time per simulated second for every accuracy knob: CSV, markdown, Pareto plot',
+    )
     acc.add_argument('--out', default='out/accuracy', metavar='DIR', help='output directory (default ./out/accuracy)')
     acc.add_argument('--quick', action='store_true', help='fewer knob settings, shorter spans (under a minute)')
-    acc.add_argument('--only', action='append', metavar='STUDY', default=[], choices=STUDIES,
-                     help=f'run only this study (repeatable): {", ".join(STUDIES)}')
+    acc.add_argument(
+        '--only',
+        action='append',
+        metavar='STUDY',
+        default=[],
+        choices=STUDIES,
+        help=f'run only this study (repeatable): {", ".join(STUDIES)}',
+    )
     return parser
 
 
@@ -159,16 +225,19 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     files = ('accuracy.csv', 'accuracy.md', 'accuracy.png', 'accuracy.json')
     with claim_output_dir(args.out, '--out', files) as out:  # before any work: the results need a place
         result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
-        command = 'folder-line bench accuracy' + (' --quick' if args.quick else '') + ''.join(
-            f' --only {s}' for s in args.only)
+        command = (
+            'folder-line bench accuracy'
+            + (' --quick' if args.quick else '')
+            + ''.join(f' --only {s}' for s in args.only)
+        )
         for path in write_outputs(result, out, command):
             print(f'wrote {path}')
     return 0
 
 
 def _cmd_kinematics(args: argparse.Namespace) -> int:
-    from folder_line.tables import kinematics_table, print_summary
     from folder_line.atomic import check_output_file, write_csv_atomic
+    from folder_line.tables import kinematics_table, print_summary
 
     if args.csv:
         check_output_file(args.csv, '--csv')
@@ -203,11 +272,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from folder_line.run import BAG_DIR, RunConfig, print_run_summary, run_line
 
     if args.clock == 'wall' and args.rtf == 0.0:
-        print("folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)",
-              file=sys.stderr)
+        print(
+            "folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)", file=sys.stderr
+        )
         return EXIT_USAGE
-    cfg = RunConfig(scene=args.scene, duration=args.duration, overrides=tuple(args.overrides), rtf=args.rtf,
-                    out=Path(args.out), processes=args.processes, clock=args.clock, lost_timeout=args.lost_timeout)
+    cfg = RunConfig(
+        scene=args.scene,
+        duration=args.duration,
+        overrides=tuple(args.overrides),
+        rtf=args.rtf,
+        out=Path(args.out),
+        processes=args.processes,
+        clock=args.clock,
+        lost_timeout=args.lost_timeout,
+    )
     with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(BAG_DIR, 'logs')):
         result = run_line(cfg, sys.stdout)
     print_run_summary(result.summary, cfg.out, sys.stdout)
@@ -262,8 +340,15 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 
 
 #: argument -> how the command line names it, for an OS error on a path it gave
-_PATH_ARGUMENTS = {'scene': '--scene', 'params': '--params', 'json': '--json', 'csv': '--csv', 'out': '--out',
-                   'path': 'RUN_DIR|BAG', 'dir': 'DIR'}
+_PATH_ARGUMENTS = {
+    'scene': '--scene',
+    'params': '--params',
+    'json': '--json',
+    'csv': '--csv',
+    'out': '--out',
+    'path': 'RUN_DIR|BAG',
+    'dir': 'DIR',
+}
 
 
 def _os_error_text(args: argparse.Namespace, exc: OSError) -> str:
@@ -295,9 +380,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``folder-line``; returns the process exit code."""
     parser = _build_parser()
     args = parser.parse_args(argv)
-    handler = {'kinematics': _cmd_kinematics, 'simulate': _cmd_simulate, 'run': _cmd_run,
-               'monitor': _cmd_monitor, 'report': _cmd_report, 'bag': _cmd_bag, 'analyze': _cmd_analyze,
-               'bench': _cmd_bench}[args.verb]
+    handler = {
+        'kinematics': _cmd_kinematics,
+        'simulate': _cmd_simulate,
+        'run': _cmd_run,
+        'monitor': _cmd_monitor,
+        'report': _cmd_report,
+        'bag': _cmd_bag,
+        'analyze': _cmd_analyze,
+        'bench': _cmd_bench,
+    }[args.verb]
     try:
         return handler(args)
     except OutputError as exc:

@@ -36,7 +36,7 @@ def shorten(text: str, limit: int = MESSAGE_VALUE_CHARS) -> str:
     """``text`` cut to at most ``limit`` characters, the cut marked by an ellipsis (``...``)."""
     if len(text) <= limit:
         return text
-    return text[:max(limit - 3, 1)] + '...'
+    return text[: max(limit - 3, 1)] + '...'
 
 
 #: longest path printed whole in a message, characters (a longer one keeps its start and its end)
@@ -195,8 +195,10 @@ class NotBracketedError(RootFindingError, ValueError):
 
     def __init__(self, a: float, b: float, fa: float, fb: float) -> None:
         self.a, self.b, self.fa, self.fb = a, b, fa, fb
-        msg = (f'f(a) and f(b) must have opposite signs: f({a!r}) = {fa!r}, f({b!r}) = {fb!r}; '
-               'the interval does not bracket a root')
+        msg = (
+            f'f(a) and f(b) must have opposite signs: f({a!r}) = {fa!r}, f({b!r}) = {fb!r}; '
+            'the interval does not bracket a root'
+        )
         super().__init__(msg)
 
 

@@ -36,8 +36,9 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import IO, Any, Callable, Iterable, Sequence
+from typing import IO, Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -87,11 +88,16 @@ MIN_WIDTH = 40
 MIN_HEIGHT = 6
 """Lowest screen the monitor draws on, lines."""
 
-_JOINT_STATES = re.compile('^' + re.escape(JOINT_STATES_TOPIC_PATTERN).replace(re.escape('{node}'), '(?P<node>[^/]+)')
-                           + '$')
+_JOINT_STATES = re.compile(
+    '^' + re.escape(JOINT_STATES_TOPIC_PATTERN).replace(re.escape('{node}'), '(?P<node>[^/]+)') + '$'
+)
 
-_LEVELS = {DiagnosticStatus.OK[0]: 'OK', DiagnosticStatus.WARN[0]: 'WARN', DiagnosticStatus.ERROR[0]: 'ERROR',
-           DiagnosticStatus.STALE[0]: 'STALE'}
+_LEVELS = {
+    DiagnosticStatus.OK[0]: 'OK',
+    DiagnosticStatus.WARN[0]: 'WARN',
+    DiagnosticStatus.ERROR[0]: 'ERROR',
+    DiagnosticStatus.STALE[0]: 'STALE',
+}
 _KIND_ORDER = {kind: i for i, kind in enumerate(EVENT_KINDS)}
 
 
@@ -295,15 +301,19 @@ def _parse_event(source: str) -> tuple[str, int | None, int | None, float | None
     kind = words[0] if words else '?'
     fields = dict(w.split('=', 1) for w in words[1:] if '=' in w)
     sheet, cycle = _int(fields.get('sheet')), _int(fields.get('cycle'))
-    return (kind, None if sheet is None or sheet < 0 else sheet,
-            None if cycle is None or cycle < 0 else cycle, _float(fields.get('value')))
+    return (
+        kind,
+        None if sheet is None or sheet < 0 else sheet,
+        None if cycle is None or cycle < 0 else cycle,
+        _float(fields.get('value')),
+    )
 
 
 def _fit(text: str, width: int) -> str:
     """``text`` cut to ``width`` characters, a cut marked by a final ``~``."""
     if len(text) <= width:
         return text
-    return text[:width - 1] + '~' if width > 0 else ''
+    return text[: width - 1] + '~' if width > 0 else ''
 
 
 class MonitorState:
@@ -380,16 +390,28 @@ class MonitorState:
             return f'{t:.3f} s'
         m = _JOINT_STATES.match(topic)
         if m is not None:
-            view = JointView(m['node'], _stamp_s(msg.header.stamp), tuple(msg.name),
-                             tuple(float(x) for x in msg.position), tuple(float(x) for x in msg.velocity),
-                             tuple(float(x) for x in msg.effort))
+            view = JointView(
+                m['node'],
+                _stamp_s(msg.header.stamp),
+                tuple(msg.name),
+                tuple(float(x) for x in msg.position),
+                tuple(float(x) for x in msg.velocity),
+                tuple(float(x) for x in msg.effort),
+            )
             self.joints[view.node] = view
             return f'{len(view.names)} joint{"" if len(view.names) == 1 else "s"} at {view.stamp:.3f} s'
         if topic == EVENTS_TOPIC:
             kind, sheet, cycle, value = _parse_event(msg.source)
             previous = self.events.get(kind)
-            view = EventView(kind, 1 if previous is None else previous.count + 1, _stamp_s(msg.time_ref),
-                             sheet, cycle, value, msg.header.frame_id)
+            view = EventView(
+                kind,
+                1 if previous is None else previous.count + 1,
+                _stamp_s(msg.time_ref),
+                sheet,
+                cycle,
+                value,
+                msg.header.frame_id,
+            )
             self.events[kind] = view
             return f'{kind} at {view.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
         if topic == DIAGNOSTICS_TOPIC:
@@ -430,8 +452,17 @@ class MonitorState:
                 seen = [m for m in (margin, None if previous is None else previous.min_margin) if m is not None]
                 min_margin = min(seen)
             self.constraints[status.name] = ConstraintView(
-                status.name, _level(status.level), status.message, margin, min_margin, values.get('unit', ''),
-                _int(values.get('cycle')), _int(values.get('violations')), _int(values.get('evaluations')), stamp)
+                status.name,
+                _level(status.level),
+                status.message,
+                margin,
+                min_margin,
+                values.get('unit', ''),
+                _int(values.get('cycle')),
+                _int(values.get('violations')),
+                _int(values.get('evaluations')),
+                stamp,
+            )
         bad = sum(1 for c in self.constraints.values() if c.level in ('WARN', 'ERROR'))
         return f'{len(msg.status)} statuses at {stamp:.3f} s, {bad} WARN or ERROR'
 
@@ -479,21 +510,20 @@ class MonitorState:
         """
         return [text for text, _ in self.render_styled(width, height, now)]
 
-    def render_styled(self, width: int, height: int | None = None,
-                      now: float | None = None) -> list[tuple[str, str]]:
+    def render_styled(self, width: int, height: int | None = None, now: float | None = None) -> list[tuple[str, str]]:
         """:meth:`render` with a style per line: ``'header'``, ``'title'``, ``'alert'`` or ``''``."""
         if width < MIN_WIDTH or (height is not None and height < MIN_HEIGHT):
             size = f'{width} columns' if height is None else f'{width}x{height}'
             text = f'terminal too small ({size}): need {MIN_WIDTH}x{MIN_HEIGHT}; q quits'
-            lines = [text[i:i + width] for i in range(0, len(text), width)] if width > 0 else []
-            return [(line, 'alert') for line in lines[:height if height is not None else None]]
+            lines = [text[i : i + width] for i in range(0, len(text), width)] if width > 0 else []
+            return [(line, 'alert') for line in lines[: height if height is not None else None]]
         now = self._now(now)
         lines = self._header(now) + self._topics(now) + self._constraints() + self._joints() + self._events()
         lines += self._commands()
         lines = [(_fit(text, width), style) for text, style in lines]
         if height is not None and len(lines) > height:
             hidden = len(lines) - (height - 1)
-            lines = lines[:height - 1] + [(_fit(f'... {hidden} more lines: enlarge the terminal', width), 'title')]
+            lines = lines[: height - 1] + [(_fit(f'... {hidden} more lines: enlarge the terminal', width), 'title')]
         return lines
 
     def _header(self, now: float | None) -> list[tuple[str, str]]:
@@ -505,15 +535,19 @@ class MonitorState:
         sheets = '-' if self.sheet_count is None else str(self.sheet_count)
         if self.sheet_rate is not None:
             sheets += f' ({self.sheet_rate:.2f}/s)'
-        head = (f'folder-line monitor | sim {sim} | rtf {"-" if rtf is None else f"{rtf:.2f}"} | '
-                f'supervisor {state} | sheets {sheets} | q: quit')
+        head = (
+            f'folder-line monitor | sim {sim} | rtf {"-" if rtf is None else f"{rtf:.2f}"} | '
+            f'supervisor {state} | sheets {sheets} | q: quit'
+        )
         if self.last_wall is None or now is None:
             info = 'waiting for the line (same ROS_DOMAIN_ID?): no message received yet'
         else:
             idle = now - self.last_wall
-            info = (f'{self.total} messages on {sum(1 for s in self.topics.values() if s.count)} topics since '
-                    f'the monitor started, rates over {self.window:g} s of wall time'
-                    + (f' | no message for {idle:.1f} s' if idle > 1.0 else ''))
+            info = (
+                f'{self.total} messages on {sum(1 for s in self.topics.values() if s.count)} topics since '
+                f'the monitor started, rates over {self.window:g} s of wall time'
+                + (f' | no message for {idle:.1f} s' if idle > 1.0 else '')
+            )
         return [(head, 'header'), (info, '')]
 
     def _topics(self, now: float | None) -> list[tuple[str, str]]:
@@ -526,14 +560,17 @@ class MonitorState:
     def _constraints(self) -> list[tuple[str, str]]:
         if not self.constraints:
             return []
-        head = (f'{"CONSTRAINT":<34} {"LEVEL":<5} {"MARGIN":>11} {"MIN MARGIN":>11} {"UNIT":<5} '
-                f'{"VIOL/EVAL":>11}  MESSAGE')
+        head = (
+            f'{"CONSTRAINT":<34} {"LEVEL":<5} {"MARGIN":>11} {"MIN MARGIN":>11} {"UNIT":<5} {"VIOL/EVAL":>11}  MESSAGE'
+        )
         rows = [(head, 'title')]
         for c in self.constraints.values():
             counts = f'{_g(c.violations, "d")}/{_g(c.evaluations, "d")}'
             style = 'alert' if c.level in ('WARN', 'ERROR') else ''
-            text = (f'{c.name:<34} {c.level:<5} {_g(c.margin, "+.4e"):>11} {_g(c.min_margin, "+.4e"):>11} '
-                    f'{c.unit:<5} {counts:>11}  {c.message}')
+            text = (
+                f'{c.name:<34} {c.level:<5} {_g(c.margin, "+.4e"):>11} {_g(c.min_margin, "+.4e"):>11} '
+                f'{c.unit:<5} {counts:>11}  {c.message}'
+            )
             rows.append((text, style))
         return rows
 
@@ -557,8 +594,10 @@ class MonitorState:
         order = sorted(self.events, key=lambda k: (_KIND_ORDER.get(k, len(_KIND_ORDER)), k))
         for kind in order:
             e = self.events[kind]
-            text = (f'{kind:<22} {e.count:7d} {e.t:10.3f} s {_g(e.sheet, "d"):>7} {_g(e.cycle, "d"):>7} '
-                    f'{_g(e.value, ".5g"):>11}  {e.node}')
+            text = (
+                f'{kind:<22} {e.count:7d} {e.t:10.3f} s {_g(e.sheet, "d"):>7} {_g(e.cycle, "d"):>7} '
+                f'{_g(e.value, ".5g"):>11}  {e.node}'
+            )
             rows.append((text, ''))
         return rows
 
@@ -579,8 +618,11 @@ at ten times that rate."""
 def _subscription_qos(topic: str) -> QoSProfile:
     if topic == COMMANDS_TOPIC:  # every command so far, late joiner too
         return COMMANDS_QOS
-    durability = (DurabilityPolicy.TRANSIENT_LOCAL if topic in (SUPERVISOR_STATE_TOPIC, PARTICIPANTS_TOPIC)
-                  else DurabilityPolicy.VOLATILE)
+    durability = (
+        DurabilityPolicy.TRANSIENT_LOCAL
+        if topic in (SUPERVISOR_STATE_TOPIC, PARTICIPANTS_TOPIC)
+        else DurabilityPolicy.VOLATILE
+    )
     return QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=durability)
 
 
@@ -646,8 +688,14 @@ class _Stop:
             signal.signal(signum, signal.SIG_DFL if handler is None else handler)
 
 
-def run_monitor(rate: float = 4.0, once: bool = False, window: float = WINDOW, timeout: float = 10.0,
-                stream: IO[str] | None = None, argv: Sequence[str] | None = None) -> int:
+def run_monitor(
+    rate: float = 4.0,
+    once: bool = False,
+    window: float = WINDOW,
+    timeout: float = 10.0,
+    stream: IO[str] | None = None,
+    argv: Sequence[str] | None = None,
+) -> int:
     """Body of ``folder-line monitor``.
 
     Parameters
@@ -675,8 +723,11 @@ def run_monitor(rate: float = 4.0, once: bool = False, window: float = WINDOW, t
     """
     stream = sys.stdout if stream is None else stream
     if not once and not (sys.stdin.isatty() and sys.stdout.isatty()):
-        print('folder-line: error: monitor: stdin and stdout must be a terminal for the live view; '
-              'use --once for a plain-text snapshot', file=sys.stderr)
+        print(
+            'folder-line: error: monitor: stdin and stdout must be a terminal for the live view; '
+            'use --once for a plain-text snapshot',
+            file=sys.stderr,
+        )
         return 2
     state = MonitorState(LINE_TOPICS, window=window)
     context = rclpy.Context()
@@ -734,8 +785,9 @@ def _drain(executor: SingleThreadedExecutor, state: MonitorState, budget: float)
 _LATCHED = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC, COMMANDS_TOPIC)
 
 
-def _collect(executor: SingleThreadedExecutor, state: MonitorState, stop: threading.Event, timeout: float,
-             window: float) -> None:
+def _collect(
+    executor: SingleThreadedExecutor, state: MonitorState, stop: threading.Event, timeout: float, window: float
+) -> None:
     deadline = time.monotonic() + timeout
 
     def live() -> bool:  # a message of the running line, not one a transient-local topic kept for late joiners
@@ -759,8 +811,12 @@ def _curses_view(executor: SingleThreadedExecutor, state: MonitorState, stop: th
         except curses.error:  # a terminal that cannot hide the cursor
             pass
         stdscr.nodelay(True)
-        styles = {'header': curses.A_REVERSE, 'title': curses.A_BOLD, 'alert': curses.A_BOLD | curses.A_STANDOUT,
-                  '': curses.A_NORMAL}
+        styles = {
+            'header': curses.A_REVERSE,
+            'title': curses.A_BOLD,
+            'alert': curses.A_BOLD | curses.A_STANDOUT,
+            '': curses.A_NORMAL,
+        }
         period = 1.0 / rate
         next_draw = next_key = 0.0
         while not stop.is_set():

@@ -10,8 +10,9 @@ import dataclasses
 import importlib
 import os
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from folder_line.errors import ParameterError
 from folder_line.yamlio import load_yaml_file
@@ -74,8 +75,9 @@ def _param_class(kind: str) -> type:
     return getattr(importlib.import_module(module), name)
 
 
-def load_params(kind: str, path: str | os.PathLike[str] | None = None,
-                overrides: Mapping[str, Any] | None = None) -> Any:
+def load_params(
+    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> Any:
     """Validated parameters of one mechanism.
 
     Parameters

@@ -14,8 +14,9 @@ from __future__ import annotations
 import io
 import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -51,8 +52,9 @@ def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = DPI) -> Path:
         pyplot().close(fig)
 
 
-def exit_speed_curves(ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n: int = 721,
-                      show_swing_on_abs: bool = True) -> Any:
+def exit_speed_curves(
+    ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n: int = 721, show_swing_on_abs: bool = True
+) -> Any:
     """The layup's exit speeds against the crank angle at nominal speed (paper L, figs. 4-5).
 
     Draws ``v_C``, ``v_E`` (m/s, signed: the exits' swing speed across the chutes) on
@@ -99,9 +101,15 @@ def exit_speed_curves(ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n
     return st
 
 
-def stroke_curves(ax_eta: Any, ax_kv: Any | None, params: Any,
-                  modes: Sequence[str] = ('paper_mirror', 'geometric'), *, n: int = 2001,
-                  pairs: bool = True) -> Any:
+def stroke_curves(
+    ax_eta: Any,
+    ax_kv: Any | None,
+    params: Any,
+    modes: Sequence[str] = ('paper_mirror', 'geometric'),
+    *,
+    n: int = 2001,
+    pairs: bool = True,
+) -> Any:
     """The delivery's efficiency (and carriage speed ratio) along the stroke (paper D, fig. 2).
 
     Draws ``eta(u)`` for each return-section mode on ``ax_eta`` (with ``eta_A``,

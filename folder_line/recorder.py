@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
@@ -28,18 +29,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, Header, String, UInt64
 
-from folder_line.nodes.lockstep import (
-    CLOCK_SUB_QOS,
-    LINE_QOS,
-    MACHINE_NODES,
-    PARTICIPANTS_TOPIC,
-    RECORDER,
-    Announcement,
-    Participant,
-)
 from folder_line.event_text import parse_event_source
-from folder_line.nodes.machine import COMMAND_KINDS, EVENT_OWNER
-from folder_line.nodes.supervisor import STATE_QOS
 from folder_line.nodes.common import (
     CLOCK_TOPIC,
     COMMANDS_QOS,
@@ -54,6 +44,17 @@ from folder_line.nodes.common import (
     joint_states_topic,
     time_msg_to_ns,
 )
+from folder_line.nodes.lockstep import (
+    CLOCK_SUB_QOS,
+    LINE_QOS,
+    MACHINE_NODES,
+    PARTICIPANTS_TOPIC,
+    RECORDER,
+    Announcement,
+    Participant,
+)
+from folder_line.nodes.machine import COMMAND_KINDS, EVENT_OWNER
+from folder_line.nodes.supervisor import STATE_QOS
 
 __all__ = ['LINE_TOPICS', 'LineRecorder']
 
@@ -92,8 +93,9 @@ Sink = Callable[[str, bytes, int, int], None]
 
 #: topics whose messages the recorder reads whole (few per tick); of the others it reads only the
 #: ``header`` (stamp and frame_id) if they have one, and nothing if not
-_READ_WHOLE = frozenset({CLOCK_TOPIC, EVENTS_TOPIC, DIAGNOSTICS_TOPIC, SUPERVISOR_STATE_TOPIC, SHEET_COUNT_TOPIC,
-                         COMMANDS_TOPIC})
+_READ_WHOLE = frozenset(
+    {CLOCK_TOPIC, EVENTS_TOPIC, DIAGNOSTICS_TOPIC, SUPERVISOR_STATE_TOPIC, SHEET_COUNT_TOPIC, COMMANDS_TOPIC}
+)
 
 
 def _could_publish(producer: str, topic: str, msg: Any) -> bool:
@@ -141,13 +143,26 @@ class LineRecorder(Node):
         self._held: list[tuple[str, bytes, int]] = []  # (topic, cdr, publish ns) of a tick whose /clock is not in
         self._sim_origin = 0.0
         for topic, cls in LINE_TOPICS.items():
-            qos = (COMMANDS_QOS if topic == COMMANDS_TOPIC else STATE_QOS if topic == SUPERVISOR_STATE_TOPIC
-                   else CLOCK_SUB_QOS if topic == CLOCK_TOPIC
-                   else LINE_QOS)
+            qos = (
+                COMMANDS_QOS
+                if topic == COMMANDS_TOPIC
+                else STATE_QOS
+                if topic == SUPERVISOR_STATE_TOPIC
+                else CLOCK_SUB_QOS
+                if topic == CLOCK_TOPIC
+                else LINE_QOS
+            )
             self.create_subscription(cls, topic, self._callback(topic, cls), qos, raw=True)
         # the participant takes /clock from this node's own subscription (after the tick is recorded)
-        self.lockstep = Participant(self, self._depends, lambda stamp: None, needs=lambda stamp, previous: stamp,
-                                    on_lost=self._on_lost, lost_timeout=lost_timeout, clock_subscription=False)
+        self.lockstep = Participant(
+            self,
+            self._depends,
+            lambda stamp: None,
+            needs=lambda stamp, previous: stamp,
+            on_lost=self._on_lost,
+            lost_timeout=lost_timeout,
+            clock_subscription=False,
+        )
 
     def rtf_achieved(self) -> float:
         """Sim seconds per wall second between the first and the latest tick recorded (0 before two)."""
@@ -171,8 +186,13 @@ class LineRecorder(Node):
 
         def on_message(data: bytes) -> None:
             msg: Any = deserialize_message(data, cls) if whole else None
-            header = msg.header if whole and hasattr(msg, 'header') else \
-                deserialize_message(data, Header) if has_header else None
+            header = (
+                msg.header
+                if whole and hasattr(msg, 'header')
+                else deserialize_message(data, Header)
+                if has_header
+                else None
+            )
             if topic == CLOCK_TOPIC:
                 stamp = time_msg_to_ns(msg.clock)
                 if stamp <= self._last_clock:
@@ -194,8 +214,15 @@ class LineRecorder(Node):
             elif topic == DIAGNOSTICS_TOPIC:
                 self.diagnostics.extend(st for st in msg.status if st.level == DiagnosticStatus.ERROR)
             self.counts[topic] += 1
-            source = '' if producer == '' else producer if producer is not None else \
-                header.frame_id if header is not None else ''
+            source = (
+                ''
+                if producer == ''
+                else producer
+                if producer is not None
+                else header.frame_id
+                if header is not None
+                else ''
+            )
             if self.sink is not None:
                 publish_ns = time_msg_to_ns(header.stamp) if header is not None else -1
                 if source and self._ahead(source):
@@ -236,8 +263,13 @@ class LineRecorder(Node):
         if self._last_clock < 0:
             return True
         a, ledger = self.lockstep.announcement, self.lockstep.ledger
-        if a is None or a.clock != 'lockstep' or ledger is None or not ledger.knows(producer) \
-                or ledger.is_lost(producer):
+        if (
+            a is None
+            or a.clock != 'lockstep'
+            or ledger is None
+            or not ledger.knows(producer)
+            or ledger.is_lost(producer)
+        ):
             return False
         complete = ledger.complete(producer)
         return complete is not None and complete >= self._last_clock

@@ -13,8 +13,8 @@ from typing import IO
 
 import numpy as np
 
-from folder_line.core import cyclogram, delivery, knife, layup
 from folder_line.atomic import write_csv_atomic, write_text_atomic
+from folder_line.core import cyclogram, delivery, knife, layup
 from folder_line.params import load_params
 from folder_line.plots import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.tables import kinematics_table
@@ -22,8 +22,16 @@ from folder_line.tables import kinematics_table
 __all__ = ['REPORT_FILES', 'Check', 'published_checks', 'write_report']
 
 #: the files :func:`write_report` writes into its folder
-REPORT_FILES = ('report.md', 'layup.csv', 'knife.csv', 'delivery.csv', 'layup_speeds.png', 'layup_geometry.png',
-                'knife_cyclogram.png', 'delivery_efficiency.png')
+REPORT_FILES = (
+    'report.md',
+    'layup.csv',
+    'knife.csv',
+    'delivery.csv',
+    'layup_speeds.png',
+    'layup_geometry.png',
+    'knife_cyclogram.png',
+    'delivery_efficiency.png',
+)
 
 PAPER_V_TR = 0.230 / 0.025  # m/s, paper 001 eq. (5): 230 mm in 0.025 s
 
@@ -52,23 +60,58 @@ def published_checks(p: dict[str, object] | None = None) -> list[Check]:
     # D: efficiency (paper 002, Fig. 2)
     ev = delivery.evaluate(dl, np.linspace(0.0, 1.0, 20001))
     eta_end, eta_const = float(ev.eta[-1]), float(ev.eta[0])
-    checks.append(Check('D', 'eta at the decel/accel boundary (xi = 1), lowest of the section', '0.69',
-                        f'{eta_end:.4f} (min {ev.eta.min():.4f})',
-                        abs(eta_end - 0.69) < 0.005 and ev.eta.min() == eta_end))
-    checks.append(Check('D', 'eta at constant carriage speed (xi = 0)', '0.98', f'{eta_const:.4f}',
-                        0.98 <= eta_const < 0.99))
+    checks.append(
+        Check(
+            'D',
+            'eta at the decel/accel boundary (xi = 1), lowest of the section',
+            '0.69',
+            f'{eta_end:.4f} (min {ev.eta.min():.4f})',
+            abs(eta_end - 0.69) < 0.005 and ev.eta.min() == eta_end,
+        )
+    )
+    checks.append(
+        Check('D', 'eta at constant carriage speed (xi = 0)', '0.98', f'{eta_const:.4f}', 0.98 <= eta_const < 0.99)
+    )
 
     # F: cyclogram (paper 001)
     tm = cyclogram.cycle_timing(cy, kn)
-    checks.append(Check('F', 'printing speed V_d, D = 267.38 mm at 25000 rev/h', '5.83 m/s',
-                        f'{tm.V_d:.4f} m/s', abs(tm.V_d - 5.83) < 0.005))
+    checks.append(
+        Check(
+            'F',
+            'printing speed V_d, D = 267.38 mm at 25000 rev/h',
+            '5.83 m/s',
+            f'{tm.V_d:.4f} m/s',
+            abs(tm.V_d - 5.83) < 0.005,
+        )
+    )
     checks.append(Check('F', 'cycle T at 50000 rev/h', '0.072 s', f'{tm.T:.6f} s', abs(tm.T - 0.072) < 1e-12))
-    checks.append(Check('F', 'folding + knife exit (knife window)', '0.03 s', f'{tm.t_knife:.5f} s',
-                        abs(tm.t_knife - 0.03) < 0.03 * 0.005))
-    checks.append(Check('F', 'feed time with the 10 % reserve', '0.025 s', f'{tm.t_allowed:.5f} s',
-                        abs(tm.t_allowed - 0.025) < 0.025 * 0.015))
-    checks.append(Check('F', 'minimum 2nd-transporter speed V_tr', '~9.2 m/s', f'{tm.V_tr_min:.3f} m/s',
-                        abs(tm.V_tr_min - 9.2) < 9.2 * 0.015))
+    checks.append(
+        Check(
+            'F',
+            'folding + knife exit (knife window)',
+            '0.03 s',
+            f'{tm.t_knife:.5f} s',
+            abs(tm.t_knife - 0.03) < 0.03 * 0.005,
+        )
+    )
+    checks.append(
+        Check(
+            'F',
+            'feed time with the 10 % reserve',
+            '0.025 s',
+            f'{tm.t_allowed:.5f} s',
+            abs(tm.t_allowed - 0.025) < 0.025 * 0.015,
+        )
+    )
+    checks.append(
+        Check(
+            'F',
+            'minimum 2nd-transporter speed V_tr',
+            '~9.2 m/s',
+            f'{tm.V_tr_min:.3f} m/s',
+            abs(tm.V_tr_min - 9.2) < 9.2 * 0.015,
+        )
+    )
     checks.append(Check('F', 'V_tr / V_d', '~1.6', f'{tm.ratio_min:.3f}', abs(tm.ratio_min - 1.6) < 0.03))
 
     # L: exit speeds (paper 000, Figs. 4-5)
@@ -77,8 +120,15 @@ def published_checks(p: dict[str, object] | None = None) -> list[Check]:
     checks.append(Check('L', 'v_C, v_E at both swing extremes', '0', f'{v_ext:.2e} m/s', v_ext < 1e-9))
     st = layup.LayupModel(lay).arrays(2.0 * math.pi * np.arange(100_000) / 100_000, accelerations=False)
     va_min = float(min(st.vaC.min(), st.vaE.min()))
-    checks.append(Check('L', f'min absolute exit speed with belts at v_tr = {lay.v_tr:g} m/s',
-                        f'>= {lay.v_tr:g} m/s', f'{va_min:.6f} m/s', va_min >= lay.v_tr))
+    checks.append(
+        Check(
+            'L',
+            f'min absolute exit speed with belts at v_tr = {lay.v_tr:g} m/s',
+            f'>= {lay.v_tr:g} m/s',
+            f'{va_min:.6f} m/s',
+            va_min >= lay.v_tr,
+        )
+    )
     return checks
 
 
@@ -106,8 +156,15 @@ def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
         s1 = layup.LayupModel(lay).arrays(np.array([e.phi]), accelerations=False)
         pts = {k: (float(getattr(s1, 'x' + k)[0]), float(getattr(s1, 'y' + k)[0])) for k in 'ABCE'}
         chain = [o1, pts['A'], pts['B'], (0.0, 0.0), pts['C'], pts['E'], (lay.O2O3, 0.0)]
-        ax.plot(*zip(*chain), style, color='k', marker='o', ms=4, lw=1,
-                label=f'{e.kind} dead centre, phi = {math.degrees(e.phi):.1f} deg')
+        ax.plot(
+            *zip(*chain),
+            style,
+            color='k',
+            marker='o',
+            ms=4,
+            lw=1,
+            label=f'{e.kind} dead centre, phi = {math.degrees(e.phi):.1f} deg',
+        )
     for name, xy in (('O1', o1), ('O2', (0.0, 0.0)), ('O3', (lay.O2O3, 0.0))):
         ax.annotate(name, xy, textcoords='offset points', xytext=(5, 5))
     ax.set_aspect('equal')
@@ -131,8 +188,15 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
     ms = 1e3 * (t - tm.knife.t_in)
     ax1.plot(ms, ks.s * 1e3, label='knife height s')
     ax1.axhline(kn.s_clear * 1e3, color='r', ls='--', lw=1, label=f's_clear = {kn.s_clear * 1e3:.1f} mm')
-    ax1.fill_between(ms, kn.s_min * 1e3, kn.s_max * 1e3, where=ks.occupies, color='r', alpha=0.12,
-                     label=f'knife window {tm.t_knife * 1e3:.2f} ms')
+    ax1.fill_between(
+        ms,
+        kn.s_min * 1e3,
+        kn.s_max * 1e3,
+        where=ks.occupies,
+        color='r',
+        alpha=0.12,
+        label=f'knife window {tm.t_knife * 1e3:.2f} ms',
+    )
     ax1.set_ylabel('s, mm')
     ax1.set_title(f'F: crank-slider knife at {kn.n_k:g} rev/h (T = {tm.T * 1e3:.1f} ms)')
     ax1.legend(loc='upper right', fontsize=8)
@@ -161,8 +225,10 @@ def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     stroke_curves(ax1, ax2, dl, ('paper_mirror', 'geometric'))
     ax1.set_ylabel('instantaneous efficiency')
-    ax1.set_title(f'D: efficiency along the stroke (paper Fig. 2), Lambda = {dl.Lambda:g}, '
-                  f'alpha_m = {dl.alpha_m_deg:g} deg, {dl.law}')
+    ax1.set_title(
+        f'D: efficiency along the stroke (paper Fig. 2), Lambda = {dl.Lambda:g}, '
+        f'alpha_m = {dl.alpha_m_deg:g} deg, {dl.law}'
+    )
     ax1.legend(fontsize=8, loc='lower left')
     ax2.set_ylabel('carriage speed ratio K_v')
     ax2.set_xlabel('stroke position u (deceleration section 0..1, acceleration section 1..2)')
@@ -180,22 +246,32 @@ def write_report(out: Path, stream: IO[str]) -> list[Path]:
     sw = layup.sweep(p['layup'])
     k_u, k_min = delivery.stroke_minimum(p['delivery'], 'K_v')
 
-    lines = ['# folder_line: the default configuration against the papers', '',
-             '| mech. | quantity | paper | model | agrees |', '|---|---|---|---|---|']
-    lines += [f'| {c.paper} | {c.quantity} | {c.published} | {c.model} | {"yes" if c.agrees else "NO"} |'
-              for c in checks]
-    lines += ['', '## Derived figures', '',
-              f'- L: exits sweep x = {sw.xC[0]:.3f}..{sw.xC[1]:.3f} m (C) and {sw.xE[0]:.3f}..{sw.xE[1]:.3f} m (E).',
-              f'- F: knife window {tm.t_knife * 1e3:.3f} ms, dwell {tm.t_dwell * 1e3:.2f} ms, '
-              f'feed window {tm.t_fw * 1e3:.3f} ms, allowed feed time {tm.t_allowed * 1e3:.3f} ms; '
-              f'feed margin at V_tr = V_d: {tm.feed_margin(tm.V_d) * 1e3:.3f} ms, '
-              f'at the paper\'s {PAPER_V_TR:.1f} m/s: {tm.feed_margin(PAPER_V_TR) * 1e3:.3f} ms.',
-              f'- D: slowest carriage K_v = {k_min:.4f} at stroke position u = {k_u:.4f} '
-              '(geometric return section).']
+    lines = [
+        '# folder_line: the default configuration against the papers',
+        '',
+        '| mech. | quantity | paper | model | agrees |',
+        '|---|---|---|---|---|',
+    ]
+    lines += [
+        f'| {c.paper} | {c.quantity} | {c.published} | {c.model} | {"yes" if c.agrees else "NO"} |' for c in checks
+    ]
+    lines += [
+        '',
+        '## Derived figures',
+        '',
+        f'- L: exits sweep x = {sw.xC[0]:.3f}..{sw.xC[1]:.3f} m (C) and {sw.xE[0]:.3f}..{sw.xE[1]:.3f} m (E).',
+        f'- F: knife window {tm.t_knife * 1e3:.3f} ms, dwell {tm.t_dwell * 1e3:.2f} ms, '
+        f'feed window {tm.t_fw * 1e3:.3f} ms, allowed feed time {tm.t_allowed * 1e3:.3f} ms; '
+        f'feed margin at V_tr = V_d: {tm.feed_margin(tm.V_d) * 1e3:.3f} ms, '
+        f"at the paper's {PAPER_V_TR:.1f} m/s: {tm.feed_margin(PAPER_V_TR) * 1e3:.3f} ms.",
+        f'- D: slowest carriage K_v = {k_min:.4f} at stroke position u = {k_u:.4f} (geometric return section).',
+    ]
 
     written = [out / 'report.md']
     for mech in ('layup', 'knife', 'delivery'):
-        written.append(write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101)))
+        written.append(
+            write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101))
+        )
     written += _plot_layup(p['layup'], out)
     written.append(_plot_knife(p['knife'], p['cyclogram'], out))
     written.append(_plot_delivery(p['delivery'], out))

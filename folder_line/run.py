@@ -38,23 +38,36 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Callable
+from typing import IO, Any
 
 from folder_line.atomic import write_json_atomic
 from folder_line.core.limits import HORIZON_MARGIN
 
-__all__ = ['BAG_DIR', 'LINE_NODES', 'RunConfig', 'RunResult', 'add_machine_nodes', 'clock_parameters',
-           'node_parameters', 'other_line', 'outcome', 'print_run_summary', 'run_line']
+__all__ = [
+    'BAG_DIR',
+    'LINE_NODES',
+    'RunConfig',
+    'RunResult',
+    'add_machine_nodes',
+    'clock_parameters',
+    'node_parameters',
+    'other_line',
+    'outcome',
+    'print_run_summary',
+    'run_line',
+]
 
 from folder_line.interfaces import MACHINE_NODES as LINE_NODES  # noqa: E402  (the nodes, in start order)
 
 #: the run's bag, under ``cfg.out``
 BAG_DIR = 'bag'
 
-_PROCESSES_LOSS = ('unavailable with --processes: the publishers run in other processes and their '
-                   'counts are not collected')
+_PROCESSES_LOSS = (
+    'unavailable with --processes: the publishers run in other processes and their counts are not collected'
+)
 
 
 @dataclass(frozen=True)
@@ -105,8 +118,12 @@ class RunResult:
 
 def node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
     """The parameters ``run`` gives machine node ``name`` (scene, overrides, horizon, rate, lost_timeout)."""
-    params: dict[str, Any] = {'scene': cfg.scene, 'horizon': cfg.duration + HORIZON_MARGIN, 'rate': cfg.rate,
-                              'lost_timeout': cfg.lost_timeout}
+    params: dict[str, Any] = {
+        'scene': cfg.scene,
+        'horizon': cfg.duration + HORIZON_MARGIN,
+        'rate': cfg.rate,
+        'lost_timeout': cfg.lost_timeout,
+    }
     if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
     return params
@@ -144,7 +161,8 @@ def _clear_previous_bag(path: Path) -> None:
         return
     ours = path.is_dir() and all(
         p.is_file() and (p.name == 'metadata.yaml' or p.suffix in ('.mcap', '.truncated', '.tmp'))
-        for p in path.iterdir())
+        for p in path.iterdir()
+    )
     if not ours:
         msg = f'{path}: exists and is not a bag of a previous run; move it away or choose another --out'
         raise BagError(msg)
@@ -161,8 +179,14 @@ def _published_counts(nodes: list[Any]) -> dict[str, int]:
 
 def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
     """The parameters ``run`` gives ``line_clock``."""
-    return {'rate': cfg.rate, 'rtf': float(cfg.rtf), 'clock': cfg.clock, 'duration': float(cfg.duration),
-            'participants': ','.join(participants), 'lost_timeout': cfg.lost_timeout}
+    return {
+        'rate': cfg.rate,
+        'rtf': float(cfg.rtf),
+        'clock': cfg.clock,
+        'duration': float(cfg.duration),
+        'participants': ','.join(participants),
+        'lost_timeout': cfg.lost_timeout,
+    }
 
 
 def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
@@ -172,9 +196,13 @@ def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
 
     from folder_line.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 
-    classes = {'crank_drive': crank_drive.CrankDrive, 'belt_conveyor': belt_conveyor.BeltConveyor,
-               'feed_transporter': feed_transporter.FeedTransporter,
-               'sheet_counter': sheet_counter.SheetCounter, 'supervisor': supervisor.Supervisor}
+    classes = {
+        'crank_drive': crank_drive.CrankDrive,
+        'belt_conveyor': belt_conveyor.BeltConveyor,
+        'feed_transporter': feed_transporter.FeedTransporter,
+        'sheet_counter': sheet_counter.SheetCounter,
+        'supervisor': supervisor.Supervisor,
+    }
     nodes = []
     for name in LINE_NODES:
         overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name).items()]
@@ -214,8 +242,11 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
             infos = node.get_publishers_info_by_topic(topic)
             named = [i for i in infos if i.node_name != _UNKNOWN_NODE]
             if named or (infos and seen is not None and time.monotonic() > seen + _NAME_WAIT):
-                who = (named[0].node_namespace.rstrip('/') + '/' + named[0].node_name if named
-                       else 'a node whose name is not known yet')
+                who = (
+                    named[0].node_namespace.rstrip('/') + '/' + named[0].node_name
+                    if named
+                    else 'a node whose name is not known yet'
+                )
                 return f'{topic} is already published on ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")} by {who}'
             if infos and seen is None:
                 seen = time.monotonic()
@@ -273,18 +304,27 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         executor.remove_node(probe)
         probe.destroy_node()
         if other is not None:
-            msg = (f'another line is running: {other}; stop it, or give this run its own '
-                   'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)')
+            msg = (
+                f'another line is running: {other}; stop it, or give this run its own '
+                'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)'
+            )
             raise FolderLineError(msg)
         cfg.out.mkdir(parents=True, exist_ok=True)
         bag_path = cfg.out / BAG_DIR
         _clear_previous_bag(bag_path)
-        bag = BagWriter(bag_path, scene_source=yaml.safe_dump(mapping, sort_keys=False), effects=list(scene.effects),
-                        scene_name=scene.name, topics=LINE_TOPICS,
-                        custom={'folder_line.scene_arg': str(cfg.scene),
-                                'folder_line.overrides': json.dumps(cfg.overrides),
-                                'folder_line.mode': 'processes' if cfg.processes else 'in-process',
-                                'folder_line.clock': cfg.clock})
+        bag = BagWriter(
+            bag_path,
+            scene_source=yaml.safe_dump(mapping, sort_keys=False),
+            effects=list(scene.effects),
+            scene_name=scene.name,
+            topics=LINE_TOPICS,
+            custom={
+                'folder_line.scene_arg': str(cfg.scene),
+                'folder_line.overrides': json.dumps(cfg.overrides),
+                'folder_line.mode': 'processes' if cfg.processes else 'in-process',
+                'folder_line.clock': cfg.clock,
+            },
+        )
         recorder = LineRecorder(sink=bag.write_serialized, context=ctx, lost_timeout=cfg.lost_timeout)
         executor.add_node(recorder)
         clock_params = clock_parameters(cfg, participants)
@@ -293,22 +333,23 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             logs = cfg.out / 'logs'  # each process's stderr
             logs.mkdir(exist_ok=True)
             commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in LINE_NODES}
-            commands['line_clock'] = [f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}'
-                                      for k, v in clock_params.items()]
+            commands['line_clock'] = [
+                f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}' for k, v in clock_params.items()
+            ]
             for name, args in commands.items():
                 cmd = [sys.executable, '-m', f'folder_line.nodes.{name}', '--ros-args']
                 for a in args:
                     cmd += ['-p', a]
                 # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
                 with open(logs / f'{name}.log', 'wb') as log:
-                    procs[name] = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log,
-                                                   preexec_fn=_die_with_parent)
+                    procs[name] = subprocess.Popen(
+                        cmd, env=env, stdout=subprocess.DEVNULL, stderr=log, preexec_fn=_die_with_parent
+                    )
             clock = None
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
             nodes += add_machine_nodes(cfg, ctx, executor)
-            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()],
-                              context=ctx)
+            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
             done = clock.done.done
@@ -344,8 +385,15 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         lost = dict(recorder.lost)
         if clock is not None:
             lost.update({n: t for n, t in clock.lost.items() if n not in lost})
-        result.summary = _summary(cfg, scene, recorder, time.perf_counter() - t_wall, interrupted, lost,
-                                  None if clock is None else clock.rtf_achieved)
+        result.summary = _summary(
+            cfg,
+            scene,
+            recorder,
+            time.perf_counter() - t_wall,
+            interrupted,
+            lost,
+            None if clock is None else clock.rtf_achieved,
+        )
         result.summary.update(_bag_summary(bag, published))
     finally:
         if procs and not interrupted and procs['line_clock'].poll() is not None:
@@ -419,12 +467,23 @@ def outcome(summary: dict[str, Any]) -> dict[str, Any]:
     elif expected is None and state == 'EXECUTE':
         problems.append('simulate expects violations, yet the line ended in EXECUTE')
     ok = not problems
-    return {'ok': ok, 'expected_state': expected, 'state': state,
-            'message': 'line ended EXECUTE as the scene expects' if ok else '; '.join(problems)}
+    return {
+        'ok': ok,
+        'expected_state': expected,
+        'state': state,
+        'message': 'line ended EXECUTE as the scene expects' if ok else '; '.join(problems),
+    }
 
 
-def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted: list[str],
-             lost: dict[str, float], rtf: float | None) -> dict[str, Any]:
+def _summary(
+    cfg: RunConfig,
+    scene: Any,
+    recorder: Any,
+    wall: float,
+    interrupted: list[str],
+    lost: dict[str, float],
+    rtf: float | None,
+) -> dict[str, Any]:
     from folder_line.core.line import simulate
 
     expected = simulate(scene, min(recorder.sim_time, cfg.duration) or cfg.duration, sample_rate=0.0).summary()
@@ -434,8 +493,10 @@ def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted
         if st.name == 'folder_line/supervisor/violation' and values.get('action') not in (None, 'none'):
             constraint = values.get('constraint', '')
             node = constraint.split(':', 1)[1] if constraint.startswith('lost:') else None
-            cause = (f'{constraint} in cycle {values.get("cycle")} at {float(values.get("t", "nan")):.6f} s '
-                     f'-> {values.get("action")}' + (f' (node {node})' if node else ''))
+            cause = (
+                f'{constraint} in cycle {values.get("cycle")} at {float(values.get("t", "nan")):.6f} s '
+                f'-> {values.get("action")}' + (f' (node {node})' if node else '')
+            )
             break
     return {
         'scene': scene.name,
@@ -453,8 +514,11 @@ def _summary(cfg: RunConfig, scene: Any, recorder: Any, wall: float, interrupted
         'events_received': dict(sorted(recorder.event_counts.items())),
         'sheets_counted': recorder.sheet_count,
         'supervisor_state': recorder.state,
-        'expected_from_simulate': {'sheets_counted': expected['sheets_counted'], 'events': expected['events'],
-                                   'violations': expected['violations']['count']},
+        'expected_from_simulate': {
+            'sheets_counted': expected['sheets_counted'],
+            'events': expected['events'],
+            'violations': expected['violations']['count'],
+        },
     }
 
 
@@ -465,28 +529,37 @@ def _bag_summary(bag: Any, published: dict[str, int] | None) -> dict[str, Any]:
         'published': None if published is None else {t: published.get(t, 0) for t in recorded},
         'lost': None if published is None else {t: published.get(t, 0) - n for t, n in recorded.items()},
     }
-    out['loss_accounting'] = (_PROCESSES_LOSS if published is None else
-                              'in-process: published counted by the nodes, recorded counted in the bag')
+    out['loss_accounting'] = (
+        _PROCESSES_LOSS
+        if published is None
+        else 'in-process: published counted by the nodes, recorded counted in the bag'
+    )
     return out
 
 
 def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -> None:
     """Human-readable end of ``folder-line run``."""
-    print(f"scene {summary['scene']}: {summary['sim_time_reached_s']:.3f} s of line time in "
-          f"{summary['wall_time_s']:.1f} s ({summary['mode']}, {summary['clock']} clock, rtf achieved "
-          f"{summary['rtf_achieved']:.2f}, ceiling {summary['rtf_requested']})", file=stream)
-    print(f"supervisor: {summary['supervisor_state']}   sheets counted: {summary['sheets_counted']} "
-          f"(simulate: {summary['expected_from_simulate']['sheets_counted']})", file=stream)
+    print(
+        f'scene {summary["scene"]}: {summary["sim_time_reached_s"]:.3f} s of line time in '
+        f'{summary["wall_time_s"]:.1f} s ({summary["mode"]}, {summary["clock"]} clock, rtf achieved '
+        f'{summary["rtf_achieved"]:.2f}, ceiling {summary["rtf_requested"]})',
+        file=stream,
+    )
+    print(
+        f'supervisor: {summary["supervisor_state"]}   sheets counted: {summary["sheets_counted"]} '
+        f'(simulate: {summary["expected_from_simulate"]["sheets_counted"]})',
+        file=stream,
+    )
     print('messages received per topic:', file=stream)
     for topic, n in summary['messages'].items():
         print(f'  {topic:<40} {n}', file=stream)
     if 'bag' in summary:
         lost = summary.get('lost')
         if lost is None:
-            print(f"lost messages: unknown ({summary.get('loss_accounting', '')})", file=stream)
+            print(f'lost messages: unknown ({summary.get("loss_accounting", "")})', file=stream)
         elif any(lost.values()):
             print('lost messages: ' + ', '.join(f'{t} {n}' for t, n in lost.items() if n), file=stream)
         else:
             print('lost messages: 0 on every topic', file=stream)
-        print(f"wrote {summary['bag']['path']} ({summary['bag']['segments']} segments)", file=stream)
+        print(f'wrote {summary["bag"]["path"]} ({summary["bag"]["segments"]} segments)', file=stream)
     print(f'wrote {out_dir / "run.json"}', file=stream)

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import copy
 import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from folder_line.core.effects import EFFECTS
 from folder_line.core.scene import MACHINE_KINDS, Scene, parse_scene
@@ -99,7 +100,9 @@ def scene_mapping(name_or_path: str | os.PathLike[str], overrides: Mapping[str, 
     data.setdefault('name', path.stem)
     machines_in = data.get('machines')
     if not isinstance(machines_in, Mapping) or not machines_in:
-        raise ParameterError('machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINE_KINDS)}')
+        raise ParameterError(
+            'machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINE_KINDS)}'
+        )
     machines: dict[str, dict[str, Any]] = {}
     for section, values in machines_in.items():
         if section not in MACHINE_KINDS:
@@ -129,23 +132,33 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
         return
     head, sep, field = key.partition('.')
     if not sep or not field or '.' in field:
-        raise ParameterError(key, value, 'must be SECTION.KEY (a machine, a listed effect, sheets or drive), '
-                             'seed or sample_rate')
+        raise ParameterError(
+            key, value, 'must be SECTION.KEY (a machine, a listed effect, sheets or drive), seed or sample_rate'
+        )
     if head in MACHINE_KINDS:
         section = data['machines'].get(head)
         if section is None:
-            raise ParameterError(key, value, f'scene {data["name"]!r} has no machine {head!r}; '
-                                 f'it has {", ".join(data["machines"])}')
+            raise ParameterError(
+                key, value, f'scene {data["name"]!r} has no machine {head!r}; it has {", ".join(data["machines"])}'
+            )
     elif head in EFFECTS:
         section = data['effects'].get(head)
         if section is None:
-            raise ParameterError(key, value, f'scene {data["name"]!r} does not list effect {head!r}; '
-                                 f'it lists {", ".join(data["effects"]) or "none"}')
+            raise ParameterError(
+                key,
+                value,
+                f'scene {data["name"]!r} does not list effect {head!r}; '
+                f'it lists {", ".join(data["effects"]) or "none"}',
+            )
     elif head in ('sheets', 'drive'):
         section = data[head]
     else:
-        raise ParameterError(key, value, f'unknown section; a section is a machine ({", ".join(MACHINE_KINDS)}), '
-                             'sheets, drive, or an effect the scene lists')
+        raise ParameterError(
+            key,
+            value,
+            f'unknown section; a section is a machine ({", ".join(MACHINE_KINDS)}), '
+            'sheets, drive, or an effect the scene lists',
+        )
     if head in MACHINE_KINDS or head == 'sheets':
         if field not in section:
             raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')

@@ -52,8 +52,17 @@ def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[st
     if mechanism == 'delivery':
         xi = np.linspace(0.0, 1.0, n)
         ev = delivery.evaluate(params, xi)
-        return {'xi': xi, 'alpha': ev.alpha, 'beta': ev.beta, 'Kv': ev.K_v, 'eta_O': ev.eta_O,
-                'eta_A': ev.eta_A, 'eta_B': ev.eta_B, 'eta': ev.eta, 'state': ev.state_names()}
+        return {
+            'xi': xi,
+            'alpha': ev.alpha,
+            'beta': ev.beta,
+            'Kv': ev.K_v,
+            'eta_O': ev.eta_O,
+            'eta_A': ev.eta_A,
+            'eta_B': ev.eta_B,
+            'eta': ev.eta,
+            'state': ev.state_names(),
+        }
     msg = f'mechanism={mechanism!r}: must be one of {", ".join(COLUMNS)}'
     raise ValueError(msg)
 

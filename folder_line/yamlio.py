@@ -31,8 +31,18 @@ from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from folder_line.errors import InputFileError, bounded_repr, shorten
 
-__all__ = ['BoundedLoader', 'MAX_ALIASES', 'MAX_DEPTH', 'MAX_INT_DIGITS', 'MAX_NODES', 'METADATA_LIMIT',
-           'TEXT_LIMIT', 'load_yaml', 'load_yaml_file', 'read_text_bounded']
+__all__ = [
+    'BoundedLoader',
+    'MAX_ALIASES',
+    'MAX_DEPTH',
+    'MAX_INT_DIGITS',
+    'MAX_NODES',
+    'METADATA_LIMIT',
+    'TEXT_LIMIT',
+    'load_yaml',
+    'load_yaml_file',
+    'read_text_bounded',
+]
 
 #: largest scene or parameter file, bytes (the shipped ones are under 4 kB)
 TEXT_LIMIT = 1 << 20
@@ -116,15 +126,20 @@ class BoundedLoader(yaml.SafeLoader):
             except TypeError:
                 raise ConstructorError(None, None, 'a key must be a plain value', key_node.start_mark) from None
             if first is not key_node:
-                raise ConstructorError(None, None, f'duplicate key {bounded_repr(key, 40)} '
-                                       f'(first at line {first.start_mark.line + 1})', key_node.start_mark)
+                raise ConstructorError(
+                    None,
+                    None,
+                    f'duplicate key {bounded_repr(key, 40)} (first at line {first.start_mark.line + 1})',
+                    key_node.start_mark,
+                )
         return super().construct_mapping(node, deep=deep)
 
     def construct_yaml_int(self, node: ScalarNode) -> int:  # type: ignore[override]
         digits = sum(ch.isalnum() for ch in str(node.value))
         if digits > MAX_INT_DIGITS:
-            raise ConstructorError(None, None, f'integer of {digits} digits (at most {MAX_INT_DIGITS})',
-                                   node.start_mark)
+            raise ConstructorError(
+                None, None, f'integer of {digits} digits (at most {MAX_INT_DIGITS})', node.start_mark
+            )
         return super().construct_yaml_int(node)
 
 
@@ -132,8 +147,13 @@ BoundedLoader.add_constructor('tag:yaml.org,2002:int', BoundedLoader.construct_y
 
 
 def _kind(mode: int) -> str:
-    for test, name in ((stat.S_ISDIR, 'a directory'), (stat.S_ISFIFO, 'a FIFO'), (stat.S_ISCHR, 'a character device'),
-                       (stat.S_ISBLK, 'a block device'), (stat.S_ISSOCK, 'a socket')):
+    for test, name in (
+        (stat.S_ISDIR, 'a directory'),
+        (stat.S_ISFIFO, 'a FIFO'),
+        (stat.S_ISCHR, 'a character device'),
+        (stat.S_ISBLK, 'a block device'),
+        (stat.S_ISSOCK, 'a socket'),
+    ):
         if test(mode):
             return name
     return 'not a regular file'
@@ -177,8 +197,9 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
             chunks.append(chunk)
             size += len(chunk)
     except OSError as exc:
-        raise InputFileError(what, name, f'cannot read file: {exc.strerror or errno.errorcode.get(exc.errno or 0)}'
-                             ) from None
+        raise InputFileError(
+            what, name, f'cannot read file: {exc.strerror or errno.errorcode.get(exc.errno or 0)}'
+        ) from None
     finally:
         os.close(fd)
     data = b''.join(chunks)
@@ -191,8 +212,9 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
     except UnicodeDecodeError as exc:
         line = data.count(b'\n', 0, exc.start) + 1
         column = exc.start - (data.rfind(b'\n', 0, exc.start) + 1) + 1
-        raise InputFileError(what, name, f'line {line}, column {column}: not UTF-8 '
-                             f'(byte 0x{data[exc.start]:02x}); save it as UTF-8') from None
+        raise InputFileError(
+            what, name, f'line {line}, column {column}: not UTF-8 (byte 0x{data[exc.start]:02x}); save it as UTF-8'
+        ) from None
     return text[1:] if text.startswith('\ufeff') else text
 
 
@@ -231,9 +253,13 @@ def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> 
         raise InputFileError(what, source, f'{where}{shorten(problem, 120)}') from None
     except yaml.reader.ReaderError as exc:  # a character YAML does not allow (NUL, other controls)
         line, column = _position(text, exc.position)
-        raise InputFileError(what, source, f'line {line}, column {column}: character '
-                             f'U+{exc.character if isinstance(exc.character, int) else 0:04X} '
-                             'is not allowed in YAML') from None
+        raise InputFileError(
+            what,
+            source,
+            f'line {line}, column {column}: character '
+            f'U+{exc.character if isinstance(exc.character, int) else 0:04X} '
+            'is not allowed in YAML',
+        ) from None
     except yaml.YAMLError as exc:
         raise InputFileError(what, source, f'not valid YAML: {shorten(" ".join(str(exc).split()), 120)}') from None
     except RecursionError:
@@ -243,7 +269,6 @@ def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> 
             loader.dispose()
 
 
-def load_yaml_file(path: str | os.PathLike[str], what: str, limit: int = TEXT_LIMIT,
-                   max_nodes: int = MAX_NODES) -> Any:
+def load_yaml_file(path: str | os.PathLike[str], what: str, limit: int = TEXT_LIMIT, max_nodes: int = MAX_NODES) -> Any:
     """:func:`read_text_bounded` then :func:`load_yaml`."""
     return load_yaml(read_text_bounded(path, what, limit), what, str(Path(path)), max_nodes)

@@ -16,13 +16,14 @@ it is not a participant).
 
 from __future__ import annotations
 
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
+
+from launch import LaunchDescription
 
 MACHINE_NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
 
@@ -50,19 +51,34 @@ def generate_launch_description() -> LaunchDescription:
         'lost_timeout': lost,
         'use_sim_time': True,
     }
-    actions: list = [DeclareLaunchArgument(name, default_value=default, description=text)
-                     for name, default, text in ARGUMENTS]
-    nodes = [Node(package='folder_line', executable=name, name=name, parameters=[common], output='screen')
-             for name in MACHINE_NODES]
-    clock = Node(package='folder_line', executable='line_clock', name='line_clock', output='screen',
-                 parameters=[{'rtf': ParameterValue(arg['rtf'], value_type=float),
-                              'duration': ParameterValue(arg['duration'], value_type=float),
-                              'rate': ParameterValue(arg['rate'], value_type=float),
-                              'clock': ParameterValue(arg['clock'], value_type=str),
-                              'participants': ','.join(MACHINE_NODES),
-                              'lost_timeout': lost}])
+    actions: list = [
+        DeclareLaunchArgument(name, default_value=default, description=text) for name, default, text in ARGUMENTS
+    ]
+    nodes = [
+        Node(package='folder_line', executable=name, name=name, parameters=[common], output='screen')
+        for name in MACHINE_NODES
+    ]
+    clock = Node(
+        package='folder_line',
+        executable='line_clock',
+        name='line_clock',
+        output='screen',
+        parameters=[
+            {
+                'rtf': ParameterValue(arg['rtf'], value_type=float),
+                'duration': ParameterValue(arg['duration'], value_type=float),
+                'rate': ParameterValue(arg['rate'], value_type=float),
+                'clock': ParameterValue(arg['clock'], value_type=str),
+                'participants': ','.join(MACHINE_NODES),
+                'lost_timeout': lost,
+            }
+        ],
+    )
     actions += nodes + [clock]
     for node in [*nodes, clock]:  # the line ends with its clock; a node that dies ends it too
-        actions.append(RegisterEventHandler(OnProcessExit(
-            target_action=node, on_exit=[EmitEvent(event=Shutdown(reason='a line node exited'))])))
+        actions.append(
+            RegisterEventHandler(
+                OnProcessExit(target_action=node, on_exit=[EmitEvent(event=Shutdown(reason='a line node exited'))])
+            )
+        )
     return LaunchDescription(actions)

@@ -41,9 +41,16 @@ def main() -> int:
     parser.add_argument('--flush-s', type=float, default=0.1)
     parser.add_argument('--block-after', type=int, default=0)
     args = parser.parse_args()
-    writer = BagWriter(args.dir, scene_source='name: crash\n', effects=['faults'], scene_name='crash',
-                       segment_s=args.segment_s, topics=LINE_TOPICS, chunk_size=args.chunk_size,
-                       flush_s=args.flush_s)
+    writer = BagWriter(
+        args.dir,
+        scene_source='name: crash\n',
+        effects=['faults'],
+        scene_name='crash',
+        segment_s=args.segment_s,
+        topics=LINE_TOPICS,
+        chunk_size=args.chunk_size,
+        flush_s=args.flush_s,
+    )
     i = 0
     while True:
         t_ns = i * args.dt_ns

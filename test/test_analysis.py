@@ -17,8 +17,9 @@ import os
 import re
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -48,8 +49,10 @@ from folder_line.core.line import LineModel, simulate
 from folder_line.event_text import event_source, parse_event_source
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
-pytestmark = [pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-              for m in ('sre_parse', 'sre_constants')]
+pytestmark = [
+    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
+    for m in ('sre_parse', 'sre_constants')
+]
 
 REPO = Path(__file__).resolve().parents[1]
 PNG = b'\x89PNG\r\n\x1a\n'
@@ -100,8 +103,13 @@ def _report_constraints(report: str) -> dict[str, dict[str, Any]]:
     section = report.split('## Constraints', 1)[1].split('##', 1)[0]
     out = {}
     for m in re.finditer(r'^\| (\w+) \| ([^|]+) \| (\d+) \| ([^|]+) \| (-?\d+) \| (\d+) \|$', section, re.MULTILINE):
-        out[m[1]] = {'unit': m[2].strip(), 'evaluations': int(m[3]), 'margin': float(m[4]), 'cycle': int(m[5]),
-                     'violations': int(m[6])}
+        out[m[1]] = {
+            'unit': m[2].strip(),
+            'evaluations': int(m[3]),
+            'margin': float(m[4]),
+            'cycle': int(m[5]),
+            'violations': int(m[6]),
+        }
     return out
 
 
@@ -125,16 +133,26 @@ def _check_numbers(result: AnalysisResult) -> dict[str, Any]:
     assert set(rows) == set(expected['min_margin']) and rows
     for name, want in expected['min_margin'].items():
         got = rows[name]
-        assert (got['unit'], got['evaluations'], got['violations']) == \
-            (want['unit'], want['evaluations'], want['violations']), name
+        assert (got['unit'], got['evaluations'], got['violations']) == (
+            want['unit'],
+            want['evaluations'],
+            want['violations'],
+        ), name
         # printed to 6 digits; the recorded event times are the exact ones rounded to the ns
         assert got['margin'] == pytest.approx(want['margin'], rel=1e-5, abs=3e-9), name
     return expected
 
 
 def _sorted_events(ns: np.ndarray, events: np.ndarray) -> list[tuple[int, int, int, int, float]]:
-    return sorted(zip(ns.tolist(), events['kind'].tolist(), events['sheet'].tolist(), events['cycle'].tolist(),
-                      events['value'].tolist()))
+    return sorted(
+        zip(
+            ns.tolist(),
+            events['kind'].tolist(),
+            events['sheet'].tolist(),
+            events['cycle'].tolist(),
+            events['value'].tolist(),
+        )
+    )
 
 
 def _check_events(result: AnalysisResult, run: Path) -> None:
@@ -205,16 +223,27 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
         tables[topic] = rows
     js = tables['/line/feed_transporter/joint_states']
     joints = ('feed_belt', 'chain', 'carriage')
-    assert js[0] == ['log_time_ns', 'header.stamp.sec', 'header.stamp.nanosec', 'header.frame_id',
-                     *(f'{q}.{j}' for q in ('position', 'velocity', 'effort') for j in joints)]
+    assert js[0] == [
+        'log_time_ns',
+        'header.stamp.sec',
+        'header.stamp.nanosec',
+        'header.frame_id',
+        *(f'{q}.{j}' for q in ('position', 'velocity', 'effort') for j in joints),
+    ]
     ft = rec.joints['feed_transporter']
     col = js[0].index('velocity.carriage')
     assert [float(r[col]) for r in js[1:]] == ft.column('carriage', 'velocity').tolist()  # repr: exact
     ev = tables[EVENTS_TOPIC]
     src = ev[0].index('source')
     assert sorted(parse_event_source(r[src]) for r in ev[1:]) == sorted(
-        (EVENT_KINDS[k], s, c, v) for k, s, c, v in zip(rec.events['kind'].tolist(), rec.events['sheet'].tolist(),
-                                                         rec.events['cycle'].tolist(), rec.events['value'].tolist()))
+        (EVENT_KINDS[k], s, c, v)
+        for k, s, c, v in zip(
+            rec.events['kind'].tolist(),
+            rec.events['sheet'].tolist(),
+            rec.events['cycle'].tolist(),
+            rec.events['value'].tolist(),
+        )
+    )
     diag = tables[DIAGNOSTICS_TOPIC]
     assert 'status[0].name' in diag[0] and 'status[0].values.evaluations' in diag[0]
     assert tables[CLOCK_TOPIC][0] == ['log_time_ns', 'clock.sec', 'clock.nanosec']
@@ -247,8 +276,7 @@ def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisRe
     ft = rec.joints['feed_transporter']
     on = (ft.column('carriage') > 0.0) | (ft.column('carriage', 'velocity') > 0.0)
     theta = ft.column('chain')[on] / plan.v_A
-    np.testing.assert_allclose(data['torque'], chain_friction.sprocket_torque(rec.scene, theta), rtol=1e-9,
-                               atol=1e-9)
+    np.testing.assert_allclose(data['torque'], chain_friction.sprocket_torque(rec.scene, theta), rtol=1e-9, atol=1e-9)
 
 
 def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult]) -> None:
@@ -262,12 +290,25 @@ def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult
     tm = ev.timing
     for r in rows:
         (s,) = r['sheets']
-        assert r['start'] <= s['handover'] < s['at_stops'] <= r['deadline'] < s['settled'] < r['contact'] \
-            < r['exit'] < s['release']
+        assert (
+            r['start']
+            <= s['handover']
+            < s['at_stops']
+            <= r['deadline']
+            < s['settled']
+            < r['contact']
+            < r['exit']
+            < s['release']
+        )
         assert r['contact'] - r['start'] == pytest.approx(tm.T - tm.t_knife, abs=2e-9)  # constant drive
         assert r['exit'] - r['contact'] == pytest.approx(tm.t_knife, abs=2e-9)
-        assert set(r['margins']) == {'feed_window', 'settled_before_knife', 'one_per_cycle', 'rebound',
-                                     'release_at_min_speed'}
+        assert set(r['margins']) == {
+            'feed_window',
+            'settled_before_knife',
+            'one_per_cycle',
+            'rebound',
+            'release_at_min_speed',
+        }
         assert r['margins']['feed_window'] == pytest.approx(r['deadline'] - s['at_stops'], abs=2e-9)
 
 
@@ -318,8 +359,7 @@ def test_exit_speeds_are_the_recorded_kinematics(layup: tuple[Path, AnalysisResu
     np.testing.assert_allclose(data['vaC'], np.hypot(st.vC, lp.v_tr), atol=1e-9)
     assert data['vaE'].min() >= lp.v_tr
     # the recorded crank angle is the drive's: φ = 2π n_kr/60 t (mod 2π)
-    np.testing.assert_allclose(np.exp(1j * data['phi']), np.exp(1j * 2 * math.pi * lp.n_kr / 60 * data['t']),
-                               atol=1e-9)
+    np.testing.assert_allclose(np.exp(1j * data['phi']), np.exp(1j * 2 * math.pi * lp.n_kr / 60 * data['t']), atol=1e-9)
 
 
 # --------------------------------------------------------------------------- supervisor
@@ -347,20 +387,28 @@ def test_transitions_agree_allows_states_within_one_tick() -> None:
     rec = [{'t': 0.03, 'to': 'EXECUTE'}, {'t': 1.2, 'to': 'HOLDING'}, {'t': 1.8, 'to': 'HELD'}]
     rep = [{'t': 0.0, 'to': 'EXECUTE'}, {'t': 1.1, 'to': 'HOLDING'}, {'t': 1.75, 'to': 'HELD'}]
     assert transitions_agree(rep, rec)
-    assert not transitions_agree(rep[:2], rec)                                   # ends elsewhere
+    assert not transitions_agree(rep[:2], rec)  # ends elsewhere
     assert not transitions_agree(rep, rec[:1] + rec[2:] + [{'t': 2.0, 'to': 'HOLDING'}])
     assert not transitions_agree([dict(rep[0]), dict(rep[1], t=1.3), rep[2]], rec)  # decided after it showed
-    assert transitions_agree(rep, [rec[0], rec[2]])                              # HOLDING within one tick
+    assert transitions_agree(rep, [rec[0], rec[2]])  # HOLDING within one tick
     assert recorded_transitions([(1, 'A'), (2, 'A'), (3_000_000_000, 'B')]) == [
-        {'t': 1e-9, 'from': '', 'to': 'A'}, {'t': 3.0, 'from': 'A', 'to': 'B'}]
+        {'t': 1e-9, 'from': '', 'to': 'A'},
+        {'t': 3.0, 'from': 'A', 'to': 'B'},
+    ]
 
 
 def test_topic_names_are_the_nodes() -> None:
     from folder_line import analysis
     from folder_line.nodes import common
 
-    for name in ('CLOCK_TOPIC', 'EVENTS_TOPIC', 'COMMANDS_TOPIC', 'SHEET_COUNT_TOPIC', 'LANDING_TOPIC',
-                 'DIAGNOSTICS_TOPIC'):
+    for name in (
+        'CLOCK_TOPIC',
+        'EVENTS_TOPIC',
+        'COMMANDS_TOPIC',
+        'SHEET_COUNT_TOPIC',
+        'LANDING_TOPIC',
+        'DIAGNOSTICS_TOPIC',
+    ):
         assert getattr(analysis, name) == getattr(common, name)
     assert STATE_TOPIC == common.SUPERVISOR_STATE_TOPIC
     node = 'feed_transporter'
@@ -381,8 +429,7 @@ def test_supervisor_defaults_are_the_nodes() -> None:
 # --------------------------------------------------------------------------- CLI, boundary, event text
 
 
-def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path,
-                     capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from folder_line.cli import main
 
     run, result = folder
@@ -391,8 +438,11 @@ def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path,
     printed = capsys.readouterr().out
     assert 'scene folder: 2.000 s of line time, 27 cycles, 26 sheets counted, 0 violations' in printed
     assert (out / 'report.md').is_file() and len(list((out / 'csv').glob('*.csv'))) == len(result.recording.bag.topics)
-    for argv in (['analyze', str(tmp_path / 'missing')], ['analyze', str(tmp_path)],
-                 ['analyze', str(out / 'report.md')]):
+    for argv in (
+        ['analyze', str(tmp_path / 'missing')],
+        ['analyze', str(tmp_path)],
+        ['analyze', str(out / 'report.md')],
+    ):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.count('\n') == 1 and err.startswith('folder-line: error: RUN_DIR|BAG='), err
@@ -400,18 +450,31 @@ def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path,
 
 def test_analysis_needs_no_ros(folder: tuple[Path, AnalysisResult], tmp_path: Path) -> None:
     run, _ = folder
-    code = ('import sys; from folder_line.analysis import analyze; '
-            f'r = analyze({str(run / "bag")!r}, {str(tmp_path)!r}); '
-            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
-            "'sensor_msgs', 'std_msgs')); print(len(r.figures), bad)")
-    proc = subprocess.run([sys.executable, '-c', code], check=False, capture_output=True, text=True, cwd=REPO,
-                          timeout=120, env={**os.environ, 'PYTHONPATH': str(REPO)})
+    code = (
+        'import sys; from folder_line.analysis import analyze; '
+        f'r = analyze({str(run / "bag")!r}, {str(tmp_path)!r}); '
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
+        "'sensor_msgs', 'std_msgs')); print(len(r.figures), bad)"
+    )
+    proc = subprocess.run(
+        [sys.executable, '-c', code],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+        env={**os.environ, 'PYTHONPATH': str(REPO)},
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == '3 []'
 
 
-@given(kind=st.sampled_from(EVENT_KINDS), sheet=st.integers(-1, 2**62), cycle=st.integers(-1, 2**62),
-       value=st.floats(allow_nan=False, allow_infinity=False))
+@given(
+    kind=st.sampled_from(EVENT_KINDS),
+    sheet=st.integers(-1, 2**62),
+    cycle=st.integers(-1, 2**62),
+    value=st.floats(allow_nan=False, allow_infinity=False),
+)
 def test_event_source_round_trip(kind: str, sheet: int, cycle: int, value: float) -> None:
     assert parse_event_source(event_source(kind, sheet, cycle, value)) == (kind, sheet, cycle, value)
 
@@ -420,7 +483,12 @@ def test_event_source_rejects_other_text() -> None:
     from folder_line.nodes import machine
 
     assert machine.parse_event_source is parse_event_source and machine.event_source is event_source
-    for bad in ('hold', 'knife_contact sheet=1 cycle=2', 'nonsense sheet=1 cycle=2 value=0.0',
-                'at_stops sheet=1 cycle=2 value=abc', 'at_stops sheet=x cycle=2 value=1.0'):
+    for bad in (
+        'hold',
+        'knife_contact sheet=1 cycle=2',
+        'nonsense sheet=1 cycle=2 value=0.0',
+        'at_stops sheet=1 cycle=2 value=abc',
+        'at_stops sheet=x cycle=2 value=1.0',
+    ):
         with pytest.raises(ValueError, match='not an event source'):
             parse_event_source(bad)

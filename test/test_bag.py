@@ -41,18 +41,22 @@ from folder_line.cli import main as cli_main
 from folder_line.recorder import LINE_TOPICS
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
-pytestmark = [pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-              for m in ('sre_parse', 'sre_constants')]
+pytestmark = [
+    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
+    for m in ('sre_parse', 'sre_constants')
+]
 
 JOINTS = '/line/crank_drive/joint_states'
-SCENE = ('name: test scene\n'
-         'description: "quotes: \'single\' and \\"double\\""\n'
-         'machines:\n'
-         '  knife: {r_k: 0.04}\n'
-         '# unicode: φ, ω, ü — and a line with trailing spaces:   \n'
-         '---\n'
-         '\n'
-         '    indented line\n')
+SCENE = (
+    'name: test scene\n'
+    'description: "quotes: \'single\' and \\"double\\""\n'
+    'machines:\n'
+    '  knife: {r_k: 0.04}\n'
+    '# unicode: φ, ω, ü — and a line with trailing spaces:   \n'
+    '---\n'
+    '\n'
+    '    indented line\n'
+)
 
 
 def stamp(t_ns: int) -> Time:
@@ -70,9 +74,13 @@ def sample_messages() -> dict[str, Any]:
     diag = DiagnosticArray()
     diag.header.stamp = stamp(1_000_000_000)
     diag.status = [
-        DiagnosticStatus(level=DiagnosticStatus.ERROR, name='folder_line/feed_margin', message='violated in cycle 7',
-                         hardware_id='folder', values=[KeyValue(key='margin', value='-0.001'),
-                                                       KeyValue(key='unit', value='s')]),
+        DiagnosticStatus(
+            level=DiagnosticStatus.ERROR,
+            name='folder_line/feed_margin',
+            message='violated in cycle 7',
+            hardware_id='folder',
+            values=[KeyValue(key='margin', value='-0.001'), KeyValue(key='unit', value='s')],
+        ),
         DiagnosticStatus(level=DiagnosticStatus.OK, name='folder_line/knife', message='ok', hardware_id='', values=[]),
     ]
     cmd = TimeReference(time_ref=stamp(5_000_000_000), source='hold')
@@ -89,8 +97,9 @@ def sample_messages() -> dict[str, Any]:
         '/line/sheet_counter/rate': Float64(data=13.888888888888889),
         '/line/sheet_counter/landing_x': Float64(data=-0.0),
         '/line/supervisor/commands': cmd,
-        '/line/sheet_counter/joint_states': JointState(name=['pile_table'], position=[-0.0125], velocity=[0.0],
-                                                       effort=[]),
+        '/line/sheet_counter/joint_states': JointState(
+            name=['pile_table'], position=[-0.0125], velocity=[0.0], effort=[]
+        ),
         '/line/participants': String(data='clock=lockstep end=none participants=crank_drive,line_recorder'),
     }
 
@@ -115,8 +124,9 @@ def plain(obj: Any, ref: Any) -> Any:
 def write_sample_bag(path: Path, **kwargs: Any) -> dict[str, Any]:
     """Every line message once at line time 1.25 s (after a /clock 0.25 s); returns them."""
     msgs = sample_messages()
-    with BagWriter(path, scene_source=SCENE, effects=['faults', 'feed_slip'], scene_name='test scene',
-                   topics=LINE_TOPICS, **kwargs) as writer:
+    with BagWriter(
+        path, scene_source=SCENE, effects=['faults', 'feed_slip'], scene_name='test scene', topics=LINE_TOPICS, **kwargs
+    ) as writer:
         writer.write('/clock', Clock(clock=stamp(250_000_000)))
         for topic, msg in msgs.items():
             writer.write(topic, msg, 123)
@@ -146,8 +156,12 @@ def test_round_trip_every_line_type_with_rosbags_and_mcap(tmp_path: Path) -> Non
     for path in segment_files(bag):
         with path.open('rb') as fh:
             reader = make_reader(fh, decoder_factories=[DecoderFactory()])
-            decoded.update({channel.topic: (schema.name, message, ros)
-                            for schema, channel, message, ros in reader.iter_decoded_messages()})
+            decoded.update(
+                {
+                    channel.topic: (schema.name, message, ros)
+                    for schema, channel, message, ros in reader.iter_decoded_messages()
+                }
+            )
             assert reader.get_header().profile == 'ros2'
     for topic, ref in msgs.items():
         schema, message, ros = decoded[topic]
@@ -155,8 +169,9 @@ def test_round_trip_every_line_type_with_rosbags_and_mcap(tmp_path: Path) -> Non
         assert plain(ros, ref) == plain(ref, ref), topic
         assert message.log_time == 1_250_000_000
         header = getattr(ref, 'header', None)
-        assert message.publish_time == (1_250_000_000 if header is None
-                                        else header.stamp.sec * 10**9 + header.stamp.nanosec)
+        assert message.publish_time == (
+            1_250_000_000 if header is None else header.stamp.sec * 10**9 + header.stamp.nanosec
+        )
 
 
 def test_serialized_bytes_are_canonical_cdr(tmp_path: Path) -> None:
@@ -270,8 +285,9 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 def _many_segments(path: Path) -> None:
-    with BagWriter(path, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS,
-                   chunk_size=512) as writer:
+    with BagWriter(
+        path, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS, chunk_size=512
+    ) as writer:
         for k in range(300):  # 0 .. 2.99 s, 100 per segment
             writer.write('/clock', Clock(clock=stamp(k * 10_000_000)))
             js = JointState(name=['crank'], position=[float(k)], velocity=[], effort=[])
@@ -298,8 +314,9 @@ def test_repair_rebuilds_missing_metadata(tmp_path: Path) -> None:
     assert (after.start_ns, after.end_ns, after.message_count) == (before.start_ns, before.end_ns, before.message_count)
     # custom data from the MCAP files: everything but what is known at close only
     at_close = (KEY_PUBLISHED, 'folder_line.complete', 'folder_line.repair')
-    assert {k: v for k, v in after.custom.items() if k not in at_close} == \
-        {k: v for k, v in before.custom.items() if k not in at_close}
+    assert {k: v for k, v in after.custom.items() if k not in at_close} == {
+        k: v for k, v in before.custom.items() if k not in at_close
+    }
     assert after.custom['folder_line.repair'].endswith('nothing dropped')
     assert (before.custom['folder_line.complete'], after.custom['folder_line.complete']) == ('true', 'repaired')
     assert _positions(bag) == list(range(300))
@@ -315,8 +332,10 @@ def test_repair_salvages_a_truncated_last_file_at_any_cut(tmp_path: Path) -> Non
     last = segment_files(src)[-1]
     size = last.stat().st_size
     with last.open('rb') as fh:
-        last_positions = [int(ros.position[0]) for *_, ros in
-                          make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[JOINTS])]
+        last_positions = [
+            int(ros.position[0])
+            for *_, ros in make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[JOINTS])
+        ]
     assert last_positions == list(range(200, 300))
     salvaged_counts = []
     for cut in sorted({8, 40, 200, 700, 1500, 3000, size // 2, size - 600, size - 100, size - 20, size - 1}):
@@ -362,8 +381,11 @@ def test_cli_bag_info_and_repair(tmp_path: Path, capsys: pytest.CaptureFixture[s
     out = capsys.readouterr().out
     assert f'{JOINTS}' in out and 'sensor_msgs/msg/JointState' in out and ' 300' in out
     assert 'folder_line.scene_name: test scene' in out and '0.000 .. 2.990 s' in out
-    for argv in (['bag', 'repair', str(tmp_path / 'missing')], ['bag', 'info', str(tmp_path / 'missing')],
-                 ['bag', 'repair', str(tmp_path)]):
+    for argv in (
+        ['bag', 'repair', str(tmp_path / 'missing')],
+        ['bag', 'info', str(tmp_path / 'missing')],
+        ['bag', 'repair', str(tmp_path)],
+    ):
         assert cli_main(argv) == 2
         captured = capsys.readouterr()
         assert captured.err.count('\n') == 1 and captured.err.startswith('folder-line: error: ')

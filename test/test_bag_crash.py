@@ -37,9 +37,25 @@ EVENTS = '/line/events'
 def _start(bag: Path, *extra: str, chunk_size: int = 2048) -> subprocess.Popen[str]:
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO), env.get('PYTHONPATH', '')) if p)
-    return subprocess.Popen([sys.executable, str(SCRIPT), str(bag), '--dt-ns', str(DT_NS), '--segment-s',
-                             str(SEGMENT_S), '--chunk-size', str(chunk_size), *extra],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            str(SCRIPT),
+            str(bag),
+            '--dt-ns',
+            str(DT_NS),
+            '--segment-s',
+            str(SEGMENT_S),
+            '--chunk-size',
+            str(chunk_size),
+            *extra,
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
 
 
 def _kill(proc: subprocess.Popen[str]) -> None:
@@ -173,8 +189,10 @@ def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
     assert contents.message_count == 0 and contents.files == ()
     assert contents.scene_name == 'crash'
     assert contents.custom['folder_line.complete'] == 'false'  # marked partial: its writer never closed it
-    assert any(line.startswith('state      INCOMPLETE') and 'folder-line bag repair' in line
-               for line in bag_info_lines(contents))
+    assert any(
+        line.startswith('state      INCOMPLETE') and 'folder-line bag repair' in line
+        for line in bag_info_lines(contents)
+    )
     result = repair(bag)
     assert read_bag(bag).custom['folder_line.complete'] == 'repaired'
     steps = _joint_steps(bag)
@@ -208,13 +226,16 @@ def test_sigkill_at_ten_random_moments_loses_at_most_the_flush_interval(tmp_path
         lost = (n_steps - len(steps)) * DT_NS  # line time written but not in the repaired bag
         assert 0 <= lost <= FLUSH_NS + DT_NS, (n_steps, steps[-1])
         lost_ns.append(lost)
-    print(f'line time lost to SIGKILL after repair, 10 moments: worst {max(lost_ns) / 1e6:g} ms, '
-          f'mean {sum(lost_ns) / len(lost_ns) / 1e6:g} ms')
+    print(
+        f'line time lost to SIGKILL after repair, 10 moments: worst {max(lost_ns) / 1e6:g} ms, '
+        f'mean {sum(lost_ns) / len(lost_ns) / 1e6:g} ms'
+    )
     assert max(lost_ns) <= GOAL_NS
 
 
-def test_repair_of_a_bag_with_nothing_to_salvage_changes_nothing(tmp_path: Path,
-                                                                capsys: pytest.CaptureFixture[str]) -> None:
+def test_repair_of_a_bag_with_nothing_to_salvage_changes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     bag = tmp_path / 'bag'
     proc = _start(bag, '--block-after', '1', chunk_size=1024 * 1024)  # killed before its first flush
     try:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import os
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 import yaml
@@ -37,11 +37,17 @@ def _bomb(levels: int, width: int = 9) -> str:
 #: name -> (file bytes, words of the error, does it name a line and column)
 HOSTILE: dict[str, tuple[bytes, str, bool]] = {
     'yaml bomb': (_bomb(7, 9).encode(), 'expands to more than', True),
-    'too many aliases': (('a: &a 1\nb: [' + ', '.join(['*a'] * (MAX_ALIASES + 1)) + ']\n').encode(),
-                         f'more than {MAX_ALIASES} aliases', True),
+    'too many aliases': (
+        ('a: &a 1\nb: [' + ', '.join(['*a'] * (MAX_ALIASES + 1)) + ']\n').encode(),
+        f'more than {MAX_ALIASES} aliases',
+        True,
+    ),
     'recursive alias': (b'a: &a [1, *a]\n', 'recursive', True),
-    'duplicate key': (b'machines:\n  knife: {}\nname: x\nmachines: {}\n', "duplicate key 'machines' (first at line 1)",
-                      True),
+    'duplicate key': (
+        b'machines:\n  knife: {}\nname: x\nmachines: {}\n',
+        "duplicate key 'machines' (first at line 1)",
+        True,
+    ),
     'python tag': (b'name: !!python/object/apply:os.system ["echo owned"]\n', 'not allowed', True),
     'binary tag': (b'name: !!binary aGk=\n', 'not allowed', True),
     'local tag': (b'name: !mine x\n', 'not allowed', True),
@@ -95,8 +101,9 @@ def _scene_verbs(out: Path) -> dict[str, Callable[[Path], list[str]]]:
 
 @pytest.mark.parametrize('case', list(HOSTILE))
 @pytest.mark.parametrize('verb', ['simulate --scene', 'run --scene', 'kinematics --params'])
-def test_hostile_scene_and_parameter_files(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                           verb: str, case: str) -> None:
+def test_hostile_scene_and_parameter_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], verb: str, case: str
+) -> None:
     data, words, positioned = HOSTILE[case]
     f = _write(tmp_path / 'hostile.yaml', data)
     out = tmp_path / 'out'
@@ -108,8 +115,9 @@ def test_hostile_scene_and_parameter_files(tmp_path: Path, capsys: pytest.Captur
 
 @pytest.mark.parametrize('kind', ['fifo', 'directory'])
 @pytest.mark.parametrize('verb', ['simulate --scene', 'kinematics --params'])
-def test_a_scene_or_parameter_file_that_is_not_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                      verb: str, kind: str) -> None:
+def test_a_scene_or_parameter_file_that_is_not_a_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], verb: str, kind: str
+) -> None:
     f = tmp_path / 'input.yaml'
     os.mkfifo(f) if kind == 'fifo' else f.mkdir()  # a FIFO nobody writes to: reading must not wait
     line = refused(_scene_verbs(tmp_path / 'out')[verb](f), capsys)
@@ -123,8 +131,7 @@ def _bag_dir(tmp_path: Path) -> Path:
     from folder_line.scenes import scene_mapping
 
     source = yaml.safe_dump(scene_mapping('folder'), sort_keys=False)
-    with BagWriter(tmp_path / 'run' / 'bag', scene_source=source, effects=[], scene_name='folder',
-                   topics=LINE_TOPICS):
+    with BagWriter(tmp_path / 'run' / 'bag', scene_source=source, effects=[], scene_name='folder', topics=LINE_TOPICS):
         pass
     return tmp_path / 'run' / 'bag'
 
@@ -157,8 +164,9 @@ def test_a_bomb_fails_fast_in_bounded_memory() -> None:
     assert elapsed < 1.0 and peak < 20e6, (elapsed, peak)
 
 
-def test_a_small_bomb_inside_a_scene_value_prints_a_short_line(tmp_path: Path,
-                                                               capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_small_bomb_inside_a_scene_value_prints_a_short_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     # 9 ** 4 = 6561 leaves: under the node bound, so the scene validator meets the value and prints it
     f = _write(tmp_path / 's.yaml', (_bomb(4) + 'machines:\n  knife:\n    r_k: *l3\n').encode())
     line = refused(['simulate', '--scene', str(f), '--duration', '1'], capsys, seconds=2.0)
@@ -168,15 +176,20 @@ def test_a_small_bomb_inside_a_scene_value_prints_a_short_line(tmp_path: Path,
 
 def test_plain_yaml_with_anchors_still_loads() -> None:
     text = 'base: &b {V_tr: 9.3, mu: 0.2}\nfirst: *b\nsecond: {<<: *b, mu: 0.3}\nlist: [1, 2.5, x, null, true]\n'
-    assert load_yaml(text, 'x', 'x.yaml') == {'base': {'V_tr': 9.3, 'mu': 0.2}, 'first': {'V_tr': 9.3, 'mu': 0.2},
-                                              'second': {'V_tr': 9.3, 'mu': 0.3}, 'list': [1, 2.5, 'x', None, True]}
+    assert load_yaml(text, 'x', 'x.yaml') == {
+        'base': {'V_tr': 9.3, 'mu': 0.2},
+        'first': {'V_tr': 9.3, 'mu': 0.2},
+        'second': {'V_tr': 9.3, 'mu': 0.3},
+        'list': [1, 2.5, 'x', None, True],
+    }
     assert load_yaml('\ufeffa: 1\n', 'x', 'x.yaml') == {'a': 1}  # a UTF-8 byte-order mark is fine
 
 
 @pytest.mark.parametrize('value', ['7' * 5000, '1' * 4301 + '.5', 'x' * 100_000, '[' * 5000])
 @pytest.mark.parametrize('verb', ['simulate', 'run'])
-def test_a_huge_set_value_is_one_short_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                            verb: str, value: str) -> None:
+def test_a_huge_set_value_is_one_short_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], verb: str, value: str
+) -> None:
     argv = [verb, '--duration', '1', '--set', f'feed_transporter.V_tr={value}']
     argv += ['--out', str(tmp_path / 'out')] if verb == 'run' else ['--json', str(tmp_path / 's.json')]
     line = refused(argv, capsys)
@@ -186,45 +199,56 @@ def test_a_huge_set_value_is_one_short_line(tmp_path: Path, capsys: pytest.Captu
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize('value', ['!!python/object/apply:os.system [x]', '&a [*a]', '{a: 1, a: 2}', '99e99999',
-                                   '-.inf'])
-def test_odd_set_values_are_refused_by_the_scene_not_the_parser(capsys: pytest.CaptureFixture[str],
-                                                                 value: str) -> None:
+@pytest.mark.parametrize(
+    'value', ['!!python/object/apply:os.system [x]', '&a [*a]', '{a: 1, a: 2}', '99e99999', '-.inf']
+)
+def test_odd_set_values_are_refused_by_the_scene_not_the_parser(capsys: pytest.CaptureFixture[str], value: str) -> None:
     line = refused(['simulate', '--duration', '1', '--set', f'feed_transporter.V_tr={value}'], capsys)
     assert line.startswith('folder-line: error: feed_transporter.V_tr='), line
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(key=st.text(min_size=1, max_size=300).filter(lambda k: '=' not in k and k.strip()),
-       value=st.text(max_size=300))
-def test_any_set_item_for_an_unknown_key_is_one_bounded_line(capsys: pytest.CaptureFixture[str],
-                                                             key: str, value: str) -> None:
+@given(key=st.text(min_size=1, max_size=300).filter(lambda k: '=' not in k and k.strip()), value=st.text(max_size=300))
+def test_any_set_item_for_an_unknown_key_is_one_bounded_line(
+    capsys: pytest.CaptureFixture[str], key: str, value: str
+) -> None:
     line = refused(['simulate', '--duration', '1', '--set', f'zz_{key}={value}'], capsys)
     assert len(line) <= LINE_MAX, line
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.binary(max_size=400) | st.text(max_size=200).map(lambda t: t.encode('utf-8', 'surrogatepass')))
-def test_any_bytes_as_a_scene_are_one_bounded_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                   data: bytes) -> None:
+def test_any_bytes_as_a_scene_are_one_bounded_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], data: bytes
+) -> None:
     f = _write(tmp_path / 'fuzz.yaml', data)
     line = refused(['simulate', '--scene', str(f), '--duration', '1'], capsys)
     assert len(line) <= LINE_MAX, line
 
 
-@given(value=st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=1000),
-                          lambda inner: st.lists(inner, max_size=50) | st.dictionaries(st.text(max_size=50), inner,
-                                                                                       max_size=50),
-                          max_leaves=500))
+@given(
+    value=st.recursive(
+        st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=1000),
+        lambda inner: st.lists(inner, max_size=50) | st.dictionaries(st.text(max_size=50), inner, max_size=50),
+        max_leaves=500,
+    )
+)
 def test_bounded_repr_is_bounded(value: object) -> None:
     assert len(bounded_repr(value)) <= 80
     assert len(str(ParameterError('k' * 1000, value, 'bad'))) <= 80 + 1 + 80 + 5
 
 
-@pytest.mark.parametrize('argv', [['simulate', '--duration', '9' * 5000],
-                                  ['kinematics', 'knife', '--samples', '7' * 5000],
-                                  ['run', '--rtf', 'x' * 5000], ['simulate', '--scene'], ['kinematics', 'gear' * 2000],
-                                  ['simulate', '--' + 'y' * 5000]])
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['simulate', '--duration', '9' * 5000],
+        ['kinematics', 'knife', '--samples', '7' * 5000],
+        ['run', '--rtf', 'x' * 5000],
+        ['simulate', '--scene'],
+        ['kinematics', 'gear' * 2000],
+        ['simulate', '--' + 'y' * 5000],
+    ],
+)
 def test_usage_errors_are_one_short_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         main(argv)

@@ -82,8 +82,9 @@ BAD = [
 
 
 @pytest.mark.parametrize(('mechanism', 'text', 'expected'), BAD)
-def test_bad_input_is_one_line_exit_2_and_no_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                 mechanism: str, text: str, expected: str) -> None:
+def test_bad_input_is_one_line_exit_2_and_no_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], mechanism: str, text: str, expected: str
+) -> None:
     params = tmp_path / 'bad.yaml'
     params.write_text(text)
     dest = tmp_path / 'out.csv'
@@ -104,9 +105,14 @@ def test_existing_csv_is_left_alone_on_error(tmp_path: Path) -> None:
     assert dest.read_text() == 'previous\n'
 
 
-@pytest.mark.parametrize('argv', [['kinematics', 'layup', '--samples', '1'],
-                                  ['kinematics', 'layup', '--samples', 'many'],
-                                  ['kinematics', 'gearbox']])
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['kinematics', 'layup', '--samples', '1'],
+        ['kinematics', 'layup', '--samples', 'many'],
+        ['kinematics', 'gearbox'],
+    ],
+)
 def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         main(argv)
@@ -116,8 +122,12 @@ def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str
 
 def test_installed_command_runs_as_a_process(tmp_path: Path) -> None:
     missing = tmp_path / 'missing.yaml'
-    proc = subprocess.run([sys.executable, '-m', 'folder_line.cli', 'kinematics', 'knife', '--params', str(missing)],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, '-m', 'folder_line.cli', 'kinematics', 'knife', '--params', str(missing)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith('folder-line: error: --params=')
     assert proc.stdout == ''
@@ -127,8 +137,16 @@ def test_report_writes_every_file_and_reproduces_the_papers(tmp_path: Path, caps
     assert main(['report', '--out', str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert '10 of 10 published results reproduced.' in out
-    for name in ('report.md', 'layup.csv', 'knife.csv', 'delivery.csv', 'layup_speeds.png',
-                 'layup_geometry.png', 'knife_cyclogram.png', 'delivery_efficiency.png'):
+    for name in (
+        'report.md',
+        'layup.csv',
+        'knife.csv',
+        'delivery.csv',
+        'layup_speeds.png',
+        'layup_geometry.png',
+        'knife_cyclogram.png',
+        'delivery_efficiency.png',
+    ):
         path = tmp_path / name
         assert path.stat().st_size > 1000 or name.endswith('.csv'), name
     assert (tmp_path / 'layup_speeds.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'

@@ -35,13 +35,18 @@ def _beyond(limit: L.Limit) -> list[float]:
 
 # --------------------------------------------------------------------------- command line
 
-_OPTIONS = [(['simulate', '--duration'], L.DURATION), (['run', '--duration'], L.DURATION),
-            (['run', '--rtf'], L.RTF), (['run', '--lost-timeout'], L.LOST_TIMEOUT)]
+_OPTIONS = [
+    (['simulate', '--duration'], L.DURATION),
+    (['run', '--duration'], L.DURATION),
+    (['run', '--rtf'], L.RTF),
+    (['run', '--lost-timeout'], L.LOST_TIMEOUT),
+]
 
 
 @pytest.mark.parametrize(('words', 'limit'), _OPTIONS, ids=lambda x: ' '.join(x) if isinstance(x, list) else '')
-def test_cli_options_take_the_range_of_their_limit(words: list[str], limit: L.Limit,
-                                                   capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_options_take_the_range_of_their_limit(
+    words: list[str], limit: L.Limit, capsys: pytest.CaptureFixture[str]
+) -> None:
     parser = cli._build_parser()
     option = words[-1].lstrip('-').replace('-', '_')
     verb, flag = words
@@ -85,10 +90,15 @@ def test_the_longest_run_gives_its_nodes_a_horizon_they_accept() -> None:
 
 # --------------------------------------------------------------------------- scene keys
 
-_SCENE_KEYS = [('folder', 'knife.n_k', L.KNIFE_SPEED), ('folder', 'cyclogram.n_c', L.CYLINDER_SPEED),
-               ('folder', 'feed_transporter.V_tr', L.LINEAR_SPEED), ('folder', 'sheets.interval', L.SHEET_INTERVAL),
-               ('layup', 'layup.n_kr', L.CRANK_SPEED), ('layup', 'layup.v_tr', L.LINEAR_SPEED),
-               ('folder', 'sample_rate', L.SAMPLE_RATE)]
+_SCENE_KEYS = [
+    ('folder', 'knife.n_k', L.KNIFE_SPEED),
+    ('folder', 'cyclogram.n_c', L.CYLINDER_SPEED),
+    ('folder', 'feed_transporter.V_tr', L.LINEAR_SPEED),
+    ('folder', 'sheets.interval', L.SHEET_INTERVAL),
+    ('layup', 'layup.n_kr', L.CRANK_SPEED),
+    ('layup', 'layup.v_tr', L.LINEAR_SPEED),
+    ('folder', 'sample_rate', L.SAMPLE_RATE),
+]
 
 
 @pytest.mark.parametrize(('scene', 'key', 'limit'), _SCENE_KEYS, ids=[k for _, k, _ in _SCENE_KEYS])

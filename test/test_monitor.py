@@ -47,8 +47,9 @@ def event(kind: str, t_ns: int, sheet: int = -1, cycle: int = -1, value: float =
 
 
 def status(name: str, level: bytes, message: str, **values: str) -> DiagnosticStatus:
-    return DiagnosticStatus(name=name, level=level, message=message,
-                            values=[KeyValue(key=k, value=v) for k, v in values.items()])
+    return DiagnosticStatus(
+        name=name, level=level, message=message, values=[KeyValue(key=k, value=v) for k, v in values.items()]
+    )
 
 
 def row(lines: list[str], first_word: str) -> list[str]:
@@ -108,8 +109,11 @@ def test_history_delivered_at_once_counts_at_its_own_times() -> None:
     assert state.topics[SUPERVISOR_STATE_TOPIC].count == 602 and state.topics[SUPERVISOR_STATE_TOPIC].first_wall == 50.0
 
 
-@given(period=st.floats(min_value=1e-3, max_value=0.5), n=st.integers(min_value=2, max_value=3000),
-       window=st.floats(min_value=0.1, max_value=5.0))
+@given(
+    period=st.floats(min_value=1e-3, max_value=0.5),
+    n=st.integers(min_value=2, max_value=3000),
+    window=st.floats(min_value=0.1, max_value=5.0),
+)
 def test_rate_of_a_periodic_stream_is_within_one_message_per_window(period: float, n: int, window: float) -> None:
     stats = TopicStats()
     for k in range(n):
@@ -162,8 +166,9 @@ def test_sim_time_state_count_and_rtf() -> None:
 
 def test_joint_states_show_every_joint_with_position_velocity_effort() -> None:
     state = MonitorState(LINE_TOPICS)
-    msg = JointState(name=['knife_crank', 'knife'], position=[5.48647, 0.185385], velocity=[87.2665, -2.93941],
-                     effort=[])
+    msg = JointState(
+        name=['knife_crank', 'knife'], position=[5.48647, 0.185385], velocity=[87.2665, -2.93941], effort=[]
+    )
     msg.header.stamp = ns_to_time_msg(5_031_000_000)
     state.ingest(CRANK, msg, 1.0)
     belt = JointState(name=['first_transporter'], position=[29.3467], velocity=[5.83333], effort=[12.5])
@@ -186,7 +191,7 @@ def test_latest_event_per_kind_with_its_time_in_kind_order() -> None:
     bogus = TimeReference(source='hello world')
     state.ingest(EVENTS_TOPIC, bogus, 1.3)  # not from the line: shown, not fatal
     lines = state.render(120)
-    kinds = [line.split()[0] for line in lines[lines.index(next(x for x in lines if x.startswith('EVENT'))) + 1:]]
+    kinds = [line.split()[0] for line in lines[lines.index(next(x for x in lines if x.startswith('EVENT'))) + 1 :]]
     assert kinds == ['bounce', 'knife_contact', 'released_on_pile', 'hello']  # EVENT_KINDS order, unknown last
     assert EVENT_KINDS.index('bounce') < EVENT_KINDS.index('knife_contact') < EVENT_KINDS.index('released_on_pile')
     assert row(lines, 'bounce') == ['bounce', '2', '5.013', 's', '69', '69', '2.5e-08', 'n']
@@ -226,16 +231,40 @@ def test_the_supervisors_own_diagnostics_render_as_one_row_per_constraint() -> N
 
 def test_violations_and_smallest_margin() -> None:
     state = MonitorState()
-    first = DiagnosticArray(status=[
-        status('folder_line/feed_window', DiagnosticStatus.OK, 'no cycle evaluated yet', unit='s', evaluations='0'),
-        status('folder_line/rebound', DiagnosticStatus.ERROR, 'violated in cycle 3', margin='-0.002', unit='m',
-               cycle='3', min_margin='-0.002', violations='1', evaluations='4'),
-        status('custom/no_min', DiagnosticStatus.OK, 'ok', margin='0.5', unit='s')])
+    first = DiagnosticArray(
+        status=[
+            status('folder_line/feed_window', DiagnosticStatus.OK, 'no cycle evaluated yet', unit='s', evaluations='0'),
+            status(
+                'folder_line/rebound',
+                DiagnosticStatus.ERROR,
+                'violated in cycle 3',
+                margin='-0.002',
+                unit='m',
+                cycle='3',
+                min_margin='-0.002',
+                violations='1',
+                evaluations='4',
+            ),
+            status('custom/no_min', DiagnosticStatus.OK, 'ok', margin='0.5', unit='s'),
+        ]
+    )
     state.ingest(DIAGNOSTICS_TOPIC, first, 1.0)
-    second = DiagnosticArray(status=[
-        status('folder_line/rebound', DiagnosticStatus.WARN, '1 violations so far', margin='0.001', unit='m',
-               cycle='4', min_margin='-0.002', violations='1', evaluations='5'),
-        status('custom/no_min', DiagnosticStatus.OK, 'ok', margin='0.75', unit='s')])
+    second = DiagnosticArray(
+        status=[
+            status(
+                'folder_line/rebound',
+                DiagnosticStatus.WARN,
+                '1 violations so far',
+                margin='0.001',
+                unit='m',
+                cycle='4',
+                min_margin='-0.002',
+                violations='1',
+                evaluations='5',
+            ),
+            status('custom/no_min', DiagnosticStatus.OK, 'ok', margin='0.75', unit='s'),
+        ]
+    )
     state.ingest(DIAGNOSTICS_TOPIC, second, 2.0)
     styled = dict(state.render_styled(140))
     lines = list(styled)
@@ -254,8 +283,12 @@ def busy_state() -> MonitorState:
     state = MonitorState(LINE_TOPICS)
     for k in range(50):
         state.ingest(CLOCK_TOPIC, clock(k * 5_000_000), k / 200)
-        js = JointState(name=[f'joint_with_a_rather_long_name_{j}' for j in range(4)], position=[1e9 * k] * 4,
-                        velocity=[-1.0] * 4, effort=[math.pi] * 4)
+        js = JointState(
+            name=[f'joint_with_a_rather_long_name_{j}' for j in range(4)],
+            position=[1e9 * k] * 4,
+            velocity=[-1.0] * 4,
+            effort=[math.pi] * 4,
+        )
         state.ingest(CRANK, js, k / 200)
         state.ingest(EVENTS_TOPIC, event(EVENT_KINDS[k % len(EVENT_KINDS)], k * NS, sheet=k, cycle=k), k / 200)
     state.ingest(SUPERVISOR_STATE_TOPIC, String(data='EXECUTE'), 0.3)
@@ -274,7 +307,7 @@ def test_the_screen_always_fits(width: int, height: int | None) -> None:
         assert lines[0].startswith('folder-line monitor'[:width])
     else:
         shown = ''.join(lines)
-        assert shown == 'terminal too small'[:len(shown)] or shown.startswith('terminal too small')
+        assert shown == 'terminal too small'[: len(shown)] or shown.startswith('terminal too small')
         assert shown or width == 0 or height == 0
 
 
@@ -296,11 +329,14 @@ def test_before_any_message() -> None:
 # --------------------------------------------------------------------------- command line
 
 
-@pytest.mark.parametrize('argv, text', [
-    (['--rate', '0'], "--rate='0': must be in [0.1, 60] Hz"),
-    (['--rate', 'fast'], "--rate='fast': must be a number"),
-    (['--window', '-1'], "--window='-1': must be in [0.01, 600] s"),
-])
+@pytest.mark.parametrize(
+    'argv, text',
+    [
+        (['--rate', '0'], "--rate='0': must be in [0.1, 60] Hz"),
+        (['--rate', 'fast'], "--rate='fast': must be a number"),
+        (['--window', '-1'], "--window='-1': must be in [0.01, 600] s"),
+    ],
+)
 def test_bad_options_exit_2_naming_the_value(argv: list[str], text: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         main(['monitor', *argv])

@@ -19,8 +19,9 @@ import socket
 import stat
 import subprocess
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import pytest
 import yaml
@@ -115,6 +116,7 @@ def _link_to(make: Callable[[Path], None]) -> Callable[[Path], None]:
         target = p.with_name(p.name + '.target')
         make(target)
         p.symlink_to(target.name)
+
     return build
 
 
@@ -168,10 +170,12 @@ def _empty_bag(run_dir: Path) -> Path:
 
 
 def _folder_argv(verb: str, run_dir: Path, target: Path) -> list[str]:
-    return {'run': ['run', '--duration', '1', '--out', str(target)],
-            'report': ['report', '--out', str(target)],
-            'analyze': ['analyze', str(run_dir), '--out', str(target), '--csv'],
-            'bench': ['bench', 'accuracy', '--quick', '--out', str(target)]}[verb]
+    return {
+        'run': ['run', '--duration', '1', '--out', str(target)],
+        'report': ['report', '--out', str(target)],
+        'analyze': ['analyze', str(run_dir), '--out', str(target), '--csv'],
+        'bench': ['bench', 'accuracy', '--quick', '--out', str(target)],
+    }[verb]
 
 
 FOLDER_VERBS = ('run', 'report', 'analyze', 'bench')
@@ -192,7 +196,8 @@ def _close_sockets() -> Iterator[None]:
 @pytest.mark.parametrize('kind', list(FILE_TARGETS))
 @pytest.mark.parametrize('verb', list(FILE_VERBS))
 def test_file_target_that_is_not_a_regular_file_is_refused_untouched(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], verb: str, kind: str) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], verb: str, kind: str
+) -> None:
     make, why = FILE_TARGETS[kind]
     place = tmp_path / 'place'
     place.mkdir()
@@ -207,7 +212,8 @@ def test_file_target_that_is_not_a_regular_file_is_refused_untouched(
 @pytest.mark.parametrize('kind', list(DIR_TARGETS))
 @pytest.mark.parametrize('verb', FOLDER_VERBS)
 def test_folder_target_that_is_not_a_folder_is_refused_untouched(
-        tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str, kind: str) -> None:
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str, kind: str
+) -> None:
     make, why = DIR_TARGETS[kind]
     place = tmp_path / 'place'
     place.mkdir()
@@ -230,7 +236,8 @@ INNER = {
 
 @pytest.mark.parametrize('verb', FOLDER_VERBS)
 def test_what_a_verb_would_overwrite_inside_its_folder_is_checked_first(
-        tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str) -> None:
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str
+) -> None:
     name, make, why = INNER[verb]
     out = tmp_path / 'out'
     out.mkdir()
@@ -242,8 +249,9 @@ def test_what_a_verb_would_overwrite_inside_its_folder_is_checked_first(
     assert snapshot(tmp_path) == before
 
 
-def test_symlink_to_a_regular_file_is_followed_and_stays_a_link(tmp_path: Path,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+def test_symlink_to_a_regular_file_is_followed_and_stays_a_link(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     real = tmp_path / 'data' / 'table.csv'
     real.parent.mkdir()
     real.write_text('old\n')
@@ -256,8 +264,9 @@ def test_symlink_to_a_regular_file_is_followed_and_stays_a_link(tmp_path: Path,
     assert sorted(p.name for p in tmp_path.rglob('*')) == ['data', 'link.csv', 'table.csv']  # no temp file
 
 
-def test_a_symlinked_output_folder_is_followed(tmp_path: Path, run_dir: Path,
-                                               capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_symlinked_output_folder_is_followed(
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     (tmp_path / 'real').mkdir()
     (tmp_path / 'out').symlink_to('real')
     assert main(['analyze', str(run_dir), '--out', str(tmp_path / 'out')]) == 0
@@ -265,8 +274,9 @@ def test_a_symlinked_output_folder_is_followed(tmp_path: Path, run_dir: Path,
 
 
 @pytest.mark.parametrize('kind', [k for k in DIR_TARGETS if k != 'under a file'])
-def test_bag_repair_of_something_that_is_not_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                      kind: str) -> None:
+def test_bag_repair_of_something_that_is_not_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
     make, why = DIR_TARGETS[kind]
     make(tmp_path / 'bag')
     before = snapshot(tmp_path)
@@ -275,8 +285,9 @@ def test_bag_repair_of_something_that_is_not_a_folder(tmp_path: Path, capsys: py
     assert snapshot(tmp_path) == before
 
 
-def test_bag_repair_leaves_a_metadata_fifo_and_a_missing_folder_alone(tmp_path: Path, run_dir: Path,
-                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_bag_repair_leaves_a_metadata_fifo_and_a_missing_folder_alone(
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     bag = tmp_path / 'bag'
     bag.mkdir()
     (bag / 'bag_0.mcap').write_bytes((run_dir / 'bag' / 'bag_0.mcap').read_bytes())
@@ -294,7 +305,8 @@ def test_bag_repair_leaves_a_metadata_fifo_and_a_missing_folder_alone(tmp_path: 
 
 @pytest.mark.parametrize('verb', FOLDER_VERBS)
 def test_a_folder_in_use_is_refused_and_keeps_what_it_holds(
-        tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str) -> None:
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str], verb: str
+) -> None:
     out = tmp_path / 'out'
     (out / 'bag').mkdir(parents=True)  # the first run's bag: the issue's second run deleted it
     (out / 'bag' / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
@@ -302,13 +314,16 @@ def test_a_folder_in_use_is_refused_and_keeps_what_it_holds(
     with claim_output_dir(out, '--out'):
         before = snapshot(tmp_path)
         line = refused(_folder_argv(verb, run_dir, out), capsys)
-    assert line == (f"folder-line: error: --out='{out}': is in use by another folder-line process; "
-                    'wait for it to finish or choose another folder')
+    assert line == (
+        f"folder-line: error: --out='{out}': is in use by another folder-line process; "
+        'wait for it to finish or choose another folder'
+    )
     assert snapshot(tmp_path) == before
 
 
-def test_bag_repair_is_refused_while_the_run_folder_is_in_use(tmp_path: Path, run_dir: Path,
-                                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_bag_repair_is_refused_while_the_run_folder_is_in_use(
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / 'out'
     (out / 'bag').mkdir(parents=True)
     (out / 'bag' / 'bag_0.mcap').write_bytes((run_dir / 'bag' / 'bag_0.mcap').read_bytes())
@@ -316,8 +331,10 @@ def test_bag_repair_is_refused_while_the_run_folder_is_in_use(tmp_path: Path, ru
         before = snapshot(tmp_path)
         line = refused(['bag', 'repair', str(out / 'bag')], capsys)
         assert snapshot(tmp_path) == before
-    assert line == (f"folder-line: error: DIR='{out}': is in use by another folder-line process; "
-                    'wait for it to finish or choose another folder')
+    assert line == (
+        f"folder-line: error: DIR='{out}': is in use by another folder-line process; "
+        'wait for it to finish or choose another folder'
+    )
     assert main(['bag', 'repair', str(out / 'bag')]) == 0  # released: repair does its work
     assert (out / 'bag' / 'metadata.yaml').is_file()
 
@@ -330,8 +347,10 @@ def test_another_process_is_refused_while_a_folder_is_claimed(tmp_path: Path) ->
         assert claimed == out and out.is_dir()
         proc = subprocess.run(command, capture_output=True, text=True, timeout=120, env=env, check=False)
         assert proc.returncode == 2 and proc.stdout == ''
-        assert proc.stderr == f"folder-line: error: --out='{out}': is in use by another folder-line process; " \
-                              'wait for it to finish or choose another folder\n'
+        assert (
+            proc.stderr == f"folder-line: error: --out='{out}': is in use by another folder-line process; "
+            'wait for it to finish or choose another folder\n'
+        )
         assert list(out.iterdir()) == []
     proc = subprocess.run(command, capture_output=True, text=True, timeout=120, env=env, check=False)
     assert proc.returncode == 0, proc.stderr  # released: the folder is usable again
@@ -369,8 +388,9 @@ def _file_argv(verb: str, target: Path) -> list[str]:
 
 
 @pytest.mark.parametrize('verb', [*FILE_VERBS, 'report', 'analyze'])
-def test_disk_full_is_one_line_and_leaves_nothing(tmp_path: Path, run_dir: Path, monkeypatch: pytest.MonkeyPatch,
-                                                  capsys: pytest.CaptureFixture[str], verb: str) -> None:
+def test_disk_full_is_one_line_and_leaves_nothing(
+    tmp_path: Path, run_dir: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], verb: str
+) -> None:
     old = tmp_path / 'old.out'
     old.write_text('previous result\n')
     monkeypatch.setattr(os, 'fdopen', lambda fd, mode='r', *a, **k: _FullDisk(fd, 'w'))
@@ -394,11 +414,20 @@ def small_tmpfs(tmp_path: Path) -> Iterator[Callable[[str], Path]]:
     def mount(options: str) -> Path:
         point = tmp_path / f'mnt{len(mounted)}'
         point.mkdir()
-        proc = subprocess.run(['mount', '-t', 'tmpfs', '-o', options, 'tmpfs', str(point)], capture_output=True,
-                              text=True, check=False) if ROOT else None
+        proc = (
+            subprocess.run(
+                ['mount', '-t', 'tmpfs', '-o', options, 'tmpfs', str(point)],
+                capture_output=True,
+                text=True,
+                check=False,
+            )
+            if ROOT
+            else None
+        )
         if proc is None or proc.returncode != 0:
-            pytest.skip('mounting a tmpfs needs root with CAP_SYS_ADMIN: '
-                        + (proc.stderr.strip() if proc else 'not root'))
+            pytest.skip(
+                'mounting a tmpfs needs root with CAP_SYS_ADMIN: ' + (proc.stderr.strip() if proc else 'not root')
+            )
         mounted.append(point)
         return point
 
@@ -427,8 +456,9 @@ def _read_only_folder(tmp_path: Path, small_tmpfs: Callable[[str], Path]) -> tup
 
 
 @pytest.mark.parametrize('verb', [*FILE_VERBS, *FOLDER_VERBS])
-def test_read_only_folder(tmp_path: Path, run_dir: Path, small_tmpfs: Callable[[str], Path],
-                          capsys: pytest.CaptureFixture[str], verb: str) -> None:
+def test_read_only_folder(
+    tmp_path: Path, run_dir: Path, small_tmpfs: Callable[[str], Path], capsys: pytest.CaptureFixture[str], verb: str
+) -> None:
     ro, reason = _read_only_folder(tmp_path, small_tmpfs)
     try:
         before = snapshot(ro)
@@ -446,8 +476,9 @@ def test_read_only_folder(tmp_path: Path, run_dir: Path, small_tmpfs: Callable[[
 
 
 @pytest.mark.parametrize('verb', [*FILE_VERBS, 'report'])
-def test_permission_denied_injected(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                    capsys: pytest.CaptureFixture[str], verb: str) -> None:
+def test_permission_denied_injected(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], verb: str
+) -> None:
     import tempfile
 
     def denied(*args: Any, **kwargs: Any) -> Any:
@@ -463,8 +494,9 @@ def test_permission_denied_injected(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     assert snapshot(tmp_path, folder_mtimes=False) == before
 
 
-def test_a_write_refused_deep_inside_a_run_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_write_refused_deep_inside_a_run_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     import folder_line.run
 
     out = tmp_path / 'out'
@@ -482,8 +514,9 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(tmp_path: Path, monkeypat
 # --------------------------------------------------------------------------- found by a hostile trial
 
 
-def test_analyze_checks_every_csv_target_before_it_writes_anything(tmp_path: Path, run_dir: Path,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+def test_analyze_checks_every_csv_target_before_it_writes_anything(
+    tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from folder_line.analysis import csv_name
 
     out = tmp_path / 'analysis'
@@ -504,14 +537,19 @@ def test_a_very_long_path_keeps_its_end_and_the_os_reason(tmp_path: Path, capsys
         assert line.startswith("folder-line: error: --scene='in/bbb") and len(line) < 400, line
 
 
-@pytest.mark.parametrize(('make', 'words'), [
-    (_fifo, 'metadata.yaml: is a FIFO, not a regular file'),
-    (_dir, 'metadata.yaml: is a directory, not a regular file'),
-    (lambda p: p.write_text(''), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
-    (lambda p: p.write_text('- 1\n- 2\n'), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
-], ids=['fifo', 'directory', 'empty', 'list'])
-def test_bag_info_names_what_is_wrong_with_the_metadata(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                        make: Callable[[Path], None], words: str) -> None:
+@pytest.mark.parametrize(
+    ('make', 'words'),
+    [
+        (_fifo, 'metadata.yaml: is a FIFO, not a regular file'),
+        (_dir, 'metadata.yaml: is a directory, not a regular file'),
+        (lambda p: p.write_text(''), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
+        (lambda p: p.write_text('- 1\n- 2\n'), 'metadata.yaml: line 1, column 1: not rosbag2 metadata'),
+    ],
+    ids=['fifo', 'directory', 'empty', 'list'],
+)
+def test_bag_info_names_what_is_wrong_with_the_metadata(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], make: Callable[[Path], None], words: str
+) -> None:
     bag = tmp_path / 'bag'
     bag.mkdir()
     make(bag / 'metadata.yaml')
@@ -522,11 +560,14 @@ def test_bag_info_names_what_is_wrong_with_the_metadata(tmp_path: Path, capsys: 
     assert snapshot(bag) == before and not (tmp_path / 'a').exists()
 
 
-@pytest.mark.parametrize(('make', 'words'), [(_file, 'is a regular file'), (_fifo, 'is a FIFO'),
-                                             (_dangling, 'is a symbolic link to nothing (dangling)')],
-                         ids=['file', 'fifo', 'dangling'])
-def test_analyze_says_what_its_path_is_when_it_is_no_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                            make: Callable[[Path], None], words: str) -> None:
+@pytest.mark.parametrize(
+    ('make', 'words'),
+    [(_file, 'is a regular file'), (_fifo, 'is a FIFO'), (_dangling, 'is a symbolic link to nothing (dangling)')],
+    ids=['file', 'fifo', 'dangling'],
+)
+def test_analyze_says_what_its_path_is_when_it_is_no_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], make: Callable[[Path], None], words: str
+) -> None:
     target = tmp_path / 'x'
     make(target)
     line = refused(['analyze', str(target)], capsys)

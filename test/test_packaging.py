@@ -55,9 +55,22 @@ def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
         else:
             shutil.copy2(path, src / name)
     before = {p.name for p in REPO.iterdir()}
-    command = [sys.executable, '-m', 'colcon', '--log-base', str(tmp / 'log'), 'build',
-               '--base-paths', str(tmp / 'src'), '--build-base', str(tmp / 'build'),
-               '--install-base', str(tmp / 'install'), '--event-handlers', 'console_direct+']
+    command = [
+        sys.executable,
+        '-m',
+        'colcon',
+        '--log-base',
+        str(tmp / 'log'),
+        'build',
+        '--base-paths',
+        str(tmp / 'src'),
+        '--build-base',
+        str(tmp / 'build'),
+        '--install-base',
+        str(tmp / 'install'),
+        '--event-handlers',
+        'console_direct+',
+    ]
     done = subprocess.run(command, cwd=tmp, env=_env(tmp), capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     assert 'ament_python' in (tmp / 'log' / 'latest_build' / 'logger_all.log').read_text()
@@ -99,26 +112,54 @@ def _installed_env(install: Path, tmp: Path) -> dict[str, str]:
     [site] = (install / PACKAGE / 'lib').glob('python3*/site-packages')
     env['PYTHONPATH'] = os.pathsep.join(p for p in (str(site), env.get('PYTHONPATH', '')) if p)
     env['AMENT_PREFIX_PATH'] = os.pathsep.join(
-        p for p in (str(install / PACKAGE), env.get('AMENT_PREFIX_PATH', '')) if p)
+        p for p in (str(install / PACKAGE), env.get('AMENT_PREFIX_PATH', '')) if p
+    )
     return env
 
 
 def test_installed_scripts_run_from_the_install_space(install: Path, tmp_path: Path) -> None:
     env = _installed_env(install, tmp_path)
-    where = subprocess.run([sys.executable, '-c', 'import folder_line; print(folder_line.__file__)'],
-                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    where = subprocess.run(
+        [sys.executable, '-c', 'import folder_line; print(folder_line.__file__)'],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert Path(where.stdout.strip()).is_relative_to(install), where.stdout + where.stderr
     lib = install / PACKAGE / 'lib' / PACKAGE
-    cli = subprocess.run([str(lib / 'folder-line'), '--help'],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    cli = subprocess.run(
+        [str(lib / 'folder-line'), '--help'], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60
+    )
     assert cli.returncode == 0 and 'usage' in cli.stdout.lower(), cli.stdout + cli.stderr
     # a lockstep line of one participant, as `ros2 run` of a subset would start it: both end with the duration
-    node = subprocess.Popen([str(lib / 'crank_drive'), '--ros-args', '-p', 'horizon:=1.0'], cwd=tmp_path, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    node = subprocess.Popen(
+        [str(lib / 'crank_drive'), '--ros-args', '-p', 'horizon:=1.0'],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
-        clock = subprocess.run([str(lib / 'line_clock'), '--ros-args', '-p', 'duration:=0.2', '-p', 'rtf:=0.0',
-                                '-p', 'participants:=crank_drive'],
-                               cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+        clock = subprocess.run(
+            [
+                str(lib / 'line_clock'),
+                '--ros-args',
+                '-p',
+                'duration:=0.2',
+                '-p',
+                'rtf:=0.0',
+                '-p',
+                'participants:=crank_drive',
+            ],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         node_out, _ = node.communicate(timeout=60)
     finally:  # never leave a node behind on this domain
         if node.poll() is None:
@@ -130,9 +171,14 @@ def test_installed_scripts_run_from_the_install_space(install: Path, tmp_path: P
 
 
 def test_ament_index_finds_the_installed_share_directory(install: Path, tmp_path: Path) -> None:
-    code = ('from ament_index_python.packages import get_package_share_directory as g; '
-            f'print(g({PACKAGE!r}))')
-    found = subprocess.run([sys.executable, '-c', code], cwd=tmp_path, env=_installed_env(install, tmp_path),
-                           capture_output=True, text=True, timeout=60)
+    code = f'from ament_index_python.packages import get_package_share_directory as g; print(g({PACKAGE!r}))'
+    found = subprocess.run(
+        [sys.executable, '-c', code],
+        cwd=tmp_path,
+        env=_installed_env(install, tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert found.returncode == 0, found.stderr
     assert Path(found.stdout.strip()) == install / PACKAGE / 'share' / PACKAGE

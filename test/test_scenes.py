@@ -43,26 +43,33 @@ def test_defaults_fill_what_a_scene_omits(tmp_path: Path) -> None:
 
 
 def test_set_overrides_machine_effect_and_top_level(tmp_path: Path) -> None:
-    text = MINIMAL + 'effects:\n  faults: {p_missing: 0.0, p_double: 0.0, p_late: 0.0, late_delay: 0.0,' \
-                     ' p_slowdown: 0.0, slowdown_factor: 1.0, slowdown_duration: 0.0}\n'
-    scene = load_scene(_write(tmp_path, text), parse_set(['feed_transporter.V_tr=5.833', 'faults.p_missing=0.5',
-                                                          'seed=42', 'sheets.phase=0.001']))
+    text = (
+        MINIMAL + 'effects:\n  faults: {p_missing: 0.0, p_double: 0.0, p_late: 0.0, late_delay: 0.0,'
+        ' p_slowdown: 0.0, slowdown_factor: 1.0, slowdown_duration: 0.0}\n'
+    )
+    scene = load_scene(
+        _write(tmp_path, text),
+        parse_set(['feed_transporter.V_tr=5.833', 'faults.p_missing=0.5', 'seed=42', 'sheets.phase=0.001']),
+    )
     assert scene.machine('feed_transporter').V_tr == 5.833
     assert scene.effect('faults').p_missing == 0.5
     assert scene.seed == 42 and scene.sheets.phase == 0.001
 
 
-@pytest.mark.parametrize(('overrides', 'expected'), [
-    (['feed_transporter.V_x=1'], 'feed_transporter.V_x'),
-    (['layup.R_kr=0.1'], "has no machine 'layup'"),
-    (['feed_slip.mu=0.1'], "does not list effect 'feed_slip'"),
-    (['gearbox.ratio=2'], 'gearbox.ratio=2: unknown section; a section is a machine (layup, '),
-    (['V_tr=9'], 'must be SECTION.KEY'),
-    (['feed_transporter.V_tr'], 'must be KEY=VALUE'),
-    (['feed_transporter.V_tr=-1'], 'feed_transporter.V_tr=-1'),
-    (['feed_transporter.V_tr=.nan'], 'feed_transporter.V_tr=nan'),
-    (['knife.n_k=fast'], "knife.n_k='fast'"),
-])
+@pytest.mark.parametrize(
+    ('overrides', 'expected'),
+    [
+        (['feed_transporter.V_x=1'], 'feed_transporter.V_x'),
+        (['layup.R_kr=0.1'], "has no machine 'layup'"),
+        (['feed_slip.mu=0.1'], "does not list effect 'feed_slip'"),
+        (['gearbox.ratio=2'], 'gearbox.ratio=2: unknown section; a section is a machine (layup, '),
+        (['V_tr=9'], 'must be SECTION.KEY'),
+        (['feed_transporter.V_tr'], 'must be KEY=VALUE'),
+        (['feed_transporter.V_tr=-1'], 'feed_transporter.V_tr=-1'),
+        (['feed_transporter.V_tr=.nan'], 'feed_transporter.V_tr=nan'),
+        (['knife.n_k=fast'], "knife.n_k='fast'"),
+    ],
+)
 def test_bad_overrides_are_named(tmp_path: Path, overrides: list[str], expected: str) -> None:
     with pytest.raises(ParameterError, match=None) as exc:
         load_scene(_write(tmp_path, MINIMAL), parse_set(overrides))
@@ -79,7 +86,9 @@ def test_unknown_effect_lists_the_known_ones(tmp_path: Path) -> None:
 
 def test_effect_whose_machine_is_missing(tmp_path: Path) -> None:
     with pytest.raises(ParameterError) as exc:
-        load_scene(_write(tmp_path, MINIMAL + 'effects:\n  chain_friction: {P_k: 10.0, r: 0.05, return_section: geometric}\n'))
+        load_scene(
+            _write(tmp_path, MINIMAL + 'effects:\n  chain_friction: {P_k: 10.0, r: 0.05, return_section: geometric}\n')
+        )
     assert "needs machine 'delivery'" in str(exc.value)
 
 
@@ -95,16 +104,19 @@ def test_effect_unknown_parameter(tmp_path: Path) -> None:
     assert 'effects.faults.p_gremlins' in str(exc.value)
 
 
-@pytest.mark.parametrize(('text', 'expected'), [
-    ('name: x\nmachines: {}\n', 'must list its machines'),
-    ('name: x\nmachines:\n  gearbox: {}\n', "machines='gearbox'"),
-    ('name: x\nmachines:\n  knife: {}\n', "needs machine 'cyclogram'"),
-    ('name: x\nmachines:\n  knife: {bogus: 1}\n  cyclogram: {}\n  feed_transporter: {}\n', 'knife.bogus'),
-    (MINIMAL + 'colour: red\n', "colour='red': unknown scene key"),
-    (MINIMAL + 'seed: -1\n', 'seed=-1'),
-    (MINIMAL + 'drive: {profile: warp}\n', "drive.profile='warp'"),
-    (MINIMAL + 'drive: {profile: ramp}\n', 'drive.t_ramp'),
-])
+@pytest.mark.parametrize(
+    ('text', 'expected'),
+    [
+        ('name: x\nmachines: {}\n', 'must list its machines'),
+        ('name: x\nmachines:\n  gearbox: {}\n', "machines='gearbox'"),
+        ('name: x\nmachines:\n  knife: {}\n', "needs machine 'cyclogram'"),
+        ('name: x\nmachines:\n  knife: {bogus: 1}\n  cyclogram: {}\n  feed_transporter: {}\n', 'knife.bogus'),
+        (MINIMAL + 'colour: red\n', "colour='red': unknown scene key"),
+        (MINIMAL + 'seed: -1\n', 'seed=-1'),
+        (MINIMAL + 'drive: {profile: warp}\n', "drive.profile='warp'"),
+        (MINIMAL + 'drive: {profile: ramp}\n', 'drive.t_ramp'),
+    ],
+)
 def test_bad_scene_files(tmp_path: Path, text: str, expected: str) -> None:
     with pytest.raises(ParameterError) as exc:
         load_scene(_write(tmp_path, text))

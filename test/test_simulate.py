@@ -35,15 +35,33 @@ def test_folder_one_hour_no_violations_one_signature_per_cycle(folder_hour: dict
 
 def test_feeding_at_printing_speed_violates_every_cycle(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / 'vd.json'
-    assert main(['simulate', '--scene', 'folder', '--duration', '36', '--set', 'feed_transporter.V_tr=5.833326692478048',
-                 '--json', str(out)]) == 0
+    assert (
+        main(
+            [
+                'simulate',
+                '--scene',
+                'folder',
+                '--duration',
+                '36',
+                '--set',
+                'feed_transporter.V_tr=5.833326692478048',
+                '--json',
+                str(out),
+            ]
+        )
+        == 0
+    )
     s = json.loads(out.read_text())
     feed = s['min_margin']['feed_window']
     assert feed['violations'] == feed['evaluations'] == s['cycles'] == 500
     expected = 0.0248311759646518 - 0.230 / 5.833326692478048  # t_allowed - L_feed / V_d
     assert feed['margin'] == pytest.approx(expected, abs=1e-12)  # -14.6 ms
-    assert s['violations']['first'][0] == {'cycle': 0, 'constraint': 'feed_window', 'margin': pytest.approx(expected),
-                                           'unit': 's'}
+    assert s['violations']['first'][0] == {
+        'cycle': 0,
+        'constraint': 'feed_window',
+        'margin': pytest.approx(expected),
+        'unit': 's',
+    }
     assert s['v_tr_over_v_d'] == pytest.approx(1.0)
     printed = capsys.readouterr().out
     assert 'feed_window' in printed and '-14.59' in printed
@@ -123,8 +141,12 @@ def test_samples_cover_every_node_and_are_finite() -> None:
 
 def test_simulate_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / 'x.json'
-    assert main(['simulate', '--scene', 'folder', '--duration', '1', '--set', 'feed_transporter.V_x=1',
-                 '--json', str(out)]) == 2
+    assert (
+        main(
+            ['simulate', '--scene', 'folder', '--duration', '1', '--set', 'feed_transporter.V_x=1', '--json', str(out)]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'feed_transporter.V_x' in err
     assert not out.exists()

@@ -82,8 +82,7 @@ def mp_circle(x0: Any, y0: Any, r0: Any, x1: Any, y1: Any, r1: Any, branch: int)
 
 def mp_sixbar(p: LayupParams, phi: Any) -> dict[str, Any]:
     """L six-bar at crank angle ``phi`` (mpmath), from MACHINES.md's definitions."""
-    R, a, b, l2, q, l3, l4, l5, d0 = (mp.mpf(v) for v in (p.R_kr, p.a, p.b, p.l2, p.O2B, p.l3, p.l4, p.l5,
-                                                          p.O2O3))
+    R, a, b, l2, q, l3, l4, l5, d0 = (mp.mpf(v) for v in (p.R_kr, p.a, p.b, p.l2, p.O2B, p.l3, p.l4, p.l5, p.O2O3))
     ax, ay = a + R * mp.cos(phi), b + R * mp.sin(phi)
     bx, by = mp_circle(0, 0, q, ax, ay, l2, 1)
     cx, cy = bx * l3 / q, by * l3 / q
@@ -124,7 +123,7 @@ class TestDeadCentresAndToggles:
             th5 = lambda x: mp_sixbar(LAYUP, x)['theta5']
             root = mp.findroot(lambda x: mp.diff(th3, x), mp.mpf(ext.phi))
             assert abs(float(root) - ext.phi) <= 4 * EPS  # the closed form is exact to rounding (of O(1) terms)
-            slope3 = float(mp.diff(th3, root, 2)) * w     # d(omega3)/dphi at the dead centre, rad/s per rad
+            slope3 = float(mp.diff(th3, root, 2)) * w  # d(omega3)/dphi at the dead centre, rad/s per rad
         pts = {d: model.point(ext.phi + d) for d in (*DELTAS, 0.0)}
         arr = model.arrays(np.array([ext.phi + d for d in (*DELTAS, 0.0)]))
         for pt in pts.values():
@@ -135,12 +134,12 @@ class TestDeadCentresAndToggles:
             w3, w5 = pts[d].omega3, pts[d].omega5
             w3_ref, w5_ref = mp_rate(th3, x) * w, mp_rate(th5, x) * w
             with mp.workdps(40):
-                off = float(mp.mpf(x) - root)                           # d, up to the 4.5e-17 of phi_e
+                off = float(mp.mpf(x) - root)  # d, up to the 4.5e-17 of phi_e
             # magnitude ~ |slope| 1e-12 and the sign of slope * d: a smooth sign change through 0
             assert math.copysign(1.0, w3) == math.copysign(1.0, slope3 * d) == math.copysign(1.0, w3_ref)
-            assert abs(w3_ref - slope3 * off) <= 1e-6 * abs(slope3 * d)    # the reference is linear here
-            assert abs(w3 - w3_ref) <= 1e-14                                # absolute rounding of omega3
-            assert abs(w3 - w3_ref) <= 1e-3 * abs(w3_ref)                   # i.e. 0.1 % of a 1e-12-size value
+            assert abs(w3_ref - slope3 * off) <= 1e-6 * abs(slope3 * d)  # the reference is linear here
+            assert abs(w3 - w3_ref) <= 1e-14  # absolute rounding of omega3
+            assert abs(w3 - w3_ref) <= 1e-3 * abs(w3_ref)  # i.e. 0.1 % of a 1e-12-size value
             assert abs(w5 - w5_ref) <= 1e-14 and math.copysign(1.0, w5) == math.copysign(1.0, w5_ref)
             # positions continuous: the exits move by O(d^2) at a dead centre
             assert math.hypot(pts[d].xC - pts[0.0].xC, pts[d].yC - pts[0.0].yC) <= 1e-15
@@ -172,14 +171,14 @@ class TestDeadCentresAndToggles:
             LayupParams(**over)
         assert info.value.key == 'layup.R_kr,a,b,l2,O2B'
         raw = LayupModel(type('Raw', (), over)())  # unvalidated: the model itself must stay finite or raise
-        phi_t = math.atan2(LAYUP.b, LAYUP.a)       # A farthest from O2
+        phi_t = math.atan2(LAYUP.b, LAYUP.a)  # A farthest from O2
         for d in (-1e-12, 1e-12, 0.0, -1e-9, 1e-9, -1e-6, 1e-6):
             d1, d2 = raw.discriminants_scalar(phi_t + d)
             assert math.isfinite(d1) and math.isfinite(d2)
-            assert -16 * EPS <= d1 <= 2 * d * d + 16 * EPS   # loop 1 touches its toggle: D1 ~ c d^2 >= 0
+            assert -16 * EPS <= d1 <= 2 * d * d + 16 * EPS  # loop 1 touches its toggle: D1 ~ c d^2 >= 0
             try:
                 pt = raw.point(phi_t + d)
-            except AssemblyError as exc:              # the documented error, naming the loop and the angle
+            except AssemblyError as exc:  # the documented error, naming the loop and the angle
                 assert exc.phi == phi_t + d and (exc.mechanism == LOOP1 or d2 < 0.0)
             else:
                 assert all(math.isfinite(v) for v in pt)
@@ -205,7 +204,7 @@ class TestDeadCentresAndToggles:
             st = knf.state(p, phi0 + d)
             assert all(math.isfinite(float(v)) for v in (st.s, st.v, st.a))
             with mp.workdps(40):
-                off = float(mp.mpf(phi0 + d) - exact)                  # d as represented, from the exact centre
+                off = float(mp.mpf(phi0 + d) - exact)  # d as represented, from the exact centre
             v_ref = w * (s2 * off + 0.5 * s3 * off * off)
             assert math.copysign(1.0, st.v) == math.copysign(1.0, s2 * d)
             assert abs(st.v - v_ref) <= 4 * EPS * w * p.r_k + 1e-6 * abs(v_ref)
@@ -214,8 +213,9 @@ class TestDeadCentresAndToggles:
 
     # ---- the four-bar of core/loop.py -------------------------------------------------------
     @staticmethod
-    def fourbar(phi: np.ndarray, d: float, R: float, l: float, q: float, w: float = 1.0,
-                tol: float = loop.TOGGLE_TOL) -> tuple[loop.Intersection, np.ndarray, np.ndarray]:
+    def fourbar(
+        phi: np.ndarray, d: float, R: float, l: float, q: float, w: float = 1.0, tol: float = loop.TOGGLE_TOL
+    ) -> tuple[loop.Intersection, np.ndarray, np.ndarray]:
         """Crank O1 = 0 (radius R, speed w), rocker pivot O2 = (d, 0) (radius q), coupler l:
         B = circle(O2, q) x circle(A, l) on branch +1; velocity and acceleration of B."""
         ax, ay = R * np.cos(phi), R * np.sin(phi)
@@ -224,8 +224,11 @@ class TestDeadCentresAndToggles:
         it = loop.circle_intersection(d, 0.0, q, ax, ay, l, 1, inputs=phi, tol=tol, mechanism='four-bar')
         zero = np.zeros_like(phi)
         vb = np.array(loop.circle_point_velocity(it.x, it.y, ax, ay, vx, vy, d, 0.0, zero, zero))
-        ab = np.array(loop.circle_point_acceleration(it.x, it.y, vb[0], vb[1], ax, ay, vx, vy, accx, accy,
-                                                     d, 0.0, zero, zero, zero, zero))
+        ab = np.array(
+            loop.circle_point_acceleration(
+                it.x, it.y, vb[0], vb[1], ax, ay, vx, vy, accx, accy, d, 0.0, zero, zero, zero, zero
+            )
+        )
         return it, vb, ab
 
     @staticmethod
@@ -240,10 +243,11 @@ class TestDeadCentresAndToggles:
         assert classify_fourbar(d, R, l, q) == 'crank-rocker'
         scan = np.linspace(0.0, TAU, 4001)
         it0, vb, _ = self.fourbar(scan, d, R, l, q)
-        speed = (it0.x - d) * vb[1] - it0.y * vb[0]    # (B - O2) x v_B: the rocker's angular velocity * q^2
+        speed = (it0.x - d) * vb[1] - it0.y * vb[0]  # (B - O2) x v_B: the rocker's angular velocity * q^2
         flips = np.flatnonzero(np.sign(speed[:-1]) != np.sign(speed[1:]))
         assert len(flips) == 2
         with mp.workdps(40):
+
             def cross(x: Any) -> Any:  # (A - O1) x (B - A): 0 where O1, A, B are in line
                 bx, by = self.mp_fourbar_B(x, d, R, l, q)
                 ax, ay = R * mp.cos(x), R * mp.sin(x)
@@ -253,7 +257,7 @@ class TestDeadCentresAndToggles:
                 phi0 = float(mp.findroot(cross, mp.mpf(float(scan[i]))))
                 bx = lambda x: self.mp_fourbar_B(x, d, R, l, q)[0]
                 by = lambda x: self.mp_fourbar_B(x, d, R, l, q)[1]
-                slope = math.hypot(mp_rate(bx, phi0, 2), mp_rate(by, phi0, 2))   # |dv_B/dphi| there, m/rad
+                slope = math.hypot(mp_rate(bx, phi0, 2), mp_rate(by, phi0, 2))  # |dv_B/dphi| there, m/rad
                 assert abs(mp_rate(bx, phi0)) < 1e-14 and abs(mp_rate(by, phi0)) < 1e-14
                 phis = np.array([phi0 - 1e-12, phi0 + 1e-12])
                 it, v, a = self.fourbar(phis, d, R, l, q)
@@ -261,7 +265,7 @@ class TestDeadCentresAndToggles:
                 ref = np.array([[mp_rate(bx, x) for x in phis], [mp_rate(by, x) for x in phis]])
                 assert np.abs(v - ref).max() <= 1e-15
                 assert np.allclose(np.hypot(*v), slope * 1e-12, rtol=1e-2, atol=0.0)
-                assert np.all(np.sign(v[:, 0]) == -np.sign(v[:, 1]))   # each component reverses
+                assert np.all(np.sign(v[:, 0]) == -np.sign(v[:, 1]))  # each component reverses
                 assert np.abs(a[:, 0] - a[:, 1]).max() <= 1e-9 * np.abs(a).max()
 
     def test_fourbar_toggle_limit_position(self) -> None:
@@ -271,7 +275,7 @@ class TestDeadCentresAndToggles:
         d, R, l, q = 1.0, 0.8, 0.5, 0.6
         assert classify_fourbar(d, R, l, q) == 'non-Grashof'
         with mp.workdps(40):
-            phi_l = mp.acos((d * d + R * R - (l + q) ** 2) / (2 * d * R))   # |A - O2| = l + q
+            phi_l = mp.acos((d * d + R * R - (l + q) ** 2) / (2 * d * R))  # |A - O2| = l + q
         x_l = float(phi_l)
         speeds = {}
         for dl in (1e-12, 4e-12):
@@ -279,14 +283,16 @@ class TestDeadCentresAndToggles:
             it, v, a = self.fourbar(np.array([phi]), d, R, l, q)
             assert np.all(np.isfinite(v)) and np.all(np.isfinite(a))
             with mp.workdps(40):
-                ref = math.hypot(mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[0], phi),
-                                 mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[1], phi))
+                ref = math.hypot(
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[0], phi),
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[1], phi),
+                )
                 true_dl = float(phi_l - mp.mpf(phi))
             speed = math.hypot(float(v[0, 0]), float(v[1, 0]))
             assert abs(speed - ref) <= 1e-3 * ref
             speeds[dl] = speed * math.sqrt(true_dl)
-        assert speeds[1e-12] == pytest.approx(speeds[4e-12], rel=1e-3)   # |v| sqrt(delta) constant
-        past = x_l + 1e-12                  # position only: the velocity is unbounded at a toggle (documented)
+        assert speeds[1e-12] == pytest.approx(speeds[4e-12], rel=1e-3)  # |v| sqrt(delta) constant
+        past = x_l + 1e-12  # position only: the velocity is unbounded at a toggle (documented)
         it = loop.circle_intersection(d, 0.0, q, R * math.cos(past), R * math.sin(past), l, 1, inputs=past)
         x, y = float(it.x), float(it.y)
         assert bool(it.toggle) and math.isfinite(x) and math.isfinite(y) and float(it.disc) < 0.0
@@ -298,15 +304,18 @@ class TestDeadCentresAndToggles:
 
     # ---- Grashof classification and change points -------------------------------------------
     @settings(max_examples=60, deadline=None, derandomize=True)
-    @given(links=st.lists(st.integers(1, 2 ** 20), min_size=3, max_size=3), order=st.permutations(range(4)),
-           rel=st.sampled_from([0.0, 1e-13, -1e-13, 1e-9, -1e-9]))
+    @given(
+        links=st.lists(st.integers(1, 2**20), min_size=3, max_size=3),
+        order=st.permutations(range(4)),
+        rel=st.sampled_from([0.0, 1e-13, -1e-13, 1e-9, -1e-9]),
+    )
     def test_change_point_geometries(self, links: list[int], order: list[int], rel: float) -> None:
         """s + l = p + q exactly (dyadic lengths, exact sums) is 'change-point' whichever link is ground
         or input, and so is 1e-13 off (inside GRASHOF_REL_TOL). 1e-9 off it is a proper class that
         agrees with the geometry (exact arithmetic): the input link turns fully iff 'crank-rocker' or
         'double-crank'; a longest link made longer is 'non-Grashof'."""
         a, b, c = sorted(links)
-        four = [a * 2.0 ** -20, b * 2.0 ** -20, c * 2.0 ** -20, (b + c - a) * 2.0 ** -20]  # s + l = p + q
+        four = [a * 2.0**-20, b * 2.0**-20, c * 2.0**-20, (b + c - a) * 2.0**-20]  # s + l = p + q
         four[3] *= 1.0 + rel
         g = [four[i] for i in order]
         kind = classify_fourbar(*g)
@@ -377,8 +386,10 @@ def all_finite(s: dlv.DeliverySamples) -> bool:
 
 def non_ok_zeroed(s: dlv.DeliverySamples) -> bool:
     bad = s.state != dlv.STATE_OK
-    return all(np.all(getattr(s, n)[bad] == 0.0) for n in ('eta', 'eta_A', 'eta_B', 'p_AB', 'p_ch', 'm_1',
-                                                           'p_AB_ideal', 'p_ch_ideal', 'm_1_ideal'))
+    return all(
+        np.all(getattr(s, n)[bad] == 0.0)
+        for n in ('eta', 'eta_A', 'eta_B', 'p_AB', 'p_ch', 'm_1', 'p_AB_ideal', 'p_ch_ideal', 'm_1_ideal')
+    )
 
 
 class TestDeliveryLimits:
@@ -394,21 +405,23 @@ class TestDeliveryLimits:
         for mode in dlv.RETURN_SECTIONS:
             s = dlv.evaluate_stroke(p, STROKE, return_section=mode)
             assert all_finite(s) and non_ok_zeroed(s)
-            end = np.abs(s.u - 1.0) < 1e-12                           # psi = 1: alpha = alpha_m
+            end = np.abs(s.u - 1.0) < 1e-12  # psi = 1: alpha = alpha_m
             assert np.all(s.state[end] == dlv.STATE_SELF_LOCKING) or not friction and alpha_m == 89.9999
             ok = s.state == dlv.STATE_OK
-            assert ok.any()                                             # most of the stroke still works
+            assert ok.any()  # most of the stroke still works
             with mp.workdps(40):
                 sa = mp.sin(mp.radians(mp.mpf(alpha_m)))
                 cos_ref = np.array([float(mp.sqrt(1 - (mp.mpf(float(x)) * sa) ** 2)) for x in s.psi[ok]])
             assert np.allclose(s.p_AB_ideal[ok] * cos_ref, 1.0, rtol=1e-4, atol=0.0)
             for u in (1.0, 0.999999, 1.5):  # the scalar path agrees on the state
-                assert dlv.evaluate_stroke_point(p, u, return_section=mode).state == \
-                    int(dlv.evaluate_stroke(p, [u], return_section=mode).state[0])
-        if not friction and alpha_m == 89.9999:   # cos(alpha_m) = 1.7e-6 > COS_ALPHA_TOL: ok, force ~ 5.7e5 P_k
+                assert dlv.evaluate_stroke_point(p, u, return_section=mode).state == int(
+                    dlv.evaluate_stroke(p, [u], return_section=mode).state[0]
+                )
+        if not friction and alpha_m == 89.9999:  # cos(alpha_m) = 1.7e-6 > COS_ALPHA_TOL: ok, force ~ 5.7e5 P_k
             pt = dlv.evaluate_point(p, 1.0)
-            assert pt.state == dlv.STATE_OK and pt.p_AB == pytest.approx(1.0 / math.cos(math.radians(alpha_m)),
-                                                                         rel=1e-4)
+            assert pt.state == dlv.STATE_OK and pt.p_AB == pytest.approx(
+                1.0 / math.cos(math.radians(alpha_m)), rel=1e-4
+            )
         with pytest.raises(ParameterError, match='alpha_m_deg'):
             delivery(alpha_m_deg=90.0)
 
@@ -425,7 +438,7 @@ class TestDeliveryLimits:
                 sa = psi * sm
                 return sa / mp.sqrt(1 - sa * sa) * (1 - mp.cos(2 * mp.pi * xi))
 
-            xi = mp.findroot(lambda x: mp.diff(g, x), mp.mpf('0.67'))   # the maximum, near 0.67
+            xi = mp.findroot(lambda x: mp.diff(g, x), mp.mpf('0.67'))  # the maximum, near 0.67
             return alpha_m, float(1 / g(xi)), float(xi)
 
     @pytest.mark.parametrize('rel', [0.0, 1e-12, -1e-12, 1e-6, -1e-6])
@@ -434,7 +447,7 @@ class TestDeliveryLimits:
         forces and efficiencies 0 in those states, all finite, no warnings."""
         alpha_m, lam, xi = self.kv_touch()
         p = delivery(alpha_m_deg=alpha_m, Lambda=lam * (1.0 + rel))
-        u_star = 2.0 - xi                                    # on the return section
+        u_star = 2.0 - xi  # on the return section
         pt = dlv.evaluate_stroke_point(p, u_star)
         # K_v(xi*) = cos(beta) (1 - tan(alpha) tan|beta|) ~ -rel cos(beta) near the touch
         assert abs(pt.K_v + rel * math.cos(pt.beta)) <= 1e-6 * abs(rel) + 1e-13
@@ -470,8 +483,9 @@ class TestDeliveryLimits:
         if eta_ref > dlv.ETA_TOL * 2:
             assert pt.state == dlv.STATE_OK
             assert pt.eta == pytest.approx(eta_ref, rel=1e-15 / eta_ref + 1e-12)
-            assert pt.p_AB == pytest.approx(1.0 / (math.cos(math.radians(alpha_m)) * eta_ref), rel=1e-15 / eta_ref
-                                            + 1e-12)
+            assert pt.p_AB == pytest.approx(
+                1.0 / (math.cos(math.radians(alpha_m)) * eta_ref), rel=1e-15 / eta_ref + 1e-12
+            )
         elif eta_ref < dlv.ETA_TOL / 2:
             assert pt.state == dlv.STATE_SELF_LOCKING and pt.eta == 0.0 and pt.p_AB == 0.0
         s = dlv.evaluate(p, np.linspace(0.0, 1.0, 2001))
@@ -495,17 +509,23 @@ class TestLongRuns:
     """Bullet 3: 1e9 crank turns and line times of 1e7 s without drift (exact references)."""
 
     @settings(max_examples=60, deadline=None, derandomize=True)
-    @given(num=st.integers(1, 10 ** 6), den=st.integers(1, 10 ** 4), turns=st.integers(0, 10 ** 9),
-           extra_ns=st.integers(0, 10 ** 9), phase0=st.fractions(0, 1, max_denominator=10 ** 6))
-    def test_shaft_clock_after_a_billion_turns_is_exact(self, num: int, den: int, turns: int, extra_ns: int,
-                                                        phase0: Fraction) -> None:
-        speed = Fraction(num, den)                                 # rev/s
+    @given(
+        num=st.integers(1, 10**6),
+        den=st.integers(1, 10**4),
+        turns=st.integers(0, 10**9),
+        extra_ns=st.integers(0, 10**9),
+        phase0=st.fractions(0, 1, max_denominator=10**6),
+    )
+    def test_shaft_clock_after_a_billion_turns_is_exact(
+        self, num: int, den: int, turns: int, extra_ns: int, phase0: Fraction
+    ) -> None:
+        speed = Fraction(num, den)  # rev/s
         clock = ShaftClock(speed, phase0=phase0)
-        t_ns = int(turns / speed * NS_PER_S) + extra_ns            # ~1e9 turns and beyond
+        t_ns = int(turns / speed * NS_PER_S) + extra_ns  # ~1e9 turns and beyond
         whole, frac = clock.turns(t_ns)
         exact = Fraction(t_ns, NS_PER_S) * speed + phase0 % 1
         assert whole == math.floor(exact)
-        assert abs(Fraction(frac) - (exact - whole)) <= Fraction(1, 2 ** 53)   # only the final float rounding
+        assert abs(Fraction(frac) - (exact - whole)) <= Fraction(1, 2**53)  # only the final float rounding
         # and the time of a turn at 1e9 turns is the nearest nanosecond
         t_back = clock.time_of_turn(turns, 0.25)
         assert abs(Fraction(t_back) - (turns + Fraction(0.25) - phase0 % 1) / speed * NS_PER_S) <= Fraction(1, 2)
@@ -514,17 +534,18 @@ class TestLongRuns:
         """knife.state_at_time computes phi = omega_k t afresh (no accumulation): at 1e9 turns
         (t = 7.2e7 s) its phase error is a few ulp of phi, i.e. ~1e-8 s, 1.5e-16 of t."""
         T = Fraction(3600) / Fraction(KNIFE.n_k)
-        for t in (1e7 + 0.0123, 7.2e7 + 0.0123, float(10 ** 9 * T + Fraction(1, 50))):
+        for t in (1e7 + 0.0123, 7.2e7 + 0.0123, float(10**9 * T + Fraction(1, 50))):
             st_ = knf.state_at_time(KNIFE, t)
             with mp.workdps(50):
                 frac = exact_frac_turns(t, Fraction(KNIFE.n_k) / 3600)
                 phi_ref = float(2 * mp.pi * mp.mpf(frac.numerator) / frac.denominator)
             dphi = angle_diff(float(st_.phi), phi_ref)
             assert dphi <= 8 * ulp(float(st_.phi))
-            assert dphi / KNIFE.omega_k <= 1e-15 * t                     # 6 orders inside 1e-9 relative
-            slope = abs(st_.v) / KNIFE.omega_k                              # |ds/dphi|, m/rad
-            assert st_.s == pytest.approx(knf.position(KNIFE, phi_ref), abs=1.01 * slope * dphi + 0.05 * dphi ** 2
-                                          + 1e-15)
+            assert dphi / KNIFE.omega_k <= 1e-15 * t  # 6 orders inside 1e-9 relative
+            slope = abs(st_.v) / KNIFE.omega_k  # |ds/dphi|, m/rad
+            assert st_.s == pytest.approx(
+                knf.position(KNIFE, phi_ref), abs=1.01 * slope * dphi + 0.05 * dphi**2 + 1e-15
+            )
 
     def test_layup_line_at_ten_million_seconds(self) -> None:
         """LineModel to 1e7 + 100 s (leaves every 99991 s, crank at 31 rev/min so no exact cycle):
@@ -536,7 +557,7 @@ class TestLongRuns:
         horizon = 1e7 + 100.0
         model = LineModel(scene, horizon)
         ev = model.events
-        rate = Fraction(31, 60)                                        # crank turns per s
+        rate = Fraction(31, 60)  # crank turns per s
         ent = ev[ev['kind'] == event_kind('leaf_enter')]
         ext = ev[ev['kind'] == event_kind('leaf_exit')]
         assert ent['t'].max() > 9.9e6 and ext['t'].max() > 9.9e6
@@ -581,8 +602,8 @@ class TestLongRuns:
         kp = scene.machine('knife')
         tm = cycle_timing(scene.machine('cyclogram'), kp)
         kw = knf.window(kp)
-        T = Fraction(3600) / Fraction(kp.n_k)                         # s per crank turn, exact
-        to_time = T / (2 * PI_50)                                      # s per rad of crank angle
+        T = Fraction(3600) / Fraction(kp.n_k)  # s per crank turn, exact
+        to_time = T / (2 * PI_50)  # s per rad of crank angle
         t_in, t_out = Fraction(kw.phi_in) * to_time, Fraction(kw.phi_out) * to_time
         feed = Fraction(tm.L_feed) / Fraction(scene.machine('feed_transporter').V_tr)
         checks = {
@@ -604,7 +625,7 @@ class TestLongRuns:
             frac = exact_frac_turns(float(t_big[k]), 1 / T)
             assert angle_diff(float(big.position[k, 0]), float(2 * PI_50 * frac)) <= 1e-9
             assert angle_diff(float(big.position[k, 0]), float(small.position[k, 0])) <= 1e-9
-            assert abs(big.position[k, 1] - small.position[k, 1]) <= 1e-11   # knife s, m
+            assert abs(big.position[k, 1] - small.position[k, 1]) <= 1e-11  # knife s, m
             assert abs(big.velocity[k, 1] - small.velocity[k, 1]) <= 1e-12
 
     def test_default_folder_restarted_after_a_hold_to_ten_million_seconds(self) -> None:
@@ -618,11 +639,11 @@ class TestLongRuns:
         T = Fraction(3600) / Fraction(kp.n_k)
         t_in = Fraction(kw.phi_in) * T / (2 * PI_50)
         tb, tu = Fraction(scene.drive.t_brake), Fraction(scene.drive.t_restart)
-        theta_held = 1 + tb / 2                                        # Theta when the hold has stopped the drive
+        theta_held = 1 + tb / 2  # Theta when the hold has stopped the drive
 
-        def time_of(theta: Fraction) -> Fraction:                     # after the restart
+        def time_of(theta: Fraction) -> Fraction:  # after the restart
             d = theta - theta_held
-            assert d > tu / 2                                          # past the ramp: lambda = 1
+            assert d > tu / 2  # past the ramp: lambda = 1
             return Fraction(t_u) + tu + (d - tu / 2)
 
         rows = model.events[model.events['kind'] == event_kind('knife_contact')]
@@ -634,17 +655,33 @@ class TestLongRuns:
 
 
 # =========================================================================== 4. motor
-MOTOR: dict[str, Any] = {'J': 0.5, 'T_0': 264.6, 'omega_0': 157.08, 'omega_nom': 152.4, 'b': 0.03,
-                         'method': 'dopri5', 'h': 0.01, 'rtol': 1e-10, 'atol': 1e-12, 't_stop': 1e9, 'T_brake': 0.0}
+MOTOR: dict[str, Any] = {
+    'J': 0.5,
+    'T_0': 264.6,
+    'omega_0': 157.08,
+    'omega_nom': 152.4,
+    'b': 0.03,
+    'method': 'dopri5',
+    'h': 0.01,
+    'rtol': 1e-10,
+    'atol': 1e-12,
+    't_stop': 1e9,
+    'T_brake': 0.0,
+}
 #: tau = J / (T_0 / omega_0) = 1e-4 s: a stiff start
 STIFF: dict[str, Any] = {'J': 0.001, 'T_0': 1600.0, 'omega_0': 160.0, 'omega_nom': 152.4, 'b': 0.0}
 
 
 def motor_scene(**over: Any) -> Any:
     """The layup machine (cheapest) with motor_dynamics only: no position-dependent load."""
-    return parse_scene({'name': 'motor', 'machines': {'layup': dataclasses.asdict(LAYUP)},
-                        'sheets': {'interval': 0.0625, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0005},
-                        'effects': {'motor_dynamics': {**MOTOR, **over}}})
+    return parse_scene(
+        {
+            'name': 'motor',
+            'machines': {'layup': dataclasses.asdict(LAYUP)},
+            'sheets': {'interval': 0.0625, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0005},
+            'effects': {'motor_dynamics': {**MOTOR, **over}},
+        }
+    )
 
 
 def closed_form(p: dict[str, Any], t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -657,7 +694,7 @@ def closed_form(p: dict[str, Any], t: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def rk4_factor(z: float) -> float:
     """RK4's amplification of the error on y' = -(1/tau) y per step, z = h / tau."""
-    return 1 - z + z * z / 2 - z ** 3 / 6 + z ** 4 / 24
+    return 1 - z + z * z / 2 - z**3 / 6 + z**4 / 24
 
 
 class TestMotor:
@@ -681,8 +718,8 @@ class TestMotor:
         R = rk4_factor(z)
         assert 0.0 < R < 1.0
         k = np.arange(w.size)
-        assert np.allclose(w, w_ss * (1.0 - R ** k), rtol=0.0, atol=64 * EPS * w_ss)
-        assert np.all(np.diff(w) >= -4 * EPS * w_ss) and np.all(np.isfinite(sol.y))   # rounding at w_ss only
+        assert np.allclose(w, w_ss * (1.0 - R**k), rtol=0.0, atol=64 * EPS * w_ss)
+        assert np.all(np.diff(w) >= -4 * EPS * w_ss) and np.all(np.isfinite(sol.y))  # rounding at w_ss only
         assert drive.rate(np.array(n * h))[()] == pytest.approx(w_ss / p['omega_nom'], rel=1e-9)  # no stall
         t = np.linspace(0.0, n * h, 40001)
         dense = drive.omega(t)
@@ -757,9 +794,13 @@ class TestGrazing:
     """Bullet 5: a touch of a threshold is reported once or not at all, never twice."""
 
     @settings(max_examples=150, deadline=None, derandomize=True)
-    @given(i=st.integers(0, 100), where=st.sampled_from(['on', 'near', 'between']),
-           frac=st.floats(-0.5, 0.5), c=st.sampled_from([0.0, -1e-15, -1e-300, 1e-30, 1e-26]),
-           sign=st.sampled_from([1.0, -1.0]))
+    @given(
+        i=st.integers(0, 100),
+        where=st.sampled_from(['on', 'near', 'between']),
+        frac=st.floats(-0.5, 0.5),
+        c=st.sampled_from([0.0, -1e-15, -1e-300, 1e-30, 1e-26]),
+        sign=st.sampled_from([1.0, -1.0]),
+    )
     def test_sign_changes_of_a_touch(self, i: int, where: str, frac: float, c: float, sign: float) -> None:
         """f = sign (c - (t - t0)^2): a touch (c = 0), a near miss (c < 0), or two roots closer than
         the root tolerance (c = 1e-30: +-1e-15; 1e-26: +-1e-13) that rounding may split; t0 on a
@@ -773,7 +814,7 @@ class TestGrazing:
         # a resolvable double crossing is kept (sanity of the same call): roots +-1e-3 around t0
         if 0.01 < t0 < 0.99:
             two = find_sign_changes(lambda t: sign * (1e-6 - (t - t0) ** 2), GRID)
-            if len(two) == 2:   # both roots between samples (not split by a sample landing on one)
+            if len(two) == 2:  # both roots between samples (not split by a sample landing on one)
                 assert np.allclose(two.x, [t0 - 1e-3, t0 + 1e-3], atol=1e-12)
                 assert list(two.direction) == ([1, -1] if sign > 0 else [-1, 1])
 
@@ -793,7 +834,7 @@ class TestGrazing:
         noise = 4 * EPS * (a * a + 2 * abs(a) * scale + scale * scale)
         assert len(find_sign_changes(f, grid, ftol=noise)) == 0
         raw = find_sign_changes(f, grid)
-        assert len(raw) % 2 == 0                       # pairs only: both neighbours are below 0
+        assert len(raw) % 2 == 0  # pairs only: both neighbours are below 0
         if len(raw):
             assert abs(raw.x[0] - a) < 1e-7 * scale and abs(raw.x[-1] - a) < 1e-7 * scale
 
@@ -804,15 +845,16 @@ class TestGrazing:
         reported in neither step."""
         t0 = float(GRID[split])
         f = lambda t: -((t - t0) ** 2)
-        first = find_sign_changes(f, GRID[:split + 1])
+        first = find_sign_changes(f, GRID[: split + 1])
         left = int(np.sign(f(float(GRID[split - 1]))))
         second = find_sign_changes(f, GRID[split:], left_sign=left)
         assert len(first) + len(second) == 0
 
-    @settings(max_examples=25, deadline=None, derandomize=True,
-              suppress_health_check=[HealthCheck.too_slow])
-    @given(delta=st.one_of(st.sampled_from([0.0, 1e-15, -1e-15, 1e-12, -1e-12]), st.floats(-1e-6, 1e-6)),
-           k=st.integers(4, 9))
+    @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+    @given(
+        delta=st.one_of(st.sampled_from([0.0, 1e-15, -1e-15, 1e-12, -1e-12]), st.floats(-1e-6, 1e-6)),
+        k=st.integers(4, 9),
+    )
     def test_sheet_edge_touching_the_stops(self, delta: float, k: int) -> None:
         """The line's front-stop threshold: the supervisor holds the folder so that the drive comes to
         rest with sheet k's edge exactly at the stops (delta = 0: a touch at zero speed), a hair
@@ -825,8 +867,8 @@ class TestGrazing:
         v_tr = scene.machine('feed_transporter').V_tr
         theta_a = k * timing.T + timing.knife.t_out + scene.sheets.phase + timing.L_feed / v_tr
         tb, tu = scene.drive.t_brake, scene.drive.t_restart
-        t_hold = theta_a - tb / 2 + delta            # braking covers tb/2 of Theta
-        t_unhold = t_hold + tb + 0.25                # stands still for 0.25 s
+        t_hold = theta_a - tb / 2 + delta  # braking covers tb/2 of Theta
+        t_unhold = t_hold + tb + 0.25  # stands still for 0.25 s
         model = LineModel(scene, t_unhold + tu + 0.1, [Command(t_hold, 'hold'), Command(t_unhold, 'unhold')])
         ev = model.events
         stops = ev[ev['kind'] == event_kind('at_stops')]
@@ -877,17 +919,25 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
     has_folder = draw(st.booleans()) or not has_layup
     effects: dict[str, Any] = {}
     if has_layup:
-        lp = {k: v * draw(st.floats(0.7, 1.4)) for k, v in DEFAULTS["layup"].items()}
+        lp = {k: v * draw(st.floats(0.7, 1.4)) for k, v in DEFAULTS['layup'].items()}
         lp['n_kr'] = draw(st.floats(5.0, 120.0))
         lp['v_tr'] = draw(st.floats(0.0, 8.0))
         machines['layup'] = lp
-        machines['container'] = {'x_left': draw(st.floats(-2.0, -0.2)), 'x_right': draw(st.floats(0.9, 3.0)),
-                                 'y_floor': draw(st.floats(-3.0, -0.9)), 'bins': draw(st.integers(2, 200))}
+        machines['container'] = {
+            'x_left': draw(st.floats(-2.0, -0.2)),
+            'x_right': draw(st.floats(0.9, 3.0)),
+            'y_floor': draw(st.floats(-3.0, -0.9)),
+            'bins': draw(st.integers(2, 200)),
+        }
         if draw(st.booleans()):
             effects['chute_belts'] = {'v_min': draw(st.floats(0.0, 5.0))}
         elif draw(st.booleans()):
-            effects['guide_friction'] = {'mu': draw(st.floats(0.0, 2.0)), 's0': draw(st.floats(0.0, 0.6)),
-                                         'v0': draw(st.floats(0.0, 5.0)), 'h': draw(st.floats(2e-3, 0.05))}
+            effects['guide_friction'] = {
+                'mu': draw(st.floats(0.0, 2.0)),
+                's0': draw(st.floats(0.0, 0.6)),
+                'v0': draw(st.floats(0.0, 5.0)),
+                'h': draw(st.floats(2e-3, 0.05)),
+            }
         if draw(st.booleans()):
             effects['leaf_flight'] = {'drag': draw(st.floats(0.0, 10.0))}
         if draw(st.booleans()):
@@ -896,11 +946,16 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
         kd = DEFAULTS['knife']
         r_k = kd['r_k'] * draw(FACTOR)
         e = draw(st.floats(-0.05, 0.05))
-        L_k = (r_k + abs(e)) * draw(st.floats(0.95, 6.0))        # may fail L_k > r_k + |e|
+        L_k = (r_k + abs(e)) * draw(st.floats(0.95, 6.0))  # may fail L_k > r_k + |e|
         lo = math.sqrt(max((L_k - r_k) ** 2 - e * e, 0.0))
         hi = math.sqrt(max((L_k + r_k) ** 2 - e * e, 0.0))
-        machines['knife'] = {'r_k': r_k, 'L_k': L_k, 'e': e, 'n_k': draw(st.floats(2e3, 2e5)),
-                             's_clear': lo + (hi - lo) * draw(st.floats(-0.05, 1.05))}
+        machines['knife'] = {
+            'r_k': r_k,
+            'L_k': L_k,
+            'e': e,
+            'n_k': draw(st.floats(2e3, 2e5)),
+            's_clear': lo + (hi - lo) * draw(st.floats(-0.05, 1.05)),
+        }
         cy = {k: v * draw(FACTOR) for k, v in DEFAULTS['cyclogram'].items() if k not in ('reserve', 'dwell_frac')}
         cy['reserve'] = draw(st.floats(0.0, 0.99))
         cy['dwell_frac'] = draw(st.floats(0.0, 0.99))
@@ -908,42 +963,79 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
         machines['feed_transporter'] = {'V_tr': draw(st.floats(0.5, 40.0))}
         if draw(st.booleans()):
             dd = dict(DEFAULTS['delivery'])
-            dd.update({'Lambda': draw(st.floats(0.05, 3.0)), 'alpha_m_deg': draw(st.floats(1.0, 89.999)),
-                       'law': draw(st.sampled_from(dlv.law_names()))})
+            dd.update(
+                {
+                    'Lambda': draw(st.floats(0.05, 3.0)),
+                    'alpha_m_deg': draw(st.floats(1.0, 89.999)),
+                    'law': draw(st.sampled_from(dlv.law_names())),
+                }
+            )
             for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
                 dd[key] = draw(st.floats(0.0, 0.4))
             machines['delivery'] = dd
-            machines['delivery_chain'] = {'x_max': draw(st.floats(0.05, 1.0)), 'pitch': draw(st.floats(0.2, 3.0)),
-                                          'L_transfer': draw(st.floats(0.0, 2.0))}
+            machines['delivery_chain'] = {
+                'x_max': draw(st.floats(0.05, 1.0)),
+                'pitch': draw(st.floats(0.2, 3.0)),
+                'L_transfer': draw(st.floats(0.0, 2.0)),
+            }
             if draw(st.booleans()):
-                effects['chain_friction'] = {'P_k': draw(st.floats(0.0, 100.0)), 'r': draw(st.floats(0.01, 0.5)),
-                                             'return_section': draw(st.sampled_from(dlv.RETURN_SECTIONS))}
+                effects['chain_friction'] = {
+                    'P_k': draw(st.floats(0.0, 100.0)),
+                    'r': draw(st.floats(0.01, 0.5)),
+                    'return_section': draw(st.sampled_from(dlv.RETURN_SECTIONS)),
+                }
         if draw(st.booleans()):
-            effects['stop_bounce'] = {'e': draw(st.floats(0.0, 0.95)), 'a_f': draw(st.floats(10.0, 2000.0)),
-                                      'tolerance': draw(st.floats(1e-4, 0.01)), 'v_rest': draw(st.floats(0.01, 1.0))}
+            effects['stop_bounce'] = {
+                'e': draw(st.floats(0.0, 0.95)),
+                'a_f': draw(st.floats(10.0, 2000.0)),
+                'tolerance': draw(st.floats(1e-4, 0.01)),
+                'v_rest': draw(st.floats(0.01, 1.0)),
+            }
         if draw(st.booleans()):
-            effects['feed_slip'] = {'mu': draw(st.floats(0.05, 2.0)), 'p': draw(st.floats(0.0, 100.0)),
-                                    'm': draw(st.floats(0.005, 0.1))}
+            effects['feed_slip'] = {
+                'mu': draw(st.floats(0.05, 2.0)),
+                'p': draw(st.floats(0.0, 100.0)),
+                'm': draw(st.floats(0.005, 0.1)),
+            }
     if draw(st.booleans()):
-        effects['faults'] = {'p_missing': draw(st.floats(0.0, 1.0)), 'p_double': draw(st.floats(0.0, 1.0)),
-                             'p_late': draw(st.floats(0.0, 1.0)), 'late_delay': draw(st.floats(0.0, 0.05)),
-                             'p_slowdown': draw(st.floats(0.0, 1.0)), 'slowdown_factor': draw(st.floats(0.05, 1.0)),
-                             'slowdown_duration': draw(st.floats(0.0, 0.2))}
+        effects['faults'] = {
+            'p_missing': draw(st.floats(0.0, 1.0)),
+            'p_double': draw(st.floats(0.0, 1.0)),
+            'p_late': draw(st.floats(0.0, 1.0)),
+            'late_delay': draw(st.floats(0.0, 0.05)),
+            'p_slowdown': draw(st.floats(0.0, 1.0)),
+            'slowdown_factor': draw(st.floats(0.05, 1.0)),
+            'slowdown_duration': draw(st.floats(0.0, 0.2)),
+        }
     if draw(st.integers(0, 3)) == 0:
         omega_nom = draw(st.floats(50.0, 200.0))
         effects['motor_dynamics'] = {
-            'J': draw(st.floats(0.05, 5.0)), 'T_0': draw(st.floats(20.0, 2000.0)),
-            'omega_0': omega_nom * draw(st.floats(1.01, 1.5)), 'omega_nom': omega_nom, 'b': draw(st.floats(0.0, 0.1)),
-            'method': draw(st.sampled_from(md.METHODS)), 'h': draw(st.floats(1e-3, 0.05)),
-            'rtol': draw(st.floats(1e-10, 1e-4)), 'atol': draw(st.floats(1e-12, 1e-6)),
-            't_stop': draw(st.sampled_from([1e9, 0.1, 0.0])), 'T_brake': draw(st.floats(0.0, 50.0))}
+            'J': draw(st.floats(0.05, 5.0)),
+            'T_0': draw(st.floats(20.0, 2000.0)),
+            'omega_0': omega_nom * draw(st.floats(1.01, 1.5)),
+            'omega_nom': omega_nom,
+            'b': draw(st.floats(0.0, 0.1)),
+            'method': draw(st.sampled_from(md.METHODS)),
+            'h': draw(st.floats(1e-3, 0.05)),
+            'rtol': draw(st.floats(1e-10, 1e-4)),
+            'atol': draw(st.floats(1e-12, 1e-6)),
+            't_stop': draw(st.sampled_from([1e9, 0.1, 0.0])),
+            'T_brake': draw(st.floats(0.0, 50.0)),
+        }
     profile = draw(st.sampled_from(['constant', 'ramp']))
     return {
-        'name': 'random', 'machines': machines, 'effects': effects,
+        'name': 'random',
+        'machines': machines,
+        'effects': effects,
         'drive': {'profile': profile, 't_ramp': draw(st.floats(0.01, 1.0)), 't_brake': draw(st.floats(0.01, 1.0))},
-        'sheets': {'interval': draw(st.floats(0.02, 0.5)), 'jitter': draw(st.floats(0.0, 0.99)),
-                   'phase': draw(st.floats(0.0, 0.3)), 'thickness': draw(st.floats(1e-5, 0.01))},
-        'seed': draw(st.integers(0, 2 ** 62)), 'sample_rate': draw(st.floats(0.0, 400.0)),
+        'sheets': {
+            'interval': draw(st.floats(0.02, 0.5)),
+            'jitter': draw(st.floats(0.0, 0.99)),
+            'phase': draw(st.floats(0.0, 0.3)),
+            'thickness': draw(st.floats(1e-5, 0.01)),
+        },
+        'seed': draw(st.integers(0, 2**62)),
+        'sample_rate': draw(st.floats(0.0, 400.0)),
     }
 
 
@@ -961,20 +1053,25 @@ def finite_tree(x: Any) -> bool:
 class TestRandomScenes:
     """Bullet 6: random scenes within the documented ranges: finite outputs or a documented error."""
 
-    @settings(max_examples=200, deadline=None, derandomize=True,
-              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    @settings(
+        max_examples=200,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    )
     @given(data=scenes(), commands=st.sampled_from([(), ((0.1, 'hold'), (0.2, 'unhold'))]))
-    def test_random_scene_runs_finite_or_fails_documented(self, data: dict[str, Any],
-                                                          commands: tuple[tuple[float, str], ...]) -> None:
+    def test_random_scene_runs_finite_or_fails_documented(
+        self, data: dict[str, Any], commands: tuple[tuple[float, str], ...]
+    ) -> None:
         try:
             scene = parse_scene(data)
             res = simulate(scene, 0.3, commands=[Command(t, kind) for t, kind in commands])
         except ParameterError as exc:
-            assert exc.key and str(exc).startswith(f'{exc.key}=')        # names the parameter
+            assert exc.key and str(exc).startswith(f'{exc.key}=')  # names the parameter
             return
         except AssemblyError as exc:
             assert exc.mechanism.startswith('layup loop') and math.isfinite(exc.phi)
-            assert str(exc).startswith(exc.mechanism)                     # names the loop and the angle
+            assert str(exc).startswith(exc.mechanism)  # names the loop and the angle
             return
         ev = res.events
         assert np.all(np.isfinite(ev['t'])) and np.all(np.isfinite(ev['value']))

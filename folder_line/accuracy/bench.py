@@ -6,8 +6,9 @@ import importlib
 import platform
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import IO, Sequence
+from typing import IO
 
 from folder_line.accuracy.measure import Row
 from folder_line.errors import ParameterError
@@ -60,8 +61,9 @@ def check_studies(names: Sequence[str] | None) -> tuple[str, ...]:
     return tuple(s for s in STUDIES if s in names)
 
 
-def run_benchmark(quick: bool = False, only: Sequence[str] | None = None,
-                  stream: IO[str] | None = sys.stdout) -> BenchResult:
+def run_benchmark(
+    quick: bool = False, only: Sequence[str] | None = None, stream: IO[str] | None = sys.stdout
+) -> BenchResult:
     """Run the studies (all, or ``only`` those) and return their rows.
 
     Parameters
@@ -90,6 +92,9 @@ def run_benchmark(quick: bool = False, only: Sequence[str] | None = None,
         if stream is not None:
             methods = len({r.method for r in got})
             print(f'{name:>10}: {len(got)} points, {methods} methods, {wall[name]:.1f} s', file=stream, flush=True)
-    machine = {'python': platform.python_version(), 'platform': platform.platform(),
-               'processor': platform.processor() or platform.machine()}
+    machine = {
+        'python': platform.python_version(),
+        'platform': platform.platform(),
+        'processor': platform.processor() or platform.machine(),
+    }
     return BenchResult(tuple(rows), quick, wall, machine)

@@ -176,7 +176,7 @@ BATCH = 'batch'
 _SETTINGS: dict[tuple[str, bool], tuple[float, ...]] = {
     (SAMPLING, False): (100.0, 300.0, 1e3, 3e3, 1e4, 3e4, 1e5),
     (SAMPLING, True): (100.0, 1e3, 1e4, 1e5),
-    (ROOT, False): tuple(10.0 ** -k for k in range(3, 13)),
+    (ROOT, False): tuple(10.0**-k for k in range(3, 13)),
     (ROOT, True): (1e-3, 1e-6, 1e-9, 1e-12),
     (EXACT, False): (1.0, 4.0, 16.0, 64.0),
     (EXACT, True): (1.0, 8.0, 64.0),
@@ -184,8 +184,10 @@ _SETTINGS: dict[tuple[str, bool], tuple[float, ...]] = {
 _SETTINGS[(INTERP, False)] = _SETTINGS[(SAMPLING, False)]
 _SETTINGS[(INTERP, True)] = _SETTINGS[(SAMPLING, True)]
 
-REFERENCE = (f'mpmath.findroot at {DPS} digits on the same g; checked: g(t_ref) = 0, the core event table '
-             'to 1e-12 s, closed form (sqrt / Lambert W) to 1e-25 s')
+REFERENCE = (
+    f'mpmath.findroot at {DPS} digits on the same g; checked: g(t_ref) = 0, the core event table '
+    'to 1e-12 s, closed form (sqrt / Lambert W) to 1e-25 s'
+)
 
 
 def knob_settings(method: str, quick: bool = False) -> tuple[float, ...]:
@@ -289,10 +291,18 @@ def reference_roots(g_mp: Callable[[int, mp.mpf], mp.mpf], t_start: Sequence[flo
     return tuple(out)
 
 
-def build_case(name: str, span: float, ids: IntArray, t_start: FloatArray, t_core: FloatArray,
-               g: Callable[[IntArray, FloatArray], FloatArray], g_scalar: Callable[[int, float], float],
-               g_mp: Callable[[int, mp.mpf], mp.mpf], exact: Callable[[IntArray], FloatArray],
-               closed_form_mp: Callable[[int], mp.mpf]) -> EventCase:
+def build_case(
+    name: str,
+    span: float,
+    ids: IntArray,
+    t_start: FloatArray,
+    t_core: FloatArray,
+    g: Callable[[IntArray, FloatArray], FloatArray],
+    g_scalar: Callable[[int, float], float],
+    g_mp: Callable[[int, mp.mpf], mp.mpf],
+    exact: Callable[[IntArray], FloatArray],
+    closed_form_mp: Callable[[int], mp.mpf],
+) -> EventCase:
     """An :class:`EventCase` with its references computed (:func:`reference_roots`).
 
     ``t_core`` is the core's event time per object (NaN where the event is beyond the span).
@@ -301,9 +311,22 @@ def build_case(name: str, span: float, ids: IntArray, t_start: FloatArray, t_cor
     with mp.workdps(DPS):
         hi = np.array([float(r) for r in ref])
         lo = np.array([float(r - mp.mpf(h)) for r, h in zip(ref, hi.tolist())])
-    return EventCase(name=name, span=float(span), ids=ids, t_start=t_start, expected=np.isfinite(t_core),
-                     t_core=t_core, g=g, g_scalar=g_scalar, g_mp=g_mp, exact=exact, closed_form_mp=closed_form_mp,
-                     ref_mp=ref, ref_hi=hi, ref_lo=lo)
+    return EventCase(
+        name=name,
+        span=float(span),
+        ids=ids,
+        t_start=t_start,
+        expected=np.isfinite(t_core),
+        t_core=t_core,
+        g=g,
+        g_scalar=g_scalar,
+        g_mp=g_mp,
+        exact=exact,
+        closed_form_mp=closed_form_mp,
+        ref_mp=ref,
+        ref_hi=hi,
+        ref_lo=lo,
+    )
 
 
 def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> EventCase:
@@ -363,8 +386,9 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
         theta_a = mp.mpf(th_list[k]) + mp.mpf(L) / mp.mpf(V_tr)
         return mp.sqrt(2 * trm * theta_a) if theta_a < trm / 2 else theta_a + trm / 2
 
-    return build_case('front stops', span, ids, hand['t'].astype(float), t_core, g, g_scalar, g_mp, exact,
-                      closed_form_mp)
+    return build_case(
+        'front stops', span, ids, hand['t'].astype(float), t_core, g, g_scalar, g_mp, exact, closed_form_mp
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -436,8 +460,7 @@ def leaf_landing_case(span: float = SPAN_LAYUP, drag: float = DRAG) -> EventCase
 
     def g_scalar(j: int, t: float) -> float:
         tau = max(t - lists[0][j], 0.0)
-        return y_floor - float(leaf_flight.state(params, lists[1][j], lists[2][j], lists[3][j], lists[4][j],
-                                                 tau)[1])
+        return y_floor - float(leaf_flight.state(params, lists[1][j], lists[2][j], lists[3][j], lists[4][j], tau)[1])
 
     def g_mp(j: int, t: mp.mpf) -> mp.mpf:
         tau = t - mp.mpf(lists[0][j])
@@ -622,8 +645,9 @@ def detect_root(case: EventCase, xtol: float, coarse_rate: float = COARSE_RATE) 
         grid = np.concatenate(p.grids[k])
         if grid.size < 2:
             continue
-        sc = roots.find_sign_changes(lambda x, k=k: case.g_scalar(k, x), grid, values=np.concatenate(p.values[k]),
-                                     xtol=xtol)
+        sc = roots.find_sign_changes(
+            lambda x, k=k: case.g_scalar(k, x), grid, values=np.concatenate(p.values[k]), xtol=xtol
+        )
         evaluations += sc.function_calls
         count[k] = len(sc)
         up = sc.x[sc.direction > 0]
@@ -652,7 +676,7 @@ def detect_exact(case: EventCase, batch: int) -> Detection:
         raise ParameterError('batch', batch, 'must be a whole number >= 1')
     n = case.t_start.size
     idx = np.arange(n, dtype=np.int64)
-    t = np.concatenate([case.exact(idx[i:i + b]) for i in range(0, n, b)]) if n else np.zeros(0)
+    t = np.concatenate([case.exact(idx[i : i + b]) for i in range(0, n, b)]) if n else np.zeros(0)
     inside = t <= case.span
     return Detection(np.where(inside, t, np.nan), inside.astype(np.int64), 0)
 
@@ -691,7 +715,8 @@ def check_counts(case: EventCase, det: Detection, label: str) -> None:
             f'events [{case.name}] {label}: {missed.size} missed (ids {missed[:10].tolist()}), '
             f'{double.size} detected more than once (ids {double[:10].tolist()}), '
             f'{spurious.size} detected but not in the span (ids {spurious[:10].tolist()}), '
-            f'{bad_time.size} without a time (ids {bad_time[:10].tolist()}); {case.n_events} events expected')
+            f'{bad_time.size} without a time (ids {bad_time[:10].tolist()}); {case.n_events} events expected'
+        )
 
 
 def errors(case: EventCase, t: FloatArray) -> FloatArray:
@@ -711,8 +736,9 @@ def max_error(case: EventCase, t: FloatArray) -> float:
 # ------------------------------------------------------------------------------ rows
 
 
-def measure_rows(cases: Sequence[EventCase], quick: bool = False, *, min_s: float = 0.05,
-                 repeats: int = 3) -> list[Row]:
+def measure_rows(
+    cases: Sequence[EventCase], quick: bool = False, *, min_s: float = 0.05, repeats: int = 3
+) -> list[Row]:
     """Rows of every method at every knob setting for the given cases.
 
     Parameters
@@ -741,10 +767,19 @@ def measure_rows(cases: Sequence[EventCase], quick: bool = False, *, min_s: floa
                 det = detect(case, method, value)
                 err = max_error(case, det.t)
                 cpu = cpu_per_call(_timed(case, method, value), min_s=min_s, repeats=repeats)
-                rows.append(Row(study=STUDY, method=f'{method} [{case.name}]', knob=KNOBS[method],
-                                value=float(value), error=err, cpu_s_per_sim_s=cpu / case.span,
-                                quantity=f'event time, {case.name} ({case.n_events} events)', unit='s',
-                                reference=REFERENCE))
+                rows.append(
+                    Row(
+                        study=STUDY,
+                        method=f'{method} [{case.name}]',
+                        knob=KNOBS[method],
+                        value=float(value),
+                        error=err,
+                        cpu_s_per_sim_s=cpu / case.span,
+                        quantity=f'event time, {case.name} ({case.n_events} events)',
+                        unit='s',
+                        reference=REFERENCE,
+                    )
+                )
     return rows
 
 

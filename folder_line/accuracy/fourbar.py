@@ -92,7 +92,7 @@ REFERENCE = 'mpmath 50-digit loop closure of O1-A-B-O2 (residual < 1e-30 m; chec
 _SETTINGS: dict[tuple[str, bool], tuple[float, ...]] = {
     ('batch', False): (1, 10, 100, 1001),
     ('batch', True): (1, 100, 1001),
-    ('rtol', False): tuple(10.0 ** -k for k in range(3, 13)),
+    ('rtol', False): tuple(10.0**-k for k in range(3, 13)),
     ('rtol', True): (1e-3, 1e-6, 1e-9, 1e-12),
 }
 
@@ -164,8 +164,7 @@ def closed_form_psi(params: LayupParams, t: np.ndarray) -> np.ndarray:
     phi = params.omega * t
     ax = params.a + params.R_kr * np.cos(phi)
     ay = params.b + params.R_kr * np.sin(phi)
-    b = circle_intersection(0.0, 0.0, params.O2B, ax, ay, params.l2, 1.0, inputs=phi,
-                            mechanism='four-bar O1-A-B-O2')
+    b = circle_intersection(0.0, 0.0, params.O2B, ax, ay, params.l2, 1.0, inputs=phi, mechanism='four-bar O1-A-B-O2')
     return np.arctan2(b.y, b.x)
 
 
@@ -219,8 +218,15 @@ def solve_ode(params: LayupParams, method: str, rtol: float, t: np.ndarray, psi0
     ndarray
         ψ(t), rad.
     """
-    sol = solve_ivp(user_rhs(params), (float(t[0]), float(t[-1])), [psi0], method=method,
-                    rtol=rtol, atol=ATOL_PER_RTOL * rtol, dense_output=True)
+    sol = solve_ivp(
+        user_rhs(params),
+        (float(t[0]), float(t[-1])),
+        [psi0],
+        method=method,
+        rtol=rtol,
+        atol=ATOL_PER_RTOL * rtol,
+        dense_output=True,
+    )
     if not sol.success:  # pragma: no cover - a smooth 1-D ODE
         raise RuntimeError(f'solve_ivp {method} rtol={rtol:g}: {sol.message}')
     return sol.sol(t)[0]
@@ -232,11 +238,12 @@ def _error(psi: np.ndarray, ref: ReferenceArrays) -> float:
 
 
 def _closed_form_batched(params: LayupParams, t: np.ndarray, batch: int) -> np.ndarray:
-    return np.concatenate([closed_form_psi(params, t[i:i + batch]) for i in range(0, t.size, batch)])
+    return np.concatenate([closed_form_psi(params, t[i : i + batch]) for i in range(0, t.size, batch)])
 
 
-def ratio_at_equal_error(rows: Iterable[Row], method_a: str = CLOSED_FORM, method_b: str = 'solve_ivp DOP853',
-                         error: float | None = None) -> EqualErrorRatio:
+def ratio_at_equal_error(
+    rows: Iterable[Row], method_a: str = CLOSED_FORM, method_b: str = 'solve_ivp DOP853', error: float | None = None
+) -> EqualErrorRatio:
     """CPU of ``method_b`` over ``method_a`` at the same error, log-log interpolated on the Pareto curves.
 
     Parameters

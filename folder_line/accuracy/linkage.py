@@ -103,23 +103,33 @@ POSITION = ('chute angles θ3, θ5', 'rad')
 VELOCITY = ('chute rates ω3, ω5', 'rad/s')
 REFERENCE = 'mpmath 50-digit loop closure (residual < 1e-30 m; checked in test/accuracy/test_linkage.py)'
 
-METHODS = ('closed form', 'closed form, scalar', 'Newton loop closure', 'closed form velocity',
-           'finite difference velocity')
+METHODS = (
+    'closed form',
+    'closed form, scalar',
+    'Newton loop closure',
+    'closed form velocity',
+    'finite difference velocity',
+)
 
 _SETTINGS: dict[tuple[str, bool], tuple[float, ...]] = {
     ('closed form', False): (1, 16, 64, 256, 1024, 4096, 16384, 65536),
     ('closed form', True): (1, 64, 4096, 65536),
     ('closed form, scalar', False): (1, 16, 256, 4096),
     ('closed form, scalar', True): (1, 64, 4096),
-    ('Newton loop closure', False): tuple(10.0 ** -k for k in range(3, 13)),
+    ('Newton loop closure', False): tuple(10.0**-k for k in range(3, 13)),
     ('Newton loop closure', True): (1e-3, 1e-6, 1e-9, 1e-12),
     ('finite difference velocity', False): tuple(10.0 ** (-k / 2) for k in range(2, 19)),
     ('finite difference velocity', True): (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-7, 1e-9),
 }
 _SETTINGS[('closed form velocity', False)] = _SETTINGS[('closed form', False)]
 _SETTINGS[('closed form velocity', True)] = _SETTINGS[('closed form', True)]
-_KNOB = {'closed form': 'batch', 'closed form, scalar': 'batch', 'Newton loop closure': 'tol',
-         'closed form velocity': 'batch', 'finite difference velocity': 'h'}
+_KNOB = {
+    'closed form': 'batch',
+    'closed form, scalar': 'batch',
+    'Newton loop closure': 'tol',
+    'closed form velocity': 'batch',
+    'finite difference velocity': 'h',
+}
 
 
 def knob_settings(method: str, quick: bool = False) -> tuple[str, tuple[float, ...]]:
@@ -182,12 +192,12 @@ def _wrap(d: np.ndarray) -> np.ndarray:
 
 
 def _pos_error(t3: np.ndarray, t5: np.ndarray, ref: ReferenceArrays, reps: int = 1) -> float:
-    r3, r5 = np.tile(ref.theta3, reps)[:t3.size], np.tile(ref.theta5, reps)[:t5.size]
+    r3, r5 = np.tile(ref.theta3, reps)[: t3.size], np.tile(ref.theta5, reps)[: t5.size]
     return float(max(np.abs(_wrap(t3 - r3)).max(), np.abs(_wrap(t5 - r5)).max()))
 
 
 def _vel_error(w3: np.ndarray, w5: np.ndarray, ref: ReferenceArrays, reps: int = 1) -> float:
-    r3, r5 = np.tile(ref.omega3, reps)[:w3.size], np.tile(ref.omega5, reps)[:w5.size]
+    r3, r5 = np.tile(ref.omega3, reps)[: w3.size], np.tile(ref.omega5, reps)[: w5.size]
     return float(max(np.abs(w3 - r3).max(), np.abs(w5 - r5).max()))
 
 
@@ -234,7 +244,7 @@ def closed_form_errors(model: LayupModel, ref: ReferenceArrays, batch: int) -> C
         rad and rad/s.
     """
     phi, reps = _batched_angles(ref.phi, batch)
-    out = [model.arrays(phi[i:i + batch], accelerations=False) for i in range(0, phi.size, batch)]
+    out = [model.arrays(phi[i : i + batch], accelerations=False) for i in range(0, phi.size, batch)]
     t3, t5, w3, w5 = (np.concatenate([getattr(s, k) for s in out]) for k in ('theta3', 'theta5', 'omega3', 'omega5'))
     return ClosedFormErrors(_pos_error(t3, t5, ref, reps), _vel_error(w3, w5, ref, reps))
 

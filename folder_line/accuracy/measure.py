@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 __all__ = ['COLUMNS', 'Row', 'cpu_per_call']
 
@@ -56,8 +56,10 @@ class Row:
             if not (isinstance(v, (int, float)) and math.isfinite(v)):
                 raise ValueError(f'Row.{name} must be a finite number, got {v!r} ({self.study}/{self.method})')
         if self.error < 0.0 or self.cpu_s_per_sim_s <= 0.0:
-            raise ValueError(f'Row needs error >= 0 and cpu_s_per_sim_s > 0, got {self.error!r}, '
-                             f'{self.cpu_s_per_sim_s!r} ({self.study}/{self.method})')
+            raise ValueError(
+                f'Row needs error >= 0 and cpu_s_per_sim_s > 0, got {self.error!r}, '
+                f'{self.cpu_s_per_sim_s!r} ({self.study}/{self.method})'
+            )
 
     def as_dict(self) -> dict[str, object]:
         """The row as a mapping of :data:`COLUMNS` to values."""

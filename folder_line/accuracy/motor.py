@@ -134,7 +134,7 @@ RK45 = 'solve_ivp RK45'
 DOP853 = 'solve_ivp DOP853'
 METHODS = (RK4, DOPRI5, RK45, DOP853)
 
-_RTOL_FULL = tuple(10.0 ** -k for k in range(3, 13))
+_RTOL_FULL = tuple(10.0**-k for k in range(3, 13))
 _SETTINGS: dict[tuple[bool, bool, str], tuple[float, ...]] = {
     # (chain load, quick, method) -> knob settings
     (False, False, RK4): (0.8, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 3e-3, 1e-3, 1e-4, 1e-5),
@@ -215,6 +215,7 @@ def _scalar_load(scene: Scene) -> Callable[[float], float]:
 
     def torque(theta: float) -> float:
         return torque_piece(theta, (theta, next_break(theta)))
+
     return torque
 
 
@@ -229,15 +230,18 @@ def user_rhs(scene: Scene) -> Callable[[float, FloatArray], FloatArray]:
     p = _params(scene)
     J, T0, w0, b, wn = p.J, p.T_0, p.omega_0, p.b, p.omega_nom
     if not scene.has('chain_friction'):
+
         def rhs_free(t: float, y: FloatArray) -> FloatArray:
             w = y[1]
             return np.array([w / wn, (T0 * (1.0 - w / w0) - b * w) / J])
+
         return rhs_free
     load = _scalar_load(scene)
 
     def rhs(t: float, y: FloatArray) -> FloatArray:
         w = y[1]
         return np.array([w / wn, (T0 * (1.0 - w / w0) - b * w - load(y[0])) / J])
+
     return rhs
 
 
@@ -275,8 +279,15 @@ class ChainReference:
         return self(t)[0]
 
 
-def chain_reference(scene: Scene, duration: float = DURATION, *, rtol: float = REF_RTOL,
-                    atol: float = REF_ATOL, max_step: float = REF_MAX_STEP, method: str = 'DOP853') -> ChainReference:
+def chain_reference(
+    scene: Scene,
+    duration: float = DURATION,
+    *,
+    rtol: float = REF_RTOL,
+    atol: float = REF_ATOL,
+    max_step: float = REF_MAX_STEP,
+    method: str = 'DOP853',
+) -> ChainReference:
     """Start-up with the chain load by ``solve_ivp`` DOP853, piecewise between the load's breaks.
 
     Each piece integrates the smooth torque of that piece (``MasterLoad.torque_piece``) up to
@@ -326,8 +337,9 @@ def chain_reference(scene: Scene, duration: float = DURATION, *, rtol: float = R
 
         hit.terminal = True  # type: ignore[attr-defined]
         hit.direction = 1.0  # type: ignore[attr-defined]
-        res = solve_ivp(rhs, (t, duration), y, method=method, rtol=rtol, atol=atol, max_step=max_step,
-                        dense_output=True, events=hit)
+        res = solve_ivp(
+            rhs, (t, duration), y, method=method, rtol=rtol, atol=atol, max_step=max_step, dense_output=True, events=hit
+        )
         if res.status < 0:
             raise IntegrationError(f'solve_ivp {method}', len(sols), t, max_step, f'chain reference: {res.message}')
         starts.append(t)
@@ -348,15 +360,17 @@ def run_core(scene: Scene, duration: float = DURATION) -> md.MotorDrive:
     return md.build_drive(scene, duration, periodic=False)
 
 
-def run_scipy(rhs: Callable[[float, FloatArray], FloatArray], method: str, rtol: float,
-              duration: float = DURATION) -> Any:
+def run_scipy(
+    rhs: Callable[[float, FloatArray], FloatArray], method: str, rtol: float, duration: float = DURATION
+) -> Any:
     """``solve_ivp`` from standstill over ``[0, duration]`` (s) with dense output.
 
     ``atol = ATOL_PER_RTOL rtol``; ``method`` is ``'RK45'`` or ``'DOP853'``. Returns the
     ``OdeSolution`` (``sol(t)`` -> ``(Θ, ω)``); raises :class:`IntegrationError` if it fails.
     """
-    res = solve_ivp(rhs, (0.0, duration), [0.0, 0.0], method=method, rtol=rtol, atol=ATOL_PER_RTOL * rtol,
-                    dense_output=True)
+    res = solve_ivp(
+        rhs, (0.0, duration), [0.0, 0.0], method=method, rtol=rtol, atol=ATOL_PER_RTOL * rtol, dense_output=True
+    )
     if res.status != 0:
         raise IntegrationError(f'solve_ivp {method}', 0, 0.0, math.nan, f'at rtol={rtol!r}: {res.message}')
     return res.sol
@@ -375,6 +389,7 @@ def _runner(chain: bool, method: str, value: float) -> Callable[[], Callable[[Fl
 
         def core() -> Callable[[FloatArray], FloatArray]:
             return run_core(scene).theta
+
         return core
     rhs = user_rhs(make_scene(chain))
     name = 'RK45' if method == RK45 else 'DOP853'
@@ -382,11 +397,13 @@ def _runner(chain: bool, method: str, value: float) -> Callable[[], Callable[[Fl
     def scipy_run() -> Callable[[FloatArray], FloatArray]:
         sol = run_scipy(rhs, name, value)
         return lambda t: sol(t)[0]
+
     return scipy_run
 
 
-def error_of(chain: bool, method: str, value: float,
-             reference: Callable[[FloatArray], FloatArray] | None = None) -> float:
+def error_of(
+    chain: bool, method: str, value: float, reference: Callable[[FloatArray], FloatArray] | None = None
+) -> float:
     """Largest ``|Θ - Θ_ref|`` (nominal s) over the error grid of one method at one knob setting.
 
     ``reference`` maps times (s) to Θ (nominal s); default the closed form without load, the
@@ -407,8 +424,9 @@ def _reference_theta(chain: bool, t: FloatArray) -> FloatArray:
 # ------------------------------------------------------------------------------ run
 
 
-def _measure(fn: Callable[[], Callable[[FloatArray], FloatArray]], t: FloatArray, ref: FloatArray,
-             min_s: float) -> tuple[float, float]:
+def _measure(
+    fn: Callable[[], Callable[[FloatArray], FloatArray]], t: FloatArray, ref: FloatArray, min_s: float
+) -> tuple[float, float]:
     """Error (max over the grid) and CPU seconds of one call; a slow call is timed once."""
     c0 = time.process_time()
     theta = fn()
@@ -437,8 +455,10 @@ def run(quick: bool = False) -> list[Row]:
     for case, chain in CASES.items():
         if chain:
             ref = chain_reference(make_scene(True)).theta(t)
-            reference = (f'solve_ivp DOP853 rtol {REF_RTOL:g}, piecewise between the load breaks; '
-                         'checked against the core DOPRI5 at rtol 1e-13')
+            reference = (
+                f'solve_ivp DOP853 rtol {REF_RTOL:g}, piecewise between the load breaks; '
+                'checked against the core DOPRI5 at rtol 1e-13'
+            )
         else:
             ref = closed_form(_params(make_scene(False)), t)[0]
             reference = 'closed form (expm1); checked against mpmath.odefun at 40 digits'
@@ -446,8 +466,17 @@ def run(quick: bool = False) -> list[Row]:
             knob = 'h' if method == RK4 else 'rtol'
             for value in knob_settings(chain, method, quick):
                 err, cpu = _measure(_runner(chain, method, value), t, ref, min_s)
-                rows.append(Row(study=STUDY, method=f'{method} [{case}]', knob=knob, value=float(value),
-                                error=err, cpu_s_per_sim_s=cpu / DURATION, quantity=f'master phase Θ, {case}',
-                                unit='nominal s', reference=reference))
+                rows.append(
+                    Row(
+                        study=STUDY,
+                        method=f'{method} [{case}]',
+                        knob=knob,
+                        value=float(value),
+                        error=err,
+                        cpu_s_per_sim_s=cpu / DURATION,
+                        quantity=f'master phase Θ, {case}',
+                        unit='nominal s',
+                        reference=reference,
+                    )
+                )
     return rows
-

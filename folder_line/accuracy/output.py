@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from folder_line.accuracy.bench import BenchResult
 from folder_line.accuracy.measure import COLUMNS, Row
@@ -26,9 +27,11 @@ COMPARISONS: tuple[tuple[str, str, str], ...] = (
     ('fourbar', 'closed form (folder_line)', 'solve_ivp RK45'),
     ('fourbar', 'closed form (folder_line)', 'solve_ivp DOP853'),
     ('fourbar', 'closed form (folder_line)', 'solve_ivp LSODA'),
-) + tuple(('motor', f'{a} (folder_line) [{case}]', f'solve_ivp {b} [{case}]')
-          for case in ('start-up, no load', 'with chain load')
-          for a, b in (('DOPRI5', 'RK45'), ('DOPRI5', 'DOP853'), ('RK4', 'DOP853')))
+) + tuple(
+    ('motor', f'{a} (folder_line) [{case}]', f'solve_ivp {b} [{case}]')
+    for case in ('start-up, no load', 'with chain load')
+    for a, b in (('DOPRI5', 'RK45'), ('DOPRI5', 'DOP853'), ('RK4', 'DOP853'))
+)
 
 
 def _g(x: float) -> str:
@@ -51,47 +54,76 @@ def _panels(rows: Sequence[Row]) -> list[tuple[str, str, str]]:
 def comparisons(rows: Sequence[Row]) -> list[EqualErrorRatio]:
     """The :data:`COMPARISONS` whose methods both have rows, measured at equal error."""
     have = {(r.study, r.method) for r in rows}
-    return [equal_error_ratio([r for r in rows if r.study == s], s, a, b)
-            for s, a, b in COMPARISONS if (s, a) in have and (s, b) in have]
+    return [
+        equal_error_ratio([r for r in rows if r.study == s], s, a, b)
+        for s, a, b in COMPARISONS
+        if (s, a) in have and (s, b) in have
+    ]
 
 
 def markdown(result: BenchResult, command: str) -> str:
     """The benchmark as markdown: cheapest settings per target error, ratios at equal error, every row."""
     rows = list(result.rows)
     total = sum(result.wall_s.values())
-    out = [f'# Accuracy against CPU time{" (quick)" if result.quick else ""}', '',
-           (f'`{command}` — {total:.0f} s wall in all; Python {result.machine.get("python", "?")}, '
-            f'{result.machine.get("platform", "?")}.'), '',
-           ('error: largest absolute error over the simulated span against a checked reference; '
-            'CPU: `time.process_time` seconds per simulated second (best of 3 batches).'), '',
-           '## Cheapest measured setting for an error target', '',
-           '| study | quantity | ' + ' | '.join(f'≤ {t:g}' for t in TARGETS) + ' |',
-           '|---|---|' + '---|' * len(TARGETS)]
+    out = [
+        f'# Accuracy against CPU time{" (quick)" if result.quick else ""}',
+        '',
+        (
+            f'`{command}` — {total:.0f} s wall in all; Python {result.machine.get("python", "?")}, '
+            f'{result.machine.get("platform", "?")}.'
+        ),
+        '',
+        (
+            'error: largest absolute error over the simulated span against a checked reference; '
+            'CPU: `time.process_time` seconds per simulated second (best of 3 batches).'
+        ),
+        '',
+        '## Cheapest measured setting for an error target',
+        '',
+        '| study | quantity | ' + ' | '.join(f'≤ {t:g}' for t in TARGETS) + ' |',
+        '|---|---|' + '---|' * len(TARGETS),
+    ]
     for study, quantity, unit in _panels(rows):
         cells = []
         for t in TARGETS:
             ch = cheapest(rows, study, t, quantity=quantity).row
-            cells.append('—' if ch is None else
-                         f'{ch.method}, {ch.knob} = {_g(ch.value)}: {_g(ch.cpu_s_per_sim_s)} s/s')
+            cells.append(
+                '—' if ch is None else f'{ch.method}, {ch.knob} = {_g(ch.value)}: {_g(ch.cpu_s_per_sim_s)} s/s'
+            )
         out.append(f'| {study} | {quantity} ({unit}) | ' + ' | '.join(cells) + ' |')
     ratios = comparisons(rows)
     if ratios:
-        out += ['', '## General-purpose integrator against folder_line, at equal error', '',
-                ('ratio = CPU of the general method / CPU of folder_line\'s at the same error (> 1: folder_line '
-                 'is cheaper); the error is folder_line\'s best, or the general method\'s best if it never '
-                 'gets there.'), '',
-                '| study | folder_line | general | error | CPU folder_line (s/s) | CPU general (s/s) | ratio |',
-                '|---|---|---|---:|---:|---:|---:|']
+        out += [
+            '',
+            '## General-purpose integrator against folder_line, at equal error',
+            '',
+            (
+                "ratio = CPU of the general method / CPU of folder_line's at the same error (> 1: folder_line "
+                "is cheaper); the error is folder_line's best, or the general method's best if it never "
+                'gets there.'
+            ),
+            '',
+            '| study | folder_line | general | error | CPU folder_line (s/s) | CPU general (s/s) | ratio |',
+            '|---|---|---|---:|---:|---:|---:|',
+        ]
         study_of = {(a, b): s for s, a, b in COMPARISONS}
         for q in ratios:
-            mark = '' if q.reached else ' (the general method\'s best)'
-            out.append(f'| {study_of[(q.method_a, q.method_b)]} | {q.method_a} | {q.method_b} | {_g(q.error)}{mark} '
-                       f'| {_g(q.cpu_a)} | {_g(q.cpu_b)} | {q.ratio:.3g} |')
+            mark = '' if q.reached else " (the general method's best)"
+            out.append(
+                f'| {study_of[(q.method_a, q.method_b)]} | {q.method_a} | {q.method_b} | {_g(q.error)}{mark} '
+                f'| {_g(q.cpu_a)} | {_g(q.cpu_b)} | {q.ratio:.3g} |'
+            )
     out += ['', '## Every point', '']
     for (study, method), curve in curves(rows).items():
         r0 = curve[0]
-        out += [f'### {study}: {method}', '', f'{r0.quantity}, error in {r0.unit}; reference: {r0.reference}', '',
-                f'| {r0.knob} | error ({r0.unit}) | CPU s per sim s | on the Pareto front |', '|---:|---:|---:|:---:|']
+        out += [
+            f'### {study}: {method}',
+            '',
+            f'{r0.quantity}, error in {r0.unit}; reference: {r0.reference}',
+            '',
+            f'| {r0.knob} | error ({r0.unit}) | CPU s per sim s | on the Pareto front |',
+            '|---:|---:|---:|:---:|',
+        ]
         front = set(map(id, pareto_front(r for r in rows if r.study == study and r.quantity == r0.quantity)))
         for r in sorted(curve, key=lambda r: r.value):
             out.append(f'| {_g(r.value)} | {_g(r.error)} | {_g(r.cpu_s_per_sim_s)} | {"●" if id(r) in front else ""} |')
@@ -107,9 +139,9 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     Exact results (error 0) are drawn on the panel's floor, a decade below its least
     non-zero error, with an open marker.
     """
-    from folder_line.plots import DPI, pyplot
-
     from matplotlib import ticker
+
+    from folder_line.plots import DPI, pyplot
 
     plt = pyplot()
     panels = _panels(rows)
@@ -129,15 +161,21 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
                 if r.error == 0.0:
                     ax.plot([xi], [yi], marker='o', ms=7, mfc='none', mec=line.get_color())
             for r, xi, yi in ((curve[0], x[0], y[0]), (curve[-1], x[-1], y[-1])):
-                ax.annotate(f'{r.knob}={_g(r.value)}', (xi, yi), fontsize=6, xytext=(3, 3),
-                            textcoords='offset points', color=line.get_color())
+                ax.annotate(
+                    f'{r.knob}={_g(r.value)}',
+                    (xi, yi),
+                    fontsize=6,
+                    xytext=(3, 3),
+                    textcoords='offset points',
+                    color=line.get_color(),
+                )
         ax.set_title(f'{study}: {quantity}', fontsize=10)
         ax.set_xlabel('CPU s per simulated s')
         ax.set_ylabel(f'max error ({unit})')
         ax.grid(True, which='major', alpha=0.3)
         ax.xaxis.set_minor_formatter(ticker.NullFormatter())  # a panel spanning < 1 decade would print them
         ax.legend(fontsize=7, loc='best')
-    for ax in list(axes.flat)[len(panels):]:
+    for ax in list(axes.flat)[len(panels) :]:
         ax.axis('off')
     fig.suptitle('What accuracy costs: error against CPU time (down-left is better)', fontsize=12)
     fig.tight_layout()
@@ -168,8 +206,16 @@ def write_outputs(result: BenchResult, out: Path, command: str) -> list[Path]:
     md = markdown(result, command)
     png = pareto_png(rows)
     record: dict[str, Any] = {
-        'command': command, 'quick': result.quick, 'machine': result.machine, 'wall_s': result.wall_s,
+        'command': command,
+        'quick': result.quick,
+        'machine': result.machine,
+        'wall_s': result.wall_s,
         'comparisons': [vars(q) | {} for q in comparisons(rows)],
-        'rows': [r.as_dict() for r in rows]}
-    return [write_text_atomic(out / 'accuracy.csv', csv_text), write_text_atomic(out / 'accuracy.md', md),
-            write_bytes_atomic(out / 'accuracy.png', png), write_json_atomic(out / 'accuracy.json', record)]
+        'rows': [r.as_dict() for r in rows],
+    }
+    return [
+        write_text_atomic(out / 'accuracy.csv', csv_text),
+        write_text_atomic(out / 'accuracy.md', md),
+        write_bytes_atomic(out / 'accuracy.png', png),
+        write_json_atomic(out / 'accuracy.json', record),
+    ]

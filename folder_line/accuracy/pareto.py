@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
 
 from folder_line.accuracy.measure import Row
 
@@ -41,8 +41,7 @@ class Choice:
 
 def cheapest(rows: Iterable[Row], study: str, target: float, *, quantity: str | None = None) -> Choice:
     """The cheapest measured setting of ``study`` (optionally of one ``quantity``) with error <= ``target``."""
-    ok = [r for r in rows if r.study == study and (quantity is None or r.quantity == quantity)
-          and r.error <= target]
+    ok = [r for r in rows if r.study == study and (quantity is None or r.quantity == quantity) and r.error <= target]
     return Choice(study, target, min(ok, key=lambda r: r.cpu_s_per_sim_s) if ok else None)
 
 
@@ -80,13 +79,15 @@ def _loglog_cost(front: Sequence[Row], error: float) -> float:
             if hi.error == lo.error or hi.error <= 0.0:
                 return hi.cpu_s_per_sim_s
             w = (math.log(lo.error) - math.log(error)) / (math.log(lo.error) - math.log(hi.error))
-            return math.exp(math.log(lo.cpu_s_per_sim_s)
-                            + w * (math.log(hi.cpu_s_per_sim_s) - math.log(lo.cpu_s_per_sim_s)))
+            return math.exp(
+                math.log(lo.cpu_s_per_sim_s) + w * (math.log(hi.cpu_s_per_sim_s) - math.log(lo.cpu_s_per_sim_s))
+            )
     return front[0].cpu_s_per_sim_s  # error above the cheapest point: that point already reaches it
 
 
-def equal_error_ratio(rows: Iterable[Row], study: str, method_a: str, method_b: str,
-                      error: float | None = None) -> EqualErrorRatio:
+def equal_error_ratio(
+    rows: Iterable[Row], study: str, method_a: str, method_b: str, error: float | None = None
+) -> EqualErrorRatio:
     """How much more CPU method ``b`` needs than method ``a`` for the same error.
 
     Parameters

@@ -150,8 +150,9 @@ def knife_model(duration: float) -> LineModel:
     return LineModel(load_scene(SCENE), duration)
 
 
-def knife_stream(model: LineModel, rate: float,
-                 duration: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def knife_stream(
+    model: LineModel, rate: float, duration: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """The knife's JointState stream at ``rate``: what ``crank_drive`` publishes at its tick grid.
 
     Parameters
@@ -182,8 +183,9 @@ def knife_stream(model: LineModel, rate: float,
     return t, np.ascontiguousarray(js.position[:, j]), np.ascontiguousarray(js.velocity[:, j])
 
 
-def reconstruct(method: str, t_k: NDArray[np.float64], p_k: NDArray[np.float64], v_k: NDArray[np.float64],
-                t: NDArray[np.float64]) -> NDArray[np.float64]:
+def reconstruct(
+    method: str, t_k: NDArray[np.float64], p_k: NDArray[np.float64], v_k: NDArray[np.float64], t: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Rebuild a joint's position between the messages of a stream.
 
     Parameters
@@ -221,8 +223,9 @@ def reconstruct(method: str, t_k: NDArray[np.float64], p_k: NDArray[np.float64],
     return h00 * p0 + h01 * p1 + h * (h10 * v_k[i] + h11 * v_k[i + 1])
 
 
-def reconstruction_error(rate: float, method: str, *, duration: float = 2.0, fine_rate: float = FINE_RATE,
-                         model: LineModel | None = None) -> float:
+def reconstruction_error(
+    rate: float, method: str, *, duration: float = 2.0, fine_rate: float = FINE_RATE, model: LineModel | None = None
+) -> float:
     """Largest error of the knife position rebuilt from a stream at ``rate``, m.
 
     Parameters
@@ -328,9 +331,11 @@ def check_published(cost: LiveCost, min_fraction: float = MIN_PUBLISHED) -> None
     short = {n: c for n, c in cost.published.items() if c < min_fraction * owed}
     if short:
         worst = min(short, key=short.__getitem__)
-        msg = (f'publishing at {cost.rate:g} Hz (rtf {cost.rtf:g}, /clock at {cost.clock_rate:g} Hz): '
-               f'{worst} published {short[worst]} of {owed:.0f} ticks ({short[worst] / owed:.1%} < '
-               f'{min_fraction:.0%}) in {cost.span:.3f} s of sim time; the cost of skipped ticks is not measured')
+        msg = (
+            f'publishing at {cost.rate:g} Hz (rtf {cost.rtf:g}, /clock at {cost.clock_rate:g} Hz): '
+            f'{worst} published {short[worst]} of {owed:.0f} ticks ({short[worst] / owed:.1%} < '
+            f'{min_fraction:.0%}) in {cost.span:.3f} s of sim time; the cost of skipped ticks is not measured'
+        )
         raise MeasurementError(msg)
 
 
@@ -350,8 +355,15 @@ def default_rtf(rate: float) -> float:
     return min(RTF_MAX, TICKS_PER_WALL_S / rate)
 
 
-def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None = None, span_ticks: int = 600,
-              warmup_wall: float = 0.5, scene: str = SCENE) -> LiveCost:
+def live_cost(
+    rate: float,
+    *,
+    rtf: float | None = None,
+    clock_rate: float | None = None,
+    span_ticks: int = 600,
+    warmup_wall: float = 0.5,
+    scene: str = SCENE,
+) -> LiveCost:
     """Measure the CPU cost of the in-process live line (with the run's recorder) at ``rate``.
 
     Builds the line as ``folder-line run`` does in-process (:func:`folder_line.run.run_line`):
@@ -409,13 +421,21 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
     mapping = scene_mapping(scene)
     parsed = parse_scene(mapping)
     ctx = rclpy.Context()
-    rclpy.init(args=['--ros-args', '--log-level', 'WARN'], context=ctx,
-               signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    rclpy.init(
+        args=['--ros-args', '--log-level', 'WARN'],
+        context=ctx,
+        signal_handler_options=rclpy.signals.SignalHandlerOptions.NO,
+    )
     executor = events_executor(ctx)
     nodes: list[Any] = []
     with tempfile.TemporaryDirectory(prefix='folder_line_publishing_') as tmp:
-        bag = BagWriter(Path(tmp) / 'bag', scene_source=yaml.safe_dump(mapping, sort_keys=False),
-                        effects=list(parsed.effects), scene_name=parsed.name, topics=LINE_TOPICS)
+        bag = BagWriter(
+            Path(tmp) / 'bag',
+            scene_source=yaml.safe_dump(mapping, sort_keys=False),
+            effects=list(parsed.effects),
+            scene_name=parsed.name,
+            topics=LINE_TOPICS,
+        )
         try:
             recorder = LineRecorder(sink=bag.write_serialized, context=ctx)
             nodes.append(recorder)
@@ -434,11 +454,19 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
                 executor.spin_once(timeout_sec=0.05)
                 sim = recorder.sim_time
                 if start is None and sim >= warmup:
-                    start = (sim, time.process_time(), time.monotonic(),
-                             {n: node.published_joint_states for n, node in joint_nodes.items()})
+                    start = (
+                        sim,
+                        time.process_time(),
+                        time.monotonic(),
+                        {n: node.published_joint_states for n, node in joint_nodes.items()},
+                    )
                 elif start is not None and clock.done.done() and sim >= clock.done.result() / 1e9:
-                    end = (sim, time.process_time(), time.monotonic(),
-                           {n: node.published_joint_states for n, node in joint_nodes.items()})
+                    end = (
+                        sim,
+                        time.process_time(),
+                        time.monotonic(),
+                        {n: node.published_joint_states for n, node in joint_nodes.items()},
+                    )
             state = recorder.state
         finally:
             executor.shutdown()
@@ -447,12 +475,22 @@ def live_cost(rate: float, *, rtf: float | None = None, clock_rate: float | None
                 node.destroy_node()
             ctx.try_shutdown()
     if start is None or end is None or end[0] <= start[0]:
-        msg = (f'the live line at {rate:g} Hz (rtf {rtf:g}) did not reach {duration:.3f} s of sim time '
-               f'within {3.0 * duration / rtf + 30.0:.0f} s of wall time')
+        msg = (
+            f'the live line at {rate:g} Hz (rtf {rtf:g}) did not reach {duration:.3f} s of sim time '
+            f'within {3.0 * duration / rtf + 30.0:.0f} s of wall time'
+        )
         raise MeasurementError(msg)
-    return LiveCost(rate=float(rate), rtf=rtf, clock_rate=clock_rate, t_start=start[0], t_end=end[0],
-                    cpu_s=end[1] - start[1], wall_s=end[2] - start[2],
-                    published={n: end[3][n] - start[3][n] for n in joint_nodes}, supervisor_state=state)
+    return LiveCost(
+        rate=float(rate),
+        rtf=rtf,
+        clock_rate=clock_rate,
+        t_start=start[0],
+        t_end=end[0],
+        cpu_s=end[1] - start[1],
+        wall_s=end[2] - start[2],
+        published={n: end[3][n] - start[3][n] for n in joint_nodes},
+        supervisor_state=state,
+    )
 
 
 # --------------------------------------------------------------------------- study
@@ -526,13 +564,25 @@ def run(quick: bool = False) -> list[Row]:
     rows: list[Row] = []
     for rate in rates:
         cost = measured_cost(rate, span_ticks=span_ticks)
-        reference = (f'core closed form s(omega_k t) on a {FINE_RATE / 1e3:g} kHz grid over {duration:g} s '
-                     f'(checked vs mpmath crank-slider to 1e-12 m); cost: in-process live line with the run '
-                     f'recorder writing the bag, rtf {cost.rtf:g}, {cost.published_fraction:.1%} of '
-                     f'{cost.ticks_owed:.0f} ticks published, supervisor {cost.supervisor_state}')
+        reference = (
+            f'core closed form s(omega_k t) on a {FINE_RATE / 1e3:g} kHz grid over {duration:g} s '
+            f'(checked vs mpmath crank-slider to 1e-12 m); cost: in-process live line with the run '
+            f'recorder writing the bag, rtf {cost.rtf:g}, {cost.published_fraction:.1%} of '
+            f'{cost.ticks_owed:.0f} ticks published, supervisor {cost.supervisor_state}'
+        )
         for method in METHODS:
             err = reconstruction_error(rate, method, duration=duration, model=model)
-            rows.append(Row(study='publishing', method=method, knob='rate', value=float(rate), error=err,
-                            cpu_s_per_sim_s=cost.cpu_s_per_sim_s, quantity='knife position', unit='m',
-                            reference=reference))
+            rows.append(
+                Row(
+                    study='publishing',
+                    method=method,
+                    knob='rate',
+                    value=float(rate),
+                    error=err,
+                    cpu_s_per_sim_s=cost.cpu_s_per_sim_s,
+                    quantity='knife position',
+                    unit='m',
+                    reference=reference,
+                )
+            )
     return rows

@@ -115,8 +115,9 @@ def _newton2(f, x: mp.mpf, y: mp.mpf, what: str, phi: float | mp.mpf) -> tuple[m
         y += dy
         if max(abs(dx), abs(dy)) <= step_tol:
             return x, y
-    raise AssemblyError(f'mpmath reference, {what}', float(phi),
-                        f'Newton did not converge in {_MAX_ITER} steps (a toggle?)')
+    raise AssemblyError(
+        f'mpmath reference, {what}', float(phi), f'Newton did not converge in {_MAX_ITER} steps (a toggle?)'
+    )
 
 
 def _fourbar(phi: float | mp.mpf, P: tuple[mp.mpf, ...], omega: mp.mpf) -> MpFourbar:
@@ -131,8 +132,7 @@ def _fourbar(phi: float | mp.mpf, P: tuple[mp.mpf, ...], omega: mp.mpf) -> MpFou
 
     def f(x: mp.mpf, y: mp.mpf) -> tuple[mp.mpf, ...]:
         c2, s2, c3, s3 = mp.cos(x), mp.sin(x), mp.cos(y), mp.sin(y)
-        return (ax + l2 * c2 - p * c3, ay + l2 * s2 - p * s3,
-                -l2 * s2, p * s3, l2 * c2, -p * c3)
+        return (ax + l2 * c2 - p * c3, ay + l2 * s2 - p * s3, -l2 * s2, p * s3, l2 * c2, -p * c3)
 
     t2m, t3m = _newton2(f, mp.mpf(t2), mp.mpf(t3), 'loop O1-A-B-O2', phi)
     # rates: J [θ2', θ3'] = -dA/dt, dA/dt = R ω (-sin φ, cos φ)
@@ -153,8 +153,7 @@ def _sixbar(phi: float | mp.mpf, P: tuple[mp.mpf, ...], omega: mp.mpf) -> MpSixb
 
     def f(x: mp.mpf, y: mp.mpf) -> tuple[mp.mpf, ...]:
         c4, s4, c5, s5 = mp.cos(x), mp.sin(x), mp.cos(y), mp.sin(y)
-        return (cx + l4 * c4 - d0 - l5 * c5, cy + l4 * s4 - l5 * s5,
-                -l4 * s4, l5 * s5, l4 * c4, -l5 * c5)
+        return (cx + l4 * c4 - d0 - l5 * c5, cy + l4 * s4 - l5 * s5, -l4 * s4, l5 * s5, l4 * c4, -l5 * c5)
 
     t4m, t5m = _newton2(f, mp.mpf(t4), mp.mpf(t5), 'loop O2-C-E-O3', phi)
     # rates: J2 [θ4', θ5'] = -dC/dt, dC/dt = l3 θ3' (-sin θ3, cos θ3)
@@ -239,10 +238,12 @@ def loop_residuals_mp(params: LayupParams, sol: MpSixbar) -> tuple[mp.mpf, mp.mp
         one = sol.loop1
         ph = one.phi
         e = [(mp.cos(t), mp.sin(t)) for t in (one.theta2, one.theta3, sol.theta4, sol.theta5)]
-        return (a + R * mp.cos(ph) + l2 * e[0][0] - p * e[1][0],
-                b + R * mp.sin(ph) + l2 * e[0][1] - p * e[1][1],
-                l3 * e[1][0] + l4 * e[2][0] - d0 - l5 * e[3][0],
-                l3 * e[1][1] + l4 * e[2][1] - l5 * e[3][1])
+        return (
+            a + R * mp.cos(ph) + l2 * e[0][0] - p * e[1][0],
+            b + R * mp.sin(ph) + l2 * e[0][1] - p * e[1][1],
+            l3 * e[1][0] + l4 * e[2][0] - d0 - l5 * e[3][0],
+            l3 * e[1][1] + l4 * e[2][1] - l5 * e[3][1],
+        )
 
 
 def _wrap(t: mp.mpf) -> float:
@@ -300,8 +301,9 @@ def _reference(params: LayupParams, phi: npt.ArrayLike, omega: float | None, six
     return res
 
 
-def sixbar_reference(params: LayupParams, phi: npt.ArrayLike | Sequence[float],
-                     omega: float | None = None) -> ReferenceArrays:
+def sixbar_reference(
+    params: LayupParams, phi: npt.ArrayLike | Sequence[float], omega: float | None = None
+) -> ReferenceArrays:
     """θ3, θ5, ω3, ω5 of the six-bar at many crank angles (cached per module).
 
     Parameters
@@ -320,8 +322,9 @@ def sixbar_reference(params: LayupParams, phi: npt.ArrayLike | Sequence[float],
     return _reference(params, phi, omega, True)
 
 
-def fourbar_reference(params: LayupParams, phi: npt.ArrayLike | Sequence[float],
-                      omega: float | None = None) -> ReferenceArrays:
+def fourbar_reference(
+    params: LayupParams, phi: npt.ArrayLike | Sequence[float], omega: float | None = None
+) -> ReferenceArrays:
     """θ3 (the rocker O2B of loop O1-A-B-O2) and ω3 at many crank angles (cached per module).
 
     Parameters

@@ -16,8 +16,6 @@ piecewise linear in Θ, so it is evaluated and inverted exactly (``theta_of``, t
 
 from __future__ import annotations
 
-from typing import Optional
-
 import numpy as np
 import numpy.typing as npt
 
@@ -41,8 +39,14 @@ class BeltPhase:
         factors (in (0, 1]); none if omitted or empty.
     """
 
-    def __init__(self, drive: Drive, duration: float, t_start: Optional[npt.ArrayLike] = None,
-                 t_end: Optional[npt.ArrayLike] = None, factor: Optional[npt.ArrayLike] = None) -> None:
+    def __init__(
+        self,
+        drive: Drive,
+        duration: float,
+        t_start: npt.ArrayLike | None = None,
+        t_end: npt.ArrayLike | None = None,
+        factor: npt.ArrayLike | None = None,
+    ) -> None:
         self.drive = drive
         self.duration = float(duration)
         if t_start is None or np.size(t_start) == 0:
@@ -93,5 +97,6 @@ class BeltPhase:
         j = np.searchsorted(self.B_s, b, side='right') - 1
         jc = np.clip(j, 0, None)
         inside = b < self.B_e[jc]
-        return np.where(j < 0, b, np.where(inside, self.th_s[jc] + (b - self.B_s[jc]) / self.f[jc],
-                                           b + self.C[jc] + self.loss[jc]))
+        return np.where(
+            j < 0, b, np.where(inside, self.th_s[jc] + (b - self.B_s[jc]) / self.f[jc], b + self.C[jc] + self.loss[jc])
+        )

@@ -54,8 +54,9 @@ from __future__ import annotations
 import bisect
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -142,8 +143,9 @@ class ChainPath:
         self._s = s
         self._du = du
         # cubic Hermite in tau = (u - u_i)/du_i: s = c0 + c1 tau + c2 tau^2 + c3 tau^3
-        self._c = np.stack([s[:-1], du * g[:-1], 3.0 * ds - 2.0 * du * g[:-1] - du * g[1:],
-                            du * (g[:-1] + g[1:]) - 2.0 * ds])
+        self._c = np.stack(
+            [s[:-1], du * g[:-1], 3.0 * ds - 2.0 * du * g[:-1] - du * g[1:], du * (g[:-1] + g[1:]) - 2.0 * ds]
+        )
         self.length = float(s[-1])
         # plain lists for the scalar path (the ODE right-hand side)
         self._u_list = u.tolist()
@@ -306,8 +308,14 @@ class ChainSchedule:
 @functools.lru_cache(maxsize=32)
 def _schedule(delivery: DeliveryParams, chain: ChainParams, knife: knife_mod.KnifeParams) -> ChainSchedule:
     T = 2.0 * math.pi / knife.omega_k  # as folder_line.core.cyclogram.cycle_timing, bit for bit
-    return ChainSchedule(T=T, pitch=chain.pitch, v_A=chain.pitch / T, L_transfer=chain.L_transfer,
-                         S=_path(delivery, chain).length, theta_pick0=T + knife_mod.window(knife).t_out)
+    return ChainSchedule(
+        T=T,
+        pitch=chain.pitch,
+        v_A=chain.pitch / T,
+        L_transfer=chain.L_transfer,
+        S=_path(delivery, chain).length,
+        theta_pick0=T + knife_mod.window(knife).t_out,
+    )
 
 
 def schedule(scene: Any) -> ChainSchedule:

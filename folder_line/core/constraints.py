@@ -61,8 +61,16 @@ from folder_line.core.cyclogram import CycleTiming
 from folder_line.core.drive import Drive
 from folder_line.core.events import ConstraintSeries, event_kind
 
-__all__ = ['FOLDER_CONSTRAINTS', 'LAYUP_CONSTRAINTS', 'RELEASE_KV_TOL', 'FolderEvaluation', 'chute_speed_series',
-           'evaluate_folder_constraints', 'evaluate_layup_constraints', 'folder_evaluation']
+__all__ = [
+    'FOLDER_CONSTRAINTS',
+    'LAYUP_CONSTRAINTS',
+    'RELEASE_KV_TOL',
+    'FolderEvaluation',
+    'chute_speed_series',
+    'evaluate_folder_constraints',
+    'evaluate_layup_constraints',
+    'folder_evaluation',
+]
 
 #: names of the constraints :func:`evaluate_folder_constraints` may return, in order
 FOLDER_CONSTRAINTS = ('feed_window', 'settled_before_knife', 'one_per_cycle', 'rebound', 'release_at_min_speed')
@@ -76,8 +84,9 @@ def _rows(events: np.ndarray, kind: str) -> np.ndarray:
     return events[events['kind'] == event_kind(kind)]
 
 
-def _lookup(keys: np.ndarray, values: np.ndarray, query: np.ndarray,
-            reduce: str = 'first') -> tuple[np.ndarray, np.ndarray]:
+def _lookup(
+    keys: np.ndarray, values: np.ndarray, query: np.ndarray, reduce: str = 'first'
+) -> tuple[np.ndarray, np.ndarray]:
     """values[keys == q] for each q: (value, found). ``reduce``: 'first' (first row in table order) or 'max'."""
     out = np.zeros(query.size)
     found = np.zeros(query.size, dtype=bool)
@@ -136,8 +145,15 @@ class FolderEvaluation:
     t: np.ndarray
 
 
-def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: Any, drive: Drive | None = None,
-                                *, plan: Any = None, causal: bool = False) -> list[ConstraintSeries]:
+def evaluate_folder_constraints(
+    events: np.ndarray,
+    timing: CycleTiming,
+    scene: Any,
+    drive: Drive | None = None,
+    *,
+    plan: Any = None,
+    causal: bool = False,
+) -> list[ConstraintSeries]:
     """Per-cycle margins of the folder's (and delivery's) constraints.
 
     ``folder_evaluation(...).constraints`` (:func:`folder_evaluation`).
@@ -145,8 +161,15 @@ def evaluate_folder_constraints(events: np.ndarray, timing: CycleTiming, scene: 
     return folder_evaluation(events, timing, scene, drive, plan=plan, causal=causal).constraints
 
 
-def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive: Drive | None = None,
-                      *, plan: Any = None, causal: bool = False) -> FolderEvaluation:
+def folder_evaluation(
+    events: np.ndarray,
+    timing: CycleTiming,
+    scene: Any,
+    drive: Drive | None = None,
+    *,
+    plan: Any = None,
+    causal: bool = False,
+) -> FolderEvaluation:
     """Per-cycle margins of the folder's (and delivery's) constraints, with the signature counts.
 
     Parameters
@@ -217,8 +240,16 @@ def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive
     else:
         margin = np.zeros(0)
     c, m = _per_cycle_min(cyc, margin)
-    out.append(ConstraintSeries('feed_window', 's', c, m, 'feed done within t_allowed of the knife exit: '
-                                '(window start + t_allowed) - t_at_stops', t=_contact_time(cc, tc, c)))
+    out.append(
+        ConstraintSeries(
+            'feed_window',
+            's',
+            c,
+            m,
+            'feed done within t_allowed of the knife exit: (window start + t_allowed) - t_at_stops',
+            t=_contact_time(cc, tc, c),
+        )
+    )
 
     # settled_before_knife
     bouncing = scene.has('stop_bounce')
@@ -231,18 +262,32 @@ def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive
         t_set, is_set = t_stop, at_stops
     margin = np.where(is_set, t_contact - t_set, late_bound)
     c, m = _per_cycle_min(cyc, margin)
-    out.append(ConstraintSeries('settled_before_knife', 's', c, m,
-                                'signature at rest at the front stops before the knife contact: t_contact - t_settled',
-                                t=_contact_time(cc, tc, c)))
+    out.append(
+        ConstraintSeries(
+            'settled_before_knife',
+            's',
+            c,
+            m,
+            'signature at rest at the front stops before the knife contact: t_contact - t_settled',
+            t=_contact_time(cc, tc, c),
+        )
+    )
 
     # one_per_cycle
     in_time = at_stops & (t_stop <= t_contact)
     counts = np.zeros(cc.size, dtype=np.int64)
     if sheet.size:
         np.add.at(counts, ic[in_time], 1)
-    out.append(ConstraintSeries('one_per_cycle', 'sheets', cc.astype(np.int64),
-                                0.0 - np.abs(counts - 1).astype(float),
-                                'exactly one signature at the stops at the knife contact: -|count - 1|', t=tc.copy()))
+    out.append(
+        ConstraintSeries(
+            'one_per_cycle',
+            'sheets',
+            cc.astype(np.int64),
+            0.0 - np.abs(counts - 1).astype(float),
+            'exactly one signature at the stops at the knife contact: -|count - 1|',
+            t=tc.copy(),
+        )
+    )
 
     # rebound
     if bouncing:
@@ -253,9 +298,16 @@ def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive
             bounce = bounce[known & (bounce['t'] <= t_cut)]
         rb, _ = _lookup(bounce['sheet'], bounce['value'], sheet, reduce='max')
         c, m = _per_cycle_min(cyc[at_stops], tol - rb[at_stops])
-        out.append(ConstraintSeries('rebound', 'm', c, m,
-                                    'first rebound off the stops within the fold tolerance: tolerance - rebound',
-                                    t=_contact_time(cc, tc, c)))
+        out.append(
+            ConstraintSeries(
+                'rebound',
+                'm',
+                c,
+                m,
+                'first rebound off the stops within the fold tolerance: tolerance - rebound',
+                t=_contact_time(cc, tc, c),
+            )
+        )
 
     # release_at_min_speed
     if 'delivery' in scene.machines:
@@ -275,8 +327,16 @@ def folder_evaluation(events: np.ndarray, timing: CycleTiming, scene: Any, drive
             t_rel = rel['t'][first_rel][np.searchsorted(uc, c)]
         else:
             c, m, t_rel = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        out.append(ConstraintSeries('release_at_min_speed', '1', c, m,
-                                    'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)', t=t_rel))
+        out.append(
+            ConstraintSeries(
+                'release_at_min_speed',
+                '1',
+                c,
+                m,
+                'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)',
+                t=t_rel,
+            )
+        )
     return FolderEvaluation(constraints=out, cycle=cc.astype(np.int64), signatures=counts, t=tc.copy())
 
 
@@ -313,9 +373,14 @@ def chute_speed_series(scene: Any, leaf: np.ndarray, t_exit: np.ndarray, speed: 
         dp = scene.effect('leaf_damage')
         upper = effect_module('leaf_damage').upper_margin(dp, speed)
         desc += f' and < v_damage = {dp.v_damage:g} m/s'
-    return ConstraintSeries('chute_speed', 'm/s', np.asarray(leaf, dtype=np.int64),
-                            belts.speed_margin(bp, speed, upper), desc + ' (per leaf)',
-                            t=np.asarray(t_exit, dtype=float))
+    return ConstraintSeries(
+        'chute_speed',
+        'm/s',
+        np.asarray(leaf, dtype=np.int64),
+        belts.speed_margin(bp, speed, upper),
+        desc + ' (per leaf)',
+        t=np.asarray(t_exit, dtype=float),
+    )
 
 
 def evaluate_layup_constraints(events: np.ndarray, scene: Any) -> list[ConstraintSeries]:

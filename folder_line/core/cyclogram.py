@@ -316,9 +316,12 @@ def cycle_timing(params: CyclogramParams, knife: KnifeParams) -> CycleTiming:
     t_dwell = params.dwell_frac * T
     t_fw = T - kw.duration - t_dwell
     if not t_fw > 0.0:
-        raise ParameterError('cyclogram.dwell_frac', params.dwell_frac,
-                             f'the knife window {kw.duration!r} s plus the dwell {t_dwell!r} s fill the whole '
-                             f'cycle T = {T!r} s: no time is left to feed the signature')
+        raise ParameterError(
+            'cyclogram.dwell_frac',
+            params.dwell_frac,
+            f'the knife window {kw.duration!r} s plus the dwell {t_dwell!r} s fill the whole '
+            f'cycle T = {T!r} s: no time is left to feed the signature',
+        )
     t_allowed = (1.0 - params.reserve) * t_fw
     V_min = params.L_feed / t_allowed
     L_c = V_d * T
@@ -326,10 +329,24 @@ def cycle_timing(params: CyclogramParams, knife: KnifeParams) -> CycleTiming:
     marks = (('knife', t0, kw.t_out), ('feed', kw.t_out, t0 + T - t_dwell), ('dwell', t0 + T - t_dwell, t0 + T))
     timeline = tuple(Phase(n, a, b, w_k * a, w_k * b, b - a) for n, a, b in marks)
     return CycleTiming(
-        omega_c=params.omega_c, V_d=V_d, omega_k=w_k, T=T, speed_ratio=knife.n_k / params.n_c,
-        L_c=L_c, L_a=params.L_a, L_c_error=L_c - params.L_a, knife=kw, t_knife=kw.duration,
-        t_dwell=t_dwell, t_fw=t_fw, reserve=params.reserve, t_allowed=t_allowed,
-        L_feed=params.L_feed, V_tr_min=V_min, ratio_min=V_min / V_d, timeline=timeline,
+        omega_c=params.omega_c,
+        V_d=V_d,
+        omega_k=w_k,
+        T=T,
+        speed_ratio=knife.n_k / params.n_c,
+        L_c=L_c,
+        L_a=params.L_a,
+        L_c_error=L_c - params.L_a,
+        knife=kw,
+        t_knife=kw.duration,
+        t_dwell=t_dwell,
+        t_fw=t_fw,
+        reserve=params.reserve,
+        t_allowed=t_allowed,
+        L_feed=params.L_feed,
+        V_tr_min=V_min,
+        ratio_min=V_min / V_d,
+        timeline=timeline,
     )
 
 

@@ -106,8 +106,9 @@ Domain: ``xi`` must lie in [0, 1] and ``u`` in [0, 2]; values outside by at most
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Literal, Union
+from typing import Literal, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -216,10 +217,10 @@ def _harmonic_dpsi(xi: ArrayOrFloat) -> ArrayOrFloat:
 
 #: name -> law; extend with :func:`register_law`
 LAWS: dict[str, ProfileLaw] = {
-    'sinusoidal': ProfileLaw('sinusoidal', _cycloidal_psi, _cycloidal_dpsi,
-                             'cycloidal: psi = xi - sin(2 pi xi)/(2 pi)'),
-    'harmonic': ProfileLaw('harmonic', _harmonic_psi, _harmonic_dpsi,
-                           'harmonic: psi = (1 - cos(pi xi))/2'),
+    'sinusoidal': ProfileLaw(
+        'sinusoidal', _cycloidal_psi, _cycloidal_dpsi, 'cycloidal: psi = xi - sin(2 pi xi)/(2 pi)'
+    ),
+    'harmonic': ProfileLaw('harmonic', _harmonic_psi, _harmonic_dpsi, 'harmonic: psi = (1 - cos(pi xi))/2'),
 }
 
 
@@ -317,9 +318,12 @@ class DeliveryParams:
         values: dict[str, object] = {'Lambda': positive('delivery.Lambda', self.Lambda)}
         a = as_float('delivery.alpha_m_deg', self.alpha_m_deg)
         if a >= 90.0:
-            raise ParameterError('delivery.alpha_m_deg', self.alpha_m_deg,
-                                 'must be < 90: at 90 the rod stands across the carriage guide at the end of '
-                                 'the section and the transporter self-locks by construction')
+            raise ParameterError(
+                'delivery.alpha_m_deg',
+                self.alpha_m_deg,
+                'must be < 90: at 90 the rod stands across the carriage guide at the end of '
+                'the section and the transporter self-locks by construction',
+            )
         if a <= 0.0:
             raise ParameterError('delivery.alpha_m_deg', self.alpha_m_deg, 'must be in (0, 90)')
         values['alpha_m_deg'] = a
@@ -459,8 +463,9 @@ class DeliverySamples:
         ParameterError
             ``P_k`` negative or not finite, ``r`` not positive, or the product overflows.
         """
-        return _scaled_forces((self.p_AB, self.p_ch, self.m_1, self.p_AB_ideal, self.p_ch_ideal,
-                               self.m_1_ideal), P_k, r)
+        return _scaled_forces(
+            (self.p_AB, self.p_ch, self.m_1, self.p_AB_ideal, self.p_ch_ideal, self.m_1_ideal), P_k, r
+        )
 
     def carriage_speed(self, v_A: float) -> FloatArray:
         """Carriage speed ``v_k = K_v v_A``, m/s, for chain speed ``v_A`` (m/s)."""
@@ -522,8 +527,10 @@ class DeliveryPoint:
 
     def forces(self, P_k: float, r: float) -> DeliveryForces:
         """As :meth:`DeliverySamples.forces` (0-d arrays)."""
-        ratios = tuple(np.asarray(v, dtype=float) for v in (self.p_AB, self.p_ch, self.m_1, self.p_AB_ideal,
-                                                            self.p_ch_ideal, self.m_1_ideal))
+        ratios = tuple(
+            np.asarray(v, dtype=float)
+            for v in (self.p_AB, self.p_ch, self.m_1, self.p_AB_ideal, self.p_ch_ideal, self.m_1_ideal)
+        )
         return _scaled_forces(ratios, P_k, r)
 
 
@@ -573,8 +580,7 @@ def _scaled(c: float, g: FloatArray) -> FloatArray:
     return c * g  # may overflow to inf: the caller holds np.errstate(over='ignore')
 
 
-def _kernel(p: DeliveryParams, u: FloatArray, xi: FloatArray, section: Int8Array,
-            sign: FloatArray) -> DeliverySamples:
+def _kernel(p: DeliveryParams, u: FloatArray, xi: FloatArray, section: Int8Array, sign: FloatArray) -> DeliverySamples:
     law = LAWS[p.law]
     psi = np.clip(np.asarray(law.psi(xi), dtype=float), 0.0, 1.0)
     dpsi = np.maximum(np.asarray(law.dpsi(xi), dtype=float), 0.0)
@@ -623,10 +629,26 @@ def _kernel(p: DeliveryParams, u: FloatArray, xi: FloatArray, section: Int8Array
     p_AB_ideal = np.where(ok, 1.0 / c_a_s, 0.0)
     p_ch_ideal = np.where(ok, K_v, 0.0)
     return DeliverySamples(
-        u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, K_v=K_v, k_BA=k_BA,
-        eta_O=np.full(xi.shape, eta_O), eta_A=np.where(ok, eta_A_raw, zero), eta_B=np.where(ok, eta_B_raw, zero),
-        eta=np.where(ok, eta_raw, zero), p_AB=p_AB, p_ch=p_ch, m_1=m_1, p_AB_ideal=p_AB_ideal,
-        p_ch_ideal=p_ch_ideal, m_1_ideal=p_ch_ideal.copy(), state=state,
+        u=u,
+        xi=xi,
+        section=section,
+        psi=psi,
+        dpsi=dpsi,
+        alpha=alpha,
+        beta=beta,
+        K_v=K_v,
+        k_BA=k_BA,
+        eta_O=np.full(xi.shape, eta_O),
+        eta_A=np.where(ok, eta_A_raw, zero),
+        eta_B=np.where(ok, eta_B_raw, zero),
+        eta=np.where(ok, eta_raw, zero),
+        p_AB=p_AB,
+        p_ch=p_ch,
+        m_1=m_1,
+        p_AB_ideal=p_AB_ideal,
+        p_ch_ideal=p_ch_ideal,
+        m_1_ideal=p_ch_ideal.copy(),
+        state=state,
     )
 
 
@@ -650,8 +672,9 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     c_a = math.sqrt((1.0 - s_a) * (1.0 + s_a))
     s_b, c_b = math.sin(beta), math.cos(beta)
     eta_O = 1.0 / (1.0 + p.f_O * p.r_O)
-    zeros = dict(eta_A=0.0, eta_B=0.0, eta=0.0, p_AB=0.0, p_ch=0.0, m_1=0.0, p_AB_ideal=0.0,
-                 p_ch_ideal=0.0, m_1_ideal=0.0)
+    zeros = dict(
+        eta_A=0.0, eta_B=0.0, eta=0.0, p_AB=0.0, p_ch=0.0, m_1=0.0, p_AB_ideal=0.0, p_ch_ideal=0.0, m_1_ideal=0.0
+    )
     common = dict(u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, eta_O=eta_O)
     if c_a <= COS_ALPHA_TOL:
         return DeliveryPoint(**common, K_v=0.0, k_BA=0.0, state=STATE_SELF_LOCKING, **zeros)
@@ -672,9 +695,21 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
         return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, state=STATE_SELF_LOCKING, **zeros)
     p_AB = 1.0 / (c_a * eta_B)
     p_ch = p_AB * (c_ab + _scaled1(p.f_Ap, s_ab) + _scaled1(fr_A, abs_s_b / c_a))
-    return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, eta_A=eta_A, eta_B=eta_B, eta=eta, p_AB=p_AB,
-                         p_ch=p_ch, m_1=p_ch * (1.0 + fr_O), p_AB_ideal=1.0 / c_a, p_ch_ideal=K_v,
-                         m_1_ideal=K_v, state=STATE_OK)
+    return DeliveryPoint(
+        **common,
+        K_v=K_v,
+        k_BA=k_BA,
+        eta_A=eta_A,
+        eta_B=eta_B,
+        eta=eta,
+        p_AB=p_AB,
+        p_ch=p_ch,
+        m_1=p_ch * (1.0 + fr_O),
+        p_AB_ideal=1.0 / c_a,
+        p_ch_ideal=K_v,
+        m_1_ideal=K_v,
+        state=STATE_OK,
+    )
 
 
 # --------------------------------------------------------------------------- public entry points
@@ -726,8 +761,9 @@ def evaluate_point(params: DeliveryParams, xi: float) -> DeliveryPoint:
     return _point(p, x, x, SECTION_DECELERATION, 1.0)
 
 
-def evaluate_stroke(params: DeliveryParams, u: npt.ArrayLike, *,
-                    return_section: ReturnSection = 'geometric') -> DeliverySamples:
+def evaluate_stroke(
+    params: DeliveryParams, u: npt.ArrayLike, *, return_section: ReturnSection = 'geometric'
+) -> DeliverySamples:
     """The whole delivery stroke: the paper's deceleration then acceleration section.
 
     Parameters
@@ -755,8 +791,9 @@ def evaluate_stroke(params: DeliveryParams, u: npt.ArrayLike, *,
     return _kernel(p, uu, xi, back.astype(np.int8), np.where(back, sign_back, 1.0))
 
 
-def evaluate_stroke_point(params: DeliveryParams, u: float, *,
-                          return_section: ReturnSection = 'geometric') -> DeliveryPoint:
+def evaluate_stroke_point(
+    params: DeliveryParams, u: float, *, return_section: ReturnSection = 'geometric'
+) -> DeliveryPoint:
     """Scalar :func:`evaluate_stroke` for node ticks."""
     p = _check_params(params)
     sign_back = _return_sign(return_section)
@@ -766,8 +803,13 @@ def evaluate_stroke_point(params: DeliveryParams, u: float, *,
     return _point(p, uu, uu, SECTION_DECELERATION, 1.0)
 
 
-def stroke_minimum(params: DeliveryParams, quantity: Literal['K_v', 'eta'] = 'K_v', *,
-                   return_section: ReturnSection = 'geometric', n: int = 4001) -> tuple[float, float]:
+def stroke_minimum(
+    params: DeliveryParams,
+    quantity: Literal['K_v', 'eta'] = 'K_v',
+    *,
+    return_section: ReturnSection = 'geometric',
+    n: int = 4001,
+) -> tuple[float, float]:
     """Where ``K_v`` (or ``eta``) is smallest over the stroke, refined to ~1e-10 in ``u``.
 
     A grid of ``n`` points on [0, 2] brackets the minimum, a golden-section search

@@ -41,8 +41,9 @@ on again instead (:func:`folder_line.core.effects.motor_dynamics.build_drive`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Callable, Iterable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -238,8 +239,11 @@ def check_commands(commands: Iterable[Command]) -> tuple[Command, ...]:
         if not isinstance(c, Command):
             raise ParameterError(f'commands[{i}]', c, 'must be a folder_line.core.drive.Command')
         if i and c.t < out[i - 1].t:
-            raise ParameterError(f'commands[{i}].t', c.t,
-                                 f'commands must be sorted by effective time; the one before is at {out[i - 1].t!r} s')
+            raise ParameterError(
+                f'commands[{i}].t',
+                c.t,
+                f'commands must be sorted by effective time; the one before is at {out[i - 1].t!r} s',
+            )
     return out
 
 
@@ -304,8 +308,12 @@ class PiecewiseLinearDrive:
         n = self.t.size
         if n < 1 or not (self.theta0.size == self.lam0.size == self.acc.size == n):
             raise ValueError('PiecewiseLinearDrive: t, theta, lam and acc need the same length >= 1')
-        if not (np.all(np.isfinite(self.t)) and np.all(np.isfinite(self.theta0)) and np.all(np.isfinite(self.lam0))
-                and np.all(np.isfinite(self.acc))):
+        if not (
+            np.all(np.isfinite(self.t))
+            and np.all(np.isfinite(self.theta0))
+            and np.all(np.isfinite(self.lam0))
+            and np.all(np.isfinite(self.acc))
+        ):
             raise ValueError('PiecewiseLinearDrive: knots must be finite')
         if np.any(np.diff(self.t) <= 0.0) or np.any(np.diff(self.theta0) < 0.0) or np.any(self.lam0 < 0.0):
             raise ValueError('PiecewiseLinearDrive: t must increase, theta must not decrease, lam must be >= 0')
@@ -372,8 +380,9 @@ class SplicedDrive:
         self.t_switch = float(t_switch)
         self.theta_switch = float(np.asarray(tail.theta(np.array(self.t_switch))))
 
-    def _pick(self, f_head: Callable[[np.ndarray], np.ndarray], f_tail: Callable[[np.ndarray], np.ndarray],
-              t: npt.ArrayLike) -> np.ndarray:
+    def _pick(
+        self, f_head: Callable[[np.ndarray], np.ndarray], f_tail: Callable[[np.ndarray], np.ndarray], t: npt.ArrayLike
+    ) -> np.ndarray:
         tt = np.asarray(t, dtype=float)
         ts = self.t_switch
         if tt.size == 1:  # one node tick: one side only
@@ -405,8 +414,15 @@ class SplicedDrive:
         return np.where(head, self.head.time_of(np.minimum(th, ths)), self.tail.time_of(np.maximum(th, ths)))
 
 
-def ramp_generator(t0: float, theta0: float, lam0: float, running: bool, switches: Iterable[tuple[float, bool]],
-                   t_up: float, t_down: float) -> PiecewiseLinearDrive:
+def ramp_generator(
+    t0: float,
+    theta0: float,
+    lam0: float,
+    running: bool,
+    switches: Iterable[tuple[float, bool]],
+    t_up: float,
+    t_down: float,
+) -> PiecewiseLinearDrive:
     """Knots of λ moving towards its target at fixed rates, from a state at ``t0``.
 
     Parameters
@@ -498,6 +514,5 @@ def commanded_drive(spec: DriveSpec, commands: Iterable[Command] = ()) -> Drive:
         return base
     t1 = switches[0][0]
     ta = np.array(t1)
-    tail = ramp_generator(t1, float(base.theta(ta)), float(base.rate(ta)), True, switches, spec.t_restart,
-                          spec.t_brake)
+    tail = ramp_generator(t1, float(base.theta(ta)), float(base.rate(ta)), True, switches, spec.t_restart, spec.t_brake)
     return SplicedDrive(base, tail, t1)

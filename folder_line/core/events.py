@@ -6,8 +6,9 @@ closed forms or root-finding, never from the sampling grid.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -32,25 +33,25 @@ __all__ = [
 #: and ``leaf_spilled``, the exit speed (m/s) for ``leaf_damaged``, the delay (s)
 #: for ``fault_late``, the speed factor for ``belt_slowdown_start``; 0 otherwise.
 EVENT_KINDS: tuple[str, ...] = (
-    'sheet_handover',       # F: signature taken over by the 2nd (feed) transporter
-    'at_stops',             # F: signature reaches the front stops
-    'bounce',               # F: rebound off the front stops (stop_bounce)
-    'settled',              # F: signature at rest at the front stops
-    'knife_contact',        # F: knife edge reaches the signature (knife window opens)
-    'knife_exit',           # F: knife leaves the table (window closes)
-    'released_on_pile',     # D: carriage releases the sheet onto the pile
-    'leaf_enter',           # L: leaf enters a chute
-    'leaf_exit',            # L: leaf leaves a chute exit
-    'leaf_landed',          # L: leaf lands on the container floor (value: x)
-    'leaf_spilled',         # L: leaf lands outside the container walls (value: x)
-    'leaf_damaged',         # L: leaf left a chute at or above the damage speed
-    'leaf_stick',           # L: leaf sticks on the guide (guide_friction)
-    'leaf_slip',            # L: leaf starts sliding again (guide_friction)
-    'fault_missing',        # faults: a sheet is missing from the stream
-    'fault_double',         # faults: two sheets arrive together
-    'fault_late',           # faults: a sheet is delayed (value: delay, s)
+    'sheet_handover',  # F: signature taken over by the 2nd (feed) transporter
+    'at_stops',  # F: signature reaches the front stops
+    'bounce',  # F: rebound off the front stops (stop_bounce)
+    'settled',  # F: signature at rest at the front stops
+    'knife_contact',  # F: knife edge reaches the signature (knife window opens)
+    'knife_exit',  # F: knife leaves the table (window closes)
+    'released_on_pile',  # D: carriage releases the sheet onto the pile
+    'leaf_enter',  # L: leaf enters a chute
+    'leaf_exit',  # L: leaf leaves a chute exit
+    'leaf_landed',  # L: leaf lands on the container floor (value: x)
+    'leaf_spilled',  # L: leaf lands outside the container walls (value: x)
+    'leaf_damaged',  # L: leaf left a chute at or above the damage speed
+    'leaf_stick',  # L: leaf sticks on the guide (guide_friction)
+    'leaf_slip',  # L: leaf starts sliding again (guide_friction)
+    'fault_missing',  # faults: a sheet is missing from the stream
+    'fault_double',  # faults: two sheets arrive together
+    'fault_late',  # faults: a sheet is delayed (value: delay, s)
     'belt_slowdown_start',  # faults: a belt slows down (value: speed factor)
-    'belt_slowdown_end',    # faults: the belt is back at speed
+    'belt_slowdown_end',  # faults: the belt is back at speed
 )
 
 _KIND_INDEX = {name: i for i, name in enumerate(EVENT_KINDS)}
@@ -74,8 +75,9 @@ def empty_events() -> np.ndarray:
     return np.zeros(0, dtype=EVENT_DTYPE)
 
 
-def make_events(kind: str, t: npt.ArrayLike, *, sheet: npt.ArrayLike = -1, cycle: npt.ArrayLike = -1,
-                value: npt.ArrayLike = 0.0) -> np.ndarray:
+def make_events(
+    kind: str, t: npt.ArrayLike, *, sheet: npt.ArrayLike = -1, cycle: npt.ArrayLike = -1, value: npt.ArrayLike = 0.0
+) -> np.ndarray:
     """Rows of one kind; scalars broadcast against ``t``.
 
     Parameters
@@ -181,8 +183,14 @@ class ConstraintSeries:
         return self.margin < 0.0
 
 
-def stack_samples(machine: str, names: Sequence[str], t: np.ndarray, positions: Sequence[np.ndarray],
-                  velocities: Sequence[np.ndarray], efforts: Sequence[np.ndarray] | None = None) -> JointSamples:
+def stack_samples(
+    machine: str,
+    names: Sequence[str],
+    t: np.ndarray,
+    positions: Sequence[np.ndarray],
+    velocities: Sequence[np.ndarray],
+    efforts: Sequence[np.ndarray] | None = None,
+) -> JointSamples:
     """Build :class:`JointSamples` from per-joint columns."""
     pos = np.column_stack(positions) if positions else np.zeros((t.size, 0))
     vel = np.column_stack(velocities) if velocities else np.zeros((t.size, 0))
@@ -234,8 +242,9 @@ class LinePart:
         samples = self.sample(t) if t.size else {}
         return SubResult(events=self.events, samples=samples, constraints=self.constraints, summary=self.summary)
 
-    def sample(self, t: npt.ArrayLike, theta: np.ndarray | None = None,
-               lam: np.ndarray | None = None) -> dict[str, JointSamples]:
+    def sample(
+        self, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> dict[str, JointSamples]:
         """Joint states of every node of this part at times ``t``.
 
         Parameters
@@ -249,13 +258,15 @@ class LinePart:
         theta, lam = self._drive_state(t, theta, lam)
         return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
 
-    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
-                    lam: np.ndarray | None = None) -> JointSamples:
+    def sample_node(
+        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
         """Joint states of one node at ``t`` (subclass)."""
         raise NotImplementedError
 
-    def _drive_state(self, t: np.ndarray, theta: np.ndarray | None,
-                     lam: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def _drive_state(
+        self, t: np.ndarray, theta: np.ndarray | None, lam: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
         if theta is None:
             theta = np.asarray(self.drive.theta(t), dtype=float)
         if lam is None:

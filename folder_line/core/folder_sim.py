@@ -188,8 +188,17 @@ def delivery_plan(scene: Any, timing: CycleTiming) -> DeliveryPlan | None:
     path = chain.chain_path(scene)
     u_rel, kv_rel = dlv.stroke_minimum(params, 'K_v', return_section='geometric')
     s_rel = float(path.arc(u_rel))
-    return DeliveryPlan(params=params, chain=chain_p, path=path, schedule=sch, rod=params.rod_length(chain_p.x_max),
-                        u_rel=float(u_rel), K_v_rel=float(kv_rel), s_rel=s_rel, travel_rel=chain_p.L_transfer + s_rel)
+    return DeliveryPlan(
+        params=params,
+        chain=chain_p,
+        path=path,
+        schedule=sch,
+        rod=params.rod_length(chain_p.x_max),
+        u_rel=float(u_rel),
+        K_v_rel=float(kv_rel),
+        s_rel=s_rel,
+        travel_rel=chain_p.L_transfer + s_rel,
+    )
 
 
 # --------------------------------------------------------------------------- helpers
@@ -215,12 +224,12 @@ def _json_float(x: float) -> float:
 class _Sheets:
     """Per-signature arrays (only signatures handed over by the end)."""
 
-    sheet: np.ndarray       # ids
-    cycle: np.ndarray       # handover cycle
+    sheet: np.ndarray  # ids
+    cycle: np.ndarray  # handover cycle
     t_h: np.ndarray
-    arrived: np.ndarray     # at the stops by the end
-    t_a: np.ndarray         # valid where arrived
-    v_imp: np.ndarray       # valid where arrived
+    arrived: np.ndarray  # at the stops by the end
+    t_a: np.ndarray  # valid where arrived
+    v_imp: np.ndarray  # valid where arrived
 
 
 # --------------------------------------------------------------------------- simulation
@@ -303,8 +312,11 @@ class FolderLine(LinePart):
         theta_h = theta_h_all[fed]
         ids = np.arange(cyc.size, dtype=np.int64)
         t_h = np.asarray(drive.time_of(theta_h), dtype=float) if cyc.size else np.zeros(0)
-        belt = (BeltPhase(drive, duration) if slowdowns is None
-                else BeltPhase(drive, duration, slowdowns.t_start, slowdowns.t_end, slowdowns.factor))
+        belt = (
+            BeltPhase(drive, duration)
+            if slowdowns is None
+            else BeltPhase(drive, duration, slowdowns.t_start, slowdowns.t_end, slowdowns.factor)
+        )
 
         if faults_p is not None:
             from folder_line.core.effects import faults
@@ -345,8 +357,15 @@ class FolderLine(LinePart):
             t_settled[arr] = sheets.t_a[arr] + sched.settle
             tb = sheets.t_a[arr][sched.index] + sched.dt
             keep = tb <= duration
-            tables.append(make_events('bounce', tb[keep], sheet=ids[arr][sched.index][keep],
-                                      cycle=sheets.cycle[arr][sched.index][keep], value=sched.rebound[keep]))
+            tables.append(
+                make_events(
+                    'bounce',
+                    tb[keep],
+                    sheet=ids[arr][sched.index][keep],
+                    cycle=sheets.cycle[arr][sched.index][keep],
+                    value=sched.rebound[keep],
+                )
+            )
             sk = arr[t_settled[arr] <= duration]
             tables.append(make_events('settled', t_settled[sk], sheet=ids[sk], cycle=sheets.cycle[sk]))
             nominal = float(V_tr)
@@ -375,8 +394,9 @@ class FolderLine(LinePart):
         arrived = sheets.arrived
         tables += [
             make_events('sheet_handover', t_h, sheet=ids, cycle=cyc),
-            make_events('at_stops', sheets.t_a[arrived], sheet=ids[arrived], cycle=cyc[arrived],
-                        value=sheets.v_imp[arrived]),
+            make_events(
+                'at_stops', sheets.t_a[arrived], sheet=ids[arrived], cycle=cyc[arrived], value=sheets.v_imp[arrived]
+            ),
             make_events('knife_contact', t_c, cycle=k_c),
             make_events('knife_exit', t_x, cycle=k_x),
         ]
@@ -412,9 +432,13 @@ class FolderLine(LinePart):
             'v_tr_over_v_d': _json_float(V_tr / V_d),
             'V_tr_min': _json_float(timing.V_tr_min),
             'timing': {
-                'T': _json_float(T), 't_in': _json_float(t_in), 't_out': _json_float(t_out),
-                't_knife': _json_float(timing.t_knife), 't_dwell': _json_float(timing.t_dwell),
-                't_fw': _json_float(timing.t_fw), 't_allowed': _json_float(timing.t_allowed),
+                'T': _json_float(T),
+                't_in': _json_float(t_in),
+                't_out': _json_float(t_out),
+                't_knife': _json_float(timing.t_knife),
+                't_dwell': _json_float(timing.t_dwell),
+                't_fw': _json_float(timing.t_fw),
+                't_allowed': _json_float(timing.t_allowed),
             },
             # nominal speed, no faults: what each part of the cycle leaves over (s)
             'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
@@ -423,8 +447,11 @@ class FolderLine(LinePart):
             from folder_line.core.effects import feed_slip
 
             cost = float(feed_slip.slip_cost(slip, V_d, V_tr, L))
-            info: dict[str, Any] = {'accel': _json_float(slip.accel), 'slip_cost': _json_float(cost),
-                                    'feed_margin_with_slip': _json_float(timing.t_allowed - L / V_tr - cost)}
+            info: dict[str, Any] = {
+                'accel': _json_float(slip.accel),
+                'slip_cost': _json_float(cost),
+                'feed_margin_with_slip': _json_float(timing.t_allowed - L / V_tr - cost),
+            }
             try:
                 info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(slip, V_d, L, timing.t_allowed))
             except ParameterError:
@@ -441,13 +468,20 @@ class FolderLine(LinePart):
             summary['slack']['settled_margin'] = _json_float(rest - settle)
             summary['stop_bounce'] = bounce_info
         if plan is not None:
-            summary['release'] = {'u_rel': _json_float(plan.u_rel), 'K_v': _json_float(plan.K_v_rel),
-                                  'chain_travel': _json_float(plan.travel_rel), 'v_A': _json_float(plan.v_A),
-                                  'carriage_speed': _json_float(plan.K_v_rel * plan.v_A)}
+            summary['release'] = {
+                'u_rel': _json_float(plan.u_rel),
+                'K_v': _json_float(plan.K_v_rel),
+                'chain_travel': _json_float(plan.travel_rel),
+                'v_A': _json_float(plan.v_A),
+                'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
+            }
         if faults_p is not None:
-            summary['faults'] = {'missing': int(np.count_nonzero(missing)), 'double': int(np.count_nonzero(double)),
-                                 'late': int(np.count_nonzero(delay > 0.0)),
-                                 'slowdowns': int(np.asarray(slowdowns.t_start).size) if slowdowns is not None else 0}
+            summary['faults'] = {
+                'missing': int(np.count_nonzero(missing)),
+                'double': int(np.count_nonzero(double)),
+                'late': int(np.count_nonzero(delay > 0.0)),
+                'slowdowns': int(np.asarray(slowdowns.t_start).size) if slowdowns is not None else 0,
+            }
         self.scene = scene
         self.drive = drive
         self.duration = duration
@@ -470,8 +504,9 @@ class FolderLine(LinePart):
 
     # ------------------------------------------------------------------ joint states
 
-    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
-                    lam: np.ndarray | None = None) -> JointSamples:
+    def sample_node(
+        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
         """Joint states of one node (``crank_drive``, ``belt_conveyor``, ``feed_transporter``) at ``t``."""
         t = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(t, theta, lam)
@@ -483,11 +518,23 @@ class FolderLine(LinePart):
             s = knf.position(kp, phi)
             v = knf.velocity(kp, phi) * lam
             zeros = np.zeros(t.size)
-            return stack_samples('crank_drive', ('knife_crank', 'knife'), t, [phi, s], [timing.omega_k * lam, v],
-                                 [zeros, zeros] if wt else None)
+            return stack_samples(
+                'crank_drive',
+                ('knife_crank', 'knife'),
+                t,
+                [phi, s],
+                [timing.omega_k * lam, v],
+                [zeros, zeros] if wt else None,
+            )
         if node == 'belt_conveyor':
-            return stack_samples('belt_conveyor', ('first_transporter',), t, [timing.V_d * theta],
-                                 [timing.V_d * lam], [np.zeros(t.size)] if wt else None)
+            return stack_samples(
+                'belt_conveyor',
+                ('first_transporter',),
+                t,
+                [timing.V_d * theta],
+                [timing.V_d * lam],
+                [np.zeros(t.size)] if wt else None,
+            )
         if node == 'feed_transporter':
             return self._feed_transporter(t, theta, lam)
         raise KeyError(f'node {node!r} has no folder joints; nodes: {", ".join(self.nodes)}')
@@ -529,8 +576,9 @@ class FolderLine(LinePart):
                 eff += [torque, zeros]
         return stack_samples('feed_transporter', tuple(names), t, pos, vel, eff)
 
-    def _sprocket_torque(self, a0: np.ndarray, slack: np.ndarray, on0: np.ndarray, u0: np.ndarray | None,
-                         st0: Any) -> np.ndarray:
+    def _sprocket_torque(
+        self, a0: np.ndarray, slack: np.ndarray, on0: np.ndarray, u0: np.ndarray | None, st0: Any
+    ) -> np.ndarray:
         """:func:`folder_line.core.effects.chain_friction.sprocket_torque` at the same Θ, bit for bit.
 
         The fast path of a node's tick: the same operations in the same order as
@@ -581,8 +629,19 @@ def simulate_folder(scene: Any, drive: Drive, duration: float, t_samples: np.nda
     return FolderLine(scene, drive, duration).result(t_samples)
 
 
-def _feed(drive: Drive, duration: float, belt: BeltPhase, ids: np.ndarray, cyc: np.ndarray, theta_h: np.ndarray,
-          t_h: np.ndarray, V_d: float, V_tr: float, L: float, slip: Any) -> _Sheets:
+def _feed(
+    drive: Drive,
+    duration: float,
+    belt: BeltPhase,
+    ids: np.ndarray,
+    cyc: np.ndarray,
+    theta_h: np.ndarray,
+    t_h: np.ndarray,
+    V_d: float,
+    V_tr: float,
+    L: float,
+    slip: Any,
+) -> _Sheets:
     """Arrival at the stops of every signature handed over (exact, vectorised)."""
     n = ids.size
     arrived = np.zeros(n, dtype=bool)

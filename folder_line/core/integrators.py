@@ -74,8 +74,8 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Optional
 
 import numpy as np
 import numpy.typing as npt
@@ -111,25 +111,29 @@ RK4_SNAP = 1e-6
 
 # Dormand-Prince 5(4), exactly as scipy.integrate._ivp.rk.RK45
 _C = np.array([0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1])
-_A = np.array([
-    [0, 0, 0, 0, 0],
-    [1 / 5, 0, 0, 0, 0],
-    [3 / 40, 9 / 40, 0, 0, 0],
-    [44 / 45, -56 / 15, 32 / 9, 0, 0],
-    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0],
-    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656],
-])
+_A = np.array(
+    [
+        [0, 0, 0, 0, 0],
+        [1 / 5, 0, 0, 0, 0],
+        [3 / 40, 9 / 40, 0, 0, 0],
+        [44 / 45, -56 / 15, 32 / 9, 0, 0],
+        [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0],
+        [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656],
+    ]
+)
 _B = np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
 _E = np.array([-71 / 57600, 0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
-_P = np.array([
-    [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
-    [0, 0, 0, 0],
-    [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
-    [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
-    [0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632],
-    [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
-    [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
-])
+_P = np.array(
+    [
+        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
+        [0, 0, 0, 0],
+        [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
+        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
+        [0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632],
+        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
+    ]
+)
 _ERROR_EXPONENT = -1.0 / 5.0  # error estimator of order 4
 
 
@@ -152,7 +156,7 @@ class Breaks:
 
     component: int
     next_after: Callable[[float], float]
-    on_break: Optional[Callable[[float, FloatArray, float], bool]] = None
+    on_break: Callable[[float, FloatArray, float], bool] | None = None
 
 
 @dataclass(frozen=True)
@@ -184,8 +188,9 @@ def _horner_d(c: FloatArray, x: FloatArray) -> FloatArray:
     return acc
 
 
-def _poly_solve(c: FloatArray, target: FloatArray, x_hi: FloatArray, sign: FloatArray | float = 1.0,
-                x0: FloatArray | None = None) -> FloatArray:
+def _poly_solve(
+    c: FloatArray, target: FloatArray, x_hi: FloatArray, sign: FloatArray | float = 1.0, x0: FloatArray | None = None
+) -> FloatArray:
     """Solve ``p(x) = target`` on ``[0, x_hi]`` for many quartics at once.
 
     ``c`` is (5, q); the bracket is assumed to be ``sign (p(0) - target) < 0 <=
@@ -199,7 +204,7 @@ def _poly_solve(c: FloatArray, target: FloatArray, x_hi: FloatArray, sign: Float
     lo = np.zeros(q)
     hi = x_hi.astype(float).copy()
     x = np.clip(0.5 * hi if x0 is None else x0, 0.0, hi)
-    tol = 2.0 ** -50 * np.maximum(hi, 1e-300)
+    tol = 2.0**-50 * np.maximum(hi, 1e-300)
     active = np.arange(q)
     for _ in range(80):
         if active.size == 0:
@@ -262,18 +267,31 @@ class DenseSolution:
         Largest ``|y_j - b|`` left at a break landing (0 without breaks).
     """
 
-    def __init__(self, t: FloatArray, y: FloatArray, h: FloatArray, coef: FloatArray, *, method: str,
-                 nfev: int = 0, rejected: int = 0, status: str = 'finished',
-                 break_t: FloatArray | None = None, break_value: FloatArray | None = None,
-                 max_landing_error: float = 0.0) -> None:
+    def __init__(
+        self,
+        t: FloatArray,
+        y: FloatArray,
+        h: FloatArray,
+        coef: FloatArray,
+        *,
+        method: str,
+        nfev: int = 0,
+        rejected: int = 0,
+        status: str = 'finished',
+        break_t: FloatArray | None = None,
+        break_value: FloatArray | None = None,
+        max_landing_error: float = 0.0,
+    ) -> None:
         self.t = np.ascontiguousarray(t, dtype=float)
         self.y = np.ascontiguousarray(y, dtype=float)
         self.h = np.ascontiguousarray(h, dtype=float)
         self.coef = np.ascontiguousarray(coef, dtype=float)
         n = self.h.shape[0]
         if n < 1 or self.t.shape != (n + 1,) or self.y.shape[0] != n + 1 or self.coef.shape[:2] != (5, n):
-            msg = (f'inconsistent dense solution: t {self.t.shape}, y {self.y.shape}, h {self.h.shape}, '
-                   f'coef {self.coef.shape}')
+            msg = (
+                f'inconsistent dense solution: t {self.t.shape}, y {self.y.shape}, h {self.h.shape}, '
+                f'coef {self.coef.shape}'
+            )
             raise ValueError(msg)
         self.method = method
         self.nfev = int(nfev)
@@ -359,8 +377,10 @@ class DenseSolution:
         Y = self.y[:, j]
         if np.any(np.diff(Y) < 0.0):
             k = int(np.argmax(np.diff(Y) < 0.0))
-            msg = (f'component {j} is not non-decreasing: it falls from {Y[k]!r} to {Y[k + 1]!r} '
-                   f'at t={self.t[k + 1]!r}; inverse() needs a monotone component')
+            msg = (
+                f'component {j} is not non-decreasing: it falls from {Y[k]!r} to {Y[k + 1]!r} '
+                f'at t={self.t[k + 1]!r}; inverse() needs a monotone component'
+            )
             raise ValueError(msg)
         v = np.asarray(targets, dtype=float)
         flat = v.ravel()
@@ -408,12 +428,18 @@ def concatenate(parts: list[DenseSolution]) -> DenseSolution:
     t = np.concatenate([p.t[:-1] for p in parts] + [parts[-1].t[-1:]])
     y = np.concatenate([p.y[:-1] for p in parts] + [parts[-1].y[-1:]])
     return DenseSolution(
-        t, y, np.concatenate([p.h for p in parts]), np.concatenate([p.coef for p in parts], axis=1),
-        method='+'.join(p.method for p in parts), nfev=sum(p.nfev for p in parts),
-        rejected=sum(p.rejected for p in parts), status=parts[-1].status,
+        t,
+        y,
+        np.concatenate([p.h for p in parts]),
+        np.concatenate([p.coef for p in parts], axis=1),
+        method='+'.join(p.method for p in parts),
+        nfev=sum(p.nfev for p in parts),
+        rejected=sum(p.rejected for p in parts),
+        status=parts[-1].status,
         break_t=np.concatenate([p.break_t for p in parts]),
         break_value=np.concatenate([p.break_value for p in parts]),
-        max_landing_error=max(p.max_landing_error for p in parts))
+        max_landing_error=max(p.max_landing_error for p in parts),
+    )
 
 
 class _Recorder:
@@ -436,13 +462,13 @@ class _Recorder:
         if self.n == self.cap:
             cap = 2 * self.cap
             t = np.empty(cap + 1)
-            t[:self.n + 1] = self.t[:self.n + 1]
+            t[: self.n + 1] = self.t[: self.n + 1]
             y = np.empty((cap + 1, self.y.shape[1]))
-            y[:self.n + 1] = self.y[:self.n + 1]
+            y[: self.n + 1] = self.y[: self.n + 1]
             hh = np.empty(cap)
-            hh[:self.n] = self.h[:self.n]
+            hh[: self.n] = self.h[: self.n]
             c = np.empty((5, cap, self.y.shape[1]))
-            c[:, :self.n] = self.coef[:, :self.n]
+            c[:, : self.n] = self.coef[:, : self.n]
             self.t, self.y, self.h, self.coef, self.cap = t, y, hh, c, cap
         self.h[self.n] = h
         self.coef[:, self.n] = coef
@@ -459,18 +485,27 @@ class _Recorder:
     def build(self, method: str, nfev: int, rejected: int, status: str, landing: float) -> DenseSolution:
         if self.n == 0:
             raise ValueError('no step was taken')
-        return DenseSolution(self.t[:self.n + 1].copy(), self.y[:self.n + 1].copy(), self.h[:self.n].copy(),
-                             self.coef[:, :self.n].copy(), method=method, nfev=nfev, rejected=rejected,
-                             status=status, break_t=np.array(self.break_t), break_value=np.array(self.break_value),
-                             max_landing_error=landing)
+        return DenseSolution(
+            self.t[: self.n + 1].copy(),
+            self.y[: self.n + 1].copy(),
+            self.h[: self.n].copy(),
+            self.coef[:, : self.n].copy(),
+            method=method,
+            nfev=nfev,
+            rejected=rejected,
+            status=status,
+            break_t=np.array(self.break_t),
+            break_value=np.array(self.break_value),
+            max_landing_error=landing,
+        )
 
 
 # --------------------------------------------------------------------------- common setup
 
 
-def _setup(method: str, fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike,
-           breaks: Breaks | None) -> tuple[float, float, FloatArray, Callable[[float, FloatArray, Piece], FloatArray],
-                                           Piece]:
+def _setup(
+    method: str, fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, breaks: Breaks | None
+) -> tuple[float, float, FloatArray, Callable[[float, FloatArray, Piece], FloatArray], Piece]:
     try:
         t0, t1 = (float(v) for v in t_span)
     except (TypeError, ValueError):
@@ -481,8 +516,10 @@ def _setup(method: str, fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike
     if y.size == 0 or not np.all(np.isfinite(y)):
         raise ValueError(f'{method}: y0 must be a non-empty finite vector, got {y0!r}')
     if breaks is None:
+
         def F(t: float, yy: FloatArray, piece: Piece) -> FloatArray:
             return np.asarray(fun(t, yy), dtype=float)
+
         return t0, t1, y, F, (-math.inf, math.inf)
     j = breaks.component
     if not 0 <= j < y.size:
@@ -494,6 +531,7 @@ def _setup(method: str, fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike
 
     def G(t: float, yy: FloatArray, piece: Piece) -> FloatArray:
         return np.asarray(fun(t, yy, piece), dtype=float)
+
     return t0, t1, y, G, (lo, hi)
 
 
@@ -536,13 +574,21 @@ def _quiet(func: Callable[..., DenseSolution]) -> Callable[..., DenseSolution]:
     def wrapper(*args: object, **kwargs: object) -> DenseSolution:
         with np.errstate(all='ignore'):
             return func(*args, **kwargs)
+
     return wrapper
 
 
 @_quiet
-def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
-        breaks: Breaks | None = None, terminal: Terminal | None = None,
-        max_steps: int = 10_000_000) -> DenseSolution:
+def rk4(
+    fun: Fun,
+    t_span: tuple[float, float],
+    y0: npt.ArrayLike,
+    h: float,
+    *,
+    breaks: Breaks | None = None,
+    terminal: Terminal | None = None,
+    max_steps: int = 10_000_000,
+) -> DenseSolution:
     """Classic RK4 with a fixed step and cubic Hermite dense output.
 
     Parameters
@@ -585,11 +631,19 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
     nfev += 1
     if not np.all(np.isfinite(f)):
         raise IntegrationError('rk4', 0, t0, h, f'the right-hand side is not finite at the initial state: {f!r}')
-    if terminal is None and (breaks is None or breaks.on_break is None) \
-            and (t1 - t0) / (h * (1.0 + RK4_SNAP)) > max_steps + 1:
+    if (
+        terminal is None
+        and (breaks is None or breaks.on_break is None)
+        and (t1 - t0) / (h * (1.0 + RK4_SNAP)) > max_steps + 1
+    ):
         # the run cannot end early, so it is bound to exceed max_steps: say so before the first step
-        raise IntegrationError('rk4', 0, t0, h, f'more than max_steps={max_steps} steps '
-                               f'(the span {t_span!r} needs ~{(t1 - t0) / h:.3g} steps of h)')
+        raise IntegrationError(
+            'rk4',
+            0,
+            t0,
+            h,
+            f'more than max_steps={max_steps} steps (the span {t_span!r} needs ~{(t1 - t0) / h:.3g} steps of h)',
+        )
     status = 'finished'
     landing_err = 0.0
     t_piece, k_piece = t0, 0
@@ -603,16 +657,26 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
         k4 = F(t + hh, y + hh * k3, piece)
         y_new = y + (hh / 6.0) * (f + 2.0 * k2 + 2.0 * k3 + k4)
         if not np.isfinite(y_new).all():  # a non-finite stage always reaches y_new (no zero weights)
-            raise IntegrationError('rk4', n, t, hh,
-                                   f'non-finite state {y_new!r} after the step (from y={y!r}): the step is '
-                                   'too large for this problem (RK4 is unstable beyond h |lambda| ~ 2.8 on a '
-                                   'decaying mode); reduce h or use dopri5')
+            raise IntegrationError(
+                'rk4',
+                n,
+                t,
+                hh,
+                f'non-finite state {y_new!r} after the step (from y={y!r}): the step is '
+                'too large for this problem (RK4 is unstable beyond h |lambda| ~ 2.8 on a '
+                'decaying mode); reduce h or use dopri5',
+            )
         return y_new, 3
 
     while t < t1:
         if n >= max_steps:
-            raise IntegrationError('rk4', n, t, h, f'more than max_steps={max_steps} steps '
-                                   f'(the span {t_span!r} needs ~{(t1 - t0) / h:.3g} steps of h)')
+            raise IntegrationError(
+                'rk4',
+                n,
+                t,
+                h,
+                f'more than max_steps={max_steps} steps (the span {t_span!r} needs ~{(t1 - t0) / h:.3g} steps of h)',
+            )
         t_next = t_piece + (k_piece + 1) * h
         if t_next > t1 or t1 - t_next <= RK4_SNAP * h:
             t_next = t1
@@ -628,8 +692,7 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
             tol = _landing_tol(b, float(y[j]))
             if y_new[j] > b + tol:
                 c = _hermite_coef(y, y_new, f, f_new, hh)[:, j].reshape(5, 1)
-                x = _poly_solve(c, np.array([b]), np.array([1.0]), 1.0,
-                                np.array([(b - y[j]) / (y_new[j] - y[j])]))[0]
+                x = _poly_solve(c, np.array([b]), np.array([1.0]), 1.0, np.array([(b - y[j]) / (y_new[j] - y[j])]))[0]
                 h1 = x * hh
                 for _ in range(MAX_LANDING):
                     y1, ne = step(t, y, f, h1, piece)
@@ -649,8 +712,9 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
         rec.add(hh, t_next, y_new, coef)
         n += 1
         if terminal is not None:
-            x = _terminal_root(coef, terminal.component, terminal.value, float(y[terminal.component]),
-                               float(y_new[terminal.component]))
+            x = _terminal_root(
+                coef, terminal.component, terminal.value, float(y[terminal.component]), float(y_new[terminal.component])
+            )
             if x is not None:
                 y_end = _horner(coef.reshape(5, 1, -1), np.array([x]))[0]
                 y_end[terminal.component] = terminal.value
@@ -680,12 +744,20 @@ def rk4(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, h: float, *,
 
 
 def _rms(x: FloatArray) -> float:
-    return float(np.linalg.norm(x) / x.size ** 0.5)
+    return float(np.linalg.norm(x) / x.size**0.5)
 
 
-def _select_initial_step(F: Callable[[float, FloatArray, Piece], FloatArray], t0: float, y0: FloatArray,
-                         t_bound: float, max_step: float, f0: FloatArray, rtol: float, atol: FloatArray | float,
-                         piece: Piece) -> float:
+def _select_initial_step(
+    F: Callable[[float, FloatArray, Piece], FloatArray],
+    t0: float,
+    y0: FloatArray,
+    t_bound: float,
+    max_step: float,
+    f0: FloatArray,
+    rtol: float,
+    atol: FloatArray | float,
+    piece: Piece,
+) -> float:
     """scipy's ``select_initial_step`` (Hairer-Norsett-Wanner II.4), order 4, forward."""
     interval_length = abs(t_bound - t0)
     scale = atol + np.abs(y0) * rtol
@@ -705,9 +777,17 @@ def _select_initial_step(F: Callable[[float, FloatArray, Piece], FloatArray], t0
     return min(100 * h0, h1, interval_length, max_step)
 
 
-def _dopri_step(F: Callable[[float, FloatArray, Piece], FloatArray], t: float, y: FloatArray, f: FloatArray,
-                h: float, piece: Piece, K: FloatArray, rtol: float,
-                atol: FloatArray | float) -> tuple[FloatArray, float]:
+def _dopri_step(
+    F: Callable[[float, FloatArray, Piece], FloatArray],
+    t: float,
+    y: FloatArray,
+    f: FloatArray,
+    h: float,
+    piece: Piece,
+    K: FloatArray,
+    rtol: float,
+    atol: FloatArray | float,
+) -> tuple[FloatArray, float]:
     """One DOPRI5 step (scipy's ``rk_step``); returns the new state and the error norm (inf if non-finite)."""
     K[0] = f
     for s in range(1, 6):
@@ -729,10 +809,19 @@ def _dopri_coef(y: FloatArray, K: FloatArray, h: float) -> FloatArray:
 
 
 @_quiet
-def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: float = 1e-3,
-           atol: float | npt.ArrayLike = 1e-6, max_step: float = math.inf, first_step: float | None = None,
-           breaks: Breaks | None = None, terminal: Terminal | None = None,
-           max_steps: int = 10_000_000) -> DenseSolution:
+def dopri5(
+    fun: Fun,
+    t_span: tuple[float, float],
+    y0: npt.ArrayLike,
+    *,
+    rtol: float = 1e-3,
+    atol: float | npt.ArrayLike = 1e-6,
+    max_step: float = math.inf,
+    first_step: float | None = None,
+    breaks: Breaks | None = None,
+    terminal: Terminal | None = None,
+    max_steps: int = 10_000_000,
+) -> DenseSolution:
     """Adaptive Dormand-Prince 5(4) with scipy RK45's step control and 4th-order dense output.
 
     Parameters
@@ -796,9 +885,15 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
         h_abs = min(h_abs, t_bound - t0)
     if terminal is None and (breaks is None or breaks.on_break is None) and (t_bound - t0) / max_step > max_steps:
         # every step is at most max_step and the run cannot end early: bound to exceed max_steps
-        raise IntegrationError('dopri5', 0, t0, max_step, f'more than max_steps={max_steps} step attempts '
-                               f'(the span {t_span!r} needs at least {(t_bound - t0) / max_step:.3g} steps '
-                               f'of max_step)')
+        raise IntegrationError(
+            'dopri5',
+            0,
+            t0,
+            max_step,
+            f'more than max_steps={max_steps} step attempts '
+            f'(the span {t_span!r} needs at least {(t_bound - t0) / max_step:.3g} steps '
+            f'of max_step)',
+        )
     K = np.empty((7, y.size))
     t = t0
     rejected = 0
@@ -816,9 +911,14 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
         step_rejected = False
         while True:
             if h_abs < min_step:
-                raise IntegrationError('dopri5', rec.n, t, h_abs,
-                                       f'step size fell below the resolvable {min_step!r} after {rejected} '
-                                       'rejections (non-finite right-hand side or extreme stiffness)')
+                raise IntegrationError(
+                    'dopri5',
+                    rec.n,
+                    t,
+                    h_abs,
+                    f'step size fell below the resolvable {min_step!r} after {rejected} '
+                    'rejections (non-finite right-hand side or extreme stiffness)',
+                )
             attempts += 1
             if attempts > max_steps:
                 raise IntegrationError('dopri5', rec.n, t, h_abs, f'more than max_steps={max_steps} step attempts')
@@ -830,12 +930,12 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
             y_new, err = _dopri_step(F, t, y, f, h, piece, K, rtol, atol_v)
             nfev += 6
             if err < 1.0:
-                factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** _ERROR_EXPONENT)
+                factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err**_ERROR_EXPONENT)
                 if step_rejected:
                     factor = min(1.0, factor)
                 h_next = h_abs * factor
                 break
-            h_abs *= max(MIN_FACTOR, SAFETY * err ** _ERROR_EXPONENT) if math.isfinite(err) else MIN_FACTOR
+            h_abs *= max(MIN_FACTOR, SAFETY * err**_ERROR_EXPONENT) if math.isfinite(err) else MIN_FACTOR
             step_rejected = True
             rejected += 1
         crossed = False
@@ -844,8 +944,7 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
             tol = max(_landing_tol(b, float(y[j])), LANDING_FRACTION * (atol_j + rtol * abs(b)))
             if y_new[j] > b + tol:
                 c = _dopri_coef(y, K, h)[:, j].reshape(5, 1)
-                x = _poly_solve(c, np.array([b]), np.array([1.0]), 1.0,
-                                np.array([(b - y[j]) / (y_new[j] - y[j])]))[0]
+                x = _poly_solve(c, np.array([b]), np.array([1.0]), 1.0, np.array([(b - y[j]) / (y_new[j] - y[j])]))[0]
                 h1 = x * h
                 redo_ok = True
                 for _ in range(MAX_LANDING):
@@ -860,8 +959,9 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
                     h1 = min(max(h1 - e / float(K[-1][j]), 0.0), h)
                 if not redo_ok:
                     # the shorter step failed its error test: shrink and try again from t
-                    h_abs = h1 * (max(MIN_FACTOR, SAFETY * err1 ** _ERROR_EXPONENT) if math.isfinite(err1)
-                                  else MIN_FACTOR)
+                    h_abs = h1 * (
+                        max(MIN_FACTOR, SAFETY * err1**_ERROR_EXPONENT) if math.isfinite(err1) else MIN_FACTOR
+                    )
                     rejected += 1
                     continue
                 landing_err = max(landing_err, abs(float(y1[j] - b)))
@@ -873,8 +973,9 @@ def dopri5(fun: Fun, t_span: tuple[float, float], y0: npt.ArrayLike, *, rtol: fl
         coef = _dopri_coef(y, K, h)
         rec.add(h, t_new, y_new, coef)
         if terminal is not None:
-            x = _terminal_root(coef, terminal.component, terminal.value, float(y[terminal.component]),
-                               float(y_new[terminal.component]))
+            x = _terminal_root(
+                coef, terminal.component, terminal.value, float(y[terminal.component]), float(y_new[terminal.component])
+            )
             if x is not None:
                 y_end = _horner(coef.reshape(5, 1, -1), np.array([x]))[0]
                 y_end[terminal.component] = terminal.value

@@ -53,8 +53,8 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from folder_line.core.roots import brent
 from folder_line.core.limits import KNIFE_SPEED
+from folder_line.core.roots import brent
 from folder_line.core.validate import as_float, positive
 from folder_line.errors import ParameterError
 
@@ -124,19 +124,27 @@ class KnifeParams:
         e = as_float('knife.e', self.e)
         n = KNIFE_SPEED.check('knife.n_k', self.n_k)
         s_clear = as_float('knife.s_clear', self.s_clear)
-        if not L > r + abs(e):
-            raise ParameterError('knife.L_k', self.L_k,
-                                 f'must be > r_k + |e| = {r + abs(e)!r} m (r_k={r!r}, e={e!r}), otherwise '
-                                 'the crank-slider cannot be assembled for a full crank turn')
+        if not r + abs(e) < L:
+            raise ParameterError(
+                'knife.L_k',
+                self.L_k,
+                f'must be > r_k + |e| = {r + abs(e)!r} m (r_k={r!r}, e={e!r}), otherwise '
+                'the crank-slider cannot be assembled for a full crank turn',
+            )
         _, s_max, _, s_min = _extremes(r, L, e)
         if not s_clear < s_max:
-            raise ParameterError('knife.s_clear', self.s_clear,
-                                 f'must be < s_max = {s_max!r} m (outer dead centre): the knife would never '
-                                 'occupy the table (or only at one instant)')
+            raise ParameterError(
+                'knife.s_clear',
+                self.s_clear,
+                f'must be < s_max = {s_max!r} m (outer dead centre): the knife would never '
+                'occupy the table (or only at one instant)',
+            )
         if not s_clear > s_min:
-            raise ParameterError('knife.s_clear', self.s_clear,
-                                 f'must be > s_min = {s_min!r} m (inner dead centre): the knife would always '
-                                 'occupy the table')
+            raise ParameterError(
+                'knife.s_clear',
+                self.s_clear,
+                f'must be > s_min = {s_min!r} m (inner dead centre): the knife would always occupy the table',
+            )
         for name, value in (('r_k', r), ('L_k', L), ('e', e), ('n_k', n), ('s_clear', s_clear)):
             object.__setattr__(self, name, value)
 
@@ -260,7 +268,7 @@ def _dds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
     u = r * sn - e
     du = r * cs
     w = xp.sqrt(L * L - u * u)
-    return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w ** 3
+    return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
 
 
 @overload
@@ -343,7 +351,7 @@ def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.floa
     float or ndarray
         ``a``, m/s^2, positive towards the table.
     """
-    w2 = params.omega_k ** 2
+    w2 = params.omega_k**2
     if isinstance(phi, (bool, float, int)):
         return w2 * float(_dds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
     return w2 * _dds(np, params.r_k, params.L_k, params.e, _phi_array(phi))

@@ -52,14 +52,15 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import Callable, NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.loop import TOGGLE_TOL
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
+from folder_line.core.loop import TOGGLE_TOL
 from folder_line.core.validate import as_float, non_negative, positive
 from folder_line.errors import AssemblyError, ParameterError
 
@@ -97,8 +98,9 @@ ASSEMBLY_SAMPLES = 4096
 CHUNK = 16384
 
 
-def classify_fourbar(ground: float, crank: float, coupler: float, rocker: float, *,
-                     rel_tol: float = GRASHOF_REL_TOL) -> str:
+def classify_fourbar(
+    ground: float, crank: float, coupler: float, rocker: float, *, rel_tol: float = GRASHOF_REL_TOL
+) -> str:
     """Grashof class of a planar four-bar, seen from its input link ``crank``.
 
     Parameters
@@ -254,16 +256,17 @@ class LayupParams:
         if kind != 'crank-rocker':
             links = {'R_kr': self.R_kr, '|O1O2|=hypot(a,b)': ground, 'l2': self.l2, 'O2B': self.O2B}
             srt = sorted(links.values())
-            detail = (f'shortest + longest = {srt[0] + srt[3]:.12g} m vs the other two = '
-                      f'{srt[1] + srt[2]:.12g} m')
+            detail = f'shortest + longest = {srt[0] + srt[3]:.12g} m vs the other two = {srt[1] + srt[2]:.12g} m'
             if kind == 'change-point':
                 why = 'is on the Grashof boundary (a change-point linkage that can flip branch)'
             elif kind == 'non-Grashof':
                 why = 'is non-Grashof (a triple rocker: the crank cannot turn fully)'
             else:
                 why = f'is a {kind}'
-            msg = (f'loop O1-A-B-O2 {why}; {detail}; it must be a Grashof crank-rocker '
-                   f'(crank R_kr the shortest link, s + l < p + q)')
+            msg = (
+                f'loop O1-A-B-O2 {why}; {detail}; it must be a Grashof crank-rocker '
+                f'(crank R_kr the shortest link, s + l < p + q)'
+            )
             raise ParameterError('layup.R_kr,a,b,l2,O2B', links, msg)
         check_assembly(self)
 
@@ -333,8 +336,8 @@ class LayupState:
     theta5: np.ndarray
     omega3: np.ndarray
     omega5: np.ndarray
-    eps3: Optional[np.ndarray]
-    eps5: Optional[np.ndarray]
+    eps3: np.ndarray | None
+    eps5: np.ndarray | None
     vC: np.ndarray
     vE: np.ndarray
     vaC: np.ndarray
@@ -343,8 +346,28 @@ class LayupState:
     margin2: np.ndarray
 
 
-_ROWS = ('xA', 'yA', 'xB', 'yB', 'xC', 'yC', 'xE', 'yE', 'theta3', 'theta5', 'omega3', 'omega5',
-         'vC', 'vE', 'vaC', 'vaE', 'margin1', 'margin2', 'eps3', 'eps5')
+_ROWS = (
+    'xA',
+    'yA',
+    'xB',
+    'yB',
+    'xC',
+    'yC',
+    'xE',
+    'yE',
+    'theta3',
+    'theta5',
+    'omega3',
+    'omega5',
+    'vC',
+    'vE',
+    'vaC',
+    'vaE',
+    'margin1',
+    'margin2',
+    'eps3',
+    'eps5',
+)
 
 
 class LayupModel:
@@ -384,11 +407,11 @@ class LayupModel:
         self._vt2 = p.v_tr * p.v_tr
         self._P1 = (p.O2B + p.l2) ** 2
         self._M1 = (p.O2B - p.l2) ** 2
-        self._g1 = 0.5 * (p.O2B ** 2 - p.l2 ** 2)
+        self._g1 = 0.5 * (p.O2B**2 - p.l2**2)
         self._n1 = 1.0 / (2.0 * p.O2B * p.l2)
         self._P2 = (p.l5 + p.l4) ** 2
         self._M2 = (p.l5 - p.l4) ** 2
-        self._g2 = 0.5 * (p.l5 ** 2 - p.l4 ** 2)
+        self._g2 = 0.5 * (p.l5**2 - p.l4**2)
         self._n2 = 1.0 / (2.0 * p.l5 * p.l4)
         self.point = self._make_point()
 
@@ -456,8 +479,20 @@ class LayupModel:
             w5 = 2.0 * w3 * ((wy - cy) * cx - (wx - dx) * cy) / s2
             vc = w3 * l3
             ve = w5 * l5
-            return Point(cx, cy, wx + d0, wy, atan2(by, bx), atan2(wy, wx), w3, w5, vc, ve,
-                         sqrt(vc * vc + vt2), sqrt(ve * ve + vt2))
+            return Point(
+                cx,
+                cy,
+                wx + d0,
+                wy,
+                atan2(by, bx),
+                atan2(wy, wx),
+                w3,
+                w5,
+                vc,
+                ve,
+                sqrt(vc * vc + vt2),
+                sqrt(ve * ve + vt2),
+            )
 
         return point
 
@@ -525,8 +560,9 @@ class LayupModel:
         raise AssemblyError(LOOP2, phi, _disc_reason(d2))
 
     # ------------------------------------------------------------- vectorised path
-    def arrays(self, phi: npt.ArrayLike, *, omega: float | None = None, alpha: float = 0.0,
-               accelerations: bool = True) -> LayupState:
+    def arrays(
+        self, phi: npt.ArrayLike, *, omega: float | None = None, alpha: float = 0.0, accelerations: bool = True
+    ) -> LayupState:
         """Kinematics at many crank angles.
 
         Parameters
@@ -567,8 +603,8 @@ class LayupModel:
             stop = min(start + CHUNK, n)
             ph = flat[start:stop]
             if not (ph.min() >= -_PI and ph.max() <= _PI):
-                ph = _reduce_chunk(ph, scratch[8, :stop - start], mask[:stop - start])
-            self._kernel(ph, out[:, start:stop], scratch[:8, :stop - start], w, flat[start:stop])
+                ph = _reduce_chunk(ph, scratch[8, : stop - start], mask[: stop - start])
+            self._kernel(ph, out[:, start:stop], scratch[:8, : stop - start], w, flat[start:stop])
             if accelerations:
                 self._accel(out[:, start:stop], w, float(alpha))
         rows = {name: out[i].reshape(shape) for i, name in enumerate(_ROWS[:nrows])}
@@ -576,8 +612,7 @@ class LayupModel:
             rows['eps3'] = rows['eps5'] = None
         return LayupState(phi=phi_in, **rows)
 
-    def _kernel(self, ph: np.ndarray, o: np.ndarray, t: np.ndarray, w: float,
-                phi_given: np.ndarray) -> None:
+    def _kernel(self, ph: np.ndarray, o: np.ndarray, t: np.ndarray, w: float, phi_given: np.ndarray) -> None:
         """Positions and velocities for one chunk, in place: 78 ufunc passes and 2 reductions."""
         mul, add, sub, div, sqrt = np.multiply, np.add, np.subtract, np.divide, np.sqrt
         xA, yA, xB, yB, xC, yC, xE, yE, th3, th5, w3, w5, vC, vE, vaC, vaE, mg1, mg2 = o[:18]
@@ -606,11 +641,11 @@ class LayupModel:
             self._fail_array(phi_given, G, 1)
         sqrt(G, out=G)
         mul(G, self._n1, out=mg1)
-        div(1.0, T, out=T)                       # q = 1/d²
+        div(1.0, T, out=T)  # q = 1/d²
         mul(T, self._g1, out=U)
-        add(U, 0.5, out=U)                       # k1
+        add(U, 0.5, out=U)  # k1
         mul(G, T, out=V)
-        mul(V, 0.5, out=V)                       # k2
+        mul(V, 0.5, out=V)  # k2
         mul(U, xA, out=xB)
         mul(V, yA, out=W)
         sub(xB, W, out=xB)
@@ -640,17 +675,17 @@ class LayupModel:
             self._fail_array(phi_given, V, 2)
         sqrt(V, out=V)
         mul(V, self._n2, out=mg2)
-        div(1.0, T, out=T)                       # q2
+        div(1.0, T, out=T)  # q2
         mul(T, self._g2, out=W)
-        add(W, 0.5, out=W)                       # m1
+        add(W, 0.5, out=W)  # m1
         mul(V, T, out=T)
-        mul(T, 0.5, out=T)                       # m2
+        mul(T, 0.5, out=T)  # m2
         mul(W, U, out=xE)
         mul(T, yC, out=Z)
-        sub(xE, Z, out=xE)                       # E - O3, x
+        sub(xE, Z, out=xE)  # E - O3, x
         mul(W, yC, out=yE)
         mul(T, U, out=Z)
-        add(yE, Z, out=yE)                       # E - O3, y
+        add(yE, Z, out=yE)  # E - O3, y
         np.arctan2(yE, xE, out=th5)
         # omega5 = 2 ω3 ((E - C) · C⊥) / S2
         sub(yE, yC, out=W)
@@ -678,13 +713,13 @@ class LayupModel:
         a, b = self._a, self._b
         # loop 1: ε3 (A × B) = ω3² (B - A)·B + (B - A)·Ä - |dB/dt - dA/dt|²,
         # Ä = α R (-sin, cos) - ω² R (cos, sin),  A × B = S1/2 = margin1 · O2B · l2
-        rc = xA - a                      # R cos
-        rs = yA - b                      # R sin
+        rc = xA - a  # R cos
+        rs = yA - b  # R sin
         ux = xB - xA
         uy = yB - yA
         bdotu = xB * ux + yB * uy
         acc_dot = alpha * (uy * rc - ux * rs) - w * w * (ux * rc + uy * rs)
-        rvx = -w3 * yB + w * rs          # dB/dt - dA/dt
+        rvx = -w3 * yB + w * rs  # dB/dt - dA/dt
         rvy = w3 * xB - w * rc
         num = w3 * w3 * bdotu + acc_dot - (rvx * rvx + rvy * rvy)
         e3 = o[18]
@@ -696,7 +731,7 @@ class LayupModel:
         ux = xE - xC
         uy = yE - yC
         cddot = e3 * (uy * xC - ux * yC) - w3 * w3 * (ux * xC + uy * yC)
-        rvx = -w5 * wy + w3 * yC         # dE/dt - dC/dt
+        rvx = -w5 * wy + w3 * yC  # dE/dt - dC/dt
         rvy = w5 * wx - w3 * xC
         num = w5 * w5 * (ux * wx + uy * wy) + cddot - (rvx * rvx + rvy * rvy)
         np.divide(num, mg2 * (self._l4 * self._l5), out=o[19])
@@ -709,13 +744,17 @@ class LayupModel:
 def _disc_reason(d: float) -> str:
     if d < -TOGGLE_TOL:
         return f'the circles do not meet (normalised discriminant {d:.3g} < 0)'
-    return (f'the loop is at a toggle (transmission angle {math.asin(math.sqrt(max(d, 0.0))):.3g} rad, '
-            f'normalised discriminant {d:.3g} <= {TOGGLE_TOL:g}): the linkage locks there')
+    return (
+        f'the loop is at a toggle (transmission angle {math.asin(math.sqrt(max(d, 0.0))):.3g} rad, '
+        f'normalised discriminant {d:.3g} <= {TOGGLE_TOL:g}): the linkage locks there'
+    )
 
 
 def _crossing_reason(dmin: float, phimin: float) -> str:
-    return (f'the circles stop meeting here: the normalised discriminant changes sign '
-            f'(turning forward; it falls to {dmin:.3g} near phi={phimin % TAU:.6g} rad)')
+    return (
+        f'the circles stop meeting here: the normalised discriminant changes sign '
+        f'(turning forward; it falls to {dmin:.3g} near phi={phimin % TAU:.6g} rad)'
+    )
 
 
 class AssemblyMargins(NamedTuple):
@@ -802,11 +841,12 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
 
         neg = D < 0.0
         if neg.all():
-            raise AssemblyError(name, 0.0, f'cannot be assembled at any crank angle '
-                                           f'(largest normalised discriminant {D.max():.3g} < 0)')
+            raise AssemblyError(
+                name, 0.0, f'cannot be assembled at any crank angle (largest normalised discriminant {D.max():.3g} < 0)'
+            )
         if not neg.any():
             # refine the sampled local minima (at most the 4 lowest)
-            lows = np.flatnonzero((D <= np.roll(D, 1)) & (D <= np.roll(D, -1)))
+            lows = np.flatnonzero((np.roll(D, 1) >= D) & (np.roll(D, -1) >= D))
             lows = lows[np.argsort(D[lows])][:4]
             best_i, best_phi, best = int(lows[0]), float(phis[lows[0]]), float(D[lows[0]])
             for i in lows:
@@ -836,8 +876,14 @@ def _model(params: LayupParams) -> LayupModel:
     return LayupModel(params)
 
 
-def layup_kinematics(params: LayupParams, phi: npt.ArrayLike, *, omega: float | None = None,
-                     alpha: float = 0.0, accelerations: bool = True) -> LayupState:
+def layup_kinematics(
+    params: LayupParams,
+    phi: npt.ArrayLike,
+    *,
+    omega: float | None = None,
+    alpha: float = 0.0,
+    accelerations: bool = True,
+) -> LayupState:
     """Vectorised kinematics; see :meth:`LayupModel.arrays` (same arguments, model cached).
 
     Parameters
@@ -941,7 +987,7 @@ def _arc_box(theta: np.ndarray, extra: list[float], r: float, cx: float) -> tupl
     """x and y ranges of the points ``(cx + r cos t, r sin t)`` for t over the arc spanned by the angles."""
     ref = extra[0]
     rel = np.concatenate([np.asarray(theta, dtype=float).ravel(), extra]) - ref
-    rel = np.remainder(rel + _PI, TAU) - _PI          # unwrapped about the first extreme
+    rel = np.remainder(rel + _PI, TAU) - _PI  # unwrapped about the first extreme
     t0, t1 = ref + float(rel.min()), ref + float(rel.max())
     cand_x = [t0, t1] + [k * _PI for k in range(math.ceil(t0 / _PI), math.floor(t1 / _PI) + 1)]
     cand_y = [t0, t1] + [(k + 0.5) * _PI for k in range(math.ceil(t0 / _PI - 0.5), math.floor(t1 / _PI - 0.5) + 1)]

@@ -208,6 +208,20 @@ def paper_speeds(params: LayupParams, phi: npt.ArrayLike, *, root: str = 'paper'
     vE = vC * np.cos(gamma3) / np.cos(gamma4)
     # the paper's crank angle runs the other way: project sign = -paper sign
     vB, vC, vE = -vB, -vC, -vE
-    return PaperSpeeds(vA=np.broadcast_to(vA, X.shape).copy(), vB=vB, vC=vC, vE=vE,
-                       omega3=vC / l3, omega5=vE / l5, beta=beta, delta1=delta1, delta3=delta3,
-                       gamma1=gamma1, gamma2=gamma2, gamma3=gamma3, gamma4=gamma4, a1=a1, root=sign)
+    return PaperSpeeds(
+        vA=np.broadcast_to(vA, X.shape).copy(),
+        vB=vB,
+        vC=vC,
+        vE=vE,
+        omega3=vC / l3,
+        omega5=vE / l5,
+        beta=beta,
+        delta1=delta1,
+        delta3=delta3,
+        gamma1=gamma1,
+        gamma2=gamma2,
+        gamma3=gamma3,
+        gamma4=gamma4,
+        a1=a1,
+        root=sign,
+    )

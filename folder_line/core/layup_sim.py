@@ -76,7 +76,7 @@ drive and duration and samples the joint states at any times;
 from __future__ import annotations
 
 import math
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -86,9 +86,9 @@ from folder_line.core.constraints import chute_speed_series
 from folder_line.core.drive import Drive
 from folder_line.core.effects import effect_module
 from folder_line.core.events import (
-    LinePart,
     ConstraintSeries,
     JointSamples,
+    LinePart,
     SubResult,
     make_events,
     merge_events,
@@ -148,8 +148,8 @@ class LayupKinematics:
         self.params = params
         self.model = LayupModel(params)
         self.drive = drive
-        self.turns_rate = params.n_kr / 60.0        # crank turns per nominal second
-        self.omega = params.omega                    # nominal crank speed, rad/s
+        self.turns_rate = params.n_kr / 60.0  # crank turns per nominal second
+        self.omega = params.omega  # nominal crank speed, rad/s
         self._r = params.O2B / params.l3
 
     def turns(self, t: np.ndarray) -> np.ndarray:
@@ -196,8 +196,17 @@ class LayupKinematics:
         omega = w0 * lam
         eps = e0 * lam * lam + w0 * lamd
         length = np.where(c4, p.l5, p.l3)
-        return {'phi': phi, 'x': x, 'y': y, 'sin': sin, 'cos': cos, 'omega': omega, 'eps': eps,
-                'v_perp': omega * length, 'lam': lam}
+        return {
+            'phi': phi,
+            'x': x,
+            'y': y,
+            'sin': sin,
+            'cos': cos,
+            'omega': omega,
+            'eps': eps,
+            'v_perp': omega * length,
+            'lam': lam,
+        }
 
     def chute_scalar(self, t: float, chute: int) -> tuple[float, float, float, float]:
         """(sin θ', cos θ', ω, ε) of one chute at one time (pure ``math``, a few µs)."""
@@ -238,7 +247,7 @@ def _empty_slowdowns(faults_mod: Any) -> Any:
     return faults_mod.Slowdowns(z, z, z)
 
 
-def _stats(x: np.ndarray) -> Optional[dict[str, float]]:
+def _stats(x: np.ndarray) -> dict[str, float] | None:
     if x.size == 0:
         return None
     return {'leaves': int(x.size), 'mean': float(np.mean(x)), 'min': float(np.min(x)), 'max': float(np.max(x))}
@@ -294,11 +303,20 @@ class LayupLine(LinePart):
             sf = faults.draw_sheet_faults(fp, int(slot.size), rng_mod.stream(scene.seed, 'layup.faults'))
             sub = faults.SheetFaults(sf.missing[in_run], sf.double[in_run], sf.delay[in_run])
             if belts_on:
-                slow = faults.draw_slowdowns(fp, duration, 60.0 / lp.n_kr,
-                                             rng_mod.stream(scene.seed, 'layup.belt_slowdowns'))
+                slow = faults.draw_slowdowns(
+                    fp, duration, 60.0 / lp.n_kr, rng_mod.stream(scene.seed, 'layup.belt_slowdowns')
+                )
             ids_run, t_run = slot[in_run], t_nom[in_run]
-            tables.append(faults.fault_events(sub, t_run, ids_run, kin.cycle(t_run), slow if slow is not None
-                                              else _empty_slowdowns(faults), duration))
+            tables.append(
+                faults.fault_events(
+                    sub,
+                    t_run,
+                    ids_run,
+                    kin.cycle(t_run),
+                    slow if slow is not None else _empty_slowdowns(faults),
+                    duration,
+                )
+            )
             present = ~sub.missing
             dbl = present & sub.double
             ids = np.concatenate([ids_run[present], ids_run[dbl]])
@@ -343,11 +361,13 @@ class LayupLine(LinePart):
             t_out, exited = res.t_exit, res.exited
             v_along = np.where(exited, res.v_exit, 0.0)
             if res.stick_t.size:
-                tables.append(make_events('leaf_stick', res.stick_t, sheet=ids[res.stick_leaf],
-                                          cycle=kin.cycle(res.stick_t)))
+                tables.append(
+                    make_events('leaf_stick', res.stick_t, sheet=ids[res.stick_leaf], cycle=kin.cycle(res.stick_t))
+                )
             if res.slip_t.size:
-                tables.append(make_events('leaf_slip', res.slip_t, sheet=ids[res.slip_leaf],
-                                          cycle=kin.cycle(res.slip_t)))
+                tables.append(
+                    make_events('leaf_slip', res.slip_t, sheet=ids[res.slip_leaf], cycle=kin.cycle(res.slip_t))
+                )
         else:
             t_out, exited = t_in.copy(), np.ones(n, dtype=bool)
 
@@ -375,7 +395,9 @@ class LayupLine(LinePart):
             bad = dmg_mod.damaged(dp, speed)
             n_damaged = int(bad.sum())
             if n_damaged:
-                tables.append(make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad]))
+                tables.append(
+                    make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad])
+                )
         # the same code as the supervisor's (constraints.evaluate_layup_constraints on the leaf_exit rows)
         chute_series = chute_speed_series(scene, id_x, t_x, speed)
         if chute_series is not None:
@@ -390,8 +412,9 @@ class LayupLine(LinePart):
             cont = scene.machine('container')
             lowest = min(sw.yC[0], sw.yE[0])
             if not cont.y_floor < lowest:
-                raise ParameterError('container.y_floor', cont.y_floor,
-                                     f'must be below the lowest chute exit (y = {lowest!r} m)')
+                raise ParameterError(
+                    'container.y_floor', cont.y_floor, f'must be below the lowest chute exit (y = {lowest!r} m)'
+                )
             t_f, x_land = lf.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
             t_land = t_x + t_f
             down = t_land <= duration
@@ -399,11 +422,17 @@ class LayupLine(LinePart):
             li, si = down & inside, down & ~inside
             n_landed, n_spilled = int(li.sum()), int(si.sum())
             if n_landed:
-                tables.append(make_events('leaf_landed', t_land[li], sheet=id_x[li], cycle=kin.cycle(t_land[li]),
-                                          value=x_land[li]))
+                tables.append(
+                    make_events(
+                        'leaf_landed', t_land[li], sheet=id_x[li], cycle=kin.cycle(t_land[li]), value=x_land[li]
+                    )
+                )
             if n_spilled:
-                tables.append(make_events('leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]),
-                                          value=x_land[si]))
+                tables.append(
+                    make_events(
+                        'leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]), value=x_land[si]
+                    )
+                )
             hist = lf.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
             summary_flight = {
                 'landing_histogram': {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]},
@@ -417,9 +446,12 @@ class LayupLine(LinePart):
         summary = _summary(kin, lp, theta_end, n, t_x, speed, u, q['phi'], n_landed, n_spilled, n_damaged)
         summary.update(summary_flight)
         if friction_on:
-            summary['guide_friction'] = {'steps': int(res.steps), 'sticks': int(res.stick_t.size),
-                                         'slips': int(res.slip_t.size),
-                                         'exit_speed_along': _stats(u)}
+            summary['guide_friction'] = {
+                'steps': int(res.steps),
+                'sticks': int(res.stick_t.size),
+                'slips': int(res.slip_t.size),
+                'exit_speed_along': _stats(u),
+            }
         self.scene = scene
         self.drive = drive
         self.duration = duration
@@ -432,8 +464,9 @@ class LayupLine(LinePart):
         if belts_on:
             self.nodes['belt_conveyor'] = ('chute_belts',)
 
-    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
-                    lam: np.ndarray | None = None) -> JointSamples:
+    def sample_node(
+        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
         """Joint states of one node (``crank_drive``; ``belt_conveyor`` with belts) at ``t``."""
         t = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(t, theta, lam)
@@ -441,12 +474,22 @@ class LayupLine(LinePart):
         if node == 'crank_drive':
             phi = kin.wrap(theta * kin.turns_rate)
             st = kin.model.arrays(phi, accelerations=False)  # θ, ω do not depend on the accelerations
-            return stack_samples('crank_drive', ['layup_crank', 'transporter3', 'transporter4'], t,
-                                 [phi, st.theta3, st.theta5], [kin.omega * lam, st.omega3 * lam, st.omega5 * lam])
+            return stack_samples(
+                'crank_drive',
+                ['layup_crank', 'transporter3', 'transporter4'],
+                t,
+                [phi, st.theta3, st.theta5],
+                [kin.omega * lam, st.omega3 * lam, st.omega5 * lam],
+            )
         if node == 'belt_conveyor' and self.profile is not None:
             pr = self.profile
-            return stack_samples('belt_conveyor', ['chute_belts'], t, [pr.v_tr * pr.phase.at(t, theta)],
-                                 [pr.v_tr * lam * pr.phase.factor(t)])
+            return stack_samples(
+                'belt_conveyor',
+                ['chute_belts'],
+                t,
+                [pr.v_tr * pr.phase.at(t, theta)],
+                [pr.v_tr * lam * pr.phase.factor(t)],
+            )
         raise KeyError(f'node {node!r} has no layup joints; nodes: {", ".join(self.nodes)}')
 
 
@@ -502,8 +545,19 @@ def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndar
     return LayupLine(scene, drive, duration).result(t_samples)
 
 
-def _summary(kin: LayupKinematics, lp: LayupParams, theta_end: float, n: int, t_x: np.ndarray, speed: np.ndarray,
-             v_along: np.ndarray, phi_x: np.ndarray, n_landed: int, n_spilled: int, n_damaged: int) -> dict[str, Any]:
+def _summary(
+    kin: LayupKinematics,
+    lp: LayupParams,
+    theta_end: float,
+    n: int,
+    t_x: np.ndarray,
+    speed: np.ndarray,
+    v_along: np.ndarray,
+    phi_x: np.ndarray,
+    n_landed: int,
+    n_spilled: int,
+    n_damaged: int,
+) -> dict[str, Any]:
     ext = swing_extremes(lp)
     at_ext: dict[str, Any] = {}
     for e in ext:
@@ -516,8 +570,7 @@ def _summary(kin: LayupKinematics, lp: LayupParams, theta_end: float, n: int, t_
     cnt = np.bincount(b, minlength=PHASE_BINS)
     tot = np.bincount(b, weights=speed, minlength=PHASE_BINS)
     by_phase = [float(tot[i] / cnt[i]) if cnt[i] else None for i in range(PHASE_BINS)]
-    grid = kin.model.arrays(np.concatenate([np.arange(4096) * (TAU / 4096), [e.phi for e in ext]]),
-                            accelerations=False)
+    grid = kin.model.arrays(np.concatenate([np.arange(4096) * (TAU / 4096), [e.phi for e in ext]]), accelerations=False)
     swing = np.abs(np.concatenate([grid.vC, grid.vE]))
     return {
         'crank_cycles': int(math.floor(theta_end * kin.turns_rate)),

@@ -77,39 +77,95 @@ class Limit:
 
 #: line time of a run or a simulation: from a millisecond to 1e7 s (116 days), where float64 time still
 #: resolves 2 ns; the event tables grow with it (see :func:`folder_line.core.line.check_size`)
-DURATION = Limit('line time of a run or a simulation (`--duration`, `line_clock` `duration`)', 1e-3, 1e7, 's',
-                 'float64 line time resolves 2 ns up to 1e7 s')
+DURATION = Limit(
+    'line time of a run or a simulation (`--duration`, `line_clock` `duration`)',
+    1e-3,
+    1e7,
+    's',
+    'float64 line time resolves 2 ns up to 1e7 s',
+)
 #: what ``run`` adds to the duration for the machine nodes' horizon (the last tick is inside it)
 HORIZON_MARGIN = 1.0
-HORIZON = Limit('line time a model is built for (node `horizon`; a batch model)', 1e-3, DURATION.hi + 3600.0, 's',
-                'a run of the longest duration, plus up to an hour (run gives its nodes 1 s more)')
-TICK_RATE = Limit('tick and joint-state rate in sim time (`line_clock` and node `rate`)', 1.0, 10000.0, 'Hz',
-                  'a tick of 0.1 ms resolves the fastest event spacing (the feed window, ~0.3 ms); below '
-                  '1 Hz a tick spans several knife cycles')
-RTF = Limit('real-time factor ceiling (`--rtf`, `line_clock` `rtf`; 0 or `max`: none)', 1e-3, 1000.0, '',
-            'from a thousand times slower than real time (stepping through a cycle) to a thousand times faster')
-SAMPLE_RATE = Limit('joint-state sample rate of the batch model (scene `sample_rate`; 0: events only)', 0.0, 1e6,
-                    'Hz', 'a microsecond grid')
-LOST_TIMEOUT = Limit('wall time before a silent participant is declared lost (`--lost-timeout`)', 0.1, 3600.0, 's',
-                     'longer than a tick can take on a loaded machine, shorter than an hour')
-KNIFE_SPEED = Limit('knife crank speed (`knife.n_k`)', 1.0, 200000.0, 'rev/h',
-                    'the papers\' folders run 25000-60000 rev/h; 1 rev/h (one cut an hour) is slow motion, '
-                    '200000 rev/h a cycle of 18 ms')
+HORIZON = Limit(
+    'line time a model is built for (node `horizon`; a batch model)',
+    1e-3,
+    DURATION.hi + 3600.0,
+    's',
+    'a run of the longest duration, plus up to an hour (run gives its nodes 1 s more)',
+)
+TICK_RATE = Limit(
+    'tick and joint-state rate in sim time (`line_clock` and node `rate`)',
+    1.0,
+    10000.0,
+    'Hz',
+    'a tick of 0.1 ms resolves the fastest event spacing (the feed window, ~0.3 ms); below '
+    '1 Hz a tick spans several knife cycles',
+)
+RTF = Limit(
+    'real-time factor ceiling (`--rtf`, `line_clock` `rtf`; 0 or `max`: none)',
+    1e-3,
+    1000.0,
+    '',
+    'from a thousand times slower than real time (stepping through a cycle) to a thousand times faster',
+)
+SAMPLE_RATE = Limit(
+    'joint-state sample rate of the batch model (scene `sample_rate`; 0: events only)',
+    0.0,
+    1e6,
+    'Hz',
+    'a microsecond grid',
+)
+LOST_TIMEOUT = Limit(
+    'wall time before a silent participant is declared lost (`--lost-timeout`)',
+    0.1,
+    3600.0,
+    's',
+    'longer than a tick can take on a loaded machine, shorter than an hour',
+)
+KNIFE_SPEED = Limit(
+    'knife crank speed (`knife.n_k`)',
+    1.0,
+    200000.0,
+    'rev/h',
+    "the papers' folders run 25000-60000 rev/h; 1 rev/h (one cut an hour) is slow motion, "
+    '200000 rev/h a cycle of 18 ms',
+)
 CYLINDER_SPEED = Limit('folding cylinder speed (`cyclogram.n_c`)', 1.0, 200000.0, 'rev/h', 'as the knife')
-CRANK_SPEED = Limit('layup crank speed (`layup.n_kr`)', 0.01, 6000.0, 'rev/min',
-                    'from one swing in 100 min to 100 swings a second (the paper: 30 rev/min)')
-LINEAR_SPEED = Limit('belt and transporter speeds (`feed_transporter.V_tr`; `layup.v_tr`, which may also be 0)',
-                     1e-3, 1000.0, 'm/s',
-                     'from a millimetre per second to ten times the fastest web press')
-MOTOR_SPEED = Limit('motor shaft speed (`effects.motor_dynamics.omega_nom`)', 1e-3, 1e5, 'rad/s',
-                    'up to ~1e6 rev/min')
-SHEET_INTERVAL = Limit('time between two sheets or leaves (`sheets.interval`)', 1e-4, 1e6, 's',
-                       'from 10 000 sheets a second to one in 12 days (a long-run check with a few leaves)')
+CRANK_SPEED = Limit(
+    'layup crank speed (`layup.n_kr`)',
+    0.01,
+    6000.0,
+    'rev/min',
+    'from one swing in 100 min to 100 swings a second (the paper: 30 rev/min)',
+)
+LINEAR_SPEED = Limit(
+    'belt and transporter speeds (`feed_transporter.V_tr`; `layup.v_tr`, which may also be 0)',
+    1e-3,
+    1000.0,
+    'm/s',
+    'from a millimetre per second to ten times the fastest web press',
+)
+MOTOR_SPEED = Limit('motor shaft speed (`effects.motor_dynamics.omega_nom`)', 1e-3, 1e5, 'rad/s', 'up to ~1e6 rev/min')
+SHEET_INTERVAL = Limit(
+    'time between two sheets or leaves (`sheets.interval`)',
+    1e-4,
+    1e6,
+    's',
+    'from 10 000 sheets a second to one in 12 days (a long-run check with a few leaves)',
+)
 
 #: every limit, for the README table and the tests
 LIMITS: dict[str, Limit] = {
-    'duration': DURATION, 'horizon': HORIZON, 'rate': TICK_RATE, 'rtf': RTF, 'sample_rate': SAMPLE_RATE,
-    'lost_timeout': LOST_TIMEOUT, 'knife_speed': KNIFE_SPEED, 'cylinder_speed': CYLINDER_SPEED,
-    'crank_speed': CRANK_SPEED, 'linear_speed': LINEAR_SPEED, 'motor_speed': MOTOR_SPEED,
+    'duration': DURATION,
+    'horizon': HORIZON,
+    'rate': TICK_RATE,
+    'rtf': RTF,
+    'sample_rate': SAMPLE_RATE,
+    'lost_timeout': LOST_TIMEOUT,
+    'knife_speed': KNIFE_SPEED,
+    'cylinder_speed': CYLINDER_SPEED,
+    'crank_speed': CRANK_SPEED,
+    'linear_speed': LINEAR_SPEED,
+    'motor_speed': MOTOR_SPEED,
     'sheet_interval': SHEET_INTERVAL,
 }

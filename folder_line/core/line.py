@@ -27,11 +27,11 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
-
 import numpy.typing as npt
 
 from folder_line.core.drive import Command, Drive, check_commands, commanded_drive, theta_rate
@@ -47,8 +47,20 @@ from folder_line.core.scene import Scene
 from folder_line.core.validate import as_float
 from folder_line.errors import ParameterError
 
-__all__ = ['BYTES_PER_CYCLE', 'BYTES_PER_LEAF', 'MAX_CYCLES', 'MEMORY_SHARE', 'NODES', 'LineModel', 'LineResult',
-           'check_size', 'make_drive', 'memory_budget', 'sample_times', 'simulate']
+__all__ = [
+    'BYTES_PER_CYCLE',
+    'BYTES_PER_LEAF',
+    'MAX_CYCLES',
+    'MEMORY_SHARE',
+    'NODES',
+    'LineModel',
+    'LineResult',
+    'check_size',
+    'make_drive',
+    'memory_budget',
+    'sample_times',
+    'simulate',
+]
 
 #: the machine nodes that carry joints, in publishing order (``sheet_counter``: the table under the
 #: counted sheets, :mod:`folder_line.core.pile`, in every scene)
@@ -126,12 +138,19 @@ class LineResult:
         for c in self.constraints:
             bad = np.flatnonzero(c.violated)
             count += int(bad.size)
-            violations += [{'cycle': int(c.cycle[i]), 'constraint': c.name, 'margin': float(c.margin[i]),
-                            'unit': c.unit} for i in bad[:max_violations]]
+            violations += [
+                {'cycle': int(c.cycle[i]), 'constraint': c.name, 'margin': float(c.margin[i]), 'unit': c.unit}
+                for i in bad[:max_violations]
+            ]
             if c.margin.size:
                 i = int(np.argmin(c.margin))
-                min_margin[c.name] = {'margin': float(c.margin[i]), 'unit': c.unit, 'cycle': int(c.cycle[i]),
-                                      'evaluations': int(c.margin.size), 'violations': int(bad.size)}
+                min_margin[c.name] = {
+                    'margin': float(c.margin[i]),
+                    'unit': c.unit,
+                    'cycle': int(c.cycle[i]),
+                    'evaluations': int(c.margin.size),
+                    'violations': int(bad.size),
+                }
         violations.sort(key=lambda v: (v['cycle'], v['constraint']))
         out: dict[str, Any] = {
             'scene': self.scene.name,
@@ -143,8 +162,11 @@ class LineResult:
             'violations': {'count': count, 'first': violations[:max_violations]},
             'min_margin_s': {k: v['margin'] for k, v in min_margin.items() if v['unit'] == 's'},
             'min_margin': min_margin,
-            'events': {k: int(n) for k, n in zip(EVENT_KINDS, np.bincount(self.events['kind'],
-                                                                           minlength=len(EVENT_KINDS))) if n},
+            'events': {
+                k: int(n)
+                for k, n in zip(EVENT_KINDS, np.bincount(self.events['kind'], minlength=len(EVENT_KINDS)))
+                if n
+            },
         }
         if 'v_tr_over_v_d' in folder:
             out['v_tr_over_v_d'] = folder['v_tr_over_v_d']
@@ -186,10 +208,20 @@ def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
         prev = merged
         eff = None
         if prev.effort is not None or js.effort is not None:
-            eff = np.hstack([prev.effort if prev.effort is not None else np.zeros_like(prev.position),
-                             js.effort if js.effort is not None else np.zeros_like(js.position)])
-        merged = JointSamples(node, prev.names + js.names, prev.t, np.hstack([prev.position, js.position]),
-                              np.hstack([prev.velocity, js.velocity]), eff)
+            eff = np.hstack(
+                [
+                    prev.effort if prev.effort is not None else np.zeros_like(prev.position),
+                    js.effort if js.effort is not None else np.zeros_like(js.position),
+                ]
+            )
+        merged = JointSamples(
+            node,
+            prev.names + js.names,
+            prev.t,
+            np.hstack([prev.position, js.position]),
+            np.hstack([prev.velocity, js.velocity]),
+            eff,
+        )
     return merged
 
 
@@ -226,13 +258,16 @@ def check_size(scene: Scene, span: float, theta_end: float, key: str = 'horizon'
     too_many = [(n, what) for n, what, _ in parts if n > MAX_CYCLES]
     if need <= budget and not too_many:
         return
-    fits = span * min(budget / need if need > 0 else math.inf,
-                      *(MAX_CYCLES / n for n, _, _ in parts if n > 0))
+    fits = span * min(budget / need if need > 0 else math.inf, *(MAX_CYCLES / n for n, _, _ in parts if n > 0))
     counts = ' and '.join(f'{n:.3g} {what} x {b} B' for n, what, b in parts)
     over = f', and more than {MAX_CYCLES:.0e} {too_many[0][1]}' if too_many else ''
-    raise ParameterError(key, span, f'the model would need about {need / 1e9:.3g} GB of memory ({counts}, the '
-                         f'measured peak per cycle and leaf){over}; this machine allows {budget / 1e9:.3g} GB '
-                         f'({MEMORY_SHARE:.0%} of its memory): at most {fits:.4g} s of this scene')
+    raise ParameterError(
+        key,
+        span,
+        f'the model would need about {need / 1e9:.3g} GB of memory ({counts}, the '
+        f'measured peak per cycle and leaf){over}; this machine allows {budget / 1e9:.3g} GB '
+        f'({MEMORY_SHARE:.0%} of its memory): at most {fits:.4g} s of this scene',
+    )
 
 
 class LineModel:
@@ -294,8 +329,7 @@ class LineModel:
             for node in p.nodes:
                 nodes.setdefault(node, []).append(p)
         self._node_parts = {node: nodes[node] for node in NODES if node in nodes}
-        self._nodes = {node: tuple(name for p in ps for name in p.nodes[node])
-                       for node, ps in self._node_parts.items()}
+        self._nodes = {node: tuple(name for p in ps for name in p.nodes[node]) for node, ps in self._node_parts.items()}
         self._theta_end = float(np.asarray(self.drive.theta(np.array(self.horizon))))
         self._cycle = self._cycle_definition()
 
@@ -345,8 +379,10 @@ class LineModel:
         """Joint states of every node at line times ``t`` (node -> JointSamples)."""
         tt = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(tt)
-        return {node: _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
-                for node, parts in self._node_parts.items()}
+        return {
+            node: _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
+            for node, parts in self._node_parts.items()
+        }
 
     # ------------------------------------------------------------------ events
 
@@ -355,7 +391,7 @@ class LineModel:
         if math.isnan(t0) or math.isnan(t1):
             raise ValueError(f'events_between: times must not be NaN, got ({t0!r}, {t1!r})')
         i0, i1 = np.searchsorted(self._event_t, [t0, t1], side='right')
-        return self.events[i0:max(i0, i1)]
+        return self.events[i0 : max(i0, i1)]
 
     # ------------------------------------------------------------------ machine cycles
 
@@ -425,13 +461,19 @@ class LineModel:
             return LineModel(self.scene, duration, self.commands).result(duration, sample_rate)
         rate = self.scene.sample_rate if sample_rate is None else SAMPLE_RATE.check('sample_rate', sample_rate)
         t = sample_times(duration, rate)
-        return LineResult(scene=self.scene, duration=duration, events=self.events,
-                          samples=self.sample_all(t) if t.size else {},
-                          constraints=list(self.constraints), parts=dict(self.parts))
+        return LineResult(
+            scene=self.scene,
+            duration=duration,
+            events=self.events,
+            samples=self.sample_all(t) if t.size else {},
+            constraints=list(self.constraints),
+            parts=dict(self.parts),
+        )
 
 
-def simulate(scene: Scene, duration: float, *, sample_rate: float | None = None,
-             commands: Iterable[Command] = ()) -> LineResult:
+def simulate(
+    scene: Scene, duration: float, *, sample_rate: float | None = None, commands: Iterable[Command] = ()
+) -> LineResult:
     """Simulate ``duration`` seconds of line time.
 
     Parameters

@@ -20,8 +20,8 @@ Counts travel as text, ``'messages=12 events=3 commands=0'``
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping
 
 __all__ = ['STREAMS', 'TickLedger', 'format_counts', 'parse_counts']
 
@@ -61,9 +61,9 @@ def parse_counts(text: str) -> dict[str, int]:
 @dataclass
 class _Producer:
     acks: deque[tuple[int, dict[str, int]]] = field(default_factory=deque)  # not yet complete, in order
-    last_ack: int | None = None      # latest acknowledged stamp, ns
+    last_ack: int | None = None  # latest acknowledged stamp, ns
     last_counts: dict[str, int] = field(default_factory=dict)
-    complete: int | None = None      # latest stamp whose messages are all in, ns
+    complete: int | None = None  # latest stamp whose messages are all in, ns
     received: dict[str, int] = field(default_factory=dict)
     lost: bool = False
 
@@ -155,8 +155,7 @@ class TickLedger:
 
     def waiting_for(self, stamp_ns: int) -> list[str]:
         """The live producers whose tick ``stamp_ns`` is not complete yet, in order."""
-        return [p for p, st in self._p.items()
-                if not st.lost and (st.complete is None or st.complete < stamp_ns)]
+        return [p for p, st in self._p.items() if not st.lost and (st.complete is None or st.complete < stamp_ns)]
 
     def missing(self, producer: str) -> dict[str, int]:
         """Per stream, how many acknowledged messages of ``producer`` have not arrived (positive only)."""

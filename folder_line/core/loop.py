@@ -122,14 +122,25 @@ def _miss_reason(d2: float, r0: float, r1: float, disc: float, tol: float) -> st
         gap = f'the circles are {d - (r0 + r1):.3g} m apart'
     else:
         gap = f'one circle lies {abs(r0 - r1) - d:.3g} m inside the other'
-    return (f'{gap} (centre distance {d:.9g} m, radii {r0:.9g} m and {r1:.9g} m, '
-            f'normalised discriminant {disc:.3g} < -{tol:g})')
+    return (
+        f'{gap} (centre distance {d:.9g} m, radii {r0:.9g} m and {r1:.9g} m, '
+        f'normalised discriminant {disc:.3g} < -{tol:g})'
+    )
 
 
-def circle_intersection(x0: ArrayLike, y0: ArrayLike, r0: ArrayLike,
-                        x1: ArrayLike, y1: ArrayLike, r1: ArrayLike,
-                        branch: ArrayLike, *, inputs: ArrayLike,
-                        tol: float = TOGGLE_TOL, mechanism: str = 'circle-circle dyad') -> Intersection:
+def circle_intersection(
+    x0: ArrayLike,
+    y0: ArrayLike,
+    r0: ArrayLike,
+    x1: ArrayLike,
+    y1: ArrayLike,
+    r1: ArrayLike,
+    branch: ArrayLike,
+    *,
+    inputs: ArrayLike,
+    tol: float = TOGGLE_TOL,
+    mechanism: str = 'circle-circle dyad',
+) -> Intersection:
     """Intersect circle(c0, r0) with circle(c1, r1) on an explicit branch, vectorised.
 
     Parameters
@@ -164,7 +175,8 @@ def circle_intersection(x0: ArrayLike, y0: ArrayLike, r0: ArrayLike,
         geometry is not finite; names the first such element's input (C order).
     """
     x0a, y0a, r0a, x1a, y1a, r1a, br, inp = np.broadcast_arrays(
-        *(np.asarray(v, dtype=float) for v in (x0, y0, r0, x1, y1, r1, branch, inputs)))
+        *(np.asarray(v, dtype=float) for v in (x0, y0, r0, x1, y1, r1, branch, inputs))
+    )
     dx = x1a - x0a
     dy = y1a - y0a
     d2 = dx * dx + dy * dy
@@ -183,9 +195,19 @@ def circle_intersection(x0: ArrayLike, y0: ArrayLike, r0: ArrayLike,
     return Intersection(x=x, y=y, disc=disc, toggle=np.abs(disc) <= tol)
 
 
-def circle_intersection_scalar(x0: float, y0: float, r0: float, x1: float, y1: float, r1: float,
-                               branch: float, *, inputs: float, tol: float = TOGGLE_TOL,
-                               mechanism: str = 'circle-circle dyad') -> tuple[float, float, float]:
+def circle_intersection_scalar(
+    x0: float,
+    y0: float,
+    r0: float,
+    x1: float,
+    y1: float,
+    r1: float,
+    branch: float,
+    *,
+    inputs: float,
+    tol: float = TOGGLE_TOL,
+    mechanism: str = 'circle-circle dyad',
+) -> tuple[float, float, float]:
     """Scalar (pure ``math``) twin of :func:`circle_intersection`.
 
     Parameters
@@ -226,9 +248,20 @@ def circle_intersection_scalar(x0: float, y0: float, r0: float, x1: float, y1: f
     return x0 + along * dx - across * dy, y0 + along * dy + across * dx, disc
 
 
-def tracked_intersection(x0: float, y0: float, r0: float, x1: float, y1: float, r1: float,
-                         prev_x: float, prev_y: float, *, inputs: float, tol: float = TOGGLE_TOL,
-                         mechanism: str = 'circle-circle dyad') -> tuple[float, float, int]:
+def tracked_intersection(
+    x0: float,
+    y0: float,
+    r0: float,
+    x1: float,
+    y1: float,
+    r1: float,
+    prev_x: float,
+    prev_y: float,
+    *,
+    inputs: float,
+    tol: float = TOGGLE_TOL,
+    mechanism: str = 'circle-circle dyad',
+) -> tuple[float, float, int]:
     """The intersection nearest a previous joint position (tracked mode, for stepping).
 
     Choosing by proximity instead of by a fixed branch sign keeps the assembly
@@ -261,17 +294,16 @@ def tracked_intersection(x0: float, y0: float, r0: float, x1: float, y1: float, 
     AssemblyError
         The circles do not meet.
     """
-    xp, yp, _ = circle_intersection_scalar(x0, y0, r0, x1, y1, r1, 1.0, inputs=inputs, tol=tol,
-                                           mechanism=mechanism)
-    xm, ym, _ = circle_intersection_scalar(x0, y0, r0, x1, y1, r1, -1.0, inputs=inputs, tol=tol,
-                                           mechanism=mechanism)
+    xp, yp, _ = circle_intersection_scalar(x0, y0, r0, x1, y1, r1, 1.0, inputs=inputs, tol=tol, mechanism=mechanism)
+    xm, ym, _ = circle_intersection_scalar(x0, y0, r0, x1, y1, r1, -1.0, inputs=inputs, tol=tol, mechanism=mechanism)
     if (xm - prev_x) ** 2 + (ym - prev_y) ** 2 < (xp - prev_x) ** 2 + (yp - prev_y) ** 2:
         return xm, ym, -1
     return xp, yp, 1
 
 
-def solve2x2(a11: ArrayLike, a12: ArrayLike, a21: ArrayLike, a22: ArrayLike,
-             b1: ArrayLike, b2: ArrayLike) -> tuple[FloatOrArray, FloatOrArray]:
+def solve2x2(
+    a11: ArrayLike, a12: ArrayLike, a21: ArrayLike, a22: ArrayLike, b1: ArrayLike, b2: ArrayLike
+) -> tuple[FloatOrArray, FloatOrArray]:
     """Solve ``[[a11, a12], [a21, a22]] @ [x1, x2] = [b1, b2]`` by Cramer's rule, elementwise.
 
     Parameters
@@ -291,10 +323,18 @@ def solve2x2(a11: ArrayLike, a12: ArrayLike, a21: ArrayLike, a22: ArrayLike,
     return (b1 * a22 - a12 * b2) / det, (a11 * b2 - b1 * a21) / det
 
 
-def circle_point_velocity(x: ArrayLike, y: ArrayLike,
-                          x0: ArrayLike, y0: ArrayLike, vx0: ArrayLike, vy0: ArrayLike,
-                          x1: ArrayLike, y1: ArrayLike, vx1: ArrayLike, vy1: ArrayLike,
-                          ) -> tuple[FloatOrArray, FloatOrArray]:
+def circle_point_velocity(
+    x: ArrayLike,
+    y: ArrayLike,
+    x0: ArrayLike,
+    y0: ArrayLike,
+    vx0: ArrayLike,
+    vy0: ArrayLike,
+    x1: ArrayLike,
+    y1: ArrayLike,
+    vx1: ArrayLike,
+    vy1: ArrayLike,
+) -> tuple[FloatOrArray, FloatOrArray]:
     """Velocity of the joint of a dyad from the differentiated loop equations.
 
     Differentiating ``|X - c0|² = r0²`` and ``|X - c1|² = r1²`` (constant radii) gives
@@ -322,11 +362,24 @@ def circle_point_velocity(x: ArrayLike, y: ArrayLike,
     return solve2x2(ex0, ey0, ex1, ey1, ex0 * vx0 + ey0 * vy0, ex1 * vx1 + ey1 * vy1)
 
 
-def circle_point_acceleration(x: ArrayLike, y: ArrayLike, vx: ArrayLike, vy: ArrayLike,
-                              x0: ArrayLike, y0: ArrayLike, vx0: ArrayLike, vy0: ArrayLike,
-                              ax0: ArrayLike, ay0: ArrayLike,
-                              x1: ArrayLike, y1: ArrayLike, vx1: ArrayLike, vy1: ArrayLike,
-                              ax1: ArrayLike, ay1: ArrayLike) -> tuple[FloatOrArray, FloatOrArray]:
+def circle_point_acceleration(
+    x: ArrayLike,
+    y: ArrayLike,
+    vx: ArrayLike,
+    vy: ArrayLike,
+    x0: ArrayLike,
+    y0: ArrayLike,
+    vx0: ArrayLike,
+    vy0: ArrayLike,
+    ax0: ArrayLike,
+    ay0: ArrayLike,
+    x1: ArrayLike,
+    y1: ArrayLike,
+    vx1: ArrayLike,
+    vy1: ArrayLike,
+    ax1: ArrayLike,
+    ay1: ArrayLike,
+) -> tuple[FloatOrArray, FloatOrArray]:
     """Acceleration of the joint of a dyad from the twice-differentiated loop equations.
 
     ``(X - ci) · (A - ai) = -|V - vi|²`` for i = 0, 1; the same matrix as the velocity.

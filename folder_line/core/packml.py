@@ -31,15 +31,37 @@ from folder_line.errors import TransitionError
 __all__ = ['ACTING', 'COMMANDS', 'PackML', 'STATES', 'Transition']
 
 STATES: tuple[str, ...] = (
-    'STOPPED', 'RESETTING', 'IDLE', 'STARTING', 'EXECUTE', 'COMPLETING', 'COMPLETE', 'HOLDING', 'HELD',
-    'UNHOLDING', 'SUSPENDING', 'SUSPENDED', 'UNSUSPENDING', 'STOPPING', 'ABORTING', 'ABORTED', 'CLEARING',
+    'STOPPED',
+    'RESETTING',
+    'IDLE',
+    'STARTING',
+    'EXECUTE',
+    'COMPLETING',
+    'COMPLETE',
+    'HOLDING',
+    'HELD',
+    'UNHOLDING',
+    'SUSPENDING',
+    'SUSPENDED',
+    'UNSUSPENDING',
+    'STOPPING',
+    'ABORTING',
+    'ABORTED',
+    'CLEARING',
 )
 
 #: acting state -> the waiting state it ends in
 ACTING: dict[str, str] = {
-    'RESETTING': 'IDLE', 'STARTING': 'EXECUTE', 'COMPLETING': 'COMPLETE', 'HOLDING': 'HELD',
-    'UNHOLDING': 'EXECUTE', 'SUSPENDING': 'SUSPENDED', 'UNSUSPENDING': 'EXECUTE', 'STOPPING': 'STOPPED',
-    'ABORTING': 'ABORTED', 'CLEARING': 'STOPPED',
+    'RESETTING': 'IDLE',
+    'STARTING': 'EXECUTE',
+    'COMPLETING': 'COMPLETE',
+    'HOLDING': 'HELD',
+    'UNHOLDING': 'EXECUTE',
+    'SUSPENDING': 'SUSPENDED',
+    'UNSUSPENDING': 'EXECUTE',
+    'STOPPING': 'STOPPED',
+    'ABORTING': 'ABORTED',
+    'CLEARING': 'STOPPED',
 }
 
 _NOT_STOPPABLE = frozenset({'STOPPED', 'STOPPING', 'ABORTING', 'ABORTED', 'CLEARING'})

@@ -131,8 +131,9 @@ class PileTable:
             lowered[on] += np.clip((tt[on] - self.times[i]) / self.t_lower, 0.0, 1.0)
         return -self.thickness * lowered + 0.0, -self.speed * active.astype(float) + 0.0  # + 0: no -0.0
 
-    def sample_node(self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None,
-                    lam: np.ndarray | None = None) -> JointSamples:
+    def sample_node(
+        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
         """Joint states of ``sheet_counter`` at ``t`` (``theta`` and ``lam`` unused: the lift is not
         geared to the master drive), as the line's parts give theirs."""
         if node != NODE:

@@ -18,8 +18,8 @@ that fall exactly on samples and for grazing touches are documented there.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -127,8 +127,17 @@ def _value(f: Callable[[float], float], x: float) -> float:
     return fx
 
 
-def _brent_core(f: Callable[[float], float], xa: float, xb: float, fa: float, fb: float,
-                xtol: float, rtol: float, maxiter: int, calls: int) -> RootResult:
+def _brent_core(
+    f: Callable[[float], float],
+    xa: float,
+    xb: float,
+    fa: float,
+    fb: float,
+    xtol: float,
+    rtol: float,
+    maxiter: int,
+    calls: int,
+) -> RootResult:
     """scipy's brentq.c iteration, from ends whose values are already known."""
     xpre, xcur = xa, xb
     fpre, fcur = fa, fb
@@ -176,8 +185,9 @@ def _brent_core(f: Callable[[float], float], xa: float, xb: float, fa: float, fb
     raise NoConvergenceError(xcur, maxiter, abs(xblk - xcur))
 
 
-def brent(f: Callable[[float], float], a: float, b: float, *, xtol: float = XTOL, rtol: float = RTOL,
-          maxiter: int = MAXITER) -> RootResult:
+def brent(
+    f: Callable[[float], float], a: float, b: float, *, xtol: float = XTOL, rtol: float = RTOL, maxiter: int = MAXITER
+) -> RootResult:
     """Root of ``f`` in the bracket ``[a, b]`` by Brent's method, with statistics.
 
     Parameters
@@ -222,8 +232,9 @@ def brent(f: Callable[[float], float], a: float, b: float, *, xtol: float = XTOL
     return _brent_core(f, xa, xb, fa, fb, xt, rt, mi, 2)
 
 
-def brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float = XTOL, rtol: float = RTOL,
-           maxiter: int = MAXITER) -> float:
+def brentq(
+    f: Callable[[float], float], a: float, b: float, *, xtol: float = XTOL, rtol: float = RTOL, maxiter: int = MAXITER
+) -> float:
     """Root of ``f`` in ``[a, b]``: :func:`brent` returning only the root (like scipy's ``brentq``).
 
     Parameters
@@ -256,9 +267,17 @@ def _sign(v: float) -> int:
     return 0 if v == 0.0 else (1 if v > 0.0 else -1)
 
 
-def find_sign_changes(f: Callable[[float], float], grid: ArrayLike, *, values: ArrayLike | None = None,
-                      left_sign: int | None = None, ftol: float = 0.0, xtol: float = XTOL,
-                      rtol: float = RTOL, maxiter: int = MAXITER) -> SignChanges:
+def find_sign_changes(
+    f: Callable[[float], float],
+    grid: ArrayLike,
+    *,
+    values: ArrayLike | None = None,
+    left_sign: int | None = None,
+    ftol: float = 0.0,
+    xtol: float = XTOL,
+    rtol: float = RTOL,
+    maxiter: int = MAXITER,
+) -> SignChanges:
     """All sign changes of ``f`` resolved by the samples on ``grid``, each refined by Brent's method.
 
     Rules (they make every crossing reported exactly once and a touch never):

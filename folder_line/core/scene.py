@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any
 
 from folder_line.core.drive import DriveSpec
 from folder_line.core.effects import EFFECTS, parse_effect_params
-from folder_line.core.machines import StreamParams
 from folder_line.core.limits import SAMPLE_RATE
+from folder_line.core.machines import StreamParams
 from folder_line.errors import ParameterError
 
 __all__ = ['MACHINE_KINDS', 'SCENE_KEYS', 'Scene', 'parse_scene']
@@ -61,8 +62,7 @@ def _build(cls: type, prefix: str, values: Mapping[str, Any]) -> Any:
     for key, value in values.items():
         if key not in names:
             raise ParameterError(f'{prefix}.{key}', value, f'unknown key; known: {", ".join(names)}')
-    missing = [n for n in names if n not in values
-               and cls.__dataclass_fields__[n].default is dataclasses.MISSING]
+    missing = [n for n in names if n not in values and cls.__dataclass_fields__[n].default is dataclasses.MISSING]
     if missing:
         raise ParameterError(f'{prefix}.{missing[0]}', None, 'missing')
     try:
@@ -118,8 +118,11 @@ class Scene:
         try:
             return self.machines[section]
         except KeyError:
-            raise ParameterError('machines', section, f'scene {self.name!r} has no such machine; '
-                                 f'it has {", ".join(self.machines) or "none"}') from None
+            raise ParameterError(
+                'machines',
+                section,
+                f'scene {self.name!r} has no such machine; it has {", ".join(self.machines) or "none"}',
+            ) from None
 
     @property
     def has_layup(self) -> bool:
@@ -183,9 +186,11 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
             raise ParameterError('effects', ename, f'unknown effect; known: {", ".join(EFFECTS)}')
         for need in EFFECTS[ename].machines:
             if need not in machines:
-                raise ParameterError(f'effects.{ename}', ename,
-                                     f'needs machine {need!r}, which scene {name!r} does not have '
-                                     f'(it has {", ".join(machines)})')
+                raise ParameterError(
+                    f'effects.{ename}',
+                    ename,
+                    f'needs machine {need!r}, which scene {name!r} does not have (it has {", ".join(machines)})',
+                )
         effects[ename] = parse_effect_params(ename, evalues)
 
     drive = _build(DriveSpec, 'drive', data.get('drive') or {'profile': 'constant'})
@@ -194,6 +199,14 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
         raise ParameterError('seed', seed, 'must be a whole number in [0, 2**63)')
     rate = SAMPLE_RATE.check('sample_rate', data.get('sample_rate', 0.0))
-    return Scene(name=name, description=description, machines=MappingProxyType(machines), drive=drive,
-                 sheets=sheets, effects=MappingProxyType(effects), seed=seed, sample_rate=rate,
-                 source=MappingProxyType(dict(data)))
+    return Scene(
+        name=name,
+        description=description,
+        machines=MappingProxyType(machines),
+        drive=drive,
+        sheets=sheets,
+        effects=MappingProxyType(effects),
+        seed=seed,
+        sample_rate=rate,
+        source=MappingProxyType(dict(data)),
+    )

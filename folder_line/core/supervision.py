@@ -105,8 +105,9 @@ the chain); for the layup, leaves entered = landed (or exited, without
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -138,15 +139,29 @@ __all__ = [
 TIMING_CONSTRAINTS = ('feed_window', 'settled_before_knife', 'rebound', 'chute_speed', 'release_at_min_speed')
 #: PackML command -> (drive command kind or None, waits for the next machine cycle boundary)
 DRIVE_COMMANDS: dict[str, tuple[str | None, bool]] = {
-    'start': ('start', False), 'stop': ('stop', True), 'hold': ('hold', True), 'unhold': ('unhold', False),
-    'suspend': ('hold', True), 'unsuspend': ('unhold', False), 'abort': ('stop', False),
-    'complete': ('stop', True), 'reset': (None, False), 'clear': (None, False),
+    'start': ('start', False),
+    'stop': ('stop', True),
+    'hold': ('hold', True),
+    'unhold': ('unhold', False),
+    'suspend': ('hold', True),
+    'unsuspend': ('unhold', False),
+    'abort': ('stop', False),
+    'complete': ('stop', True),
+    'reset': (None, False),
+    'clear': (None, False),
 }
 #: acting state -> what ends it
 _ENDS: dict[str, str] = {
-    'STARTING': 'speed', 'UNHOLDING': 'speed', 'UNSUSPENDING': 'speed', 'HOLDING': 'standstill',
-    'SUSPENDING': 'standstill', 'STOPPING': 'standstill', 'ABORTING': 'standstill', 'COMPLETING': 'standstill',
-    'RESETTING': 'next', 'CLEARING': 'next',
+    'STARTING': 'speed',
+    'UNHOLDING': 'speed',
+    'UNSUSPENDING': 'speed',
+    'HOLDING': 'standstill',
+    'SUSPENDING': 'standstill',
+    'STOPPING': 'standstill',
+    'ABORTING': 'standstill',
+    'COMPLETING': 'standstill',
+    'RESETTING': 'next',
+    'CLEARING': 'next',
 }
 assert set(_ENDS) == set(ACTING)
 #: waiting states in which the line stands: the sheet balance is checked on entering them
@@ -160,11 +175,25 @@ STALE_PERIODS = 10.0
 #: the node that publishes the sheets' events: a folder cycle is judged only once it has been heard
 SHEET_SOURCE = 'feed_transporter'
 
-_FOLDER_KINDS = np.array([event_kind(k) for k in ('sheet_handover', 'at_stops', 'bounce', 'settled',
-                                                  'knife_contact')], dtype=np.int16)
-_BALANCE_KINDS = np.array([event_kind(k) for k in ('sheet_handover', 'at_stops', 'knife_contact',
-                                                   'released_on_pile', 'leaf_enter', 'leaf_exit', 'leaf_landed',
-                                                   'leaf_spilled')], dtype=np.int16)
+_FOLDER_KINDS = np.array(
+    [event_kind(k) for k in ('sheet_handover', 'at_stops', 'bounce', 'settled', 'knife_contact')], dtype=np.int16
+)
+_BALANCE_KINDS = np.array(
+    [
+        event_kind(k)
+        for k in (
+            'sheet_handover',
+            'at_stops',
+            'knife_contact',
+            'released_on_pile',
+            'leaf_enter',
+            'leaf_exit',
+            'leaf_landed',
+            'leaf_spilled',
+        )
+    ],
+    dtype=np.int16,
+)
 _CONTACT = event_kind('knife_contact')
 _RELEASE = event_kind('released_on_pile')
 _LEAF_EXIT = event_kind('leaf_exit')
@@ -307,9 +336,9 @@ class _Node:
     """Liveness of one known node."""
 
     period: float
-    expected: bool                 # watched from t_start (else from its first stamp)
-    last: float | None = None      # latest stamp taken into account (t_start for an expected node)
-    first: float = math.inf        # earliest stamp ever fed
+    expected: bool  # watched from t_start (else from its first stamp)
+    last: float | None = None  # latest stamp taken into account (t_start for an expected node)
+    first: float = math.inf  # earliest stamp ever fed
     stale_at: float | None = None  # decision time of the current stale episode
     pending: list[np.ndarray] = field(default_factory=list)
 
@@ -379,12 +408,24 @@ class Supervisor:
         Inputs that came at or before a watermark already passed.
     """
 
-    def __init__(self, scene: Any, horizon: float, *, periods: Mapping[str, float] | None = None,
-                 expected: Iterable[str] = (), clock_ticks: bool = False,
-                 stale_periods: float = STALE_PERIODS, lead: float = 0.0, check_period: float = CHECK_PERIOD,
-                 enforce: bool = True, double: str = 'hold', speed_reached: float = SPEED_REACHED,
-                 state: str = 'STARTING', t_start: float | None = 0.0,
-                 model_factory: Callable[[tuple[Command, ...]], Any] | None = None) -> None:
+    def __init__(
+        self,
+        scene: Any,
+        horizon: float,
+        *,
+        periods: Mapping[str, float] | None = None,
+        expected: Iterable[str] = (),
+        clock_ticks: bool = False,
+        stale_periods: float = STALE_PERIODS,
+        lead: float = 0.0,
+        check_period: float = CHECK_PERIOD,
+        enforce: bool = True,
+        double: str = 'hold',
+        speed_reached: float = SPEED_REACHED,
+        state: str = 'STARTING',
+        t_start: float | None = 0.0,
+        model_factory: Callable[[tuple[Command, ...]], Any] | None = None,
+    ) -> None:
         self.scene = scene
         self.horizon = positive('horizon', horizon)
         self.k = positive('stale_periods', stale_periods)
@@ -443,9 +484,9 @@ class Supervisor:
         self._releases = np.zeros(0, dtype=EVENT_DTYPE)
         self._exits = np.zeros(0, dtype=EVENT_DTYPE)
         self._balance_rows: list[np.ndarray] = []
-        self._folder_done = -1           # last folder cycle judged
-        self._release_done = -math.inf   # last release time judged
-        self._exit_done = -math.inf      # last leaf exit time judged
+        self._folder_done = -1  # last folder cycle judged
+        self._release_done = -math.inf  # last release time judged
+        self._exit_done = -math.inf  # last leaf exit time judged
         self._bad: list[tuple[float, str, int]] = []
         self._lost: list[tuple[float, str, float]] = []
         self.blind_from = math.inf  # no judgement from here on: a participant was lost
@@ -631,7 +672,7 @@ class Supervisor:
             for s in self._nodes.values():
                 if s.expected:
                     s.last = W
-        if W <= self.now:
+        if self.now >= W:
             return []
         n_before = len(self._issued)
         self._merge_clock()
@@ -670,21 +711,32 @@ class Supervisor:
             elif what == 'bad':
                 self._bad.remove(min(self._bad))
                 topic, count = arg
-                self._interlock(when, f'finite:{topic}', -float(count), 'values',
-                                f'{count} non-finite value(s) on {topic}')
+                self._interlock(
+                    when, f'finite:{topic}', -float(count), 'values', f'{count} non-finite value(s) on {topic}'
+                )
             elif what == 'lost':
                 self._lost.remove(min(self._lost))
                 node, waited = arg
                 self.lost_nodes.append(node)
-                self._interlock(when, f'lost:{node}', -waited, 'wall s',
-                                f'participant {node} lost: no answer for {waited:.3g} s of wall time')
+                self._interlock(
+                    when,
+                    f'lost:{node}',
+                    -waited,
+                    'wall s',
+                    f'participant {node} lost: no answer for {waited:.3g} s of wall time',
+                )
             else:
                 node, last = arg
                 st = self._nodes[node]
                 st.last, st.stale_at = last, when
                 silence = when - last
-                self._interlock(when, f'liveness:{node}', self.k * st.period - silence, 's',
-                                f'{node} not heard for {silence:.6g} s (> {self.k:g} periods of {st.period:g} s)')
+                self._interlock(
+                    when,
+                    f'liveness:{node}',
+                    self.k * st.period - silence,
+                    's',
+                    f'{node} not heard for {silence:.6g} s (> {self.k:g} periods of {st.period:g} s)',
+                )
             new = self._issued[n_issued:]
             if new:
                 # the drive changes from the new command's time on: re-judge what is due from then
@@ -797,8 +849,9 @@ class Supervisor:
             if contact.any():
                 drive = self._model_before(W).drive
                 last = int(fb['cycle'][contact].max())
-                sub = fb[(fb['cycle'] > self._folder_done) & (fb['cycle'] <= last)
-                         & ((fb['kind'] != _CONTACT) | contact)]
+                sub = fb[
+                    (fb['cycle'] > self._folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)
+                ]
                 ev = folder_evaluation(sub, self._timing, self.scene, drive, plan=self._plan, causal=True)
                 per: dict[int, list[tuple[str, str, float]]] = {int(c): [] for c in ev.cycle}
                 for s in ev.constraints:
@@ -1009,9 +1062,13 @@ class Supervisor:
             else:
                 delivered_f = int(np.count_nonzero(folded))
                 on_chain = 0
-            detail.update(on_feed=int(np.count_nonzero(on_feed)), at_stops=int(np.count_nonzero(waiting)),
-                          jammed=int(np.count_nonzero(jammed)), on_chain=on_chain,
-                          folded=int(np.count_nonzero(folded)))
+            detail.update(
+                on_feed=int(np.count_nonzero(on_feed)),
+                at_stops=int(np.count_nonzero(waiting)),
+                jammed=int(np.count_nonzero(jammed)),
+                on_chain=on_chain,
+                folded=int(np.count_nonzero(folded)),
+            )
             fed += int(ids.size)
             delivered += delivered_f
             in_machine += detail['on_feed'] + detail['at_stops'] + detail['jammed'] + on_chain
@@ -1031,7 +1088,7 @@ class Supervisor:
             in_machine += int(on_chutes + in_air)
         ok &= fed == delivered + in_machine
         if self.lost_nodes and t >= self.blind_from:
-            missing = (f'events of {", ".join(self.lost_nodes)} not received after {self.blind_from:.6f} s')
+            missing = f'events of {", ".join(self.lost_nodes)} not received after {self.blind_from:.6f} s'
             return Balance(float(t), state, fed, delivered, in_machine, detail, False, missing)
         return Balance(float(t), state, fed, delivered, in_machine, detail, bool(ok))
 
@@ -1039,10 +1096,19 @@ class Supervisor:
 # --------------------------------------------------------------------------- offline
 
 
-def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str, Iterable[float]] | None = None,
-           clock: Iterable[float] = (), bad_values: Iterable[tuple[float, str, int]] = (),
-           operator: Iterable[tuple[float, str]] = (), lost: Iterable[tuple[float, str, float]] = (),
-           until: float | None = None, **params: Any) -> Supervisor:
+def replay(
+    scene: Any,
+    horizon: float,
+    events: np.ndarray,
+    *,
+    heard: Mapping[str, Iterable[float]] | None = None,
+    clock: Iterable[float] = (),
+    bad_values: Iterable[tuple[float, str, int]] = (),
+    operator: Iterable[tuple[float, str]] = (),
+    lost: Iterable[tuple[float, str, float]] = (),
+    until: float | None = None,
+    **params: Any,
+) -> Supervisor:
     """Run a :class:`Supervisor` over a recorded stream.
 
     Parameters
@@ -1097,7 +1163,7 @@ def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str
         i_ev = max(i_ev, j)
         for n, a in hd.items():
             j = int(np.searchsorted(a, t, side='right'))
-            sup.heard(n, a[i_h[n]:j])
+            sup.heard(n, a[i_h[n] : j])
             i_h[n] = max(i_h[n], j)
         j = int(np.searchsorted(clk, t, side='right'))
         sup.clock(clk[i_c:j])
@@ -1120,9 +1186,17 @@ def replay(scene: Any, horizon: float, events: np.ndarray, *, heard: Mapping[str
     return sup
 
 
-def run_closed_loop(scene: Any, horizon: float, duration: float, *, step: float = CHECK_PERIOD,
-                    operator: Iterable[tuple[float, str]] = (), silent: Mapping[str, float] | None = None,
-                    bad_values: Iterable[tuple[float, str, int]] = (), **params: Any) -> tuple[Supervisor, Any, dict]:
+def run_closed_loop(
+    scene: Any,
+    horizon: float,
+    duration: float,
+    *,
+    step: float = CHECK_PERIOD,
+    operator: Iterable[tuple[float, str]] = (),
+    silent: Mapping[str, float] | None = None,
+    bad_values: Iterable[tuple[float, str, int]] = (),
+    **params: Any,
+) -> tuple[Supervisor, Any, dict]:
     """The live loop offline: the line model's events fed step by step, the supervisor's commands fed back.
 
     Every ``step`` s of line time: the events of the current model (built with the
@@ -1196,11 +1270,19 @@ def run_closed_loop(scene: Any, horizon: float, duration: float, *, step: float 
                 new.append(out.command)
         for c in new:
             if c.t <= W:
-                raise ParameterError('lead', sup.lead, f'command {c.kind} effective at {c.t!r} s, not after the '
-                                     f'events already fed up to {W!r} s: use lead >= step')
+                raise ParameterError(
+                    'lead',
+                    sup.lead,
+                    f'command {c.kind} effective at {c.t!r} s, not after the '
+                    f'events already fed up to {W!r} s: use lead >= step',
+                )
         prev = W
-    inputs = {'events': np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
-              'heard': {n: np.asarray(v) for n, v in heard.items()}, 'clock': np.asarray(clock),
-              'bad_values': bad_given,
-              'operator': given, 'until': prev}
+    inputs = {
+        'events': np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
+        'heard': {n: np.asarray(v) for n, v in heard.items()},
+        'clock': np.asarray(clock),
+        'bad_values': bad_given,
+        'operator': given,
+        'until': prev,
+    }
     return sup, sup.model, inputs

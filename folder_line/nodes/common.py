@@ -45,15 +45,16 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, Callable, Iterable, Mapping, Sequence, Union
+from typing import Any, Union
 
 import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import ParameterException
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -155,17 +156,26 @@ class TopicInfo:
 
 TOPICS: tuple[TopicInfo, ...] = (
     TopicInfo(CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock', 'simulated time, integer ns; published by line_clock'),
-    TopicInfo(JOINT_STATES_TOPIC_PATTERN, 'sensor_msgs/msg/JointState',
-              'joint positions (rad or m), velocities (rad/s or m/s), efforts (N m or N) of one machine'),
-    TopicInfo(EVENTS_TOPIC, 'sensor_msgs/msg/TimeReference',
-              'discrete events of the line (kinds: folder_line.core.events.EVENT_KINDS)'),
+    TopicInfo(
+        JOINT_STATES_TOPIC_PATTERN,
+        'sensor_msgs/msg/JointState',
+        'joint positions (rad or m), velocities (rad/s or m/s), efforts (N m or N) of one machine',
+    ),
+    TopicInfo(
+        EVENTS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'discrete events of the line (kinds: folder_line.core.events.EVENT_KINDS)',
+    ),
     TopicInfo(DIAGNOSTICS_TOPIC, 'diagnostic_msgs/msg/DiagnosticArray', 'constraint margins and faults'),
     TopicInfo(SUPERVISOR_STATE_TOPIC, 'std_msgs/msg/String', 'state of the line supervisor'),
     TopicInfo(SHEET_COUNT_TOPIC, 'std_msgs/msg/UInt64', 'sheets delivered so far'),
     TopicInfo(SHEET_RATE_TOPIC, 'std_msgs/msg/Float64', 'sheets (or leaves) per second over the counter window'),
     TopicInfo(LANDING_TOPIC, 'std_msgs/msg/Float64', 'landing x of each leaf, m (layup scenes)'),
-    TopicInfo(COMMANDS_TOPIC, 'sensor_msgs/msg/TimeReference',
-              'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time'),
+    TopicInfo(
+        COMMANDS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time',
+    ),
 )
 
 
@@ -186,8 +196,12 @@ def joint_states_topic(node_name: str) -> str:
     return JOINT_STATES_TOPIC_PATTERN.format(node=node_name)
 
 
-COMMANDS_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_ALL)
+COMMANDS_QOS = QoSProfile(
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    history=HistoryPolicy.KEEP_ALL,
+)
 """QoS of the supervisor's command topic: every command reaches every node, late joiners too."""
 
 PUBLISH_DEPTH = 1000
@@ -411,7 +425,8 @@ class ParamSpec:
             lo, hi = self.bounds
             if self.type == Parameter.Type.DOUBLE:
                 descriptor.floating_point_range = [
-                    FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]
+                    FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)
+                ]
             else:
                 descriptor.integer_range = [IntegerRange(from_value=math.ceil(lo), to_value=math.floor(hi), step=0)]
         return descriptor
@@ -567,8 +582,9 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec], cross_check: Cros
     return values
 
 
-def sim_time_overrides(parameter_overrides: Iterable[Parameter] | None = None, *,
-                       use_sim_time: bool = True) -> list[Parameter]:
+def sim_time_overrides(
+    parameter_overrides: Iterable[Parameter] | None = None, *, use_sim_time: bool = True
+) -> list[Parameter]:
     """Node ``parameter_overrides`` with ``use_sim_time`` set.
 
     A helper for nodes outside the line (tests): the line's own nodes set
@@ -606,8 +622,13 @@ TEARDOWN_TIMEOUT = 5.0
 """Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
 
 
-def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None, *,
-             teardown_timeout: float | None = None, exit_code: Callable[[Node], int] | None = None) -> int:
+def run_node(
+    node_factory: Callable[[], Node],
+    args: Sequence[str] | None = None,
+    *,
+    teardown_timeout: float | None = None,
+    exit_code: Callable[[Node], int] | None = None,
+) -> int:
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
 
     The node is built by ``node_factory()`` in the default context and spun by a
@@ -676,8 +697,12 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
             return
 
         def expire() -> None:
-            print(f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
-                  'exiting anyway (the node had stopped)', file=sys.stderr, flush=True)
+            print(
+                f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
+                'exiting anyway (the node had stopped)',
+                file=sys.stderr,
+                flush=True,
+            )
             sys.stdout.flush()
             os._exit(code)
 
@@ -693,8 +718,7 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         for signum in (signal.SIGINT, signal.SIGTERM):
             previous[signum] = signal.signal(signum, on_signal)
     try:
-        with rclpy.init(args=None if args is None else list(args),
-                        signal_handler_options=SignalHandlerOptions.NO):
+        with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
             try:
                 node = node_factory()
             except (FolderLineError, ParameterException) as err:

@@ -45,7 +45,8 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any, Iterable, Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock
@@ -96,19 +97,51 @@ REPEAT_FIRST = 0.2  # wall s between repetitions of the first tick
 
 SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('rate', 200.0, 'Ticks per second of simulated time', unit='Hz', bounds=TICK_RATE.bounds),
-    ParamSpec('rtf', 1.0, 'Real-time factor ceiling: simulated seconds per wall second (0: as fast as the line '
-              f'allows, lockstep only; else >= {RTF.lo:g})', bounds=(0.0, RTF.hi)),
-    ParamSpec('clock', 'lockstep', 'lockstep: wait for every participant each tick; wall: pace by the wall clock '
-              'and count late participants', choices=CLOCK_MODES, read_only=True),
-    ParamSpec('participants', ','.join(DEFAULT_PARTICIPANTS), 'Comma-separated nodes that acknowledge every tick '
-              f'(of {", ".join(KNOWN_PARTICIPANTS)})', read_only=True),
+    ParamSpec(
+        'rtf',
+        1.0,
+        'Real-time factor ceiling: simulated seconds per wall second (0: as fast as the line '
+        f'allows, lockstep only; else >= {RTF.lo:g})',
+        bounds=(0.0, RTF.hi),
+    ),
+    ParamSpec(
+        'clock',
+        'lockstep',
+        'lockstep: wait for every participant each tick; wall: pace by the wall clock and count late participants',
+        choices=CLOCK_MODES,
+        read_only=True,
+    ),
+    ParamSpec(
+        'participants',
+        ','.join(DEFAULT_PARTICIPANTS),
+        f'Comma-separated nodes that acknowledge every tick (of {", ".join(KNOWN_PARTICIPANTS)})',
+        read_only=True,
+    ),
     ParamSpec('start_time', 0.0, 'Simulated time at start', unit='s', bounds=(0.0, DURATION.hi), read_only=True),
-    ParamSpec('duration', 0.0, 'Simulated time to run for after start_time; 0 runs until interrupted',
-              unit='s', bounds=(0.0, DURATION.hi), read_only=True),
-    ParamSpec('lost_timeout', 3.0, 'Wall time a tick waits for a participant before it is declared lost',
-              unit='s', bounds=LOST_TIMEOUT.bounds, read_only=True),
-    ParamSpec('startup_timeout', 60.0, 'Wall time the first tick waits for every participant', unit='s',
-              bounds=(1.0, 3600.0), read_only=True),
+    ParamSpec(
+        'duration',
+        0.0,
+        'Simulated time to run for after start_time; 0 runs until interrupted',
+        unit='s',
+        bounds=(0.0, DURATION.hi),
+        read_only=True,
+    ),
+    ParamSpec(
+        'lost_timeout',
+        3.0,
+        'Wall time a tick waits for a participant before it is declared lost',
+        unit='s',
+        bounds=LOST_TIMEOUT.bounds,
+        read_only=True,
+    ),
+    ParamSpec(
+        'startup_timeout',
+        60.0,
+        'Wall time the first tick waits for every participant',
+        unit='s',
+        bounds=(1.0, 3600.0),
+        read_only=True,
+    ),
 )
 
 
@@ -191,7 +224,8 @@ class LineClock(Node):
         self.get_logger().info(
             f'{self.mode} /clock at {v["rate"]:g} Hz of sim time, {rtf_text}, from {v["start_time"]:g} s'
             + (f' for {v["duration"]:g} s' if self._end is not None else '')
-            + f'; participants {", ".join(self.participants)}')
+            + f'; participants {", ".join(self.participants)}'
+        )
         self._publish(self._start)
 
     # ------------------------------------------------------------------ state
@@ -336,17 +370,30 @@ class LineClock(Node):
         if first and now - self._published_at >= REPEAT_FIRST and not self._all_answered():
             self._pub.publish(ClockMsg(clock=ns_to_time_msg(self.current)))
         limit = self.values['startup_timeout'] if first else self.values['lost_timeout']
-        silent = [p for p in self.participants
-                  if p not in self._answered and p not in self.lost and now - self._heard[p] > limit]
+        silent = [
+            p
+            for p in self.participants
+            if p not in self._answered and p not in self.lost and now - self._heard[p] > limit
+        ]
         for p in silent:
             waited = now - self._heard[p]
             self.lost[p] = self.current / NS_PER_S
             self._ledger.lose(p)
-            self.get_logger().error(f'participant {p} lost: no answer to tick {self.current / NS_PER_S:.9f} s in '
-                                    f'{waited:.1f} s of wall time (limit {limit:g} s)')
-            self._status('lost', DiagnosticStatus.ERROR, f'participant {p} lost at {self.current / NS_PER_S:.9f} s',
-                         {'node': p, 'tick': repr(self.current / NS_PER_S), 'waited_wall_s': f'{waited:.3f}',
-                          'limit_s': repr(limit)})
+            self.get_logger().error(
+                f'participant {p} lost: no answer to tick {self.current / NS_PER_S:.9f} s in '
+                f'{waited:.1f} s of wall time (limit {limit:g} s)'
+            )
+            self._status(
+                'lost',
+                DiagnosticStatus.ERROR,
+                f'participant {p} lost at {self.current / NS_PER_S:.9f} s',
+                {
+                    'node': p,
+                    'tick': repr(self.current / NS_PER_S),
+                    'waited_wall_s': f'{waited:.3f}',
+                    'limit_s': repr(limit),
+                },
+            )
         if silent and self._all_answered():
             self._advance()
 
@@ -354,16 +401,17 @@ class LineClock(Node):
         worst = max(self.late.values(), default=0)
         level = DiagnosticStatus.WARN if worst else DiagnosticStatus.OK
         text = ', '.join(f'{p} {n}' for p, n in self.late.items() if n) or 'none'
-        self._status('lateness', level, f'late ticks: {text}', {p: str(n) for p, n in self.late.items()},
-                     stamp=stamp)
+        self._status('lateness', level, f'late ticks: {text}', {p: str(n) for p, n in self.late.items()}, stamp=stamp)
 
-    def _status(self, what: str, level: bytes, message: str, values: Mapping[str, str],
-                stamp: int | None = None) -> None:
+    def _status(
+        self, what: str, level: bytes, message: str, values: Mapping[str, str], stamp: int | None = None
+    ) -> None:
         arr = DiagnosticArray()
         arr.header.stamp = ns_to_time_msg(self.current if stamp is None else stamp)
         arr.header.frame_id = NODE_NAME
-        st = DiagnosticStatus(name=f'folder_line/line_clock/{what}', hardware_id=NODE_NAME, level=level,
-                              message=message)
+        st = DiagnosticStatus(
+            name=f'folder_line/line_clock/{what}', hardware_id=NODE_NAME, level=level, message=message
+        )
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         arr.status.append(st)
         self._diag.publish(arr)
@@ -378,8 +426,10 @@ class LineClock(Node):
             self._report_lateness(self.current)
         seconds, nanoseconds = divmod(self.current, NS_PER_S)
         lost = f'; lost: {", ".join(self.lost)}' if self.lost else ''
-        self.get_logger().info(f'stopped at sim time {seconds}.{nanoseconds:09d} s: {why} '
-                               f'({self.ticks} ticks, rtf {self.rtf_achieved:.2f}){lost}')
+        self.get_logger().info(
+            f'stopped at sim time {seconds}.{nanoseconds:09d} s: {why} '
+            f'({self.ticks} ticks, rtf {self.rtf_achieved:.2f}){lost}'
+        )
         self.done.set_result(self.current)
 
 

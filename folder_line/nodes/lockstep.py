@@ -43,8 +43,9 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -83,12 +84,17 @@ TICK_DONE_PATTERN = '/line/{node}/tick_done'
 DEFAULT_PARTICIPANTS: tuple[str, ...] = MACHINE_NODES
 CLOCK_MODES: tuple[str, ...] = ('lockstep', 'wall')
 
-LINE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+LINE_QOS = QoSProfile(
+    depth=PUBLISH_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    history=HistoryPolicy.KEEP_LAST,
+)
 """QoS of every data publisher and subscription of the line: reliable, transient-local, 1000 deep."""
 TICK_QOS = LINE_QOS
-PARTICIPANTS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
+PARTICIPANTS_QOS = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 CLOCK_SUB_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -127,8 +133,10 @@ def parse_announcement(text: str) -> Announcement:
     try:
         names = participant_names(fields['participants'])
     except ValueError:
-        raise ValueError(f'participants={fields["participants"][:80]!r}: must be distinct names among '
-                         f'{", ".join(KNOWN_PARTICIPANTS)}') from None
+        raise ValueError(
+            f'participants={fields["participants"][:80]!r}: must be distinct names among '
+            f'{", ".join(KNOWN_PARTICIPANTS)}'
+        ) from None
     return Announcement(fields['clock'], None if end is None else int(end), names)
 
 
@@ -138,8 +146,9 @@ def participant_names(text: str) -> tuple[str, ...]:
     names = tuple(n.strip() for n in text.split(',') if n.strip())
     bad = [n for n in names if n not in KNOWN_PARTICIPANTS]
     if bad:
-        raise ValueError(f'unknown node(s) {", ".join(b[:40] for b in bad[:5])}; known: '
-                         f'{", ".join(KNOWN_PARTICIPANTS)}')
+        raise ValueError(
+            f'unknown node(s) {", ".join(b[:40] for b in bad[:5])}; known: {", ".join(KNOWN_PARTICIPANTS)}'
+        )
     if len(set(names)) != len(names):
         raise ValueError('names a node twice')
     if not names:
@@ -203,12 +212,20 @@ class Participant:
         hands every message to :meth:`on_clock`: one delivery per tick instead of two.
     """
 
-    def __init__(self, node: Node, depends: Depends, on_tick: Callable[[int], None], *,
-                 needs: Callable[[int, int | None], int | None] | None = None,
-                 on_lost: Callable[[str, float, int], None] | None = None,
-                 on_reject: Callable[[str, str], None] | None = None,
-                 on_end: Callable[[int], None] | None = None,
-                 lost_timeout: float = 3.0, startup_timeout: float = 60.0, clock_subscription: bool = True) -> None:
+    def __init__(
+        self,
+        node: Node,
+        depends: Depends,
+        on_tick: Callable[[int], None],
+        *,
+        needs: Callable[[int, int | None], int | None] | None = None,
+        on_lost: Callable[[str, float, int], None] | None = None,
+        on_reject: Callable[[str, str], None] | None = None,
+        on_end: Callable[[int], None] | None = None,
+        lost_timeout: float = 3.0,
+        startup_timeout: float = 60.0,
+        clock_subscription: bool = True,
+    ) -> None:
         self.node = node
         self.name = node.get_name()
         self._depends = depends
@@ -287,8 +304,9 @@ class Participant:
                 self._reject('announcement', 'a second, different announcement (another line_clock?)')
             return
         if self.name not in a.participants:
-            self.node.get_logger().warning(f'{self.name} is not among the participants {",".join(a.participants)}: '
-                                           'line_clock will not wait for it')
+            self.node.get_logger().warning(
+                f'{self.name} is not among the participants {",".join(a.participants)}: line_clock will not wait for it'
+            )
         self.announcement = a
         deps = {p: s for p, s in self._depends(a).items() if p in a.participants and p != self.name}
         self.ledger = TickLedger(deps, {s for streams in deps.values() for s in streams})
@@ -298,8 +316,9 @@ class Participant:
             self.ledger.received(producer, stream, n)
         self._early.clear()
         for producer in deps:
-            self.node.create_subscription(TimeReference, tick_done_topic(producer), self._on_ack(producer), TICK_QOS,
-                                          raw=True)
+            self.node.create_subscription(
+                TimeReference, tick_done_topic(producer), self._on_ack(producer), TICK_QOS, raw=True
+            )
         self.advance()
 
     def _on_ack(self, producer: str) -> Callable[[bytes], None]:
@@ -310,7 +329,7 @@ class Participant:
                 self._reject('tick_done', str(err))
                 return
             if frame_id != producer:
-                self._reject('tick_done', f'frame_id {frame_id[:40]!r} on {producer}\'s topic')
+                self._reject('tick_done', f"frame_id {frame_id[:40]!r} on {producer}'s topic")
                 return
             assert self.ledger is not None
             refused = self.ledger.ack(producer, stamp, counts)
@@ -403,7 +422,8 @@ class Participant:
             self.ledger.lose(producer)
             self.node.get_logger().error(
                 f'participant {producer} lost: tick {need / NS_PER_S:.9f} s not complete after {waited:.1f} s of '
-                f'wall time (limit {limit:g} s); going on without it')
+                f'wall time (limit {limit:g} s); going on without it'
+            )
             if self._on_lost is not None:
                 self._on_lost(producer, waited, need)
         self.advance()

@@ -35,7 +35,8 @@ from __future__ import annotations
 import functools
 import math
 from array import array
-from typing import Any, Iterable, Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 import numpy as np
 from rclpy.node import Node
@@ -63,8 +64,15 @@ from folder_line.nodes.common import (
 from folder_line.nodes.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.scenes import load_scene, parse_set
 
-__all__ = ['EVENT_OWNER', 'MACHINE_SPECS', 'MachineNode', 'event_source', 'line_model', 'parse_event_source',
-           'parse_overrides']
+__all__ = [
+    'EVENT_OWNER',
+    'MACHINE_SPECS',
+    'MachineNode',
+    'event_source',
+    'line_model',
+    'parse_event_source',
+    'parse_overrides',
+]
 
 #: which node publishes which event kind
 EVENT_OWNER: dict[str, str] = {
@@ -92,14 +100,35 @@ assert set(EVENT_OWNER) == set(EVENT_KINDS), 'every event kind needs a publishin
 
 MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('scene', 'folder', 'Scene name (config/scenes) or path of a scene YAML file', read_only=True),
-    ParamSpec('overrides', '', 'Scene overrides, "MACHINE.KEY=VALUE" separated by ";" '
-              '(e.g. "feed_transporter.V_tr=5.833;seed=3")', read_only=True),
-    ParamSpec('horizon', 3600.0, 'Line time the model is built for; the node stops publishing after it',
-              unit='s', bounds=HORIZON.bounds, read_only=True),
-    ParamSpec('rate', 200.0, 'Joint-state rate in simulated time (its own grid; changing it is harmless)',
-              unit='Hz', bounds=TICK_RATE.bounds),
-    ParamSpec('lost_timeout', 3.0, 'Wall time a tick waits for the supervisor before it is declared lost',
-              unit='s', bounds=LOST_TIMEOUT.bounds, read_only=True),
+    ParamSpec(
+        'overrides',
+        '',
+        'Scene overrides, "MACHINE.KEY=VALUE" separated by ";" (e.g. "feed_transporter.V_tr=5.833;seed=3")',
+        read_only=True,
+    ),
+    ParamSpec(
+        'horizon',
+        3600.0,
+        'Line time the model is built for; the node stops publishing after it',
+        unit='s',
+        bounds=HORIZON.bounds,
+        read_only=True,
+    ),
+    ParamSpec(
+        'rate',
+        200.0,
+        'Joint-state rate in simulated time (its own grid; changing it is harmless)',
+        unit='Hz',
+        bounds=TICK_RATE.bounds,
+    ),
+    ParamSpec(
+        'lost_timeout',
+        3.0,
+        'Wall time a tick waits for the supervisor before it is declared lost',
+        unit='s',
+        bounds=LOST_TIMEOUT.bounds,
+        read_only=True,
+    ),
 )
 
 #: grid points of joint states sampled from the model in one call (see MachineNode._joint_row)
@@ -126,8 +155,9 @@ _CLI_NAMES = {'--scene': 'scene', '--set': 'overrides'}
 
 def _check_scene(values: Mapping[str, Any]) -> None:
     if values.get('use_sim_time') is False:
-        raise ParameterError('use_sim_time', False, 'a line node runs on the line\'s simulated time (/clock); '
-                             'it cannot be turned off')
+        raise ParameterError(
+            'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+        )
     try:
         load_scene(values['scene'], parse_overrides(values['overrides']))
     except ParameterError as err:  # name the node's parameter, not the CLI option
@@ -162,20 +192,23 @@ class MachineNode(Node):
         super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
         # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
         if self.get_parameter('use_sim_time').value is False and (
-                any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides):
-            raise ParameterError('use_sim_time', False, 'a line node runs on the line\'s simulated time (/clock); '
-                                 'it cannot be turned off')
+            any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides
+        ):
+            raise ParameterError(
+                'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+            )
         self.set_parameters([Parameter('use_sim_time', value=True)])
         self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_scene)
         self._key = (self.values['scene'], self.values['overrides'], self.values['horizon'])
         self.commands: tuple[Command, ...] = ()
-        self.kinds = np.array([EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME],
-                              dtype=np.int16)
+        self.kinds = np.array(
+            [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
+        )
         self._set_model(line_model(*self._key, self.commands))
         self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
         self.joints = self.model.nodes.get(self.NODE_NAME, ())
-        self._last_ns: int | None = None      # the latest tick published
-        self._grid_ns: int | None = None      # the latest grid point published
+        self._last_ns: int | None = None  # the latest tick published
+        self._grid_ns: int | None = None  # the latest grid point published
         self._period_ns = round(NS_PER_S / self.values['rate'])
         self._batch: tuple[int, int, list[tuple[array[float], array[float], array[float]]]] | None = None
         self._names: list[str] = list(self.joints)
@@ -188,18 +221,28 @@ class MachineNode(Node):
         self.published_joint_states = 0
         self.published_events = 0
         self.done: Future = Future()
-        self._joint_pub = (self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), LINE_QOS)
-                           if self.joints else None)
+        self._joint_pub = (
+            self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), LINE_QOS) if self.joints else None
+        )
         self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
-        self.lockstep = Participant(self, self.depends, self._on_tick, needs=self.needs, on_lost=self.on_lost,
-                                    on_reject=self.reject, on_end=self._on_end,
-                                    lost_timeout=self.values['lost_timeout'])
+        self.lockstep = Participant(
+            self,
+            self.depends,
+            self._on_tick,
+            needs=self.needs,
+            on_lost=self.on_lost,
+            on_reject=self.reject,
+            on_end=self._on_end,
+            lost_timeout=self.values['lost_timeout'],
+        )
         self.add_post_set_parameters_callback(self._apply)
         self.setup()
         self.on_model()
-        self.get_logger().info(f'scene {self.model.scene.name!r}, joints {list(self.joints)}, '
-                               f'{self.values["rate"]:g} Hz of sim time, horizon {self.values["horizon"]:g} s')
+        self.get_logger().info(
+            f'scene {self.model.scene.name!r}, joints {list(self.joints)}, '
+            f'{self.values["rate"]:g} Hz of sim time, horizon {self.values["horizon"]:g} s'
+        )
 
     # ------------------------------------------------------------------ hooks
 
@@ -256,8 +299,9 @@ class MachineNode(Node):
 
     def _on_command(self, msg: TimeReference) -> None:
         if msg.header.frame_id != 'supervisor':
-            self.reject('command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the '
-                        'supervisor only')
+            self.reject(
+                'command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the supervisor only'
+            )
             return
         if msg.source not in COMMAND_KINDS:
             self.reject('command', f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)})')
@@ -267,8 +311,11 @@ class MachineNode(Node):
             self.reject('command', f'{command.kind} at {command.t:.9f} s repeated')
             return
         if self._last_ns is not None and command.t * NS_PER_S < self._last_ns:
-            self.reject('command', f'{command.kind} effective at {command.t:.9f} s arrived after stamp '
-                        f'{self._last_ns / NS_PER_S:.9f} s was published')
+            self.reject(
+                'command',
+                f'{command.kind} effective at {command.t:.9f} s arrived after stamp '
+                f'{self._last_ns / NS_PER_S:.9f} s was published',
+            )
             return
         self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
         self._set_model(line_model(*self._key, self.commands))
@@ -286,8 +333,10 @@ class MachineNode(Node):
     def _on_tick(self, stamp_ns: int) -> None:
         if stamp_ns > self.horizon_ns:
             if not self._horizon_logged:
-                self.get_logger().error(f'sim time {stamp_ns / NS_PER_S:.9f} s passed the horizon '
-                                        f'{self.values["horizon"]:g} s: publishing nothing more')
+                self.get_logger().error(
+                    f'sim time {stamp_ns / NS_PER_S:.9f} s passed the horizon '
+                    f'{self.values["horizon"]:g} s: publishing nothing more'
+                )
                 self._horizon_logged = True
             return
         self.publish_at(stamp_ns)
@@ -337,7 +386,7 @@ class MachineNode(Node):
         self._last_ns = stamp_ns
         stamp = ns_to_time_msg(stamp_ns)
         i0, i1 = np.searchsorted(self._own_t, (t_prev, t), side='right')  # this node's events of (t_prev, t]
-        mine = self._own_events[i0:max(i0, i1)]
+        mine = self._own_events[i0 : max(i0, i1)]
         for row in mine:
             ref = TimeReference()
             ref.header.stamp = stamp

@@ -48,6 +48,7 @@ from folder_line.nodes.machine import MachineNode
 
 __all__ = ['SheetCounter', 'counted_kind', 'main']
 
+
 def counted_kind(has_delivery: bool) -> int:
     """Event-kind index the counter counts: sheets on the pile, else leaves in the container."""
     return EVENT_KINDS.index(counted_event(has_delivery))
@@ -57,8 +58,9 @@ class SheetCounter(MachineNode):
     """The ``sheet_counter`` node."""
 
     NODE_NAME = 'sheet_counter'
-    EXTRA_SPECS = (ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s',
-                             bounds=(0.001, 3600.0)),)
+    EXTRA_SPECS = (
+        ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s', bounds=(0.001, 3600.0)),
+    )
 
     def setup(self) -> None:
         self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, LINE_QOS)
@@ -94,8 +96,12 @@ class SheetCounter(MachineNode):
             self.published_landing += 1
 
     def published_counts(self) -> dict[str, int]:
-        return {**super().published_counts(), SHEET_COUNT_TOPIC: self.published_count,
-                SHEET_RATE_TOPIC: self.published_rate, LANDING_TOPIC: self.published_landing}
+        return {
+            **super().published_counts(),
+            SHEET_COUNT_TOPIC: self.published_count,
+            SHEET_RATE_TOPIC: self.published_rate,
+            LANDING_TOPIC: self.published_landing,
+        }
 
 
 def main(args: list[str] | None = None) -> int:

@@ -73,7 +73,8 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -114,8 +115,9 @@ SERVICES: dict[str, tuple[str, str | None, bool]] = {
     for name in ('start', 'stop', 'hold', 'unhold', 'suspend', 'unsuspend', 'reset', 'clear', 'abort')
 }
 
-STATE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATE_QOS = QoSProfile(
+    depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 
 
 def _non_finite(*arrays: Any) -> int:
@@ -138,22 +140,38 @@ class Supervisor(MachineNode):
 
     NODE_NAME = 'supervisor'
     EXTRA_SPECS = (
-        ParamSpec('command_lead', 0.1, 'Earliest effective time of a drive command after its decision, in sim '
-                  'time (must exceed the clock\'s tick step)', unit='s', bounds=(0.001, 60.0), read_only=True),
+        ParamSpec(
+            'command_lead',
+            0.1,
+            'Earliest effective time of a drive command after its decision, in sim '
+            "time (must exceed the clock's tick step)",
+            unit='s',
+            bounds=(0.001, 60.0),
+            read_only=True,
+        ),
         ParamSpec('diag_rate', 1.0, 'Rate of /diagnostics in sim time', unit='Hz', bounds=(0.01, 1000.0)),
-        ParamSpec('enforce', True, 'Command hold, suspend and abort on violations (false: only report)',
-                  read_only=True),
-        ParamSpec('double_sheet', 'hold', 'What a double sheet leads to', choices=('hold', 'abort'),
-                  read_only=True),
+        ParamSpec(
+            'enforce', True, 'Command hold, suspend and abort on violations (false: only report)', read_only=True
+        ),
+        ParamSpec('double_sheet', 'hold', 'What a double sheet leads to', choices=('hold', 'abort'), read_only=True),
     )
 
     def setup(self) -> None:
         v = self.values
         joint_nodes = list(self.model.nodes)
         key = self._key
-        self.logic = Logic(self.model.scene, v['horizon'], periods={}, lead=v['command_lead'],
-                           check_period=1.0 / v['rate'], enforce=v['enforce'], double=v['double_sheet'],
-                           state='STARTING', t_start=None, model_factory=lambda commands: line_model(*key, commands))
+        self.logic = Logic(
+            self.model.scene,
+            v['horizon'],
+            periods={},
+            lead=v['command_lead'],
+            check_period=1.0 / v['rate'],
+            enforce=v['enforce'],
+            double=v['double_sheet'],
+            state='STARTING',
+            t_start=None,
+            model_factory=lambda commands: line_model(*key, commands),
+        )
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_violations = self._n_balances = 0
@@ -212,8 +230,11 @@ class Supervisor(MachineNode):
         ledger = self.lockstep.ledger
         last = ledger.complete(owner) if ledger is not None and ledger.knows(owner) else None
         if last is not None and tick_ns <= last:
-            self.reject('event', f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick '
-                        f'{tick_ns / NS_PER_S:.9f} s was complete')
+            self.reject(
+                'event',
+                f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick '
+                f'{tick_ns / NS_PER_S:.9f} s was complete',
+            )
             return
         if not math.isfinite(value):
             self.logic.bad_value(EVENTS_TOPIC, max(time_msg_to_ns(msg.header.stamp) / NS_PER_S, self.logic.now))
@@ -231,8 +252,7 @@ class Supervisor(MachineNode):
             bad = _non_finite(msg.position, msg.velocity, msg.effort)
             if bad:
                 stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
-                self.logic.bad_value(topic, max(stamp, self.logic.now) if math.isfinite(stamp) else self.logic.now,
-                                     bad)
+                self.logic.bad_value(topic, max(stamp, self.logic.now) if math.isfinite(stamp) else self.logic.now, bad)
 
         return on_joints
 
@@ -257,13 +277,19 @@ class Supervisor(MachineNode):
         at_boundary = SERVICES[name][2]
         lead_ns = seconds_to_ns(self.values['command_lead'])
         if SERVICES[name][1] is not None and self._clock_step is not None and self._clock_step >= lead_ns:
-            return False, (f'{name}: refused: the clock steps {self._clock_step / NS_PER_S:g} s per tick, not less '
-                           f'than command_lead = {self.values["command_lead"]:g} s, so the command could take effect '
-                           'in a tick the machines already published')
+            return False, (
+                f'{name}: refused: the clock steps {self._clock_step / NS_PER_S:g} s per tick, not less '
+                f'than command_lead = {self.values["command_lead"]:g} s, so the command could take effect '
+                'in a tick the machines already published'
+            )
         out = self.logic.command(name)
         self._publish_outputs()
-        self._publish_status('operator', out.ok, f'{name}: {"accepted" if out.ok else out.message}',
-                             {'t': self.logic.now, 'command': name, 'accepted': out.ok})
+        self._publish_status(
+            'operator',
+            out.ok,
+            f'{name}: {"accepted" if out.ok else out.message}',
+            {'t': self.logic.now, 'command': name, 'accepted': out.ok},
+        )
         if not out.ok:
             return False, out.message
         # publish the new state now: RESETTING and CLEARING end at the next grid point, before a tick publishes
@@ -271,8 +297,9 @@ class Supervisor(MachineNode):
         if out.command is None:
             return True, f'{name}: {self.packml.state}'
         where = 'the next cycle boundary' if at_boundary else f'{self.values["command_lead"]:g} s after the request'
-        return True, (f'{name}: {self.packml.state}, drive {out.command.kind} effective at {out.command.t:.6f} s '
-                      f'({where})')
+        return True, (
+            f'{name}: {self.packml.state}, drive {out.command.kind} effective at {out.command.t:.6f} s ({where})'
+        )
 
     # ------------------------------------------------------------------ tick
 
@@ -303,11 +330,11 @@ class Supervisor(MachineNode):
         for t, command in self.logic.take_commands():
             self._publish_command(t, command)
         violations = self.logic.violations
-        for v in violations[self._n_violations:]:
+        for v in violations[self._n_violations :]:
             self._publish_violation(v)
         self._n_violations = len(violations)
         balances = self.logic.balances
-        for b in balances[self._n_balances:]:
+        for b in balances[self._n_balances :]:
             self._publish_balance(b)
         self._n_balances = len(balances)
 
@@ -320,8 +347,9 @@ class Supervisor(MachineNode):
         self.publish(self._cmd_pub, msg, 'commands')  # also reaches this node's own subscription (its model)
         self.published_commands += 1
 
-    def _publish_status(self, what: str, ok: bool, message: str, values: dict[str, Any],
-                        stamp: float | None = None) -> None:
+    def _publish_status(
+        self, what: str, ok: bool, message: str, values: dict[str, Any], stamp: float | None = None
+    ) -> None:
         arr = DiagnosticArray()
         t = self.logic.now if stamp is None else stamp
         arr.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)) if math.isfinite(t) else 0)
@@ -331,37 +359,75 @@ class Supervisor(MachineNode):
         status.level = DiagnosticStatus.OK if ok else DiagnosticStatus.ERROR
         status.message = message
         extra = {'t_start': self.logic.t_start, 'watermark': self.logic.now, 'late': self.logic.late}
-        status.values = [KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v))
-                         for k, v in {**values, **extra}.items()]
+        status.values = [
+            KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v)) for k, v in {**values, **extra}.items()
+        ]
         arr.status.append(status)
         arr.header.frame_id = self.NODE_NAME
         self.publish(self._diag_pub, arr)
         self.published_diagnostics += 1
 
     def _publish_violation(self, v: Violation) -> None:
-        self.get_logger().warning(f'{v.constraint} violated in cycle {v.cycle} at {v.t:.6f} s, margin {v.margin:.6g} '
-                                  f'{v.unit}: {v.action} ({v.state})')
-        self._publish_status('violation', False, f'{v.constraint} violated in cycle {v.cycle}: {v.action}',
-                             {'t': v.t, 'cycle': v.cycle, 'constraint': v.constraint, 'margin': v.margin,
-                              'unit': v.unit, 'action': v.action, 'state': v.state}, stamp=v.t)
+        self.get_logger().warning(
+            f'{v.constraint} violated in cycle {v.cycle} at {v.t:.6f} s, margin {v.margin:.6g} '
+            f'{v.unit}: {v.action} ({v.state})'
+        )
+        self._publish_status(
+            'violation',
+            False,
+            f'{v.constraint} violated in cycle {v.cycle}: {v.action}',
+            {
+                't': v.t,
+                'cycle': v.cycle,
+                'constraint': v.constraint,
+                'margin': v.margin,
+                'unit': v.unit,
+                'action': v.action,
+                'state': v.state,
+            },
+            stamp=v.t,
+        )
 
     def _publish_balance(self, b: Balance) -> None:
         if b.missing:  # a participant was lost: no number is judged on what never arrived
             self.get_logger().warning(f'sheet balance at {b.t:.6f} s ({b.state}) not judged: {b.missing}')
-            self._publish_status('balance', False, f'{b.state}: not judged: {b.missing}',
-                                 {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False}, stamp=b.t)
+            self._publish_status(
+                'balance',
+                False,
+                f'{b.state}: not judged: {b.missing}',
+                {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False},
+                stamp=b.t,
+            )
             return
         if not b.ok:
-            self.get_logger().error(f'sheet balance broken at {b.t:.6f} s ({b.state}): fed {b.fed}, delivered '
-                                    f'{b.delivered}, in the machine {b.in_machine}')
-        self._publish_status('balance', b.ok, f'{b.state}: fed {b.fed} = delivered {b.delivered} + in the '
-                             f'machine {b.in_machine}' + ('' if b.ok else ' BROKEN'),
-                             {'t': b.t, 'state': b.state, 'fed': b.fed, 'delivered': b.delivered,
-                              'in_machine': b.in_machine, **b.detail, 'ok': b.ok}, stamp=b.t)
+            self.get_logger().error(
+                f'sheet balance broken at {b.t:.6f} s ({b.state}): fed {b.fed}, delivered '
+                f'{b.delivered}, in the machine {b.in_machine}'
+            )
+        self._publish_status(
+            'balance',
+            b.ok,
+            f'{b.state}: fed {b.fed} = delivered {b.delivered} + in the '
+            f'machine {b.in_machine}' + ('' if b.ok else ' BROKEN'),
+            {
+                't': b.t,
+                'state': b.state,
+                'fed': b.fed,
+                'delivered': b.delivered,
+                'in_machine': b.in_machine,
+                **b.detail,
+                'ok': b.ok,
+            },
+            stamp=b.t,
+        )
 
     def published_counts(self) -> dict[str, int]:
-        return {**super().published_counts(), SUPERVISOR_STATE_TOPIC: self.published_state,
-                DIAGNOSTICS_TOPIC: self.published_diagnostics, COMMANDS_TOPIC: self.published_commands}
+        return {
+            **super().published_counts(),
+            SUPERVISOR_STATE_TOPIC: self.published_state,
+            DIAGNOSTICS_TOPIC: self.published_diagnostics,
+            COMMANDS_TOPIC: self.published_commands,
+        }
 
     def diagnostics(self, stamp_ns: int, t: float) -> DiagnosticArray:
         """One status per constraint, from the cycles evaluated by time ``t``."""
@@ -393,13 +459,27 @@ class Supervisor(MachineNode):
                 i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
                 violations = int(np.count_nonzero(done < 0.0))
                 last = float(c.margin[i_last])
-                status.level = (DiagnosticStatus.ERROR if last < 0.0
-                                else DiagnosticStatus.WARN if violations else DiagnosticStatus.OK)
-                status.message = (f'violated in cycle {int(c.cycle[i_last])}' if last < 0.0
-                                  else f'{violations} violations so far' if violations else 'ok')
+                status.level = (
+                    DiagnosticStatus.ERROR
+                    if last < 0.0
+                    else DiagnosticStatus.WARN
+                    if violations
+                    else DiagnosticStatus.OK
+                )
+                status.message = (
+                    f'violated in cycle {int(c.cycle[i_last])}'
+                    if last < 0.0
+                    else f'{violations} violations so far'
+                    if violations
+                    else 'ok'
+                )
                 values: dict[str, Any] = {
-                    'margin': repr(last), 'unit': c.unit, 'cycle': str(int(c.cycle[i_last])),
-                    'min_margin': repr(float(done.min())), 'violations': str(violations), 'evaluations': str(n),
+                    'margin': repr(last),
+                    'unit': c.unit,
+                    'cycle': str(int(c.cycle[i_last])),
+                    'min_margin': repr(float(done.min())),
+                    'violations': str(violations),
+                    'evaluations': str(n),
                 }
                 status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
             arr.status.append(status)

@@ -30,7 +30,7 @@ def test_ode_right_hand_side_is_the_reference_rate() -> None:
     f = fourbar.user_rhs(PARAMS)
     rate = np.array([f(float(tk), np.array([psi]))[0] for tk, psi in zip(t, ref.theta3)])
     assert np.abs(rate - ref.omega3).max() <= 1e-13
-    assert np.abs(ref.omega3).max() > 0.5                 # the rocker really swings
+    assert np.abs(ref.omega3).max() > 0.5  # the rocker really swings
 
 
 def test_closed_form_matches_the_six_bar_and_the_reference() -> None:
@@ -80,7 +80,7 @@ def test_closed_form_error_is_at_rounding_level(rows: list[Row]) -> None:
 
 @pytest.mark.parametrize('method', ODES)
 def test_solve_ivp_error_falls_as_rtol_tightens(rows: list[Row], method: str) -> None:
-    curve = sorted(_curve(rows, method), key=lambda r: -r.value)       # loosest first
+    curve = sorted(_curve(rows, method), key=lambda r: -r.value)  # loosest first
     errs = [r.error for r in curve]
     # quick settings are 3 decades apart: each must gain at least one decade
     assert all(b < a / 10.0 for a, b in itertools.pairwise(errs)), errs
@@ -107,24 +107,24 @@ def _row(method: str, error: float, cpu: float) -> Row:
 
 A = 'closed form (folder_line)'
 B = 'solve_ivp X'
-SYNTH_A = [_row(A, 2e-16, 1e-3), _row(A, 1e-16, 1e-5)]    # batch 1 (dear), whole grid (cheap)
+SYNTH_A = [_row(A, 2e-16, 1e-3), _row(A, 1e-16, 1e-5)]  # batch 1 (dear), whole grid (cheap)
 
 
 def test_ratio_on_synthetic_rows_when_b_never_reaches_a() -> None:
     rows = SYNTH_A + [_row(B, 1e-2, 1e-4), _row(B, 1e-6, 1e-3), _row(B, 1e-10, 1e-2)]
     res = fourbar.ratio_at_equal_error(rows, A, B)
     assert not res.reached
-    assert res.error == 1e-10                     # b's best error
+    assert res.error == 1e-10  # b's best error
     assert res.cpu_b == 1e-2
-    assert res.cpu_a == 1e-5                      # a's cheapest point reaching 1e-10
+    assert res.cpu_a == 1e-5  # a's cheapest point reaching 1e-10
     assert res.ratio == pytest.approx(1e3)
 
 
 def test_ratio_on_synthetic_rows_interpolates_log_log() -> None:
-    rows = SYNTH_A + [_row(B, 1e-2, 1e-4), _row(B, 1e-18, 1e-2), _row(B, 1e-17, 5e-2)]   # the last is dominated
+    rows = SYNTH_A + [_row(B, 1e-2, 1e-4), _row(B, 1e-18, 1e-2), _row(B, 1e-17, 5e-2)]  # the last is dominated
     res = fourbar.ratio_at_equal_error(rows, A, B)
     assert res.reached
-    assert res.error == 2e-16                     # a's level: the largest error of its settings
+    assert res.error == 2e-16  # a's level: the largest error of its settings
     # straight line between (1e-2, 1e-4) and (1e-18, 1e-2) in log-log
     log_cpu = np.interp(math.log(2e-16), [math.log(1e-18), math.log(1e-2)], [math.log(1e-2), math.log(1e-4)])
     assert res.cpu_b == pytest.approx(math.exp(log_cpu), rel=1e-12)
@@ -132,7 +132,7 @@ def test_ratio_on_synthetic_rows_interpolates_log_log() -> None:
     assert res.ratio == pytest.approx(math.exp(log_cpu) / 1e-5, rel=1e-12)
     # an explicit level on b's curve
     res = fourbar.ratio_at_equal_error(rows, A, B, error=1e-10)
-    assert res.cpu_b == pytest.approx(1e-4 * 100.0 ** (8.0 / 16.0), rel=1e-12)   # halfway in log error
+    assert res.cpu_b == pytest.approx(1e-4 * 100.0 ** (8.0 / 16.0), rel=1e-12)  # halfway in log error
 
 
 def test_ratio_ignores_other_studies_and_names_missing_methods() -> None:

@@ -31,7 +31,7 @@ def test_reference_closes_both_loops_on_the_assembly_branches(phi: float) -> Non
         t3, t5 = sol.loop1.theta3, sol.theta5
         bx, by = PARAMS.O2B * mp.cos(t3), PARAMS.O2B * mp.sin(t3)
         cx, cy = PARAMS.l3 * mp.cos(t3), PARAMS.l3 * mp.sin(t3)
-        ex, ey = PARAMS.l5 * mp.cos(t5), PARAMS.l5 * mp.sin(t5)      # E - O3
+        ex, ey = PARAMS.l5 * mp.cos(t5), PARAMS.l5 * mp.sin(t5)  # E - O3
         # MACHINES.md: (A - O2) × (B - O2) > 0 and (C - O3) × (E - O3) > 0, clearly (not a toggle)
         assert ax * by - ay * bx > mp.mpf('1e-3')
         assert (cx - PARAMS.O2O3) * ey - cy * ex > mp.mpf('1e-3')
@@ -49,10 +49,12 @@ def test_reference_rates_match_an_mpmath_central_difference_of_its_positions(phi
         plus, minus = sixbar_mp(PARAMS, x + h), sixbar_mp(PARAMS, x - h)
         mid = sixbar_mp(PARAMS, x)
         # truncation ~ h² θ'''/6 ~ 1e-31, round-off ~ 1e-50/h = 1e-35
-        for got, p, m in ((mid.loop1.dtheta3, plus.loop1.theta3, minus.loop1.theta3),
-                          (mid.dtheta5, plus.theta5, minus.theta5),
-                          (mid.loop1.dtheta2, plus.loop1.theta2, minus.loop1.theta2),
-                          (mid.dtheta4, plus.theta4, minus.theta4)):
+        for got, p, m in (
+            (mid.loop1.dtheta3, plus.loop1.theta3, minus.loop1.theta3),
+            (mid.dtheta5, plus.theta5, minus.theta5),
+            (mid.loop1.dtheta2, plus.loop1.theta2, minus.loop1.theta2),
+            (mid.dtheta4, plus.theta4, minus.theta4),
+        ):
             fd = mp.mpf(w) * (p - m) / (2 * h)
             assert abs(got - fd) <= mp.mpf('1e-25')
 
@@ -151,7 +153,7 @@ def test_newton_error_is_bounded_by_tol_and_falls_with_it(rows: list[Row]) -> No
         assert r.error <= 1.5 * kappa * r.value + 1e-13, (r.value, r.error)
     errs = [r.error for r in curve]
     assert all(b <= a + 1e-15 for a, b in itertools.pairwise(errs)), errs
-    assert errs[0] > 1e6 * errs[-1]        # the knob really trades accuracy
+    assert errs[0] > 1e6 * errs[-1]  # the knob really trades accuracy
     assert errs[-1] <= 1e-12
 
 
@@ -161,7 +163,7 @@ def test_newton_at_tight_tol_matches_the_closed_form_step_by_step() -> None:
     st = LayupModel(PARAMS).arrays(phi, accelerations=False)
     assert np.abs(t3 - st.theta3).max() < 1e-12
     assert np.abs(t5 - st.theta5).max() < 1e-12
-    assert 300 <= iters <= 300 * 4            # warm starts: one to a few iterations a step
+    assert 300 <= iters <= 300 * 4  # warm starts: one to a few iterations a step
     # at a loose tol most steps need no iteration at all
     assert linkage.newton_turn(PARAMS, 1e-3, phi)[2] < 100
 
@@ -176,7 +178,7 @@ def test_finite_differences_show_truncation_then_round_off(rows: list[Row]) -> N
     assert slope == pytest.approx(2.0, abs=0.3)
     best = int(np.argmin(e))
     assert 1e-7 < h[best] < 1e-3
-    assert e[np.argmin(h)] > 100.0 * e[best]     # round-off ~ ε/h at the smallest step
+    assert e[np.argmin(h)] > 100.0 * e[best]  # round-off ~ ε/h at the smallest step
     # the exact velocities of the closed form beat the best finite difference
     exact = max(r.error for r in _curve(rows, 'closed form velocity'))
     assert exact < e[best] / 100.0

@@ -15,14 +15,15 @@ from folder_line.accuracy.measure import COLUMNS, Row, cpu_per_call
 from folder_line.errors import ParameterError
 
 
-def _row(method: str, value: float, error: float, cpu: float, study: str = 'fourbar',
-         quantity: str = 'rocker angle') -> Row:
+def _row(
+    method: str, value: float, error: float, cpu: float, study: str = 'fourbar', quantity: str = 'rocker angle'
+) -> Row:
     return Row(study, method, 'rtol', value, error, cpu, quantity, 'rad', 'synthetic')
 
 
 def _power_law(method: str, c_err: float, c_cpu: float, order: float) -> list[Row]:
     """error = c_err h^order, cpu = c_cpu / h for h = 1e-1 .. 1e-4: a method of that order."""
-    return [_row(method, h, c_err * h ** order, c_cpu / h) for h in (1e-1, 1e-2, 1e-3, 1e-4)]
+    return [_row(method, h, c_err * h**order, c_cpu / h) for h in (1e-1, 1e-2, 1e-3, 1e-4)]
 
 
 def test_row_rejects_non_finite_and_negative_values():
@@ -39,8 +40,13 @@ def test_row_rejects_non_finite_and_negative_values():
 
 
 def test_pareto_front_drops_dominated_points():
-    rows = [_row('a', 1, 1e-3, 1.0), _row('a', 2, 1e-2, 2.0), _row('b', 3, 1e-6, 3.0), _row('b', 4, 1e-6, 4.0),
-            _row('b', 5, 1e-9, 10.0)]
+    rows = [
+        _row('a', 1, 1e-3, 1.0),
+        _row('a', 2, 1e-2, 2.0),
+        _row('b', 3, 1e-6, 3.0),
+        _row('b', 4, 1e-6, 4.0),
+        _row('b', 5, 1e-9, 10.0),
+    ]
     front = pareto.pareto_front(rows)
     assert [r.value for r in front] == [1, 3, 5]
 
@@ -81,9 +87,11 @@ def test_cpu_per_call_measures_process_time_not_sleep():
 
 
 def _result() -> BenchResult:
-    rows = (_power_law('closed form (folder_line)', 1e-12, 1e-3, 0)
-            + _power_law('solve_ivp RK45', 1.0, 1e-2, 1) + [_row('exact', 1.0, 0.0, 5e-3, study='events',
-                                                                 quantity='event time')])
+    rows = (
+        _power_law('closed form (folder_line)', 1e-12, 1e-3, 0)
+        + _power_law('solve_ivp RK45', 1.0, 1e-2, 1)
+        + [_row('exact', 1.0, 0.0, 5e-3, study='events', quantity='event time')]
+    )
     return BenchResult(tuple(rows), True, {'fourbar': 1.0, 'events': 0.5}, {'python': '3.11', 'platform': 'x'})
 
 

@@ -30,8 +30,10 @@ from folder_line.scenes import load_scene
 DURATION = 2.0  # s of line time the errors are measured over
 # rosidl_generator_py (imported by the first node) imports lark 0.12, which imports the
 # deprecated sre_parse/sre_constants: not ours, not actionable (as in test/nodes/conftest.py)
-pytestmark = [pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-              for m in ('sre_parse', 'sre_constants')]
+pytestmark = [
+    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
+    for m in ('sre_parse', 'sre_constants')
+]
 RESOLVED = tuple(r for r in pub.RATES if r >= 100.0)  # >= 7 samples per knife cycle: the asymptotic range
 
 
@@ -65,7 +67,7 @@ def _mp_knife(t: float) -> tuple[mp.mpf, mp.mpf]:
     w = 2 * mp.pi * mp.mpf(kp.n_k) / 3600
     phi = w * mp.mpf(t)
     cx, cy = r * mp.cos(phi), r * mp.sin(phi)
-    s = mp.findroot(lambda x: (x - cx) ** 2 + (e - cy) ** 2 - L ** 2, cx + L, tol=mp.mpf(10) ** -50)
+    s = mp.findroot(lambda x: (x - cx) ** 2 + (e - cy) ** 2 - L**2, cx + L, tol=mp.mpf(10) ** -50)
     # d/dt: (s - cx)(s' + r w sin phi) - (e - cy) r w cos phi = 0
     v = (e - cy) * w * cx / (s - cx) - w * cy
     return s, v
@@ -78,14 +80,14 @@ def _mp_max_derivative(order: int) -> float:
     w = 2 * mp.pi * mp.mpf(kp.n_k) / 3600
 
     def s(phi: mp.mpf) -> mp.mpf:
-        return r * mp.cos(phi) + mp.sqrt(L ** 2 - (r * mp.sin(phi) - e) ** 2)
+        return r * mp.cos(phi) + mp.sqrt(L**2 - (r * mp.sin(phi) - e) ** 2)
 
     n = 720
     grid = [2 * mp.pi * i / n for i in range(n)]
     values = [abs(mp.diff(s, phi, order)) for phi in grid]
     best = max(range(n), key=lambda i: values[i])
     phi_star = mp.findroot(lambda x: mp.diff(s, x, order + 1), grid[best])
-    return float(max(values[best], abs(mp.diff(s, phi_star, order))) * w ** order)
+    return float(max(values[best], abs(mp.diff(s, phi_star, order))) * w**order)
 
 
 @lru_cache(maxsize=1)
@@ -128,9 +130,9 @@ def test_core_knife_agrees_with_an_independent_crank_slider_in_mpmath() -> None:
 def test_linear_error_is_within_the_acceleration_bound_and_tight() -> None:
     a_max = _a_max()
     kp = _knife()  # the central crank-slider's outer dead centre: omega^2 r (1 + r / L)
-    assert a_max == pytest.approx(kp.omega_k ** 2 * kp.r_k * (1.0 + kp.r_k / kp.L_k), rel=1e-12)
+    assert a_max == pytest.approx(kp.omega_k**2 * kp.r_k * (1.0 + kp.r_k / kp.L_k), rel=1e-12)
     for rate in pub.RATES:
-        bound = a_max / (8.0 * rate ** 2)
+        bound = a_max / (8.0 * rate**2)
         err = _error(rate, 'linear interpolation')
         assert err <= bound * (1.0 + 1e-9), (rate, err, bound)
         if rate >= 200.0:  # samples straddle a dead centre within 2 s: the bound is attained to < 5 %
@@ -140,7 +142,7 @@ def test_linear_error_is_within_the_acceleration_bound_and_tight() -> None:
 def test_hermite_error_is_within_the_fourth_derivative_bound() -> None:
     snap = _snap_max()
     for rate in pub.RATES:
-        bound = snap / (384.0 * rate ** 4)
+        bound = snap / (384.0 * rate**4)
         err = _error(rate, 'cubic Hermite')
         assert err <= bound * (1.0 + 1e-9), (rate, err, bound)
         if rate >= 200.0:
@@ -164,8 +166,8 @@ def test_reconstruct_is_exact_for_its_degree() -> None:
     t = np.linspace(0.0, 1.0, 1001)
     lin = pub.reconstruct('linear interpolation', t_k, 3.0 * t_k - 1.0, np.full(11, 3.0), t)
     assert np.max(np.abs(lin - (3.0 * t - 1.0))) <= 1e-15
-    cubic = pub.reconstruct('cubic Hermite', t_k, t_k ** 3 - 2.0 * t_k, 3.0 * t_k ** 2 - 2.0, t)
-    assert np.max(np.abs(cubic - (t ** 3 - 2.0 * t))) <= 1e-14
+    cubic = pub.reconstruct('cubic Hermite', t_k, t_k**3 - 2.0 * t_k, 3.0 * t_k**2 - 2.0, t)
+    assert np.max(np.abs(cubic - (t**3 - 2.0 * t))) <= 1e-14
     with pytest.raises(ParameterError, match='method'):
         pub.reconstruct('spline', t_k, t_k, t_k, t)
 
@@ -175,8 +177,16 @@ def test_reconstruct_is_exact_for_its_degree() -> None:
 
 def test_published_check_threshold() -> None:
     def cost(n: int) -> pub.LiveCost:
-        return pub.LiveCost(rate=100.0, rtf=2.0, clock_rate=200.0, t_start=1.0, t_end=2.0, cpu_s=0.3, wall_s=0.5,
-                            published={'crank_drive': 100, 'belt_conveyor': n, 'feed_transporter': 100})
+        return pub.LiveCost(
+            rate=100.0,
+            rtf=2.0,
+            clock_rate=200.0,
+            t_start=1.0,
+            t_end=2.0,
+            cpu_s=0.3,
+            wall_s=0.5,
+            published={'crank_drive': 100, 'belt_conveyor': n, 'feed_transporter': 100},
+        )
 
     pub.check_published(cost(90))  # 90 of 100 owed: enough
     assert cost(90).published_fraction == pytest.approx(0.9)

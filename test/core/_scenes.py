@@ -9,8 +9,9 @@ from folder_line.core.scene import Scene, parse_scene
 from folder_line.params import config_dir, load_params, read_yaml_mapping
 
 
-def folder_scene(name: str, effects: dict[str, Any], *, delivery: dict[str, Any] | None = None,
-                 chain: dict[str, Any] | None = None) -> Scene:
+def folder_scene(
+    name: str, effects: dict[str, Any], *, delivery: dict[str, Any] | None = None, chain: dict[str, Any] | None = None
+) -> Scene:
     """The shipped knife, cyclogram, feed transporter, delivery and chain with ``effects``;
     ``delivery`` and ``chain`` override keys of those two sections."""
     machines: dict[str, Any] = {sec: dataclasses.asdict(load_params(sec)) for sec in ('knife', 'cyclogram', 'delivery')}
@@ -18,5 +19,11 @@ def folder_scene(name: str, effects: dict[str, Any], *, delivery: dict[str, Any]
         machines[sec] = read_yaml_mapping(config_dir() / f'{sec}.yaml', sec)
     machines['delivery'].update(delivery or {})
     machines['delivery_chain'].update(chain or {})
-    return parse_scene({'name': name, 'machines': machines,
-                        'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'), 'effects': effects})
+    return parse_scene(
+        {
+            'name': name,
+            'machines': machines,
+            'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'),
+            'effects': effects,
+        }
+    )

@@ -8,6 +8,7 @@ from typing import Any
 import mpmath as mp
 import numpy as np
 import pytest
+from _scenes import folder_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -20,7 +21,6 @@ from folder_line.core.chain import ChainPath
 from folder_line.core.cyclogram import cycle_timing
 from folder_line.core.delivery import LAWS, evaluate_stroke
 from folder_line.core.scene import Scene
-from _scenes import folder_scene
 from folder_line.errors import ParameterError
 
 
@@ -41,6 +41,7 @@ def _exact_arc(u: float, x_max: float = 0.3, lam: float = 0.4) -> float:
     def g(v: Any) -> Any:
         xi = v if v <= 1 else 2 - v
         return x_max * mp.sqrt(1 + (lam * (1 - mp.cos(2 * mp.pi * xi))) ** 2)
+
     mp.mp.dps = 30
     if u <= 1:
         return float(mp.quad(g, [0, u]))
@@ -146,13 +147,13 @@ def test_mapping_rejects_bad_input(scene: Scene) -> None:
 def test_schedule_from_the_knife_and_chain(scene: Scene) -> None:
     sch = chain.schedule(scene)
     kn = scene.machine('knife')
-    assert sch.T == pytest.approx(0.072, rel=1e-15)
+    assert pytest.approx(0.072, rel=1e-15) == sch.T
     assert sch.v_A == pytest.approx(0.8 / 0.072, rel=1e-15)
     # carriage 0 takes sheet 0 when the knife passage that folds it (centred on Θ = T) ends
     assert sch.theta_pick0 == sch.T + knife_mod.window(kn).t_out
     assert sch.theta_enter0 == pytest.approx(sch.theta_pick0 + 0.4 / sch.v_A, rel=1e-15)
     np.testing.assert_allclose(sch.phase_of_travel([0.4, 0.4], [0, 3]), sch.theta_enter0 + np.array([0, 3]) * 0.072)
-    assert sch.S == chain.chain_path(scene).length and sch.stroke_phase == sch.S / sch.v_A
+    assert chain.chain_path(scene).length == sch.S and sch.stroke_phase == sch.S / sch.v_A
 
 
 def test_schedule_numbering_is_the_cycle_timing(scene: Scene) -> None:

@@ -8,21 +8,37 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _scenes import folder_scene
 
 from folder_line.core import chain
 from folder_line.core.delivery import STATE_OK, evaluate, evaluate_stroke
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.scene import Scene, parse_scene
-from _scenes import folder_scene
 from folder_line.errors import ParameterError
 
 CF = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
-MOTOR = dict(J=0.5, T_0=264.6, omega_0=157.08, omega_nom=152.4, b=0.03, method='dopri5', h=0.01,
-             rtol=1e-8, atol=1e-10, t_stop=1e9, T_brake=0.0)
+MOTOR = dict(
+    J=0.5,
+    T_0=264.6,
+    omega_0=157.08,
+    omega_nom=152.4,
+    b=0.03,
+    method='dopri5',
+    h=0.01,
+    rtol=1e-8,
+    atol=1e-10,
+    t_stop=1e9,
+    T_brake=0.0,
+)
 
 
-def make_scene(cf_params: dict[str, Any] | None = None, *, delivery: dict[str, Any] | None = None,
-               chain: dict[str, Any] | None = None, motor: bool = True) -> Scene:
+def make_scene(
+    cf_params: dict[str, Any] | None = None,
+    *,
+    delivery: dict[str, Any] | None = None,
+    chain: dict[str, Any] | None = None,
+    motor: bool = True,
+) -> Scene:
     effects: dict[str, Any] = {'chain_friction': {**CF, **(cf_params or {})}}
     if motor:
         effects['motor_dynamics'] = MOTOR
@@ -37,8 +53,10 @@ def scene() -> Scene:
 # ------------------------------------------------------------------ parameters
 
 
-@pytest.mark.parametrize('key, value', [('P_k', -1.0), ('P_k', math.nan), ('r', 0.0), ('r', -0.1),
-                                        ('return_section', 'mirror'), ('P_k', True)])
+@pytest.mark.parametrize(
+    'key, value',
+    [('P_k', -1.0), ('P_k', math.nan), ('r', 0.0), ('r', -0.1), ('return_section', 'mirror'), ('P_k', True)],
+)
 def test_bad_params_name_the_key(key: str, value: Any) -> None:
     with pytest.raises(ParameterError) as info:
         cf.Params(**{**CF, key: value})
@@ -208,8 +226,9 @@ def test_master_load_pieces_breaks_mean_and_peak(scene: Scene) -> None:
     # piecewise scalar torque equals the vectorised one inside each piece
     for lo, hi in zip(b_arr[:-1], b_arr[1:]):
         th = np.linspace(lo, hi, 9)[1:-1]
-        np.testing.assert_allclose([load.torque_piece(x, (lo, hi)) for x in th], load.torque(th),
-                                   rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(
+            [load.torque_piece(x, (lo, hi)) for x in th], load.torque(th), rtol=1e-12, atol=1e-14
+        )
         # and continues its own piece's formula past the ends (no jump inside the piece)
         assert load.torque_piece(lo, (lo, hi)) == pytest.approx(float(load.torque(lo + 1e-12)), rel=1e-6, abs=1e-9)
     # mean and peak against brute-force sampling of one period

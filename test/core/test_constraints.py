@@ -22,8 +22,14 @@ BOUNCE = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05}
 def _scene(effects: dict[str, Any] | None = None, delivery: bool = False) -> Scene:
     sections = ['knife', 'cyclogram', 'feed_transporter'] + (['delivery', 'delivery_chain'] if delivery else [])
     machines = {s: read_yaml_mapping(config_dir() / f'{s}.yaml', s) for s in sections}
-    return parse_scene({'name': 'test', 'machines': machines, 'effects': effects or {},
-                        'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets')})
+    return parse_scene(
+        {
+            'name': 'test',
+            'machines': machines,
+            'effects': effects or {},
+            'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'),
+        }
+    )
 
 
 def _by_name(series: list) -> dict[str, Any]:
@@ -34,8 +40,10 @@ def _table(timing: Any, arrivals: dict[int, list[float]], settle: float = 0.0, r
     """Cycles 0..4: knife contacts, and per cycle the sheets' arrival delays after the window start."""
     T, t_out, t_in = timing.T, timing.knife.t_out, timing.knife.t_in
     k = np.arange(5)
-    rows = [make_events('knife_contact', (k + 1) * T + t_in, cycle=k),
-            make_events('knife_exit', (k + 1) * T + t_out, cycle=k)]
+    rows = [
+        make_events('knife_contact', (k + 1) * T + t_in, cycle=k),
+        make_events('knife_exit', (k + 1) * T + t_out, cycle=k),
+    ]
     sid = 0
     for c, delays in arrivals.items():
         for d in delays:
@@ -65,8 +73,9 @@ def test_margins_on_a_hand_made_table() -> None:
     assert fw.cycle.tolist() == [0, 1, 3, 4]
     assert_allclose(fw.margin, [ta - 0.02, -0.001, ta - 0.021, ta - late_knife], atol=1e-15)
     rest = tm.T - tm.t_knife  # window start to knife contact
-    assert_allclose(got['settled_before_knife'].margin, [rest - 0.025, rest - ta - 0.006, rest - 0.026,
-                                                         -0.007], atol=1e-15)
+    assert_allclose(
+        got['settled_before_knife'].margin, [rest - 0.025, rest - ta - 0.006, rest - 0.026, -0.007], atol=1e-15
+    )
     opc = got['one_per_cycle']
     assert opc.cycle.tolist() == [0, 1, 2, 3, 4]
     assert opc.margin.tolist() == [0.0, 0.0, -1.0, -1.0, -1.0]  # missing, double, after the knife
@@ -81,8 +90,9 @@ def test_without_stop_bounce_settled_is_at_stops_and_no_rebound() -> None:
     ev = _table(tm, {0: [0.02], 1: [0.03]})
     got = _by_name(evaluate_folder_constraints(ev, tm, scene))
     assert 'rebound' not in got and 'release_at_min_speed' not in got
-    assert_allclose(got['settled_before_knife'].margin, [tm.T - tm.t_knife - 0.02, tm.T - tm.t_knife - 0.03],
-                    atol=1e-15)
+    assert_allclose(
+        got['settled_before_knife'].margin, [tm.T - tm.t_knife - 0.02, tm.T - tm.t_knife - 0.03], atol=1e-15
+    )
 
 
 def test_order_and_foreign_rows_do_not_matter() -> None:
@@ -102,8 +112,9 @@ def test_sheet_still_on_its_way_is_bounded_and_negative() -> None:
     tm = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
     t0 = tm.knife.t_out
     t_c = tm.T + tm.knife.t_in
-    ev = merge_events([make_events('sheet_handover', [t0], sheet=0, cycle=0),
-                       make_events('knife_contact', [t_c], cycle=0)])
+    ev = merge_events(
+        [make_events('sheet_handover', [t0], sheet=0, cycle=0), make_events('knife_contact', [t_c], cycle=0)]
+    )
     got = _by_name(evaluate_folder_constraints(ev, tm, scene))
     assert got['feed_window'].margin[0] < -(tm.t_dwell)
     assert got['settled_before_knife'].margin[0] < 0.0
@@ -130,9 +141,13 @@ def test_deadline_follows_the_drive() -> None:
     th_dead = tm.knife.t_out + tm.t_allowed
     t_dead = float(drive.time_of(th_dead))
     t_stop = t_dead - 0.003
-    ev = merge_events([make_events('sheet_handover', [float(drive.time_of(tm.knife.t_out))], sheet=0, cycle=0),
-                       make_events('at_stops', [t_stop], sheet=0, cycle=0),
-                       make_events('knife_contact', [t_c], cycle=0)])
+    ev = merge_events(
+        [
+            make_events('sheet_handover', [float(drive.time_of(tm.knife.t_out))], sheet=0, cycle=0),
+            make_events('at_stops', [t_stop], sheet=0, cycle=0),
+            make_events('knife_contact', [t_c], cycle=0),
+        ]
+    )
     got = _by_name(evaluate_folder_constraints(ev, tm, scene, drive))
     assert got['feed_window'].margin[0] == pytest.approx(0.003, abs=1e-12)
     # without the drive the deadline would be placed at nominal speed: a different number

@@ -21,14 +21,14 @@ from folder_line.errors import ParameterError
 from folder_line.params import load_params
 
 # the paper's published figures
-PAPER_V_D = 5.83        # m/s, D = 267.38 mm at 25000 rev/h (printed 5.829; computed 5.833)
-PAPER_T = 0.072         # s, one knife-crank turn at 50000 rev/h
-PAPER_L_A = 0.420       # m, cut-sheet length
-PAPER_T_KNIFE = 0.030   # s, folding plus knife exit from under the table
-PAPER_T_FEED = 0.025    # s, feed time with the 10 % reserve
-PAPER_L_FEED = 0.230    # m, feed travel
-PAPER_V_TR = 9.2        # m/s, eq. (5): 0.230 / 0.025 (printed "9.02")
-PAPER_RATIO = 1.6       # eq. (6)
+PAPER_V_D = 5.83  # m/s, D = 267.38 mm at 25000 rev/h (printed 5.829; computed 5.833)
+PAPER_T = 0.072  # s, one knife-crank turn at 50000 rev/h
+PAPER_L_A = 0.420  # m, cut-sheet length
+PAPER_T_KNIFE = 0.030  # s, folding plus knife exit from under the table
+PAPER_T_FEED = 0.025  # s, feed time with the 10 % reserve
+PAPER_L_FEED = 0.230  # m, feed travel
+PAPER_V_TR = 9.2  # m/s, eq. (5): 0.230 / 0.025 (printed "9.02")
+PAPER_RATIO = 1.6  # eq. (6)
 
 
 @pytest.fixture(scope='module')
@@ -49,27 +49,34 @@ def timing(params: CyclogramParams, knife: KnifeParams) -> cg.CycleTiming:
 def closed_form_t_knife(k: KnifeParams) -> float:
     """e = 0: window ends at +-acos((s_c^2 + r^2 - L^2) / (2 s_c r)) (law of cosines)."""
     r, L, sc = mp.mpf(k.r_k), mp.mpf(k.L_k), mp.mpf(k.s_clear)
-    phi = mp.acos((sc ** 2 + r ** 2 - L ** 2) / (2 * sc * r))
+    phi = mp.acos((sc**2 + r**2 - L**2) / (2 * sc * r))
     return float(2 * phi / (2 * mp.pi * mp.mpf(k.n_k) / 3600))
 
 
 # ----------------------------------------------------------------------------- parameters
 
+
 def test_params_have_no_defaults_and_match_the_paper(params: CyclogramParams) -> None:
     for f in dataclasses.fields(CyclogramParams):
         assert f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
-    assert params == CyclogramParams(D_fc=0.26738, n_c=25000.0, L_feed=0.230, L_a=0.420, reserve=0.10,
-                                     dwell_frac=0.2)
+    assert params == CyclogramParams(D_fc=0.26738, n_c=25000.0, L_feed=0.230, L_a=0.420, reserve=0.10, dwell_frac=0.2)
     with pytest.raises(dataclasses.FrozenInstanceError):
         params.reserve = 0.2  # type: ignore[misc]
 
 
-@pytest.mark.parametrize(('kw', 'key'), [
-    ({'D_fc': 0.0}, 'cyclogram.D_fc'), ({'n_c': -1.0}, 'cyclogram.n_c'), ({'L_feed': math.nan}, 'cyclogram.L_feed'),
-    ({'L_a': math.inf}, 'cyclogram.L_a'), ({'reserve': 1.0}, 'cyclogram.reserve'),
-    ({'reserve': -0.01}, 'cyclogram.reserve'), ({'dwell_frac': 1.0}, 'cyclogram.dwell_frac'),
-    ({'dwell_frac': '0.2'}, 'cyclogram.dwell_frac'),
-])
+@pytest.mark.parametrize(
+    ('kw', 'key'),
+    [
+        ({'D_fc': 0.0}, 'cyclogram.D_fc'),
+        ({'n_c': -1.0}, 'cyclogram.n_c'),
+        ({'L_feed': math.nan}, 'cyclogram.L_feed'),
+        ({'L_a': math.inf}, 'cyclogram.L_a'),
+        ({'reserve': 1.0}, 'cyclogram.reserve'),
+        ({'reserve': -0.01}, 'cyclogram.reserve'),
+        ({'dwell_frac': 1.0}, 'cyclogram.dwell_frac'),
+        ({'dwell_frac': '0.2'}, 'cyclogram.dwell_frac'),
+    ],
+)
 def test_params_validation(params: CyclogramParams, kw, key) -> None:
     with pytest.raises(ParameterError) as info:
         dataclasses.replace(params, **kw)
@@ -92,6 +99,7 @@ def test_no_feed_window_is_a_parameter_error(knife: KnifeParams) -> None:
 
 
 # ----------------------------------------------------------------------------- published figures
+
 
 def test_printing_speed_cycle_and_sheet_length(timing: cg.CycleTiming, params: CyclogramParams) -> None:
     assert timing.V_d == pytest.approx(PAPER_V_D, abs=0.005)
@@ -135,8 +143,9 @@ def test_feed_window_closed_form(timing: cg.CycleTiming, knife: KnifeParams) -> 
     assert timing.min_feed_speed(0.0) == pytest.approx(0.230 / (0.8 * T - t_k), rel=1e-13)
 
 
-def test_no_speed_up_fails_by_the_closed_form_margin(timing: cg.CycleTiming, knife: KnifeParams,
-                                                      params: CyclogramParams) -> None:
+def test_no_speed_up_fails_by_the_closed_form_margin(
+    timing: cg.CycleTiming, knife: KnifeParams, params: CyclogramParams
+) -> None:
     V_d = 2 * math.pi * 25000.0 / 3600.0 * 0.26738 / 2
     T = 0.072
     expected = 0.9 * (T - closed_form_t_knife(knife) - 0.2 * T) - 0.230 / V_d
@@ -156,6 +165,7 @@ def test_the_papers_speed_passes(timing: cg.CycleTiming) -> None:
 
 
 # ----------------------------------------------------------------------------- timeline
+
 
 def test_timeline_is_one_contiguous_cycle(timing: cg.CycleTiming) -> None:
     knife_ph, feed, dwell = timing.timeline
@@ -180,6 +190,7 @@ def test_knife_is_off_the_table_during_feed_and_dwell(timing: cg.CycleTiming, kn
 
 
 # ----------------------------------------------------------------------------- vectorised speeds
+
 
 def test_vectorised_margin(timing: cg.CycleTiming) -> None:
     v = np.linspace(1.0, 30.0, 2901)
@@ -223,7 +234,7 @@ def test_cycle_scales_with_knife_speed(params: CyclogramParams, n_k: float, dwel
     p = dataclasses.replace(params, dwell_frac=dwell)
     t = cg.cycle_timing(p, k)
     T = 3600.0 / n_k
-    assert t.T == pytest.approx(T, rel=1e-15)
+    assert pytest.approx(T, rel=1e-15) == t.T
     # the occupied share of the cycle is geometric, independent of speed
     assert t.t_fw / T == pytest.approx(1.0 - 0.030009804483720214 / 0.072 - dwell, rel=1e-12)
     assert t.V_tr_min * t.t_allowed == pytest.approx(0.230, rel=1e-15)

@@ -31,11 +31,38 @@ from folder_line.core.delivery import (
 from folder_line.errors import ParameterError
 from folder_line.params import load_params
 
-REF: dict[str, Any] = dict(Lambda=0.4, alpha_m_deg=60.0, law='sinusoidal', f_Ap=0.1, f_Bp=0.1,
-                           f_A=0.15, f_B=0.15, f_O=0.15, r_A=0.1, r_B=0.1, r_O=0.1)
+REF: dict[str, Any] = dict(
+    Lambda=0.4,
+    alpha_m_deg=60.0,
+    law='sinusoidal',
+    f_Ap=0.1,
+    f_Bp=0.1,
+    f_A=0.15,
+    f_B=0.15,
+    f_O=0.15,
+    r_A=0.1,
+    r_B=0.1,
+    r_O=0.1,
+)
 FRICTION = ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O')
-FLOAT_FIELDS = ('eta_O', 'eta_A', 'eta_B', 'eta', 'K_v', 'k_BA', 'alpha', 'beta', 'psi', 'dpsi',
-                'p_AB', 'p_ch', 'm_1', 'p_AB_ideal', 'p_ch_ideal', 'm_1_ideal')
+FLOAT_FIELDS = (
+    'eta_O',
+    'eta_A',
+    'eta_B',
+    'eta',
+    'K_v',
+    'k_BA',
+    'alpha',
+    'beta',
+    'psi',
+    'dpsi',
+    'p_AB',
+    'p_ch',
+    'm_1',
+    'p_AB_ideal',
+    'p_ch_ideal',
+    'm_1_ideal',
+)
 
 
 def ref(**changes: Any) -> DeliveryParams:
@@ -49,9 +76,21 @@ def frictionless(**changes: Any) -> DeliveryParams:
 # -------------------------------------------------------------------- hand formulas (no module calls)
 
 
-def hand(xi: float, Lambda: float = 0.4, alpha_m_deg: float = 60.0, sign: float = 1.0,
-         f_Ap: float = 0.1, f_Bp: float = 0.1, f_A: float = 0.15, f_B: float = 0.15, f_O: float = 0.15,
-         r_A: float = 0.1, r_B: float = 0.1, r_O: float = 0.1, signed: bool = False) -> dict[str, float]:
+def hand(
+    xi: float,
+    Lambda: float = 0.4,
+    alpha_m_deg: float = 60.0,
+    sign: float = 1.0,
+    f_Ap: float = 0.1,
+    f_Bp: float = 0.1,
+    f_A: float = 0.15,
+    f_B: float = 0.15,
+    f_O: float = 0.15,
+    r_A: float = 0.1,
+    r_B: float = 0.1,
+    r_O: float = 0.1,
+    signed: bool = False,
+) -> dict[str, float]:
     """MACHINES.md D eqs. (1)-(9), cycloidal law, written out with math only.
 
     ``signed=True`` keeps the paper's signs; otherwise every friction term is a magnitude.
@@ -67,9 +106,21 @@ def hand(xi: float, Lambda: float = 0.4, alpha_m_deg: float = 60.0, sign: float 
     eta_O = 1 / (1 + f_O * r_O)
     P_AB = 1 / (math.cos(a) - f_Bp * math.sin(a) - f_B * r_B * m(math.sin(b)) / (K_v * math.cos(a)))
     P_ch = P_AB * (math.cos(a - b) + f_Ap * m(math.sin(a - b)) + f_A * r_A * m(math.sin(b)) / math.cos(a))
-    return dict(alpha=a, beta=b, K_v=K_v, k_BA=math.sin(b) / math.cos(a), eta_A=eta_A, eta_B=eta_B,
-                eta_O=eta_O, eta=eta_O * eta_A * eta_B, p_AB=P_AB, p_ch=P_ch, m_1=P_ch * (1 + f_O * r_O),
-                p_AB_ideal=1 / math.cos(a), p_ch_ideal=math.cos(a - b) / math.cos(a))
+    return dict(
+        alpha=a,
+        beta=b,
+        K_v=K_v,
+        k_BA=math.sin(b) / math.cos(a),
+        eta_A=eta_A,
+        eta_B=eta_B,
+        eta_O=eta_O,
+        eta=eta_O * eta_A * eta_B,
+        p_AB=P_AB,
+        p_ch=P_ch,
+        m_1=P_ch * (1 + f_O * r_O),
+        p_AB_ideal=1 / math.cos(a),
+        p_ch_ideal=math.cos(a - b) / math.cos(a),
+    )
 
 
 # -------------------------------------------------------------------- the paper's published result
@@ -149,8 +200,12 @@ def test_closed_form_numbers() -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(Lambda=st.floats(1e-3, 1e3), alpha_m_deg=st.floats(0.1, 89.0), law=st.sampled_from(['sinusoidal', 'harmonic']),
-       xi=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20))
+@given(
+    Lambda=st.floats(1e-3, 1e3),
+    alpha_m_deg=st.floats(0.1, 89.0),
+    law=st.sampled_from(['sinusoidal', 'harmonic']),
+    xi=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20),
+)
 def test_frictionless_is_ideal(Lambda: float, alpha_m_deg: float, law: str, xi: list[float]) -> None:
     p = frictionless(Lambda=Lambda, alpha_m_deg=alpha_m_deg, law=law)
     s = evaluate(p, xi)
@@ -215,12 +270,17 @@ friction_value = st.one_of(st.just(0.0), st.floats(0.0, 0.5), st.floats(0.0, 10.
 
 
 @settings(max_examples=200, deadline=None)
-@given(Lambda=st.floats(1e-3, 1e3), alpha_m_deg=st.floats(1.0, 89.0),
-       base=st.fixed_dictionaries({k: friction_value for k in FRICTION}),
-       which=st.sampled_from(FRICTION), extra=st.floats(1e-6, 1.0),
-       mode=st.sampled_from(dl.RETURN_SECTIONS))
-def test_more_friction_never_raises_eta(Lambda: float, alpha_m_deg: float, base: dict[str, float], which: str,
-                                        extra: float, mode: str) -> None:
+@given(
+    Lambda=st.floats(1e-3, 1e3),
+    alpha_m_deg=st.floats(1.0, 89.0),
+    base=st.fixed_dictionaries({k: friction_value for k in FRICTION}),
+    which=st.sampled_from(FRICTION),
+    extra=st.floats(1e-6, 1.0),
+    mode=st.sampled_from(dl.RETURN_SECTIONS),
+)
+def test_more_friction_never_raises_eta(
+    Lambda: float, alpha_m_deg: float, base: dict[str, float], which: str, extra: float, mode: str
+) -> None:
     u = np.linspace(0.0, 2.0, 401)
     p0 = ref(Lambda=Lambda, alpha_m_deg=alpha_m_deg, **base)
     p1 = dataclasses.replace(p0, **{which: base[which] + extra})
@@ -240,16 +300,25 @@ def test_each_friction_coefficient_strictly_lowers_eta_mid_section(which: str) -
 
 
 params_moderate = st.builds(
-    DeliveryParams, Lambda=st.floats(1e-3, 1e3), alpha_m_deg=st.floats(0.5, 89.5),
+    DeliveryParams,
+    Lambda=st.floats(1e-3, 1e3),
+    alpha_m_deg=st.floats(0.5, 89.5),
     law=st.sampled_from(['sinusoidal', 'harmonic']),
-    **{k: st.floats(0.0, 1.0) for k in FRICTION})
+    **{k: st.floats(0.0, 1.0) for k in FRICTION},
+)
 
 
 @settings(max_examples=200, deadline=None)
-@given(p=params_moderate, mode=st.sampled_from(dl.RETURN_SECTIONS),
-       P_k=st.floats(1e-3, 1e4), r=st.floats(1e-3, 1.0), v_A=st.floats(0.01, 10.0))
-def test_power_balance_eta_is_useful_over_input_power(p: DeliveryParams, mode: str, P_k: float, r: float,
-                                                      v_A: float) -> None:
+@given(
+    p=params_moderate,
+    mode=st.sampled_from(dl.RETURN_SECTIONS),
+    P_k=st.floats(1e-3, 1e4),
+    r=st.floats(1e-3, 1.0),
+    v_A=st.floats(0.01, 10.0),
+)
+def test_power_balance_eta_is_useful_over_input_power(
+    p: DeliveryParams, mode: str, P_k: float, r: float, v_A: float
+) -> None:
     s = evaluate_stroke(p, np.linspace(0.0, 2.0, 201), return_section=mode)
     f = s.forces(P_k, r)
     ok = s.ok
@@ -422,13 +491,18 @@ wide = st.one_of(st.just(0.0), st.floats(0.0, 2.0), st.floats(0.0, 1.79769313486
 params_any = st.builds(
     DeliveryParams,
     Lambda=st.one_of(st.floats(0.0, 1.7976931348623157e308, exclude_min=True), st.sampled_from([5e-324, 1e6, 1e300])),
-    alpha_m_deg=st.one_of(st.floats(0.0, 90.0, exclude_min=True, exclude_max=True),
-                          st.sampled_from([89.999999, math.nextafter(90.0, 0.0), 5e-324])),
+    alpha_m_deg=st.one_of(
+        st.floats(0.0, 90.0, exclude_min=True, exclude_max=True),
+        st.sampled_from([89.999999, math.nextafter(90.0, 0.0), 5e-324]),
+    ),
     law=st.sampled_from(['sinusoidal', 'harmonic']),
-    **{k: wide for k in FRICTION})
-positions = st.lists(st.one_of(st.floats(0.0, 2.0), st.sampled_from([0.0, 1.0, 2.0, 1e-300, 1.0 - 1e-16, 1.0 + 2e-16,
-                                                                       2.0 - 1e-16])),
-                     min_size=1, max_size=30)
+    **{k: wide for k in FRICTION},
+)
+positions = st.lists(
+    st.one_of(st.floats(0.0, 2.0), st.sampled_from([0.0, 1.0, 2.0, 1e-300, 1.0 - 1e-16, 1.0 + 2e-16, 2.0 - 1e-16])),
+    min_size=1,
+    max_size=30,
+)
 
 
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -499,8 +573,11 @@ def test_shapes_sections_and_names() -> None:
     assert set(cols) == set(dl._SAMPLE_FIELDS) | {'state_name', 'section_name'}
     assert all(c.shape == (12,) for c in cols.values())
     assert set(cols['section_name']) == {'deceleration', 'acceleration'}
-    assert list(dl.state_names([0, 1, 2, 3])) == list(STATE_NAMES) == \
-        ['ok', 'self_locking', 'kv_zero', 'carriage_reversed']
+    assert (
+        list(dl.state_names([0, 1, 2, 3]))
+        == list(STATE_NAMES)
+        == ['ok', 'self_locking', 'kv_zero', 'carriage_reversed']
+    )
     assert float(evaluate(ref(), 0.5).eta) == evaluate(ref(), [0.5]).eta[0]  # 0-d input -> 0-d arrays
     assert evaluate(ref(), 0.5).eta.shape == ()
     pt = evaluate_stroke_point(ref(), 1.5)
@@ -518,29 +595,32 @@ def test_params_have_no_defaults_and_match_the_yaml_keys() -> None:
         p.Lambda = 2.0  # type: ignore[misc]
 
 
-@pytest.mark.parametrize(('key', 'value', 'message'), [
-    ('Lambda', 0.0, '> 0'),
-    ('Lambda', -0.4, '> 0'),
-    ('Lambda', float('nan'), 'finite'),
-    ('Lambda', float('inf'), 'finite'),
-    ('Lambda', True, 'number'),
-    ('Lambda', '0.4', 'number'),
-    ('alpha_m_deg', 0.0, r'\(0, 90\)'),
-    ('alpha_m_deg', -10.0, r'\(0, 90\)'),
-    ('alpha_m_deg', 90.0, 'self-locks by construction'),
-    ('alpha_m_deg', 120.0, '< 90'),
-    ('alpha_m_deg', float('inf'), 'finite'),
-    ('law', 'cosine', 'sinusoidal, harmonic'),
-    ('law', 3, 'one of'),
-    ('f_Ap', -0.1, '>= 0'),
-    ('f_Bp', float('inf'), 'finite'),
-    ('f_A', float('nan'), 'finite'),
-    ('f_B', -1e-300, '>= 0'),
-    ('f_O', None, 'number'),
-    ('r_A', -1.0, '>= 0'),
-    ('r_B', float('-inf'), 'finite'),
-    ('r_O', -0.1, '>= 0'),
-])
+@pytest.mark.parametrize(
+    ('key', 'value', 'message'),
+    [
+        ('Lambda', 0.0, '> 0'),
+        ('Lambda', -0.4, '> 0'),
+        ('Lambda', float('nan'), 'finite'),
+        ('Lambda', float('inf'), 'finite'),
+        ('Lambda', True, 'number'),
+        ('Lambda', '0.4', 'number'),
+        ('alpha_m_deg', 0.0, r'\(0, 90\)'),
+        ('alpha_m_deg', -10.0, r'\(0, 90\)'),
+        ('alpha_m_deg', 90.0, 'self-locks by construction'),
+        ('alpha_m_deg', 120.0, '< 90'),
+        ('alpha_m_deg', float('inf'), 'finite'),
+        ('law', 'cosine', 'sinusoidal, harmonic'),
+        ('law', 3, 'one of'),
+        ('f_Ap', -0.1, '>= 0'),
+        ('f_Bp', float('inf'), 'finite'),
+        ('f_A', float('nan'), 'finite'),
+        ('f_B', -1e-300, '>= 0'),
+        ('f_O', None, 'number'),
+        ('r_A', -1.0, '>= 0'),
+        ('r_B', float('-inf'), 'finite'),
+        ('r_O', -0.1, '>= 0'),
+    ],
+)
 def test_validation_names_field_and_value(key: str, value: object, message: str) -> None:
     with pytest.raises(ParameterError, match=message) as info:
         ref(**{key: value})
@@ -568,8 +648,11 @@ def test_register_a_law(monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(ParameterError, match='psi\\(1\\) = 1'):
         register_law(ProfileLaw('half', lambda x: x / 2, lambda x: 0 * x + 0.5, 'bad'))
     with pytest.raises(ParameterError, match='dpsi >= 0'):
-        register_law(ProfileLaw('wobble', lambda x: x + np.sin(2 * np.pi * x) / 2,
-                                lambda x: 1 + np.pi * np.cos(2 * np.pi * x), 'bad'))
+        register_law(
+            ProfileLaw(
+                'wobble', lambda x: x + np.sin(2 * np.pi * x) / 2, lambda x: 1 + np.pi * np.cos(2 * np.pi * x), 'bad'
+            )
+        )
     with pytest.raises(ParameterError, match='sinusoidal, harmonic, cubic'):
         ref(law='quartic')
 

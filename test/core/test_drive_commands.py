@@ -40,9 +40,16 @@ def _cmds(*pairs: tuple[float, str]) -> tuple[Command, ...]:
 # ------------------------------------------------------------------ commands and spec
 
 
-@pytest.mark.parametrize('t, kind, key', [(-1.0, 'hold', 'command.t'), (math.nan, 'hold', 'command.t'),
-                                          (math.inf, 'stop', 'command.t'), (1.0, 'pause', 'command.kind'),
-                                          ('1', 'hold', 'command.t')])
+@pytest.mark.parametrize(
+    't, kind, key',
+    [
+        (-1.0, 'hold', 'command.t'),
+        (math.nan, 'hold', 'command.t'),
+        (math.inf, 'stop', 'command.t'),
+        (1.0, 'pause', 'command.kind'),
+        ('1', 'hold', 'command.t'),
+    ],
+)
 def test_bad_commands_name_the_key(t: Any, kind: str, key: str) -> None:
     with pytest.raises(ParameterError) as exc:
         Command(t, kind)
@@ -68,7 +75,7 @@ def test_running_switches_drop_what_changes_nothing() -> None:
 
 def test_drive_spec_t_brake_and_restart() -> None:
     assert DriveSpec('constant').t_brake == 0.5
-    assert DriveSpec('constant').t_restart == 0.5          # no ramp of its own: restart at the brake's pace
+    assert DriveSpec('constant').t_restart == 0.5  # no ramp of its own: restart at the brake's pace
     assert DriveSpec('constant', t_ramp=2.0).t_restart == 2.0
     assert RAMP.t_restart == 2.0
     for bad in (0.0, -1.0, math.nan):
@@ -76,9 +83,14 @@ def test_drive_spec_t_brake_and_restart() -> None:
             DriveSpec('constant', t_brake=bad)
         assert exc.value.key == 'drive.t_brake'
     sections = ['knife', 'cyclogram', 'feed_transporter']
-    scene = parse_scene({'name': 's', 'machines': {s: read_yaml_mapping(config_dir() / f'{s}.yaml', s) for s in sections},
-                         'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'),
-                         'drive': {'profile': 'constant', 't_brake': 1.25}})
+    scene = parse_scene(
+        {
+            'name': 's',
+            'machines': {s: read_yaml_mapping(config_dir() / f'{s}.yaml', s) for s in sections},
+            'sheets': read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets'),
+            'drive': {'profile': 'constant', 't_brake': 1.25},
+        }
+    )
     assert scene.drive.t_brake == 1.25
 
 
@@ -104,7 +116,8 @@ def test_hold_then_unhold_closed_form_constant_profile() -> None:
     expect = np.select(
         [t < th, t < th + tb, t < tu, t < tu + up],
         [t, th + tau - tau * tau / (2.0 * tb), theta_hold, theta_hold + sig * sig / (2.0 * up)],
-        theta_hold + up / 2.0 + (t - tu - up))
+        theta_hold + up / 2.0 + (t - tu - up),
+    )
     lam = np.select([t < th, t < th + tb, t < tu, t < tu + up], [1.0, 1.0 - tau / tb, 0.0, sig / up], 1.0)
     np.testing.assert_allclose(d.theta(t), expect, rtol=0, atol=1e-13)
     np.testing.assert_allclose(d.rate(t), lam, rtol=0, atol=1e-13)
@@ -143,7 +156,7 @@ def test_hold_during_the_spin_up_of_the_ramp_profile() -> None:
     t = np.linspace(0.0, th, 1001)[:-1]
     assert np.array_equal(d.theta(t), base.theta(t)) and np.array_equal(d.rate(t), base.rate(t))
     theta_h = th * th / 4.0
-    assert float(d.theta(1.4)) == pytest.approx(theta_h + 0.5 * 0.4 - 0.4 ** 2 / (2 * 0.8), abs=1e-15)
+    assert float(d.theta(1.4)) == pytest.approx(theta_h + 0.5 * 0.4 - 0.4**2 / (2 * 0.8), abs=1e-15)
     assert float(d.rate(1.4)) == 0.0 and float(d.theta(3.9)) == float(d.theta(1.4))
     assert float(d.rate(5.0)) == pytest.approx(0.5, abs=1e-15)  # restart at the profile's ramp rate 1/t_ramp
     assert float(d.rate(6.0)) == 1.0
@@ -186,7 +199,8 @@ def test_piecewise_linear_drive_knots_are_checked() -> None:
 
 _kinds = st.sampled_from(COMMAND_KINDS)
 _sequences = st.lists(st.tuples(st.floats(0.0, 20.0), _kinds), min_size=1, max_size=8).map(
-    lambda xs: tuple(Command(t, k) for t, k in sorted(xs, key=lambda p: p[0])))
+    lambda xs: tuple(Command(t, k) for t, k in sorted(xs, key=lambda p: p[0]))
+)
 _specs = st.sampled_from([CONST, RAMP, DriveSpec('constant', t_ramp=0.3, t_brake=2.0)])
 
 
@@ -236,8 +250,9 @@ def test_continuous_monotone_bounded_and_finite(spec: DriveSpec, cmds: tuple[Com
 
 @settings(max_examples=150, deadline=None)
 @given(spec=_specs, cmds=_sequences, k=st.integers(0, 7), u=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40))
-def test_a_later_command_leaves_the_past_unchanged_bit_for_bit(spec: DriveSpec, cmds: tuple[Command, ...], k: int,
-                                                                u: list[float]) -> None:
+def test_a_later_command_leaves_the_past_unchanged_bit_for_bit(
+    spec: DriveSpec, cmds: tuple[Command, ...], k: int, u: list[float]
+) -> None:
     k = min(k, len(cmds) - 1)
     t_k = cmds[k].t
     early = commanded_drive(spec, cmds[:k])

@@ -29,8 +29,10 @@ def test_accel_is_mu_g_plus_p_over_m() -> None:
     assert feed_slip.Params(mu=0.3, p=0.0, m=1.0).accel == pytest.approx(0.3 * 9.80665)
 
 
-@pytest.mark.parametrize(('key', 'value'), [('mu', 0.0), ('mu', -0.1), ('mu', math.nan), ('p', -1.0), ('m', 0.0),
-                                            ('m', math.inf), ('mu', True)])
+@pytest.mark.parametrize(
+    ('key', 'value'),
+    [('mu', 0.0), ('mu', -0.1), ('mu', math.nan), ('p', -1.0), ('m', 0.0), ('m', math.inf), ('mu', True)],
+)
 def test_feed_slip_rejects_bad_values(key: str, value: float) -> None:
     values = {'mu': 0.5, 'p': 40.0, 'm': 0.02, key: value}
     with pytest.raises(ParameterError, match=f'effects.feed_slip.{key}'):
@@ -66,15 +68,18 @@ def _ivp_arrival(a: float, V0: float, V1: float, L: float) -> tuple[float, float
     return t1 + (L - x1) / V1, V1
 
 
-@pytest.mark.parametrize(('V0', 'V1', 'mu', 'p', 'm'), [
-    (V_D, 9.3, 0.5, 40.0, 0.02),      # reaches belt speed early
-    (V_D, 9.3, 0.3, 0.0, 0.05),       # friction of the weight alone: slides all the way
-    (V_D, 9.3, 0.5, 1.4, 0.02),       # reaches belt speed just before the stops
-    (9.3, V_D, 0.5, 40.0, 0.02),      # belt slower than the hand-over: decelerates
-    (9.3, 2.0, 0.2, 0.0, 0.02),       # decelerates all the way
-    (V_D, V_D, 0.5, 40.0, 0.02),      # no slip at all
-    (0.0, 9.3, 0.5, 40.0, 0.02),      # from standstill
-])
+@pytest.mark.parametrize(
+    ('V0', 'V1', 'mu', 'p', 'm'),
+    [
+        (V_D, 9.3, 0.5, 40.0, 0.02),  # reaches belt speed early
+        (V_D, 9.3, 0.3, 0.0, 0.05),  # friction of the weight alone: slides all the way
+        (V_D, 9.3, 0.5, 1.4, 0.02),  # reaches belt speed just before the stops
+        (9.3, V_D, 0.5, 40.0, 0.02),  # belt slower than the hand-over: decelerates
+        (9.3, 2.0, 0.2, 0.0, 0.02),  # decelerates all the way
+        (V_D, V_D, 0.5, 40.0, 0.02),  # no slip at all
+        (0.0, 9.3, 0.5, 40.0, 0.02),  # from standstill
+    ],
+)
 def test_arrival_matches_ode_integration(V0: float, V1: float, mu: float, p: float, m: float) -> None:
     params = feed_slip.Params(mu=mu, p=p, m=m)
     got = feed_slip.arrival(params, V0, V1, L_FEED)
@@ -88,11 +93,12 @@ def test_arrival_closed_forms_of_the_brief() -> None:
     a = params.accel
     got = feed_slip.arrival(params, V_D, 9.3, L_FEED)
     t1 = (9.3 - V_D) / a
-    d1 = (9.3 ** 2 - V_D ** 2) / (2 * a)
+    d1 = (9.3**2 - V_D**2) / (2 * a)
     assert bool(got.reached)
     assert float(got.t) == pytest.approx(t1 + (L_FEED - d1) / 9.3, rel=1e-14)
-    assert float(feed_slip.slip_cost(params, V_D, 9.3, L_FEED)) == pytest.approx((9.3 - V_D) ** 2 / (2 * a * 9.3),
-                                                                                   rel=1e-10)
+    assert float(feed_slip.slip_cost(params, V_D, 9.3, L_FEED)) == pytest.approx(
+        (9.3 - V_D) ** 2 / (2 * a * 9.3), rel=1e-10
+    )
     weak = feed_slip.Params(mu=0.1, p=0.0, m=0.02)
     got = feed_slip.arrival(weak, V_D, 9.3, L_FEED)
     aw = weak.accel
@@ -103,8 +109,14 @@ def test_arrival_closed_forms_of_the_brief() -> None:
 
 
 @settings(max_examples=300, deadline=None)
-@given(V0=st.floats(0.0, 20.0), V1=st.floats(0.1, 20.0), L=st.floats(1e-3, 2.0), mu=st.floats(0.01, 2.0),
-       p=st.floats(0.0, 200.0), m=st.floats(0.005, 1.0))
+@given(
+    V0=st.floats(0.0, 20.0),
+    V1=st.floats(0.1, 20.0),
+    L=st.floats(1e-3, 2.0),
+    mu=st.floats(0.01, 2.0),
+    p=st.floats(0.0, 200.0),
+    m=st.floats(0.005, 1.0),
+)
 def test_arrival_is_consistent(V0: float, V1: float, L: float, mu: float, p: float, m: float) -> None:
     params = feed_slip.Params(mu=mu, p=p, m=m)
     a = params.accel
@@ -167,8 +179,9 @@ def _brute_bounces(e: float, a_f: float, v_rest: float, V: float) -> tuple[int, 
     return n, t, rebounds
 
 
-@pytest.mark.parametrize(('key', 'value'), [('e', 1.0), ('e', -0.1), ('a_f', 0.0), ('tolerance', 0.0),
-                                            ('v_rest', 0.0), ('v_rest', math.nan)])
+@pytest.mark.parametrize(
+    ('key', 'value'), [('e', 1.0), ('e', -0.1), ('a_f', 0.0), ('tolerance', 0.0), ('v_rest', 0.0), ('v_rest', math.nan)]
+)
 def test_stop_bounce_rejects_bad_values(key: str, value: float) -> None:
     values = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05, key: value}
     with pytest.raises(ParameterError, match=f'effects.stop_bounce.{key}'):
@@ -179,7 +192,7 @@ def test_bounce_reference_numbers() -> None:
     p = stop_bounce.Params(e=0.1, a_f=400.0, tolerance=0.002, v_rest=0.05)
     # impacts 9.3, 0.93, 0.093 >= 0.05 bounce; 0.0093 does not
     assert int(stop_bounce.bounce_count(p, 9.3)) == 3
-    assert float(stop_bounce.first_rebound(p, 9.3)) == pytest.approx(0.93 ** 2 / 800.0, rel=1e-14)
+    assert float(stop_bounce.first_rebound(p, 9.3)) == pytest.approx(0.93**2 / 800.0, rel=1e-14)
     assert float(stop_bounce.settle_time(p, 9.3)) == pytest.approx(2 * (0.93 + 0.093 + 0.0093) / 400.0, rel=1e-13)
 
 
@@ -188,10 +201,10 @@ def test_bounce_edge_cases() -> None:
     assert int(stop_bounce.bounce_count(p0, 9.3)) == 0
     assert float(stop_bounce.settle_time(p0, 9.3)) == 0.0 and float(stop_bounce.first_rebound(p0, 9.3)) == 0.0
     p = stop_bounce.Params(e=0.5, a_f=400.0, tolerance=0.002, v_rest=1.0)
-    assert int(stop_bounce.bounce_count(p, 0.999)) == 0          # v_rest >= V
+    assert int(stop_bounce.bounce_count(p, 0.999)) == 0  # v_rest >= V
     assert int(stop_bounce.bounce_count(p, 0.0)) == 0
-    assert int(stop_bounce.bounce_count(p, 1.0)) == 1            # exactly at v_rest: bounces once
-    assert int(stop_bounce.bounce_count(p, 2.0)) == 2            # 2 -> 1 (= v_rest, bounces) -> 0.5
+    assert int(stop_bounce.bounce_count(p, 1.0)) == 1  # exactly at v_rest: bounces once
+    assert int(stop_bounce.bounce_count(p, 2.0)) == 2  # 2 -> 1 (= v_rest, bounces) -> 0.5
     assert int(stop_bounce.bounce_count(p, 4.0)) == 3
     assert int(stop_bounce.bounce_count(p, np.nextafter(4.0, 0.0))) == 2
     with pytest.raises(ParameterError):
@@ -218,6 +231,9 @@ def test_schedule_caps_the_event_rows_not_the_physics() -> None:
     sched = stop_bounce.bounce_schedule(p, V)
     n = stop_bounce.bounce_count(p, V)
     assert n[0] > stop_bounce.MAX_BOUNCE_EVENTS and n[2] == 0
-    assert np.bincount(sched.index, minlength=3).tolist() == [stop_bounce.MAX_BOUNCE_EVENTS,
-                                                                min(int(n[1]), stop_bounce.MAX_BOUNCE_EVENTS), 0]
+    assert np.bincount(sched.index, minlength=3).tolist() == [
+        stop_bounce.MAX_BOUNCE_EVENTS,
+        min(int(n[1]), stop_bounce.MAX_BOUNCE_EVENTS),
+        0,
+    ]
     assert_allclose(sched.settle, stop_bounce.settle_time(p, V), rtol=1e-15)

@@ -41,19 +41,23 @@ def kin_one(t: float, ch: int) -> gf.ChuteState:
 
 # ---------------------------------------------------------------------------- parameters
 
-@pytest.mark.parametrize(('name', 'values', 'key'), [
-    ('leaf_damage', {'v_damage': 0.0}, 'effects.leaf_damage.v_damage'),
-    ('leaf_damage', {'v_damage': float('nan')}, 'effects.leaf_damage.v_damage'),
-    ('chute_belts', {'v_min': -0.1}, 'effects.chute_belts.v_min'),
-    ('leaf_flight', {'drag': -1.0}, 'effects.leaf_flight.drag'),
-    ('leaf_flight', {'drag': True}, 'effects.leaf_flight.drag'),
-    ('guide_friction', {'mu': -0.1, 's0': 0.0, 'v0': 1.0, 'h': 0.002}, 'effects.guide_friction.mu'),
-    ('guide_friction', {'mu': 0.5, 's0': -0.1, 'v0': 1.0, 'h': 0.002}, 'effects.guide_friction.s0'),
-    ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': -1.0, 'h': 0.002}, 'effects.guide_friction.v0'),
-    ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.0}, 'effects.guide_friction.h'),
-    ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.1}, 'effects.guide_friction.h'),
-    ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0}, 'effects.guide_friction.h'),
-])
+
+@pytest.mark.parametrize(
+    ('name', 'values', 'key'),
+    [
+        ('leaf_damage', {'v_damage': 0.0}, 'effects.leaf_damage.v_damage'),
+        ('leaf_damage', {'v_damage': float('nan')}, 'effects.leaf_damage.v_damage'),
+        ('chute_belts', {'v_min': -0.1}, 'effects.chute_belts.v_min'),
+        ('leaf_flight', {'drag': -1.0}, 'effects.leaf_flight.drag'),
+        ('leaf_flight', {'drag': True}, 'effects.leaf_flight.drag'),
+        ('guide_friction', {'mu': -0.1, 's0': 0.0, 'v0': 1.0, 'h': 0.002}, 'effects.guide_friction.mu'),
+        ('guide_friction', {'mu': 0.5, 's0': -0.1, 'v0': 1.0, 'h': 0.002}, 'effects.guide_friction.s0'),
+        ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': -1.0, 'h': 0.002}, 'effects.guide_friction.v0'),
+        ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.0}, 'effects.guide_friction.h'),
+        ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.1}, 'effects.guide_friction.h'),
+        ('guide_friction', {'mu': 0.5, 's0': 0.0, 'v0': 1.0}, 'effects.guide_friction.h'),
+    ],
+)
 def test_bad_effect_parameters_are_named(name: str, values: dict, key: str) -> None:
     with pytest.raises(ParameterError) as exc:
         parse_effect_params(name, values)
@@ -67,15 +71,16 @@ def test_params_have_no_defaults() -> None:
 
 # ---------------------------------------------------------------------------- leaf_damage
 
+
 def test_damage_threshold_is_inclusive_and_the_margin_exclusive() -> None:
     p = ld.Params(v_damage=5.6)
     below = np.nextafter(5.6, 0.0)
     speeds = np.array([2.8, below, 5.6, 6.0])
     assert ld.damaged(p, speeds).tolist() == [False, False, True, True]
     m = ld.upper_margin(p, speeds)
-    assert m[1] == 0.0 and m[0] > 0.0          # the largest admissible float has margin 0, not violated
-    assert m[2] < 0.0 and m[3] < 0.0            # exactly v_damage is violated
-    assert -m[2] == 5.6 - below                 # by one ulp
+    assert m[1] == 0.0 and m[0] > 0.0  # the largest admissible float has margin 0, not violated
+    assert m[2] < 0.0 and m[3] < 0.0  # exactly v_damage is violated
+    assert -m[2] == 5.6 - below  # by one ulp
 
 
 def test_paper_speeds_with_a_damage_speed_between() -> None:
@@ -88,6 +93,7 @@ def test_paper_speeds_with_a_damage_speed_between() -> None:
 
 
 # ---------------------------------------------------------------------------- chute_belts
+
 
 def test_belt_exit_time_constant_drive_is_closed_form() -> None:
     prof = cb.belt_profile(2.8, ConstantDrive(), 100.0)
@@ -152,16 +158,17 @@ def test_speed_margin_takes_the_smaller_bound() -> None:
 
 # ---------------------------------------------------------------------------- leaf_flight
 
+
 def test_phi_functions_against_mpmath() -> None:
     z = np.concatenate([[0.0, 1e-300, 1e-12, 1e-6], np.geomspace(1e-4, 50.0, 200), [0.4999999, 0.5, 700.0]])
     for zi, a, b in zip(z, lf.phi1(z), lf.phi2(z)):
         if zi == 0.0:
             assert a == 1.0 and b == 0.5
             continue
-        with mpmath.workdps(700):             # enough digits for the cancellation at z = 1e-300
+        with mpmath.workdps(700):  # enough digits for the cancellation at z = 1e-300
             x = mpmath.mpf(float(zi))
             e1 = float(-mpmath.expm1(-x) / x)
-            e2 = float((x + mpmath.expm1(-x)) / x ** 2)
+            e2 = float((x + mpmath.expm1(-x)) / x**2)
         assert a == pytest.approx(e1, rel=4e-16)
         assert b == pytest.approx(e2, rel=2e-15)
 
@@ -203,6 +210,7 @@ def test_landing_against_solve_ivp_with_an_event(drag: float) -> None:
     vy = rng.uniform(-3.0, 2.0, 12)
     t, x = lf.landing(p, x0, y0, vx, vy, -1.25)
     for i in range(12):
+
         def rhs(_t: float, y: np.ndarray) -> list[float]:
             return [y[2], y[3], -drag * y[2], -G - drag * y[3]]
 
@@ -211,8 +219,9 @@ def test_landing_against_solve_ivp_with_an_event(drag: float) -> None:
 
         floor.terminal = True
         floor.direction = -1
-        sol = solve_ivp(rhs, (0.0, 100.0), [x0[i], y0[i], vx[i], vy[i]], events=floor, rtol=1e-12, atol=1e-14,
-                        method='DOP853')
+        sol = solve_ivp(
+            rhs, (0.0, 100.0), [x0[i], y0[i], vx[i], vy[i]], events=floor, rtol=1e-12, atol=1e-14, method='DOP853'
+        )
         assert t[i] == pytest.approx(sol.t_events[0][0], abs=1e-10)
         assert x[i] == pytest.approx(sol.y_events[0][0][0], abs=1e-10)
 
@@ -223,10 +232,11 @@ def test_drag_landing_time_against_brent(drag: float) -> None:
     y0, vy = np.array([-0.9, -0.9, -0.9]), np.array([2.0, 0.0, -2.0 * G / drag])
     t = lf.landing_time(p, y0, vy, -1.25)
     for ti, a, b in zip(t, y0, vy):
+
         def f(x: float) -> float:
             return float(lf.state(p, 0.0, a, 0.0, b, x)[1]) + 1.25
 
-        hi = (drag * (a + 1.25) + max(b + G / drag, 0.0)) / G      # the documented analytic bracket
+        hi = (drag * (a + 1.25) + max(b + G / drag, 0.0)) / G  # the documented analytic bracket
         assert f(hi) <= 0.0 < f(0.0)
         assert ti == pytest.approx(brentq(f, 0.0, hi, xtol=1e-15), abs=2e-15)
         assert ti == pytest.approx(scipy.optimize.brentq(f, 0.0, hi, xtol=1e-15), abs=2e-15)
@@ -239,11 +249,11 @@ def test_drag_to_zero_limit_matches_no_drag() -> None:
     for k in (1e-2, 1e-4, 1e-6, 1e-9, 1e-14):
         t, x = lf.landing(lf.Params(k), 0.0, y0, vx, vy, -1.25)
         err = max(np.abs(t - t0).max(), np.abs(x - x0).max())
-        assert err <= 2.0 * k + 1e-15                         # O(k)
+        assert err <= 2.0 * k + 1e-15  # O(k)
         if prev is not None:
             assert err <= prev
         prev = err
-    assert prev <= 1e-14                                  # a few ulp
+    assert prev <= 1e-14  # a few ulp
 
 
 @settings(max_examples=200, deadline=None)
@@ -254,7 +264,7 @@ def test_landing_lands_on_the_floor(drag: float, height: float, vy: float, vx: f
     assert np.isfinite(t).all() and np.isfinite(x).all() and t[0] > 0.0
     _, y, _, vyt = lf.state(p, 0.0, height, vx, vy, t)
     assert abs(y[0]) <= 1e-13 * max(1.0, height, abs(vy) * t[0])
-    assert vyt[0] < 0.0                                    # falling when it lands
+    assert vyt[0] < 0.0  # falling when it lands
 
 
 def test_landing_start_below_the_floor_is_rejected() -> None:
@@ -274,6 +284,7 @@ def test_histogram_and_cv() -> None:
 
 # ---------------------------------------------------------------------------- guide_friction: the equation
 
+
 def test_equation_signs_from_an_inertial_frame_check() -> None:
     """r = s t̂(θ'): the computed N and s̈ satisfy Newton's law in x, y (finite differences of r(t))."""
     mu = 0.4
@@ -284,21 +295,21 @@ def test_equation_signs_from_an_inertial_frame_check() -> None:
 
     for t0, s0, v0 in [(0.1, 0.4, 1.2), (0.7, 0.8, 0.3), (1.9, 0.2, 2.5)]:
         th, w = theta(t0), 0.3 * 2.1 * math.cos(2.1 * t0)
-        eps = -0.3 * 2.1 ** 2 * math.sin(2.1 * t0)
+        eps = -0.3 * 2.1**2 * math.sin(2.1 * t0)
         k = gf.ChuteState(np.array(math.sin(th)), np.array(math.cos(th)), np.array(w), np.array(eps))
         a = float(gf.acceleration(p, s0, v0, k))
 
-        def r(t: float) -> np.ndarray:          # s(t) = s0 + v0 τ + a τ²/2 has the right s, ṡ, s̈ at t0
+        def r(t: float) -> np.ndarray:  # s(t) = s0 + v0 τ + a τ²/2 has the right s, ṡ, s̈ at t0
             tau = t - t0
             s = s0 + v0 * tau + 0.5 * a * tau * tau
             return s * np.array([math.sin(theta(t)), -math.cos(theta(t))])
 
         d = 1e-4
-        acc = (r(t0 + d) - 2 * r(t0) + r(t0 - d)) / d ** 2
+        acc = (r(t0 + d) - 2 * r(t0) + r(t0 - d)) / d**2
         tt = np.array([math.sin(th), -math.cos(th)])
         nn = np.array([math.cos(th), math.sin(th)])
         n_wall = float(gf.normal(s0, v0, k))
-        force = np.array([0.0, -G]) + n_wall * nn - mu * abs(n_wall) * tt      # per unit mass, ṡ > 0
+        force = np.array([0.0, -G]) + n_wall * nn - mu * abs(n_wall) * tt  # per unit mass, ṡ > 0
         assert_allclose(acc, force, atol=2e-6)
 
 
@@ -330,15 +341,18 @@ def test_scalar_and_vector_chute_kinematics_agree() -> None:
 
 # ---------------------------------------------------------------------------- guide_friction: integration
 
+
 def _leaves(n: int, span: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t_in = np.linspace(0.0, span, n, endpoint=False)
     ch = np.arange(n) % 2
     return t_in, ch, np.where(ch == 1, P.l5, P.l3)
 
 
-def _ivp_slide(mu: float, t0: float, s0: float, v0: float, ch: int, length: float,
-               stop: bool = False) -> tuple[float, float, float, bool]:
+def _ivp_slide(
+    mu: float, t0: float, s0: float, v0: float, ch: int, length: float, stop: bool = False
+) -> tuple[float, float, float, bool]:
     """Reference: solve_ivp of the sliding equation until exit (or ṡ = 0): (t, s, ṡ, stopped)."""
+
     def rhs(t: float, y: np.ndarray) -> list[float]:
         s_, c_, w_, e_ = KIN.chute_scalar(t, ch)
         n_ = e_ * y[0] + 2 * w_ * y[1] + G * s_
@@ -352,8 +366,9 @@ def _ivp_slide(mu: float, t0: float, s0: float, v0: float, ch: int, length: floa
 
     out.terminal = halt.terminal = True
     halt.direction = -1
-    sol = solve_ivp(rhs, (t0, t0 + 10.0), [s0, v0], events=[out, halt] if stop else [out], rtol=1e-12, atol=1e-13,
-                    method='DOP853')
+    sol = solve_ivp(
+        rhs, (t0, t0 + 10.0), [s0, v0], events=[out, halt] if stop else [out], rtol=1e-12, atol=1e-13, method='DOP853'
+    )
     if sol.t_events[0].size:
         return float(sol.t_events[0][0]), length, float(sol.y_events[0][0][1]), False
     return float(sol.t_events[1][0]), float(sol.y_events[1][0][0]), 0.0, True
@@ -372,11 +387,13 @@ def test_slide_matches_solve_ivp() -> None:
 
 def test_slide_is_fourth_order_across_the_kinks_of_the_normal_force() -> None:
     t_in, ch, length = _leaves(16)
-    runs = {h: gf.slide(gf.Params(2.5, 0.3, 0.2, h), kin_vec, kin_one, t_in, ch, length, 50.0)
-            for h in (0.004, 0.002, 0.001, 0.00025)}
+    runs = {
+        h: gf.slide(gf.Params(2.5, 0.3, 0.2, h), kin_vec, kin_one, t_in, ch, length, 50.0)
+        for h in (0.004, 0.002, 0.001, 0.00025)
+    }
     ref = runs[0.00025]
     e = [np.abs(runs[h].v_exit - ref.v_exit).max() for h in (0.004, 0.002, 0.001)]
-    assert e[0] / e[1] > 8.0 and e[1] / e[2] > 8.0      # 16 for fourth order; 4 would be second
+    assert e[0] / e[1] > 8.0 and e[1] / e[2] > 8.0  # 16 for fourth order; 4 would be second
 
 
 def test_frictionless_leaf_matches_solve_ivp() -> None:
@@ -409,10 +426,10 @@ def test_entry_at_rest_sticks_where_the_wall_holds_it_and_slips_at_the_closed_fo
     for i in np.flatnonzero(held):
         ts = slip[i]
         c = kin_one(ts, int(ch[i]))
-        assert abs(c.sin) * mu == pytest.approx(c.cos, abs=1e-9)      # tan|θ'| = 1/μ at the slip
+        assert abs(c.sin) * mu == pytest.approx(c.cos, abs=1e-9)  # tan|θ'| = 1/μ at the slip
         grid = np.linspace(t_in[i], ts, 400)[:-1]
         k = kin_vec(grid, np.full(grid.size, ch[i]))
-        assert (gf.switching(p, 0.0, k) <= 1e-9).all()                  # held all the way (brute force)
+        assert (gf.switching(p, 0.0, k) <= 1e-9).all()  # held all the way (brute force)
 
 
 def test_stick_and_slip_mid_slide_match_a_piecewise_reference() -> None:
@@ -450,15 +467,14 @@ def test_stick_and_slip_mid_slide_match_a_piecewise_reference() -> None:
 
 def test_slide_stops_at_the_end_of_the_run() -> None:
     p = gf.Params(0.5, 0.0, 1.0, 0.002)
-    r = gf.slide(p, kin_vec, kin_one, np.array([0.0, 0.9, 0.99]), np.array([0, 1, 0]), np.array([1.0, 0.95, 1.0]),
-                 1.0)
+    r = gf.slide(p, kin_vec, kin_one, np.array([0.0, 0.9, 0.99]), np.array([0, 1, 0]), np.array([1.0, 0.95, 1.0]), 1.0)
     assert r.exited.tolist() == [True, False, False]
     assert r.t_exit[0] <= 1.0
     assert np.isfinite(r.t_exit).all() and np.isfinite(r.v_exit).all()
 
 
 def test_a_leaf_held_to_the_end_never_slips() -> None:
-    p = gf.Params(50.0, 0.0, 0.0, 0.002)     # |tan θ'| >= 1/50 nearly everywhere
+    p = gf.Params(50.0, 0.0, 0.0, 0.002)  # |tan θ'| >= 1/50 nearly everywhere
     t_in = np.array([0.0])
     r = gf.slide(p, kin_vec, kin_one, t_in, np.array([0]), np.array([1.0]), 3.0)
     assert r.stick_t.size >= 1 and not r.exited.any()

@@ -9,8 +9,15 @@ from folder_line.errors import ParameterError
 
 
 def _p(**kw: float) -> Params:
-    base = dict(p_missing=0.01, p_double=0.01, p_late=0.02, late_delay=0.004, p_slowdown=0.001,
-                slowdown_factor=0.5, slowdown_duration=0.2)
+    base = dict(
+        p_missing=0.01,
+        p_double=0.01,
+        p_late=0.02,
+        late_delay=0.004,
+        p_slowdown=0.001,
+        slowdown_factor=0.5,
+        slowdown_duration=0.2,
+    )
     base.update(kw)
     return Params(**base)
 
@@ -51,14 +58,21 @@ def test_slowdowns_merge_and_factor() -> None:
 
 def test_fault_events_rows() -> None:
     f = draw_sheet_faults(_p(p_missing=0.5, p_double=0.5, p_late=0.5), 100, stream(5, 'z'))
-    ev = fault_events(f, np.arange(100) * 0.072, np.arange(100), np.arange(100),
-                      draw_slowdowns(_p(p_slowdown=0.0), 7.2, 0.072, stream(5, 'w')), 7.2)
+    ev = fault_events(
+        f,
+        np.arange(100) * 0.072,
+        np.arange(100),
+        np.arange(100),
+        draw_slowdowns(_p(p_slowdown=0.0), 7.2, 0.072, stream(5, 'w')),
+        7.2,
+    )
     assert ev.size == f.missing.sum() + f.double.sum() + (f.delay > 0).sum()
     assert np.all(np.diff(ev['t']) >= 0)
 
 
-@pytest.mark.parametrize(('key', 'value'), [('p_missing', 1.5), ('slowdown_factor', 0.0), ('late_delay', -1.0),
-                                            ('p_late', float('nan'))])
+@pytest.mark.parametrize(
+    ('key', 'value'), [('p_missing', 1.5), ('slowdown_factor', 0.0), ('late_delay', -1.0), ('p_late', float('nan'))]
+)
 def test_bad_params_named(key: str, value: float) -> None:
     with pytest.raises(ParameterError, match=f'effects.faults.{key}'):
         _p(**{key: value})

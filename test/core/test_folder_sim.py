@@ -14,12 +14,12 @@ from scipy.integrate import quad
 
 from folder_line.core import chain
 from folder_line.core import knife as knf
+from folder_line.core.belt import BeltPhase
 from folder_line.core.cyclogram import cycle_timing
 from folder_line.core.delivery import evaluate_stroke, stroke_minimum
 from folder_line.core.drive import ConstantDrive, RampDrive
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
 from folder_line.core.events import EVENT_KINDS, event_kind
-from folder_line.core.belt import BeltPhase
 from folder_line.core.folder_sim import delivery_plan, simulate_folder
 from folder_line.core.line import sample_times, simulate
 from folder_line.core.rng import stream
@@ -31,8 +31,15 @@ BOUNCE = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05}
 SLIP = {'mu': 0.5, 'p': 40.0, 'm': 0.02}
 
 
-def _scene(effects: dict[str, Any] | None = None, *, delivery: bool = True, V_tr: float | None = None,
-           seed: int = 0, drive: dict[str, Any] | None = None, phase: float | None = None) -> Scene:
+def _scene(
+    effects: dict[str, Any] | None = None,
+    *,
+    delivery: bool = True,
+    V_tr: float | None = None,
+    seed: int = 0,
+    drive: dict[str, Any] | None = None,
+    phase: float | None = None,
+) -> Scene:
     """The shipped defaults as a folder scene (knife, cyclogram, feed transporter, delivery)."""
     sections = ['knife', 'cyclogram', 'feed_transporter'] + (['delivery', 'delivery_chain'] if delivery else [])
     machines = {s: read_yaml_mapping(config_dir() / f'{s}.yaml', s) for s in sections}
@@ -41,8 +48,16 @@ def _scene(effects: dict[str, Any] | None = None, *, delivery: bool = True, V_tr
     sheets = read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets')
     if phase is not None:
         sheets['phase'] = phase
-    return parse_scene({'name': 'folder', 'machines': machines, 'sheets': sheets, 'effects': effects or {},
-                        'seed': seed, 'drive': drive or {'profile': 'constant'}})
+    return parse_scene(
+        {
+            'name': 'folder',
+            'machines': machines,
+            'sheets': sheets,
+            'effects': effects or {},
+            'seed': seed,
+            'drive': drive or {'profile': 'constant'},
+        }
+    )
 
 
 def _timing(scene: Scene) -> Any:
@@ -122,8 +137,9 @@ def test_feed_slip_eats_the_default_slack_and_a_faster_belt_restores_it() -> Non
     assert at_9_3.summary['slack']['slip_cost'] == pytest.approx(cost)
     v_min = at_9_3.summary['feed_slip']['V_tr_min_with_slip']
     assert 9.3 < v_min < 9.6
-    ok = simulate_folder(_scene({'feed_slip': SLIP, 'stop_bounce': BOUNCE}, V_tr=9.6), ConstantDrive(), HOUR,
-                         np.zeros(0))
+    ok = simulate_folder(
+        _scene({'feed_slip': SLIP, 'stop_bounce': BOUNCE}, V_tr=9.6), ConstantDrive(), HOUR, np.zeros(0)
+    )
     assert all(not c.violated.any() for c in ok.constraints)
     assert ok.summary['sheets_counted'] == ok.summary['cycles'] - 2
 
@@ -156,8 +172,9 @@ def test_event_times_are_the_closed_forms() -> None:
     b = _of(ev, 'bounce')
     assert np.all(np.bincount(b['sheet']) == n)
     st = _of(ev, 'settled')
-    assert_allclose(st['t'] - a['t'][: st.size], float(stop_bounce.settle_time(stop_bounce.Params(**BOUNCE), 9.3)),
-                    atol=1e-14)
+    assert_allclose(
+        st['t'] - a['t'][: st.size], float(stop_bounce.settle_time(stop_bounce.Params(**BOUNCE), 9.3)), atol=1e-14
+    )
 
 
 def test_release_is_where_the_sampled_carriage_is_slowest() -> None:
@@ -220,8 +237,15 @@ def test_belt_phase_matches_quadrature_and_inverts() -> None:
 
 
 def test_belt_slowdown_lengthens_the_feed() -> None:
-    fa = {'p_missing': 0.0, 'p_double': 0.0, 'p_late': 0.0, 'late_delay': 0.0, 'p_slowdown': 1.0,
-          'slowdown_factor': 0.5, 'slowdown_duration': 100.0}
+    fa = {
+        'p_missing': 0.0,
+        'p_double': 0.0,
+        'p_late': 0.0,
+        'late_delay': 0.0,
+        'p_slowdown': 1.0,
+        'slowdown_factor': 0.5,
+        'slowdown_duration': 100.0,
+    }
     scene = _scene({'faults': fa})
     tm = _timing(scene)
     res = simulate_folder(scene, ConstantDrive(), 2.0, np.zeros(0))
@@ -240,8 +264,15 @@ def test_belt_slowdown_lengthens_the_feed() -> None:
 
 
 def test_faults_at_a_seed_give_the_expected_counts() -> None:
-    fa = {'p_missing': 0.05, 'p_double': 0.05, 'p_late': 0.0, 'late_delay': 0.0, 'p_slowdown': 0.0,
-          'slowdown_factor': 0.5, 'slowdown_duration': 0.0}
+    fa = {
+        'p_missing': 0.05,
+        'p_double': 0.05,
+        'p_late': 0.0,
+        'late_delay': 0.0,
+        'p_slowdown': 0.0,
+        'slowdown_factor': 0.5,
+        'slowdown_duration': 0.0,
+    }
     scene = _scene({'faults': fa}, seed=11)
     tm = _timing(scene)
     duration = 100.0
@@ -264,14 +295,22 @@ def test_faults_at_a_seed_give_the_expected_counts() -> None:
     assert _of(res.events, 'fault_missing').size == drawn.missing.sum()
     # the double sheets go to the pile together
     rel = _of(res.events, 'released_on_pile')
-    assert np.array_equal(np.bincount(rel['cycle'], minlength=n_slots)[: rel['cycle'].max() + 1],
-                          per_cycle[: rel['cycle'].max() + 1])
+    assert np.array_equal(
+        np.bincount(rel['cycle'], minlength=n_slots)[: rel['cycle'].max() + 1], per_cycle[: rel['cycle'].max() + 1]
+    )
     assert s['sheets_balance_ok']
 
 
 def test_late_sheet_shrinks_the_feed_margin_by_its_delay() -> None:
-    fa = {'p_missing': 0.0, 'p_double': 0.0, 'p_late': 1.0, 'late_delay': 0.004, 'p_slowdown': 0.0,
-          'slowdown_factor': 0.5, 'slowdown_duration': 0.0}
+    fa = {
+        'p_missing': 0.0,
+        'p_double': 0.0,
+        'p_late': 1.0,
+        'late_delay': 0.004,
+        'p_slowdown': 0.0,
+        'slowdown_factor': 0.5,
+        'slowdown_duration': 0.0,
+    }
     scene = _scene({'faults': fa})
     tm = _timing(scene)
     res = simulate_folder(scene, ConstantDrive(), 10.0, np.zeros(0))
@@ -282,8 +321,15 @@ def test_late_sheet_shrinks_the_feed_margin_by_its_delay() -> None:
 
 
 def test_same_seed_bit_identical_other_seed_differs() -> None:
-    fa = {'p_missing': 0.02, 'p_double': 0.02, 'p_late': 0.05, 'late_delay': 0.003, 'p_slowdown': 0.01,
-          'slowdown_factor': 0.8, 'slowdown_duration': 0.05}
+    fa = {
+        'p_missing': 0.02,
+        'p_double': 0.02,
+        'p_late': 0.05,
+        'late_delay': 0.003,
+        'p_slowdown': 0.01,
+        'slowdown_factor': 0.8,
+        'slowdown_duration': 0.05,
+    }
     eff = {'feed_slip': SLIP, 'stop_bounce': BOUNCE, 'faults': fa}
     t = sample_times(60.0, 200.0)
     runs = [simulate_folder(_scene(eff, V_tr=9.6, seed=s), ConstantDrive(), 60.0, t) for s in (5, 5, 6)]
@@ -304,6 +350,7 @@ def test_same_seed_bit_identical_other_seed_differs() -> None:
 def _raiser(name: str) -> Any:
     def boom(*_a: Any, **_k: Any) -> Any:
         raise AssertionError(f'{name} called although the scene does not list it')
+
     return boom
 
 
@@ -311,11 +358,15 @@ CHAIN = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
 
 
 def test_unlisted_effects_are_never_called(monkeypatch: pytest.MonkeyPatch) -> None:
-    for mod, names in ((feed_slip, ('arrival', 'slip_cost', 'min_belt_speed', 'accel')),
-                       (stop_bounce, ('bounce_count', 'bounce_schedule', 'settle_time', 'first_rebound')),
-                       (faults, ('draw_sheet_faults', 'draw_slowdowns', 'belt_factor', 'fault_events')),
-                       (chain_friction, ('sprocket_torque', 'stroke_state', 'stroke_kinks', 'master_load_torque',
-                                         'master_load', 'MasterLoad'))):
+    for mod, names in (
+        (feed_slip, ('arrival', 'slip_cost', 'min_belt_speed', 'accel')),
+        (stop_bounce, ('bounce_count', 'bounce_schedule', 'settle_time', 'first_rebound')),
+        (faults, ('draw_sheet_faults', 'draw_slowdowns', 'belt_factor', 'fault_events')),
+        (
+            chain_friction,
+            ('sprocket_torque', 'stroke_state', 'stroke_kinks', 'master_load_torque', 'master_load', 'MasterLoad'),
+        ),
+    ):
         for n in names:
             monkeypatch.setattr(mod, n, _raiser(f'{mod.__name__}.{n}'))
     scene = _scene()
@@ -420,12 +471,20 @@ def test_samples_are_consistent_with_their_velocities() -> None:
 
 @pytest.mark.parametrize('duration', [1e-4, 0.02, 0.06, 0.1, 1.0])
 def test_short_runs_are_clean(duration: float) -> None:
-    fa = {'p_missing': 0.3, 'p_double': 0.3, 'p_late': 0.3, 'late_delay': 0.2, 'p_slowdown': 0.3,
-          'slowdown_factor': 0.1, 'slowdown_duration': 0.5}
+    fa = {
+        'p_missing': 0.3,
+        'p_double': 0.3,
+        'p_late': 0.3,
+        'late_delay': 0.2,
+        'p_slowdown': 0.3,
+        'slowdown_factor': 0.1,
+        'slowdown_duration': 0.5,
+    }
     for eff in ({}, {'feed_slip': SLIP, 'stop_bounce': BOUNCE, 'faults': fa}):
         for delivery in (True, False):
-            res = simulate_folder(_scene(eff, delivery=delivery), ConstantDrive(), duration,
-                                  sample_times(duration, 1000.0))
+            res = simulate_folder(
+                _scene(eff, delivery=delivery), ConstantDrive(), duration, sample_times(duration, 1000.0)
+            )
             assert _all_finite(res)
             assert np.all(res.events['t'] <= duration) and np.all(res.events['t'] >= 0)
             s = res.summary
@@ -469,15 +528,34 @@ def test_a_hand_over_slot_before_the_line_starts_feeds_nothing() -> None:
     from folder_line.core.line import simulate
     from folder_line.core.scene import parse_scene
 
-    faults = {'p_missing': 0.0, 'p_double': 0.0, 'p_late': 1.0, 'late_delay': 0.03125, 'p_slowdown': 0.0,
-              'slowdown_factor': 1.0, 'slowdown_duration': 0.0}
-    data = {'name': 'early slot',
-            'machines': {'knife': {'r_k': 0.04, 'L_k': 0.17375, 'e': -0.046875, 'n_k': 35884.0, 's_clear': 0.2079},
-                         'cyclogram': {'D_fc': 0.26738, 'n_c': 25000.0, 'L_feed': 0.23, 'L_a': 0.42, 'reserve': 0.0,
-                                       'dwell_frac': 0.0},
-                         'feed_transporter': {'V_tr': 1.0}},
-            'effects': {'faults': faults}, 'drive': {'profile': 'constant', 't_ramp': 1.0, 't_brake': 1.0},
-            'sheets': {'interval': 0.5, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0078125}, 'seed': 0}
+    faults = {
+        'p_missing': 0.0,
+        'p_double': 0.0,
+        'p_late': 1.0,
+        'late_delay': 0.03125,
+        'p_slowdown': 0.0,
+        'slowdown_factor': 1.0,
+        'slowdown_duration': 0.0,
+    }
+    data = {
+        'name': 'early slot',
+        'machines': {
+            'knife': {'r_k': 0.04, 'L_k': 0.17375, 'e': -0.046875, 'n_k': 35884.0, 's_clear': 0.2079},
+            'cyclogram': {
+                'D_fc': 0.26738,
+                'n_c': 25000.0,
+                'L_feed': 0.23,
+                'L_a': 0.42,
+                'reserve': 0.0,
+                'dwell_frac': 0.0,
+            },
+            'feed_transporter': {'V_tr': 1.0},
+        },
+        'effects': {'faults': faults},
+        'drive': {'profile': 'constant', 't_ramp': 1.0, 't_brake': 1.0},
+        'sheets': {'interval': 0.5, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0078125},
+        'seed': 0,
+    }
     scene = parse_scene(data)
     timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
     assert timing.knife.t_out < 0.0  # the case: slot 0 at Θ = t_out < 0

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from folder_line.core import integrators as ig
 from folder_line.core import integrators
+from folder_line.core import integrators as ig
 from folder_line.core.integrators import Breaks, Terminal, dopri5, rk4
 from folder_line.errors import FolderLineError, IntegrationError
 
@@ -222,12 +222,14 @@ def test_inverse_against_brentq() -> None:
     rng = np.random.default_rng(7)
     targets = np.sort(rng.uniform(0.0, 20.0, 50))
     # independent root finder on the same dense output: agreement to rounding
-    on_dense = np.array([brentq(lambda x, v=v: float(sol.component(x, 0)) - v, 0.0, 20.0, xtol=1e-15, rtol=8.9e-16)
-                         for v in targets])
+    on_dense = np.array(
+        [brentq(lambda x, v=v: float(sol.component(x, 0)) - v, 0.0, 20.0, xtol=1e-15, rtol=8.9e-16) for v in targets]
+    )
     np.testing.assert_allclose(sol.inverse(targets, 0), on_dense, rtol=0, atol=1e-14)
     # and on the exact phase: within the dense output's own error (~1e-8) over the slope (>= 0.5)
-    exact = np.array([brentq(lambda x, v=v: float(_theta_exact(np.array(x))) - v, 0.0, 25.0, xtol=1e-15)
-                      for v in targets])
+    exact = np.array(
+        [brentq(lambda x, v=v: float(_theta_exact(np.array(x))) - v, 0.0, 25.0, xtol=1e-15) for v in targets]
+    )
     grid = np.linspace(0.0, 20.0, 20001)
     dense_err = np.abs(sol.component(grid, 0) - _theta_exact(grid)).max()
     assert dense_err < 1e-7
@@ -295,9 +297,11 @@ def test_breaks_keep_the_order_across_a_jump(method: str) -> None:
             errs.append(abs(sol.y[-1, 1] - _switch_exact(np.array(3.0))))
         orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
         assert np.all(orders > 3.7), orders
+
         # the same grid without the break drops to first order: much worse at h = 0.075
         def plain(tt: float, y: np.ndarray) -> np.ndarray:
             return np.array([1.0, math.cos(y[0]) if y[0] < 1.0 else -2.0 * math.sin(y[0])])
+
         bad = rk4(plain, (0.0, 3.0), [0.0, 0.0], 0.07)
         assert abs(bad.y[-1, 1] - _switch_exact(np.array(3.0))) > 100 * errs[-1]
     else:

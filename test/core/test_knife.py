@@ -34,7 +34,7 @@ def make(**kw: float) -> KnifeParams:
 
 def s_mp(p: KnifeParams, phi: mp.mpf) -> mp.mpf:
     r, L, e = mp.mpf(p.r_k), mp.mpf(p.L_k), mp.mpf(p.e)
-    return r * mp.cos(phi) + mp.sqrt(L ** 2 - (r * mp.sin(phi) - e) ** 2)
+    return r * mp.cos(phi) + mp.sqrt(L**2 - (r * mp.sin(phi) - e) ** 2)
 
 
 def window_mp(p: KnifeParams) -> tuple[mp.mpf, mp.mpf]:
@@ -59,6 +59,7 @@ def window_mp(p: KnifeParams) -> tuple[mp.mpf, mp.mpf]:
 
 # ----------------------------------------------------------------------------- parameters
 
+
 def test_params_have_no_defaults_and_load_from_yaml(ref: KnifeParams) -> None:
     for f in dataclasses.fields(KnifeParams):
         assert f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
@@ -74,24 +75,27 @@ def test_omega_and_period(ref: KnifeParams) -> None:
     assert kn.omega(ref) * kn.period(ref) == pytest.approx(2 * math.pi, rel=1e-15)
 
 
-@pytest.mark.parametrize(('kw', 'key', 'words'), [
-    ({'r_k': 0.0}, 'knife.r_k', '> 0'),
-    ({'L_k': -0.1}, 'knife.L_k', '> 0'),
-    ({'L_k': 0.04}, 'knife.L_k', 'cannot be assembled'),  # L = r
-    ({'e': 0.12}, 'knife.L_k', 'cannot be assembled'),  # L = r + |e| exactly
-    ({'e': -0.13}, 'knife.L_k', 'cannot be assembled'),
-    ({'n_k': 0.0}, 'knife.n_k', 'must be in [1, 200000]'),
-    ({'n_k': 1e-300}, 'knife.n_k', 'must be in [1, 200000]'),
-    ({'n_k': 1e308}, 'knife.n_k', 'must be in [1, 200000]'),
-    ({'n_k': math.inf}, 'knife.n_k', 'finite'),
-    ({'e': math.nan}, 'knife.e', 'finite'),
-    ({'s_clear': 0.2}, 'knife.s_clear', 'never'),  # = s_max
-    ({'s_clear': 0.25}, 'knife.s_clear', 'never'),
-    ({'s_clear': 0.12}, 'knife.s_clear', 'always'),  # = s_min
-    ({'s_clear': 0.0}, 'knife.s_clear', 'always'),
-    ({'r_k': True}, 'knife.r_k', 'number'),
-    ({'s_clear': '0.17'}, 'knife.s_clear', 'number'),
-])
+@pytest.mark.parametrize(
+    ('kw', 'key', 'words'),
+    [
+        ({'r_k': 0.0}, 'knife.r_k', '> 0'),
+        ({'L_k': -0.1}, 'knife.L_k', '> 0'),
+        ({'L_k': 0.04}, 'knife.L_k', 'cannot be assembled'),  # L = r
+        ({'e': 0.12}, 'knife.L_k', 'cannot be assembled'),  # L = r + |e| exactly
+        ({'e': -0.13}, 'knife.L_k', 'cannot be assembled'),
+        ({'n_k': 0.0}, 'knife.n_k', 'must be in [1, 200000]'),
+        ({'n_k': 1e-300}, 'knife.n_k', 'must be in [1, 200000]'),
+        ({'n_k': 1e308}, 'knife.n_k', 'must be in [1, 200000]'),
+        ({'n_k': math.inf}, 'knife.n_k', 'finite'),
+        ({'e': math.nan}, 'knife.e', 'finite'),
+        ({'s_clear': 0.2}, 'knife.s_clear', 'never'),  # = s_max
+        ({'s_clear': 0.25}, 'knife.s_clear', 'never'),
+        ({'s_clear': 0.12}, 'knife.s_clear', 'always'),  # = s_min
+        ({'s_clear': 0.0}, 'knife.s_clear', 'always'),
+        ({'r_k': True}, 'knife.r_k', 'number'),
+        ({'s_clear': '0.17'}, 'knife.s_clear', 'number'),
+    ],
+)
 def test_validation_names_field_and_value(kw, key, words) -> None:
     with pytest.raises(ParameterError) as info:
         make(**kw)
@@ -108,6 +112,7 @@ def test_load_params_overrides_are_validated() -> None:
 
 
 # ----------------------------------------------------------------------------- kinematics
+
 
 def test_dead_centres_closed_form_central(ref: KnifeParams) -> None:
     dc = kn.dead_centres(ref)
@@ -149,7 +154,7 @@ def test_derivatives_against_mpmath(e: float) -> None:
         x = mp.mpf(ph)
         assert abs(kn.position(p, ph) - float(s_mp(p, x))) < 1e-16
         assert abs(v[i] - float(w * mp.diff(lambda y: s_mp(p, y), x, 1))) < 1e-13 * w
-        assert abs(a[i] - float(w ** 2 * mp.diff(lambda y: s_mp(p, y), x, 2))) < 1e-12 * w ** 2
+        assert abs(a[i] - float(w**2 * mp.diff(lambda y: s_mp(p, y), x, 2))) < 1e-12 * w**2
 
 
 @settings(max_examples=60, deadline=None)
@@ -187,6 +192,7 @@ def test_non_finite_angles_rejected(ref: KnifeParams) -> None:
 
 # ----------------------------------------------------------------------------- the window
 
+
 def test_reference_window_is_the_papers_0_03_s(ref: KnifeParams) -> None:
     w = kn.window(ref)
     assert w.duration == pytest.approx(0.030, rel=0.005)
@@ -198,7 +204,7 @@ def test_reference_window_is_the_papers_0_03_s(ref: KnifeParams) -> None:
 def closed_form_phi(p: KnifeParams) -> float:
     """e = 0: s = s_c is the law of cosines, cos(phi) = (s_c^2 + r^2 - L^2) / (2 s_c r)."""
     r, L, sc = mp.mpf(p.r_k), mp.mpf(p.L_k), mp.mpf(p.s_clear)
-    return float(mp.acos((sc ** 2 + r ** 2 - L ** 2) / (2 * sc * r)))
+    return float(mp.acos((sc**2 + r**2 - L**2) / (2 * sc * r)))
 
 
 @settings(max_examples=80, deadline=None)

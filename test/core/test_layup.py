@@ -56,14 +56,16 @@ def residuals(p: LayupParams, s: L.LayupState) -> np.ndarray:
     """Loop-closure residuals, m, computed from the definitions in MACHINES.md."""
     ax = p.a + p.R_kr * np.cos(s.phi)
     ay = p.b + p.R_kr * np.sin(s.phi)
-    return np.stack([
-        np.hypot(s.xA - ax, s.yA - ay),
-        np.hypot(s.xA - s.xB, s.yA - s.yB) - p.l2,
-        np.hypot(s.xB, s.yB) - p.O2B,
-        np.hypot(s.xC - s.xB * p.l3 / p.O2B, s.yC - s.yB * p.l3 / p.O2B),
-        np.hypot(s.xC - s.xE, s.yC - s.yE) - p.l4,
-        np.hypot(s.xE - p.O2O3, s.yE) - p.l5,
-    ])
+    return np.stack(
+        [
+            np.hypot(s.xA - ax, s.yA - ay),
+            np.hypot(s.xA - s.xB, s.yA - s.yB) - p.l2,
+            np.hypot(s.xB, s.yB) - p.O2B,
+            np.hypot(s.xC - s.xB * p.l3 / p.O2B, s.yC - s.yB * p.l3 / p.O2B),
+            np.hypot(s.xC - s.xE, s.yC - s.yE) - p.l4,
+            np.hypot(s.xE - p.O2O3, s.yE) - p.l5,
+        ]
+    )
 
 
 def d3_deg(s: L.LayupState | L.LayupPoint) -> np.ndarray:
@@ -76,9 +78,11 @@ def d3_deg(s: L.LayupState | L.LayupPoint) -> np.ndarray:
 # =========================================================================== parameters
 def test_dataclass_fields_are_the_yaml_keys_without_defaults() -> None:
     keys = list(yaml.safe_load((config_dir() / 'layup.yaml').read_text()).keys())
-    assert FIELDS == keys
-    assert all(f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
-               for f in dataclasses.fields(LayupParams))
+    assert keys == FIELDS
+    assert all(
+        f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        for f in dataclasses.fields(LayupParams)
+    )
     assert dataclasses.is_dataclass(P) and P.__dataclass_params__.frozen
     with pytest.raises(dataclasses.FrozenInstanceError):
         P.R_kr = 0.1  # type: ignore[misc]
@@ -133,23 +137,35 @@ def test_belt_speed_may_be_zero_not_negative() -> None:
 
 
 # =========================================================================== Grashof
-@pytest.mark.parametrize('links, kind', [
-    ((4.0, 1.0, 3.0, 3.5), 'crank-rocker'),
-    ((1.0, 4.0, 3.0, 3.5), 'double-crank'),
-    ((4.0, 3.5, 1.0, 3.0), 'double-rocker'),
-    ((4.0, 3.0, 3.5, 1.0), 'rocker-crank'),
-    ((4.0, 2.0, 3.0, 3.0), 'change-point'),
-    ((2.0, 1.0, 2.0, 1.0), 'change-point'),   # parallelogram
-    ((5.0, 2.0, 3.0, 3.0), 'non-Grashof'),
-    ((0.65, 0.08, 0.6, 0.25), 'crank-rocker'),
-])
+@pytest.mark.parametrize(
+    'links, kind',
+    [
+        ((4.0, 1.0, 3.0, 3.5), 'crank-rocker'),
+        ((1.0, 4.0, 3.0, 3.5), 'double-crank'),
+        ((4.0, 3.5, 1.0, 3.0), 'double-rocker'),
+        ((4.0, 3.0, 3.5, 1.0), 'rocker-crank'),
+        ((4.0, 2.0, 3.0, 3.0), 'change-point'),
+        ((2.0, 1.0, 2.0, 1.0), 'change-point'),  # parallelogram
+        ((5.0, 2.0, 3.0, 3.0), 'non-Grashof'),
+        ((0.65, 0.08, 0.6, 0.25), 'crank-rocker'),
+    ],
+)
 def test_classify_fourbar(links: tuple[float, float, float, float], kind: str) -> None:
     assert classify_fourbar(*links) == kind
 
 
-@pytest.mark.parametrize('rel, kind', [(0.0, 'change-point'), (5e-13, 'change-point'), (-5e-13, 'change-point'),
-                                       (3e-12, 'crank-rocker'), (-3e-12, 'non-Grashof'),
-                                       (1e-9, 'crank-rocker'), (-1e-9, 'non-Grashof')])
+@pytest.mark.parametrize(
+    'rel, kind',
+    [
+        (0.0, 'change-point'),
+        (5e-13, 'change-point'),
+        (-5e-13, 'change-point'),
+        (3e-12, 'crank-rocker'),
+        (-3e-12, 'non-Grashof'),
+        (1e-9, 'crank-rocker'),
+        (-1e-9, 'non-Grashof'),
+    ],
+)
 def test_classify_near_the_grashof_boundary(rel: float, kind: str) -> None:
     # s + l = 0.1 + 1.0 = p + q = 0.8 + 0.3; rel moves p + q by rel·(s + l + p + q)
     q = 0.3 + rel * 2.2
@@ -157,7 +173,7 @@ def test_classify_near_the_grashof_boundary(rel: float, kind: str) -> None:
 
 
 #: crank pivot straight below O2, so the change-point position (A, B, O2 in line) has the chute hanging down
-BOUNDARY = dict(a=0.0, b=-0.75, l2=0.58, O2B=0.25)   # 0.08 + 0.75 = 0.58 + 0.25
+BOUNDARY = dict(a=0.0, b=-0.75, l2=0.58, O2B=0.25)  # 0.08 + 0.75 = 0.58 + 0.25
 
 
 def test_on_the_grashof_boundary_is_rejected_as_change_point() -> None:
@@ -190,7 +206,7 @@ def test_just_inside_the_boundary_is_accepted_with_a_small_reported_margin(eps: 
 
 def test_the_grashof_message_names_the_lengths() -> None:
     with pytest.raises(ParameterError) as err:
-        load_params('layup', overrides={'R_kr': 0.3})   # crank no longer the shortest
+        load_params('layup', overrides={'R_kr': 0.3})  # crank no longer the shortest
     assert isinstance(err.value.value, dict) and err.value.value['R_kr'] == 0.3
     assert 'crank-rocker' in str(err.value)
 
@@ -223,8 +239,8 @@ def test_failure_between_samples_is_found() -> None:
     geo = raw(l5=0.7009)
     m = LayupModel(geo)
     coarse = np.arange(16) * (TAU / 16)
-    assert m.discriminants(coarse)[1].min() > 0.0       # no coarse sample fails ...
-    assert m.discriminants(DENSE)[1].min() < 0.0        # ... but the loop does
+    assert m.discriminants(coarse)[1].min() > 0.0  # no coarse sample fails ...
+    assert m.discriminants(DENSE)[1].min() < 0.0  # ... but the loop does
     with pytest.raises(AssemblyError) as coarse_err:
         check_assembly(geo, n=16)
     with pytest.raises(AssemblyError) as fine_err:
@@ -262,7 +278,7 @@ def test_grazing_a_toggle_is_rejected_as_locking() -> None:
 
 
 def test_unvalidated_first_loop_failure_names_the_first_angle() -> None:
-    m = LayupModel(raw(l2=0.45))   # non-Grashof: loop 1 does not close for every angle
+    m = LayupModel(raw(l2=0.45))  # non-Grashof: loop 1 does not close for every angle
     d1 = m.discriminants(DENSE)[0]
     bad = DENSE[d1 < 0]
     assert bad.size > 0
@@ -329,8 +345,12 @@ def test_velocities_match_finite_differences_of_positions() -> None:
     for name, ref in (('theta3', s.omega3), ('theta5', s.omega5)):
         fd = _fd5(lambda x, n=name: getattr(M.arrays(x), n), phi, h) * w
         assert_allclose(ref, fd, rtol=0, atol=1e-9)
-    for pos, vel in (('xC', lambda: -s.omega3 * s.yC), ('yC', lambda: s.omega3 * s.xC),
-                     ('xE', lambda: -s.omega5 * s.yE), ('yE', lambda: s.omega5 * (s.xE - P.O2O3))):
+    for pos, vel in (
+        ('xC', lambda: -s.omega3 * s.yC),
+        ('yC', lambda: s.omega3 * s.xC),
+        ('xE', lambda: -s.omega5 * s.yE),
+        ('yE', lambda: s.omega5 * (s.xE - P.O2O3)),
+    ):
         fd = _fd5(lambda x, n=pos: getattr(M.arrays(x), n), phi, h) * w
         assert_allclose(vel(), fd, rtol=0, atol=1e-9)
     assert_allclose(s.vC, s.omega3 * P.l3, rtol=1e-15)
@@ -366,16 +386,15 @@ def test_velocities_agree_with_the_general_two_by_two_solver() -> None:
     vbx, vby = circle_point_velocity(s.xB, s.yB, 0, 0, 0, 0, s.xA, s.yA, vax, vay)
     assert_allclose(np.stack([vbx, vby]), np.stack([-s.omega3 * s.yB, s.omega3 * s.xB]), rtol=0, atol=1e-13)
     abx, aby = circle_point_acceleration(s.xB, s.yB, vbx, vby, z, z, z, z, z, z, s.xA, s.yA, vax, vay, aax, aay)
-    eps3 = (s.xB * aby - s.yB * abx) / P.O2B ** 2
+    eps3 = (s.xB * aby - s.yB * abx) / P.O2B**2
     assert_allclose(s.eps3, eps3, rtol=0, atol=1e-12)
     k = P.l3 / P.O2B
     vcx, vcy, acx, acy = k * vbx, k * vby, k * abx, k * aby
     vex, vey = circle_point_velocity(s.xE, s.yE, P.O2O3, 0, 0, 0, s.xC, s.yC, vcx, vcy)
-    omega5 = ((s.xE - P.O2O3) * vey - s.yE * vex) / P.l5 ** 2
+    omega5 = ((s.xE - P.O2O3) * vey - s.yE * vex) / P.l5**2
     assert_allclose(s.omega5, omega5, rtol=0, atol=1e-13)
-    aex, aey = circle_point_acceleration(s.xE, s.yE, vex, vey, P.O2O3, 0, 0, 0, 0, 0,
-                                         s.xC, s.yC, vcx, vcy, acx, acy)
-    assert_allclose(s.eps5, ((s.xE - P.O2O3) * aey - s.yE * aex) / P.l5 ** 2, rtol=0, atol=1e-12)
+    aex, aey = circle_point_acceleration(s.xE, s.yE, vex, vey, P.O2O3, 0, 0, 0, 0, 0, s.xC, s.yC, vcx, vcy, acx, acy)
+    assert_allclose(s.eps5, ((s.xE - P.O2O3) * aey - s.yE * aex) / P.l5**2, rtol=0, atol=1e-12)
 
 
 def test_crank_speed_scaling() -> None:
@@ -503,15 +522,16 @@ def test_delta3_passes_90_degrees_smoothly() -> None:
     # and tracked stepping (nearest to the previous point) gives the same branch everywhere
     px, py = float(s.xE[0]), float(s.yE[0])
     for i in range(0, DENSE.size, 3):
-        px, py, br = tracked_intersection(P.O2O3, 0.0, P.l5, float(s.xC[i]), float(s.yC[i]), P.l4, px, py,
-                                          inputs=float(DENSE[i]))
+        px, py, br = tracked_intersection(
+            P.O2O3, 0.0, P.l5, float(s.xC[i]), float(s.yC[i]), P.l4, px, py, inputs=float(DENSE[i])
+        )
         assert br == 1
         assert abs(px - s.xE[i]) < 1e-14 and abs(py - s.yE[i]) < 1e-14
 
 
 # =========================================================================== crank angle range
 def test_exact_multiples_of_tau_give_phi_zero_exactly() -> None:
-    k = 2 ** 30                          # ~1.07e9 turns; k·TAU is exact in floating point
+    k = 2**30  # ~1.07e9 turns; k·TAU is exact in floating point
     big = TAU * k
     assert Fraction(big) == k * Fraction(TAU)
     assert reduce_angle(big) == 0.0
@@ -524,8 +544,8 @@ def test_exact_multiples_of_tau_give_phi_zero_exactly() -> None:
 
 
 def test_a_billion_turns_loses_only_the_input_rounding() -> None:
-    k = 10 ** 9
-    x = TAU * k                          # rounded: carries up to ulp(x)/2 = 4.8e-7 rad of error
+    k = 10**9
+    x = TAU * k  # rounded: carries up to ulp(x)/2 = 4.8e-7 rad of error
     r = reduce_angle(x)
     assert Fraction(r) == Fraction(x) - k * Fraction(TAU)  # the reduction itself is exact
     assert abs(r) <= math.ulp(x) / 2
@@ -556,7 +576,7 @@ def test_evaluations_reduce_like_reduce_angle() -> None:
     for f in dataclasses.fields(a):
         if f.name != 'phi':
             assert_array_equal(getattr(a, f.name), getattr(b, f.name))
-    assert_array_equal(a.phi, phi)   # the state keeps the angles as given
+    assert_array_equal(a.phi, phi)  # the state keeps the angles as given
 
 
 def test_non_finite_crank_angles_are_rejected() -> None:
@@ -569,10 +589,13 @@ def test_non_finite_crank_angles_are_rejected() -> None:
 
 # =========================================================================== properties
 @settings(max_examples=60, deadline=None)
-@given(factors=st.lists(st.floats(0.9, 1.1), min_size=len(FIELDS), max_size=len(FIELDS)),
-       phis=st.lists(st.floats(-50.0, 50.0), min_size=1, max_size=20))
-def test_perturbed_geometries_either_fail_validation_or_are_finite_and_closed(factors: list[float],
-                                                                               phis: list[float]) -> None:
+@given(
+    factors=st.lists(st.floats(0.9, 1.1), min_size=len(FIELDS), max_size=len(FIELDS)),
+    phis=st.lists(st.floats(-50.0, 50.0), min_size=1, max_size=20),
+)
+def test_perturbed_geometries_either_fail_validation_or_are_finite_and_closed(
+    factors: list[float], phis: list[float]
+) -> None:
     kw = {k: BASE[k] * f for k, f in zip(FIELDS, factors)}
     try:
         p = LayupParams(**kw)
@@ -591,8 +614,9 @@ def test_perturbed_geometries_either_fail_validation_or_are_finite_and_closed(fa
     assert (s.vaC >= p.v_tr).all() and (s.vaE >= p.v_tr).all()
     assert s.margin1.min() > 0 and s.margin2.min() > 0
     for x in phis[:5]:
-        assert_allclose(list(m.point(x)), [float(getattr(m.arrays(x), n)) for n in L.LayupPoint._fields],
-                        rtol=1e-12, atol=1e-12)
+        assert_allclose(
+            list(m.point(x)), [float(getattr(m.arrays(x), n)) for n in L.LayupPoint._fields], rtol=1e-12, atol=1e-12
+        )
 
 
 @settings(max_examples=200, deadline=None)

@@ -18,7 +18,7 @@ P = load_params('layup')
 BASE = dataclasses.asdict(P)
 PHI = np.linspace(0.0, TAU, 3601)[:-1]
 #: l3² + l4² = O2O3² + l5²: δ3 = 90° is exactly where quadrilateral O2-O3-E-C is cyclic
-RIGHT = LayupParams(**{**BASE, 'l5': math.sqrt(P.l3 ** 2 + P.l4 ** 2 - P.O2O3 ** 2)})
+RIGHT = LayupParams(**{**BASE, 'l5': math.sqrt(P.l3**2 + P.l4**2 - P.O2O3**2)})
 
 
 def delta3_true(s) -> np.ndarray:  # noqa: ANN001
@@ -61,7 +61,7 @@ def test_angle_mapping() -> None:
 @pytest.mark.parametrize('p', [P, RIGHT], ids=['defaults', 'right-angle-cyclic'])
 def test_projection_theorem_with_the_eq17_root_agrees_everywhere(p: LayupParams) -> None:
     ok, healthy, s, ps = close(p, 'eq17')
-    assert healthy.all()          # no toggle on these geometries: every angle is compared
+    assert healthy.all()  # no toggle on these geometries: every angle is compared
     assert ok.all()
     # the comparison includes δ3 = 90° (the switch of the paper's root sign) and both dead centres
     d3 = np.degrees(delta3_true(s))
@@ -79,7 +79,7 @@ def test_paper_root_rule_is_exact_when_delta3_90_is_the_cyclic_position() -> Non
     assert switch.size == 2
     for i in switch:
         assert min(ps.beta[i], ps.beta[i + 1]) <= beta5(RIGHT) <= max(ps.beta[i], ps.beta[i + 1])
-        d3 = np.degrees(delta3_true(s))[i:i + 2]
+        d3 = np.degrees(delta3_true(s))[i : i + 2]
         assert d3.min() <= 90.0 <= d3.max()
 
 
@@ -89,7 +89,7 @@ def test_paper_root_rule_on_the_defaults_fails_exactly_between_delta3_90_and_the
     b5 = beta5(P)
     good = paper_speeds(P, PHI, root='eq17')
     # the true sign flips where a1 = 0 (cyclic quadrilateral), the paper's at β5 (δ3 = 90°)
-    band = (np.sign(good.root) != np.sign(ps.root))
+    band = np.sign(good.root) != np.sign(ps.root)
     assert band.any() and not band.all()
     # inside the band: β lies between β5 and the β where a1 changes sign
     flips = np.flatnonzero(np.diff(np.sign(good.a1)) != 0)

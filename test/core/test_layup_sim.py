@@ -35,13 +35,27 @@ BELTS = {'chute_belts': {'v_min': 2.0}}
 FLIGHT = {'leaf_flight': {'drag': 0.0}}
 DAMAGE = {'leaf_damage': {'v_damage': 4.5}}
 FRICTION = {'guide_friction': {'mu': 0.5, 's0': 0.0, 'v0': 1.0, 'h': 0.002}}
-FAULTS0 = {'p_missing': 0.0, 'p_double': 0.0, 'p_late': 0.0, 'late_delay': 0.0, 'p_slowdown': 0.0,
-           'slowdown_factor': 1.0, 'slowdown_duration': 0.0}
+FAULTS0 = {
+    'p_missing': 0.0,
+    'p_double': 0.0,
+    'p_late': 0.0,
+    'late_delay': 0.0,
+    'p_slowdown': 0.0,
+    'slowdown_factor': 1.0,
+    'slowdown_duration': 0.0,
+}
 
 
-def scene(effects: dict[str, Any] | None = None, *, sheets: dict[str, float] | None = None, seed: int = 1,
-          rate: float = 0.0, layup: dict[str, Any] | None = None, container: dict[str, Any] | None = None,
-          drive: dict[str, Any] | None = None) -> Scene:
+def scene(
+    effects: dict[str, Any] | None = None,
+    *,
+    sheets: dict[str, float] | None = None,
+    seed: int = 1,
+    rate: float = 0.0,
+    layup: dict[str, Any] | None = None,
+    container: dict[str, Any] | None = None,
+    drive: dict[str, Any] | None = None,
+) -> Scene:
     data: dict[str, Any] = {
         'name': 'layup-test',
         'machines': {'layup': {**LAYUP, **(layup or {})}, 'container': {**CONTAINER, **(container or {})}},
@@ -56,8 +70,7 @@ def scene(effects: dict[str, Any] | None = None, *, sheets: dict[str, float] | N
 
 
 def run(sc: Scene, duration: float, drive: Any = None, t_samples: np.ndarray | None = None):  # noqa: ANN201
-    return simulate_layup(sc, drive or ConstantDrive(), duration,
-                          np.zeros(0) if t_samples is None else t_samples)
+    return simulate_layup(sc, drive or ConstantDrive(), duration, np.zeros(0) if t_samples is None else t_samples)
 
 
 def events(res: Any, kind: str) -> np.ndarray:
@@ -70,6 +83,7 @@ def at_extreme(kind: str = 'folded') -> float:
 
 
 # ---------------------------------------------------------------------------- stream
+
 
 def test_stream_times_alternate_and_are_increasing() -> None:
     j, t = leaf_stream(dataclasses.replace(scene().sheets, jitter=0.9), 100.0, 1)
@@ -92,6 +106,7 @@ def test_jitter_zero_stream_is_the_nominal_grid() -> None:
 
 # ---------------------------------------------------------------------------- exits
 
+
 def test_belts_exit_after_the_chute_length_with_eq25_speed() -> None:
     res = run(scene(BELTS, sheets={'jitter': 0.5}), 20.0)
     enter = events(res, 'leaf_enter')
@@ -103,7 +118,7 @@ def test_belts_exit_after_the_chute_length_with_eq25_speed() -> None:
         l_chute = P.l5 if i % 2 else P.l3
         assert row['t'] == pytest.approx(t_in[i] + l_chute / 2.8, abs=1e-13)
         pt = model.point(OMEGA * row['t'])
-        expected = pt.vaE if i % 2 else pt.vaC                 # sqrt(v² + v_tr²), paper eq. (25)
+        expected = pt.vaE if i % 2 else pt.vaC  # sqrt(v² + v_tr²), paper eq. (25)
         assert row['value'] == pytest.approx(expected, rel=1e-12)
         assert row['cycle'] == math.floor(row['t'] * P.n_kr / 60.0)
 
@@ -114,13 +129,12 @@ def test_with_belts_at_2_8_the_exit_speed_never_drops_below_2_8() -> None:
     speeds = events(res, 'leaf_exit')['value']
     assert speeds.min() >= 2.8
     assert res.summary['min_exit_speed'] >= 2.8
-    assert speeds[0] == pytest.approx(2.8, abs=1e-12)          # leaf 0 leaves exactly at the extreme
-    assert res.summary['max_exit_speed'] == pytest.approx(math.hypot(res.summary['swing_speed']['max'], 2.8),
-                                                          rel=1e-3)
+    assert speeds[0] == pytest.approx(2.8, abs=1e-12)  # leaf 0 leaves exactly at the extreme
+    assert res.summary['max_exit_speed'] == pytest.approx(math.hypot(res.summary['swing_speed']['max'], 2.8), rel=1e-3)
     assert res.summary['leaves_damaged'] == 0
     cons = res.constraints[0]
     assert cons.name == 'chute_speed' and cons.unit == 'm/s'
-    assert (cons.margin >= 0.8 - 1e-12).all()                  # v_min = 2.0
+    assert (cons.margin >= 0.8 - 1e-12).all()  # v_min = 2.0
 
 
 @pytest.mark.parametrize('kind', ['extended', 'folded'])
@@ -129,7 +143,7 @@ def test_without_belts_the_exit_speed_reaches_zero_at_the_swing_extremes(kind: s
     res = run(sc, 60.0)
     exit_ = events(res, 'leaf_exit')
     enter = events(res, 'leaf_enter')
-    assert_allclose(exit_['t'], enter['t'], rtol=0, atol=0)     # dropped at the exit at entry time
+    assert_allclose(exit_['t'], enter['t'], rtol=0, atol=0)  # dropped at the exit at entry time
     assert exit_['value'][0] < 1e-9
     assert res.summary['min_exit_speed'] < 1e-9
     assert res.summary['exit_speed_at_extremes'][kind]['exit_speed']['min'] < 1e-9
@@ -164,8 +178,9 @@ def test_ramp_drive_belt_travel_is_the_chute_length() -> None:
     t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist()))
     for row in events(res, 'leaf_exit')[::5]:
         i = int(row['sheet'])
-        travel = quad(lambda t: 2.8 * float(drive.rate(t)), t_in[i], row['t'], points=[4.0],
-                      epsabs=1e-13, epsrel=1e-13)[0]
+        travel = quad(
+            lambda t: 2.8 * float(drive.rate(t)), t_in[i], row['t'], points=[4.0], epsabs=1e-13, epsrel=1e-13
+        )[0]
         assert travel == pytest.approx(P.l5 if i % 2 else P.l3, abs=1e-11)
         # exit speed with the drive's λ: the belt and the swing both scale
         lam = float(drive.rate(row['t']))
@@ -176,13 +191,14 @@ def test_ramp_drive_belt_travel_is_the_chute_length() -> None:
 
 # ---------------------------------------------------------------------------- damage and constraint
 
+
 def test_damage_at_exactly_v_damage_counts_and_violates() -> None:
     sc = scene({**BELTS, 'leaf_damage': {'v_damage': 2.8}}, sheets={'jitter': 0.0, 'phase': at_extreme() - 1 / 2.8})
     res = run(sc, 4.0)
     exit_ = events(res, 'leaf_exit')
     assert exit_['value'][0] == 2.8
     dmg = events(res, 'leaf_damaged')
-    assert dmg.size == exit_.size == res.summary['leaves_damaged']     # every speed >= 2.8
+    assert dmg.size == exit_.size == res.summary['leaves_damaged']  # every speed >= 2.8
     cons = res.constraints[0]
     assert (cons.margin < 0.0).all()
     assert cons.margin[0] == -(2.8 - np.nextafter(2.8, 0.0))
@@ -198,6 +214,7 @@ def test_paper_belt_speeds_damage() -> None:
 
 
 # ---------------------------------------------------------------------------- landing histograms
+
 
 def _hist(effects: dict[str, Any], duration: float = 3600.0) -> dict[str, Any]:
     # an interval incommensurate with the 2 s crank turn, so the leaves sample every crank phase
@@ -221,11 +238,11 @@ def test_landing_histograms_with_and_without_belts() -> None:
     assert with_b['landing_cv'] == pytest.approx(0.518, abs=0.01)
     assert without['landing_cv'] == pytest.approx(0.716, abs=0.01)
     cb_, cn = np.array(with_b['landing_histogram']['counts']), np.array(without['landing_histogram']['counts'])
-    assert cn[0] == 0 and cn[-1] == 0 and cb_[0] > 0 and cb_[-1] > 0       # walls reached only with belts
-    assert cn[1] > 3 * np.median(cn) and cn[-2] > 3 * np.median(cn)         # edge peaks without belts
-    assert cb_[:3].max() < 0.7 * cn[:3].max() and cb_[-3:].max() < 0.7 * cn[-3:].max()   # flattened by belts
+    assert cn[0] == 0 and cn[-1] == 0 and cb_[0] > 0 and cb_[-1] > 0  # walls reached only with belts
+    assert cn[1] > 3 * np.median(cn) and cn[-2] > 3 * np.median(cn)  # edge peaks without belts
+    assert cb_[:3].max() < 0.7 * cn[:3].max() and cb_[-3:].max() < 0.7 * cn[-3:].max()  # flattened by belts
     for c in (cb_, cn):
-        assert c[13:18].mean() > 2.5 * np.median(c)                       # the mid-container pile
+        assert c[13:18].mean() > 2.5 * np.median(c)  # the mid-container pile
     assert with_b['leaves_spilled'] == without['leaves_spilled'] == 0
 
 
@@ -261,6 +278,7 @@ def test_zero_belt_speed_with_belts_is_rejected() -> None:
 
 
 # ---------------------------------------------------------------------------- guide friction in the line
+
 
 def test_guide_friction_exit_speeds_vs_crank_phase() -> None:
     """What the model shows about the paper's observation (μ = 0.5, 2 min, every crank phase sampled):
@@ -309,10 +327,10 @@ def test_guide_friction_stick_slip_events_in_the_line() -> None:
     res = run(scene(fr, sheets={'jitter': 0.3}), 20.0)
     st = events(res, 'leaf_stick')
     sl = events(res, 'leaf_slip')
-    assert st.size > 10 and 0 < st.size - sl.size <= 6          # the last few are still held at the end
+    assert st.size > 10 and 0 < st.size - sl.size <= 6  # the last few are still held at the end
     ex = events(res, 'leaf_exit')['sheet']
     for i in ex:
-        assert (st['sheet'] == i).sum() == (sl['sheet'] == i).sum()   # every exited leaf slipped off each stick
+        assert (st['sheet'] == i).sum() == (sl['sheet'] == i).sum()  # every exited leaf slipped off each stick
     for i in np.unique(st['sheet'])[:20]:
         assert (sl['t'][sl['sheet'] == i] > st['t'][st['sheet'] == i][:1]).all()
         assert st['cycle'][st['sheet'] == i][0] == math.floor(st['t'][st['sheet'] == i][0] / 2.0)
@@ -334,6 +352,7 @@ def test_guide_friction_geometry_is_checked() -> None:
 
 # ---------------------------------------------------------------------------- effects run only when listed
 
+
 def _forbid(monkeypatch: pytest.MonkeyPatch, module: Any) -> None:
     def boom(*_a: Any, **_k: Any) -> None:
         raise AssertionError(f'{module.__name__} called but not listed')
@@ -345,8 +364,13 @@ def _forbid(monkeypatch: pytest.MonkeyPatch, module: Any) -> None:
 
 @pytest.mark.parametrize('listed', [{}, BELTS, FLIGHT, DAMAGE, FRICTION, {**FRICTION, **FLIGHT}])
 def test_effects_not_listed_are_never_called(monkeypatch: pytest.MonkeyPatch, listed: dict[str, Any]) -> None:
-    names = {'chute_belts': chute_belts, 'leaf_flight': leaf_flight, 'leaf_damage': leaf_damage,
-             'guide_friction': guide_friction, 'faults': faults}
+    names = {
+        'chute_belts': chute_belts,
+        'leaf_flight': leaf_flight,
+        'leaf_damage': leaf_damage,
+        'guide_friction': guide_friction,
+        'faults': faults,
+    }
     for name, mod in names.items():
         if name not in listed:
             _forbid(monkeypatch, mod)
@@ -359,6 +383,7 @@ def test_effects_not_listed_are_never_called(monkeypatch: pytest.MonkeyPatch, li
 
 
 # ---------------------------------------------------------------------------- faults
+
 
 def _faults(**over: float) -> dict[str, Any]:
     return {'faults': {**FAULTS0, **over}}
@@ -428,6 +453,7 @@ def test_belt_slowdowns_delay_the_exits_exactly() -> None:
 
 # ---------------------------------------------------------------------------- samples
 
+
 def test_samples() -> None:
     t = sample_times(6.0, 25.0)
     res = run(scene({**BELTS}), 6.0, t_samples=t)
@@ -462,6 +488,7 @@ def test_no_samples_when_the_grid_is_empty() -> None:
 
 # ---------------------------------------------------------------------------- determinism, line, cost
 
+
 def test_determinism_bit_for_bit() -> None:
     eff = {**BELTS, **FLIGHT, **DAMAGE}
     a = run(scene(eff, seed=7), 60.0)
@@ -492,7 +519,7 @@ def test_events_end_with_the_run() -> None:
     res = run(scene({**BELTS, **FLIGHT}), 5.0)
     assert res.events['t'].max() <= 5.0
     s = res.summary
-    assert s['leaves'] > s['leaves_exited'] > s['leaves_landed']       # some still on a chute / in the air
+    assert s['leaves'] > s['leaves_exited'] > s['leaves_landed']  # some still on a chute / in the air
 
 
 @pytest.mark.parametrize('effects', [{**BELTS, **FLIGHT, **DAMAGE}, {**FRICTION, **FLIGHT}, {**FLIGHT}])

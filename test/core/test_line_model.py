@@ -31,17 +31,21 @@ def runs() -> dict[str, tuple[LineModel, LineResult]]:
 
 
 def _same(a: Any, b: Any) -> bool:
-    return (a.names == b.names and a.position.tobytes() == b.position.tobytes()
-            and a.velocity.tobytes() == b.velocity.tobytes()
-            and (a.effort is None) == (b.effort is None)
-            and (a.effort is None or a.effort.tobytes() == b.effort.tobytes()))
+    return (
+        a.names == b.names
+        and a.position.tobytes() == b.position.tobytes()
+        and a.velocity.tobytes() == b.velocity.tobytes()
+        and (a.effort is None) == (b.effort is None)
+        and (a.effort is None or a.effort.tobytes() == b.effort.tobytes())
+    )
 
 
 def _rows(js: Any, i: Any) -> Any:
     from folder_line.core.events import JointSamples
 
-    return JointSamples(js.machine, js.names, js.t[i], js.position[i], js.velocity[i],
-                        None if js.effort is None else js.effort[i])
+    return JointSamples(
+        js.machine, js.names, js.t[i], js.position[i], js.velocity[i], None if js.effort is None else js.effort[i]
+    )
 
 
 # ------------------------------------------------------------------ sampling
@@ -80,7 +84,7 @@ def test_order_and_chunking_do_not_change_values(runs: dict[str, Any], name: str
     for node, js in res.samples.items():
         assert _same(model.sample(node, t), js)
         assert _same(model.sample(node, t[perm]), _rows(js, perm))
-        parts = [model.sample(node, t[k:k + 97]) for k in range(0, t.size, 97)]
+        parts = [model.sample(node, t[k : k + 97]) for k in range(0, t.size, 97)]
         assert np.vstack([p.position for p in parts]).tobytes() == js.position.tobytes()
     assert all(_same(a, res.samples[n]) for n, a in model.sample_all(t).items())
 
@@ -178,21 +182,34 @@ def test_first_cycle_and_layup_crank_turns(runs: dict[str, Any]) -> None:
 
 def _folder_faults() -> Scene:
     data = dict(load_scene('folder').source)
-    data['effects'] = {**data['effects'], 'feed_slip': {'mu': 0.5, 'p': 40.0, 'm': 0.02},
-                       'faults': {'p_missing': 0.05, 'p_double': 0.02, 'p_late': 0.05, 'late_delay': 0.002,
-                                  'p_slowdown': 0.05, 'slowdown_factor': 0.8, 'slowdown_duration': 0.2}}
+    data['effects'] = {
+        **data['effects'],
+        'feed_slip': {'mu': 0.5, 'p': 40.0, 'm': 0.02},
+        'faults': {
+            'p_missing': 0.05,
+            'p_double': 0.02,
+            'p_late': 0.05,
+            'late_delay': 0.002,
+            'p_slowdown': 0.05,
+            'slowdown_factor': 0.8,
+            'slowdown_duration': 0.2,
+        },
+    }
     data['machines'] = {**data['machines'], 'feed_transporter': {'V_tr': 9.7}}
     return parse_scene(data)
 
 
-@pytest.mark.parametrize('name, t_c', [('folder', 4.3), ('folder_faults', 4.3), ('layup', 5.1), ('line', 6.2),
-                                       ('line', 13.7)])
+@pytest.mark.parametrize(
+    'name, t_c', [('folder', 4.3), ('folder_faults', 4.3), ('layup', 5.1), ('line', 6.2), ('line', 13.7)]
+)
 def test_events_before_a_command_are_unchanged(name: str, t_c: float) -> None:
     scene = _folder_faults() if name == 'folder_faults' else load_scene(name)
     plain = LineModel(scene, 18.0)
     held = LineModel(scene, 18.0, [Command(t_c, 'hold'), Command(t_c + 2.0, 'unhold')])
-    assert plain.events_between(-math.inf, np.nextafter(t_c, 0.0)).tobytes() == \
-        held.events_between(-math.inf, np.nextafter(t_c, 0.0)).tobytes()
+    assert (
+        plain.events_between(-math.inf, np.nextafter(t_c, 0.0)).tobytes()
+        == held.events_between(-math.inf, np.nextafter(t_c, 0.0)).tobytes()
+    )
     assert held.events.tobytes() != plain.events.tobytes()  # and the command does change the future
     t = np.linspace(0.0, t_c, 501)[:-1]
     for node in plain.nodes:
@@ -215,8 +232,14 @@ def hold_run() -> dict[str, Any]:
     t_hold = plain.next_cycle_boundary(6.0)
     t_unhold = 14.0
     cmds = (Command(t_hold, 'hold'), Command(t_unhold, 'unhold'))
-    return {'scene': scene, 'plain': plain, 'model': LineModel(scene, 30.0, cmds), 'cmds': cmds,
-            't_hold': t_hold, 't_unhold': t_unhold}
+    return {
+        'scene': scene,
+        'plain': plain,
+        'model': LineModel(scene, 30.0, cmds),
+        'cmds': cmds,
+        't_hold': t_hold,
+        't_unhold': t_unhold,
+    }
 
 
 def test_hold_at_the_cycle_boundary_stops_the_folder_with_no_sheet_lost(hold_run: dict[str, Any]) -> None:
@@ -247,8 +270,10 @@ def test_unhold_resumes_and_every_held_sheet_is_delivered(hold_run: dict[str, An
     m, plain = hold_run['model'], hold_run['plain']
     t_u = hold_run['t_unhold']
     # up to and including the command's time (a knife exit) the run is the one without it
-    assert m.events_between(-math.inf, hold_run['t_hold']).tobytes() == \
-        plain.events_between(-math.inf, hold_run['t_hold']).tobytes()
+    assert (
+        m.events_between(-math.inf, hold_run['t_hold']).tobytes()
+        == plain.events_between(-math.inf, hold_run['t_hold']).tobytes()
+    )
     assert _of(m.events_between(-math.inf, hold_run['t_hold']), 'knife_exit')['t'][-1] == hold_run['t_hold']
     up = hold_run['scene'].drive.t_restart
     assert float(m.drive.rate(t_u + up)) == 1.0
@@ -296,10 +321,13 @@ def test_commands_reach_simulate(hold_run: dict[str, Any]) -> None:
     assert set(EVENT_KINDS) >= {'knife_exit', 'released_on_pile'}
 
 
-@pytest.mark.parametrize('name, what, period, per', [('folder', 'knife cycles', 3600.0 / 50000.0, 'BYTES_PER_CYCLE'),
-                                                     ('layup', 'leaves', None, 'BYTES_PER_LEAF')])
-def test_a_span_too_long_for_memory_is_refused_before_any_work(name: str, what: str, period: float | None,
-                                                               per: str) -> None:
+@pytest.mark.parametrize(
+    'name, what, period, per',
+    [('folder', 'knife cycles', 3600.0 / 50000.0, 'BYTES_PER_CYCLE'), ('layup', 'leaves', None, 'BYTES_PER_LEAF')],
+)
+def test_a_span_too_long_for_memory_is_refused_before_any_work(
+    name: str, what: str, period: float | None, per: str
+) -> None:
     """Every event up to the horizon is held in memory: 1e7 s of the folder is 1.4e8 knife cycles
     (~270 GB at the measured peak per cycle). The model refuses it at once, naming the span and the
     memory it would need, instead of exhausting the machine."""

@@ -17,11 +17,16 @@ def test_counts_round_trip_and_refusals() -> None:
     c = counts(12, 3, 1)
     assert format_counts(c) == 'messages=12 events=3 commands=1'
     assert parse_counts(format_counts(c)) == c
-    for bad, why in [('', 'lack'), ('messages=1 events=2', 'lack commands'), ('messages=1 events=2 commands=x', 'integer'),
-                     ('messages=1 events=2 commands=-1', 'integer'), ('messages=1 messages=2 events=0 commands=0',
-                                                                      'unexpected'),
-                     ('jump=1 messages=1 events=2 commands=0', 'unexpected'), ('x' * 201, 'at most 200'),
-                     ('messages=99999999999999999999 events=0 commands=0', 'integer')]:
+    for bad, why in [
+        ('', 'lack'),
+        ('messages=1 events=2', 'lack commands'),
+        ('messages=1 events=2 commands=x', 'integer'),
+        ('messages=1 events=2 commands=-1', 'integer'),
+        ('messages=1 messages=2 events=0 commands=0', 'unexpected'),
+        ('jump=1 messages=1 events=2 commands=0', 'unexpected'),
+        ('x' * 201, 'at most 200'),
+        ('messages=99999999999999999999 events=0 commands=0', 'integer'),
+    ]:
         with pytest.raises(ValueError, match=why):
             parse_counts(bad)
 
@@ -70,7 +75,7 @@ def test_refusals_unknown_lost_backwards() -> None:
 def test_any_interleaving_completes_exactly_the_ticks_whose_messages_are_in(data: st.DataObject, n_ticks: int) -> None:
     """Acks and messages interleaved in any order (each topic in order): complete = the latest ack covered."""
     per_tick = data.draw(st.lists(st.integers(0, 3), min_size=n_ticks, max_size=n_ticks))
-    total = [sum(per_tick[:k + 1]) for k in range(n_ticks)]
+    total = [sum(per_tick[: k + 1]) for k in range(n_ticks)]
     acks = [('ack', k) for k in range(n_ticks)]
     msgs = [('msg', i) for i in range(total[-1])]
     order: list[tuple[str, int]] = []

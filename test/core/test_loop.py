@@ -49,10 +49,18 @@ def test_swapping_the_centres_flips_the_branch() -> None:
 
 
 @settings(max_examples=300, deadline=None)
-@given(x0=coord, y0=coord, r0=radius, ang=st.floats(-math.pi, math.pi), r1=radius,
-       frac=st.floats(0.02, 0.98), branch=st.sampled_from([1, -1]))
-def test_point_lies_on_both_circles_on_the_requested_side(x0: float, y0: float, r0: float, ang: float,
-                                                          r1: float, frac: float, branch: int) -> None:
+@given(
+    x0=coord,
+    y0=coord,
+    r0=radius,
+    ang=st.floats(-math.pi, math.pi),
+    r1=radius,
+    frac=st.floats(0.02, 0.98),
+    branch=st.sampled_from([1, -1]),
+)
+def test_point_lies_on_both_circles_on_the_requested_side(
+    x0: float, y0: float, r0: float, ang: float, r1: float, frac: float, branch: int
+) -> None:
     # place c1 so that the circles properly intersect: |r0 - r1| < d < r0 + r1
     d = abs(r0 - r1) + frac * (r0 + r1 - abs(r0 - r1))
     x1, y1 = x0 + d * math.cos(ang), y0 + d * math.sin(ang)
@@ -72,11 +80,21 @@ def test_point_lies_on_both_circles_on_the_requested_side(x0: float, y0: float, 
     assert_allclose([xs, ys, ds], [x, y, float(res.disc)], rtol=1e-14, atol=1e-14 * scale)
 
 
-@given(x0=coord, y0=coord, r0=radius, ang=st.floats(-math.pi, math.pi), r1=radius, frac=st.floats(0.05, 0.95),
-       theta=st.floats(-math.pi, math.pi), tx=coord, ty=coord)
+@given(
+    x0=coord,
+    y0=coord,
+    r0=radius,
+    ang=st.floats(-math.pi, math.pi),
+    r1=radius,
+    frac=st.floats(0.05, 0.95),
+    theta=st.floats(-math.pi, math.pi),
+    tx=coord,
+    ty=coord,
+)
 @settings(max_examples=200, deadline=None)
-def test_rigid_motion_covariance(x0: float, y0: float, r0: float, ang: float, r1: float, frac: float,
-                                 theta: float, tx: float, ty: float) -> None:
+def test_rigid_motion_covariance(
+    x0: float, y0: float, r0: float, ang: float, r1: float, frac: float, theta: float, tx: float, ty: float
+) -> None:
     d = abs(r0 - r1) + frac * (r0 + r1 - abs(r0 - r1))
     assume(d > 1e-3)
     x1, y1 = x0 + d * math.cos(ang), y0 + d * math.sin(ang)
@@ -99,16 +117,20 @@ def test_vectorised_broadcasting_matches_elementwise() -> None:
     res = circle_intersection(0.0, 0.0, 1.0, x1, y1, 0.8, branch, inputs=np.zeros((3, 5)))
     assert res.x.shape == (3, 5)
     for idx in np.ndindex(3, 5):
-        xs, ys, ds = circle_intersection_scalar(0.0, 0.0, 1.0, float(x1[idx]), float(y1[idx]), 0.8,
-                                                int(branch[idx]), inputs=0.0)
+        xs, ys, ds = circle_intersection_scalar(
+            0.0, 0.0, 1.0, float(x1[idx]), float(y1[idx]), 0.8, int(branch[idx]), inputs=0.0
+        )
         assert_allclose([res.x[idx], res.y[idx], res.disc[idx]], [xs, ys, ds], rtol=1e-15, atol=1e-15)
 
 
 # --------------------------------------------------------------------------- toggles
-@pytest.mark.parametrize('x1, r1, expect', [
-    (0.75, 0.5, (0.25, 0.0)),    # external tangency: d = r0 + r1
-    (0.25, 0.5, (-0.25, 0.0)),   # internal tangency: d = r1 - r0
-])
+@pytest.mark.parametrize(
+    'x1, r1, expect',
+    [
+        (0.75, 0.5, (0.25, 0.0)),  # external tangency: d = r0 + r1
+        (0.25, 0.5, (-0.25, 0.0)),  # internal tangency: d = r1 - r0
+    ],
+)
 def test_exact_tangency_is_a_toggle_at_the_tangent_point(x1: float, r1: float, expect: tuple[float, float]) -> None:
     for branch in (1, -1):
         res = circle_intersection(0.0, 0.0, 0.25, x1, 0.0, r1, branch, inputs=0.0)
@@ -211,8 +233,14 @@ def test_tracked_mode_raises_when_unassemblable() -> None:
 
 # --------------------------------------------------------------------------- derivatives
 @settings(max_examples=100, deadline=None)
-@given(a11=st.floats(-5, 5), a12=st.floats(-5, 5), a21=st.floats(-5, 5), a22=st.floats(-5, 5),
-       b1=st.floats(-5, 5), b2=st.floats(-5, 5))
+@given(
+    a11=st.floats(-5, 5),
+    a12=st.floats(-5, 5),
+    a21=st.floats(-5, 5),
+    a22=st.floats(-5, 5),
+    b1=st.floats(-5, 5),
+    b2=st.floats(-5, 5),
+)
 def test_solve2x2_matches_linalg(a11: float, a12: float, a21: float, a22: float, b1: float, b2: float) -> None:
     m = np.array([[a11, a12], [a21, a22]])
     # the filter only: LU-based det/cond divide by a zero pivot on singular inputs with subnormal entries
@@ -254,8 +282,10 @@ def test_velocity_and_acceleration_match_finite_differences() -> None:
     xm1, ym1 = pos(t - h)
     xm2, ym2 = pos(t - 2 * h)
     fdv = [(-xp2 + 8 * xp1 - 8 * xm1 + xm2) / (12 * h), (-yp2 + 8 * yp1 - 8 * ym1 + ym2) / (12 * h)]
-    fda = [(-xp2 + 16 * xp1 - 30 * x + 16 * xm1 - xm2) / (12 * h * h),
-           (-yp2 + 16 * yp1 - 30 * y + 16 * ym1 - ym2) / (12 * h * h)]
+    fda = [
+        (-xp2 + 16 * xp1 - 30 * x + 16 * xm1 - xm2) / (12 * h * h),
+        (-yp2 + 16 * yp1 - 30 * y + 16 * ym1 - ym2) / (12 * h * h),
+    ]
     assert_allclose([vx, vy], fdv, rtol=0, atol=1e-9)
     assert_allclose([ax, ay], fda, rtol=0, atol=1e-5)
     # and the velocity is tangent to both circles relative to their centres

@@ -52,8 +52,9 @@ def loaded() -> Scene:
 def test_a_command_leaves_the_drive_before_it_unchanged_bit_for_bit(loaded: Scene) -> None:
     plain = md.build_drive(loaded, 30.0)
     held = md.build_drive(loaded, 30.0, commands=[Command(12.0, 'hold'), Command(20.0, 'unhold')])
-    more = md.build_drive(loaded, 30.0, commands=[Command(12.0, 'hold'), Command(20.0, 'unhold'),
-                                                  Command(25.0, 'stop')])
+    more = md.build_drive(
+        loaded, 30.0, commands=[Command(12.0, 'hold'), Command(20.0, 'unhold'), Command(25.0, 'stop')]
+    )
     t = np.linspace(0.0, 12.0, 60001)[:-1]
     assert plain.theta(t).tobytes() == held.theta(t).tobytes()
     assert plain.rate(t).tobytes() == held.rate(t).tobytes()
@@ -124,8 +125,11 @@ def test_unhold_while_coasting_down_against_solve_ivp(loaded: Scene) -> None:
 
 def test_redundant_and_late_commands_change_nothing(loaded: Scene) -> None:
     a = md.build_drive(loaded, 10.0, commands=[Command(5.0, 'hold')])
-    b = md.build_drive(loaded, 10.0, commands=[Command(1.0, 'start'), Command(5.0, 'hold'), Command(6.0, 'stop'),
-                                               Command(11.0, 'unhold')])
+    b = md.build_drive(
+        loaded,
+        10.0,
+        commands=[Command(1.0, 'start'), Command(5.0, 'hold'), Command(6.0, 'stop'), Command(11.0, 'unhold')],
+    )
     t = np.linspace(0.0, 10.0, 20001)
     assert a.theta(t).tobytes() == b.theta(t).tobytes()
     assert b.switches == [(5.0, False)]
@@ -137,8 +141,11 @@ def test_redundant_and_late_commands_change_nothing(loaded: Scene) -> None:
 
 @pytest.fixture(scope='module')
 def switched(loaded: Scene) -> md.MotorDrive:
-    return md.build_drive(loaded, 40.0, commands=[Command(15.0, 'hold'), Command(16.0, 'unhold'),
-                                                  Command(30.0, 'stop'), Command(35.0, 'start')])
+    return md.build_drive(
+        loaded,
+        40.0,
+        commands=[Command(15.0, 'hold'), Command(16.0, 'unhold'), Command(30.0, 'stop'), Command(35.0, 'start')],
+    )
 
 
 @settings(max_examples=200, deadline=None)

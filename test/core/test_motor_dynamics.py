@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _scenes import folder_scene
 from scipy.integrate import solve_ivp
 
 from folder_line.core.drive import Drive
@@ -16,17 +17,32 @@ from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.events import EVENT_KINDS
 from folder_line.core.line import make_drive, simulate
 from folder_line.core.scene import Scene, parse_scene
-from _scenes import folder_scene
 from folder_line.errors import ParameterError
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
-MOTOR: dict[str, Any] = dict(J=0.5, T_0=264.6, omega_0=157.08, omega_nom=152.4, b=0.03, method='dopri5',
-                             h=0.01, rtol=1e-10, atol=1e-12, t_stop=1e9, T_brake=0.0)
+MOTOR: dict[str, Any] = dict(
+    J=0.5,
+    T_0=264.6,
+    omega_0=157.08,
+    omega_nom=152.4,
+    b=0.03,
+    method='dopri5',
+    h=0.01,
+    rtol=1e-10,
+    atol=1e-12,
+    t_stop=1e9,
+    T_brake=0.0,
+)
 CHAIN: dict[str, Any] = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
 
 
-def make_scene(motor: dict[str, Any] | None = None, *, chain: bool = True,
-               chain_params: dict[str, Any] | None = None, delivery: dict[str, Any] | None = None) -> Scene:
+def make_scene(
+    motor: dict[str, Any] | None = None,
+    *,
+    chain: bool = True,
+    chain_params: dict[str, Any] | None = None,
+    delivery: dict[str, Any] | None = None,
+) -> Scene:
     effects: dict[str, Any] = {'motor_dynamics': {**MOTOR, **(motor or {})}}
     if chain:
         effects['chain_friction'] = {**CHAIN, **(chain_params or {})}
@@ -62,9 +78,22 @@ def brake_closed_form(p: dict[str, Any]) -> tuple[float, float]:
 # ------------------------------------------------------------------ parameters
 
 
-@pytest.mark.parametrize('key, value', [('J', 0.0), ('T_0', -1.0), ('omega_0', math.inf), ('b', -0.1),
-                                        ('method', 'euler'), ('h', 0.0), ('rtol', 1e-17), ('rtol', 1.0),
-                                        ('atol', 0.0), ('t_stop', -1.0), ('T_brake', -2.0)])
+@pytest.mark.parametrize(
+    'key, value',
+    [
+        ('J', 0.0),
+        ('T_0', -1.0),
+        ('omega_0', math.inf),
+        ('b', -0.1),
+        ('method', 'euler'),
+        ('h', 0.0),
+        ('rtol', 1e-17),
+        ('rtol', 1.0),
+        ('atol', 0.0),
+        ('t_stop', -1.0),
+        ('T_brake', -2.0),
+    ],
+)
 def test_bad_params_name_the_key(key: str, value: Any) -> None:
     with pytest.raises(ParameterError) as info:
         md.Params(**{**MOTOR, key: value})
@@ -164,16 +193,16 @@ def test_brake_stops_at_the_closed_form_time_and_holds(method: str, h: float, b:
     assert np.all(np.diff(d.theta(after)) == 0.0)
     during = np.linspace(5.0, d.t_rest, 1001)[:-1]
     assert np.all(d.omega(during) > 0.0)
-    np.testing.assert_allclose(d.rate_dot(during[1:]) * p['omega_nom'], (-b * d.omega(during[1:]) - Tb) / J,
-                               rtol=1e-12)
+    np.testing.assert_allclose(d.rate_dot(during[1:]) * p['omega_nom'], (-b * d.omega(during[1:]) - Tb) / J, rtol=1e-12)
     # the plateau: the earliest time with that phase is the standstill
     assert float(d.time_of(th_r)) == pytest.approx(d.t_rest, abs=1e-6)
 
 
 @pytest.mark.parametrize('method, h', [('dopri5', 0.01), ('rk4', 1e-3)])
 @pytest.mark.parametrize('periodic', [True, False])
-def test_brake_without_chain_friction_through_the_line(monkeypatch: pytest.MonkeyPatch, method: str, h: float,
-                                                       periodic: bool) -> None:
+def test_brake_without_chain_friction_through_the_line(
+    monkeypatch: pytest.MonkeyPatch, method: str, h: float, periodic: bool
+) -> None:
     """Regression: the brake segment without ``chain_friction`` (no load, no breaks) stops at the closed form."""
     for name in ('master_load', 'master_load_torque', 'sprocket_torque', 'MasterLoad'):
         monkeypatch.setattr(cf, name, _raiser(name))
@@ -196,6 +225,7 @@ def test_brake_without_chain_friction_through_the_line(monkeypatch: pytest.Monke
 def _raiser(name: str) -> Any:
     def boom(*_a: Any, **_k: Any) -> Any:
         raise AssertionError(f'chain_friction.{name} called although the scene does not list it')
+
     return boom
 
 

@@ -24,8 +24,18 @@ def test_a_normal_run() -> None:
     m.command('stop', 3.0)
     m.state_complete(3.5)
     assert m.state == 'STOPPED'
-    assert [tr.target for tr in m.history] == ['RESETTING', 'IDLE', 'STARTING', 'EXECUTE', 'HOLDING', 'HELD',
-                                               'UNHOLDING', 'EXECUTE', 'STOPPING', 'STOPPED']
+    assert [tr.target for tr in m.history] == [
+        'RESETTING',
+        'IDLE',
+        'STARTING',
+        'EXECUTE',
+        'HOLDING',
+        'HELD',
+        'UNHOLDING',
+        'EXECUTE',
+        'STOPPING',
+        'STOPPED',
+    ]
 
 
 def test_illegal_commands_are_refused_with_a_reason() -> None:

@@ -36,21 +36,28 @@ def spectral_derivative(f: np.ndarray, period: float) -> np.ndarray:
     """d f / dx of samples of a smooth periodic function on a uniform grid over one period."""
     n = f.size
     k = np.fft.fftfreq(n, d=1.0 / n)
-    k[n // 2] = 0.0                                    # the Nyquist mode has no derivative
+    k[n // 2] = 0.0  # the Nyquist mode has no derivative
     return np.real(np.fft.ifft(np.fft.fft(f) * (2j * np.pi / period) * k))
 
 
 # ----------------------------------------------------------------------------- loop.py dyads
 @PROPS
-@given(x0=st.floats(-5, 5), y0=st.floats(-5, 5), r0=st.floats(0.1, 5), r1=st.floats(0.1, 5),
-       u=st.floats(0.05, 0.95), ang=st.floats(-math.pi, math.pi), branch=st.sampled_from([1, -1]),
-       kin=st.lists(st.floats(-10, 10), min_size=8, max_size=8))
-def test_dyad_joint_satisfies_the_differentiated_loop_equations(x0: float, y0: float, r0: float, r1: float,
-                                                                  u: float, ang: float, branch: int,
-                                                                  kin: list[float]) -> None:
+@given(
+    x0=st.floats(-5, 5),
+    y0=st.floats(-5, 5),
+    r0=st.floats(0.1, 5),
+    r1=st.floats(0.1, 5),
+    u=st.floats(0.05, 0.95),
+    ang=st.floats(-math.pi, math.pi),
+    branch=st.sampled_from([1, -1]),
+    kin=st.lists(st.floats(-10, 10), min_size=8, max_size=8),
+)
+def test_dyad_joint_satisfies_the_differentiated_loop_equations(
+    x0: float, y0: float, r0: float, r1: float, u: float, ang: float, branch: int, kin: list[float]
+) -> None:
     """X on both circles on the asked side; V and A satisfy (X - ci).(V - vi) = 0 and
     (X - ci).(A - ai) = -|V - vi|^2 for both centres (the loop equations, differentiated)."""
-    d = abs(r0 - r1) + (r0 + r1 - abs(r0 - r1)) * u        # strictly between the two tangencies
+    d = abs(r0 - r1) + (r0 + r1 - abs(r0 - r1)) * u  # strictly between the two tangencies
     x1, y1 = x0 + d * math.cos(ang), y0 + d * math.sin(ang)
     vx0, vy0, vx1, vy1, ax0, ay0, ax1, ay1 = kin
     it = loop.circle_intersection(x0, y0, r0, x1, y1, r1, branch, inputs=0.0)
@@ -60,16 +67,19 @@ def test_dyad_joint_satisfies_the_differentiated_loop_equations(x0: float, y0: f
     assert abs(math.hypot(X - x1, Y - y1) - r1) <= 8 * EPS * scale / float(it.margin)
     assert np.sign((x1 - x0) * (Y - y0) - (y1 - y0) * (X - x0)) == branch
     vx, vy = (float(v) for v in loop.circle_point_velocity(X, Y, x0, y0, vx0, vy0, x1, y1, vx1, vy1))
-    ax, ay = (float(a) for a in loop.circle_point_acceleration(X, Y, vx, vy, x0, y0, vx0, vy0, ax0, ay0,
-                                                               x1, y1, vx1, vy1, ax1, ay1))
-    cond = 1.0 / float(it.margin) ** 2                    # 1 / sin^2(transmission angle)
+    ax, ay = (
+        float(a)
+        for a in loop.circle_point_acceleration(X, Y, vx, vy, x0, y0, vx0, vy0, ax0, ay0, x1, y1, vx1, vy1, ax1, ay1)
+    )
+    cond = 1.0 / float(it.margin) ** 2  # 1 / sin^2(transmission angle)
     vs = 30.0 + math.hypot(vx, vy)
     for cx, cy, cvx, cvy, cax, cay in ((x0, y0, vx0, vy0, ax0, ay0), (x1, y1, vx1, vy1, ax1, ay1)):
         ex, ey = X - cx, Y - cy
         assert abs(ex * (vx - cvx) + ey * (vy - cvy)) <= 64 * EPS * cond * scale * vs
         rel2 = (vx - cvx) ** 2 + (vy - cvy) ** 2
-        assert abs(ex * (ax - cax) + ey * (ay - cay) + rel2) <= 256 * EPS * cond ** 2 * (scale * (30 + abs(ax)
-                                                                                              + abs(ay)) + vs * vs)
+        assert abs(ex * (ax - cax) + ey * (ay - cay) + rel2) <= 256 * EPS * cond**2 * (
+            scale * (30 + abs(ax) + abs(ay)) + vs * vs
+        )
 
 
 # ----------------------------------------------------------------------------- L six-bar
@@ -94,12 +104,12 @@ def test_sixbar_velocities_are_the_spectral_derivatives_of_the_positions(factors
     w = p.omega
     for theta, omega in ((s.theta3, s.omega3), (s.theta5, s.omega5)):
         th = np.unwrap(theta)
-        assert abs(th[-1] - th[0]) < math.pi                 # a rocker: no net turn
+        assert abs(th[-1] - th[0]) < math.pi  # a rocker: no net turn
         ref = spectral_derivative(th - th.mean(), TAU)
         assert np.abs(omega / w - ref).max() <= 1e-9 * np.abs(ref).max()
     d_eps = spectral_derivative(s.omega3 / w, TAU)
-    assert np.abs(s.eps3 / w ** 2 - d_eps).max() <= 1e-8 * np.abs(d_eps).max()
-    assert np.all(s.xA * s.yB - s.yA * s.xB > 0.0)                             # (A - O2) x (B - O2) > 0
+    assert np.abs(s.eps3 / w**2 - d_eps).max() <= 1e-8 * np.abs(d_eps).max()
+    assert np.all(s.xA * s.yB - s.yA * s.xB > 0.0)  # (A - O2) x (B - O2) > 0
     assert np.all((p.O2O3 - s.xC) * (s.yE - s.yC) - (0.0 - s.yC) * (s.xE - s.xC) < 0.0)  # (O3 - C) x (E - C) < 0
 
 
@@ -123,16 +133,22 @@ def test_knife_stays_in_its_stroke_and_v_a_are_derivatives(r: float, ratio: floa
     ds = spectral_derivative(st_.s, TAU)
     assert np.abs(st_.v / w - ds).max() <= 1e-9 * r
     dds = spectral_derivative(st_.v / w, TAU)
-    assert np.abs(st_.a / w ** 2 - dds).max() <= 1e-8 * r * ratio
+    assert np.abs(st_.a / w**2 - dds).max() <= 1e-8 * r * ratio
     assert np.array_equal(st_.occupies, st_.s >= p.s_clear)
 
 
 # ----------------------------------------------------------------------------- timebase
 @PROPS
-@given(period_ns=st.integers(1, 10 ** 12), phase0=st.fractions(0, 1, max_denominator=10 ** 9),
-       t=st.integers(-10 ** 15, 10 ** 18), dt=st.integers(0, 10 ** 12), k=st.integers(-10 ** 9, 10 ** 9))
-def test_shaft_clock_is_periodic_additive_and_monotone(period_ns: int, phase0: Fraction, t: int, dt: int,
-                                                       k: int) -> None:
+@given(
+    period_ns=st.integers(1, 10**12),
+    phase0=st.fractions(0, 1, max_denominator=10**9),
+    t=st.integers(-(10**15), 10**18),
+    dt=st.integers(0, 10**12),
+    k=st.integers(-(10**9), 10**9),
+)
+def test_shaft_clock_is_periodic_additive_and_monotone(
+    period_ns: int, phase0: Fraction, t: int, dt: int, k: int
+) -> None:
     """With an integral period P (ns): turns(t + k P) = turns(t) + (k, 0) exactly; the phase never
     runs backwards; the angle is in [0, 2 pi)."""
     clock = ShaftClock(Fraction(NS_PER_S, period_ns), phase0=phase0)
@@ -147,12 +163,20 @@ def test_shaft_clock_is_periodic_additive_and_monotone(period_ns: int, phase0: F
 
 # ----------------------------------------------------------------------------- roots
 @PROPS
-@given(r=st.floats(-1e3, 1e3), c=st.floats(-10, 10), left=st.floats(1e-9, 10), right=st.floats(1e-9, 10),
-       sign=st.sampled_from([1.0, -1.0]), xtol=st.sampled_from([2e-12, 1e-15, 1e-6, 1e-3]))
-def test_brent_root_is_bracketed_and_within_tolerance(r: float, c: float, left: float, right: float, sign: float,
-                                                      xtol: float) -> None:
+@given(
+    r=st.floats(-1e3, 1e3),
+    c=st.floats(-10, 10),
+    left=st.floats(1e-9, 10),
+    right=st.floats(1e-9, 10),
+    sign=st.sampled_from([1.0, -1.0]),
+    xtol=st.sampled_from([2e-12, 1e-15, 1e-6, 1e-3]),
+)
+def test_brent_root_is_bracketed_and_within_tolerance(
+    r: float, c: float, left: float, right: float, sign: float, xtol: float
+) -> None:
     """f = sign (x - r)(1 + (x - c)^2) has the one root r: Brent returns it within
     xtol + rtol |r| (plus the rounding of r itself), inside its final bracket, which holds a sign change."""
+
     def f(x: float) -> float:
         return sign * (x - r) * (1.0 + (x - c) ** 2)
 
@@ -174,8 +198,15 @@ def test_sign_changes_match_the_sampled_sign_pattern(coef: list[float], n: int) 
     a0, a1, b1, a2, b2, a3, b3 = coef
 
     def f(x: float) -> float:
-        return (a0 + a1 * math.cos(x) + b1 * math.sin(x) + a2 * math.cos(2 * x) + b2 * math.sin(2 * x)
-                + a3 * math.cos(3 * x) + b3 * math.sin(3 * x))
+        return (
+            a0
+            + a1 * math.cos(x)
+            + b1 * math.sin(x)
+            + a2 * math.cos(2 * x)
+            + b2 * math.sin(2 * x)
+            + a3 * math.cos(3 * x)
+            + b3 * math.sin(3 * x)
+        )
 
     grid = np.linspace(0.0, TAU, n)
     vals = np.array([f(x) for x in grid])
@@ -187,17 +218,23 @@ def test_sign_changes_match_the_sampled_sign_pattern(coef: list[float], n: int) 
     assert np.all((grid[intervals] <= sc.x) & (sc.x <= grid[intervals + 1]))
     assert np.array_equal(sc.direction, sgn[intervals + 1].astype(np.int8))
     assert np.all(sc.direction[1:] != sc.direction[:-1])
-    slope = sum(abs(v) * k for v, k in zip(coef, (0, 1, 1, 2, 2, 3, 3)))     # bound on |f'|
+    slope = sum(abs(v) * k for v, k in zip(coef, (0, 1, 1, 2, 2, 3, 3)))  # bound on |f'|
     assert all(abs(f(x)) <= slope * 2 * (2e-12 + RTOL * abs(x)) + 8 * EPS * sum(map(abs, coef)) for x in sc.x)
 
 
 # ----------------------------------------------------------------------------- D delivery
 @PROPS
-@given(Lambda=st.floats(0.05, 5.0), alpha_m=st.floats(1.0, 89.9), law=st.sampled_from(dlv.law_names()),
-       fr=st.lists(st.floats(0.0, 0.5), min_size=8, max_size=8), mode=st.sampled_from(dlv.RETURN_SECTIONS),
-       u=st.lists(st.floats(0.0, 2.0), min_size=1, max_size=40))
-def test_delivery_ratios_stay_in_their_documented_ranges(Lambda: float, alpha_m: float, law: str, fr: list[float],
-                                                         mode: str, u: list[float]) -> None:
+@given(
+    Lambda=st.floats(0.05, 5.0),
+    alpha_m=st.floats(1.0, 89.9),
+    law=st.sampled_from(dlv.law_names()),
+    fr=st.lists(st.floats(0.0, 0.5), min_size=8, max_size=8),
+    mode=st.sampled_from(dlv.RETURN_SECTIONS),
+    u=st.lists(st.floats(0.0, 2.0), min_size=1, max_size=40),
+)
+def test_delivery_ratios_stay_in_their_documented_ranges(
+    Lambda: float, alpha_m: float, law: str, fr: list[float], mode: str, u: list[float]
+) -> None:
     """0 <= eta <= eta_O <= 1, eta_A and eta_B in [0, 1], alpha in [0, alpha_m]; on the first section
     K_v >= cos(beta) > 0 (never kv_zero or reversed); where 'ok', eta = eta_O eta_A eta_B, friction
     only raises the forces (p_AB >= p_AB_ideal >= 1, p_ch >= p_ch_ideal = K_v > 0) and the power
@@ -205,9 +242,9 @@ def test_delivery_ratios_stay_in_their_documented_ranges(Lambda: float, alpha_m:
     names = ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O')
     p = dlv.DeliveryParams(Lambda=Lambda, alpha_m_deg=alpha_m, law=law, **dict(zip(names, fr)))
     s = dlv.evaluate_stroke(p, u, return_section=mode)
-    assert np.all((0.0 <= s.eta) & (s.eta <= s.eta_O) & (s.eta_O <= 1.0))
-    assert np.all((0.0 <= s.eta_A) & (s.eta_A <= 1.0) & (0.0 <= s.eta_B) & (s.eta_B <= 1.0))
-    assert np.all((0.0 <= s.alpha) & (s.alpha <= math.radians(alpha_m) * (1 + 4 * EPS)))
+    assert np.all((s.eta >= 0.0) & (s.eta <= s.eta_O) & (s.eta_O <= 1.0))
+    assert np.all((s.eta_A >= 0.0) & (s.eta_A <= 1.0) & (s.eta_B >= 0.0) & (s.eta_B <= 1.0))
+    assert np.all((s.alpha >= 0.0) & (s.alpha <= math.radians(alpha_m) * (1 + 4 * EPS)))
     first = s.section == dlv.SECTION_DECELERATION
     assert np.all(s.K_v[first] >= np.cos(s.beta[first]) * (1 - 4 * EPS))
     assert not np.any(np.isin(s.state[first], (dlv.STATE_KV_ZERO, dlv.STATE_CARRIAGE_REVERSED)))
@@ -223,8 +260,19 @@ def test_delivery_ratios_stay_in_their_documented_ranges(Lambda: float, alpha_m:
 def test_chain_path_is_monotone_bounded_and_inverted(Lambda: float, law: str, x_max: float) -> None:
     """The chain's arc length over the stroke rises monotonically, between the straight length
     x_max u and x_max u sqrt(1 + (Lambda max psi')^2), and position() inverts it."""
-    p = dlv.DeliveryParams(Lambda=Lambda, alpha_m_deg=60.0, law=law, f_Ap=0.0, f_Bp=0.0, f_A=0.0, f_B=0.0,
-                           f_O=0.0, r_A=0.0, r_B=0.0, r_O=0.0)
+    p = dlv.DeliveryParams(
+        Lambda=Lambda,
+        alpha_m_deg=60.0,
+        law=law,
+        f_Ap=0.0,
+        f_Bp=0.0,
+        f_A=0.0,
+        f_B=0.0,
+        f_O=0.0,
+        r_A=0.0,
+        r_B=0.0,
+        r_O=0.0,
+    )
     path = ChainPath(p, x_max)
     u = np.linspace(0.0, 2.0, 20001)
     s = path.arc(u)
@@ -264,16 +312,16 @@ def test_grashof_class_is_geometric(links: list[float], perm: list[int]) -> None
 
 # ----------------------------------------------------------------------------- RK4
 @PROPS
-@given(z=st.floats(0.01, 2.2), k=st.floats(0.1, 1e4), c=st.floats(-10, 10), y0=st.floats(-10, 10),
-       n=st.integers(1, 60))
-def test_rk4_on_a_linear_decay_is_the_exact_recurrence_with_monotone_dense_output(z: float, k: float, c: float,
-                                                                                 y0: float, n: int) -> None:
+@given(z=st.floats(0.01, 2.2), k=st.floats(0.1, 1e4), c=st.floats(-10, 10), y0=st.floats(-10, 10), n=st.integers(1, 60))
+def test_rk4_on_a_linear_decay_is_the_exact_recurrence_with_monotone_dense_output(
+    z: float, k: float, c: float, y0: float, n: int
+) -> None:
     """y' = -k (y - c) with h = z / k: the steps are y_n = c + (y0 - c) R(z)^n (R the RK4 stability
     polynomial), and for z <= 2.2 the cubic Hermite dense output is monotone like the solution."""
     assume(abs(y0 - c) > 1e-3)
     h = z / k
     sol = ig.rk4(lambda t, y: -k * (y - c), (0.0, n * h), [y0], h)
-    R = 1 - z + z * z / 2 - z ** 3 / 6 + z ** 4 / 24
+    R = 1 - z + z * z / 2 - z**3 / 6 + z**4 / 24
     expect = c + (y0 - c) * R ** np.arange(sol.steps + 1)
     assert sol.steps == n
     assert np.allclose(sol.y[:, 0], expect, rtol=0.0, atol=16 * n * EPS * (abs(c) + abs(y0)))

@@ -25,7 +25,7 @@ from folder_line.errors import FolderLineError, ParameterError
 
 CASES = [
     (math.cos, 0.0, 2.0, math.pi / 2),
-    (lambda x: x ** 3 - 2.0, 0.0, 3.0, 2.0 ** (1.0 / 3.0)),
+    (lambda x: x**3 - 2.0, 0.0, 3.0, 2.0 ** (1.0 / 3.0)),
     (lambda x: math.exp(x) - 5.0, -1.0, 4.0, math.log(5.0)),
     (lambda x: math.atan(x - 0.3), -50.0, 1e3, 0.3),
     (lambda x: x - 1e-9, -1.0, 1.0, 1e-9),  # root near 0: xtol governs
@@ -92,19 +92,28 @@ def test_iteration_limit() -> None:
         scipy.optimize.brentq(f, 0.0, 2.5, maxiter=3)
 
 
-@pytest.mark.parametrize(('kw', 'key'), [
-    ({'xtol': 0.0}, 'xtol'), ({'xtol': math.nan}, 'xtol'), ({'rtol': 1e-17}, 'rtol'),
-    ({'maxiter': 0}, 'maxiter'), ({'maxiter': 2.5}, 'maxiter'), ({'maxiter': True}, 'maxiter'),
-])
+@pytest.mark.parametrize(
+    ('kw', 'key'),
+    [
+        ({'xtol': 0.0}, 'xtol'),
+        ({'xtol': math.nan}, 'xtol'),
+        ({'rtol': 1e-17}, 'rtol'),
+        ({'maxiter': 0}, 'maxiter'),
+        ({'maxiter': 2.5}, 'maxiter'),
+        ({'maxiter': True}, 'maxiter'),
+    ],
+)
 def test_bad_tolerances(kw, key) -> None:
     with pytest.raises(ParameterError) as info:
         brentq(math.sin, 3.0, 4.0, **kw)
     assert info.value.key == key
 
 
-distinct_roots = st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=1, max_size=6).map(
-    lambda r: sorted(set(round(x, 3) for x in r))).filter(
-    lambda r: all(b - a >= 0.05 for a, b in zip(r, r[1:])))
+distinct_roots = (
+    st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=1, max_size=6)
+    .map(lambda r: sorted(set(round(x, 3) for x in r)))
+    .filter(lambda r: all(b - a >= 0.05 for a, b in zip(r, r[1:])))
+)
 
 
 @settings(max_examples=200, deadline=None)
@@ -112,8 +121,8 @@ distinct_roots = st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=1, m
 def test_polynomials_with_known_roots(roots, scale, k, shift) -> None:
     k = k % len(roots)
     r = roots[k]
-    lo = (roots[k - 1] if k > 0 else r - 1.0)
-    hi = (roots[k + 1] if k + 1 < len(roots) else r + 1.0)
+    lo = roots[k - 1] if k > 0 else r - 1.0
+    hi = roots[k + 1] if k + 1 < len(roots) else r + 1.0
     a = lo + shift * (r - lo)  # strictly between the neighbour and the root
     b = r + (1.0 - shift) * (hi - r)
 
@@ -127,6 +136,7 @@ def test_polynomials_with_known_roots(roots, scale, k, shift) -> None:
 
 
 # ----------------------------------------------------------------------------- sign changes
+
 
 def test_sine_crossings_and_directions() -> None:
     grid = np.linspace(0.5, 10.0, 101)
@@ -147,7 +157,7 @@ def test_values_given_are_used_for_the_decision() -> None:
 
 def test_zero_on_a_sample_is_one_crossing_reported_exactly() -> None:
     grid = np.array([-1.0, -0.5, 0.0, 0.5, 1.0])
-    sc = find_sign_changes(lambda x: x ** 3, grid)
+    sc = find_sign_changes(lambda x: x**3, grid)
     assert_array_equal(sc.x, [0.0])
     assert_array_equal(sc.direction, [1])
     assert sc.on_sample.tolist() == [True]
@@ -226,9 +236,15 @@ def test_all_polynomial_roots_found(roots, scale) -> None:
     assert np.all(np.diff(sc.x) > 0)
 
 
-@pytest.mark.parametrize(('grid', 'key'), [
-    ([0.0], 'grid'), ([[0.0, 1.0]], 'grid'), ([0.0, 0.0, 1.0], 'grid'), ([0.0, math.nan], 'grid'),
-])
+@pytest.mark.parametrize(
+    ('grid', 'key'),
+    [
+        ([0.0], 'grid'),
+        ([[0.0, 1.0]], 'grid'),
+        ([0.0, 0.0, 1.0], 'grid'),
+        ([0.0, math.nan], 'grid'),
+    ],
+)
 def test_bad_grids(grid, key) -> None:
     with pytest.raises(ParameterError) as info:
         find_sign_changes(math.sin, grid)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import example, HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from folder_line.core.constraints import evaluate_layup_constraints, folder_evaluation
@@ -34,8 +34,8 @@ from folder_line.core.supervision import (
 from folder_line.errors import ParameterError
 from folder_line.scenes import load_scene
 
-H = 8.0            # model horizon, s
-P = 0.005          # node period and check grid, s
+H = 8.0  # model horizon, s
+P = 0.005  # node period and check grid, s
 NODES = {'crank_drive': P, 'belt_conveyor': P, 'feed_transporter': P}
 KW: dict[str, Any] = {'periods': NODES, 'stale_periods': 5.0, 'lead': 0.01, 'check_period': P}
 SCENE = load_scene('folder_faults')
@@ -111,8 +111,7 @@ def test_first_timing_violation_holds_at_the_next_cycle_boundary(free: LineModel
     assert held.t == pytest.approx(round(held.t / P) * P, abs=1e-12)
 
 
-def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free: LineModel,
-                                                                              hold_run: Any) -> None:
+def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free: LineModel, hold_run: Any) -> None:
     sup, model, fed = hold_run
     rebuilt = LineModel(SCENE, H, sup.commands)
     assert model.commands == rebuilt.commands == sup.commands
@@ -139,8 +138,11 @@ def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free
     (b,) = sup.balances
     assert b.state == 'HELD' and b.t == t_held and b.ok
     summary = LineModel(SCENE, 3.0, sup.commands).parts['folder']
-    assert (b.fed, b.delivered, b.in_machine) == (summary['sheets_fed'], summary['sheets_counted'],
-                                                  summary['sheets_in_machine'])
+    assert (b.fed, b.delivered, b.in_machine) == (
+        summary['sheets_fed'],
+        summary['sheets_counted'],
+        summary['sheets_in_machine'],
+    )
     assert b.fed == b.delivered + b.in_machine and b.in_machine > 0
     assert b.detail['jammed'] == 0 and b.detail['folded'] == summary['sheets_folded']
 
@@ -170,9 +172,15 @@ def test_a_missing_sheet_suspends_within_its_cycle() -> None:
 
 def test_unhold_then_the_missing_sheet_suspends() -> None:
     sup, _, _ = run_closed_loop(SCENE, H, 5.5, operator=[(2.0, 'unhold')], **KW)
-    assert _path(sup) == [('STARTING', 'EXECUTE'), ('EXECUTE', 'HOLDING'), ('HOLDING', 'HELD'),
-                          ('HELD', 'UNHOLDING'), ('UNHOLDING', 'EXECUTE'), ('EXECUTE', 'SUSPENDING'),
-                          ('SUSPENDING', 'SUSPENDED')]
+    assert _path(sup) == [
+        ('STARTING', 'EXECUTE'),
+        ('EXECUTE', 'HOLDING'),
+        ('HOLDING', 'HELD'),
+        ('HELD', 'UNHOLDING'),
+        ('UNHOLDING', 'EXECUTE'),
+        ('EXECUTE', 'SUSPENDING'),
+        ('SUSPENDING', 'SUSPENDED'),
+    ]
     assert [c.kind for c in sup.commands] == ['hold', 'unhold', 'hold']
     assert sup.commands[1].t == _ns(2.0 + KW['lead'])
     assert [v.cycle for v in sup.violations] == [13, 45]
@@ -200,11 +208,25 @@ def test_a_double_sheet_is_a_fault_of_the_process_by_default(policy: str, path: 
 
 
 def test_a_stale_node_aborts_within_one_cycle_and_only_clear_leaves_aborted() -> None:
-    ops = [(1.2, 'reset'), (1.25, 'start'), (1.3, 'unhold'), (1.35, 'hold'), (1.375, 'stop'), (1.4, 'clear'),
-           (1.6, 'reset')]
+    ops = [
+        (1.2, 'reset'),
+        (1.25, 'start'),
+        (1.3, 'unhold'),
+        (1.35, 'hold'),
+        (1.375, 'stop'),
+        (1.4, 'clear'),
+        (1.6, 'reset'),
+    ]
     sup, model, _ = run_closed_loop(SCENE, H, 2.0, silent={'belt_conveyor': 0.5}, operator=ops, **KW)
-    assert [tr.target for tr in sup.transitions] == ['EXECUTE', 'ABORTING', 'ABORTED', 'CLEARING', 'STOPPED',
-                                                     'RESETTING', 'IDLE']
+    assert [tr.target for tr in sup.transitions] == [
+        'EXECUTE',
+        'ABORTING',
+        'ABORTED',
+        'CLEARING',
+        'STOPPED',
+        'RESETTING',
+        'IDLE',
+    ]
     aborting = sup.transitions[1]
     last = 0.495  # the belt's last tick before it died at 0.5 s
     k_p = KW['stale_periods'] * P
@@ -222,8 +244,14 @@ def test_a_stale_node_aborts_within_one_cycle_and_only_clear_leaves_aborted() ->
     assert model.drive.rate(np.array([aborted.t]))[0] == 0.0 < model.drive.rate(np.array([before]))[0]
     # in ABORTED every command but clear is refused; the belt is still silent: no second abort
     assert [(round(t, 9), c, ok) for t, c, ok in sup.operator_log] == [
-        (1.2, 'reset', False), (1.25, 'start', False), (1.3, 'unhold', False), (1.35, 'hold', False),
-        (1.375, 'stop', False), (1.4, 'clear', True), (1.6, 'reset', True)]
+        (1.2, 'reset', False),
+        (1.25, 'start', False),
+        (1.3, 'unhold', False),
+        (1.35, 'hold', False),
+        (1.375, 'stop', False),
+        (1.4, 'clear', True),
+        (1.6, 'reset', True),
+    ]
     assert sup.stale_nodes() == ['belt_conveyor']
     assert all(b.ok for b in sup.balances) and [b.state for b in sup.balances] == ['ABORTED', 'STOPPED']
 
@@ -250,8 +278,12 @@ def test_nan_in_a_message_or_in_an_event_aborts_at_its_stamp(free: LineModel) ->
     assert [tr.target for tr in sup.transitions] == ['EXECUTE', 'ABORTING', 'ABORTED']
     assert sup.transitions[1].t == 0.3 and 'non-finite' in sup.transitions[1].cause
     v = sup.violations[0]
-    assert (v.constraint, v.margin, v.unit, v.action) == ('finite:/line/crank_drive/joint_states', -2.0, 'values',
-                                                          'abort')
+    assert (v.constraint, v.margin, v.unit, v.action) == (
+        'finite:/line/crank_drive/joint_states',
+        -2.0,
+        'values',
+        'abort',
+    )
     # a NaN value in the event stream
     sup = Supervisor(SCENE, H, **KW)
     ev = free.events_between(-math.inf, 0.5).copy()
@@ -270,11 +302,32 @@ def test_nan_in_a_message_or_in_an_event_aborts_at_its_stamp(free: LineModel) ->
 def rich_run() -> tuple[Supervisor, dict[str, Any]]:
     """Hold, unhold, starvation, a dead node, clear, a NaN: everything in one run."""
     ops = [(2.0, 'unhold'), (5.8, 'clear'), (5.85, 'start'), (5.9, 'reset')]
-    sup, _, fed = run_closed_loop(SCENE, H, 6.5, operator=ops, silent={'feed_transporter': 5.5},
-                                  bad_values=[(6.2, '/line/sheet_counter/rate', 1)], **KW)
+    sup, _, fed = run_closed_loop(
+        SCENE,
+        H,
+        6.5,
+        operator=ops,
+        silent={'feed_transporter': 5.5},
+        bad_values=[(6.2, '/line/sheet_counter/rate', 1)],
+        **KW,
+    )
     assert [tr.target for tr in sup.transitions] == [
-        'EXECUTE', 'HOLDING', 'HELD', 'UNHOLDING', 'EXECUTE', 'SUSPENDING', 'SUSPENDED', 'ABORTING', 'ABORTED',
-        'CLEARING', 'STOPPED', 'RESETTING', 'IDLE', 'ABORTING', 'ABORTED']
+        'EXECUTE',
+        'HOLDING',
+        'HELD',
+        'UNHOLDING',
+        'EXECUTE',
+        'SUSPENDING',
+        'SUSPENDED',
+        'ABORTING',
+        'ABORTED',
+        'CLEARING',
+        'STOPPED',
+        'RESETTING',
+        'IDLE',
+        'ABORTING',
+        'ABORTED',
+    ]
     assert sup.late == 0
     return sup, fed
 
@@ -289,8 +342,16 @@ def _same(a: Supervisor, b: Supervisor) -> None:
 
 def test_replay_reproduces_the_live_run(rich_run: Any) -> None:
     sup, fed = rich_run
-    again = replay(SCENE, H, fed['events'], heard=fed['heard'], bad_values=fed['bad_values'],
-                   operator=fed['operator'], until=fed['until'], **KW)
+    again = replay(
+        SCENE,
+        H,
+        fed['events'],
+        heard=fed['heard'],
+        bad_values=fed['bad_values'],
+        operator=fed['operator'],
+        until=fed['until'],
+        **KW,
+    )
     _same(again, sup)
     assert again.late == 0
 
@@ -353,8 +414,11 @@ def test_report_only_records_every_batch_violation_within_its_cycle(free: LineMo
     sup, model, _ = run_closed_loop(SCENE, duration + 1.0, duration, enforce=False, **KW)
     assert _path(sup) == [('STARTING', 'EXECUTE')] and sup.commands == () == model.commands
     batch = LineModel(SCENE, duration + 1.0)
-    expect = sorted((float(c.t[i]), int(c.cycle[i]), c.name, float(c.margin[i]))
-                    for c in batch.constraints for i in np.flatnonzero((c.margin < 0.0) & (c.t <= duration)))
+    expect = sorted(
+        (float(c.t[i]), int(c.cycle[i]), c.name, float(c.margin[i]))
+        for c in batch.constraints
+        for i in np.flatnonzero((c.margin < 0.0) & (c.t <= duration))
+    )
     got = sorted((v.t, v.cycle, v.constraint, v.margin) for v in sup.violations)
     assert got == expect  # exactly: the late sheets reach the stops before their knife, so causal = batch
     assert {v.constraint for v in sup.violations} == {'feed_window', 'one_per_cycle'}
@@ -496,10 +560,22 @@ def test_operator_command_sequences_follow_the_packml_table(seq: list[tuple[int,
 
 def test_constants_and_parameters() -> None:
     assert set(DRIVE_COMMANDS) == set(COMMANDS)
-    assert set(TIMING_CONSTRAINTS) >= {'feed_window', 'settled_before_knife', 'rebound', 'chute_speed',
-                                       'release_at_min_speed'}
-    for bad in ({'stale_periods': 0.0}, {'lead': -1.0}, {'lead': math.nan}, {'check_period': 0.0},
-                {'double': 'ignore'}, {'speed_reached': 1.5}, {'expected': ['nobody']}):
+    assert set(TIMING_CONSTRAINTS) >= {
+        'feed_window',
+        'settled_before_knife',
+        'rebound',
+        'chute_speed',
+        'release_at_min_speed',
+    }
+    for bad in (
+        {'stale_periods': 0.0},
+        {'lead': -1.0},
+        {'lead': math.nan},
+        {'check_period': 0.0},
+        {'double': 'ignore'},
+        {'speed_reached': 1.5},
+        {'expected': ['nobody']},
+    ):
         with pytest.raises(ParameterError):
             Supervisor(SCENE, H, **{**KW, **bad})
     with pytest.raises(ParameterError, match='t_start'):
@@ -508,8 +584,8 @@ def test_constants_and_parameters() -> None:
 
 def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
     """A clock stepping 4 periods at a time, one step lost in a burst: k periods pass, k clock ticks do not."""
-    clock = np.round(np.arange(0, 41) * 4 * P, 12)            # 0 .. 0.8 s, every 20 ms
-    ticks = np.delete(clock, [10])                              # the nodes miss the clock tick at 0.2 s
+    clock = np.round(np.arange(0, 41) * 4 * P, 12)  # 0 .. 0.8 s, every 20 ms
+    ticks = np.delete(clock, [10])  # the nodes miss the clock tick at 0.2 s
     out = {}
     for with_clock in (False, True):
         sup = Supervisor(SCENE, H, **{**KW, 'clock_ticks': with_clock})
@@ -527,8 +603,15 @@ def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
             assert sup.transitions[1].t == pytest.approx(0.18 + 5 * P + P, abs=1e-12)
     # replay needs the clock stamps
     sup, _, fed = run_closed_loop(SCENE, H, 1.0, silent={'feed_transporter': 0.5}, **{**KW, 'clock_ticks': True})
-    again = replay(SCENE, H, fed['events'], heard=fed['heard'], clock=fed['clock'], until=fed['until'],
-                   **{**KW, 'clock_ticks': True})
+    again = replay(
+        SCENE,
+        H,
+        fed['events'],
+        heard=fed['heard'],
+        clock=fed['clock'],
+        until=fed['until'],
+        **{**KW, 'clock_ticks': True},
+    )
     _same(again, sup)
     assert sup.transitions[1].target == 'ABORTING'
 
@@ -579,8 +662,17 @@ def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> No
     assert (v.t, v.constraint, v.margin, v.unit, v.action) == (0.4, 'lost:feed_transporter', -3.25, 'wall s', 'abort')
     assert sup.lost_nodes == ['feed_transporter'] and sup.blind_from == 0.4
     assert all(st.last_t < 0.4 for st in sup.stats.values() if st.name != 'lost:feed_transporter')
-    again = replay(scene, H, free.events_between(-math.inf, 3.0), lost=[(0.4, 'feed_transporter', 3.25)],
-                   until=3.0, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    again = replay(
+        scene,
+        H,
+        free.events_between(-math.inf, 3.0),
+        lost=[(0.4, 'feed_transporter', 3.25)],
+        until=3.0,
+        periods={},
+        lead=0.01,
+        check_period=P,
+        t_start=0.0,
+    )
     _same(again, sup)
 
 

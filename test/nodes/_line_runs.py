@@ -19,9 +19,10 @@ import subprocess
 import sys
 import time
 import uuid
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -80,8 +81,9 @@ class RunProcess:
 
     def error_lines(self) -> list[str]:
         """The ``folder-line: ...`` lines of its stderr (the node logs are the rest)."""
-        return [line for line in self.stderr.read_text(errors='replace').splitlines()
-                if line.startswith('folder-line:')]
+        return [
+            line for line in self.stderr.read_text(errors='replace').splitlines() if line.startswith('folder-line:')
+        ]
 
 
 def start_run(env: dict[str, str], out: Path, *args: str, logs: Path | None = None) -> RunProcess:
@@ -91,8 +93,13 @@ def start_run(env: dict[str, str], out: Path, *args: str, logs: Path | None = No
     logs.mkdir(parents=True, exist_ok=True)
     stdout, stderr = logs / f'{out.name}.stdout', logs / f'{out.name}.stderr'
     with open(stdout, 'wb') as so, open(stderr, 'wb') as se:
-        proc = subprocess.Popen([sys.executable, '-m', 'folder_line.cli', 'run', '--out', str(out), *args],
-                                env={**env, TAG: tag}, cwd=REPO, stdout=so, stderr=se)
+        proc = subprocess.Popen(
+            [sys.executable, '-m', 'folder_line.cli', 'run', '--out', str(out), *args],
+            env={**env, TAG: tag},
+            cwd=REPO,
+            stdout=so,
+            stderr=se,
+        )
     return RunProcess(proc, out, stdout, stderr, tag, start_time(proc.pid))
 
 
@@ -113,6 +120,7 @@ def wait_for_line_time(run: RunProcess, t: float, timeout: float = 90.0) -> None
 
 
 # --------------------------------------------------------------------------- /proc
+
 
 def children(pid: int) -> list[int]:
     """Direct children of ``pid`` (``/proc/<pid>/task/*/children``)."""
@@ -198,6 +206,7 @@ def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
 
 # --------------------------------------------------------------------------- bags
 
+
 def plain(obj: Any) -> Any:
     """An mcap_ros2 message as nested tuples of (field, value); sequences as tuples."""
     if hasattr(obj, '_type') and hasattr(obj, '__slots__'):
@@ -260,8 +269,14 @@ def statuses(records: dict[tuple[str, str], list[Record]], name: str) -> list[tu
 
 # --------------------------------------------------------------------------- the batch model
 
-def assert_bag_is_model(records: dict[tuple[str, str], list[Record]], scene_name: str, duration: float,
-                        rate: float = 200.0, rejected: bool = False) -> None:
+
+def assert_bag_is_model(
+    records: dict[tuple[str, str], list[Record]],
+    scene_name: str,
+    duration: float,
+    rate: float = 200.0,
+    rejected: bool = False,
+) -> None:
     """The line's messages in ``records`` are the batch model of the scene, tick by tick.
 
     Exactly one tick per ``1/rate`` s of line time from 0 to ``duration`` on ``/clock`` and on
@@ -325,8 +340,10 @@ def assert_bag_is_model(records: dict[tuple[str, str], list[Record]], scene_name
             assert tick - step - 1 <= t_ns <= tick + 1 or tick == 0, (node, kind, t_ns, tick)  # (t - step, t]
             got.append((kind, sheet, cycle, t_ns, value))
     table = model.events[model.events['t'] <= duration]
-    expect_rows = sorted((EVENT_KINDS[r['kind']], int(r['sheet']), int(r['cycle']), round(float(r['t']) * ns),
-                          float(r['value'])) for r in table)
+    expect_rows = sorted(
+        (EVENT_KINDS[r['kind']], int(r['sheet']), int(r['cycle']), round(float(r['t']) * ns), float(r['value']))
+        for r in table
+    )
     assert sorted(got) == expect_rows
     assert len(got) > 100
 
@@ -347,6 +364,6 @@ def assert_bag_is_model(records: dict[tuple[str, str], list[Record]], scene_name
     assert [stamp_ns(r.msg) for r in diags] == [k * ns for k in range(int(duration) + 1)]
     assert [r.log_ns for r in diags] == [stamp_ns(r.msg) for r in diags]
     for r in diags:  # no constraint ever violated, no input rejected
-        assert all(st.level == 0 or (rejected and st.name == 'folder_line/supervisor/inputs')
-                   for st in r.msg.status), \
-            [(st.name, st.level, st.message) for st in r.msg.status]
+        assert all(st.level == 0 or (rejected and st.name == 'folder_line/supervisor/inputs') for st in r.msg.status), [
+            (st.name, st.level, st.message) for st in r.msg.status
+        ]

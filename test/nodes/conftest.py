@@ -17,9 +17,10 @@ os.environ.pop('ROS_STATIC_PEERS', None)
 os.environ.pop('ROS_LOCALHOST_ONLY', None)  # deprecated; would conflict with the range above
 
 import time  # noqa: E402
+from collections.abc import Callable, Iterator  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Any, Callable, Iterator, TypeVar  # noqa: E402
+from typing import Any, TypeVar
 
 import pytest  # noqa: E402
 import rclpy  # noqa: E402

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import importlib
 import math
+from collections.abc import Mapping
 from decimal import ROUND_HALF_EVEN, Decimal
 from fractions import Fraction
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from hypothesis import given
@@ -62,33 +63,46 @@ def ordered(values: Mapping[str, Any]) -> None:
         raise AssemblyError('probe loop', 0.0, f'lo={values["lo"]!r} m must be below hi={values["hi"]!r} m')
 
 
-@pytest.mark.parametrize(('spec', 'value'), [
-    (GAIN, 2.5), (GAIN, 10.0), (GAIN, 1e-300), (OFFSET, -1e300), (COUNT, 1), (COUNT, 100),
-    (MODE, 'normal'), (ENABLED, False), (FIXED, 0.0),
-])
+@pytest.mark.parametrize(
+    ('spec', 'value'),
+    [
+        (GAIN, 2.5),
+        (GAIN, 10.0),
+        (GAIN, 1e-300),
+        (OFFSET, -1e300),
+        (COUNT, 1),
+        (COUNT, 100),
+        (MODE, 'normal'),
+        (ENABLED, False),
+        (FIXED, 0.0),
+    ],
+)
 def test_check_accepts_and_returns_the_value_itself(spec: ParamSpec, value: object) -> None:
     out = spec.check(value)
     assert out == value and type(out) is type(value)
 
 
-@pytest.mark.parametrize(('spec', 'value', 'words'), [
-    (GAIN, math.nan, 'finite'),
-    (GAIN, math.inf, 'finite'),
-    (OFFSET, -math.inf, 'finite'),
-    (GAIN, 0.0, '(0, 10]'),
-    (GAIN, 10.000001, '(0, 10]'),
-    (GAIN, 5, 'must be a float (write 5.0), got int'),
-    (GAIN, 'abc', 'must be a float, got str'),
-    (GAIN, True, 'got bool'),
-    (GAIN, None, 'unset'),
-    (COUNT, 0, '[1, 100]'),
-    (COUNT, 3.0, 'must be an integer, got float'),
-    (COUNT, True, 'got bool'),
-    (MODE, 'fast', 'one of slow, normal'),
-    (MODE, 1, 'must be a string'),
-    (ENABLED, 1, 'must be a bool, got int'),
-    (FIXED, [0.5], 'got list'),
-])
+@pytest.mark.parametrize(
+    ('spec', 'value', 'words'),
+    [
+        (GAIN, math.nan, 'finite'),
+        (GAIN, math.inf, 'finite'),
+        (OFFSET, -math.inf, 'finite'),
+        (GAIN, 0.0, '(0, 10]'),
+        (GAIN, 10.000001, '(0, 10]'),
+        (GAIN, 5, 'must be a float (write 5.0), got int'),
+        (GAIN, 'abc', 'must be a float, got str'),
+        (GAIN, True, 'got bool'),
+        (GAIN, None, 'unset'),
+        (COUNT, 0, '[1, 100]'),
+        (COUNT, 3.0, 'must be an integer, got float'),
+        (COUNT, True, 'got bool'),
+        (MODE, 'fast', 'one of slow, normal'),
+        (MODE, 1, 'must be a string'),
+        (ENABLED, 1, 'must be a bool, got int'),
+        (FIXED, [0.5], 'got list'),
+    ],
+)
 def test_check_rejects_naming_parameter_and_value(spec: ParamSpec, value: object, words: str) -> None:
     with pytest.raises(ParameterError) as info:
         spec.check(value)
@@ -96,19 +110,22 @@ def test_check_rejects_naming_parameter_and_value(spec: ParamSpec, value: object
     assert words in str(info.value)
 
 
-@pytest.mark.parametrize(('kwargs', 'words'), [
-    ({'name': '', 'default': 1.0}, 'non-empty'),
-    ({'name': 'x', 'default': [1.0]}, 'bool, int, float or str'),
-    ({'name': 'x', 'default': 1.0, 'bounds': (2.0, 3.0)}, 'must be a float in [2, 3]'),
-    ({'name': 'x', 'default': 1.0, 'bounds': (3.0, 2.0)}, 'lo < hi'),
-    ({'name': 'x', 'default': 1.0, 'bounds': (math.nan, 2.0)}, 'lo < hi'),
-    ({'name': 'x', 'default': 'a', 'bounds': (0.0, 1.0)}, 'int or float'),
-    ({'name': 'x', 'default': 1.0, 'low_open': True}, 'need bounds'),
-    ({'name': 'x', 'default': 1.0, 'choices': ('a',)}, 'string parameters'),
-    ({'name': 'x', 'default': 'c', 'choices': ('a', 'b')}, 'one of a, b'),
-    ({'name': 'x', 'default': 'a', 'choices': ('a', 'a')}, 'distinct'),
-    ({'name': 'x', 'default': math.nan}, 'finite'),
-])
+@pytest.mark.parametrize(
+    ('kwargs', 'words'),
+    [
+        ({'name': '', 'default': 1.0}, 'non-empty'),
+        ({'name': 'x', 'default': [1.0]}, 'bool, int, float or str'),
+        ({'name': 'x', 'default': 1.0, 'bounds': (2.0, 3.0)}, 'must be a float in [2, 3]'),
+        ({'name': 'x', 'default': 1.0, 'bounds': (3.0, 2.0)}, 'lo < hi'),
+        ({'name': 'x', 'default': 1.0, 'bounds': (math.nan, 2.0)}, 'lo < hi'),
+        ({'name': 'x', 'default': 'a', 'bounds': (0.0, 1.0)}, 'int or float'),
+        ({'name': 'x', 'default': 1.0, 'low_open': True}, 'need bounds'),
+        ({'name': 'x', 'default': 1.0, 'choices': ('a',)}, 'string parameters'),
+        ({'name': 'x', 'default': 'c', 'choices': ('a', 'b')}, 'one of a, b'),
+        ({'name': 'x', 'default': 'a', 'choices': ('a', 'a')}, 'distinct'),
+        ({'name': 'x', 'default': math.nan}, 'finite'),
+    ],
+)
 def test_an_inconsistent_spec_is_refused(kwargs: dict[str, Any], words: str) -> None:
     with pytest.raises(ParameterError) as info:
         ParamSpec(description='d', **kwargs)
@@ -138,7 +155,11 @@ def test_descriptor_carries_description_unit_range_and_read_only() -> None:
 
 def test_types_follow_the_default() -> None:
     assert [s.type for s in (GAIN, COUNT, MODE, ENABLED)] == [
-        Parameter.Type.DOUBLE, Parameter.Type.INTEGER, Parameter.Type.STRING, Parameter.Type.BOOL]
+        Parameter.Type.DOUBLE,
+        Parameter.Type.INTEGER,
+        Parameter.Type.STRING,
+        Parameter.Type.BOOL,
+    ]
 
 
 def test_screen_replaces_refused_values_by_valid_stand_ins_that_the_validator_refuses() -> None:
@@ -161,7 +182,7 @@ def test_validator_reports_the_first_bad_parameter_and_runs_the_cross_check() ->
     ok = validate([Parameter('gain', value=2.0), Parameter('use_sim_time', value=True)])
     assert ok.successful, ok.reason  # parameters without a spec pass
     bad = validate([Parameter('gain', value=2.0), Parameter('offset', value=math.nan)])
-    assert not bad.successful and bad.reason == "offset=nan: must be finite (not NaN or inf)"
+    assert not bad.successful and bad.reason == 'offset=nan: must be finite (not NaN or inf)'
     wrong_type = validate([Parameter('gain', value=5)])
     assert not wrong_type.successful and wrong_type.reason.startswith('gain=5: must be a float')
     crossed = validate([Parameter('lo', value=2.0)])
@@ -173,6 +194,7 @@ def test_validator_reports_the_first_bad_parameter_and_runs_the_cross_check() ->
 
 
 # --------------------------------------------------------------------------- time (no graph)
+
 
 def test_seconds_to_ns_is_exact() -> None:
     assert seconds_to_ns(0.1) == 100_000_000
@@ -207,6 +229,7 @@ def test_time_msg_out_of_range() -> None:
 
 
 # --------------------------------------------------------------------------- topics (no graph)
+
 
 def test_topics_are_valid_names_of_existing_message_types() -> None:
     names = [t.name for t in TOPICS]
@@ -243,6 +266,7 @@ def test_sim_time_overrides() -> None:
 
 # --------------------------------------------------------------------------- parameters on a node (real DDS)
 
+
 class Probe(Node):
     """A minimal line-style node: parameters from SPECS with the `ordered` cross-check."""
 
@@ -267,40 +291,61 @@ def test_declared_parameters_start_from_defaults_and_use_sim_time(ros: Ros) -> N
     assert descriptor.floating_point_range[0].to_value == 10.0
 
 
-@pytest.mark.parametrize(('name', 'value', 'reason'), [
-    ('gain', math.nan, 'gain=nan: must be finite (not NaN or inf)'),
-    ('gain', math.inf, 'gain=inf: must be finite (not NaN or inf)'),
-    ('gain', 11.0, 'gain=11.0: must be a float in (0, 10]'),
-    ('gain', 0.0, 'gain=0.0: must be a float in (0, 10]'),
-    ('gain', 10.000001, 'gain=10.000001: must be a float in (0, 10]'),  # inside rclpy's own 1e-6 slack
-    ('offset', -math.inf, 'offset=-inf: must be finite (not NaN or inf)'),
-    ('count', 101, 'count=101: must be an integer in [1, 100]'),
-    ('mode', 'fast', "mode='fast': must be one of slow, normal"),
-    ('gain', 5, 'gain=5: must be a float (write 5.0), got int'),
-    ('gain', 'abc', "gain='abc': must be a float, got str"),
-    ('count', 3.0, 'count=3.0: must be an integer, got float'),
-    ('enabled', 'yes', "enabled='yes': must be a bool, got str"),
-    ('lo', 5.0, 'lo=5.0 rejected: probe loop cannot be assembled at phi=0.0 rad (0.000 deg): '
-                'lo=5.0 m must be below hi=1.0 m'),
-])
+@pytest.mark.parametrize(
+    ('name', 'value', 'reason'),
+    [
+        ('gain', math.nan, 'gain=nan: must be finite (not NaN or inf)'),
+        ('gain', math.inf, 'gain=inf: must be finite (not NaN or inf)'),
+        ('gain', 11.0, 'gain=11.0: must be a float in (0, 10]'),
+        ('gain', 0.0, 'gain=0.0: must be a float in (0, 10]'),
+        ('gain', 10.000001, 'gain=10.000001: must be a float in (0, 10]'),  # inside rclpy's own 1e-6 slack
+        ('offset', -math.inf, 'offset=-inf: must be finite (not NaN or inf)'),
+        ('count', 101, 'count=101: must be an integer in [1, 100]'),
+        ('mode', 'fast', "mode='fast': must be one of slow, normal"),
+        ('gain', 5, 'gain=5: must be a float (write 5.0), got int'),
+        ('gain', 'abc', "gain='abc': must be a float, got str"),
+        ('count', 3.0, 'count=3.0: must be an integer, got float'),
+        ('enabled', 'yes', "enabled='yes': must be a bool, got str"),
+        (
+            'lo',
+            5.0,
+            'lo=5.0 rejected: probe loop cannot be assembled at phi=0.0 rad (0.000 deg): '
+            'lo=5.0 m must be below hi=1.0 m',
+        ),
+    ],
+)
 def test_bad_values_are_rejected_naming_parameter_and_value_and_the_old_value_kept(
-        ros: Ros, name: str, value: object, reason: str) -> None:
+    ros: Ros, name: str, value: object, reason: str
+) -> None:
     probe = ros.add(Probe(context=ros.context))
     before = parameter_values(probe, SPECS)
     assert _set(probe, name, value) == (False, reason)
     assert parameter_values(probe, SPECS) == before
     [descriptor] = probe.describe_parameters([name])  # the stand-in left the declared type alone
-    assert descriptor.type == {
-        float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_INTEGER,
-        str: ParameterType.PARAMETER_STRING, bool: ParameterType.PARAMETER_BOOL}[type(before[name])]
+    assert (
+        descriptor.type
+        == {
+            float: ParameterType.PARAMETER_DOUBLE,
+            int: ParameterType.PARAMETER_INTEGER,
+            str: ParameterType.PARAMETER_STRING,
+            bool: ParameterType.PARAMETER_BOOL,
+        }[type(before[name])]
+    )
 
 
 def test_read_only_is_refused_and_valid_values_are_accepted(ros: Ros) -> None:
     probe = ros.add(Probe(context=ros.context))
     ok, reason = _set(probe, 'fixed', 0.25)
     assert not ok and 'read-only' in reason and 'fixed' in reason
-    for name, value in (('gain', 10.0), ('gain', 2.5), ('count', 100), ('mode', 'normal'), ('enabled', False),
-                        ('offset', -3.0), ('lo', 0.5)):
+    for name, value in (
+        ('gain', 10.0),
+        ('gain', 2.5),
+        ('count', 100),
+        ('mode', 'normal'),
+        ('enabled', False),
+        ('offset', -3.0),
+        ('lo', 0.5),
+    ):
         ok, reason = _set(probe, name, value)
         assert ok, reason
         assert probe.get_parameter(name).value == value
@@ -324,14 +369,17 @@ def test_rejection_through_the_parameter_service(ros: Ros) -> None:
     assert probe.get_parameter('gain').value == 4.0
 
 
-@pytest.mark.parametrize(('override', 'error', 'words'), [
-    (Parameter('offset', value=math.nan), ParameterError, 'offset=nan: must be finite'),
-    (Parameter('gain', value=0.0), ParameterError, 'gain=0.0: must be a float in (0, 10]'),
-    (Parameter('mode', value='fast'), ParameterError, "mode='fast'"),
-    (Parameter('lo', value=3.0), AssemblyError, 'lo=3.0 m must be below hi=1.0 m'),
-    (Parameter('gain', value=20.0), InvalidParameterValueException, 'gain'),
-    (Parameter('gain', value=2), InvalidParameterTypeException, 'gain'),
-])
+@pytest.mark.parametrize(
+    ('override', 'error', 'words'),
+    [
+        (Parameter('offset', value=math.nan), ParameterError, 'offset=nan: must be finite'),
+        (Parameter('gain', value=0.0), ParameterError, 'gain=0.0: must be a float in (0, 10]'),
+        (Parameter('mode', value='fast'), ParameterError, "mode='fast'"),
+        (Parameter('lo', value=3.0), AssemblyError, 'lo=3.0 m must be below hi=1.0 m'),
+        (Parameter('gain', value=20.0), InvalidParameterValueException, 'gain'),
+        (Parameter('gain', value=2), InvalidParameterTypeException, 'gain'),
+    ],
+)
 def test_bad_starting_values_stop_the_node(ros: Ros, override: Parameter, error: type, words: str) -> None:
     with pytest.raises(error) as info:
         Probe(context=ros.context, parameter_overrides=[override])
@@ -339,8 +387,16 @@ def test_bad_starting_values_stop_the_node(ros: Ros, override: Parameter, error:
 
 
 def test_starting_values_come_from_overrides(ros: Ros) -> None:
-    probe = ros.add(Probe(context=ros.context, parameter_overrides=[
-        Parameter('gain', value=3.0), Parameter('fixed', value=0.75), Parameter('use_sim_time', value=False)]))
+    probe = ros.add(
+        Probe(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter('gain', value=3.0),
+                Parameter('fixed', value=0.75),
+                Parameter('use_sim_time', value=False),
+            ],
+        )
+    )
     assert probe.start['gain'] == 3.0 and probe.start['fixed'] == 0.75
     assert probe.get_parameter('use_sim_time').value is False
 
@@ -352,6 +408,7 @@ def test_duplicate_spec_names_are_refused(ros: Ros) -> None:
 
 
 # --------------------------------------------------------------------------- run_node (default context)
+
 
 class Finishing(Node):
     """Finishes after three timer ticks, through the `done` convention of run_node."""
@@ -444,11 +501,19 @@ def test_a_node_process_whose_teardown_hangs_exits_after_the_timeout(timeout: fl
 
     repo = str(Path(__file__).resolve().parents[2])
     t0 = time.monotonic()
-    proc = subprocess.run([sys.executable, '-c', _HANGING_TEARDOWN.format(repo=repo, timeout=timeout)],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, '-c', _HANGING_TEARDOWN.format(repo=repo, timeout=timeout)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     elapsed = time.monotonic() - t0
     limit = common.TEARDOWN_TIMEOUT if timeout is None else timeout
     assert proc.returncode == 0, proc.stderr
-    assert proc.stderr.count('hanging: the middleware did not finish tearing the node down in '
-                             f'{limit:g} s; exiting anyway') == 1, proc.stderr
+    assert (
+        proc.stderr.count(
+            f'hanging: the middleware did not finish tearing the node down in {limit:g} s; exiting anyway'
+        )
+        == 1
+    ), proc.stderr
     assert limit <= elapsed < limit + 10.0

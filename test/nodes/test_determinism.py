@@ -34,8 +34,7 @@ def n_ticks(duration: float) -> int:
 
 
 def run(out: Path, scene: str, processes: bool, duration: float) -> dict:
-    result = run_line(RunConfig(scene=scene, duration=duration, rtf=0.0, out=out, processes=processes),
-                      io.StringIO())
+    result = run_line(RunConfig(scene=scene, duration=duration, rtf=0.0, out=out, processes=processes), io.StringIO())
     summary = json.loads((out / 'run.json').read_text())
     assert summary == json.loads(json.dumps(result.summary))
     return summary
@@ -52,16 +51,24 @@ def folder_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def check_summary(summary: dict, scene: str, mode: str, duration: float) -> None:
-    assert summary['outcome'] == {'ok': True, 'expected_state': 'EXECUTE', 'state': 'EXECUTE',
-                                  'message': 'line ended EXECUTE as the scene expects'}
+    assert summary['outcome'] == {
+        'ok': True,
+        'expected_state': 'EXECUTE',
+        'state': 'EXECUTE',
+        'message': 'line ended EXECUTE as the scene expects',
+    }
     assert summary['scene'] == scene and summary['mode'] == mode and summary['clock'] == 'lockstep'
     assert summary['sim_time_reached_s'] == duration and not summary['interrupted']
     assert summary['lost_participants'] == {} and summary['cause'] is None
     assert summary['rtf_requested'] == 'max'
     messages = summary['messages']
-    for topic in ('/clock', '/line/supervisor/state', '/line/sheet_counter/count', '/line/sheet_counter/rate',
-                  *(f'/line/{n}/joint_states' for n in ('crank_drive', 'belt_conveyor', 'feed_transporter',
-                                                        'sheet_counter'))):
+    for topic in (
+        '/clock',
+        '/line/supervisor/state',
+        '/line/sheet_counter/count',
+        '/line/sheet_counter/rate',
+        *(f'/line/{n}/joint_states' for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')),
+    ):
         assert messages[topic] == n_ticks(duration), (topic, messages[topic])
     assert messages['/line/participants'] == 1 and messages['/diagnostics'] == int(duration) + 1
     assert summary['events_received'] == summary['expected_from_simulate']['events']
@@ -83,8 +90,7 @@ def test_in_process_and_processes_record_the_same_bag(folder_runs: dict[str, Pat
     bags = {mode: read_bag_mcap(out / 'bag') for mode, out in folder_runs.items()}
     a, b = bags['in-process'], bags['processes']
     assert sorted(a) == sorted(b)
-    assert sum(map(len, a.values())) == sum(summaries['in-process']['messages'].values()) > 8 * n_ticks(
-        FOLDER_DURATION)
+    assert sum(map(len, a.values())) == sum(summaries['in-process']['messages'].values()) > 8 * n_ticks(FOLDER_DURATION)
     for key in sorted(a):
         assert len(a[key]) == len(b[key]), key
         for i, (x, y) in enumerate(zip(a[key], b[key])):

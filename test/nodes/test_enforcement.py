@@ -16,7 +16,8 @@ keeps a waiting node from its input.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -57,13 +58,13 @@ if TYPE_CHECKING:
 
 SCENE = 'folder_faults'
 HORIZON = 10.0
-DURATION = 7.0         # s of sim time the clock runs
-RATE = 100.0           # Hz of sim time: the clock, every node, the supervisor's check grid
+DURATION = 7.0  # s of sim time the clock runs
+RATE = 100.0  # Hz of sim time: the clock, every node, the supervisor's check grid
 PERIOD = 1.0 / RATE
 PERIOD_NS = 10_000_000
-LEAD = 0.1             # command_lead (default), s
+LEAD = 0.1  # command_lead (default), s
 SUPERVISOR_LOST = 1.0  # wall s the supervisor waits for a machine node's tick before it is lost
-CLOCK_LOST = 3.0       # wall s line_clock waits for an answer (the holds here last a few ms)
+CLOCK_LOST = 3.0  # wall s line_clock waits for an answer (the holds here last a few ms)
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 JOINT_NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter')
 
@@ -99,10 +100,11 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     free = LineModel(scene, HORIZON)
     T = cycle_timing(scene.machines['cyclogram'], scene.machines['knife']).T
     common = {'scene': SCENE, 'horizon': HORIZON, 'rate': RATE}
-    nodes = {cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common)))
-             for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)}
-    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(**common,
-                                                                             lost_timeout=SUPERVISOR_LOST)))
+    nodes = {
+        cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common)))
+        for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)
+    }
+    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(**common, lost_timeout=SUPERVISOR_LOST)))
     hold = ros.add(FakeParticipant(ros.context))
     listener = ros.node('listener')
     state = ros.subscribe(listener, String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
@@ -112,19 +114,34 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     events_sub = list(listener.subscriptions)[-1]
     joints = {name: ros.subscribe(listener, JointState, joint_states_topic(name), RELIABLE) for name in JOINT_NODES}
     clients = {name: listener.create_client(Trigger, f'/line/supervisor/{name}') for name in ('unhold', 'clear')}
-    assert ros.spin_until(lambda: events_sub.get_publisher_count() == 5
-                          and all(s.get_publisher_count() >= 1 for s in listener.subscriptions)
-                          and all(c.service_is_ready() for c in clients.values()), timeout=20.0)
-    clock = ros.add(LineClock(context=ros.context, parameter_overrides=params(
-        rate=RATE, rtf=0.0, duration=DURATION, lost_timeout=CLOCK_LOST,
-        participants=','.join([*nodes, 'supervisor', 'line_recorder']))))
+    assert ros.spin_until(
+        lambda: (
+            events_sub.get_publisher_count() == 5
+            and all(s.get_publisher_count() >= 1 for s in listener.subscriptions)
+            and all(c.service_is_ready() for c in clients.values())
+        ),
+        timeout=20.0,
+    )
+    clock = ros.add(
+        LineClock(
+            context=ros.context,
+            parameter_overrides=params(
+                rate=RATE,
+                rtf=0.0,
+                duration=DURATION,
+                lost_timeout=CLOCK_LOST,
+                participants=','.join([*nodes, 'supervisor', 'line_recorder']),
+            ),
+        )
+    )
     logic = sup.logic
 
     def pause_when(condition: Callable[[], bool]) -> float:
         """Run until the first tick at whose arrival ``condition()`` holds; hold it, every node's tick done."""
         hold.run_to(None, when=lambda stamp: condition())
-        assert ros.spin_until(lambda: hold.held is not None and sup.lockstep.last_done == hold.held,
-                              timeout=30.0), states_seen(state)
+        assert ros.spin_until(lambda: hold.held is not None and sup.lockstep.last_done == hold.held, timeout=30.0), (
+            states_seen(state)
+        )
         return hold.held / NS_PER_S
 
     # ---- the late sheet of cycle 13: a timing fault -> HOLDING at its knife contact, HELD at standstill
@@ -144,12 +161,18 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     hold.run_to(None)
     end = round(DURATION * NS_PER_S)
     live = [n for n in (*nodes.values(), sup) if n is not belt]
-    assert ros.spin_until(lambda: clock.done.done() and all(n.done.done() for n in live)
-                          and len(state) == sup.published_state and len(commands) == sup.published_commands
-                          and len(diags) == sup.published_diagnostics + 1  # the clock's lost diagnostic
-                          and len(events) == sum(n.published_events for n in (*nodes.values(), sup))
-                          and all(len(joints[n]) == nodes[n].published_joint_states for n in JOINT_NODES),
-                          timeout=60.0), states_seen(state)
+    assert ros.spin_until(
+        lambda: (
+            clock.done.done()
+            and all(n.done.done() for n in live)
+            and len(state) == sup.published_state
+            and len(commands) == sup.published_commands
+            and len(diags) == sup.published_diagnostics + 1  # the clock's lost diagnostic
+            and len(events) == sum(n.published_events for n in (*nodes.values(), sup))
+            and all(len(joints[n]) == nodes[n].published_joint_states for n in JOINT_NODES)
+        ),
+        timeout=60.0,
+    ), states_seen(state)
 
     # ---- lockstep: every live node ran every tick; the belt up to the tick it hung at, then it was lost
     ticks = grid(0, end, PERIOD_NS)
@@ -157,12 +180,32 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     assert belt.lockstep.ticks == ticks.index(round(t2 * NS_PER_S)) + 1
     assert clock.lost == {'belt_conveyor': (round(t2 * NS_PER_S) + PERIOD_NS) / NS_PER_S}
     assert logic.lost_nodes == ['belt_conveyor'] and all(n.rejected == {} for n in live)
-    assert states_seen(state) == ['EXECUTE', 'HOLDING', 'HELD', 'UNHOLDING', 'EXECUTE', 'SUSPENDING', 'SUSPENDED',
-                                  'ABORTING', 'ABORTED', 'CLEARING', 'STOPPED']
+    assert states_seen(state) == [
+        'EXECUTE',
+        'HOLDING',
+        'HELD',
+        'UNHOLDING',
+        'EXECUTE',
+        'SUSPENDING',
+        'SUSPENDED',
+        'ABORTING',
+        'ABORTED',
+        'CLEARING',
+        'STOPPED',
+    ]
     assert [(tr.source, tr.target) for tr in logic.transitions] == [
-        ('STARTING', 'EXECUTE'), ('EXECUTE', 'HOLDING'), ('HOLDING', 'HELD'), ('HELD', 'UNHOLDING'),
-        ('UNHOLDING', 'EXECUTE'), ('EXECUTE', 'SUSPENDING'), ('SUSPENDING', 'SUSPENDED'),
-        ('SUSPENDED', 'ABORTING'), ('ABORTING', 'ABORTED'), ('ABORTED', 'CLEARING'), ('CLEARING', 'STOPPED')]
+        ('STARTING', 'EXECUTE'),
+        ('EXECUTE', 'HOLDING'),
+        ('HOLDING', 'HELD'),
+        ('HELD', 'UNHOLDING'),
+        ('UNHOLDING', 'EXECUTE'),
+        ('EXECUTE', 'SUSPENDING'),
+        ('SUSPENDING', 'SUSPENDED'),
+        ('SUSPENDED', 'ABORTING'),
+        ('ABORTING', 'ABORTED'),
+        ('ABORTED', 'CLEARING'),
+        ('CLEARING', 'STOPPED'),
+    ]
     published = [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, m.source) for m in commands.messages]
     assert [c.kind for c in published] == ['hold', 'unhold', 'hold', 'stop'] and published == list(logic.commands)
     assert nodes['crank_drive'].commands == tuple(published)
@@ -221,7 +264,12 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     assert (aborting.t, aborting.source) == (t2, 'SUSPENDED') and 'participant belt_conveyor lost' in aborting.cause
     lost = logic.violations[-1]
     assert (lost.t, lost.constraint, lost.action, lost.unit, lost.state) == (
-        t2, 'lost:belt_conveyor', 'abort', 'wall s', 'SUSPENDED')
+        t2,
+        'lost:belt_conveyor',
+        'abort',
+        'wall s',
+        'SUSPENDED',
+    )
     assert lost.margin < -SUPERVISOR_LOST  # minus the wall seconds it was waited for
     assert time_msg_to_ns(joints['belt_conveyor'].messages[-1].header.stamp) == round(t2 * NS_PER_S)
     assert published[3] == Command(round((t2 + LEAD) * NS_PER_S) / NS_PER_S, 'stop')  # abort: stop lead later
@@ -232,34 +280,51 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     assert sup.packml.state == 'STOPPED' and sum(tr.target == 'ABORTING' for tr in logic.transitions) == 1
     (clock_lost,) = statuses(diags, 'folder_line/line_clock/lost')
     assert clock_lost.level == DiagnosticStatus.ERROR and values(clock_lost)['node'] == 'belt_conveyor'
-    inputs = [(time_msg_to_ns(arr.header.stamp), s) for arr in diags.messages for s in arr.status
-              if s.name == 'folder_line/supervisor/inputs']
+    inputs = [
+        (time_msg_to_ns(arr.header.stamp), s)
+        for arr in diags.messages
+        for s in arr.status
+        if s.name == 'folder_line/supervisor/inputs'
+    ]
     assert [stamp for stamp, _ in inputs] == list(range(0, end + 1, NS_PER_S))  # 1 Hz of sim time
     for stamp, s in inputs:  # the lost node from the first one after the tick it hung at
         if stamp > t2 * NS_PER_S:
-            assert (s.level, s.message) == (DiagnosticStatus.ERROR, 'no input rejected; participants lost: '
-                                            'belt_conveyor')
+            assert (s.level, s.message) == (
+                DiagnosticStatus.ERROR,
+                'no input rejected; participants lost: belt_conveyor',
+            )
             assert values(s) == {'lost': 'belt_conveyor'}
         else:
             assert (s.level, s.message, values(s)) == (DiagnosticStatus.OK, 'no input rejected', {})
     # after the loss the belt's events are missing: those balances are not judged, they say why
     not_received = f'events of belt_conveyor not received after {logic.blind_from:.6f} s'
     assert [(b.state, b.ok, b.missing) for b in logic.balances] == [
-        ('HELD', True, ''), ('SUSPENDED', True, ''), ('ABORTED', False, not_received),
-        ('STOPPED', False, not_received)]
+        ('HELD', True, ''),
+        ('SUSPENDED', True, ''),
+        ('ABORTED', False, not_received),
+        ('STOPPED', False, not_received),
+    ]
 
     # ---- replay: the recorded stream through the same logic offline gives the same decisions
     rows = []
     for m in events.messages:
         kind, sheet, cyc, value = parse_event_source(m.source)
         rows.append((time_msg_to_ns(m.time_ref) / NS_PER_S, EVENT_KINDS.index(kind), sheet, cyc, value))
-    again = replay(scene, HORIZON, np.array(rows, dtype=EVENT_DTYPE),
-                   operator=[(t, c) for t, c, _ in logic.operator_log],
-                   lost=[(lost.t, 'belt_conveyor', -lost.margin)], until=logic.now, lead=LEAD,
-                   check_period=PERIOD, t_start=logic.t_start)
+    again = replay(
+        scene,
+        HORIZON,
+        np.array(rows, dtype=EVENT_DTYPE),
+        operator=[(t, c) for t, c, _ in logic.operator_log],
+        lost=[(lost.t, 'belt_conveyor', -lost.margin)],
+        until=logic.now,
+        lead=LEAD,
+        check_period=PERIOD,
+        t_start=logic.t_start,
+    )
     assert again.transitions == logic.transitions
     assert again.commands == logic.commands
     assert again.violations == logic.violations and again.balances == logic.balances
     # no input came after its tick, except events just after a tick, whose time rounds to its stamp
-    assert logic.late == sum(time_msg_to_ns(m.time_ref) == time_msg_to_ns(m.header.stamp) - PERIOD_NS
-                             for m in events.messages)
+    assert logic.late == sum(
+        time_msg_to_ns(m.time_ref) == time_msg_to_ns(m.header.stamp) - PERIOD_NS for m in events.messages
+    )

@@ -15,8 +15,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -61,6 +62,7 @@ MS = 1_000_000  # ns
 
 # --------------------------------------------------------------------------- a participant the test drives
 
+
 class FakeParticipant(Node):
     """A lockstep participant that acknowledges ``/clock`` ticks as the test says.
 
@@ -90,8 +92,15 @@ class FakeParticipant(Node):
         What the acknowledgements say was published (the test publishes, if anything).
     """
 
-    def __init__(self, context: Any, name: str = 'line_recorder', *, delay: float = 0.0,
-                 answers: int | None = None, hold_from: int | None = None) -> None:
+    def __init__(
+        self,
+        context: Any,
+        name: str = 'line_recorder',
+        *,
+        delay: float = 0.0,
+        answers: int | None = None,
+        hold_from: int | None = None,
+    ) -> None:
         super().__init__(name, context=context)
         self.delay = delay
         self.answers = answers
@@ -135,7 +144,8 @@ class FakeParticipant(Node):
         if self.answers is not None and len(self.ticks) > self.answers:
             return
         if (self.hold_from is not None and stamp >= self.hold_from) or (
-                self.pause_when is not None and self.pause_when(stamp)):
+            self.pause_when is not None and self.pause_when(stamp)
+        ):
             self.held = stamp
             return
         if self.delay > 0.0:
@@ -182,11 +192,19 @@ def clock_stamps(received: Any) -> list[int]:
 
 # --------------------------------------------------------------------------- no graph
 
+
 def test_specs() -> None:
     by_name = {s.name: s for s in SPECS}
     assert {n: s.default for n, s in by_name.items()} == {
-        'rate': 200.0, 'rtf': 1.0, 'clock': 'lockstep', 'participants': ','.join(MACHINE_NODES),
-        'start_time': 0.0, 'duration': 0.0, 'lost_timeout': 3.0, 'startup_timeout': 60.0}
+        'rate': 200.0,
+        'rtf': 1.0,
+        'clock': 'lockstep',
+        'participants': ','.join(MACHINE_NODES),
+        'start_time': 0.0,
+        'duration': 0.0,
+        'lost_timeout': 3.0,
+        'startup_timeout': 60.0,
+    }
     assert by_name['rtf'].bounds == (0.0, 1000.0) and not by_name['rtf'].low_open
     assert by_name['rate'].bounds == (1.0, 10000.0)
     assert by_name['clock'].choices == ('lockstep', 'wall')
@@ -195,18 +213,25 @@ def test_specs() -> None:
 
 def test_participants_are_parsed_and_checked() -> None:
     assert parse_participants(' crank_drive, supervisor ,line_recorder') == (
-        'crank_drive', 'supervisor', 'line_recorder')
-    for text, words in [('crank_drive,jumper', 'unknown node(s) jumper'),
-                        ('supervisor,supervisor', 'names a node twice'),
-                        (' , ', 'names no node')]:
+        'crank_drive',
+        'supervisor',
+        'line_recorder',
+    )
+    for text, words in [
+        ('crank_drive,jumper', 'unknown node(s) jumper'),
+        ('supervisor,supervisor', 'names a node twice'),
+        (' , ', 'names no node'),
+    ]:
         with pytest.raises(ParameterError, match=r'^participants=') as info:
             parse_participants(text)
         assert words in str(info.value)
 
 
-@given(names=st.lists(st.sampled_from(KNOWN_PARTICIPANTS), min_size=1, unique=True),
-       clock=st.sampled_from(('lockstep', 'wall')),
-       end=st.one_of(st.none(), st.integers(min_value=0, max_value=10**19 - 1)))
+@given(
+    names=st.lists(st.sampled_from(KNOWN_PARTICIPANTS), min_size=1, unique=True),
+    clock=st.sampled_from(('lockstep', 'wall')),
+    end=st.one_of(st.none(), st.integers(min_value=0, max_value=10**19 - 1)),
+)
 def test_announcement_round_trip(names: list[str], clock: str, end: int | None) -> None:
     a = Announcement(clock, end, tuple(names))
     text = format_announcement(a)
@@ -214,29 +239,37 @@ def test_announcement_round_trip(names: list[str], clock: str, end: int | None) 
     assert text.startswith(f'clock={clock} end=')
 
 
-@pytest.mark.parametrize(('text', 'words'), [
-    ('', 'needs exactly clock=, end= and participants='),
-    ('clock=lockstep end=none', 'needs exactly'),
-    ('clock=lockstep end=none participants=crank_drive extra=1', 'needs exactly'),
-    ('clock=banana end=none participants=crank_drive', "clock='banana': must be one of lockstep, wall"),
-    ('clock=lockstep end=-5 participants=crank_drive', "end='-5': must be none or integer ns"),
-    ('clock=lockstep end=1e9 participants=crank_drive', "end='1e9'"),
-    ('clock=lockstep end=none participants=jumper', 'must be distinct names among'),
-    ('clock=lockstep end=none participants=supervisor,supervisor', 'must be distinct names'),
-    ('clock=lockstep end=none participants=', 'must be distinct names'),
-    ('x' * 1001, 'announcement of 1001 characters'),
-])
+@pytest.mark.parametrize(
+    ('text', 'words'),
+    [
+        ('', 'needs exactly clock=, end= and participants='),
+        ('clock=lockstep end=none', 'needs exactly'),
+        ('clock=lockstep end=none participants=crank_drive extra=1', 'needs exactly'),
+        ('clock=banana end=none participants=crank_drive', "clock='banana': must be one of lockstep, wall"),
+        ('clock=lockstep end=-5 participants=crank_drive', "end='-5': must be none or integer ns"),
+        ('clock=lockstep end=1e9 participants=crank_drive', "end='1e9'"),
+        ('clock=lockstep end=none participants=jumper', 'must be distinct names among'),
+        ('clock=lockstep end=none participants=supervisor,supervisor', 'must be distinct names'),
+        ('clock=lockstep end=none participants=', 'must be distinct names'),
+        ('x' * 1001, 'announcement of 1001 characters'),
+    ],
+)
 def test_a_malformed_announcement_is_refused_with_the_reason(text: str, words: str) -> None:
     with pytest.raises(ValueError) as info:
         parse_announcement(text)
     assert words in str(info.value)
 
 
-@given(frame=st.text(max_size=60), stamp=st.integers(min_value=0, max_value=2**31 * NS_PER_S - 1),
-       counts=st.fixed_dictionaries({s: st.integers(min_value=0, max_value=2**63 - 1)
-                                     for s in ('messages', 'events', 'commands')}))
+@given(
+    frame=st.text(max_size=60),
+    stamp=st.integers(min_value=0, max_value=2**31 * NS_PER_S - 1),
+    counts=st.fixed_dictionaries(
+        {s: st.integers(min_value=0, max_value=2**63 - 1) for s in ('messages', 'events', 'commands')}
+    ),
+)
 def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
-        frame: str, stamp: int, counts: dict[str, int]) -> None:
+    frame: str, stamp: int, counts: dict[str, int]
+) -> None:
     # read_ack decodes the raw bytes with rosbags: checked against rclpy's own serialization and deserialization
     msg = TimeReference(source=format_counts(counts))
     msg.header.frame_id = frame
@@ -270,9 +303,11 @@ def test_topics_of_the_protocol() -> None:
 
 # --------------------------------------------------------------------------- lockstep in this process
 
+
 @pytest.mark.parametrize(('start', 'duration', 'rate'), [(2.5, 1.5, 200.0), (0.0, 0.1, 300.0)])
 def test_lockstep_publishes_every_tick_of_the_grid_up_to_the_end_exactly(
-        ros: Ros, start: float, duration: float, rate: float) -> None:
+    ros: Ros, start: float, duration: float, rate: float
+) -> None:
     listener = ros.node('listener')
     announced = ros.subscribe(listener, String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
     fake = ros.add(FakeParticipant(ros.context))
@@ -344,7 +379,7 @@ def test_rate_and_rtf_changes_apply_from_the_current_tick(ros: Ros) -> None:
     # of the tick before), sim time never runs ahead of half the wall time
     i = fake.ticks.index(100 * MS)
     published_after = fake.acked_ns[90 * MS]
-    for stamp, arrival in zip(fake.ticks[i + 1:], fake.arrival_ns[i + 1:]):
+    for stamp, arrival in zip(fake.ticks[i + 1 :], fake.arrival_ns[i + 1 :]):
         assert (stamp - 100 * MS) <= 0.5 * (arrival - published_after), stamp
 
 
@@ -362,8 +397,9 @@ def test_a_silent_participant_is_declared_lost_and_the_clock_goes_on(ros: Ros) -
     diags = ros.subscribe(listener, DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
     prompt = ros.add(FakeParticipant(ros.context, 'line_recorder'))
     silent = ros.add(FakeParticipant(ros.context, 'crank_drive', answers=1))  # the first tick only
-    clock = make_clock(ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.2, rtf=0.0,
-                       lost_timeout=0.5)
+    clock = make_clock(
+        ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.2, rtf=0.0, lost_timeout=0.5
+    )
     assert ros.spin_until(lambda: 'crank_drive' in clock.lost, timeout=20.0)
     assert clock.lost == {'crank_drive': 0.01}  # named with the tick it did not answer, waited for until then
     assert ros.spin_until(clock.done.done, timeout=20.0)
@@ -372,8 +408,9 @@ def test_a_silent_participant_is_declared_lost_and_the_clock_goes_on(ros: Ros) -
     # lost no earlier than lost_timeout after the tick it did not answer was published (which was after
     # both acknowledgements of the first tick)
     assert prompt.arrival_ns[2] - max(prompt.acked_ns[0], silent.acked_ns[0]) > 0.5 * NS_PER_S
-    assert ros.spin_until(lambda: any(s.name == 'folder_line/line_clock/lost' for d in diags.messages
-                                      for s in d.status), timeout=10.0)
+    assert ros.spin_until(
+        lambda: any(s.name == 'folder_line/line_clock/lost' for d in diags.messages for s in d.status), timeout=10.0
+    )
     [status] = [s for d in diags.messages for s in d.status]
     values = {kv.key: kv.value for kv in status.values}
     assert status.level == DiagnosticStatus.ERROR and status.message == 'participant crank_drive lost at 0.010000000 s'
@@ -391,9 +428,12 @@ def test_malformed_and_foreign_acknowledgements_are_rejected_and_counted(ros: Ro
     hostile = ros.node('hostile')
     pub = hostile.create_publisher(TimeReference, tick_done_topic('line_recorder'), TICK_QOS)
     assert ros.spin_until(lambda: fake.held == 50 * MS, timeout=20.0)
-    for frame, source in [('line_recorder', 'garbage'), ('line_recorder', 'messages=1 events=0'),
-                          ('line_recorder', 'messages=-1 events=0 commands=0'),
-                          ('crank_drive', 'messages=0 events=0 commands=0')]:
+    for frame, source in [
+        ('line_recorder', 'garbage'),
+        ('line_recorder', 'messages=1 events=0'),
+        ('line_recorder', 'messages=-1 events=0 commands=0'),
+        ('crank_drive', 'messages=0 events=0 commands=0'),
+    ]:
         msg = TimeReference(source=source)
         msg.header.frame_id = frame
         msg.header.stamp = ns_to_time_msg(50 * MS)
@@ -432,6 +472,7 @@ def test_wall_mode_paces_by_the_wall_clock_and_counts_late_participants(ros: Ros
 
 # --------------------------------------------------------------------------- parameters
 
+
 def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
     clock = make_clock(ros)
     for name, value, reason in [
@@ -445,9 +486,15 @@ def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
         ('use_sim_time', True, 'use_sim_time=True rejected: use_sim_time=True: line_clock publishes /clock'),
     ]:
         [result] = clock.set_parameters([Parameter(name, value=value)])
-        assert (result.successful, result.reason[:len(reason)]) == (False, reason)
-    for name, value in [('clock', 'wall'), ('participants', 'crank_drive'), ('start_time', 1.0),
-                        ('duration', 1.0), ('lost_timeout', 1.0), ('startup_timeout', 2.0)]:
+        assert (result.successful, result.reason[: len(reason)]) == (False, reason)
+    for name, value in [
+        ('clock', 'wall'),
+        ('participants', 'crank_drive'),
+        ('start_time', 1.0),
+        ('duration', 1.0),
+        ('lost_timeout', 1.0),
+        ('startup_timeout', 2.0),
+    ]:
         [result] = clock.set_parameters([Parameter(name, value=value)])
         assert not result.successful and 'read-only' in result.reason and name in result.reason
     assert clock.get_parameter('rtf').value == 1.0 and clock.get_parameter('rate').value == 200.0
@@ -456,12 +503,15 @@ def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
     assert result.successful  # 0: no ceiling, in lockstep
 
 
-@pytest.mark.parametrize(('overrides', 'message'), [
-    ({'use_sim_time': True}, 'use_sim_time=True: line_clock publishes /clock'),
-    ({'clock': 'wall', 'rtf': 0.0}, 'rtf=0.0: must be > 0 with clock=wall'),
-    ({'participants': 'crank_drive,crank_drive'}, "participants='crank_drive,crank_drive': names a node twice"),
-    ({'clock': 'banana'}, "clock='banana': must be one of lockstep, wall"),
-])
+@pytest.mark.parametrize(
+    ('overrides', 'message'),
+    [
+        ({'use_sim_time': True}, 'use_sim_time=True: line_clock publishes /clock'),
+        ({'clock': 'wall', 'rtf': 0.0}, 'rtf=0.0: must be > 0 with clock=wall'),
+        ({'participants': 'crank_drive,crank_drive'}, "participants='crank_drive,crank_drive': names a node twice"),
+        ({'clock': 'banana'}, "clock='banana': must be one of lockstep, wall"),
+    ],
+)
 def test_the_clock_refuses_to_start_on_a_bad_parameter(ros: Ros, overrides: dict[str, Any], message: str) -> None:
     with pytest.raises(ParameterError) as info:
         LineClock(context=ros.context, parameter_overrides=params(**overrides))
@@ -469,6 +519,7 @@ def test_the_clock_refuses_to_start_on_a_bad_parameter(ros: Ros, overrides: dict
 
 
 # --------------------------------------------------------------------------- the node as a process
+
 
 def start(node_env: dict[str, str], tmp_path: Path, *args: str, tag: str = '') -> tuple[subprocess.Popen[bytes], Path]:
     cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args']
@@ -488,7 +539,8 @@ def stop(process: subprocess.Popen[bytes]) -> None:
 
 @pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
 def test_process_runs_in_lockstep_across_processes_and_exits_0_on_signal(
-        ros: Ros, node_env: dict[str, str], tmp_path: Path, signum: int) -> None:
+    ros: Ros, node_env: dict[str, str], tmp_path: Path, signum: int
+) -> None:
     fake = ros.add(FakeParticipant(ros.context))
     process, err = start(node_env, tmp_path, 'participants:=line_recorder', 'rate:=50.0', 'rtf:=2.0')
     try:
@@ -504,8 +556,9 @@ def test_process_runs_in_lockstep_across_processes_and_exits_0_on_signal(
 
 def test_process_exits_0_by_itself_after_duration(ros: Ros, node_env: dict[str, str], tmp_path: Path) -> None:
     fake = ros.add(FakeParticipant(ros.context))
-    process, err = start(node_env, tmp_path, 'participants:=line_recorder', 'duration:=2.0', 'rtf:=0.0',
-                         'start_time:=1.0')
+    process, err = start(
+        node_env, tmp_path, 'participants:=line_recorder', 'duration:=2.0', 'rtf:=0.0', 'start_time:=1.0'
+    )
     try:
         assert ros.spin_until(lambda: process.poll() is not None, timeout=30.0), err.read_text()
         assert process.returncode == 0
@@ -518,8 +571,9 @@ def test_process_exits_0_by_itself_after_duration(ros: Ros, node_env: dict[str, 
 
 
 def test_process_exits_3_when_a_participant_was_lost(node_env: dict[str, str], tmp_path: Path) -> None:
-    process, err = start(node_env, tmp_path, 'participants:=crank_drive', 'duration:=0.1', 'rtf:=0.0',
-                         'startup_timeout:=1.0')
+    process, err = start(
+        node_env, tmp_path, 'participants:=crank_drive', 'duration:=0.1', 'rtf:=0.0', 'startup_timeout:=1.0'
+    )
     try:  # nobody answers as crank_drive: lost after startup_timeout, then the clock runs to the end alone
         assert process.wait(timeout=60) == EXIT_LOST == 3
     finally:
@@ -536,13 +590,16 @@ def test_process_exits_3_when_a_participant_was_lost(node_env: dict[str, str], t
 BAD_STARTS = [
     (('rtf:=0.0005',), 'line_clock: error: rtf=0.0005: must be 0 (no ceiling) or in [0.001, 1000]'),
     (('clock:=wall', 'rtf:=0.0'), 'line_clock: error: rtf=0.0: must be > 0 with clock=wall'),
-    (('participants:=crank_drive,jumper',), "line_clock: error: participants='crank_drive,jumper': unknown node(s) "
-                                            'jumper'),
-    (('duration:=-1.0',), 'line_clock: error: Invalid parameter value (-1.0) for parameter. Reason: Parameter '
-                          'duration'),
+    (
+        ('participants:=crank_drive,jumper',),
+        "line_clock: error: participants='crank_drive,jumper': unknown node(s) jumper",
+    ),
+    (
+        ('duration:=-1.0',),
+        'line_clock: error: Invalid parameter value (-1.0) for parameter. Reason: Parameter duration',
+    ),
     (('rate:=nan',), 'line_clock: error: Invalid parameter value (nan) for parameter. Reason: Parameter rate'),
-    (('rtf:=5',), "line_clock: error: Trying to set parameter 'rtf' to '5' of type 'INTEGER', expecting type "
-                  "'DOUBLE'"),
+    (('rtf:=5',), "line_clock: error: Trying to set parameter 'rtf' to '5' of type 'INTEGER', expecting type 'DOUBLE'"),
 ]
 
 

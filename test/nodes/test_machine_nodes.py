@@ -59,10 +59,11 @@ REPO = Path(__file__).resolve().parents[2]
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 TYPES = {t.name: t.type for t in TOPICS}
 MS = 1_000_000  # ns
-STEP = 5 * MS   # the nodes' grid at their default rate, 200 Hz
+STEP = 5 * MS  # the nodes' grid at their default rate, 200 Hz
 
 
 # --------------------------------------------------------------------------- harness
+
 
 def recording(cls: type[MachineNode]) -> type[MachineNode]:
     """``cls`` that also keeps the stamp (ns) of every tick it published."""
@@ -102,8 +103,12 @@ def subscribe(ros: Ros, node: Node, msg_type: type, topic: str) -> tuple[Receive
 def start_clock(ros: Ros, duration: float, participants: Any, **values: Any) -> LineClock:
     """``line_clock`` in lockstep for ``duration`` s of sim time, no rtf ceiling unless given."""
     values.setdefault('rtf', 0.0)
-    return ros.add(LineClock(context=ros.context, parameter_overrides=params(
-        duration=duration, participants=','.join(participants), **values)))
+    return ros.add(
+        LineClock(
+            context=ros.context,
+            parameter_overrides=params(duration=duration, participants=','.join(participants), **values),
+        )
+    )
 
 
 def stamp_ns(msg: Any) -> int:
@@ -122,8 +127,10 @@ def model_event_rows(model: LineModel, owner: str, t_end_ns: int) -> list[tuple[
 
 
 def event_rows(messages: list[TimeReference]) -> list[tuple[str, int, int, int, float]]:
-    return sorted((*parse_event_source(m.source)[:3], time_msg_to_ns(m.time_ref), parse_event_source(m.source)[3])
-                  for m in messages)
+    return sorted(
+        (*parse_event_source(m.source)[:3], time_msg_to_ns(m.time_ref), parse_event_source(m.source)[3])
+        for m in messages
+    )
 
 
 def use_events_executor(ros: Ros) -> None:
@@ -135,20 +142,32 @@ def use_events_executor(ros: Ros) -> None:
 # --------------------------------------------------------------------------- the line in this process
 
 EXPECTED_JOINTS = {
-    'folder': {'crank_drive': ('knife_crank', 'knife'), 'belt_conveyor': ('first_transporter',),
-               'feed_transporter': ('feed_belt', 'chain', 'carriage'), 'sheet_counter': ('pile_table',)},
-    'layup': {'crank_drive': ('layup_crank', 'transporter3', 'transporter4'), 'belt_conveyor': ('chute_belts',),
-              'sheet_counter': ('container_floor',)},
-    'line': {'crank_drive': ('knife_crank', 'knife', 'layup_crank', 'transporter3', 'transporter4'),
-             'belt_conveyor': ('first_transporter', 'chute_belts'),
-             'feed_transporter': ('feed_belt', 'chain', 'carriage'), 'sheet_counter': ('pile_table',)},
+    'folder': {
+        'crank_drive': ('knife_crank', 'knife'),
+        'belt_conveyor': ('first_transporter',),
+        'feed_transporter': ('feed_belt', 'chain', 'carriage'),
+        'sheet_counter': ('pile_table',),
+    },
+    'layup': {
+        'crank_drive': ('layup_crank', 'transporter3', 'transporter4'),
+        'belt_conveyor': ('chute_belts',),
+        'sheet_counter': ('container_floor',),
+    },
+    'line': {
+        'crank_drive': ('knife_crank', 'knife', 'layup_crank', 'transporter3', 'transporter4'),
+        'belt_conveyor': ('first_transporter', 'chute_belts'),
+        'feed_transporter': ('feed_belt', 'chain', 'carriage'),
+        'sheet_counter': ('pile_table',),
+    },
 }
 
 
-@pytest.mark.parametrize(('scene_name', 'clock_rate'), [('folder', 200.0), ('layup', 200.0), ('line', 200.0),
-                                                        ('folder', 1.0)])
+@pytest.mark.parametrize(
+    ('scene_name', 'clock_rate'), [('folder', 200.0), ('layup', 200.0), ('line', 200.0), ('folder', 1.0)]
+)
 def test_machine_nodes_publish_the_line_model_at_their_grid_points(
-        ros: Ros, scene_name: str, clock_rate: float) -> None:
+    ros: Ros, scene_name: str, clock_rate: float
+) -> None:
     """At 1 tick per second of sim time the nodes publish exactly what they publish at 200: the same
     messages at the same grid points (200 Hz, their own rate), only the events' header stamps (their
     tick) differ."""
@@ -159,8 +178,10 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     joints = EXPECTED_JOINTS[scene_name]
     assert model.nodes == joints
 
-    nodes = {name: ros.add(cls(context=ros.context, parameter_overrides=params(scene=scene_name, horizon=horizon)))
-             for name, cls in CLASSES.items()}
+    nodes = {
+        name: ros.add(cls(context=ros.context, parameter_overrides=params(scene=scene_name, horizon=horizon)))
+        for name, cls in CLASSES.items()
+    }
     listener = ros.node('listener')
     states = {name: subscribe(ros, listener, JointState, joint_states_topic(name)) for name in joints}
     events, events_sub = subscribe(ros, listener, TimeReference, EVENTS_TOPIC)
@@ -169,19 +190,24 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     landings, landing_sub = subscribe(ros, listener, Float64, LANDING_TOPIC)
     subs = [s for _, s in states.values()] + [count_sub, rate_sub, landing_sub]
     # nothing is published before the clock runs: match every subscription first, then start it
-    assert ros.spin_until(lambda: all(s.get_publisher_count() == 1 for s in subs)
-                          and events_sub.get_publisher_count() == len(nodes), timeout=20.0)
+    assert ros.spin_until(
+        lambda: all(s.get_publisher_count() == 1 for s in subs) and events_sub.get_publisher_count() == len(nodes),
+        timeout=20.0,
+    )
     clock = start_clock(ros, duration, nodes, rate=clock_rate)
     end_ns = round(duration * NS_PER_S)
     ticks = grid(0, end_ns, round(NS_PER_S / clock_rate))
     points = grid(0, end_ns, STEP)  # the nodes' own grid
 
     def complete() -> bool:
-        return (clock.done.done() and all(n.done.done() for n in nodes.values())
-                and all(len(states[k][0]) == nodes[k].published_joint_states for k in states)
-                and len(events) == sum(n.published_events for n in nodes.values())
-                and len(counts) == len(rates) == len(points)
-                and len(landings) == nodes['sheet_counter'].published_landing)
+        return (
+            clock.done.done()
+            and all(n.done.done() for n in nodes.values())
+            and all(len(states[k][0]) == nodes[k].published_joint_states for k in states)
+            and len(events) == sum(n.published_events for n in nodes.values())
+            and len(counts) == len(rates) == len(points)
+            and len(landings) == nodes['sheet_counter'].published_landing
+        )
 
     assert ros.spin_until(complete, timeout=60.0)
     # lockstep: every node ran every tick of the clock, in order, none skipped, and stopped at the end
@@ -193,10 +219,15 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
 
     # graph: every topic of the line under its documented name and type
     graph = dict(listener.get_topic_names_and_types())
-    expected = {CLOCK_TOPIC: TYPES[CLOCK_TOPIC], EVENTS_TOPIC: TYPES[EVENTS_TOPIC],
-                SHEET_COUNT_TOPIC: TYPES[SHEET_COUNT_TOPIC], SHEET_RATE_TOPIC: TYPES[SHEET_RATE_TOPIC],
-                LANDING_TOPIC: TYPES[LANDING_TOPIC], COMMANDS_TOPIC: TYPES[COMMANDS_TOPIC],
-                PARTICIPANTS_TOPIC: 'std_msgs/msg/String'}
+    expected = {
+        CLOCK_TOPIC: TYPES[CLOCK_TOPIC],
+        EVENTS_TOPIC: TYPES[EVENTS_TOPIC],
+        SHEET_COUNT_TOPIC: TYPES[SHEET_COUNT_TOPIC],
+        SHEET_RATE_TOPIC: TYPES[SHEET_RATE_TOPIC],
+        LANDING_TOPIC: TYPES[LANDING_TOPIC],
+        COMMANDS_TOPIC: TYPES[COMMANDS_TOPIC],
+        PARTICIPANTS_TOPIC: 'std_msgs/msg/String',
+    }
     expected.update({joint_states_topic(n): 'sensor_msgs/msg/JointState' for n in joints})
     expected.update({tick_done_topic(n): 'sensor_msgs/msg/TimeReference' for n in nodes})
     for topic, type_name in expected.items():
@@ -263,8 +294,9 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     lagged = np.searchsorted(counted, t - window, side='right')
     expect_rate = np.where(window > 0.0, (n_expected - lagged) / np.where(window > 0.0, window, 1.0), 0.0)
     assert [m.data for m in rates.messages] == expect_rate.tolist()
-    landed = model.events[(model.events['kind'] == EVENT_KINDS.index('leaf_landed'))
-                          & (model.events['t'] <= duration)]['value']
+    landed = model.events[(model.events['kind'] == EVENT_KINDS.index('leaf_landed')) & (model.events['t'] <= duration)][
+        'value'
+    ]
     assert [m.data for m in landings.messages] == landed.tolist()
     assert (len(landed) > 0) == scene.has_layup
 
@@ -287,8 +319,10 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     an EventsExecutor: its joint states go on from its last grid point in 1 s steps, nothing else changes."""
     use_events_executor(ros)
     common = params(scene='folder', horizon=3.0)
-    nodes = {cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=common))
-             for cls in (CLASSES['crank_drive'], CLASSES['belt_conveyor'], FeedTransporter, SheetCounter, Supervisor)}
+    nodes = {
+        cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=common))
+        for cls in (CLASSES['crank_drive'], CLASSES['belt_conveyor'], FeedTransporter, SheetCounter, Supervisor)
+    }
     crank, sup = nodes['crank_drive'], nodes['supervisor']
     hold = ros.add(FakeParticipant(ros.context, hold_from=NS_PER_S // 2))  # holds sim time at 0.5 s
     listener = ros.node('listener')
@@ -296,19 +330,32 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     crank_js, crank_sub = subscribe(ros, listener, JointState, joint_states_topic('crank_drive'))
     belt_js, belt_sub = subscribe(ros, listener, JointState, joint_states_topic('belt_conveyor'))
     events, events_sub = subscribe(ros, listener, TimeReference, EVENTS_TOPIC)
-    assert ros.spin_until(lambda: crank_sub.get_publisher_count() == belt_sub.get_publisher_count() == 1
-                          and events_sub.get_publisher_count() == 5 and client.services_are_ready(), timeout=20.0)
+    assert ros.spin_until(
+        lambda: (
+            crank_sub.get_publisher_count() == belt_sub.get_publisher_count() == 1
+            and events_sub.get_publisher_count() == 5
+            and client.services_are_ready()
+        ),
+        timeout=20.0,
+    )
     clock = start_clock(ros, 2.0, [*nodes, 'line_recorder'], lost_timeout=60.0)
-    assert ros.spin_until(lambda: hold.held == NS_PER_S // 2 and crank.lockstep.last_done == NS_PER_S // 2,
-                          timeout=30.0)
+    assert ros.spin_until(
+        lambda: hold.held == NS_PER_S // 2 and crank.lockstep.last_done == NS_PER_S // 2, timeout=30.0
+    )
     future = client.set_parameters([Parameter('rate', value=1.0)])
     assert ros.spin_until(future.done, timeout=20.0)
     assert future.result().results[0].successful
     hold.run_to(None)
-    assert ros.spin_until(lambda: clock.done.done() and all(n.done.done() for n in nodes.values())
-                          and len(crank_js) == crank.published_joint_states
-                          and len(belt_js) == nodes['belt_conveyor'].published_joint_states
-                          and len(events) == sum(n.published_events for n in nodes.values()), timeout=60.0)
+    assert ros.spin_until(
+        lambda: (
+            clock.done.done()
+            and all(n.done.done() for n in nodes.values())
+            and len(crank_js) == crank.published_joint_states
+            and len(belt_js) == nodes['belt_conveyor'].published_joint_states
+            and len(events) == sum(n.published_events for n in nodes.values())
+        ),
+        timeout=60.0,
+    )
     end = 2 * NS_PER_S
     stamps = [stamp_ns(m) for m in crank_js.messages]
     assert stamps == grid(0, NS_PER_S // 2, STEP) + [3 * NS_PER_S // 2]  # then 1.5 s; 2.5 s is past the end
@@ -318,8 +365,9 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     assert [stamp_ns(m) for m in belt_js.messages] == grid(0, end, STEP)
     assert crank.ticks == nodes['belt_conveyor'].ticks == grid(0, end, STEP)  # every tick, acknowledged
     for owner in nodes:
-        assert event_rows([m for m in events.messages if m.header.frame_id == owner]) == \
-            model_event_rows(model, owner, end), owner
+        assert event_rows([m for m in events.messages if m.header.frame_id == owner]) == model_event_rows(
+            model, owner, end
+        ), owner
     assert all(n.lockstep.ticks == 401 and n.rejected == {} for n in nodes.values())
     assert sup.packml.state == 'EXECUTE' and sup.logic.violations == [] and sup.logic.lost_nodes == []
     assert clock.lost == {} and clock.ticks == 401
@@ -335,8 +383,10 @@ BAD_RATES = [
     ('x', "rate='x': must be a float, got str"),
     (100, 'rate=100: must be a float (write 100.0), got int'),
 ]
-NO_WALL_CLOCK = ("use_sim_time=False rejected: use_sim_time=False: a line node runs on the line's simulated time "
-                 '(/clock); it cannot be turned off')
+NO_WALL_CLOCK = (
+    "use_sim_time=False rejected: use_sim_time=False: a line node runs on the line's simulated time "
+    '(/clock); it cannot be turned off'
+)
 
 
 def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros) -> None:
@@ -357,8 +407,7 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
         for value, reason in BAD_RATES:
             assert call(name, Parameter('rate', value=value)) == (False, reason)
             assert node.get_parameter('rate').value == 200.0 and node._period_ns == STEP
-        for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('horizon', 10.0),
-                                 ('lost_timeout', 1.0)):
+        for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('horizon', 10.0), ('lost_timeout', 1.0)):
             ok, reason = call(name, Parameter(read_only, value=value))
             assert not ok and 'read-only' in reason and read_only in reason
         assert node.get_parameter('scene').value == 'folder' and node.model.scene.name == 'folder'
@@ -377,8 +426,9 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
 def test_a_node_refuses_to_start_on_the_wall_clock(ros: Ros, cls: type[MachineNode]) -> None:
     with pytest.raises(ParameterError) as info:
         cls(context=ros.context, parameter_overrides=params(use_sim_time=False))
-    assert str(info.value) == ("use_sim_time=False: a line node runs on the line's simulated time (/clock); "
-                               'it cannot be turned off')
+    assert str(info.value) == (
+        "use_sim_time=False: a line node runs on the line's simulated time (/clock); it cannot be turned off"
+    )
 
 
 BAD_STARTS = [
@@ -400,16 +450,28 @@ def test_a_node_refuses_to_start_on_a_bad_scene_in_process(ros: Ros) -> None:
 
 
 def test_node_processes_refuse_a_bad_start_with_exit_code_2(node_env: dict[str, str], tmp_path: Path) -> None:
-    cases = [(node, param, words) for node in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter',
-                                               'supervisor') for param, words in BAD_STARTS[:4]]
+    cases = [
+        (node, param, words)
+        for node in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
+        for param, words in BAD_STARTS[:4]
+    ]
     cases += [('crank_drive', param, words) for param, words in BAD_STARTS[4:]]
     procs = []
     for i, (node, param, _) in enumerate(cases):
         err = tmp_path / f'{i}.err'
         with open(err, 'wb') as stderr:
-            procs.append((subprocess.Popen([sys.executable, '-m', f'folder_line.nodes.{node}', '--ros-args',
-                                            '-p', param], env=node_env, cwd=REPO, stdout=subprocess.DEVNULL,
-                                           stderr=stderr), err))
+            procs.append(
+                (
+                    subprocess.Popen(
+                        [sys.executable, '-m', f'folder_line.nodes.{node}', '--ros-args', '-p', param],
+                        env=node_env,
+                        cwd=REPO,
+                        stdout=subprocess.DEVNULL,
+                        stderr=stderr,
+                    ),
+                    err,
+                )
+            )
     try:
         for (node, param, words), (proc, err) in zip(cases, procs):
             assert proc.wait(timeout=60) == 2, (node, param, err.read_text())

@@ -19,8 +19,9 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import pytest
 import rclpy
@@ -48,15 +49,23 @@ class Line:
         self.context = Context()
         rclpy.init(context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
-        params = [Parameter('scene', value='folder'), Parameter('horizon', value=DURATION + 1.0),
-                  Parameter('rate', value=200.0)]
+        params = [
+            Parameter('scene', value='folder'),
+            Parameter('horizon', value=DURATION + 1.0),
+            Parameter('rate', value=200.0),
+        ]
         # diagnostics every 0.1 s of sim time: a snapshot has some however slowly a loaded machine runs the line
-        self.supervisor = Supervisor(parameter_overrides=[*params, Parameter('diag_rate', value=10.0)],
-                                     context=self.context)
-        self.nodes = [cls(parameter_overrides=params, context=self.context)
-                      for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)]
-        self.nodes += [self.supervisor, LineClock(parameter_overrides=[Parameter('duration', value=DURATION)],
-                                                  context=self.context)]
+        self.supervisor = Supervisor(
+            parameter_overrides=[*params, Parameter('diag_rate', value=10.0)], context=self.context
+        )
+        self.nodes = [
+            cls(parameter_overrides=params, context=self.context)
+            for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)
+        ]
+        self.nodes += [
+            self.supervisor,
+            LineClock(parameter_overrides=[Parameter('duration', value=DURATION)], context=self.context),
+        ]
         for node in self.nodes:
             self.executor.add_node(node)
         self._stop = threading.Event()
@@ -93,8 +102,9 @@ class Line:
 def line() -> Iterator[Line]:
     running = Line()
     try:
-        assert running.wait_for(lambda: running.supervisor.packml.state == 'EXECUTE', timeout=30.0), \
+        assert running.wait_for(lambda: running.supervisor.packml.state == 'EXECUTE', timeout=30.0), (
             running.supervisor.packml.state
+        )
         yield running
     finally:
         running.stop()
@@ -110,8 +120,9 @@ def monitor_cmd(*args: str) -> list[str]:
 def snapshot(node_env: dict[str, str]) -> tuple[list[str], dict[str, list[str]]]:
     """One ``--once`` snapshot: its lines, and its topic rows split into words."""
     t0 = time.monotonic()
-    proc = subprocess.run(monitor_cmd('--once', '--window', '1.5'), env=node_env, capture_output=True, text=True,
-                          timeout=60, check=False)
+    proc = subprocess.run(
+        monitor_cmd('--once', '--window', '1.5'), env=node_env, capture_output=True, text=True, timeout=60, check=False
+    )
     assert proc.returncode == 0, proc.stderr
     assert 'traceback' not in proc.stderr.lower()
     print(f'--once took {time.monotonic() - t0:.2f} s:\n{proc.stdout}')
@@ -143,8 +154,9 @@ def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[s
 
 def test_once_without_a_line_says_so_and_exits_0(node_env: dict[str, str]) -> None:
     env = dict(node_env, ROS_DOMAIN_ID=str(215 + int(node_env['ROS_DOMAIN_ID']) % 18))  # nobody there
-    proc = subprocess.run(monitor_cmd('--once', '--timeout', '1'), env=env, capture_output=True, text=True,
-                          timeout=60, check=False)
+    proc = subprocess.run(
+        monitor_cmd('--once', '--timeout', '1'), env=env, capture_output=True, text=True, timeout=60, check=False
+    )
     assert proc.returncode == 0, proc.stderr
     assert 'waiting for the line' in proc.stdout and 'supervisor ?' in proc.stdout
 
@@ -161,8 +173,14 @@ class Tmux:
         self.run('new-session', '-d', '-s', 'mon', '-x', str(width), '-y', str(height), command)
 
     def run(self, *args: str) -> str:
-        proc = subprocess.run(['tmux', '-L', self.socket, '-f', os.devnull, *args], env=self.env,
-                              capture_output=True, text=True, timeout=10, check=False)
+        proc = subprocess.run(
+            ['tmux', '-L', self.socket, '-f', os.devnull, *args],
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=False,
+        )
         assert proc.returncode == 0, (args, proc.stderr)
         return proc.stdout
 
@@ -182,8 +200,9 @@ class Tmux:
 
     def kill(self) -> None:
         """Stop the server and remove its socket file."""
-        subprocess.run(['tmux', '-L', self.socket, 'kill-server'], env=self.env, capture_output=True, timeout=10,
-                       check=False)
+        subprocess.run(
+            ['tmux', '-L', self.socket, 'kill-server'], env=self.env, capture_output=True, timeout=10, check=False
+        )
         base = Path(self.env.get('TMUX_TMPDIR') or '/tmp') / f'tmux-{os.getuid()}'
         (base / self.socket).unlink(missing_ok=True)
 
@@ -191,9 +210,13 @@ class Tmux:
 def live_rows(text: str) -> bool:
     """The header, the joint_states rows with rates above zero and the constraints are on the screen."""
     rows = {w[0]: w for w in (line.split() for line in text.splitlines()) if w and w[0].startswith('/')}
-    return (text.startswith('folder-line monitor |') and 'supervisor EXECUTE' in text
-            and all(t in rows and rows[t][1] != '-' and float(rows[t][1]) > 0.0 for t in JOINT_TOPICS)
-            and 'CONSTRAINT' in text and 'folder_line/feed_window' in text)
+    return (
+        text.startswith('folder-line monitor |')
+        and 'supervisor EXECUTE' in text
+        and all(t in rows and rows[t][1] != '-' and float(rows[t][1]) > 0.0 for t in JOINT_TOPICS)
+        and 'CONSTRAINT' in text
+        and 'folder_line/feed_window' in text
+    )
 
 
 @pytest.fixture
@@ -202,11 +225,14 @@ def tmux_ok() -> None:
 
 
 @pytest.mark.parametrize('key', ['q', 'C-c'])
-def test_curses_view_in_tmux_quits_cleanly(line: Line, node_env: dict[str, str], tmp_path: Path, key: str,
-                                           tmux_ok: None) -> None:
+def test_curses_view_in_tmux_quits_cleanly(
+    line: Line, node_env: dict[str, str], tmp_path: Path, key: str, tmux_ok: None
+) -> None:
     err = tmp_path / 'stderr.txt'
-    command = (f'{shlex.join(monitor_cmd("--rate", "10"))} 2>{shlex.quote(str(err))}; echo "EXIT=$?"; '
-               'sleep 120')  # the pane stays, to show what the terminal looks like after the monitor
+    command = (
+        f'{shlex.join(monitor_cmd("--rate", "10"))} 2>{shlex.quote(str(err))}; echo "EXIT=$?"; '
+        'sleep 120'
+    )  # the pane stays, to show what the terminal looks like after the monitor
     tmux = Tmux(node_env, 110, 45, command)
     try:
         t0 = time.monotonic()

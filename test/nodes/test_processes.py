@@ -28,8 +28,9 @@ DOMAIN = int(os.environ['ROS_DOMAIN_ID'])  # conftest's, for this test process a
 
 
 @pytest.mark.parametrize('sig', [signal.SIGKILL, signal.SIGSTOP], ids=['SIGKILL', 'SIGSTOP'])
-def test_a_lost_node_is_named_the_line_aborts_and_run_fails(node_env: dict[str, str], tmp_path: Path,
-                                                            sig: signal.Signals) -> None:
+def test_a_lost_node_is_named_the_line_aborts_and_run_fails(
+    node_env: dict[str, str], tmp_path: Path, sig: signal.Signals
+) -> None:
     out = tmp_path / 'out'
     run = start_run(node_env, out, '--processes', '--duration', str(DURATION), '--rtf', '1', '--lost-timeout', '1')
     victim = None
@@ -57,7 +58,8 @@ def test_a_lost_node_is_named_the_line_aborts_and_run_fails(node_env: dict[str, 
     t_lost = summary['lost_participants'][VICTIM]
     assert 1.0 <= t_lost < DURATION
     assert summary['cause'].startswith('lost:feed_transporter in cycle ') and summary['cause'].endswith(
-        f'-> abort (node {VICTIM})')
+        f'-> abort (node {VICTIM})'
+    )
     assert summary['supervisor_state'] == 'ABORTED'
     assert summary['sim_time_reached_s'] == DURATION  # the line ran on without it
     codes = summary['exit_codes']
@@ -78,7 +80,7 @@ def test_a_lost_node_is_named_the_line_aborts_and_run_fails(node_env: dict[str, 
     assert violation['constraint'] == f'lost:{VICTIM}' and violation['action'] == 'abort'
     states = [r.msg.data for r in records[('/line/supervisor/state', '')]]
     assert states[-1] == 'ABORTED' and 'ABORTING' in states
-    assert states[:states.index('ABORTING')][-1] == 'EXECUTE'
+    assert states[: states.index('ABORTING')][-1] == 'EXECUTE'
     assert [kv['node'] for _, kv, _ in statuses(records, 'folder_line/line_clock/lost')] == [VICTIM]
     inputs = statuses(records, 'folder_line/supervisor/inputs')
     assert inputs[-1][1].get('lost') == VICTIM

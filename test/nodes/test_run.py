@@ -41,8 +41,13 @@ if TYPE_CHECKING:
     from conftest import Ros
 
 RATE = 200.0  # the nodes' default, Hz of sim time
-TICK_TOPICS = ('/clock', '/line/supervisor/state', '/line/sheet_counter/count', '/line/sheet_counter/rate',
-               *(joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')))
+TICK_TOPICS = (
+    '/clock',
+    '/line/supervisor/state',
+    '/line/sheet_counter/count',
+    '/line/sheet_counter/rate',
+    *(joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')),
+)
 DOMAIN = int(os.environ['ROS_DOMAIN_ID'])  # conftest's, for this test process and its children
 
 
@@ -70,12 +75,16 @@ def test_run_in_process(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> No
     assert_bag_is_model(read_bag_mcap(tmp_path / 'bag'), 'folder', duration, RATE)
 
 
-@pytest.mark.parametrize(('item', 'line'), [
-    ('feed_transporter.V_tr=-1', 'folder-line: error: feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
-    ('V_tr', "folder-line: error: --set='V_tr': must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833"),
-])
-def test_run_refuses_a_bad_set_with_one_line(tmp_path: Path, capfd: pytest.CaptureFixture[str], item: str,
-                                             line: str) -> None:
+@pytest.mark.parametrize(
+    ('item', 'line'),
+    [
+        ('feed_transporter.V_tr=-1', 'folder-line: error: feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
+        ('V_tr', "folder-line: error: --set='V_tr': must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833"),
+    ],
+)
+def test_run_refuses_a_bad_set_with_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], item: str, line: str
+) -> None:
     out = tmp_path / 'out'
     assert main(['run', '--duration', '1', '--set', item, '--out', str(out)]) == 2
     captured = capfd.readouterr()
@@ -84,8 +93,9 @@ def test_run_refuses_a_bad_set_with_one_line(tmp_path: Path, capfd: pytest.Captu
 
 
 @pytest.mark.parametrize('processes', [False, True], ids=['in-process', 'processes'])
-def test_sigterm_closes_the_bag_writes_run_json_and_ends_every_node(node_env: dict[str, str], tmp_path: Path,
-                                                                   processes: bool) -> None:
+def test_sigterm_closes_the_bag_writes_run_json_and_ends_every_node(
+    node_env: dict[str, str], tmp_path: Path, processes: bool
+) -> None:
     out = tmp_path / 'out'
     run = start_run(node_env, out, '--duration', '60', '--rtf', '1', *(['--processes'] if processes else []))
     try:
@@ -116,8 +126,9 @@ def test_sigterm_closes_the_bag_writes_run_json_and_ends_every_node(node_env: di
     assert line_processes(out, DOMAIN, run.started) == {}
 
 
-def test_a_second_line_on_the_same_domain_is_refused(node_env: dict[str, str], tmp_path: Path,
-                                                    capfd: pytest.CaptureFixture[str]) -> None:
+def test_a_second_line_on_the_same_domain_is_refused(
+    node_env: dict[str, str], tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
     # 4 s at rtf 0.5: at least 8 s of wall time (a ceiling, whatever the load), more than the second run's
     # search for another line (run.OTHER_LINE_WAIT)
     first = start_run(node_env, tmp_path / 'first', '--duration', '4', '--rtf', '0.5')
@@ -149,8 +160,9 @@ def test_a_foreign_clock_stops_the_run_with_one_line(ros: Ros, node_env: dict[st
         run.stop()
     assert code == 1, run.text()
     [line] = run.error_lines()
-    assert line.startswith('folder-line: run failed: interrupted (another /clock publisher appeared on this '
-                           'ROS domain) at '), line
+    assert line.startswith(
+        'folder-line: run failed: interrupted (another /clock publisher appeared on this ROS domain) at '
+    ), line
     summary = json.loads((out / 'run.json').read_text())
     assert 'another /clock publisher' in summary['interrupted'] and not summary['outcome']['ok']
     read_bag_mcap(out / 'bag')
@@ -170,26 +182,40 @@ def _hostile(ros: Ros) -> list[tuple[object, object]]:
         return msg
 
     commands = node.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
-    pairs += [(commands, ref('fuzz', 'hold', 1)), (commands, ref('fuzz', 'stop', 1)),
-              (commands, ref('supervisor', 'jump', 1)), (commands, ref('supervisor', '', 1)),
-              (commands, ref('supervisor', 'hold ' + 'x' * 500, 1))]
+    pairs += [
+        (commands, ref('fuzz', 'hold', 1)),
+        (commands, ref('fuzz', 'stop', 1)),
+        (commands, ref('supervisor', 'jump', 1)),
+        (commands, ref('supervisor', '', 1)),
+        (commands, ref('supervisor', 'hold ' + 'x' * 500, 1)),
+    ]
     events = node.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
-    pairs += [(events, ref('fuzz', 'knife_contact sheet=1 cycle=1 value=0.0', 1)),  # not the owner's
-              (events, ref('fuzz', 'garbage')), (events, ref('fuzz', '')), (events, ref('fuzz', 'é' * 300)),
-              (events, ref('fuzz', 'knife_contact sheet=x cycle=1 value=nan')),
-              (events, ref('fuzz', 'no_such_kind sheet=1 cycle=1 value=1.0')),
-              (events, ref('crank_drive', 'garbage')),  # a participant's name on a malformed event
-              (events, ref('crank_drive', 'settled sheet=1 cycle=1 value=0.0', 1))]  # not crank_drive's kind
+    pairs += [
+        (events, ref('fuzz', 'knife_contact sheet=1 cycle=1 value=0.0', 1)),  # not the owner's
+        (events, ref('fuzz', 'garbage')),
+        (events, ref('fuzz', '')),
+        (events, ref('fuzz', 'é' * 300)),
+        (events, ref('fuzz', 'knife_contact sheet=x cycle=1 value=nan')),
+        (events, ref('fuzz', 'no_such_kind sheet=1 cycle=1 value=1.0')),
+        (events, ref('crank_drive', 'garbage')),  # a participant's name on a malformed event
+        (events, ref('crank_drive', 'settled sheet=1 cycle=1 value=0.0', 1)),
+    ]  # not crank_drive's kind
     for producer in (*MACHINE_NODES, 'line_recorder'):
         done = node.create_publisher(TimeReference, tick_done_topic(producer), TICK_QOS)
-        pairs += [(done, ref(producer, 'garbage', 2)), (done, ref(producer, 'messages=-1 events=0 commands=0', 2)),
-                  (done, ref(producer, 'messages=1 events=1 commands=1 extra=1', 2)),
-                  (done, ref(producer, f'messages={2**64} events=0 commands=0', 2)),
-                  (done, ref('fuzz', 'messages=0 events=0 commands=0', 2))]
+        pairs += [
+            (done, ref(producer, 'garbage', 2)),
+            (done, ref(producer, 'messages=-1 events=0 commands=0', 2)),
+            (done, ref(producer, 'messages=1 events=1 commands=1 extra=1', 2)),
+            (done, ref(producer, f'messages={2**64} events=0 commands=0', 2)),
+            (done, ref('fuzz', 'messages=0 events=0 commands=0', 2)),
+        ]
     participants = node.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
-    pairs += [(participants, String(data='garbage')), (participants, String(data='clock=fast end=1 participants=x')),
-              (participants, String(data='clock=lockstep end=none participants=crank_drive')),  # a second line's
-              (participants, String(data='x' * 5000))]
+    pairs += [
+        (participants, String(data='garbage')),
+        (participants, String(data='clock=fast end=1 participants=x')),
+        (participants, String(data='clock=lockstep end=none participants=crank_drive')),  # a second line's
+        (participants, String(data='x' * 5000)),
+    ]
     for name in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter'):
         joints = node.create_publisher(JointState, joint_states_topic(name), LINE_QOS)
         nan = JointState(name=['fuzz'], position=[math.nan], velocity=[math.inf], effort=[])
@@ -198,8 +224,7 @@ def _hostile(ros: Ros) -> list[tuple[object, object]]:
     return pairs
 
 
-def test_hostile_inputs_are_rejected_and_the_line_runs_on(ros: Ros, node_env: dict[str, str],
-                                                          tmp_path: Path) -> None:
+def test_hostile_inputs_are_rejected_and_the_line_runs_on(ros: Ros, node_env: dict[str, str], tmp_path: Path) -> None:
     duration = 3.0
     out = tmp_path / 'out'
     run = start_run(node_env, out, '--duration', str(duration), '--rtf', '1')
@@ -231,8 +256,9 @@ def test_hostile_inputs_are_rejected_and_the_line_runs_on(ros: Ros, node_env: di
         assert int(rejected.get(kind, '0')) > 0, (kind, rejected)
 
 
-def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(tmp_path: Path,
-                                                                             capfd: pytest.CaptureFixture[str]) -> None:
+def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
     """The recorder's write fails (ENOSPC on a 64 KiB tmpfs): the run stops, prints one error line naming
     the bag file and the OS reason (no FATAL callback dump from the executor), exits 2, and the bag is
     left as far as it got, marked partial and repairable."""
@@ -242,8 +268,9 @@ def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(tmp
         pytest.skip('mounting a tmpfs needs root')
     disk = tmp_path / 'small'
     disk.mkdir()
-    mount = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=64k', 'tmpfs', str(disk)], capture_output=True,
-                           text=True, check=False)
+    mount = subprocess.run(
+        ['mount', '-t', 'tmpfs', '-o', 'size=64k', 'tmpfs', str(disk)], capture_output=True, text=True, check=False
+    )
     if mount.returncode != 0:
         pytest.skip(f'cannot mount a tmpfs here: {mount.stderr.strip()}')
     try:

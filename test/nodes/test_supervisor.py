@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import math
 import re
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -55,7 +56,7 @@ if TYPE_CHECKING:
 
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 MS = 1_000_000  # ns
-STEP = 5 * MS   # ticks and grid at 200 Hz
+STEP = 5 * MS  # ticks and grid at 200 Hz
 H = 1.0 / 200.0  # the supervisor's check period, s (as the node computes it)
 HORIZON = 5.0
 LEAD = 0.1  # the supervisor's default command_lead, s
@@ -102,8 +103,9 @@ class Line:
     def __init__(self, ros: Ros, duration: float, **supervisor: Any) -> None:
         self.ros = ros
         common = {'scene': 'folder', 'horizon': HORIZON}
-        self.machines = {cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common)))
-                         for cls in MACHINES}
+        self.machines = {
+            cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common))) for cls in MACHINES
+        }
         self.sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(**common, **supervisor)))
         self.nodes: dict[str, MachineNode] = {**self.machines, 'supervisor': self.sup}
         self.hold = ros.add(FakeParticipant(ros.context, hold_from=0))
@@ -112,23 +114,39 @@ class Line:
         self.commands, commands_sub = subscribe(ros, self.listener, TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
         self.crank, crank_sub = subscribe(ros, self.listener, JointState, joint_states_topic('crank_drive'))
         self.clients = {name: self.listener.create_client(Trigger, f'/line/supervisor/{name}') for name in SERVICES}
-        assert ros.spin_until(lambda: all(c.service_is_ready() for c in self.clients.values())
-                              and state_sub.get_publisher_count() == crank_sub.get_publisher_count() == 1
-                              and commands_sub.get_publisher_count() == 1, timeout=20.0)
+        assert ros.spin_until(
+            lambda: (
+                all(c.service_is_ready() for c in self.clients.values())
+                and state_sub.get_publisher_count() == crank_sub.get_publisher_count() == 1
+                and commands_sub.get_publisher_count() == 1
+            ),
+            timeout=20.0,
+        )
         self.end = round(duration * NS_PER_S)
-        self.clock = ros.add(LineClock(context=ros.context, parameter_overrides=params(
-            duration=duration, rtf=0.0, lost_timeout=60.0, participants=','.join([*self.nodes, 'line_recorder']))))
+        self.clock = ros.add(
+            LineClock(
+                context=ros.context,
+                parameter_overrides=params(
+                    duration=duration, rtf=0.0, lost_timeout=60.0, participants=','.join([*self.nodes, 'line_recorder'])
+                ),
+            )
+        )
 
     def pause_at(self, t: float) -> float:
         """Let sim time run to the first tick at or after ``t`` s and hold it there, every node's tick done;
         return that tick, s (the supervisor's watermark)."""
         stamp = tick_at_or_after(t)
         self.hold.run_to(stamp)
-        assert self.ros.spin_until(lambda: self.hold.held == stamp and self.sup.lockstep.last_done == stamp
-                                   and len(self.state) == self.sup.published_state
-                                   and len(self.commands) == self.sup.published_commands
-                                   and len(self.crank) == self.machines['crank_drive'].published_joint_states,
-                                   timeout=30.0)
+        assert self.ros.spin_until(
+            lambda: (
+                self.hold.held == stamp
+                and self.sup.lockstep.last_done == stamp
+                and len(self.state) == self.sup.published_state
+                and len(self.commands) == self.sup.published_commands
+                and len(self.crank) == self.machines['crank_drive'].published_joint_states
+            ),
+            timeout=30.0,
+        )
         assert self.sup.logic.now == stamp / NS_PER_S
         return stamp / NS_PER_S
 
@@ -140,9 +158,14 @@ class Line:
 
     def run_to_end(self) -> None:
         self.hold.run_to(None)
-        assert self.ros.spin_until(lambda: self.clock.done.done() and all(n.done.done() for n in self.nodes.values())
-                                   and len(self.crank) == self.machines['crank_drive'].published_joint_states,
-                                   timeout=60.0)
+        assert self.ros.spin_until(
+            lambda: (
+                self.clock.done.done()
+                and all(n.done.done() for n in self.nodes.values())
+                and len(self.crank) == self.machines['crank_drive'].published_joint_states
+            ),
+            timeout=60.0,
+        )
         ticks = len(grid(0, self.end, STEP))
         assert self.clock.ticks == ticks and self.clock.lost == {}
         assert all(n.lockstep.ticks == ticks and n.rejected == {} for n in self.nodes.values())
@@ -155,6 +178,7 @@ def effective_in_message(message: str) -> float:
 
 
 # --------------------------------------------------------------------------- hold and unhold
+
 
 def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     scene = load_scene('folder')
@@ -275,14 +299,35 @@ def test_stop_reset_start_abort_clear(ros: Ros) -> None:
     t_cleared = on_grid(t5, lambda g: True, strictly_after=True)
     line.run_to_end()
 
-    assert states_seen(line.state) == ['EXECUTE', 'STOPPING', 'STOPPED', 'RESETTING', 'IDLE', 'STARTING',
-                                       'EXECUTE', 'ABORTING', 'ABORTED', 'CLEARING', 'STOPPED']
+    assert states_seen(line.state) == [
+        'EXECUTE',
+        'STOPPING',
+        'STOPPED',
+        'RESETTING',
+        'IDLE',
+        'STARTING',
+        'EXECUTE',
+        'ABORTING',
+        'ABORTED',
+        'CLEARING',
+        'STOPPED',
+    ]
     assert [(t.target, t.t) for t in sup.packml.history] == [
-        ('EXECUTE', 0.0), ('STOPPING', t1), ('STOPPED', t_stopped), ('RESETTING', t2), ('IDLE', t_idle),
-        ('STARTING', t3), ('EXECUTE', t_execute), ('ABORTING', t4), ('ABORTED', t_aborted), ('CLEARING', t5),
-        ('STOPPED', t_cleared)]
-    assert [(m.source, time_msg_to_ns(m.header.stamp), time_msg_to_ns(m.time_ref)) for m in line.commands.messages] \
-        == [(c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds)]
+        ('EXECUTE', 0.0),
+        ('STOPPING', t1),
+        ('STOPPED', t_stopped),
+        ('RESETTING', t2),
+        ('IDLE', t_idle),
+        ('STARTING', t3),
+        ('EXECUTE', t_execute),
+        ('ABORTING', t4),
+        ('ABORTED', t_aborted),
+        ('CLEARING', t5),
+        ('STOPPED', t_cleared),
+    ]
+    assert [(m.source, time_msg_to_ns(m.header.stamp), time_msg_to_ns(m.time_ref)) for m in line.commands.messages] == [
+        (c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds)
+    ]
     assert line.machines['crank_drive'].commands == tuple(cmds)
     assert [(b.state, b.ok) for b in sup.logic.balances] == [('STOPPED', True), ('ABORTED', True), ('STOPPED', True)]
 
@@ -301,12 +346,14 @@ def test_diagnostics_one_status_per_constraint_then_the_inputs(ros: Ros, overrid
     listener = ros.node('listener')
     diags, sub = subscribe(ros, listener, DiagnosticArray, DIAGNOSTICS_TOPIC)
     assert ros.spin_until(lambda: sub.get_publisher_count() == 1, timeout=20.0)
-    clock = ros.add(LineClock(context=ros.context, parameter_overrides=params(
-        participants='supervisor', rtf=0.0, duration=2.0)))
+    clock = ros.add(
+        LineClock(context=ros.context, parameter_overrides=params(participants='supervisor', rtf=0.0, duration=2.0))
+    )
     names = [f'folder_line/{c.name}' for c in model.constraints]
     assert 'folder_line/feed_window' in names
-    assert ros.spin_until(lambda: clock.done.done() and sup.done.done()
-                          and len(diags) == sup.published_diagnostics, timeout=30.0)
+    assert ros.spin_until(
+        lambda: clock.done.done() and sup.done.done() and len(diags) == sup.published_diagnostics, timeout=30.0
+    )
     arrays = [d for d in diags.messages if d.status and d.status[0].name in names]  # not the event statuses
     # 2 Hz of sim time, exactly
     assert [time_msg_to_ns(d.header.stamp) for d in arrays] == [0, 500 * MS, 1000 * MS, 1500 * MS, 2000 * MS]
@@ -329,8 +376,13 @@ def test_diagnostics_one_status_per_constraint_then_the_inputs(ros: Ros, overrid
             assert float(values['min_margin']) == float(c.margin[decided].min())
             violations = int(np.count_nonzero(c.margin[decided] < 0.0))
             assert values['violations'] == str(violations)
-            level = (DiagnosticStatus.ERROR if c.margin[last] < 0.0 else
-                     DiagnosticStatus.WARN if violations else DiagnosticStatus.OK)
+            level = (
+                DiagnosticStatus.ERROR
+                if c.margin[last] < 0.0
+                else DiagnosticStatus.WARN
+                if violations
+                else DiagnosticStatus.OK
+            )
             assert status.level == level
     last = {s.name: s for s in arrays[-1].status}
     feed = last['folder_line/feed_window']
@@ -345,6 +397,7 @@ def test_diagnostics_one_status_per_constraint_then_the_inputs(ros: Ros, overrid
 
 
 # --------------------------------------------------------------------------- the watermark
+
 
 def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> None:
     """The logic advances to tick t only once every machine participant's tick t is complete: its
@@ -364,8 +417,14 @@ def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> No
         msg.time_ref = ns_to_time_msg(t_ns)
         return msg
 
-    clock = ros.add(LineClock(context=ros.context, parameter_overrides=params(
-        participants='belt_conveyor,supervisor', rtf=0.0, duration=0.2, lost_timeout=60.0)))
+    clock = ros.add(
+        LineClock(
+            context=ros.context,
+            parameter_overrides=params(
+                participants='belt_conveyor,supervisor', rtf=0.0, duration=0.2, lost_timeout=60.0
+            ),
+        )
+    )
     assert ros.spin_until(lambda: belt.held == s and sup.lockstep.pending == [s], timeout=30.0)
     assert sup.lockstep.last_done == s - STEP and sup.logic.now == (s - STEP) / NS_PER_S
     # crank_drive is no participant here: its knife_exit (judged by no constraint, at 0: late) is not waited for
@@ -391,6 +450,7 @@ def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> No
 
 # --------------------------------------------------------------------------- hostile inputs
 
+
 def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> None:
     line = Line(ros, duration=2.0, diag_rate=1.0)  # held at its first tick
     diags, _ = subscribe(ros, line.listener, DiagnosticArray, DIAGNOSTICS_TOPIC)
@@ -408,39 +468,67 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
         return msg
 
     counts = 'messages=0 events=0 commands=0'
-    publish(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS,
-            ref('intruder', 'hold', NS_PER_S), ref('supervisor', 'jump', NS_PER_S))  # to every machine node
-    publish(TimeReference, tick_done_topic('supervisor'), TICK_QOS,
-            ref('supervisor', 'garbage'), ref('intruder', counts))  # to the machine nodes and the clock
-    publish(TimeReference, tick_done_topic('crank_drive'), TICK_QOS,
-            ref('crank_drive', 'messages=1'))  # to the supervisor and the clock
-    publish(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS,
-            String(data='clock=banana end=none participants=crank_drive'))  # to every participant
-    publish(TimeReference, EVENTS_TOPIC, LINE_QOS, ref('belt_conveyor', 'knife_contact sheet=1 cycle=1 value=0.0'),
-            ref('crank_drive', 'nonsense'))  # to the supervisor: a kind from another node, and unparsable
+    publish(
+        TimeReference,
+        COMMANDS_TOPIC,
+        COMMANDS_QOS,
+        ref('intruder', 'hold', NS_PER_S),
+        ref('supervisor', 'jump', NS_PER_S),
+    )  # to every machine node
+    publish(
+        TimeReference, tick_done_topic('supervisor'), TICK_QOS, ref('supervisor', 'garbage'), ref('intruder', counts)
+    )  # to the machine nodes and the clock
+    publish(
+        TimeReference, tick_done_topic('crank_drive'), TICK_QOS, ref('crank_drive', 'messages=1')
+    )  # to the supervisor and the clock
+    publish(
+        String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS, String(data='clock=banana end=none participants=crank_drive')
+    )  # to every participant
+    publish(
+        TimeReference,
+        EVENTS_TOPIC,
+        LINE_QOS,
+        ref('belt_conveyor', 'knife_contact sheet=1 cycle=1 value=0.0'),
+        ref('crank_drive', 'nonsense'),
+    )  # to the supervisor: a kind from another node, and unparsable
     machine = {'command': 2, 'tick_done': 2, 'announcement': 1}
     supervisor = {'command': 2, 'tick_done': 1, 'announcement': 1, 'event': 2}
 
     def all_in() -> bool:
-        return (all(n.rejected == machine for n in line.machines.values()) and line.sup.rejected == supervisor
-                and line.clock.rejected == 3)
+        return (
+            all(n.rejected == machine for n in line.machines.values())
+            and line.sup.rejected == supervisor
+            and line.clock.rejected == 3
+        )
 
-    assert ros.spin_until(all_in, timeout=20.0), ({n: m.rejected for n, m in line.nodes.items()},
-                                                  line.clock.rejected)
+    assert ros.spin_until(all_in, timeout=20.0), ({n: m.rejected for n, m in line.nodes.items()}, line.clock.rejected)
     assert line.hold.held == 0  # all of it while the line waited at its first tick
     line.hold.run_to(None)
-    assert ros.spin_until(lambda: line.clock.done.done() and all(n.done.done() for n in line.nodes.values())
-                          and len(diags) == line.sup.published_diagnostics, timeout=60.0)
+    assert ros.spin_until(
+        lambda: (
+            line.clock.done.done()
+            and all(n.done.done() for n in line.nodes.values())
+            and len(diags) == line.sup.published_diagnostics
+        ),
+        timeout=60.0,
+    )
     assert all_in()  # counted once each, and the line ran every tick to the end
     assert line.clock.ticks == 401 and line.clock.lost == {}
     assert all(n.lockstep.ticks == 401 for n in line.nodes.values())
     assert line.sup.packml.state == 'EXECUTE' and line.sup.logic.violations == []
     assert line.sup.published_commands == 0 and [m.source for m in line.commands.messages] == ['hold', 'jump']
     assert all(n.commands == () for n in line.nodes.values())  # the intruder's hold changed nothing
-    inputs = [d.status[-1] for d in diags.messages
-              if d.status[-1].name == 'folder_line/supervisor/inputs' and time_msg_to_ns(d.header.stamp) > 0]
+    inputs = [
+        d.status[-1]
+        for d in diags.messages
+        if d.status[-1].name == 'folder_line/supervisor/inputs' and time_msg_to_ns(d.header.stamp) > 0
+    ]
     assert len(inputs) == 2  # at 1 s and 2 s of sim time
     for status in inputs:
         assert (status.level, status.message) == (DiagnosticStatus.WARN, '6 inputs rejected')
         assert [(kv.key, kv.value) for kv in status.values] == [
-            ('announcement', '1'), ('command', '2'), ('event', '2'), ('tick_done', '1')]
+            ('announcement', '1'),
+            ('command', '2'),
+            ('event', '2'),
+            ('tick_done', '1'),
+        ]

@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from folder_line.errors import ParameterError
 
@@ -49,17 +50,20 @@ class EffectSpec:
     summary: str
 
 
-EFFECTS: dict[str, EffectSpec] = {spec.name: spec for spec in (
-    EffectSpec('chute_belts', ('layup',), 'belts along the chutes at v_tr (paper 000 eq. 25)'),
-    EffectSpec('leaf_flight', ('layup', 'container'), 'leaf flight from the chute exit to the container floor'),
-    EffectSpec('guide_friction', ('layup',), 'leaf braked by Coulomb friction on the guide (no belts)'),
-    EffectSpec('leaf_damage', ('layup',), 'leaves leaving at or above the damage speed are damaged'),
-    EffectSpec('motor_dynamics', (), 'master drive from a motor torque-speed curve and inertia (ODE)'),
-    EffectSpec('chain_friction', ('delivery',), 'delivery efficiency, forces and sprocket torque (paper 002)'),
-    EffectSpec('feed_slip', ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
-    EffectSpec('stop_bounce', ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
-    EffectSpec('faults', (), 'seeded missing, double and late sheets and belt slow-downs'),
-)}
+EFFECTS: dict[str, EffectSpec] = {
+    spec.name: spec
+    for spec in (
+        EffectSpec('chute_belts', ('layup',), 'belts along the chutes at v_tr (paper 000 eq. 25)'),
+        EffectSpec('leaf_flight', ('layup', 'container'), 'leaf flight from the chute exit to the container floor'),
+        EffectSpec('guide_friction', ('layup',), 'leaf braked by Coulomb friction on the guide (no belts)'),
+        EffectSpec('leaf_damage', ('layup',), 'leaves leaving at or above the damage speed are damaged'),
+        EffectSpec('motor_dynamics', (), 'master drive from a motor torque-speed curve and inertia (ODE)'),
+        EffectSpec('chain_friction', ('delivery',), 'delivery efficiency, forces and sprocket torque (paper 002)'),
+        EffectSpec('feed_slip', ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
+        EffectSpec('stop_bounce', ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
+        EffectSpec('faults', (), 'seeded missing, double and late sheets and belt slow-downs'),
+    )
+}
 
 
 def effect_module(name: str) -> Any:
@@ -83,10 +87,12 @@ def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
     values = dict(values or {})
     for key, value in values.items():
         if key not in fields:
-            raise ParameterError(f'effects.{name}.{key}', value,
-                                 f'unknown parameter of effect {name}; its parameters: {", ".join(fields) or "none"}')
+            raise ParameterError(
+                f'effects.{name}.{key}',
+                value,
+                f'unknown parameter of effect {name}; its parameters: {", ".join(fields) or "none"}',
+            )
     for key in fields:
         if key not in values:
-            raise ParameterError(f'effects.{name}.{key}', None,
-                                 f'missing: effect {name} needs {", ".join(fields)}')
+            raise ParameterError(f'effects.{name}.{key}', None, f'missing: effect {name} needs {", ".join(fields)}')
     return cls(**values)

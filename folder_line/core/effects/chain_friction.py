@@ -56,8 +56,8 @@ from folder_line.core.delivery import (
     evaluate_stroke,
     evaluate_stroke_point,
 )
-from folder_line.core.roots import find_sign_changes
 from folder_line.core.limits import MOTOR_SPEED
+from folder_line.core.roots import find_sign_changes
 from folder_line.core.validate import non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
@@ -191,8 +191,9 @@ def sprocket_torque(scene: Any, Theta: npt.ArrayLike) -> FloatArray:
     return _stroke_torque(_params(scene), scene.machine('delivery'), chain_path(scene), schedule(scene), th)
 
 
-def _stroke_torque(p: Params, delivery: DeliveryParams, path: ChainPath, sch: ChainSchedule,
-                   th: FloatArray) -> FloatArray:
+def _stroke_torque(
+    p: Params, delivery: DeliveryParams, path: ChainPath, sch: ChainSchedule, th: FloatArray
+) -> FloatArray:
     """Sum of M_1 (N m) over the carriages on the stroke at Θ (membership by Θ itself).
 
     A carriage exactly at the entry or the exit (to rounding) counts as on the stroke,
@@ -247,6 +248,7 @@ def stroke_kinks(params: Params, delivery: DeliveryParams, n: int = 4001) -> Flo
         def f(u: float) -> float:
             pt = evaluate_stroke_point(delivery, u, return_section=rs)  # type: ignore[arg-type]
             return pt.alpha - pt.beta
+
         found = find_sign_changes(f, grid, values=vals, xtol=1e-15)
         out.extend(float(x) for x in found.x if 0.0 < x < 2.0)
     return np.unique(np.array(out))
@@ -397,8 +399,9 @@ class MasterLoad:
             am = a_mid + m * sch.pitch
             if 0.0 <= am <= sch.S:
                 a = min(max(a0 + m * sch.pitch, 0.0), sch.S)
-                pt = evaluate_stroke_point(self.delivery, self.path.position1(a),
-                                           return_section=self.params.return_section)  # type: ignore[arg-type]
+                pt = evaluate_stroke_point(
+                    self.delivery, self.path.position1(a), return_section=self.params.return_section
+                )  # type: ignore[arg-type]
                 total += pt.m_1
         return total * self._scale
 
@@ -415,11 +418,19 @@ def master_load(scene: Any, omega_nom: float | None = None) -> MasterLoad:
     if omega_nom is None:
         md = scene.effect('motor_dynamics')
         if md is None:
-            raise ParameterError('effects', 'motor_dynamics',
-                                 'master_load_torque needs omega_nom: give it or list motor_dynamics in the scene')
+            raise ParameterError(
+                'effects',
+                'motor_dynamics',
+                'master_load_torque needs omega_nom: give it or list motor_dynamics in the scene',
+            )
         omega_nom = md.omega_nom
-    key = (_params(scene), scene.machine('delivery'), scene.machine('delivery_chain'), scene.machine('knife'),
-           float(omega_nom))
+    key = (
+        _params(scene),
+        scene.machine('delivery'),
+        scene.machine('delivery_chain'),
+        scene.machine('knife'),
+        float(omega_nom),
+    )
     load = _LOADS.get(key)
     if load is None:
         if len(_LOADS) >= 32:

@@ -58,7 +58,6 @@ walls).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 import numpy.typing as npt
@@ -68,8 +67,17 @@ from folder_line.core.drive import Drive
 from folder_line.core.validate import in_range
 from folder_line.errors import ParameterError
 
-__all__ = ['BeltProfile', 'Params', 'absolute_speed', 'belt_position', 'belt_profile', 'belt_speed',
-           'check_belt_speed', 'exit_times', 'speed_margin']
+__all__ = [
+    'BeltProfile',
+    'Params',
+    'absolute_speed',
+    'belt_position',
+    'belt_profile',
+    'belt_speed',
+    'check_belt_speed',
+    'exit_times',
+    'speed_margin',
+]
 
 
 @dataclass(frozen=True)
@@ -115,13 +123,20 @@ def check_belt_speed(v_tr: float) -> float:
         ``layup.v_tr <= 0``: a leaf would never reach the exit.
     """
     if not v_tr > 0.0:
-        raise ParameterError('layup.v_tr', v_tr, 'must be > 0 when the scene lists chute_belts '
-                                                 '(the leaves ride the belts to the exits)')
+        raise ParameterError(
+            'layup.v_tr', v_tr, 'must be > 0 when the scene lists chute_belts (the leaves ride the belts to the exits)'
+        )
     return float(v_tr)
 
 
-def belt_profile(v_tr: float, drive: Drive, duration: float, t_start: Optional[npt.ArrayLike] = None,
-                 t_end: Optional[npt.ArrayLike] = None, factor: Optional[npt.ArrayLike] = None) -> BeltProfile:
+def belt_profile(
+    v_tr: float,
+    drive: Drive,
+    duration: float,
+    t_start: npt.ArrayLike | None = None,
+    t_end: npt.ArrayLike | None = None,
+    factor: npt.ArrayLike | None = None,
+) -> BeltProfile:
     """The belt's speed profile over [0, duration].
 
     Parameters
@@ -164,8 +179,9 @@ def belt_speed(profile: BeltProfile, drive: Drive, t: npt.ArrayLike) -> np.ndarr
     return profile.v_tr * np.asarray(drive.rate(t), dtype=float) * profile.phase.factor(t)
 
 
-def exit_times(profile: BeltProfile, drive: Drive, length: npt.ArrayLike, t_enter: npt.ArrayLike,
-               theta_end: float) -> tuple[np.ndarray, np.ndarray]:
+def exit_times(
+    profile: BeltProfile, drive: Drive, length: npt.ArrayLike, t_enter: npt.ArrayLike, theta_end: float
+) -> tuple[np.ndarray, np.ndarray]:
     """When leaves that enter at ``t_enter`` (at the pivot) leave the exit ``length`` m down the belt.
 
     Parameters
@@ -207,7 +223,7 @@ def absolute_speed(v_across: npt.ArrayLike, v_along: npt.ArrayLike) -> np.ndarra
     return np.sqrt(a * a + b * b)
 
 
-def speed_margin(params: Params, speed: npt.ArrayLike, upper: Optional[np.ndarray] = None) -> np.ndarray:
+def speed_margin(params: Params, speed: npt.ArrayLike, upper: np.ndarray | None = None) -> np.ndarray:
     """Margin of the ``chute_speed`` constraint, m/s (negative: violated).
 
     Parameters

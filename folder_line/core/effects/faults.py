@@ -20,8 +20,7 @@ import numpy.typing as npt
 from folder_line.core.events import make_events, merge_events
 from folder_line.core.validate import in_range, non_negative
 
-__all__ = ['Params', 'SheetFaults', 'Slowdowns', 'belt_factor', 'draw_sheet_faults', 'draw_slowdowns',
-           'fault_events']
+__all__ = ['Params', 'SheetFaults', 'Slowdowns', 'belt_factor', 'draw_sheet_faults', 'draw_slowdowns', 'fault_events']
 
 
 @dataclass(frozen=True)
@@ -54,10 +53,14 @@ class Params:
         for name in ('p_missing', 'p_double', 'p_late', 'p_slowdown'):
             object.__setattr__(self, name, in_range(f'effects.faults.{name}', getattr(self, name), 0.0, 1.0))
         object.__setattr__(self, 'late_delay', non_negative('effects.faults.late_delay', self.late_delay))
-        object.__setattr__(self, 'slowdown_factor', in_range('effects.faults.slowdown_factor', self.slowdown_factor,
-                                                             0.0, 1.0, lo_open=True))
-        object.__setattr__(self, 'slowdown_duration', non_negative('effects.faults.slowdown_duration',
-                                                                   self.slowdown_duration))
+        object.__setattr__(
+            self,
+            'slowdown_factor',
+            in_range('effects.faults.slowdown_factor', self.slowdown_factor, 0.0, 1.0, lo_open=True),
+        )
+        object.__setattr__(
+            self, 'slowdown_duration', non_negative('effects.faults.slowdown_duration', self.slowdown_duration)
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,8 +121,14 @@ def belt_factor(slowdowns: Slowdowns, t: npt.ArrayLike) -> np.ndarray:
     return np.where(inside, slowdowns.factor[ic], 1.0)
 
 
-def fault_events(faults: SheetFaults, t_nominal: npt.ArrayLike, sheet: npt.ArrayLike, cycle: npt.ArrayLike,
-                 slowdowns: Slowdowns, duration: float) -> np.ndarray:
+def fault_events(
+    faults: SheetFaults,
+    t_nominal: npt.ArrayLike,
+    sheet: npt.ArrayLike,
+    cycle: npt.ArrayLike,
+    slowdowns: Slowdowns,
+    duration: float,
+) -> np.ndarray:
     """Events for the drawn faults: ``fault_missing``/``fault_double``/``fault_late`` at the
     sheet's nominal time, ``belt_slowdown_start``/``_end`` at the slow-down's ends (only
     those within ``duration``)."""
@@ -128,8 +137,9 @@ def fault_events(faults: SheetFaults, t_nominal: npt.ArrayLike, sheet: npt.Array
     cycle = np.asarray(cycle)
     late = faults.delay > 0.0
     tables = [
-        make_events('fault_missing', t_nominal[faults.missing], sheet=sheet[faults.missing],
-                    cycle=cycle[faults.missing]),
+        make_events(
+            'fault_missing', t_nominal[faults.missing], sheet=sheet[faults.missing], cycle=cycle[faults.missing]
+        ),
         make_events('fault_double', t_nominal[faults.double], sheet=sheet[faults.double], cycle=cycle[faults.double]),
         make_events('fault_late', t_nominal[late], sheet=sheet[late], cycle=cycle[late], value=faults.delay[late]),
         make_events('belt_slowdown_start', slowdowns.t_start, value=slowdowns.factor),

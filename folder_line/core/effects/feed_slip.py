@@ -61,7 +61,6 @@ from folder_line.errors import ParameterError
 __all__ = ['Params', 'SlipArrival', 'accel', 'arrival', 'min_belt_speed', 'slip_cost']
 
 
-
 @dataclass(frozen=True)
 class Params:
     """Friction of the signature on the feed belt.
@@ -85,8 +84,11 @@ class Params:
         object.__setattr__(self, 'p', non_negative('effects.feed_slip.p', self.p))
         object.__setattr__(self, 'm', positive('effects.feed_slip.m', self.m))
         if not math.isfinite(self.accel) or self.accel > 1e9:
-            raise ParameterError('effects.feed_slip.p', self.p, f'p/m = {self.p / self.m!r} N/kg is not a '
-                                 'physical hold-down (friction acceleration above 1e9 m/s²)')
+            raise ParameterError(
+                'effects.feed_slip.p',
+                self.p,
+                f'p/m = {self.p / self.m!r} N/kg is not a physical hold-down (friction acceleration above 1e9 m/s²)',
+            )
 
     @property
     def accel(self) -> float:
@@ -214,7 +216,7 @@ def min_belt_speed(params: Params, V_d: float, L: float, t_allowed: float) -> fl
         ``L`` already takes longer than ``t_allowed``).
     """
     V_d, L, t_al = positive('V_d', V_d), positive('L', L), positive('t_allowed', t_allowed)
-    if L <= V_d * t_al:
+    if V_d * t_al >= L:
         return V_d
     a = params.accel
     b = V_d + a * t_al
@@ -223,8 +225,11 @@ def min_belt_speed(params: Params, V_d: float, L: float, t_allowed: float) -> fl
     v_star = math.sqrt(c)
     t_star = 2.0 * L / (V_d + v_star)  # fastest possible feed: friction all the way
     if disc < 0.0 or t_star > t_al:
-        raise ParameterError('effects.feed_slip', params,
-                             f'no belt speed feeds {L!r} m within {t_al!r} s: at full friction '
-                             f'a = {a!r} m/s² the signature needs {t_star!r} s')
+        raise ParameterError(
+            'effects.feed_slip',
+            params,
+            f'no belt speed feeds {L!r} m within {t_al!r} s: at full friction '
+            f'a = {a!r} m/s² the signature needs {t_star!r} s',
+        )
     v = c / (b + math.sqrt(disc))
     return min(v, v_star)

@@ -90,8 +90,9 @@ the pivot, as with the belts), ``v0 = 1.0`` m/s (entry speed from the feeding be
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -101,8 +102,7 @@ from folder_line.core.roots import brent, brentq
 from folder_line.core.validate import in_range, non_negative
 from folder_line.errors import ParameterError
 
-__all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide',
-           'switching']
+__all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide', 'switching']
 
 #: |N| (m/s²) at which a step end counts as on the zero of N
 _KINK_NTOL = 1e-11
@@ -227,32 +227,53 @@ def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
         points upward somewhere in its swing (a leaf could slide back out).
     """
     if not params.s0 < l_min:
-        raise ParameterError('effects.guide_friction.s0', params.s0,
-                             f'must be shorter than the shorter chute ({l_min!r} m)')
+        raise ParameterError(
+            'effects.guide_friction.s0', params.s0, f'must be shorter than the shorter chute ({l_min!r} m)'
+        )
     if not cos_max_up > 0.0:
-        raise ParameterError('effects.guide_friction', 'layup geometry',
-                             f'a chute points upward in its swing (cos of the angle from the downward vertical '
-                             f'reaches {cos_max_up:.6g}); the guide-friction model needs both chutes to point down')
+        raise ParameterError(
+            'effects.guide_friction',
+            'layup geometry',
+            f'a chute points upward in its swing (cos of the angle from the downward vertical '
+            f'reaches {cos_max_up:.6g}); the guide-friction model needs both chutes to point down',
+        )
 
 
-def _hermite(theta: np.ndarray, y0: np.ndarray, d0: np.ndarray, y1: np.ndarray, d1: np.ndarray,
-             h: np.ndarray) -> np.ndarray:
+def _hermite(
+    theta: np.ndarray, y0: np.ndarray, d0: np.ndarray, y1: np.ndarray, d1: np.ndarray, h: np.ndarray
+) -> np.ndarray:
     """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1]."""
     t2 = theta * theta
     t3 = t2 * theta
-    return ((2.0 * t3 - 3.0 * t2 + 1.0) * y0 + (t3 - 2.0 * t2 + theta) * h * d0
-            + (3.0 * t2 - 2.0 * t3) * y1 + (t3 - t2) * h * d1)
+    return (
+        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
+        + (t3 - 2.0 * t2 + theta) * h * d0
+        + (3.0 * t2 - 2.0 * t3) * y1
+        + (t3 - t2) * h * d1
+    )
 
 
 def _hermite1(theta: float, y0: float, d0: float, y1: float, d1: float, h: float) -> float:
     t2 = theta * theta
     t3 = t2 * theta
-    return ((2.0 * t3 - 3.0 * t2 + 1.0) * y0 + (t3 - 2.0 * t2 + theta) * h * d0
-            + (3.0 * t2 - 2.0 * t3) * y1 + (t3 - t2) * h * d1)
+    return (
+        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
+        + (t3 - 2.0 * t2 + theta) * h * d0
+        + (3.0 * t2 - 2.0 * t3) * y1
+        + (t3 - t2) * h * d1
+    )
 
 
-def _rk4(params: Params, kin: KinFn, t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray,
-         ch: np.ndarray, hh: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _rk4(
+    params: Params,
+    kin: KinFn,
+    t: np.ndarray,
+    s: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    ch: np.ndarray,
+    hh: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One RK4 step of length hh per leaf: (s, ṡ, s̈, N) at t + hh."""
     half = 0.5 * hh
     km = kin(t + half, ch)
@@ -277,27 +298,52 @@ class _Active:
 
     __slots__ = ('a', 'ch', 'fresh', 'ids', 'length', 'n', 'pending', 's', 't', 'v')
 
-    def __init__(self, ids: np.ndarray, t: np.ndarray, s: np.ndarray, v: np.ndarray, a: np.ndarray,
-                 n: np.ndarray, ch: np.ndarray, length: np.ndarray, fresh: np.ndarray, pending: np.ndarray) -> None:
+    def __init__(
+        self,
+        ids: np.ndarray,
+        t: np.ndarray,
+        s: np.ndarray,
+        v: np.ndarray,
+        a: np.ndarray,
+        n: np.ndarray,
+        ch: np.ndarray,
+        length: np.ndarray,
+        fresh: np.ndarray,
+        pending: np.ndarray,
+    ) -> None:
         self.ids, self.t, self.s, self.v, self.a, self.n = ids, t, s, v, a, n
         self.ch, self.length, self.fresh, self.pending = ch, length, fresh, pending
 
-    def take(self, m: np.ndarray) -> '_Active':
-        return _Active(*(getattr(self, k)[m] for k in ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh',
-                                                        'pending')))
+    def take(self, m: np.ndarray) -> _Active:
+        return _Active(
+            *(getattr(self, k)[m] for k in ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh', 'pending'))
+        )
 
     @staticmethod
-    def concat(parts: list['_Active']) -> '_Active':
-        return _Active(*(np.concatenate([getattr(p, k) for p in parts]) for k in
-                         ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh', 'pending')))
+    def concat(parts: list[_Active]) -> _Active:
+        return _Active(
+            *(
+                np.concatenate([getattr(p, k) for p in parts])
+                for k in ('ids', 't', 's', 'v', 'a', 'n', 'ch', 'length', 'fresh', 'pending')
+            )
+        )
 
     @property
     def size(self) -> int:
         return int(self.ids.size)
 
 
-def _split_at_kink(params: Params, kin: KinFn, act: '_Active', cross: np.ndarray, hh: np.ndarray,
-                   s1: np.ndarray, v1: np.ndarray, a1: np.ndarray, n1: np.ndarray) -> None:
+def _split_at_kink(
+    params: Params,
+    kin: KinFn,
+    act: _Active,
+    cross: np.ndarray,
+    hh: np.ndarray,
+    s1: np.ndarray,
+    v1: np.ndarray,
+    a1: np.ndarray,
+    n1: np.ndarray,
+) -> None:
     """Shorten the steps across which N changes sign so that they end on its zero (in place).
 
     Illinois (modified regula falsi) iterations on the step length, each a full RK4
@@ -310,7 +356,7 @@ def _split_at_kink(params: Params, kin: KinFn, act: '_Active', cross: np.ndarray
     t, s, v, a, ch = act.t[rows], act.s[rows], act.v[rows], act.a[rows], act.ch[rows]
     best = hb.copy()
     out = (s1[rows], v1[rows], a1[rows], n1[rows])
-    side = np.zeros(rows.size)          # Illinois: which end was kept last (-1 a, +1 b)
+    side = np.zeros(rows.size)  # Illinois: which end was kept last (-1 a, +1 b)
     live = np.ones(rows.size, dtype=bool)
     for _ in range(_KINK_MAXITER):
         hc = hb - nb * (hb - ha) / (nb - na)
@@ -341,8 +387,9 @@ def _split_at_kink(params: Params, kin: KinFn, act: '_Active', cross: np.ndarray
     s1[rows], v1[rows], a1[rows], n1[rows] = out
 
 
-def _exit_fraction(s0: np.ndarray, v0: np.ndarray, s1: np.ndarray, v1: np.ndarray, hh: np.ndarray,
-                   length: np.ndarray) -> np.ndarray:
+def _exit_fraction(
+    s0: np.ndarray, v0: np.ndarray, s1: np.ndarray, v1: np.ndarray, hh: np.ndarray, length: np.ndarray
+) -> np.ndarray:
     """Step fraction where the Hermite interpolant of s reaches ``length`` (s0 < length <= s1): bisection."""
     lo = np.zeros(s0.size)
     hi = np.ones(s0.size)
@@ -361,15 +408,22 @@ def _slip_time(params: Params, kin1: Kin1Fn, s: float, ch: int, lo: float, hi: f
         return float(switching(params, s, kin1(t, ch)))
 
     f_lo, f_hi = sigma(lo), sigma(hi)
-    if f_lo > 0.0:      # the scalar and vector kinematics differ in the last bits at a zero
+    if f_lo > 0.0:  # the scalar and vector kinematics differ in the last bits at a zero
         return lo
     if not f_hi > 0.0:
         return hi
     return brent(sigma, lo, hi).root
 
 
-def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chute: npt.ArrayLike,
-          length: npt.ArrayLike, t_end: float) -> SlideResult:
+def slide(
+    params: Params,
+    kin: KinFn,
+    kin1: Kin1Fn,
+    t_enter: npt.ArrayLike,
+    chute: npt.ArrayLike,
+    length: npt.ArrayLike,
+    t_end: float,
+) -> SlideResult:
     """Integrate every leaf from its entry to the exit (or to ``t_end``), with stick–slip.
 
     Parameters
@@ -415,7 +469,7 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
     nrm = normal(s, v, k0) if n else np.zeros(0)
     fresh = np.full(n, params.v0 == 0.0)
     if params.v0 == 0.0 and n:
-        at_rest = a <= 0.0       # σ(t_enter) <= 0: stuck from the entry
+        at_rest = a <= 0.0  # σ(t_enter) <= 0: stuck from the entry
         for i, t in zip(ids[at_rest].tolist(), t_enter[at_rest].tolist()):
             sticks.append((i, t))
         stuck.append((ids[at_rest], s[at_rest], chute[at_rest], length[at_rest], t_enter[at_rest]))
@@ -442,12 +496,12 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
         t1 = act.t + hh
 
         halted = v1 <= 0.0
-        failed = halted & act.fresh              # did not get moving after a slip / from rest
+        failed = halted & act.fresh  # did not get moving after a slip / from rest
         stop = halted & ~act.fresh
         out_exit = (s1 >= act.length) & ~failed
         done = out_exit | halted | (t1 > t_end)
-        new_stuck: list[tuple[int, float, float]] = []      # (row, s, scan from)
-        restart: list[tuple[int, float, float]] = []        # (row, t, s): grazing stop, slide on from rest
+        new_stuck: list[tuple[int, float, float]] = []  # (row, s, scan from)
+        restart: list[tuple[int, float, float]] = []  # (row, t, s): grazing stop, slide on from rest
 
         if out_exit.any():
             rows = np.flatnonzero(out_exit)
@@ -463,8 +517,7 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
         else:
             th_exit = {}
         for row in np.flatnonzero(stop).tolist():
-            y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]),
-                                  float(hh[row]))
+            y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
             th_stop = brentq(lambda x: _hermite1(x, y0, d0, y1, d1, hr), 0.0, 1.0)
             t0 = float(act.t[row])
             if row in th_exit and th_exit[row] <= th_stop:
@@ -486,7 +539,7 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
             else:
                 restart.append((row, t_stop, s_stop))
         for row in np.flatnonzero(failed).tolist():
-            if act.pending[row] < 0.0:              # stuck from its entry / after a grazing stop
+            if act.pending[row] < 0.0:  # stuck from its entry / after a grazing stop
                 sticks.append((int(act.ids[row]), float(act.t[row])))
             new_stuck.append((row, float(act.s[row]), float(t1[row])))
         # confirmed slips: leaves that got moving after their pending slip
@@ -496,10 +549,18 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
 
         if new_stuck:
             rr = np.array([x[0] for x in new_stuck], dtype=np.int64)
-            stuck.append((act.ids[rr], np.array([x[1] for x in new_stuck]), act.ch[rr], act.length[rr],
-                          np.array([x[2] for x in new_stuck])))
-        nxt = _Active(act.ids, t1, s1, v1, a1, n1, act.ch, act.length, np.zeros(act.size, dtype=bool),
-                      np.full(act.size, -1.0))
+            stuck.append(
+                (
+                    act.ids[rr],
+                    np.array([x[1] for x in new_stuck]),
+                    act.ch[rr],
+                    act.length[rr],
+                    np.array([x[2] for x in new_stuck]),
+                )
+            )
+        nxt = _Active(
+            act.ids, t1, s1, v1, a1, n1, act.ch, act.length, np.zeros(act.size, dtype=bool), np.full(act.size, -1.0)
+        )
         parts = [nxt.take(~done)]
         if restart:
             rr = np.array([x[0] for x in restart], dtype=np.int64)
@@ -507,8 +568,20 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
             sr = np.array([x[2] for x in restart])
             kr = kin(tr, act.ch[rr])
             zr = np.zeros(rr.size)
-            parts.append(_Active(act.ids[rr], tr, sr, zr, acceleration(params, sr, zr, kr), normal(sr, zr, kr),
-                                 act.ch[rr], act.length[rr], np.ones(rr.size, dtype=bool), np.full(rr.size, -1.0)))
+            parts.append(
+                _Active(
+                    act.ids[rr],
+                    tr,
+                    sr,
+                    zr,
+                    acceleration(params, sr, zr, kr),
+                    normal(sr, zr, kr),
+                    act.ch[rr],
+                    act.length[rr],
+                    np.ones(rr.size, dtype=bool),
+                    np.full(rr.size, -1.0),
+                )
+            )
         act = _Active.concat(parts)
 
     st = np.array([x[1] for x in sticks], dtype=float)
@@ -519,9 +592,13 @@ def slide(params: Params, kin: KinFn, kin1: Kin1Fn, t_enter: npt.ArrayLike, chut
     return SlideResult(exited, t_exit, v_exit, st[keep_st], si[keep_st], sl, sli, steps)
 
 
-def _resolve_stuck(params: Params, kin: KinFn, kin1: Kin1Fn,
-                   stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
-                   t_end: float) -> '_Active | None':
+def _resolve_stuck(
+    params: Params,
+    kin: KinFn,
+    kin1: Kin1Fn,
+    stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    t_end: float,
+) -> _Active | None:
     """Find when each stuck leaf slips (σ > 0), scanning σ on a grid of step h.
 
     Returns the leaves that slip by ``t_end`` as fresh sliding leaves with a pending
@@ -578,5 +655,15 @@ def _resolve_stuck(params: Params, kin: KinFn, kin1: Kin1Fn,
     tr = slip[r]
     kr = kin(tr, ch[r])
     zr = np.zeros(r.size)
-    return _Active(ids[r], tr, s[r], zr, acceleration(params, s[r], zr, kr), normal(s[r], zr, kr), ch[r], length[r],
-                   np.ones(r.size, dtype=bool), tr.copy())
+    return _Active(
+        ids[r],
+        tr,
+        s[r],
+        zr,
+        acceleration(params, s[r], zr, kr),
+        normal(s[r], zr, kr),
+        ch[r],
+        length[r],
+        np.ones(r.size, dtype=bool),
+        tr.copy(),
+    )

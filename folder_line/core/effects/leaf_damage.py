@@ -48,8 +48,9 @@ class Params:
     v_damage: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'v_damage', in_range('effects.leaf_damage.v_damage', self.v_damage, 0.0, 1e3,
-                                                      lo_open=True))
+        object.__setattr__(
+            self, 'v_damage', in_range('effects.leaf_damage.v_damage', self.v_damage, 0.0, 1e3, lo_open=True)
+        )
 
 
 def damaged(params: Params, speed: npt.ArrayLike) -> np.ndarray:

@@ -45,7 +45,7 @@ speed g/k ≈ 3.3 m/s at k = 3).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -88,7 +88,7 @@ class Histogram(NamedTuple):
 
     edges: np.ndarray
     counts: np.ndarray
-    cv: Optional[float]
+    cv: float | None
 
 
 def phi1(z: npt.ArrayLike) -> np.ndarray:
@@ -118,8 +118,9 @@ def phi2(z: npt.ArrayLike) -> np.ndarray:
     return np.where(small, acc, (zl + np.expm1(-zl)) / (zl * zl))
 
 
-def state(params: Params, x0: npt.ArrayLike, y0: npt.ArrayLike, vx: npt.ArrayLike, vy: npt.ArrayLike,
-          t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def state(
+    params: Params, x0: npt.ArrayLike, y0: npt.ArrayLike, vx: npt.ArrayLike, vy: npt.ArrayLike, t: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Position and velocity after flying for ``t`` s (closed form, see the module docstring).
 
     Returns
@@ -141,8 +142,7 @@ def state(params: Params, x0: npt.ArrayLike, y0: npt.ArrayLike, vx: npt.ArrayLik
 def _no_drag_time(height: np.ndarray, vy: np.ndarray) -> np.ndarray:
     root = np.sqrt(vy * vy + 2.0 * G * height)
     up = vy >= 0.0
-    return np.where(up, (np.where(up, vy, 0.0) + root) / G,
-                    2.0 * height / np.where(up, 1.0, root - vy))
+    return np.where(up, (np.where(up, vy, 0.0) + root) / G, 2.0 * height / np.where(up, 1.0, root - vy))
 
 
 def landing_time(params: Params, y0: npt.ArrayLike, vy: npt.ArrayLike, y_floor: float) -> np.ndarray:
@@ -173,8 +173,9 @@ def landing_time(params: Params, y0: npt.ArrayLike, vy: npt.ArrayLike, y_floor: 
     vy = np.asarray(vy, dtype=float)
     height = y0 - y_floor
     if height.size and not height.min() > 0.0:
-        raise ParameterError('container.y_floor', y_floor,
-                             f'must be below every chute exit; an exit is at y = {float(y0.min())!r} m')
+        raise ParameterError(
+            'container.y_floor', y_floor, f'must be below every chute exit; an exit is at y = {float(y0.min())!r} m'
+        )
     t0 = _no_drag_time(height, vy)
     k = params.drag
     if k == 0.0 or height.size == 0:
@@ -202,8 +203,9 @@ def landing_time(params: Params, y0: npt.ArrayLike, vy: npt.ArrayLike, y_floor: 
     return t
 
 
-def landing(params: Params, x0: npt.ArrayLike, y0: npt.ArrayLike, vx: npt.ArrayLike, vy: npt.ArrayLike,
-            y_floor: float) -> tuple[np.ndarray, np.ndarray]:
+def landing(
+    params: Params, x0: npt.ArrayLike, y0: npt.ArrayLike, vx: npt.ArrayLike, vy: npt.ArrayLike, y_floor: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Landing time and landing x of leaves leaving the exits.
 
     Parameters

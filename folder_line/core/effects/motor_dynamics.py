@@ -95,8 +95,9 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -188,9 +189,12 @@ class Params:
         object.__setattr__(self, 'rtol', in_range(k + 'rtol', self.rtol, 100 * ig.EPS, 1.0, hi_open=True))
         one_of(k + 'method', self.method, METHODS)
         if not self.omega_nom < self.omega_0:
-            raise ParameterError(k + 'omega_nom', self.omega_nom,
-                                 f'must be < omega_0 = {self.omega_0!r} rad/s: the motor cannot reach its nominal '
-                                 'speed at or above its no-load speed')
+            raise ParameterError(
+                k + 'omega_nom',
+                self.omega_nom,
+                f'must be < omega_0 = {self.omega_0!r} rad/s: the motor cannot reach its nominal '
+                'speed at or above its no-load speed',
+            )
 
     @property
     def damping(self) -> float:
@@ -213,8 +217,7 @@ def steady_speed(params: Params, mean_load: float = 0.0) -> float:
     return (params.T_0 - float(mean_load)) / params.damping
 
 
-def stall_torque_for(omega_0: float, omega_nom: float, b: float, mean_load: float = 0.0,
-                     lam: float = 1.0) -> float:
+def stall_torque_for(omega_0: float, omega_nom: float, b: float, mean_load: float = 0.0, lam: float = 1.0) -> float:
     """The ``T_0`` (N m) whose steady speed is ``lam omega_nom`` with viscous ``b`` and ``mean_load``.
 
     Solves ``T_0 (1 - ω/ω_0) = b ω + mean_load`` at ``ω = lam omega_nom`` (rad/s; needs ω < ω_0).
@@ -396,9 +399,16 @@ class MotorDrive:
         Cost of all integrations.
     """
 
-    def __init__(self, params: Params, duration: float, segments: list[MotorSegment],
-                 load: chain_friction.MasterLoad | None, switches: list[tuple[float, bool]],
-                 solution: ig.DenseSolution | None = None, commanded: bool = False) -> None:
+    def __init__(
+        self,
+        params: Params,
+        duration: float,
+        segments: list[MotorSegment],
+        load: chain_friction.MasterLoad | None,
+        switches: list[tuple[float, bool]],
+        solution: ig.DenseSolution | None = None,
+        commanded: bool = False,
+    ) -> None:
         self.params = params
         self.duration = duration
         self.segments = segments
@@ -502,8 +512,13 @@ class MotorDrive:
     def summary(self) -> dict[str, Any]:
         """Figures for reports: cost, steady λ, stop and rest times."""
         out: dict[str, Any] = {
-            'method': self.params.method, 'nfev': self.nfev, 'steps': self.steps, 'rejected': self.rejected,
-            'theta_end': self.theta_end, 't_stop': self.t_stop, 't_rest': self.t_rest,
+            'method': self.params.method,
+            'nfev': self.nfev,
+            'steps': self.steps,
+            'rejected': self.rejected,
+            'theta_end': self.theta_end,
+            't_stop': self.t_stop,
+            't_rest': self.t_rest,
             'lambda_free': self.params.omega_free / self.params.omega_nom,
         }
         if self.tail is not None:
@@ -518,25 +533,38 @@ class MotorDrive:
         return out
 
 
-def _integrate(p: Params, fun: Any, span: tuple[float, float], y0: FloatArray, breaks: ig.Breaks | None,
-               terminal: ig.Terminal | None = None) -> ig.DenseSolution:
+def _integrate(
+    p: Params,
+    fun: Any,
+    span: tuple[float, float],
+    y0: FloatArray,
+    breaks: ig.Breaks | None,
+    terminal: ig.Terminal | None = None,
+) -> ig.DenseSolution:
     if p.method == 'rk4':
         return ig.rk4(fun, span, y0, p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
-    return ig.dopri5(fun, span, y0, rtol=p.rtol, atol=p.atol, max_step=p.h, breaks=breaks, terminal=terminal,
-                     max_steps=MAX_STEPS)
+    return ig.dopri5(
+        fun, span, y0, rtol=p.rtol, atol=p.atol, max_step=p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS
+    )
 
 
 def _check_load(p: Params, load: chain_friction.MasterLoad) -> None:
     if load.params.P_k > 0.0 and load.locked_u.size:
         u = load.locked_u
-        raise ParameterError('delivery.alpha_m_deg', load.delivery.alpha_m_deg,
-                             f'the delivery self-locks (or stalls) on the stroke at u in '
-                             f'[{u.min():.4g}, {u.max():.4g}]: the motor cannot drive it against '
-                             f'P_k = {load.params.P_k!r} N')
+        raise ParameterError(
+            'delivery.alpha_m_deg',
+            load.delivery.alpha_m_deg,
+            f'the delivery self-locks (or stalls) on the stroke at u in '
+            f'[{u.min():.4g}, {u.max():.4g}]: the motor cannot drive it against '
+            f'P_k = {load.params.P_k!r} N',
+        )
     if not load.peak < p.T_0:
-        raise ParameterError('effects.motor_dynamics.T_0', p.T_0,
-                             f'must exceed the peak chain load on the master shaft, {load.peak:.6g} N m: '
-                             'otherwise the line stalls at standstill')
+        raise ParameterError(
+            'effects.motor_dynamics.T_0',
+            p.T_0,
+            f'must exceed the peak chain load on the master shaft, {load.peak:.6g} N m: '
+            'otherwise the line stalls at standstill',
+        )
 
 
 def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> list[tuple[float, bool]]:
@@ -555,8 +583,7 @@ def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> li
     return out
 
 
-def build_drive(scene: Any, duration: float, *, periodic: bool = True,
-                commands: Iterable[Command] = ()) -> MotorDrive:
+def build_drive(scene: Any, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()) -> MotorDrive:
     """Integrate the motor over ``[0, duration]``, segment by segment, and return the drive.
 
     Parameters
@@ -603,9 +630,12 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True,
     if p.method == 'rk4' and p.h * p.damping / p.J > RK4_STEP_LIMIT:
         z = p.h * p.damping / p.J
         what = 'unstable' if z > RK4_STABILITY else 'stalls and overshoots between steps (not yet unstable)'
-        raise ParameterError('effects.motor_dynamics.h', p.h,
-                             f'RK4 {what} here: h (T_0/omega_0 + b)/J = {z:.4g} > {RK4_STEP_LIMIT}; '
-                             f'use h < {RK4_STEP_LIMIT * p.J / p.damping:.4g} s or method dopri5')
+        raise ParameterError(
+            'effects.motor_dynamics.h',
+            p.h,
+            f'RK4 {what} here: h (T_0/omega_0 + b)/J = {z:.4g} > {RK4_STEP_LIMIT}; '
+            f'use h < {RK4_STEP_LIMIT * p.J / p.damping:.4g} s or method dopri5',
+        )
     load = chain_friction.master_load(scene, p.omega_nom) if scene.has('chain_friction') else None
     if load is not None:
         _check_load(p, load)
@@ -652,8 +682,9 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True,
                 return False
             (ta, wa), (tb, wb), (tc, wc) = marks
             tol = PERIODIC_TOL * wn
-            return (abs(wc - wb) <= tol and abs(wb - wa) <= tol
-                    and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb))
+            return (
+                abs(wc - wb) <= tol and abs(wb - wa) <= tol and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb)
+            )
 
         use_breaks = load is not None or periodic
         breaks = ig.Breaks(0, next_break, on_break if periodic else None) if use_breaks else None

@@ -53,8 +53,15 @@ import numpy.typing as npt
 from folder_line.core.validate import in_range, positive
 from folder_line.errors import ParameterError
 
-__all__ = ['MAX_BOUNCE_EVENTS', 'BounceSchedule', 'Params', 'bounce_count', 'bounce_schedule', 'first_rebound',
-           'settle_time']
+__all__ = [
+    'MAX_BOUNCE_EVENTS',
+    'BounceSchedule',
+    'Params',
+    'bounce_count',
+    'bounce_schedule',
+    'first_rebound',
+    'settle_time',
+]
 
 #: at most this many ``bounce`` events per signature (the count and the settle time are exact)
 MAX_BOUNCE_EVENTS = 16
@@ -120,7 +127,7 @@ def bounce_count(params: Params, V: npt.ArrayLike) -> np.ndarray:
     k = np.floor(np.log(ratio) / math.log(e))  # >= 0
     k = np.clip(k, 0.0, 1e15)  # int64-safe; e -> 1 with v_rest -> 0 is unphysical anyway
     # fix the rounding of the logarithms: want e^k V >= v_rest > e^(k+1) V
-    k = np.where(e ** k * v < vr, k - 1.0, k)
+    k = np.where(e**k * v < vr, k - 1.0, k)
     k = np.where(e ** (k + 1.0) * v >= vr, k + 1.0, k)
     return np.where(bouncing, k.astype(np.int64) + 1, 0)
 
@@ -199,5 +206,5 @@ def bounce_schedule(params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUN
     vi = v[index]
     nf = n.astype(float)
     dt = (2.0 * vi / af) * e * (1.0 - e ** (nf - 1.0)) / (1.0 - e)
-    speed = e ** nf * vi
+    speed = e**nf * vi
     return BounceSchedule(index, n, dt, speed * speed / (2.0 * af), count, settle)
