@@ -169,6 +169,14 @@ def _clear_previous_bag(path: Path) -> None:
     shutil.rmtree(path)
 
 
+def _end_lost(proc: subprocess.Popen[bytes] | None) -> None:
+    """End the process of a participant declared lost, at once: the line goes on without it, and a stopped
+    (SIGSTOP) node holds shared-memory locks of Fast DDS that would hang the others' teardown at the end."""
+    if proc is not None and proc.poll() is None:
+        proc.send_signal(signal.SIGCONT)
+        proc.send_signal(signal.SIGINT)
+
+
 def _published_counts(nodes: list[Any]) -> dict[str, int]:
     counts: dict[str, int] = {}
     for node in nodes:
@@ -289,6 +297,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     nodes: list[Any] = []
     bag = None
     recorder: Any = None
+    ended_lost: set[str] = set()  # lost participants whose process was ended
     interrupted: list[str] = []
     participants = (*LINE_NODES, RECORDER)
 
@@ -368,6 +377,9 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
                     interrupted.append('another /clock publisher appeared on this ROS domain')
             if recorder.write_error is not None:
                 interrupted.append('the bag could not be written')
+            for name in set(recorder.lost) - ended_lost:  # once each
+                ended_lost.add(name)
+                _end_lost(procs.get(name))
         if interrupted and clock is not None:
             executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
         # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
@@ -400,10 +412,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
             # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
             lost_nodes = set(result.summary.get('lost_participants') or ())
-            for name in lost_nodes & set(procs):  # a stopped node can hold the others' shared-memory locks
-                if procs[name].poll() is None:
-                    procs[name].send_signal(signal.SIGCONT)
-                    procs[name].send_signal(signal.SIGINT)
+            for name in (lost_nodes & set(procs)) - ended_lost:  # a stopped node holds shared-memory locks
+                _end_lost(procs[name])
             deadline = time.monotonic() + 15.0
             for name, proc in procs.items():
                 if name not in lost_nodes:
