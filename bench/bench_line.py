@@ -54,8 +54,8 @@ def main() -> None:
     print('| duration, s | events only, s | per 1000 cycles, ms | with 200 Hz samples, s |')
     print('|---:|---:|---:|---:|')
     for d in [36.0, 360.0] if args.quick else [36.0, 360.0, 3600.0, 36000.0]:
-        te = best_of(lambda: simulate(folder, d, sample_rate=0.0), rep)
-        ts = best_of(lambda: simulate(folder, d, sample_rate=200.0), rep) if d <= 3600.0 else float('nan')
+        te = best_of(lambda d=d: simulate(folder, d, sample_rate=0.0), rep)
+        ts = best_of(lambda d=d: simulate(folder, d, sample_rate=200.0), rep) if d <= 3600.0 else float('nan')
         ts_text = f'{ts:.3f}' if ts == ts else '—'
         print(f'| {d:g} | {te:.3f} | {1e3 * te / (d / 0.072) * 1000:.3f} | {ts_text} |')
 
@@ -95,8 +95,8 @@ def main() -> None:
         data['effects'] = {e: line['effects'][e] for e in effects}
         scene = parse_scene(data)
         dd = d if 'guide_friction' not in effects else d / 10.0
-        te = best_of(lambda: simulate(scene, dd, sample_rate=0.0), rep)
-        ts = best_of(lambda: simulate(scene, dd, sample_rate=200.0), rep)
+        te = best_of(lambda scene=scene, dd=dd: simulate(scene, dd, sample_rate=0.0), rep)
+        ts = best_of(lambda scene=scene, dd=dd: simulate(scene, dd, sample_rate=200.0), rep)
         if not effects:
             base[name] = (te, ts)
         scale = d / dd

@@ -151,6 +151,7 @@ def _sorted_events(ns: np.ndarray, events: np.ndarray) -> list[tuple[int, int, i
             events['sheet'].tolist(),
             events['cycle'].tolist(),
             events['value'].tolist(),
+            strict=True,
         )
     )
 
@@ -242,6 +243,7 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
             rec.events['sheet'].tolist(),
             rec.events['cycle'].tolist(),
             rec.events['value'].tolist(),
+            strict=True,
         )
     )
     diag = tables[DIAGNOSTICS_TOPIC]

@@ -111,7 +111,7 @@ def plain(obj: Any, ref: Any) -> Any:
     if isinstance(ref, (list, tuple, array.array, np.ndarray)):
         items = list(obj)
         assert len(items) == len(ref)
-        return [plain(o, r) for o, r in zip(items, ref)]
+        return [plain(o, r) for o, r in zip(items, ref, strict=True)]
     if isinstance(ref, bytes):  # rclpy's byte
         return obj[0] if isinstance(obj, bytes) else int(obj)
     if isinstance(ref, float):
@@ -198,7 +198,7 @@ def test_segments_roll_over_at_line_time_boundaries(tmp_path: Path) -> None:
     assert [f.name for f in files] == ['run7_0.mcap', 'run7_1.mcap', 'run7_2.mcap', 'run7_3.mcap']
     windows = [(0, 1), (1, 2), (2, 3), (7, 8)]  # no empty files for the jump from 3 s to 7.2 s
     per_file: list[list[int]] = []
-    for path, (lo, hi) in zip(files, windows):
+    for path, (lo, hi) in zip(files, windows, strict=True):
         with path.open('rb') as fh:
             logs = [m.log_time for _, _, m in make_reader(fh).iter_messages()]
         assert logs and all(lo * 10**9 <= t < hi * 10**9 for t in logs), path.name

@@ -80,7 +80,7 @@ def _expected(steps: range) -> dict[str, int]:
 def _joint_steps(bag: Path) -> list[int]:
     """Steps of the joint-state messages in the bag, in order, checked against their stamps."""
     steps = []
-    for topic, t_ns, msg in read_bag(bag).messages([JOINTS]):
+    for _topic, t_ns, msg in read_bag(bag).messages([JOINTS]):
         i = int(msg.position[0])
         assert t_ns == i * DT_NS
         assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == i * DT_NS

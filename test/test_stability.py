@@ -119,8 +119,13 @@ class TestDeadCentresAndToggles:
         w = LAYUP.omega
         ext = swing_extremes(LAYUP)[which]
         with mp.workdps(40):
-            th3 = lambda x: mp_sixbar(LAYUP, x)['theta3']
-            th5 = lambda x: mp_sixbar(LAYUP, x)['theta5']
+
+            def th3(x: Any) -> Any:
+                return mp_sixbar(LAYUP, x)['theta3']
+
+            def th5(x: Any) -> Any:
+                return mp_sixbar(LAYUP, x)['theta5']
+
             root = mp.findroot(lambda x: mp.diff(th3, x), mp.mpf(ext.phi))
             assert abs(float(root) - ext.phi) <= 4 * EPS  # the closed form is exact to rounding (of O(1) terms)
             slope3 = float(mp.diff(th3, root, 2)) * w  # d(omega3)/dphi at the dead centre, rad/s per rad
@@ -193,7 +198,10 @@ class TestDeadCentresAndToggles:
         phi0 = dc.phi_outer if which == 'outer' else dc.phi_inner
         with mp.workdps(40):
             r, L, ee = mp.mpf(p.r_k), mp.mpf(p.L_k), mp.mpf(e)
-            s = lambda x: r * mp.cos(x) + mp.sqrt(L * L - (r * mp.sin(x) - ee) ** 2)
+
+            def s(x: Any) -> Any:
+                return r * mp.cos(x) + mp.sqrt(L * L - (r * mp.sin(x) - ee) ** 2)
+
             exact = mp.asin(ee / (L + r)) if which == 'outer' else mp.pi + mp.asin(ee / (L - r))
             assert abs(float(exact) - phi0) <= ulp(phi0)
             s2 = float(mp.diff(s, exact, 2))
@@ -214,14 +222,14 @@ class TestDeadCentresAndToggles:
     # ---- the four-bar of core/loop.py -------------------------------------------------------
     @staticmethod
     def fourbar(
-        phi: np.ndarray, d: float, R: float, l: float, q: float, w: float = 1.0, tol: float = loop.TOGGLE_TOL
+        phi: np.ndarray, d: float, R: float, coupler: float, q: float, w: float = 1.0, tol: float = loop.TOGGLE_TOL
     ) -> tuple[loop.Intersection, np.ndarray, np.ndarray]:
-        """Crank O1 = 0 (radius R, speed w), rocker pivot O2 = (d, 0) (radius q), coupler l:
-        B = circle(O2, q) x circle(A, l) on branch +1; velocity and acceleration of B."""
+        """Crank O1 = 0 (radius R, speed w), rocker pivot O2 = (d, 0) (radius q), coupler of length ``coupler``:
+        B = circle(O2, q) x circle(A, coupler) on branch +1; velocity and acceleration of B."""
         ax, ay = R * np.cos(phi), R * np.sin(phi)
         vx, vy = -w * ay, w * ax
         accx, accy = -w * w * ax, -w * w * ay
-        it = loop.circle_intersection(d, 0.0, q, ax, ay, l, 1, inputs=phi, tol=tol, mechanism='four-bar')
+        it = loop.circle_intersection(d, 0.0, q, ax, ay, coupler, 1, inputs=phi, tol=tol, mechanism='four-bar')
         zero = np.zeros_like(phi)
         vb = np.array(loop.circle_point_velocity(it.x, it.y, ax, ay, vx, vy, d, 0.0, zero, zero))
         ab = np.array(
@@ -232,35 +240,40 @@ class TestDeadCentresAndToggles:
         return it, vb, ab
 
     @staticmethod
-    def mp_fourbar_B(phi: Any, d: float, R: float, l: float, q: float) -> tuple[Any, Any]:
+    def mp_fourbar_B(phi: Any, d: float, R: float, coupler: float, q: float) -> tuple[Any, Any]:
         Rm = mp.mpf(R)
-        return mp_circle(mp.mpf(d), 0, mp.mpf(q), Rm * mp.cos(phi), Rm * mp.sin(phi), mp.mpf(l), 1)
+        return mp_circle(mp.mpf(d), 0, mp.mpf(q), Rm * mp.cos(phi), Rm * mp.sin(phi), mp.mpf(coupler), 1)
 
     def test_fourbar_rocker_dead_centres(self) -> None:
         """Crank-rocker (0.3, 0.9, 0.7 on ground 1.0): v_B changes sign at the collinear positions,
         with |v_B| = |dv_B/dphi| 1e-12 (mpmath), a_B finite and continuous."""
-        d, R, l, q = 1.0, 0.3, 0.9, 0.7
-        assert classify_fourbar(d, R, l, q) == 'crank-rocker'
+        d, R, coupler, q = 1.0, 0.3, 0.9, 0.7
+        assert classify_fourbar(d, R, coupler, q) == 'crank-rocker'
         scan = np.linspace(0.0, TAU, 4001)
-        it0, vb, _ = self.fourbar(scan, d, R, l, q)
+        it0, vb, _ = self.fourbar(scan, d, R, coupler, q)
         speed = (it0.x - d) * vb[1] - it0.y * vb[0]  # (B - O2) x v_B: the rocker's angular velocity * q^2
         flips = np.flatnonzero(np.sign(speed[:-1]) != np.sign(speed[1:]))
         assert len(flips) == 2
         with mp.workdps(40):
 
             def cross(x: Any) -> Any:  # (A - O1) x (B - A): 0 where O1, A, B are in line
-                bx, by = self.mp_fourbar_B(x, d, R, l, q)
+                bx, by = self.mp_fourbar_B(x, d, R, coupler, q)
                 ax, ay = R * mp.cos(x), R * mp.sin(x)
                 return ax * (by - ay) - ay * (bx - ax)
 
             for i in flips:
                 phi0 = float(mp.findroot(cross, mp.mpf(float(scan[i]))))
-                bx = lambda x: self.mp_fourbar_B(x, d, R, l, q)[0]
-                by = lambda x: self.mp_fourbar_B(x, d, R, l, q)[1]
+
+                def bx(x: Any) -> Any:
+                    return self.mp_fourbar_B(x, d, R, coupler, q)[0]
+
+                def by(x: Any) -> Any:
+                    return self.mp_fourbar_B(x, d, R, coupler, q)[1]
+
                 slope = math.hypot(mp_rate(bx, phi0, 2), mp_rate(by, phi0, 2))  # |dv_B/dphi| there, m/rad
                 assert abs(mp_rate(bx, phi0)) < 1e-14 and abs(mp_rate(by, phi0)) < 1e-14
                 phis = np.array([phi0 - 1e-12, phi0 + 1e-12])
-                it, v, a = self.fourbar(phis, d, R, l, q)
+                it, v, a = self.fourbar(phis, d, R, coupler, q)
                 assert np.all(np.isfinite(v)) and np.all(np.isfinite(a)) and not it.toggle.any()
                 ref = np.array([[mp_rate(bx, x) for x in phis], [mp_rate(by, x) for x in phis]])
                 assert np.abs(v - ref).max() <= 1e-15
@@ -272,20 +285,20 @@ class TestDeadCentresAndToggles:
         """Non-Grashof (0.8, 0.5, 0.6 on 1.0): the crank's limit where coupler and rocker line up.
         Just inside: finite, |v_B| ~ delta^-1/2 (mpmath); just past within the toggle tolerance: the
         tangent point, flagged; further: AssemblyError naming the crank angle."""
-        d, R, l, q = 1.0, 0.8, 0.5, 0.6
-        assert classify_fourbar(d, R, l, q) == 'non-Grashof'
+        d, R, coupler, q = 1.0, 0.8, 0.5, 0.6
+        assert classify_fourbar(d, R, coupler, q) == 'non-Grashof'
         with mp.workdps(40):
-            phi_l = mp.acos((d * d + R * R - (l + q) ** 2) / (2 * d * R))  # |A - O2| = l + q
+            phi_l = mp.acos((d * d + R * R - (coupler + q) ** 2) / (2 * d * R))  # |A - O2| = coupler + q
         x_l = float(phi_l)
         speeds = {}
         for dl in (1e-12, 4e-12):
             phi = x_l - dl
-            it, v, a = self.fourbar(np.array([phi]), d, R, l, q)
+            it, v, a = self.fourbar(np.array([phi]), d, R, coupler, q)
             assert np.all(np.isfinite(v)) and np.all(np.isfinite(a))
             with mp.workdps(40):
                 ref = math.hypot(
-                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[0], phi),
-                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, l, q)[1], phi),
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, coupler, q)[0], phi),
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, coupler, q)[1], phi),
                 )
                 true_dl = float(phi_l - mp.mpf(phi))
             speed = math.hypot(float(v[0, 0]), float(v[1, 0]))
@@ -293,13 +306,13 @@ class TestDeadCentresAndToggles:
             speeds[dl] = speed * math.sqrt(true_dl)
         assert speeds[1e-12] == pytest.approx(speeds[4e-12], rel=1e-3)  # |v| sqrt(delta) constant
         past = x_l + 1e-12  # position only: the velocity is unbounded at a toggle (documented)
-        it = loop.circle_intersection(d, 0.0, q, R * math.cos(past), R * math.sin(past), l, 1, inputs=past)
+        it = loop.circle_intersection(d, 0.0, q, R * math.cos(past), R * math.sin(past), coupler, 1, inputs=past)
         x, y = float(it.x), float(it.y)
         assert bool(it.toggle) and math.isfinite(x) and math.isfinite(y) and float(it.disc) < 0.0
-        miss = abs(math.hypot(x - d, y) - q) + abs(math.hypot(x - R * math.cos(past), y - R * math.sin(past)) - l)
+        miss = abs(math.hypot(x - d, y) - q) + abs(math.hypot(x - R * math.cos(past), y - R * math.sin(past)) - coupler)
         assert miss <= 1e-11
         with pytest.raises(AssemblyError) as info:
-            self.fourbar(np.array([x_l - 0.1, x_l + 1e-6]), d, R, l, q)
+            self.fourbar(np.array([x_l - 0.1, x_l + 1e-6]), d, R, coupler, q)
         assert info.value.phi == x_l + 1e-6 and 'four-bar' in str(info.value)
 
     # ---- Grashof classification and change points -------------------------------------------
@@ -331,10 +344,10 @@ class TestDeadCentresAndToggles:
         """A change-point four-bar (0.4, 0.9, 0.5 on 1.0) turns fully but lines up at phi = pi:
         around it the positions are finite, continuous and flagged as a toggle; LayupParams of a
         change-point loop 1 is rejected (tested above)."""
-        d, R, l, q = 1.0, 0.4, 0.9, 0.5
-        assert classify_fourbar(d, R, l, q) == 'change-point'
+        d, R, coupler, q = 1.0, 0.4, 0.9, 0.5
+        assert classify_fourbar(d, R, coupler, q) == 'change-point'
         phis = math.pi + np.array([-1e-6, -1e-12, 0.0, 1e-12, 1e-6])
-        it = loop.circle_intersection(d, 0.0, q, R * np.cos(phis), R * np.sin(phis), l, 1, inputs=phis)
+        it = loop.circle_intersection(d, 0.0, q, R * np.cos(phis), R * np.sin(phis), coupler, 1, inputs=phis)
         assert np.isfinite(it.x).all() and np.isfinite(it.y).all() and np.isfinite(it.disc).all()
         assert it.toggle[1:4].all()
         assert np.abs(np.diff(it.x[1:4])).max() <= 1e-11 and np.abs(np.diff(it.y[1:4])).max() <= 1e-11
@@ -844,7 +857,10 @@ class TestGrazing:
         """Scanning step by step with left_sign, a touch exactly on the shared boundary sample is
         reported in neither step."""
         t0 = float(GRID[split])
-        f = lambda t: -((t - t0) ** 2)
+
+        def f(t: float) -> float:
+            return -((t - t0) ** 2)
+
         first = find_sign_changes(f, GRID[: split + 1])
         left = int(np.sign(f(float(GRID[split - 1]))))
         second = find_sign_changes(f, GRID[split:], left_sign=left)

@@ -28,7 +28,7 @@ def test_ode_right_hand_side_is_the_reference_rate() -> None:
     t = fourbar.grid(PARAMS)
     ref = fourbar.reference(PARAMS)
     f = fourbar.user_rhs(PARAMS)
-    rate = np.array([f(float(tk), np.array([psi]))[0] for tk, psi in zip(t, ref.theta3)])
+    rate = np.array([f(float(tk), np.array([psi]))[0] for tk, psi in zip(t, ref.theta3, strict=True)])
     assert np.abs(rate - ref.omega3).max() <= 1e-13
     assert np.abs(ref.omega3).max() > 0.5  # the rocker really swings
 

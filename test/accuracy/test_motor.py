@@ -93,7 +93,7 @@ def test_user_rhs_is_the_documented_ode() -> None:
     f = M.user_rhs(sc)
     f_free = M.user_rhs(M.make_scene(False))
     rng = np.random.default_rng(3)
-    for theta, w in zip(rng.uniform(0.0, 2.0, 300), rng.uniform(0.0, 150.0, 300)):
+    for theta, w in zip(rng.uniform(0.0, 2.0, 300), rng.uniform(0.0, 150.0, 300), strict=True):
         load = float(cf.master_load_torque(sc, theta))  # the public vectorised load, membership by Θ
         y = np.array([theta, w])
         expect = (p.T_0 * (1 - w / p.omega_0) - p.b * w - load) / p.J
@@ -126,7 +126,7 @@ def test_adaptive_errors_fall_with_rtol_without_load(method: str) -> None:
     assert all(e2 <= 1.5 * e1 for e1, e2 in itertools.pairwise(errs)), errs
     assert errs[-1] <= 1e-5 * errs[0], errs
     # the global phase error stays below rtol (Θ <= 1.7 nominal s here)
-    assert all(e <= r for e, r in zip(errs, rtols)), errs
+    assert all(e <= r for e, r in zip(errs, rtols, strict=True)), errs
 
 
 @pytest.mark.parametrize('method', [M.DOPRI5, M.RK45, M.DOP853])

@@ -74,7 +74,7 @@ def test_chain_path_against_scipy(scene: Scene) -> None:
     assert_allclose(path.arc(u), s, atol=1e-14)
     # the inverse against an independent one: brentq on scipy's quadrature
     for target in (0.0137, 0.2, 0.31, 0.5, path.length - 1e-3):
-        u_ref = brentq(lambda x: ref_arc(x) - target, 0.0, 2.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+        u_ref = brentq(lambda x, target=target: ref_arc(x) - target, 0.0, 2.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
         assert float(path.position(target)) == pytest.approx(u_ref, abs=1e-13)
     assert path.length > 2 * ch.x_max  # the curved guide is longer than the straight stroke
 

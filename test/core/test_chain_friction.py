@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -224,7 +225,7 @@ def test_master_load_pieces_breaks_mean_and_peak(scene: Scene) -> None:
     np.testing.assert_allclose(b_arr[n:] - b_arr[:-n], sch.T, rtol=1e-12)
     assert load.is_entry(sch.theta_enter0 + 5 * sch.T) and not load.is_entry(sch.theta_enter0 + 0.01)
     # piecewise scalar torque equals the vectorised one inside each piece
-    for lo, hi in zip(b_arr[:-1], b_arr[1:]):
+    for lo, hi in pairwise(b_arr):
         th = np.linspace(lo, hi, 9)[1:-1]
         np.testing.assert_allclose(
             [load.torque_piece(x, (lo, hi)) for x in th], load.torque(th), rtol=1e-12, atol=1e-14

@@ -103,7 +103,7 @@ def test_order_and_foreign_rows_do_not_matter() -> None:
     shuffled = np.concatenate([ev, noise])[np.random.default_rng(3).permutation(ev.size + noise.size)]
     a = evaluate_folder_constraints(ev, tm, scene)
     b = evaluate_folder_constraints(shuffled, tm, scene)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         assert x.name == y.name and np.array_equal(x.cycle, y.cycle) and np.array_equal(x.margin, y.margin)
 
 

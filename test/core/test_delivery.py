@@ -333,15 +333,15 @@ def test_velocity_plan_by_finite_differences() -> None:
     """K_v and v_BA follow from x_B = x_A - l cos(alpha) along the closed profile (geometric mode)."""
     p = ref(Lambda=0.4, alpha_m_deg=60.0)
     x_max = 0.5
-    l = p.rod_length(x_max)
+    rod_len = p.rod_length(x_max)
     y_max = p.Lambda * x_max
-    assert l * math.sin(p.alpha_m) == pytest.approx(y_max)
+    assert rod_len * math.sin(p.alpha_m) == pytest.approx(y_max)
     law = dl.LAWS[p.law]
 
     def geometry(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xi = np.where(u <= 1.0, u, 2.0 - u)
         y_A = y_max * law.psi(xi)
-        alpha = np.arcsin(y_A / l)
+        alpha = np.arcsin(y_A / rod_len)
         return u * x_max, y_A, alpha
 
     u = np.concatenate([np.linspace(0.001, 0.999, 300), np.linspace(1.001, 1.999, 300)])
@@ -349,10 +349,10 @@ def test_velocity_plan_by_finite_differences() -> None:
     xa_p, ya_p, al_p = geometry(u + h)
     xa_m, ya_m, al_m = geometry(u - h)
     ds = np.hypot(xa_p - xa_m, ya_p - ya_m)  # chain path
-    dx_B = (xa_p - l * np.cos(al_p)) - (xa_m - l * np.cos(al_m))
+    dx_B = (xa_p - rod_len * np.cos(al_p)) - (xa_m - rod_len * np.cos(al_m))
     s = evaluate_stroke(p, u)
     np.testing.assert_allclose(s.K_v, dx_B / ds, atol=1e-7)
-    np.testing.assert_allclose(s.rod_angular_speed(v_A=1.0, l=l), (al_p - al_m) / ds, atol=1e-6)
+    np.testing.assert_allclose(s.rod_angular_speed(v_A=1.0, l=rod_len), (al_p - al_m) / ds, atol=1e-6)
     # the mirrored return is not what the geometry gives
     mirror = evaluate_stroke(p, u, return_section='paper_mirror')
     assert np.max(np.abs(mirror.K_v - dx_B / ds)) > 0.5

@@ -116,7 +116,7 @@ def test_belt_exit_time_with_a_ramp_drive_moves_the_belt_exactly_l() -> None:
     t_in = np.array([0.0, 0.5, 2.0, 2.9, 5.0])
     t_x, ok = cb.exit_times(prof, drive, 1.0, t_in, float(drive.theta(20.0)))
     assert ok.all()
-    for a, b in zip(t_in, t_x):
+    for a, b in zip(t_in, t_x, strict=True):
         travel = quad(lambda t: 2.8 * float(drive.rate(t)), a, b, points=[3.0], epsabs=1e-13, epsrel=1e-13)[0]
         assert travel == pytest.approx(1.0, abs=1e-11)
 
@@ -132,7 +132,7 @@ def test_belt_exit_time_across_slowdowns_is_exact() -> None:
         return float(cb.belt_speed(prof, drive, np.array([t]))[0])
 
     brk = [1.0, 2.0, 2.3, 2.5, 2.6, 10.0]
-    for a, b in zip(t_in, t_x):
+    for a, b in zip(t_in, t_x, strict=True):
         pts = [x for x in brk if a < x < b]
         travel = quad(speed, a, b, points=pts or None, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
         assert travel == pytest.approx(1.0, abs=1e-10)
@@ -161,7 +161,7 @@ def test_speed_margin_takes_the_smaller_bound() -> None:
 
 def test_phi_functions_against_mpmath() -> None:
     z = np.concatenate([[0.0, 1e-300, 1e-12, 1e-6], np.geomspace(1e-4, 50.0, 200), [0.4999999, 0.5, 700.0]])
-    for zi, a, b in zip(z, lf.phi1(z), lf.phi2(z)):
+    for zi, a, b in zip(z, lf.phi1(z), lf.phi2(z), strict=True):
         if zi == 0.0:
             assert a == 1.0 and b == 0.5
             continue
@@ -178,7 +178,7 @@ def test_no_drag_landing_time_is_the_stable_quadratic_root() -> None:
     y0 = np.array([0.0, 0.0, 0.0, 0.0, -1.0])
     vy = np.array([3.0, -3.0, 0.0, -1e8, 1e-9])
     t = lf.landing_time(p, y0, vy, -1.25)
-    for ti, a, b in zip(t, y0, vy):
+    for ti, a, b in zip(t, y0, vy, strict=True):
         h = a + 1.25
         with mpmath.workdps(60):
             ref = float((mpmath.mpf(b) + mpmath.sqrt(mpmath.mpf(b) ** 2 + 2 * G * mpmath.mpf(h))) / G)
@@ -231,9 +231,9 @@ def test_drag_landing_time_against_brent(drag: float) -> None:
     p = lf.Params(drag=drag)
     y0, vy = np.array([-0.9, -0.9, -0.9]), np.array([2.0, 0.0, -2.0 * G / drag])
     t = lf.landing_time(p, y0, vy, -1.25)
-    for ti, a, b in zip(t, y0, vy):
+    for ti, a, b in zip(t, y0, vy, strict=True):
 
-        def f(x: float) -> float:
+        def f(x: float, a: float = a, b: float = b) -> float:
             return float(lf.state(p, 0.0, a, 0.0, b, x)[1]) + 1.25
 
         hi = (drag * (a + 1.25) + max(b + G / drag, 0.0)) / G  # the documented analytic bracket
@@ -299,7 +299,9 @@ def test_equation_signs_from_an_inertial_frame_check() -> None:
         k = gf.ChuteState(np.array(math.sin(th)), np.array(math.cos(th)), np.array(w), np.array(eps))
         a = float(gf.acceleration(p, s0, v0, k))
 
-        def r(t: float) -> np.ndarray:  # s(t) = s0 + v0 τ + a τ²/2 has the right s, ṡ, s̈ at t0
+        def r(
+            t: float, t0: float = t0, s0: float = s0, v0: float = v0, a: float = a
+        ) -> np.ndarray:  # s(t) = s0 + v0 τ + a τ²/2 has the right s, ṡ, s̈ at t0
             tau = t - t0
             s = s0 + v0 * tau + 0.5 * a * tau * tau
             return s * np.array([math.sin(theta(t)), -math.cos(theta(t))])
@@ -417,11 +419,11 @@ def test_entry_at_rest_sticks_where_the_wall_holds_it_and_slips_at_the_closed_fo
     held = np.abs(q.sin) * mu >= q.cos
     assert held.any() and not held.all()
     first_stick = {}
-    for i, t in zip(r.stick_leaf.tolist(), r.stick_t.tolist()):
+    for i, t in zip(r.stick_leaf.tolist(), r.stick_t.tolist(), strict=True):
         first_stick.setdefault(i, t)
     assert sorted(i for i in first_stick if first_stick[i] == t_in[i]) == np.flatnonzero(held).tolist()
     slip = {}
-    for i, t in zip(r.slip_leaf.tolist(), r.slip_t.tolist()):
+    for i, t in zip(r.slip_leaf.tolist(), r.slip_t.tolist(), strict=True):
         slip.setdefault(i, t)
     for i in np.flatnonzero(held):
         ts = slip[i]

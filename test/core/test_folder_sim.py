@@ -335,7 +335,7 @@ def test_same_seed_bit_identical_other_seed_differs() -> None:
     runs = [simulate_folder(_scene(eff, V_tr=9.6, seed=s), ConstantDrive(), 60.0, t) for s in (5, 5, 6)]
     a, b, c = runs
     assert a.events.tobytes() == b.events.tobytes()
-    for x, y in zip(a.constraints, b.constraints):
+    for x, y in zip(a.constraints, b.constraints, strict=True):
         assert x.margin.tobytes() == y.margin.tobytes() and x.cycle.tobytes() == y.cycle.tobytes()
     for node in a.samples:
         assert a.samples[node].position.tobytes() == b.samples[node].position.tobytes()
@@ -447,7 +447,7 @@ def test_samples_are_consistent_with_their_velocities() -> None:
     ft = res.samples['feed_transporter']
     assert ft.names == ('feed_belt', 'chain', 'carriage')
     dt = 1.0 / rate
-    for j, name in enumerate(ft.names + crank.names[1:]):
+    for name in ft.names + crank.names[1:]:
         js = ft if name in ft.names else crank
         jj = js.names.index(name)
         x, v = js.position[:, jj], js.velocity[:, jj]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -83,7 +84,7 @@ def test_dopri5_error_follows_rtol() -> None:
         t = np.linspace(0.0, 10.0, 2001)
         errs.append(np.abs(sol(t) - np.array([np.cos(t), -np.sin(t)])).max())
         assert errs[-1] < 50 * rtol
-    assert all(a > 10 * b for a, b in zip(errs, errs[1:])), errs
+    assert all(a > 10 * b for a, b in pairwise(errs)), errs
 
 
 @pytest.mark.parametrize('problem', ['decay', 'oscillator'])
@@ -244,7 +245,7 @@ def test_inverse_never_nan_and_clips(values: list[float]) -> None:
     assert np.all(np.isfinite(t))
     assert np.all((t >= 0.0) & (t <= 20.0))
     top = float(sol.y[-1, 0])
-    for v, tv in zip(values, t):
+    for v, tv in zip(values, t, strict=True):
         if v <= 0.0:
             assert tv == 0.0
         elif v > top:

@@ -6,6 +6,7 @@ import dataclasses
 import math
 import re
 from fractions import Fraction
+from itertools import pairwise
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -513,7 +514,7 @@ def test_delta3_passes_90_degrees_smoothly() -> None:
             else:
                 hi = mid
         pts = [M.point(lo + d) for d in (-1e-12, 0.0, 1e-12)]
-        for a, b in zip(pts, pts[1:]):
+        for a, b in pairwise(pts):
             assert math.hypot(a.xE - b.xE, a.yE - b.yE) < 1e-12 * vmax / P.omega * 2 + 1e-15
             assert abs(a.omega5 - b.omega5) < 1e-10
     # E moves continuously over the whole turn: no step bigger than the speed allows
@@ -596,7 +597,7 @@ def test_non_finite_crank_angles_are_rejected() -> None:
 def test_perturbed_geometries_either_fail_validation_or_are_finite_and_closed(
     factors: list[float], phis: list[float]
 ) -> None:
-    kw = {k: BASE[k] * f for k, f in zip(FIELDS, factors)}
+    kw = {k: BASE[k] * f for k, f in zip(FIELDS, factors, strict=True)}
     try:
         p = LayupParams(**kw)
     except ParameterError as err:

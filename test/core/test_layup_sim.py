@@ -7,6 +7,7 @@ import inspect
 import json
 import math
 import time
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -111,7 +112,7 @@ def test_belts_exit_after_the_chute_length_with_eq25_speed() -> None:
     res = run(scene(BELTS, sheets={'jitter': 0.5}), 20.0)
     enter = events(res, 'leaf_enter')
     exit_ = events(res, 'leaf_exit')
-    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist()))
+    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist(), strict=True))
     model = LayupModel(P)
     for row in exit_[::7]:
         i = int(row['sheet'])
@@ -175,7 +176,7 @@ def test_ramp_drive_belt_travel_is_the_chute_length() -> None:
     sc = scene({**BELTS}, sheets={'jitter': 0.3, 'phase': 0.05}, drive={'profile': 'ramp', 't_ramp': 4.0})
     res = run(sc, 8.0, drive=drive)
     enter = events(res, 'leaf_enter')
-    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist()))
+    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist(), strict=True))
     for row in events(res, 'leaf_exit')[::5]:
         i = int(row['sheet'])
         travel = quad(
@@ -298,7 +299,7 @@ def test_guide_friction_exit_speeds_vs_crank_phase() -> None:
         res = run(scene(fr, sheets={'interval': 0.0617, 'jitter': 0.0}), 120.0)
         ex = events(res, 'leaf_exit')
         en = events(res, 'leaf_enter')
-        t_in = dict(zip(en['sheet'].tolist(), en['t'].tolist()))
+        t_in = dict(zip(en['sheet'].tolist(), en['t'].tolist(), strict=True))
         transit = ex['t'] - np.array([t_in[i] for i in ex['sheet'].tolist()])
         return kin.chute(ex['t'], ex['sheet'] % 2)['phi'], ex['value'], transit, res.summary
 
@@ -430,13 +431,13 @@ def test_belt_slowdowns_delay_the_exits_exactly() -> None:
         return 0.4 if i >= 0 and (i >= ends.size or t < ends['t'][i]) else 1.0
 
     enter = events(res, 'leaf_enter')
-    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist()))
+    t_in = dict(zip(enter['sheet'].tolist(), enter['t'].tolist(), strict=True))
     slowed = 0
     for row in events(res, 'leaf_exit'):
         i = int(row['sheet'])
         a, b = t_in[i], float(row['t'])
         pts = [x for x in brk if a < x < b]
-        travel = sum(2.8 * factor(0.5 * (u + v)) * (v - u) for u, v in zip([a] + pts, pts + [b]))
+        travel = sum(2.8 * factor(0.5 * (u + v)) * (v - u) for u, v in pairwise([a, *pts, b]))
         assert travel == pytest.approx(P.l5 if i % 2 else P.l3, abs=1e-12)
         slowed += bool(pts) or factor(a) < 1.0
         pt = LayupModel(P).point(OMEGA * b)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -160,7 +161,7 @@ def test_dopri5_matches_the_closed_form_and_improves_with_rtol() -> None:
         th, w = closed_form(p, t)
         errs.append(max(np.abs(d.theta(t) - th).max(), np.abs(d.omega(t) - w).max() / p['omega_nom']))
         assert errs[-1] < 100 * rtol
-    assert all(a > 10 * b for a, b in zip(errs, errs[1:])), errs
+    assert all(a > 10 * b for a, b in pairwise(errs)), errs
     assert errs[-1] < 1e-9
 
 

@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+from itertools import pairwise
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -82,4 +84,4 @@ def test_random_sequences_follow_the_table(seq: list[str]) -> None:
                 m.command(cmd, float(i))
             assert m.state == before
         assert m.state in STATES
-    assert all(a.target == b.source for a, b in zip(m.history, m.history[1:]))
+    assert all(a.target == b.source for a, b in pairwise(m.history))

@@ -92,7 +92,7 @@ def test_sixbar_velocities_are_the_spectral_derivatives_of_the_positions(factors
     documented branch at every angle."""
     keys = ('R_kr', 'a', 'b', 'l2', 'O2B', 'l3', 'l4', 'l5', 'O2O3')
     try:
-        p = LayupParams(**{**LAYUP, **{k: LAYUP[k] * f for k, f in zip(keys, factors)}})
+        p = LayupParams(**{**LAYUP, **{k: LAYUP[k] * f for k, f in zip(keys, factors, strict=True)}})
     except (ParameterError, AssemblyError):
         assume(False)
         return
@@ -218,7 +218,7 @@ def test_sign_changes_match_the_sampled_sign_pattern(coef: list[float], n: int) 
     assert np.all((grid[intervals] <= sc.x) & (sc.x <= grid[intervals + 1]))
     assert np.array_equal(sc.direction, sgn[intervals + 1].astype(np.int8))
     assert np.all(sc.direction[1:] != sc.direction[:-1])
-    slope = sum(abs(v) * k for v, k in zip(coef, (0, 1, 1, 2, 2, 3, 3)))  # bound on |f'|
+    slope = sum(abs(v) * k for v, k in zip(coef, (0, 1, 1, 2, 2, 3, 3), strict=True))  # bound on |f'|
     assert all(abs(f(x)) <= slope * 2 * (2e-12 + RTOL * abs(x)) + 8 * EPS * sum(map(abs, coef)) for x in sc.x)
 
 
@@ -240,7 +240,7 @@ def test_delivery_ratios_stay_in_their_documented_ranges(
     only raises the forces (p_AB >= p_AB_ideal >= 1, p_ch >= p_ch_ideal = K_v > 0) and the power
     balance m_1_ideal / m_1 = eta holds."""
     names = ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O')
-    p = dlv.DeliveryParams(Lambda=Lambda, alpha_m_deg=alpha_m, law=law, **dict(zip(names, fr)))
+    p = dlv.DeliveryParams(Lambda=Lambda, alpha_m_deg=alpha_m, law=law, **dict(zip(names, fr, strict=True)))
     s = dlv.evaluate_stroke(p, u, return_section=mode)
     assert np.all((s.eta >= 0.0) & (s.eta <= s.eta_O) & (s.eta_O <= 1.0))
     assert np.all((s.eta_A >= 0.0) & (s.eta_A <= 1.0) & (s.eta_B >= 0.0) & (s.eta_B <= 1.0))
@@ -291,8 +291,8 @@ def test_chain_path_is_monotone_bounded_and_inverted(Lambda: float, law: str, x_
 def crank_turns_fully(ground: float, crank: float, coupler: float, rocker: float) -> bool:
     """Whether the input link can make full turns: the dyad (coupler, rocker) closes for every
     distance |A - O2| in [|ground - crank|, ground + crank] (exact rational arithmetic)."""
-    g, c, l, r = (Fraction(x) for x in (ground, crank, coupler, rocker))
-    return g + c <= l + r and abs(g - c) >= abs(l - r)
+    ground, crank, coupler, rocker = (Fraction(x) for x in (ground, crank, coupler, rocker))
+    return ground + crank <= coupler + rocker and abs(ground - crank) >= abs(coupler - rocker)
 
 
 @PROPS

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -112,7 +113,7 @@ def test_bad_tolerances(kw, key) -> None:
 distinct_roots = (
     st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=1, max_size=6)
     .map(lambda r: sorted(set(round(x, 3) for x in r)))
-    .filter(lambda r: all(b - a >= 0.05 for a, b in zip(r, r[1:])))
+    .filter(lambda r: all(b - a >= 0.05 for a, b in pairwise(r)))
 )
 
 
@@ -214,7 +215,7 @@ def test_stepwise_scan_reports_a_boundary_crossing_once() -> None:
     vals[1][0] = 0.0
     found = []
     left = None
-    for s, v in zip(steps, vals):
+    for s, v in zip(steps, vals, strict=True):
         sc = find_sign_changes(f, s, values=v, left_sign=left)
         found.extend(sc.x.tolist())
         nz = v[v != 0.0]

@@ -450,11 +450,11 @@ def test_causal_evaluation_is_per_cycle_and_agrees_in_sign_with_the_batch(delay:
         t_k = whole.t[k]
         one = folder_evaluation(ev[(ev['t'] <= t_k) & (ev['cycle'] == k)], tm, scene, model.drive, causal=True)
         assert one.cycle.tolist() == [k] and one.signatures.tolist() == [whole.signatures[k]]
-        for a, b in zip(one.constraints, whole.constraints):
+        for a, b in zip(one.constraints, whole.constraints, strict=True):
             if b.name != 'release_at_min_speed':
                 assert a.margin.tolist() == b.margin[b.cycle == k].tolist(), (b.name, k)
     late = set(_rows(model, 'fault_late')['cycle'].tolist())
-    for a, b in zip(whole.constraints, batch.constraints):
+    for a, b in zip(whole.constraints, batch.constraints, strict=True):
         assert a.name == b.name and np.array_equal(a.t, a.t)
         # a cycle is dropped only where its sheet was not at the stops (or not handed over) by the knife
         assert set(a.cycle.tolist()) <= set(b.cycle.tolist())

@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -126,10 +127,8 @@ def children(pid: int) -> list[int]:
     """Direct children of ``pid`` (``/proc/<pid>/task/*/children``)."""
     out: list[int] = []
     for task in Path(f'/proc/{pid}/task').glob('*'):
-        try:
+        with contextlib.suppress(OSError):
             out += [int(c) for c in (task / 'children').read_text().split()]
-        except OSError:
-            pass
     return out
 
 

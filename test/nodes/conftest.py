@@ -10,24 +10,26 @@ from __future__ import annotations
 
 import os
 
-DOMAIN_ID = 1 + os.getpid() % 100
-os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+# read by rclpy when it is imported; only os.environ changes here, so the imports below count as at the top
+os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
 os.environ.pop('ROS_LOCALHOST_ONLY', None)  # deprecated; would conflict with the range above
 
-import time  # noqa: E402
-from collections.abc import Callable, Iterator  # noqa: E402
-from dataclasses import dataclass, field  # noqa: E402
-from pathlib import Path  # noqa: E402
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, TypeVar
 
-import pytest  # noqa: E402
-import rclpy  # noqa: E402
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-from rclpy.qos import QoSProfile  # noqa: E402
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+DOMAIN_ID = int(os.environ['ROS_DOMAIN_ID'])  # 1..100 from the pid, set above
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -93,7 +93,7 @@ def test_in_process_and_processes_record_the_same_bag(folder_runs: dict[str, Pat
     assert sum(map(len, a.values())) == sum(summaries['in-process']['messages'].values()) > 8 * n_ticks(FOLDER_DURATION)
     for key in sorted(a):
         assert len(a[key]) == len(b[key]), key
-        for i, (x, y) in enumerate(zip(a[key], b[key])):
+        for i, (x, y) in enumerate(zip(a[key], b[key], strict=True)):
             assert (x.log_ns, x.publish_ns, x.value) == (y.log_ns, y.publish_ns, y.value), (key, i)
 
 

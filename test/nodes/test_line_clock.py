@@ -360,7 +360,7 @@ def test_sim_time_is_never_ahead_of_rtf_times_wall_time(ros: Ros, rtf: float) ->
     assert fake.ticks == grid(0, 200 * MS, 10 * MS)
     w0 = clock.first_done_wall  # the ceiling counts from the first tick every participant answered
     assert w0 is not None
-    for stamp, arrival in zip(fake.ticks[1:], fake.arrival_ns[1:]):
+    for stamp, arrival in zip(fake.ticks[1:], fake.arrival_ns[1:], strict=True):
         assert stamp / NS_PER_S <= rtf * (arrival / NS_PER_S - w0), (stamp, arrival / NS_PER_S - w0)
     assert 0.0 < clock.rtf_achieved <= rtf
 
@@ -379,7 +379,7 @@ def test_rate_and_rtf_changes_apply_from_the_current_tick(ros: Ros) -> None:
     # of the tick before), sim time never runs ahead of half the wall time
     i = fake.ticks.index(100 * MS)
     published_after = fake.acked_ns[90 * MS]
-    for stamp, arrival in zip(fake.ticks[i + 1 :], fake.arrival_ns[i + 1 :]):
+    for stamp, arrival in zip(fake.ticks[i + 1 :], fake.arrival_ns[i + 1 :], strict=True):
         assert (stamp - 100 * MS) <= 0.5 * (arrival - published_after), stamp
 
 
@@ -460,7 +460,7 @@ def test_wall_mode_paces_by_the_wall_clock_and_counts_late_participants(ros: Ros
     assert clock.lost == {} and clock.ticks == 21
     w0 = clock.first_done_wall
     assert w0 is not None
-    for stamp, arrival in zip(late.ticks[1:], late.arrival_ns[1:]):
+    for stamp, arrival in zip(late.ticks[1:], late.arrival_ns[1:], strict=True):
         assert stamp / NS_PER_S <= arrival / NS_PER_S - w0  # rtf 1: the wall clock is a ceiling here too
     assert ros.spin_until(lambda: len(diags) == 1, timeout=10.0)
     [status] = diags.messages[0].status
@@ -606,7 +606,7 @@ BAD_STARTS = [
 def test_process_refuses_a_bad_parameter_with_exit_code_2(node_env: dict[str, str], tmp_path: Path) -> None:
     procs = [start(node_env, tmp_path, *args, tag=str(i)) for i, (args, _) in enumerate(BAD_STARTS)]
     try:
-        for (args, message), (process, err) in zip(BAD_STARTS, procs):
+        for (args, message), (process, err) in zip(BAD_STARTS, procs, strict=True):
             assert process.wait(timeout=60) == 2, (args, err.read_text())
             text = err.read_text()
             assert 'Traceback' not in text

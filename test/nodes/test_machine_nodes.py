@@ -473,7 +473,7 @@ def test_node_processes_refuse_a_bad_start_with_exit_code_2(node_env: dict[str, 
                 )
             )
     try:
-        for (node, param, words), (proc, err) in zip(cases, procs):
+        for (node, param, words), (proc, err) in zip(cases, procs, strict=True):
             assert proc.wait(timeout=60) == 2, (node, param, err.read_text())
             lines = err.read_text().splitlines()
             assert len(lines) == 1 and lines[0].startswith(f'{node}: error: '), (node, param, lines)

@@ -12,6 +12,7 @@ the end (SIGCONT) so that nothing is left behind.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -41,10 +42,8 @@ def test_a_lost_node_is_named_the_line_aborts_and_run_fails(
         code = run.wait(timeout=120)
     finally:
         if victim is not None and sig == signal.SIGSTOP:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(victim, signal.SIGCONT)
-            except ProcessLookupError:
-                pass
         run.stop()
     assert code == 1, run.text()
     [line] = run.error_lines()

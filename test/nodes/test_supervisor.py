@@ -326,7 +326,7 @@ def test_stop_reset_start_abort_clear(ros: Ros) -> None:
         ('STOPPED', t_cleared),
     ]
     assert [(m.source, time_msg_to_ns(m.header.stamp), time_msg_to_ns(m.time_ref)) for m in line.commands.messages] == [
-        (c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds)
+        (c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds, strict=True)
     ]
     assert line.machines['crank_drive'].commands == tuple(cmds)
     assert [(b.state, b.ok) for b in sup.logic.balances] == [('STOPPED', True), ('ABORTED', True), ('STOPPED', True)]
@@ -362,7 +362,8 @@ def test_diagnostics_one_status_per_constraint_then_the_inputs(ros: Ros, overrid
         assert [s.name for s in arr.status] == [*names, 'folder_line/supervisor/inputs']
         inputs = arr.status[-1]
         assert (inputs.level, inputs.message, list(inputs.values)) == (DiagnosticStatus.OK, 'no input rejected', [])
-        for status, c in zip(arr.status, model.constraints):
+        # the last status (supervisor inputs) has no constraint: zip stops before it
+        for status, c in zip(arr.status, model.constraints, strict=False):
             values = {kv.key: kv.value for kv in status.values}
             decided = c.decided_by(t)
             n = int(np.count_nonzero(decided))
