@@ -456,7 +456,7 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
                 if name == 'name':
                     continue
                 if name in ('position', 'velocity', 'effort') and joints and len(data) == len(joints):
-                    for joint, x in zip(joints, np.asarray(data).tolist()):
+                    for joint, x in zip(joints, np.asarray(data).tolist(), strict=True):
                         out[_join(_join(prefix, name), joint)] = x
                 else:
                     _flatten(data, _join(prefix, name), out)
@@ -661,8 +661,10 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
     starts = [float(v['t_start']) for _, _, v in rec.supervisor_status if 't_start' in v]
     if starts:
         t_start = starts[0]
-    else:  # the first tick published the first /diagnostics, stamped with its time: the first watermark
-        t_start = int(rec.diagnostics_ns.min()) / NS_PER_S if rec.diagnostics_ns.size else 0.0
+    elif rec.diagnostics_ns.size:  # the first tick published the first /diagnostics, stamped with its time
+        t_start = int(rec.diagnostics_ns.min()) / NS_PER_S  # the first watermark
+    else:
+        t_start = 0.0
     operator = [
         (float(v['t']), v['command'])
         for _, name, v in rec.supervisor_status
@@ -1023,9 +1025,9 @@ def cycle_rows(rec: Recording, ev: _Evaluation, n: int = GANTT_CYCLES) -> list[d
     settled = rec.events_of('settled')
     release = rec.events_of('released_on_pile')
     bouncing = rec.scene.has('stop_bounce')
-    margins = {c.name: dict(zip(c.cycle.tolist(), c.margin.tolist())) for c in ev.constraints}
+    margins = {c.name: dict(zip(c.cycle.tolist(), c.margin.tolist(), strict=True)) for c in ev.constraints}
     out = []
-    for k, t0 in zip(cycles.tolist(), t_start.tolist()):
+    for k, t0 in zip(cycles.tolist(), t_start.tolist(), strict=True):
         tc = first_time(contact, 'cycle', k)
         assert tc is not None
         th_dead = float(np.asarray(drive.theta(np.asarray(tc)))) - (timing.T - timing.t_knife - timing.t_allowed)
@@ -1140,7 +1142,7 @@ def _plot_cyclogram(rec: Recording, ev: _Evaluation, out: Path, n: int) -> Path 
         ax.text(text_x, i, _margin_text(row['margins']), va='center', fontsize=7.5, color='r' if bad else 'k')
     ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
     ax.set_yticks([-1] + list(range(len(rows))), ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
-    for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows)):
+    for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
         if any(m < 0.0 for m in row['margins'].values()):
             label.set_color('r')
         if i and row['cycle'] != rows[i - 1]['cycle'] + 1:  # cycles left out
@@ -1202,7 +1204,7 @@ def _plot_margins(ev: _Evaluation, out: Path) -> Path:
         ax.axis('off')
     if not series:
         axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
-    for ax, c in zip(axes.ravel(), series):
+    for ax, c in zip(axes.ravel(), series, strict=False):
         scale, unit = _DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
         m = c.margin * scale
         nv = int(np.count_nonzero(c.violated))
@@ -1409,7 +1411,7 @@ def _report_lines(
     lines += ['', '## Violations', '']
     viol = summary['violations']['first']
     if viol:
-        decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist())) for c in ev.constraints}
+        decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist(), strict=True)) for c in ev.constraints}
         lines += ['| cycle | constraint | margin | unit | decided at t, s |', '|---|---|---|---|---|']
         lines += [
             f'| {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '

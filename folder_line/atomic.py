@@ -340,5 +340,5 @@ def write_csv_atomic(path: str | os.PathLike[str], columns: Mapping[str, Sequenc
     buf = io.StringIO(newline='')
     writer = csv.writer(buf)
     writer.writerow(names)
-    writer.writerows(zip(*cols))
+    writer.writerows(zip(*cols, strict=True))
     return write_text_atomic(path, buf.getvalue())

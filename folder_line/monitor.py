@@ -26,6 +26,7 @@ the ~1500 messages/s of the ``folder`` line at rtf 1.
 
 from __future__ import annotations
 
+import contextlib
 import curses
 import math
 import os
@@ -806,10 +807,8 @@ def _collect(
 
 def _curses_view(executor: SingleThreadedExecutor, state: MonitorState, stop: threading.Event, rate: float) -> int:
     def loop(stdscr: Any) -> int:
-        try:
+        with contextlib.suppress(curses.error):  # a terminal that cannot hide the cursor
             curses.curs_set(0)
-        except curses.error:  # a terminal that cannot hide the cursor
-            pass
         stdscr.nodelay(True)
         styles = {
             'header': curses.A_REVERSE,

@@ -126,7 +126,7 @@ def stroke_curves(
     u = np.linspace(0.0, 2.0, n)
     styles = ('-', '--', '-.', ':')
     first = None
-    for mode, style in zip(modes, styles):
+    for mode, style in zip(modes, styles, strict=False):
         ev = delivery.evaluate_stroke(params, u, return_section=mode)
         first = ev if first is None else first
         ax_eta.plot(u, ev.eta, style, label=f'eta ({mode} return section)')

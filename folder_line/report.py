@@ -152,12 +152,12 @@ def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
     ax.plot(st.xC, st.yC, color='C0', lw=2, label='path of exit C')
     ax.plot(st.xE, st.yE, color='C1', lw=2, label='path of exit E')
     o1 = (lay.a, lay.b)
-    for e, style in zip(ext, ('-', '--')):
+    for e, style in zip(ext, ('-', '--'), strict=True):
         s1 = layup.LayupModel(lay).arrays(np.array([e.phi]), accelerations=False)
         pts = {k: (float(getattr(s1, 'x' + k)[0]), float(getattr(s1, 'y' + k)[0])) for k in 'ABCE'}
         chain = [o1, pts['A'], pts['B'], (0.0, 0.0), pts['C'], pts['E'], (lay.O2O3, 0.0)]
         ax.plot(
-            *zip(*chain),
+            *zip(*chain, strict=True),
             style,
             color='k',
             marker='o',
@@ -206,7 +206,7 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
         ax2.text((a + b) / 2, 3, f'{ph.name}\n{(b - a):.1f} ms', ha='center', va='center', fontsize=8)
     feed0 = 1e3 * (tm.knife.t_out - tm.knife.t_in)
     cases = (('V_tr = V_d', tm.V_d), ('paper V_tr', PAPER_V_TR), ('model V_tr,min', tm.V_tr_min))
-    for row, (label, v) in enumerate(cases):
+    for row, (_label, v) in enumerate(cases):
         t_feed = 1e3 * cy.L_feed / v
         ok = tm.feed_margin(v) >= -1e-12  # V_tr,min itself passes, up to rounding
         ax2.barh(row, t_feed, left=feed0, color='tab:green' if ok else 'tab:orange', alpha=0.8)

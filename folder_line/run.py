@@ -30,6 +30,7 @@ every acknowledged message was recorded).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import json
 import os
@@ -417,11 +418,9 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             deadline = time.monotonic() + 15.0
             for name, proc in procs.items():
                 if name not in lost_nodes:
-                    try:
+                    with contextlib.suppress(subprocess.TimeoutExpired):
                         proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
-                    except subprocess.TimeoutExpired:
-                        pass
-        for name, proc in procs.items():
+        for proc in procs.values():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
                 proc.send_signal(signal.SIGCONT)  # a stopped child (SIGSTOP, Ctrl-Z) ends now, not in 15 s

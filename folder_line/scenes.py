@@ -10,6 +10,7 @@ listed effect (``feed_slip.mu=0.2``), ``sheets.<key>``, ``drive.<key>``, ``seed`
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 from collections.abc import Iterable, Mapping
@@ -64,10 +65,8 @@ def parse_set(items: Iterable[str]) -> dict[str, Any]:
         except ParameterError:  # not a YAML scalar: the text as given
             value = raw
         if isinstance(value, str):  # YAML 1.1 reads 1e9 as a string; a user means the number
-            try:
+            with contextlib.suppress(ValueError):
                 value = float(value)
-            except ValueError:
-                pass
         if isinstance(value, (dict, list)):
             raise ParameterError(key, raw, 'must be a single value')
         out[key] = value
@@ -159,9 +158,8 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
             f'unknown section; a section is a machine ({", ".join(MACHINE_KINDS)}), '
             'sheets, drive, or an effect the scene lists',
         )
-    if head in MACHINE_KINDS or head == 'sheets':
-        if field not in section:
-            raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')
+    if (head in MACHINE_KINDS or head == 'sheets') and field not in section:
+        raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')
     section[field] = value
 
 

@@ -77,5 +77,5 @@ def print_summary(mechanism: str, table: dict[str, np.ndarray], out: IO[str]) ->
             print(f'  {name:>9}  min {arr.min(): .6g}  max {arr.max(): .6g}', file=out)
         else:
             values, counts = np.unique(arr, return_counts=True)
-            summary = ', '.join(f'{v}: {c}' for v, c in zip(values.tolist(), counts.tolist()))
+            summary = ', '.join(f'{v}: {c}' for v, c in zip(values.tolist(), counts.tolist(), strict=True))
             print(f'  {name:>9}  {summary}', file=out)

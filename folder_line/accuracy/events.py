@@ -310,7 +310,7 @@ def build_case(
     ref = reference_roots(g_mp, t_start.tolist())
     with mp.workdps(DPS):
         hi = np.array([float(r) for r in ref])
-        lo = np.array([float(r - mp.mpf(h)) for r, h in zip(ref, hi.tolist())])
+        lo = np.array([float(r - mp.mpf(h)) for r, h in zip(ref, hi.tolist(), strict=True)])
     return EventCase(
         name=name,
         span=float(span),
@@ -361,7 +361,7 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
     ids = hand['sheet'].astype(np.int64)
     t_core = np.full(ids.size, np.nan)
     pos = {int(s): i for i, s in enumerate(ids.tolist())}
-    for s, t in zip(stops['sheet'].tolist(), stops['t'].tolist()):
+    for s, t in zip(stops['sheet'].tolist(), stops['t'].tolist(), strict=True):
         t_core[pos[int(s)]] = t
     th_list = theta_h.tolist()
     tr = drive.t_ramp
@@ -448,7 +448,7 @@ def leaf_landing_case(span: float = SPAN_LAYUP, drag: float = DRAG) -> EventCase
     landed = ev[(ev['kind'] == event_kind('leaf_landed')) | (ev['kind'] == event_kind('leaf_spilled'))]
     t_core = np.full(ids.size, np.nan)
     pos = {int(s): i for i, s in enumerate(ids.tolist())}
-    for s, t in zip(landed['sheet'].tolist(), landed['t'].tolist()):
+    for s, t in zip(landed['sheet'].tolist(), landed['t'].tolist(), strict=True):
         t_core[pos[int(s)]] = t
     t_x, x0, y0, vx, vy = fl.t_x, fl.x0, fl.y0, fl.vx, fl.vy
     lists = [a.tolist() for a in (t_x, x0, y0, vx, vy)]

@@ -148,7 +148,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     ncol = min(3, len(panels))
     nrow = math.ceil(len(panels) / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.2 * nrow), squeeze=False)
-    for ax, (study, quantity, unit) in zip(axes.flat, panels):
+    for ax, (study, quantity, unit) in zip(axes.flat, panels, strict=False):
         sel = [r for r in rows if r.study == study and r.quantity == quantity]
         positive = [r.error for r in sel if r.error > 0.0]
         floor = min(positive) / 10.0 if positive else 1e-16
@@ -157,7 +157,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
             x = [r.cpu_s_per_sim_s for r in curve]
             y = [max(r.error, floor) for r in curve]
             (line,) = ax.loglog(x, y, marker='o', ms=4, lw=1.2, label=method)
-            for r, xi, yi in zip(curve, x, y):
+            for r, xi, yi in zip(curve, x, y, strict=True):
                 if r.error == 0.0:
                     ax.plot([xi], [yi], marker='o', ms=7, mfc='none', mec=line.get_color())
             for r, xi, yi in ((curve[0], x[0], y[0]), (curve[-1], x[-1], y[-1])):

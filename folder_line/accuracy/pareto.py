@@ -74,7 +74,7 @@ class EqualErrorRatio:
 
 def _loglog_cost(front: Sequence[Row], error: float) -> float:
     """CPU at ``error`` on a Pareto front (errors falling as cost rises), log-log interpolated."""
-    for lo, hi in zip(front, front[1:]):
+    for lo, hi in zip(front, front[1:], strict=False):
         if hi.error <= error <= lo.error:
             if hi.error == lo.error or hi.error <= 0.0:
                 return hi.cpu_s_per_sim_s

@@ -527,7 +527,7 @@ def measured_cost(rate: float, *, span_ticks: int = 600, warmup_wall: float = 0.
         The last attempt still skipped more than ``1 - MIN_PUBLISHED`` of the ticks.
     """
     rtf = default_rtf(rate)
-    for attempt in range(max(attempts, 1)):
+    for _attempt in range(max(attempts, 1)):
         cost = live_cost(rate, rtf=rtf, span_ticks=span_ticks, warmup_wall=warmup_wall)
         if cost.published_fraction >= MIN_PUBLISHED and cost.supervisor_state == 'EXECUTE':
             return cost

@@ -92,10 +92,7 @@ def _lookup(
     found = np.zeros(query.size, dtype=bool)
     if keys.size == 0 or query.size == 0:
         return out, found
-    if reduce == 'max':
-        order = np.lexsort((-values, keys))
-    else:
-        order = np.argsort(keys, kind='stable')
+    order = np.lexsort((-values, keys)) if reduce == 'max' else np.argsort(keys, kind='stable')
     k, v = keys[order], values[order]
     first = np.ones(k.size, dtype=bool)
     first[1:] = k[1:] != k[:-1]

@@ -108,7 +108,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Union
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -148,7 +148,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 Int8Array = npt.NDArray[np.int8]
-ArrayOrFloat = Union[FloatArray, float]
+ArrayOrFloat = FloatArray | float
 ReturnSection = Literal['geometric', 'paper_mirror']
 
 #: ``cos(alpha)`` at or below this is a self-locking state (rod force > 1e9 P_k, ideal).
@@ -475,7 +475,7 @@ class DeliverySamples:
         """``v_BA = v_A sin(beta)/cos(alpha)``, m/s, signed."""
         return self.k_BA * as_float('v_A', v_A)
 
-    def rod_angular_speed(self, v_A: float, l: float) -> FloatArray:
+    def rod_angular_speed(self, v_A: float, l: float) -> FloatArray:  # noqa: E741  (public keyword `l=`, the paper's rod length; callers pass it by name)
         """Rod angular speed ``omega_sh = v_BA / l``, rad/s, for rod length ``l`` (m, > 0)."""
         return self.k_BA * (as_float('v_A', v_A) / positive('l', l))
 

@@ -410,10 +410,7 @@ class FolderLine(LinePart):
         n_fed = int(ids.size)
         n_counted = int(np.count_nonzero(counted))
         # in the machine, from the event table: handed over, but no pile release (or not folded) by the end
-        if plan is not None:
-            gone = events['sheet'][events['kind'] == event_kind('released_on_pile')]
-        else:
-            gone = ids[folded]
+        gone = events['sheet'][events['kind'] == event_kind('released_on_pile')] if plan is not None else ids[folded]
         handed = events['sheet'][events['kind'] == event_kind('sheet_handover')]
         in_machine = int(np.count_nonzero(~np.isin(handed, gone)))
         t_feed = L / V_tr

@@ -420,7 +420,7 @@ def concatenate(parts: list[DenseSolution]) -> DenseSolution:
     """
     if not parts:
         raise ValueError('nothing to concatenate')
-    for a, b in zip(parts, parts[1:]):
+    for a, b in zip(parts, parts[1:], strict=False):
         if a.t[-1] != b.t[0]:
             raise ValueError(f'parts do not join: one ends at t={a.t[-1]!r}, the next starts at t={b.t[0]!r}')
         if a.n_components != b.n_components:
@@ -770,10 +770,7 @@ def _select_initial_step(
     d2 = _rms((f1 - f0) / scale) / h0
     if not math.isfinite(d2):
         return min(h0 * 1e-3, max_step)
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1 / 5)
+    h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / 5)
     return min(100 * h0, h1, interval_length, max_step)
 
 

@@ -128,14 +128,14 @@ def classify_fourbar(
     """
     links = (ground, crank, coupler, rocker)
     srt = sorted(links)
-    s, p, q, l = srt
-    excess = (s + l) - (p + q)
-    if abs(excess) <= rel_tol * (s + l + p + q):
+    shortest, p, q, longest = srt
+    excess = (shortest + longest) - (p + q)
+    if abs(excess) <= rel_tol * (shortest + longest + p + q):
         return 'change-point'
     if excess > 0.0:
         return 'non-Grashof'
     # Grashof: strictly s + l < p + q, hence s is unique (s = p would force l < q).
-    return {0: 'double-crank', 1: 'crank-rocker', 2: 'double-rocker', 3: 'rocker-crank'}[links.index(s)]
+    return {0: 'double-crank', 1: 'crank-rocker', 2: 'double-rocker', 3: 'rocker-crank'}[links.index(shortest)]
 
 
 def reduce_angle(phi: npt.ArrayLike) -> float | np.ndarray:

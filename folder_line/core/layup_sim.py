@@ -376,10 +376,7 @@ class LayupLine(LinePart):
         q = kin.chute(t_x, ch_x)
         u = v_along[xi]
         vp = q['v_perp']
-        if belts_on:
-            speed = belts.absolute_speed(vp, u)
-        else:
-            speed = np.sqrt(vp * vp + u * u)
+        speed = belts.absolute_speed(vp, u) if belts_on else np.sqrt(vp * vp + u * u)
         # t̂ = (sin, −cos), n̂ = (cos, sin)
         vx = u * q['sin'] + vp * q['cos']
         vy = -u * q['cos'] + vp * q['sin']

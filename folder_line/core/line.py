@@ -164,7 +164,7 @@ class LineResult:
             'min_margin': min_margin,
             'events': {
                 k: int(n)
-                for k, n in zip(EVENT_KINDS, np.bincount(self.events['kind'], minlength=len(EVENT_KINDS)))
+                for k, n in zip(EVENT_KINDS, np.bincount(self.events['kind'], minlength=len(EVENT_KINDS)), strict=True)
                 if n
             },
         }

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 import numpy.typing as npt
@@ -59,7 +58,7 @@ __all__ = [
 TOGGLE_TOL = 1e-10
 
 ArrayLike = npt.ArrayLike
-FloatOrArray = Union[float, np.ndarray]
+FloatOrArray = float | np.ndarray
 
 
 def normalised_discriminant(d2: ArrayLike, r0: ArrayLike, r1: ArrayLike) -> FloatOrArray:

@@ -857,9 +857,9 @@ class Supervisor:
                 for s in ev.constraints:
                     if s.name == 'release_at_min_speed':
                         continue
-                    for c, m in zip(s.cycle.tolist(), s.margin.tolist()):
+                    for c, m in zip(s.cycle.tolist(), s.margin.tolist(), strict=True):
                         per[int(c)].append((s.name, s.unit, float(m)))
-                for c, tc, n in zip(ev.cycle.tolist(), ev.t.tolist(), ev.signatures.tolist()):
+                for c, tc, n in zip(ev.cycle.tolist(), ev.t.tolist(), ev.signatures.tolist(), strict=True):
                     items.append(_Item(float(tc), 0, int(c), tuple(per[int(c)]), int(n), 'folder'))
         rb = self._releases
         if self._timing is not None and rb.size:
@@ -869,14 +869,14 @@ class Supervisor:
                 ev = folder_evaluation(rb[due], self._timing, self.scene, drive, plan=self._plan, causal=True)
                 for s in ev.constraints:
                     if s.name == 'release_at_min_speed':
-                        for c, m, tr in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist()):
+                        for c, m, tr in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
                             items.append(_Item(float(tr), 1, int(c), ((s.name, s.unit, float(m)),), 1, 'release'))
         xb = self._exits
         if xb.size:
             due = (xb['t'] <= W) & (xb['t'] > self._exit_done)
             if due.any():
                 for s in evaluate_layup_constraints(xb[due], self.scene):
-                    for c, m, tx in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist()):
+                    for c, m, tx in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
                         items.append(_Item(float(tx), 2, int(c), ((s.name, s.unit, float(m)),), 1, 'layup'))
         items.sort(key=lambda it: (it.t, it.order, it.cycle))
         return items

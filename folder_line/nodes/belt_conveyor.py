@@ -1,4 +1,7 @@
-"""Node ``belt_conveyor``: the belts that bring sheets in — the layup chute belts (``chute_belts``) and the folder's first transporter (``first_transporter``) — with the leaves' chute events and the stream's faults.
+"""Node ``belt_conveyor``: the belts that bring sheets in.
+
+The layup chute belts (``chute_belts``) and the folder's first transporter
+(``first_transporter``), with the leaves' chute events and the stream's faults.
 
 Parameters and topics: see :mod:`folder_line.nodes.machine`.
 """

@@ -48,7 +48,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, Union
+from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
@@ -268,7 +268,7 @@ def time_msg_to_ns(stamp: TimeMsg) -> int:
 
 # --------------------------------------------------------------------------- parameters
 
-ParamValue = Union[bool, int, float, str]
+ParamValue = bool | int | float | str
 """The scalar parameter types a :class:`ParamSpec` supports."""
 
 CrossCheck = Callable[[Mapping[str, Any]], None]

@@ -1,4 +1,7 @@
-"""Node ``crank_drive``: the line's crank shafts — the layup six-bar (joints ``layup_crank``, ``transporter3``, ``transporter4``) and the folding knife (``knife_crank``, ``knife``) — and the knife's contact and exit events.
+"""Node ``crank_drive``: the line's crank shafts and the knife's contact and exit events.
+
+The crank shafts: the layup six-bar (joints ``layup_crank``, ``transporter3``,
+``transporter4``) and the folding knife (``knife_crank``, ``knife``).
 
 Parameters and topics: see :mod:`folder_line.nodes.machine`.
 """

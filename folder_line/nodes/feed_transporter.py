@@ -1,4 +1,8 @@
-"""Node ``feed_transporter``: the folder's 2nd transporter (``feed_belt``) and the delivery chain (``chain``, ``carriage``; the sprocket torque as the chain's effort with ``chain_friction``), with the signatures' hand-over, front-stop and settle events.
+"""Node ``feed_transporter``: the folder's 2nd transporter and the delivery chain.
+
+The transporter (``feed_belt``) and the chain (``chain``, ``carriage``; the sprocket
+torque as the chain's effort with ``chain_friction``), with the signatures' hand-over,
+front-stop and settle events.
 
 Parameters and topics: see :mod:`folder_line.nodes.machine`.
 """

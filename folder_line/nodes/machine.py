@@ -375,7 +375,7 @@ class MachineNode(Node):
         # array('d') rows: the message takes them as they are (a list is checked value by value)
         pos, vel = [array('d', row) for row in js.position], [array('d', row) for row in js.velocity]
         eff = [array('d')] * n if js.effort is None else [array('d', row) for row in js.effort]
-        rows = list(zip(pos, vel, eff))
+        rows = list(zip(pos, vel, eff, strict=True))
         self._batch = (g, self._period_ns, rows)
         return rows[0]
 

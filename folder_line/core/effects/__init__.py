@@ -9,7 +9,7 @@ The registry below says which machine sections an effect needs.
 |---|---|---|
 | chute_belts | layup | belts along the chutes at v_tr: exit speed sqrt(v_C² + v_tr²) (paper 000 eq. 25) |
 | leaf_flight | layup, container | flight from the chute exit to the floor, landing x, histogram |
-| guide_friction | layup | without belts: the leaf slides on the guide under gravity, Coulomb friction and the chute's swing |
+| guide_friction | layup | without belts: the leaf slides on the guide (gravity, Coulomb friction, the chute's swing) |
 | leaf_damage | layup | leaves leaving at or above v_damage are counted as damaged |
 | motor_dynamics | (any) | the master drive from a motor torque-speed curve and inertia (an ODE) |
 | chain_friction | delivery | efficiency, rod and chain forces, sprocket torque (paper 002) |

@@ -309,7 +309,7 @@ class MasterLoad:
         self.locked_u = grid[st.state != STATE_OK]
         ends = list(self.offsets) + [sch.T]
         peak, area = 0.0, 0.0
-        for lo, hi in zip(ends[:-1], ends[1:]):
+        for lo, hi in zip(ends[:-1], ends[1:], strict=True):
             th = self.theta0 + np.linspace(lo, hi, 20001)
             mid = 0.5 * (lo + hi) + self.theta0
             vals = self._torque_piece_vec(th, mid)

@@ -470,7 +470,7 @@ def slide(
     fresh = np.full(n, params.v0 == 0.0)
     if params.v0 == 0.0 and n:
         at_rest = a <= 0.0  # σ(t_enter) <= 0: stuck from the entry
-        for i, t in zip(ids[at_rest].tolist(), t_enter[at_rest].tolist()):
+        for i, t in zip(ids[at_rest].tolist(), t_enter[at_rest].tolist(), strict=True):
             sticks.append((i, t))
         stuck.append((ids[at_rest], s[at_rest], chute[at_rest], length[at_rest], t_enter[at_rest]))
         keep = ~at_rest
@@ -513,12 +513,16 @@ def slide(
             exited[ids_ok] = True
             t_exit[ids_ok] = tx[ok]
             v_exit[ids_ok] = vx[ok]
-            th_exit = dict(zip(rows[stop[rows]].tolist(), th[stop[rows]].tolist()))
+            th_exit = dict(zip(rows[stop[rows]].tolist(), th[stop[rows]].tolist(), strict=True))
         else:
             th_exit = {}
         for row in np.flatnonzero(stop).tolist():
             y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
-            th_stop = brentq(lambda x: _hermite1(x, y0, d0, y1, d1, hr), 0.0, 1.0)
+
+            def dv(x: float, y0: float = y0, d0: float = d0, y1: float = y1, d1: float = d1, hr: float = hr) -> float:
+                return _hermite1(x, y0, d0, y1, d1, hr)  # speed along the step: zero at the stop
+
+            th_stop = brentq(dv, 0.0, 1.0)
             t0 = float(act.t[row])
             if row in th_exit and th_exit[row] <= th_stop:
                 t_x = t0 + th_exit[row] * hr
@@ -545,7 +549,7 @@ def slide(
         # confirmed slips: leaves that got moving after their pending slip
         conf = act.fresh & ~failed & (act.pending >= 0.0)
         if conf.any():
-            slips.extend(zip(act.ids[conf].tolist(), act.pending[conf].tolist()))
+            slips.extend(zip(act.ids[conf].tolist(), act.pending[conf].tolist(), strict=True))
 
         if new_stuck:
             rr = np.array([x[0] for x in new_stuck], dtype=np.int64)
