@@ -23,6 +23,7 @@ report: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff format --check --quiet .
+	$(BIN)/ruff check --quiet .
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
