@@ -37,6 +37,7 @@ __all__ = [
     'check_output_file',
     'claim_output_dir',
     'describe_path',
+    'file_kind',
     'write_bytes_atomic',
     'write_csv_atomic',
     'write_json_atomic',
@@ -52,7 +53,8 @@ _MODE = 0o666 & ~_umask
 LOCK_FILE = '.folder-line.lock'
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """``'a FIFO'``, ``'a directory'``, ``'a regular file'``... of an ``st_mode``."""
     for test, name in (
         (stat.S_ISDIR, 'a directory'),
         (stat.S_ISFIFO, 'a FIFO'),
@@ -74,7 +76,7 @@ def describe_path(path: str | os.PathLike[str]) -> str:
         return 'is a symbolic link to nothing (dangling)' if os.path.islink(path) else 'does not exist'
     except OSError as exc:
         return f'cannot be looked at: {_reason(exc)}'
-    return f'is {_kind(info.st_mode)}'
+    return f'is {file_kind(info.st_mode)}'
 
 
 def _reason(exc: OSError) -> str:
@@ -93,7 +95,7 @@ def _check_ancestors(path: Path, option: str | None, target: str) -> None:
         except OSError as exc:
             raise OutputError(option, target, f'cannot look at {parent}: {_reason(exc)}') from None
         if not stat.S_ISDIR(info.st_mode):
-            raise OutputError(option, target, f'{parent} is {_kind(info.st_mode)}, not a directory')
+            raise OutputError(option, target, f'{parent} is {file_kind(info.st_mode)}, not a directory')
         return
 
 
@@ -135,11 +137,11 @@ def check_output_file(path: str | os.PathLike[str], option: str | None = None) -
             ) from None
         if not stat.S_ISREG(target.st_mode):
             raise OutputError(
-                option, str(path), f'is a symbolic link to {_kind(target.st_mode)}, not to a regular file'
+                option, str(path), f'is a symbolic link to {file_kind(target.st_mode)}, not to a regular file'
             ) from None
         return Path(os.path.realpath(dest))
     if not stat.S_ISREG(info.st_mode):
-        raise OutputError(option, str(path), f'is {_kind(info.st_mode)}, not a regular file')
+        raise OutputError(option, str(path), f'is {file_kind(info.st_mode)}, not a regular file')
     return dest
 
 
@@ -175,7 +177,7 @@ def check_output_dir(
     except OSError as exc:
         raise OutputError(option, str(path), _reason(exc)) from None
     if not stat.S_ISDIR(info.st_mode):
-        raise OutputError(option, str(path), f'is {_kind(info.st_mode)}, not a directory')
+        raise OutputError(option, str(path), f'is {file_kind(info.st_mode)}, not a directory')
     for name in files:
         check_output_file(dest / name, option)
     for name in dirs:

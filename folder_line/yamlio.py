@@ -29,6 +29,7 @@ import yaml
 from yaml.constructor import ConstructorError
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
+from folder_line.atomic import file_kind
 from folder_line.errors import InputFileError, bounded_repr, shorten
 
 __all__ = [
@@ -146,19 +147,6 @@ class BoundedLoader(yaml.SafeLoader):
 BoundedLoader.add_constructor('tag:yaml.org,2002:int', BoundedLoader.construct_yaml_int)
 
 
-def _kind(mode: int) -> str:
-    for test, name in (
-        (stat.S_ISDIR, 'a directory'),
-        (stat.S_ISFIFO, 'a FIFO'),
-        (stat.S_ISCHR, 'a character device'),
-        (stat.S_ISBLK, 'a block device'),
-        (stat.S_ISSOCK, 'a socket'),
-    ):
-        if test(mode):
-            return name
-    return 'not a regular file'
-
-
 def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT_LIMIT) -> str:
     """The UTF-8 text of a regular file of at most ``limit`` bytes.
 
@@ -185,7 +173,7 @@ def read_text_bounded(path: str | os.PathLike[str], what: str, limit: int = TEXT
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
-            raise InputFileError(what, name, f'is {_kind(info.st_mode)}, not a regular file')
+            raise InputFileError(what, name, f'is {file_kind(info.st_mode)}, not a regular file')
         if info.st_size > limit:
             raise InputFileError(what, name, f'is {info.st_size} bytes; at most {limit} are read')
         chunks: list[bytes] = []
