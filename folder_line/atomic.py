@@ -212,6 +212,18 @@ def _remove_dirs(created: list[Path]) -> None:
             break
 
 
+def _lock(fd: int, option: str | None, path: str | os.PathLike[str]) -> None:
+    """Take the exclusive lock on ``fd`` at once; a folder another process holds is refused."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise OutputError(
+            option,
+            str(path),
+            'is in use by another folder-line process; wait for it to finish or choose another folder',
+        ) from None
+
+
 @contextlib.contextmanager
 def claim_output_dir(
     path: str | os.PathLike[str],
@@ -244,25 +256,14 @@ def claim_output_dir(
     try:
         fd = os.open(dest, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise OutputError(
-                option,
-                str(path),
-                'is in use by another folder-line process; wait for it to finish or choose another folder',
-            ) from None
+            _lock(fd, option, path)
+        except OutputError:
+            raise
         except OSError:  # flock on a directory not supported here: lock a file inside it
             os.close(fd)
             fd = -1
             fd = os.open(dest / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, _MODE)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                raise OutputError(
-                    option,
-                    str(path),
-                    'is in use by another folder-line process; wait for it to finish or choose another folder',
-                ) from None
+            _lock(fd, option, path)
         probe, probe_path = tempfile.mkstemp(prefix='.folder-line-probe.', dir=dest)
         os.close(probe)
         os.unlink(probe_path)
