@@ -30,13 +30,13 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'folder-line = folder_line.cli:main',
-            'line_clock = folder_line.nodes.line_clock:main',
-            'crank_drive = folder_line.nodes.crank_drive:main',
-            'belt_conveyor = folder_line.nodes.belt_conveyor:main',
-            'feed_transporter = folder_line.nodes.feed_transporter:main',
-            'sheet_counter = folder_line.nodes.sheet_counter:main',
-            'supervisor = folder_line.nodes.supervisor:main',
+            'folder-line = folder_line.cli.main:main',
+            'line_clock = folder_line.ros.nodes.line_clock:main',
+            'crank_drive = folder_line.ros.nodes.crank_drive:main',
+            'belt_conveyor = folder_line.ros.nodes.belt_conveyor:main',
+            'feed_transporter = folder_line.ros.nodes.feed_transporter:main',
+            'sheet_counter = folder_line.ros.nodes.sheet_counter:main',
+            'supervisor = folder_line.ros.nodes.supervisor:main',
         ],
     },
 )

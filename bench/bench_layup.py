@@ -23,8 +23,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from folder_line.core.layup import TAU, LayupModel, layup_point  # noqa: E402
-from folder_line.params import load_params  # noqa: E402
+from folder_line.config.params import load_params  # noqa: E402
+from folder_line.core.mechanisms.layup import TAU, LayupModel, layup_point  # noqa: E402
 
 
 def best_of(fn, repeats: int) -> float:  # noqa: ANN001

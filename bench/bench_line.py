@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from folder_line.core.line import simulate
-from folder_line.core.scene import Scene, parse_scene
-from folder_line.scenes import scene_mapping
+from folder_line.config.scenes import scene_mapping
+from folder_line.core.line.model import simulate
+from folder_line.core.line.scene import Scene, parse_scene
 
 
 def best_of(fn: Callable[[], Any], repeat: int) -> float:

@@ -5,8 +5,8 @@ Run: ``.venv/bin/python bench/bench_memory.py`` (about a minute). Each scene is 
 process for two durations; the growth of the peak RSS between them, over the knife cycles
 (``folder``) or leaves (``layup``) added, is the peak memory per cycle or leaf. Start-up
 (imports, the interpreter) cancels out. The ``line`` scene checks the two figures
-together. Compare with :data:`folder_line.core.line.BYTES_PER_CYCLE` and
-:data:`~folder_line.core.line.BYTES_PER_LEAF`, which must not be below what is measured
+together. Compare with :data:`folder_line.core.line.model.BYTES_PER_CYCLE` and
+:data:`~folder_line.core.line.model.BYTES_PER_LEAF`, which must not be below what is measured
 here.
 """
 
@@ -25,9 +25,9 @@ def _peak(scene: str, duration: float) -> tuple[int, int, int]:
     code = """
 import json, resource, sys
 sys.path.insert(0, sys.argv[3])
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import simulate
-from folder_line.scenes import load_scene
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import simulate
+from folder_line.config.scenes import load_scene
 scene = load_scene(sys.argv[1], {})
 result = simulate(scene, float(sys.argv[2]), sample_rate=0.0)
 result.summary()
@@ -51,7 +51,7 @@ def growth(scene: str, d1: float, d2: float) -> tuple[float, int, int]:
 
 
 def main() -> int:
-    from folder_line.core.line import BYTES_PER_CYCLE, BYTES_PER_LEAF
+    from folder_line.core.line.model import BYTES_PER_CYCLE, BYTES_PER_LEAF
 
     d1, d2 = 3600.0, 14400.0
     rss, cycles, _ = growth('folder', d1, d2)

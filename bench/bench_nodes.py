@@ -5,7 +5,7 @@ markdown table; the README quotes it with the machine it ran on.
 
 What is measured
 ----------------
-* **Line.** ``folder-line run`` (:func:`folder_line.run.run_line`) of the ``folder`` scene
+* **Line.** ``folder-line run`` (:func:`folder_line.ros.run.run_line`) of the ``folder`` scene
   at ``--rtf max`` (no ceiling: as fast as the slowest participant allows), recorded to
   a bag, at 200 Hz and at 1 kHz of sim time, in process (one ``EventsExecutor``) and one
   process per node. Reported: the real-time factor reached (sim s per wall s from the
@@ -110,11 +110,11 @@ def line_fanout(rate: float) -> dict[str, int]:
     from rclpy.parameter import Parameter
 
     from folder_line.interfaces import KNOWN_PARTICIPANTS, RECORDER
-    from folder_line.nodes.common import events_executor
-    from folder_line.nodes.line_clock import LineClock
-    from folder_line.nodes.lockstep import tick_done_topic
-    from folder_line.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.common import events_executor
+    from folder_line.ros.lockstep import tick_done_topic
+    from folder_line.ros.nodes.line_clock import LineClock
+    from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.ros.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
 
     cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
     ctx = rclpy.Context()
@@ -140,7 +140,7 @@ def line_fanout(rate: float) -> dict[str, int]:
 
 def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, dict]:
     """One lockstep run at rtf max: (CPU s of this process and its children, rtf reached, summary)."""
-    from folder_line.run import RunConfig, run_line
+    from folder_line.ros.run import RunConfig, run_line
 
     with tempfile.TemporaryDirectory(prefix='bench_nodes_') as tmp:
         cfg = RunConfig(scene='folder', duration=duration, rtf=0.0, rate=rate, out=Path(tmp), processes=processes)
@@ -168,7 +168,7 @@ def line(duration: float, rate: float, processes: bool) -> dict[str, Any]:
     """Runs of ``duration`` and ``2 duration``: the CPU per tick is their difference over the extra ticks, so
     start-up (imports, models, discovery) cancels out; the rtf reached is the longer run's."""
     from folder_line.interfaces import KNOWN_PARTICIPANTS
-    from folder_line.nodes.lockstep import tick_done_topic
+    from folder_line.ros.lockstep import tick_done_topic
 
     cpu1, _, _ = _run(duration, rate, processes)
     cpu2, rtf, s = _run(2 * duration, rate, processes)

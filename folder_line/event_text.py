@@ -2,7 +2,7 @@
 
 The machine nodes publish each exact event on ``/line/events`` with ``time_ref`` =
 the event time (nearest ns) and ``source`` = ``'<kind> sheet=<id> cycle=<k>
-value=<repr>'``; the analysis of a bag (:mod:`folder_line.analysis`) reads them back.
+value=<repr>'``; the analysis of a bag (:mod:`folder_line.analysis.analysis`) reads them back.
 Both use these two functions, so that a bag can be decoded without rclpy.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-from folder_line.core.events import EVENT_KINDS
+from folder_line.core.line.events import EVENT_KINDS
 
 __all__ = ['SOURCE_PATTERN', 'event_source', 'parse_event_source']
 

@@ -1,6 +1,6 @@
 """Names of the line's interfaces that every layer may import (no rclpy here).
 
-The ROS adapters (:mod:`folder_line.nodes`), ``folder-line run``, the analysis and the
+The ROS adapters (:mod:`folder_line.ros.nodes`), ``folder-line run``, the analysis and the
 launch file take the node names from here.
 """
 

@@ -26,7 +26,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from folder_line.analysis import (
+from folder_line.analysis.analysis import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -44,8 +44,8 @@ from folder_line.analysis import (
     recorded_transitions,
     transitions_agree,
 )
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import LineModel, simulate
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import LineModel, simulate
 from folder_line.event_text import event_source, parse_event_source
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
@@ -60,7 +60,7 @@ PNG = b'\x89PNG\r\n\x1a\n'
 
 def _record(base: Path, scene: str, duration: float) -> Path:
     """Run the line in-process (rtf 2) on this process's own ROS domain; the run directory."""
-    from folder_line.run import RunConfig, run_line
+    from folder_line.ros.run import RunConfig, run_line
 
     out = base / scene
     with pytest.MonkeyPatch.context() as mp:
@@ -257,9 +257,9 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
 
 def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisResult]) -> None:
     """η and K_v at the stroke positions recovered from the recorded carriage, the recorded torque."""
-    from folder_line.analysis import _evaluate
-    from folder_line.core import delivery as dlv
+    from folder_line.analysis.analysis import _evaluate
     from folder_line.core.effects import chain_friction
+    from folder_line.core.mechanisms import delivery as dlv
 
     _, result = folder
     rec = result.recording
@@ -282,7 +282,7 @@ def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisRe
 
 
 def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult]) -> None:
-    from folder_line.analysis import _evaluate
+    from folder_line.analysis.analysis import _evaluate
 
     _, result = folder
     rec = result.recording
@@ -329,7 +329,7 @@ def test_layup_figures_and_numbers(layup: tuple[Path, AnalysisResult]) -> None:
     rec = result.recording
     assert rec.sheet_count == expected['sheets_counted']
     # the landing histogram is the simulator's
-    from folder_line.analysis import landing_data
+    from folder_line.analysis.analysis import landing_data
 
     land = landing_data(rec)
     assert land is not None
@@ -347,7 +347,7 @@ def test_layup_events_equal_the_line_model_to_the_ns(layup: tuple[Path, Analysis
 
 def test_exit_speeds_are_the_recorded_kinematics(layup: tuple[Path, AnalysisResult]) -> None:
     """v_C = ω3 l3 from the recorded joint states is the six-bar's at the recorded crank angle."""
-    from folder_line.core.layup import LayupModel
+    from folder_line.core.mechanisms.layup import LayupModel
 
     _, result = layup
     rec = result.recording
@@ -400,8 +400,8 @@ def test_transitions_agree_allows_states_within_one_tick() -> None:
 
 
 def test_topic_names_are_the_nodes() -> None:
-    from folder_line import analysis
-    from folder_line.nodes import common
+    from folder_line.analysis import analysis
+    from folder_line.ros import common
 
     for name in (
         'CLOCK_TOPIC',
@@ -419,8 +419,8 @@ def test_topic_names_are_the_nodes() -> None:
 
 def test_supervisor_defaults_are_the_nodes() -> None:
     """SUPERVISOR_DEFAULTS mirrors the live node's parameter defaults and the run's rate."""
-    from folder_line.nodes.supervisor import Supervisor
-    from folder_line.run import RunConfig
+    from folder_line.ros.nodes.supervisor import Supervisor
+    from folder_line.ros.run import RunConfig
 
     specs = {spec.name: spec.default for spec in Supervisor.EXTRA_SPECS}
     mirrored = {k: v for k, v in SUPERVISOR_DEFAULTS.items() if k != 'rate'}
@@ -432,7 +432,7 @@ def test_supervisor_defaults_are_the_nodes() -> None:
 
 
 def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from folder_line.cli import main
+    from folder_line.cli.main import main
 
     run, result = folder
     out = tmp_path / 'cli'
@@ -453,7 +453,7 @@ def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys
 def test_analysis_needs_no_ros(folder: tuple[Path, AnalysisResult], tmp_path: Path) -> None:
     run, _ = folder
     code = (
-        'import sys; from folder_line.analysis import analyze; '
+        'import sys; from folder_line.analysis.analysis import analyze; '
         f'r = analyze({str(run / "bag")!r}, {str(tmp_path)!r}); '
         "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
         "'sensor_msgs', 'std_msgs')); print(len(r.figures), bad)"
@@ -482,7 +482,7 @@ def test_event_source_round_trip(kind: str, sheet: int, cycle: int, value: float
 
 
 def test_event_source_rejects_other_text() -> None:
-    from folder_line.nodes import machine
+    from folder_line.ros.nodes import machine
 
     assert machine.parse_event_source is parse_event_source and machine.event_source is event_source
     for bad in (

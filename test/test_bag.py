@@ -27,7 +27,7 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
 from folder_line import __version__
-from folder_line.bag import (
+from folder_line.bag.bag import (
     KEY_PUBLISHED,
     BagError,
     BagWriter,
@@ -37,8 +37,8 @@ from folder_line.bag import (
     segment_files,
     serialize,
 )
-from folder_line.cli import main as cli_main
-from folder_line.recorder import LINE_TOPICS
+from folder_line.cli.main import main as cli_main
+from folder_line.ros.recorder import LINE_TOPICS
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
 pytestmark = [
@@ -395,8 +395,8 @@ def test_run_line_records_every_message(tmp_path: Path, monkeypatch: pytest.Monk
     """In-process run of the folder scene, 2 s at rtf 2: the bag has what the recorder got, nothing lost."""
     import io
 
-    from folder_line.run import RunConfig, run_line
-    from folder_line.scenes import scene_mapping
+    from folder_line.config.scenes import scene_mapping
+    from folder_line.ros.run import RunConfig, run_line
 
     monkeypatch.setenv('ROS_DOMAIN_ID', str(101 + os.getpid() % 100))  # not the domain of any other graph
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')

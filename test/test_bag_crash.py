@@ -22,8 +22,8 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from folder_line.bag import BagError, bag_info_lines, read_bag, repair, segment_files
-from folder_line.cli import main as cli_main
+from folder_line.bag.bag import BagError, bag_info_lines, read_bag, repair, segment_files
+from folder_line.cli.main import main as cli_main
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / 'test' / '_bag_crash_writer.py'

@@ -18,10 +18,10 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from folder_line.cli import main
+from folder_line.cli.main import main
+from folder_line.config.scenes import SET_VALUE_CHARS
 from folder_line.errors import ParameterError, bounded_repr
-from folder_line.scenes import SET_VALUE_CHARS
-from folder_line.yamlio import MAX_ALIASES, MAX_DEPTH, TEXT_LIMIT, load_yaml
+from folder_line.files.yamlio import MAX_ALIASES, MAX_DEPTH, TEXT_LIMIT, load_yaml
 
 #: longest error line a hostile input may produce, characters
 LINE_MAX = 400
@@ -126,9 +126,9 @@ def test_a_scene_or_parameter_file_that_is_not_a_file(
 
 def _bag_dir(tmp_path: Path) -> Path:
     """A real (empty) bag of the folder scene."""
-    from folder_line.bag import BagWriter
-    from folder_line.recorder import LINE_TOPICS
-    from folder_line.scenes import scene_mapping
+    from folder_line.bag.bag import BagWriter
+    from folder_line.config.scenes import scene_mapping
+    from folder_line.ros.recorder import LINE_TOPICS
 
     source = yaml.safe_dump(scene_mapping('folder'), sort_keys=False)
     with BagWriter(tmp_path / 'run' / 'bag', scene_source=source, effects=[], scene_name='folder', topics=LINE_TOPICS):

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from folder_line.cli import main
-from folder_line.tables import COLUMNS
+from folder_line.cli.main import main
+from folder_line.cli.tables import COLUMNS
 
 
 def _read(path: Path) -> tuple[list[str], list[list[str]]]:
@@ -123,7 +123,7 @@ def test_bad_arguments_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str
 def test_installed_command_runs_as_a_process(tmp_path: Path) -> None:
     missing = tmp_path / 'missing.yaml'
     proc = subprocess.run(
-        [sys.executable, '-m', 'folder_line.cli', 'kinematics', 'knife', '--params', str(missing)],
+        [sys.executable, '-m', 'folder_line.cli.main', 'kinematics', 'knife', '--params', str(missing)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -154,8 +154,8 @@ def test_report_writes_every_file_and_reproduces_the_papers(tmp_path: Path, caps
 
 
 def test_published_checks_can_fail() -> None:
-    from folder_line.params import load_params
-    from folder_line.report import published_checks
+    from folder_line.cli.report import published_checks
+    from folder_line.config.params import load_params
 
     p = {k: load_params(k) for k in ('layup', 'knife', 'delivery', 'cyclogram')}
     assert all(c.agrees for c in published_checks(p))

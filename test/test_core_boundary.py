@@ -33,7 +33,7 @@ def _allowed(name: str) -> bool:
 
 
 def test_core_modules_exist() -> None:
-    assert len(list(CORE.glob('*.py'))) >= 5
+    assert len(list(CORE.rglob('*.py'))) >= 5
 
 
 def test_core_imports_numpy_and_stdlib_only() -> None:

@@ -6,7 +6,7 @@ import ast
 import re
 from pathlib import Path
 
-from folder_line.run import LINE_NODES
+from folder_line.ros.run import LINE_NODES
 
 REPO = Path(__file__).resolve().parent.parent
 LAUNCH = REPO / 'launch' / 'line.launch.py'
@@ -22,16 +22,16 @@ def _literal(tree: ast.Module, name: str) -> object:
 def test_launch_file_starts_every_line_node_with_an_installed_executable() -> None:
     tree = ast.parse(LAUNCH.read_text())
     assert tuple(_literal(tree, 'MACHINE_NODES')) == LINE_NODES
-    scripts = set(re.findall(r"'(\w+) = folder_line\.nodes\.\w+:main'", (REPO / 'setup.py').read_text()))
+    scripts = set(re.findall(r"'(\w+) = folder_line\.ros\.nodes\.\w+:main'", (REPO / 'setup.py').read_text()))
     assert set(LINE_NODES) | {'line_clock'} <= scripts
     assert 'def generate_launch_description' in LAUNCH.read_text()
 
 
 def test_launch_arguments_match_node_parameters() -> None:
-    from folder_line.nodes.machine import MACHINE_SPECS
+    from folder_line.ros.nodes.machine import MACHINE_SPECS
 
     tree = ast.parse(LAUNCH.read_text())
-    from folder_line.nodes.line_clock import SPECS as CLOCK_SPECS
+    from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 
     args = {name for name, _, _ in _literal(tree, 'ARGUMENTS')}
     assert {spec.name for spec in MACHINE_SPECS} <= args

@@ -14,10 +14,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
-from folder_line.cli import main
-from folder_line.core.events import EVENT_KINDS
-from folder_line.monitor import MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats, run_monitor
-from folder_line.nodes.common import (
+from folder_line.cli.main import main
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.ros.common import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -29,9 +28,10 @@ from folder_line.nodes.common import (
     joint_states_topic,
     ns_to_time_msg,
 )
-from folder_line.nodes.machine import event_source, line_model
-from folder_line.nodes.supervisor import Supervisor
-from folder_line.recorder import LINE_TOPICS
+from folder_line.ros.monitor import MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats, run_monitor
+from folder_line.ros.nodes.machine import event_source, line_model
+from folder_line.ros.nodes.supervisor import Supervisor
+from folder_line.ros.recorder import LINE_TOPICS
 
 CRANK = joint_states_topic('crank_drive')
 

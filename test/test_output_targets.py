@@ -26,9 +26,9 @@ from typing import Any
 import pytest
 import yaml
 
-from folder_line.atomic import claim_output_dir
-from folder_line.cli import main
-from folder_line.report import REPORT_FILES
+from folder_line.cli.main import main
+from folder_line.cli.report import REPORT_FILES
+from folder_line.files.atomic import claim_output_dir
 
 REPO = Path(__file__).resolve().parents[1]
 ROOT = os.geteuid() == 0
@@ -159,9 +159,9 @@ FILE_VERBS = {
 
 def _empty_bag(run_dir: Path) -> Path:
     """A bag with the folder scene and no messages (what ``analyze`` needs to reach its output)."""
-    from folder_line.bag import BagWriter
-    from folder_line.recorder import LINE_TOPICS
-    from folder_line.scenes import scene_mapping
+    from folder_line.bag.bag import BagWriter
+    from folder_line.config.scenes import scene_mapping
+    from folder_line.ros.recorder import LINE_TOPICS
 
     source = yaml.safe_dump(scene_mapping('folder'), sort_keys=False)
     with BagWriter(run_dir / 'bag', scene_source=source, effects=[], scene_name='folder', topics=LINE_TOPICS):
@@ -341,7 +341,7 @@ def test_bag_repair_is_refused_while_the_run_folder_is_in_use(
 
 def test_another_process_is_refused_while_a_folder_is_claimed(tmp_path: Path) -> None:
     out = tmp_path / 'out'
-    command = [sys.executable, '-m', 'folder_line.cli', 'report', '--out', str(out)]
+    command = [sys.executable, '-m', 'folder_line.cli.main', 'report', '--out', str(out)]
     env = {**os.environ, 'PYTHONPATH': str(REPO)}
     with claim_output_dir(out, '--out') as claimed:
         assert claimed == out and out.is_dir()
@@ -497,7 +497,7 @@ def test_permission_denied_injected(
 def test_a_write_refused_deep_inside_a_run_is_one_line(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import folder_line.run
+    import folder_line.ros.run
 
     out = tmp_path / 'out'
     segment = out / 'bag' / 'bag_0.mcap'
@@ -505,7 +505,7 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(
     def full(cfg: Any, stream: Any) -> Any:  # the bag writer meets a full disk (no ROS needed to show the CLI)
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(segment))
 
-    monkeypatch.setattr(folder_line.run, 'run_line', full)
+    monkeypatch.setattr(folder_line.ros.run, 'run_line', full)
     line = refused(['run', '--duration', '1', '--out', str(out)], capsys)
     assert line == f"folder-line: error: --out: '{segment}': No space left on device"
     assert list(tmp_path.iterdir()) == []  # the folder the claim made, still empty, is gone
@@ -517,7 +517,7 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(
 def test_analyze_checks_every_csv_target_before_it_writes_anything(
     tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from folder_line.analysis import csv_name
+    from folder_line.analysis.analysis import csv_name
 
     out = tmp_path / 'analysis'
     (out / 'csv').mkdir(parents=True)

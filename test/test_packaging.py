@@ -81,8 +81,8 @@ def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_console_scripts_are_listed() -> None:
     scripts = console_scripts()
-    assert scripts['folder-line'] == 'folder_line.cli:main'
-    assert scripts['line_clock'] == 'folder_line.nodes.line_clock:main'
+    assert scripts['folder-line'] == 'folder_line.cli.main:main'
+    assert scripts['line_clock'] == 'folder_line.ros.nodes.line_clock:main'
 
 
 def test_every_console_script_is_an_executable_in_lib_package(install: Path) -> None:

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from folder_line.config.scenes import list_scenes, load_scene, parse_set, scene_mapping
 from folder_line.core.effects import EFFECTS
 from folder_line.errors import ParameterError
-from folder_line.scenes import list_scenes, load_scene, parse_set, scene_mapping
 
 MINIMAL = """
 name: tiny

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from folder_line.cli import main
+from folder_line.cli.main import main
+from folder_line.config.scenes import load_scene, parse_set
 from folder_line.core.effects import EFFECTS
-from folder_line.core.line import simulate
-from folder_line.scenes import load_scene, parse_set
+from folder_line.core.line.model import simulate
 
 
 @pytest.fixture(scope='module')
@@ -113,7 +113,7 @@ def test_an_unlisted_effect_never_runs(monkeypatch: pytest.MonkeyPatch, effect: 
     scene = load_scene('line')
     data = dict(scene.source)
     data['effects'] = {k: v for k, v in data['effects'].items() if k != effect}
-    from folder_line.core.scene import parse_scene
+    from folder_line.core.line.scene import parse_scene
 
     reduced = parse_scene(data)
     _poison(monkeypatch, effect)

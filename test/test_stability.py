@@ -31,14 +31,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from folder_line.core import delivery as dlv
-from folder_line.core import knife as knf
-from folder_line.core import loop
-from folder_line.core.cyclogram import cycle_timing
-from folder_line.core.drive import Command
+from folder_line.config.params import config_dir, load_params, read_yaml_mapping
+from folder_line.config.scenes import load_scene
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.events import event_kind
-from folder_line.core.layup import (
+from folder_line.core.line.events import event_kind
+from folder_line.core.line.model import MAX_DURATION, LineModel, simulate
+from folder_line.core.line.scene import parse_scene
+from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import knife as knf
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.drive import Command
+from folder_line.core.mechanisms.layup import (
     LOOP1,
     TAU,
     LayupModel,
@@ -46,13 +49,10 @@ from folder_line.core.layup import (
     classify_fourbar,
     swing_extremes,
 )
-from folder_line.core.line import MAX_DURATION, LineModel, simulate
-from folder_line.core.roots import find_sign_changes
-from folder_line.core.scene import parse_scene
-from folder_line.core.timebase import NS_PER_S, ShaftClock
+from folder_line.core.numerics import loop
+from folder_line.core.numerics.roots import find_sign_changes
+from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock
 from folder_line.errors import AssemblyError, IntegrationError, ParameterError
-from folder_line.params import config_dir, load_params, read_yaml_mapping
-from folder_line.scenes import load_scene
 
 EPS = float(np.finfo(float).eps)
 DELTAS = (-1e-12, 1e-12)

@@ -10,7 +10,7 @@ the method name), each over a span of line time with many events:
                   ``t_ramp = T_RAMP`` s, over ``SPAN_FOLDER`` s (28 signatures, half of
                   them during the ramp). Signature k is handed to the feed belt at the
                   master phase ``Θ_h,k = k T + t_out + phase`` and is at the stops when the
-                  belt has carried it ``L_feed`` (:mod:`folder_line.core.folder_sim`)::
+                  belt has carried it ``L_feed`` (:mod:`folder_line.core.line.folder_sim`)::
 
                       g_k(t) = V_tr (Θ(t) − Θ_h,k) − L_feed            (m)
 
@@ -19,7 +19,7 @@ the method name), each over a span of line time with many events:
 ``leaf landing``  ``leaf_landed``/``leaf_spilled`` of the ``layup`` scene with linear air
                   drag ``leaf_flight.drag = DRAG`` 1/s, over ``SPAN_LAYUP`` s (41 leaves).
                   Leaf j leaves its chute exit at ``t_x,j`` (the core's ``leaf_exit`` event)
-                  with the exit state of :mod:`folder_line.core.layup_sim` and flies
+                  with the exit state of :mod:`folder_line.core.line.layup_sim` and flies
                   (:func:`folder_line.core.effects.leaf_flight.state`)::
 
                       g_j(t) = y_floor − y_j(t − t_x,j)                (m)
@@ -42,7 +42,7 @@ Methods (one curve each, per case)
                                     straddling ticks (error ~ rate⁻²)
 ``root finding (folder_line)``      the same poll at ``COARSE_RATE`` = 100 Hz, then the
                                     core's event detector
-                                    :func:`folder_line.core.roots.find_sign_changes`
+                                    :func:`folder_line.core.numerics.roots.find_sign_changes`
                                     (Brent) on each object's coarse samples, knob
                                     ``xtol`` 1e-3 … 1e-12 s
 ``exact (folder_line)``             the core's own event time computation: the closed
@@ -96,16 +96,16 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.accuracy.measure import Row, cpu_per_call
-from folder_line.core import roots
-from folder_line.core.constants import G
-from folder_line.core.drive import RampDrive
+from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chute_belts, leaf_flight
-from folder_line.core.events import event_kind
-from folder_line.core.folder_sim import FolderLine
-from folder_line.core.layup_sim import LayupLine
-from folder_line.core.line import make_drive
+from folder_line.core.line.events import event_kind
+from folder_line.core.line.folder_sim import FolderLine
+from folder_line.core.line.layup_sim import LayupLine
+from folder_line.core.line.model import make_drive
+from folder_line.core.mechanisms.drive import RampDrive
+from folder_line.core.numerics import roots
+from folder_line.core.numerics.constants import G
 from folder_line.errors import MeasurementError, ParameterError
-from folder_line.scenes import load_scene
 
 __all__ = [
     'BATCH',
@@ -393,7 +393,7 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
 
 @dataclass(frozen=True, eq=False)
 class _Flight:
-    """Exit states of the leaves (the core's, :mod:`folder_line.core.layup_sim`)."""
+    """Exit states of the leaves (the core's, :mod:`folder_line.core.line.layup_sim`)."""
 
     t_x: FloatArray
     x0: FloatArray
@@ -405,7 +405,7 @@ class _Flight:
 def exit_states(line: LayupLine) -> tuple[IntArray, _Flight]:
     """Ids and exit states (t, x, y, vx, vy) of the leaves that left a chute, from the core.
 
-    The exit velocity is assembled as in :class:`folder_line.core.layup_sim.LayupLine`
+    The exit velocity is assembled as in :class:`folder_line.core.line.layup_sim.LayupLine`
     (``v_C n̂ + v_belt t̂``, ``t̂ = (sin, −cos)``, ``n̂ = (cos, sin)``) from the core's
     chute kinematics and belt speed; the tests check that it reproduces the core's
     landing events.
@@ -614,7 +614,7 @@ def detect_sampling(case: EventCase, rate: float, interpolate: bool = False) -> 
 
 
 def detect_root(case: EventCase, xtol: float, coarse_rate: float = COARSE_RATE) -> Detection:
-    """Poll at ``coarse_rate``, then the core's detector :func:`~folder_line.core.roots.find_sign_changes`.
+    """Poll at ``coarse_rate``, then the core's detector :func:`~folder_line.core.numerics.roots.find_sign_changes`.
 
     Each watched object's coarse samples (its watch, up to the chunk of the first
     detection) go to ``find_sign_changes`` with their values; every sign change it

@@ -8,7 +8,7 @@ The layup's first loop, the crank-rocker O1-A-B-O2 of ``config/layup.yaml`` (cra
 ``ω = params.omega``, over ``SPAN`` = 2 crank turns (4 s), output on a grid of
 ``OUTPUT_RATE`` = 250 Hz (``t_k = k / 250``, k = 0 … 1000, both ends included).
 
-``closed form (folder_line)``  :func:`folder_line.core.loop.circle_intersection` of
+``closed form (folder_line)``  :func:`folder_line.core.numerics.loop.circle_intersection` of
                         circle(O2, O2B) and circle(A, l2) on branch +1 (the layup's
                         assembly, ``(A - O2) × (B - O2) > 0``), then ``ψ = atan2(B)``;
                         knob ``batch``: grid points per call (1 … the whole grid).
@@ -53,9 +53,9 @@ from scipy.integrate import solve_ivp
 from folder_line.accuracy.measure import Row, cpu_per_call
 from folder_line.accuracy.pareto import EqualErrorRatio, equal_error_ratio
 from folder_line.accuracy.reference import ReferenceArrays, fourbar_reference
-from folder_line.core.layup import LayupParams
-from folder_line.core.loop import circle_intersection
-from folder_line.params import load_params
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.numerics.loop import circle_intersection
 
 __all__ = [
     'ATOL_PER_RTOL',

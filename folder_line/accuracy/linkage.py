@@ -5,7 +5,7 @@ What is measured
 The L six-bar of ``config/layup.yaml`` (crank-rocker O1-A-B-O2 driving the double rocker
 O2-C-E-O3, MACHINES.md section L), crank at its nominal speed ``ω = params.omega``
 (π rad/s: one turn per ``PERIOD`` = 2 s). The outputs are the chute angles θ3 (O2C) and
-θ5 (O3E) and their rates ω3, ω5 (the joint outputs of :class:`~folder_line.core.layup.LayupPoint`).
+θ5 (O3E) and their rates ω3, ω5 (the joint outputs of :class:`~folder_line.core.mechanisms.layup.LayupPoint`).
 
 Convention of a simulated second: the line publishes the linkage at ``RATE`` = 1000 Hz,
 so one simulated second is 1000 evaluations at crank angles ``φ_k = ω k / RATE``; one
@@ -66,9 +66,9 @@ import numpy as np
 
 from folder_line.accuracy.measure import Row, cpu_per_call
 from folder_line.accuracy.reference import ReferenceArrays, sixbar_reference
-from folder_line.core.layup import LayupModel, LayupParams
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams
 from folder_line.errors import AssemblyError
-from folder_line.params import load_params
 
 __all__ = [
     'METHODS',

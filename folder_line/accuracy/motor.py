@@ -87,11 +87,11 @@ import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
 from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.config.scenes import scene_mapping
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.scene import Scene, parse_scene
+from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.errors import IntegrationError
-from folder_line.scenes import scene_mapping
 
 __all__ = [
     'ATOL_PER_RTOL',

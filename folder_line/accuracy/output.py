@@ -1,7 +1,7 @@
 """Outputs of ``folder-line bench accuracy``: CSV, markdown, the Pareto plot and a JSON record.
 
 Everything is computed before the first file is written, and every file is written
-atomically (:mod:`folder_line.atomic`): a failed run leaves the output directory as it was.
+atomically (:mod:`folder_line.files.atomic`): a failed run leaves the output directory as it was.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 from folder_line.accuracy.bench import BenchResult
 from folder_line.accuracy.measure import COLUMNS, Row
 from folder_line.accuracy.pareto import EqualErrorRatio, cheapest, curves, equal_error_ratio, pareto_front
-from folder_line.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
+from folder_line.files.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
 
 __all__ = ['COMPARISONS', 'TARGETS', 'comparisons', 'markdown', 'pareto_png', 'write_outputs']
 
@@ -141,7 +141,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     """
     from matplotlib import ticker
 
-    from folder_line.plots import DPI, pyplot
+    from folder_line.analysis.plots import DPI, pyplot
 
     plt = pyplot()
     panels = _panels(rows)

@@ -4,7 +4,7 @@ What is measured
 ----------------
 The machine nodes publish ``sensor_msgs/JointState`` at ``rate`` Hz of sim time; each
 message holds the joints' positions and velocities from the core
-(:meth:`folder_line.core.line.LineModel.sample`) at the tick's stamp. A user of the
+(:meth:`folder_line.core.line.model.LineModel.sample`) at the tick's stamp. A user of the
 bag rebuilds the continuous motion by interpolating between the messages. The
 quantity is the **knife position** ``s`` (m) of the ``folder`` scene (joint ``knife``
 of ``crank_drive``: a crank-slider at 50000 rev/h = 13.9 Hz, the fastest-oscillating
@@ -28,8 +28,8 @@ bounds and the slopes -2 and -4 of ``log error`` against ``log rate``.
 Reference and its check
 -----------------------
 The exact knife position is the core's closed form ``s(omega_k t)``
-(:mod:`folder_line.core.knife`, checked against the paper in ``test/core``), sampled
-through the same :class:`~folder_line.core.line.LineModel` the nodes use. The test of
+(:mod:`folder_line.core.mechanisms.knife`, checked against the paper in ``test/core``), sampled
+through the same :class:`~folder_line.core.line.model.LineModel` the nodes use. The test of
 this study checks it against an independent crank-slider in mpmath (the rod's loop
 equation solved by the secant method at 30 digits) to 1e-12 m, and the stream's
 velocities against the differentiated loop equation to 1e-9 m/s.
@@ -37,10 +37,10 @@ velocities against the differentiated loop equation to 1e-9 m/s.
 Cost
 ----
 CPU seconds per simulated second of the **live line** publishing at that rate: the
-line of ``folder-line run`` in one process (:mod:`folder_line.run`: ``line_clock``,
+line of ``folder-line run`` in one process (:mod:`folder_line.ros.run`: ``line_clock``,
 the five machine nodes with ``rate`` set, one ``SingleThreadedExecutor``, a private
 rclpy context, real DDS) with the run's recorder
-(:class:`folder_line.recorder.LineRecorder`) writing the bag to a temporary
+(:class:`folder_line.ros.recorder.LineRecorder`) writing the bag to a temporary
 directory. The process CPU time (``time.process_time``: every thread, DDS included)
 is read when the recorder first hears a sim time at or past the warm-up (start-up and
 discovery excluded) and again when it hears the clock's last stamp, and divided by
@@ -81,7 +81,7 @@ from numpy.typing import NDArray
 
 from folder_line.accuracy.measure import Row
 from folder_line.core.limits import TICK_RATE
-from folder_line.core.line import NODES, LineModel
+from folder_line.core.line.model import NODES, LineModel
 from folder_line.errors import MeasurementError, ParameterError
 
 __all__ = [
@@ -145,7 +145,7 @@ def knife_model(duration: float) -> LineModel:
     LineModel
         Built from the shipped scene without overrides.
     """
-    from folder_line.scenes import load_scene
+    from folder_line.config.scenes import load_scene
 
     return LineModel(load_scene(SCENE), duration)
 
@@ -173,7 +173,7 @@ def knife_stream(
     velocity : ndarray
         Knife velocity at each stamp, m/s.
     """
-    from folder_line.core.line import sample_times
+    from folder_line.core.line.model import sample_times
 
     if not (math.isfinite(rate) and rate > 0.0):
         raise ParameterError('rate', rate, 'must be a finite rate > 0 Hz')
@@ -366,7 +366,7 @@ def live_cost(
 ) -> LiveCost:
     """Measure the CPU cost of the in-process live line (with the run's recorder) at ``rate``.
 
-    Builds the line as ``folder-line run`` does in-process (:func:`folder_line.run.run_line`):
+    Builds the line as ``folder-line run`` does in-process (:func:`folder_line.ros.run.run_line`):
     a private rclpy context, the recorder writing the bag (to a temporary directory), the
     five nodes with the run's parameters and ``rate``, then ``line_clock`` in lockstep with
     all six as participants; spins one ``EventsExecutor`` until the clock's ``duration`` is
@@ -397,14 +397,14 @@ def live_cost(
     import yaml
     from rclpy.parameter import Parameter
 
-    from folder_line.bag import BagWriter
-    from folder_line.core.scene import parse_scene
+    from folder_line.bag.bag import BagWriter
+    from folder_line.config.scenes import scene_mapping
+    from folder_line.core.line.scene import parse_scene
     from folder_line.interfaces import RECORDER
-    from folder_line.nodes.common import events_executor
-    from folder_line.nodes.line_clock import LineClock
-    from folder_line.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
-    from folder_line.scenes import scene_mapping
+    from folder_line.ros.common import events_executor
+    from folder_line.ros.nodes.line_clock import LineClock
+    from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.ros.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
 
     TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)

@@ -1,6 +1,6 @@
 """mpmath references for the layup linkages: the six-bar's chute angles and rates at 50 digits.
 
-Derived independently of :mod:`folder_line.core.loop` and :mod:`folder_line.core.layup`:
+Derived independently of :mod:`folder_line.core.numerics.loop` and :mod:`folder_line.core.mechanisms.layup`:
 the unknowns are the link angles, the equations the vector loop closures
 
     loop 1 (O1-A-B-O2):  O1 + R_kr e(φ) + l2 e(θ2) - O2B e(θ3) = 0
@@ -31,7 +31,7 @@ import mpmath as mp
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.layup import LayupParams
+from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.errors import AssemblyError
 
 __all__ = [

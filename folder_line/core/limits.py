@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from folder_line.core.validate import as_float
+from folder_line.core.numerics.validate import as_float
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -76,7 +76,7 @@ class Limit:
 
 
 #: line time of a run or a simulation: from a millisecond to 1e7 s (116 days), where float64 time still
-#: resolves 2 ns; the event tables grow with it (see :func:`folder_line.core.line.check_size`)
+#: resolves 2 ns; the event tables grow with it (see :func:`folder_line.core.line.model.check_size`)
 DURATION = Limit(
     'line time of a run or a simulation (`--duration`, `line_clock` `duration`)',
     1e-3,

@@ -11,7 +11,7 @@ import pytest
 
 from folder_line.accuracy import fourbar
 from folder_line.accuracy.measure import Row
-from folder_line.core.layup import LayupModel
+from folder_line.core.mechanisms.layup import LayupModel
 
 PARAMS = fourbar.default_params()
 

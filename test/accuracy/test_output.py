@@ -8,10 +8,10 @@ import math
 
 import pytest
 
-from folder_line import cli
 from folder_line.accuracy import output, pareto
 from folder_line.accuracy.bench import STUDIES, BenchResult, check_studies
 from folder_line.accuracy.measure import COLUMNS, Row, cpu_per_call
+from folder_line.cli import main as cli
 from folder_line.errors import ParameterError
 
 

@@ -22,10 +22,10 @@ import numpy as np
 import pytest
 
 from folder_line.accuracy import publishing as pub
-from folder_line.core.knife import KnifeParams
-from folder_line.core.line import NODES, LineModel
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.model import NODES, LineModel
+from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.errors import MeasurementError, ParameterError
-from folder_line.scenes import load_scene
 
 DURATION = 2.0  # s of line time the errors are measured over
 # rosidl_generator_py (imported by the first node) imports lark 0.12, which imports the

@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from folder_line.core.scene import Scene, parse_scene
-from folder_line.params import config_dir, load_params, read_yaml_mapping
+from folder_line.config.params import config_dir, load_params, read_yaml_mapping
+from folder_line.core.line.scene import Scene, parse_scene
 
 
 def folder_scene(

@@ -15,12 +15,12 @@ from numpy.testing import assert_allclose
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from folder_line.core import chain
-from folder_line.core import knife as knife_mod
-from folder_line.core.chain import ChainPath
-from folder_line.core.cyclogram import cycle_timing
-from folder_line.core.delivery import LAWS, evaluate_stroke
-from folder_line.core.scene import Scene
+from folder_line.core.line.scene import Scene
+from folder_line.core.mechanisms import chain
+from folder_line.core.mechanisms import knife as knife_mod
+from folder_line.core.mechanisms.chain import ChainPath
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.delivery import LAWS, evaluate_stroke
 from folder_line.errors import ParameterError
 
 

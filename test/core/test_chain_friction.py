@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from _scenes import folder_scene
 
-from folder_line.core import chain
-from folder_line.core.delivery import STATE_OK, evaluate, evaluate_stroke
 from folder_line.core.effects import chain_friction as cf
-from folder_line.core.scene import Scene, parse_scene
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms import chain
+from folder_line.core.mechanisms.delivery import STATE_OK, evaluate, evaluate_stroke
 from folder_line.errors import ParameterError
 
 CF = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}

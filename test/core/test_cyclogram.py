@@ -12,13 +12,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from folder_line.core import cyclogram as cg
-from folder_line.core import knife as kn
-from folder_line.core.cyclogram import CyclogramParams
-from folder_line.core.knife import KnifeParams
+from folder_line.config.params import load_params
 from folder_line.core.limits import KNIFE_SPEED
+from folder_line.core.mechanisms import cyclogram as cg
+from folder_line.core.mechanisms import knife as kn
+from folder_line.core.mechanisms.cyclogram import CyclogramParams
+from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.errors import ParameterError
-from folder_line.params import load_params
 
 # the paper's published figures
 PAPER_V_D = 5.83  # m/s, D = 267.38 mm at 25000 rev/h (printed 5.829; computed 5.833)

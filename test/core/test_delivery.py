@@ -12,8 +12,9 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from folder_line.core import delivery as dl
-from folder_line.core.delivery import (
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms import delivery as dl
+from folder_line.core.mechanisms.delivery import (
     STATE_CARRIAGE_REVERSED,
     STATE_KV_ZERO,
     STATE_NAMES,
@@ -29,7 +30,6 @@ from folder_line.core.delivery import (
     stroke_minimum,
 )
 from folder_line.errors import ParameterError
-from folder_line.params import load_params
 
 REF: dict[str, Any] = dict(
     Lambda=0.4,

@@ -10,7 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.drive import (
+from folder_line.config.params import config_dir, read_yaml_mapping
+from folder_line.core.line.scene import parse_scene
+from folder_line.core.mechanisms.drive import (
     COMMAND_KINDS,
     Command,
     ConstantDrive,
@@ -25,9 +27,7 @@ from folder_line.core.drive import (
     running_switches,
     theta_rate,
 )
-from folder_line.core.scene import parse_scene
 from folder_line.errors import ParameterError
-from folder_line.params import config_dir, read_yaml_mapping
 
 CONST = DriveSpec('constant', t_brake=0.5)
 RAMP = DriveSpec('ramp', t_ramp=2.0, t_brake=0.8)

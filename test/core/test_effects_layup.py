@@ -14,16 +14,16 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy.integrate import quad, solve_ivp
 
-from folder_line.core.drive import ConstantDrive, RampDrive
+from folder_line.config.params import load_params
 from folder_line.core.effects import chute_belts as cb
 from folder_line.core.effects import guide_friction as gf
 from folder_line.core.effects import leaf_damage as ld
 from folder_line.core.effects import leaf_flight as lf
 from folder_line.core.effects import parse_effect_params
-from folder_line.core.layup_sim import LayupKinematics
-from folder_line.core.roots import brentq
+from folder_line.core.line.layup_sim import LayupKinematics
+from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
+from folder_line.core.numerics.roots import brentq
 from folder_line.errors import ParameterError
-from folder_line.params import load_params
 
 G = 9.80665
 P = load_params('layup')

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from folder_line.core.effects.faults import Params, belt_factor, draw_sheet_faults, draw_slowdowns, fault_events
-from folder_line.core.rng import stream
+from folder_line.core.numerics.rng import stream
 from folder_line.errors import ParameterError
 
 

@@ -12,19 +12,19 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import quad
 
-from folder_line.core import chain
-from folder_line.core import knife as knf
-from folder_line.core.belt import BeltPhase
-from folder_line.core.cyclogram import cycle_timing
-from folder_line.core.delivery import evaluate_stroke, stroke_minimum
-from folder_line.core.drive import ConstantDrive, RampDrive
+from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
-from folder_line.core.events import EVENT_KINDS, event_kind
-from folder_line.core.folder_sim import delivery_plan, simulate_folder
-from folder_line.core.line import sample_times, simulate
-from folder_line.core.rng import stream
-from folder_line.core.scene import Scene, parse_scene
-from folder_line.params import config_dir, read_yaml_mapping
+from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.folder_sim import delivery_plan, simulate_folder
+from folder_line.core.line.model import sample_times, simulate
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms import chain
+from folder_line.core.mechanisms import knife as knf
+from folder_line.core.mechanisms.belt import BeltPhase
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.delivery import evaluate_stroke, stroke_minimum
+from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
+from folder_line.core.numerics.rng import stream
 
 HOUR = 3600.0
 BOUNCE = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05}
@@ -524,9 +524,9 @@ def test_one_hour_is_fast() -> None:
 def test_a_hand_over_slot_before_the_line_starts_feeds_nothing() -> None:
     """A knife whose exit phase is negative puts slot 0 before t = 0 (found by the random-scene hunt): no sheet,
     no fault and no event happens before the line starts; the empty first cycle is flagged."""
-    from folder_line.core.cyclogram import cycle_timing
-    from folder_line.core.line import simulate
-    from folder_line.core.scene import parse_scene
+    from folder_line.core.line.model import simulate
+    from folder_line.core.line.scene import parse_scene
+    from folder_line.core.mechanisms.cyclogram import cycle_timing
 
     faults = {
         'p_missing': 0.0,

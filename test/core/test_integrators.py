@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from folder_line.core import integrators
-from folder_line.core import integrators as ig
-from folder_line.core.integrators import Breaks, Terminal, dopri5, rk4
+from folder_line.core.numerics import integrators
+from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics.integrators import Breaks, Terminal, dopri5, rk4
 from folder_line.errors import FolderLineError, IntegrationError
 
 

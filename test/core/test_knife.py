@@ -12,11 +12,11 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from folder_line.core import knife as kn
-from folder_line.core.knife import KnifeParams
+from folder_line.config.params import load_params
 from folder_line.core.limits import KNIFE_SPEED
+from folder_line.core.mechanisms import knife as kn
+from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.errors import ParameterError
-from folder_line.params import load_params
 
 mp.mp.dps = 40
 

@@ -17,8 +17,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from folder_line.core import layup as L
-from folder_line.core.layup import (
+from folder_line.config.params import config_dir, load_params
+from folder_line.core.limits import CRANK_SPEED
+from folder_line.core.mechanisms import layup as L
+from folder_line.core.mechanisms.layup import (
     LOOP1,
     LOOP2,
     TAU,
@@ -32,10 +34,13 @@ from folder_line.core.layup import (
     sweep,
     swing_extremes,
 )
-from folder_line.core.limits import CRANK_SPEED
-from folder_line.core.loop import TOGGLE_TOL, circle_point_acceleration, circle_point_velocity, tracked_intersection
+from folder_line.core.numerics.loop import (
+    TOGGLE_TOL,
+    circle_point_acceleration,
+    circle_point_velocity,
+    tracked_intersection,
+)
 from folder_line.errors import AssemblyError, ParameterError
-from folder_line.params import config_dir, load_params
 
 P = load_params('layup')
 M = LayupModel(P)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from folder_line.core.layup import TAU, LayupModel, LayupParams
-from folder_line.core.layup_paper import beta5, paper_frame, paper_speeds
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_paper import beta5, paper_frame, paper_speeds
 from folder_line.errors import ParameterError
-from folder_line.params import load_params
 
 P = load_params('layup')
 BASE = dataclasses.asdict(P)

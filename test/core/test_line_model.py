@@ -10,13 +10,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.drive import Command
+from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
-from folder_line.core.events import EVENT_KINDS, event_kind
-from folder_line.core.folder_sim import FolderLine
-from folder_line.core.line import NODES, LineModel, LineResult, sample_times, simulate
-from folder_line.core.scene import Scene, parse_scene
-from folder_line.scenes import load_scene
+from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.folder_sim import FolderLine
+from folder_line.core.line.model import NODES, LineModel, LineResult, sample_times, simulate
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms.drive import Command
 
 DURATION = {'folder': 12.0, 'layup': 12.0, 'line': 12.0}
 
@@ -41,7 +41,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _rows(js: Any, i: Any) -> Any:
-    from folder_line.core.events import JointSamples
+    from folder_line.core.line.events import JointSamples
 
     return JointSamples(
         js.machine, js.names, js.t[i], js.position[i], js.velocity[i], None if js.effort is None else js.effort[i]
@@ -333,7 +333,7 @@ def test_a_span_too_long_for_memory_is_refused_before_any_work(
     memory it would need, instead of exhausting the machine."""
     import time
 
-    from folder_line.core import line as line_mod
+    from folder_line.core.line import model as line_mod
     from folder_line.errors import ParameterError
 
     scene = load_scene(name, {})
@@ -357,7 +357,7 @@ def test_a_span_too_long_for_memory_is_refused_before_any_work(
 
 
 def test_the_refusal_states_the_memory_the_model_would_need(monkeypatch: pytest.MonkeyPatch) -> None:
-    from folder_line.core import line as line_mod
+    from folder_line.core.line import model as line_mod
     from folder_line.errors import ParameterError
 
     monkeypatch.setattr(line_mod, 'memory_budget', lambda: 10**9)  # a machine that allows 1 GB

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.lockstep import STREAMS, TickLedger, format_counts, parse_counts
+from folder_line.core.supervision.lockstep import STREAMS, TickLedger, format_counts, parse_counts
 
 
 def counts(messages: int = 0, events: int = 0, commands: int = 0) -> dict[str, int]:

@@ -10,7 +10,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from folder_line.core.loop import (
+from folder_line.core.numerics.loop import (
     TOGGLE_TOL,
     circle_intersection,
     circle_intersection_scalar,

@@ -11,12 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from folder_line.core.drive import Command
+from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.scene import Scene, parse_scene
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms.drive import Command
 from folder_line.errors import ParameterError
-from folder_line.scenes import load_scene
 
 
 def motor_scene(chain: bool = True, **motor: float) -> Scene:

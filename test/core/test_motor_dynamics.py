@@ -12,12 +12,12 @@ import pytest
 from _scenes import folder_scene
 from scipy.integrate import solve_ivp
 
-from folder_line.core.drive import Drive
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import make_drive, simulate
-from folder_line.core.scene import Scene, parse_scene
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import make_drive, simulate
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms.drive import Drive
 from folder_line.errors import ParameterError
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
@@ -350,7 +350,7 @@ def drive() -> md.MotorDrive:
 
 def test_is_a_drive(drive: md.MotorDrive) -> None:
     assert isinstance(drive, Drive)
-    from folder_line.core.line import make_drive
+    from folder_line.core.line.model import make_drive
 
     assert isinstance(make_drive(make_scene(), 1.0), md.MotorDrive)
 

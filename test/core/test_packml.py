@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.packml import ACTING, COMMANDS, STATES, PackML
+from folder_line.core.supervision.packml import ACTING, COMMANDS, STATES, PackML
 from folder_line.errors import TransitionError
 
 

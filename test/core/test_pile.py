@@ -1,4 +1,4 @@
-"""The sheet counter's table (folder_line.core.pile) against its closed form, alone and in the line model."""
+"""The sheet counter's table (folder_line.core.mechanisms.pile) against its closed form, alone and in the line model."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import NODES, LineModel
-from folder_line.core.pile import NODE, T_LOWER, PileTable, counted_event, pile_table
-from folder_line.core.scene import parse_scene
+from folder_line.config.scenes import load_scene, scene_mapping
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import NODES, LineModel
+from folder_line.core.line.scene import parse_scene
+from folder_line.core.mechanisms.pile import NODE, T_LOWER, PileTable, counted_event, pile_table
 from folder_line.errors import ParameterError
-from folder_line.scenes import load_scene, scene_mapping
 
 H = 0.0005  # m
 TAU = 0.02  # s

@@ -16,16 +16,23 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from folder_line.core import delivery as dlv
-from folder_line.core import integrators as ig
-from folder_line.core import knife as knf
-from folder_line.core import loop
-from folder_line.core.chain import ChainPath
-from folder_line.core.layup import GRASHOF_REL_TOL, TAU, LayupModel, LayupParams, check_assembly, classify_fourbar
-from folder_line.core.roots import RTOL, brent, find_sign_changes
-from folder_line.core.timebase import NS_PER_S, ShaftClock
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import knife as knf
+from folder_line.core.mechanisms.chain import ChainPath
+from folder_line.core.mechanisms.layup import (
+    GRASHOF_REL_TOL,
+    TAU,
+    LayupModel,
+    LayupParams,
+    check_assembly,
+    classify_fourbar,
+)
+from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics import loop
+from folder_line.core.numerics.roots import RTOL, brent, find_sign_changes
+from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock
 from folder_line.errors import AssemblyError, ParameterError
-from folder_line.params import load_params
 
 EPS = float(np.finfo(float).eps)
 PROPS = settings(max_examples=60, deadline=None, derandomize=True)

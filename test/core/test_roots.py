@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from folder_line.core.roots import (
+from folder_line.core.numerics.roots import (
     RTOL,
     XTOL,
     NoConvergenceError,

@@ -17,13 +17,13 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.constraints import evaluate_layup_constraints, folder_evaluation
-from folder_line.core.cyclogram import cycle_timing
-from folder_line.core.drive import Command
-from folder_line.core.events import EVENT_DTYPE, event_kind
-from folder_line.core.line import LineModel
-from folder_line.core.packml import ACTING, COMMANDS
-from folder_line.core.supervision import (
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
+from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.line.model import LineModel
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.drive import Command
+from folder_line.core.supervision.decisions import (
     DRIVE_COMMANDS,
     STOP_STATES,
     TIMING_CONSTRAINTS,
@@ -31,8 +31,8 @@ from folder_line.core.supervision import (
     replay,
     run_closed_loop,
 )
+from folder_line.core.supervision.packml import ACTING, COMMANDS
 from folder_line.errors import ParameterError
-from folder_line.scenes import load_scene
 
 H = 8.0  # model horizon, s
 P = 0.005  # node period and check grid, s

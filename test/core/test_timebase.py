@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from folder_line.core.timebase import NS_PER_S, ShaftClock, seconds_to_ns
+from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock, seconds_to_ns
 
 
 def test_knife_crank_period_is_exact() -> None:

@@ -1,10 +1,10 @@
 """What the tests of ``folder-line run`` share: the run as a process, its bag read independently, /proc.
 
-* :func:`start_run` starts ``python -m folder_line.cli run ...`` with the test's environment
+* :func:`start_run` starts ``python -m folder_line.cli.main run ...`` with the test's environment
   plus a unique tag variable, stdout and stderr to files (a pipe nobody reads could block it);
   :func:`wait_for_line_time` waits for its progress output to reach a line time.
 * :func:`read_bag_mcap` reads a run's bag with the independent reader (``mcap`` and
-  ``mcap-ros2-support``, decoding from the schema text in each file; not ``folder_line.bag``),
+  ``mcap-ros2-support``, decoding from the schema text in each file; not ``folder_line.bag.bag``),
   per topic and publishing node, in order; :func:`plain` makes a message comparable.
 * :func:`assert_bag_is_model` compares a bag with the batch model, tick by tick.
 * :func:`children`, :func:`tagged` and :func:`line_processes` find processes through ``/proc`` (Linux).
@@ -88,14 +88,14 @@ class RunProcess:
 
 
 def start_run(env: dict[str, str], out: Path, *args: str, logs: Path | None = None) -> RunProcess:
-    """``python -m folder_line.cli run --out OUT ARGS`` in ``env`` with a unique :data:`TAG`."""
+    """``python -m folder_line.cli.main run --out OUT ARGS`` in ``env`` with a unique :data:`TAG`."""
     tag = uuid.uuid4().hex
     logs = logs or out.parent
     logs.mkdir(parents=True, exist_ok=True)
     stdout, stderr = logs / f'{out.name}.stdout', logs / f'{out.name}.stderr'
     with open(stdout, 'wb') as so, open(stderr, 'wb') as se:
         proc = subprocess.Popen(
-            [sys.executable, '-m', 'folder_line.cli', 'run', '--out', str(out), *args],
+            [sys.executable, '-m', 'folder_line.cli.main', 'run', '--out', str(out), *args],
             env={**env, TAG: tag},
             cwd=REPO,
             stdout=so,
@@ -141,8 +141,8 @@ def cmdline(pid: int) -> list[str]:
 
 
 def child_node(pid: int, node: str) -> int:
-    """The child of ``pid`` that runs node ``node`` (``-m folder_line.nodes.<node>``)."""
-    found = [c for c in children(pid) if f'folder_line.nodes.{node}' in cmdline(c)]
+    """The child of ``pid`` that runs node ``node`` (``-m folder_line.ros.nodes.<node>``)."""
+    found = [c for c in children(pid) if f'folder_line.ros.nodes.{node}' in cmdline(c)]
     assert len(found) == 1, {c: cmdline(c) for c in children(pid)}
     return found[0]
 
@@ -182,7 +182,7 @@ def start_time(pid: int) -> int:
 
 def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
     """Live processes started at ``since`` (clock ticks, :func:`start_time`) or later whose arguments name
-    ``out`` or run ``folder_line.nodes`` with ``ROS_DOMAIN_ID=domain`` (older ones are not the run's)."""
+    ``out`` or run ``folder_line.ros.nodes`` with ``ROS_DOMAIN_ID=domain`` (older ones are not the run's)."""
     found = {}
     for entry in Path('/proc').iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
@@ -193,7 +193,7 @@ def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
             continue
         if str(out) in text:
             found[int(entry.name)] = args
-        elif 'folder_line.nodes.' in text:
+        elif 'folder_line.ros.nodes.' in text:
             try:
                 environ = (entry / 'environ').read_bytes().split(b'\0')
             except OSError:
@@ -290,13 +290,13 @@ def assert_bag_is_model(
     """
     import numpy as np
 
-    from folder_line.core.events import EVENT_KINDS
-    from folder_line.core.line import LineModel
-    from folder_line.core.pile import counted_event
+    from folder_line.config.scenes import load_scene
+    from folder_line.core.line.events import EVENT_KINDS
+    from folder_line.core.line.model import LineModel
+    from folder_line.core.mechanisms.pile import counted_event
     from folder_line.event_text import parse_event_source
     from folder_line.interfaces import MACHINE_NODES
-    from folder_line.nodes.machine import COMMAND_KINDS, EVENT_OWNER
-    from folder_line.scenes import load_scene
+    from folder_line.ros.nodes.machine import COMMAND_KINDS, EVENT_OWNER
 
     ns = 1_000_000_000
     step = round(ns / rate)

@@ -1,4 +1,4 @@
-"""folder_line.nodes.common: parameter specs and validation, topics, time, run_node."""
+"""folder_line.ros.common: parameter specs and validation, topics, time, run_node."""
 
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from folder_line.errors import AssemblyError, ParameterError
-from folder_line.nodes import common
-from folder_line.nodes.common import (
+from folder_line.ros import common
+from folder_line.ros.common import (
     EXIT_BAD_PARAMETER,
     EXIT_OK,
     NS_PER_S,
@@ -472,7 +472,7 @@ import sys, time
 sys.path.insert(0, {repo!r})
 from rclpy.node import Node
 from rclpy.task import Future
-from folder_line.nodes.common import run_node
+from folder_line.ros.common import run_node
 
 class Hanging(Node):
     """Done at once; its teardown hangs as the middleware's sometimes does."""

@@ -6,7 +6,7 @@ So the same short run of the ``folder`` scene, once with every node on one execu
 once with one process per node, gives the same bag message for message -- topic,
 publishing node, log time, publish time, header stamps and every value, read back with the
 independent ``mcap`` reader -- and that bag is the batch model
-(:class:`folder_line.core.line.LineModel`) tick by tick. A short ``line`` scene run (belts
+(:class:`folder_line.core.line.model.LineModel`) tick by tick. A short ``line`` scene run (belts
 and leaves too) is the model as well.
 """
 
@@ -20,7 +20,7 @@ import pytest
 from _line_runs import assert_bag_is_model, read_bag_mcap
 
 from folder_line.interfaces import MACHINE_NODES
-from folder_line.run import RunConfig, run_line
+from folder_line.ros.run import RunConfig, run_line
 
 #: the issue's runs: 20 s of the folder scene, 10 s of the whole line
 FOLDER_DURATION = 20.0

@@ -6,7 +6,7 @@ The machine nodes, the supervisor and ``line_clock`` run in this process in lock
 that hangs), and a plain node listens to everything the supervisor hears. Expected
 times come from the line model (the batch simulation); at the end the recorded
 stream is replayed through the supervisor's logic offline
-(:func:`folder_line.core.supervision.replay`) and must give the same decisions.
+(:func:`folder_line.core.supervision.decisions.replay`) and must give the same decisions.
 
 Wall time matters only where a node hangs: the supervisor declares it lost after its
 ``lost_timeout`` and ``line_clock`` after its own. While sim time is held nobody but
@@ -29,13 +29,13 @@ from std_srvs.srv import Trigger
 from test_line_clock import FakeParticipant, grid
 from test_supervisor import on_grid
 
-from folder_line.core.cyclogram import cycle_timing
-from folder_line.core.drive import Command
-from folder_line.core.events import EVENT_DTYPE, EVENT_KINDS, event_kind
-from folder_line.core.line import LineModel
-from folder_line.core.supervision import SPEED_REACHED, replay
-from folder_line.nodes.belt_conveyor import BeltConveyor
-from folder_line.nodes.common import (
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS, event_kind
+from folder_line.core.line.model import LineModel
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.drive import Command
+from folder_line.core.supervision.decisions import SPEED_REACHED, replay
+from folder_line.ros.common import (
     COMMANDS_QOS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -45,13 +45,13 @@ from folder_line.nodes.common import (
     joint_states_topic,
     time_msg_to_ns,
 )
-from folder_line.nodes.crank_drive import CrankDrive
-from folder_line.nodes.feed_transporter import FeedTransporter
-from folder_line.nodes.line_clock import LineClock
-from folder_line.nodes.machine import parse_event_source
-from folder_line.nodes.sheet_counter import SheetCounter
-from folder_line.nodes.supervisor import STATE_QOS, Supervisor
-from folder_line.scenes import load_scene
+from folder_line.ros.nodes.belt_conveyor import BeltConveyor
+from folder_line.ros.nodes.crank_drive import CrankDrive
+from folder_line.ros.nodes.feed_transporter import FeedTransporter
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import parse_event_source
+from folder_line.ros.nodes.sheet_counter import SheetCounter
+from folder_line.ros.nodes.supervisor import STATE_QOS, Supervisor
 
 if TYPE_CHECKING:
     from conftest import Received, Ros

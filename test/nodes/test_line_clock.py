@@ -33,11 +33,10 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
-from folder_line.core.lockstep import format_counts
+from folder_line.core.supervision.lockstep import format_counts
 from folder_line.errors import ParameterError
-from folder_line.nodes.common import CLOCK_TOPIC, DIAGNOSTICS_TOPIC, NS_PER_S, ns_to_time_msg, time_msg_to_ns
-from folder_line.nodes.line_clock import EXIT_LOST, SPECS, LineClock, parse_participants
-from folder_line.nodes.lockstep import (
+from folder_line.ros.common import CLOCK_TOPIC, DIAGNOSTICS_TOPIC, NS_PER_S, ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.lockstep import (
     CLOCK_SUB_QOS,
     KNOWN_PARTICIPANTS,
     LINE_QOS,
@@ -51,6 +50,7 @@ from folder_line.nodes.lockstep import (
     read_ack,
     tick_done_topic,
 )
+from folder_line.ros.nodes.line_clock import EXIT_LOST, SPECS, LineClock, parse_participants
 
 if TYPE_CHECKING:
     from conftest import Ros
@@ -522,7 +522,7 @@ def test_the_clock_refuses_to_start_on_a_bad_parameter(ros: Ros, overrides: dict
 
 
 def start(node_env: dict[str, str], tmp_path: Path, *args: str, tag: str = '') -> tuple[subprocess.Popen[bytes], Path]:
-    cmd = [sys.executable, '-m', 'folder_line.nodes.line_clock', '--ros-args']
+    cmd = [sys.executable, '-m', 'folder_line.ros.nodes.line_clock', '--ros-args']
     for arg in args:
         cmd += ['-p', arg]
     err = tmp_path / f'stderr{tag}.txt'

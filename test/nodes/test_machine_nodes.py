@@ -4,7 +4,7 @@ Every node here runs in a private context on the test's executor (the ``ros``
 fixture) with ``line_clock`` in lockstep; a plain node subscribes to what they
 publish. What a node publishes at a point of its grid is a pure function of the
 scene and that time, so every received message is compared with
-:class:`folder_line.core.line.LineModel` built here independently, to the bit, at
+:class:`folder_line.core.line.model.LineModel` built here independently, to the bit, at
 the message's own stamp, whatever the clock's tick rate.
 """
 
@@ -27,11 +27,11 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, UInt64
 from test_line_clock import FakeParticipant, grid
 
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import LineModel
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import LineModel
 from folder_line.errors import ParameterError
-from folder_line.nodes.belt_conveyor import BeltConveyor
-from folder_line.nodes.common import (
+from folder_line.ros.common import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
     EVENTS_TOPIC,
@@ -43,14 +43,14 @@ from folder_line.nodes.common import (
     joint_states_topic,
     time_msg_to_ns,
 )
-from folder_line.nodes.crank_drive import CrankDrive
-from folder_line.nodes.feed_transporter import FeedTransporter
-from folder_line.nodes.line_clock import LineClock
-from folder_line.nodes.lockstep import PARTICIPANTS_TOPIC, tick_done_topic
-from folder_line.nodes.machine import EVENT_OWNER, MACHINE_SPECS, MachineNode, parse_event_source
-from folder_line.nodes.sheet_counter import SheetCounter, counted_kind
-from folder_line.nodes.supervisor import Supervisor
-from folder_line.scenes import load_scene
+from folder_line.ros.lockstep import PARTICIPANTS_TOPIC, tick_done_topic
+from folder_line.ros.nodes.belt_conveyor import BeltConveyor
+from folder_line.ros.nodes.crank_drive import CrankDrive
+from folder_line.ros.nodes.feed_transporter import FeedTransporter
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import EVENT_OWNER, MACHINE_SPECS, MachineNode, parse_event_source
+from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
+from folder_line.ros.nodes.supervisor import Supervisor
 
 if TYPE_CHECKING:
     from conftest import Received, Ros
@@ -463,7 +463,7 @@ def test_node_processes_refuse_a_bad_start_with_exit_code_2(node_env: dict[str, 
             procs.append(
                 (
                     subprocess.Popen(
-                        [sys.executable, '-m', f'folder_line.nodes.{node}', '--ros-args', '-p', param],
+                        [sys.executable, '-m', f'folder_line.ros.nodes.{node}', '--ros-args', '-p', param],
                         env=node_env,
                         cwd=REPO,
                         stdout=subprocess.DEVNULL,

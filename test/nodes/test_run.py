@@ -1,7 +1,7 @@
 """``folder-line run`` end to end over DDS: the run, its honest exit, SIGTERM, a second line, hostile inputs.
 
 The runs that must be stopped or disturbed mid-run are started as a process
-(``python -m folder_line.cli run``, :mod:`_line_runs`) with this test's ROS domain; the
+(``python -m folder_line.cli.main run``, :mod:`_line_runs`) with this test's ROS domain; the
 test waits for their progress output, never for a time. Every assertion holds whatever
 the load: in lockstep, what the line publishes does not depend on it.
 """
@@ -29,13 +29,13 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
 
-from folder_line.cli import main
-from folder_line.core.line import simulate
+from folder_line.cli.main import main
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.model import simulate
 from folder_line.interfaces import MACHINE_NODES
-from folder_line.nodes.common import COMMANDS_QOS, COMMANDS_TOPIC, EVENTS_TOPIC, joint_states_topic, ns_to_time_msg
-from folder_line.nodes.lockstep import LINE_QOS, PARTICIPANTS_QOS, PARTICIPANTS_TOPIC, TICK_QOS, tick_done_topic
-from folder_line.run import OTHER_LINE_WAIT
-from folder_line.scenes import load_scene
+from folder_line.ros.common import COMMANDS_QOS, COMMANDS_TOPIC, EVENTS_TOPIC, joint_states_topic, ns_to_time_msg
+from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, PARTICIPANTS_TOPIC, TICK_QOS, tick_done_topic
+from folder_line.ros.run import OTHER_LINE_WAIT
 
 if TYPE_CHECKING:
     from conftest import Ros
@@ -278,7 +278,7 @@ def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(
         assert main(['run', '--duration', '2', '--rtf', 'max', '--out', str(out)]) == 2
         err = [line for line in capfd.readouterr().err.splitlines() if not line.startswith('[INFO]')]
         assert err == [f"folder-line: error: --out: '{out / 'bag' / 'bag_0.mcap'}': No space left on device"], err
-        from folder_line.bag import read_bag
+        from folder_line.bag.bag import read_bag
 
         assert read_bag(out / 'bag').custom['folder_line.complete'] == 'false'
         assert not (out / 'run.json').exists()

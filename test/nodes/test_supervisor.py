@@ -4,7 +4,7 @@ The five machine nodes and ``line_clock`` run in this process in lockstep (the
 ``ros`` fixture); a :class:`FakeParticipant` (``line_recorder``) holds sim time at
 the ticks the test chooses, so that every service is called at a known tick and
 every effective time is known exactly: effective times are checked against
-:class:`folder_line.core.line.LineModel` to the nanosecond, state changes on the
+:class:`folder_line.core.line.model.LineModel` to the nanosecond, state changes on the
 supervisor's check grid to the bit, the joint states against the model rebuilt
 with the commands the supervisor published.
 """
@@ -27,11 +27,11 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from test_line_clock import FakeParticipant, grid
 
-from folder_line.core.drive import Command
-from folder_line.core.events import EVENT_KINDS
-from folder_line.core.line import LineModel
-from folder_line.nodes.belt_conveyor import BeltConveyor
-from folder_line.nodes.common import (
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import LineModel
+from folder_line.core.mechanisms.drive import Command
+from folder_line.ros.common import (
     COMMANDS_QOS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -42,14 +42,14 @@ from folder_line.nodes.common import (
     ns_to_time_msg,
     time_msg_to_ns,
 )
-from folder_line.nodes.crank_drive import CrankDrive
-from folder_line.nodes.feed_transporter import FeedTransporter
-from folder_line.nodes.line_clock import LineClock
-from folder_line.nodes.lockstep import LINE_QOS, PARTICIPANTS_QOS, PARTICIPANTS_TOPIC, TICK_QOS, tick_done_topic
-from folder_line.nodes.machine import MachineNode
-from folder_line.nodes.sheet_counter import SheetCounter
-from folder_line.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
-from folder_line.scenes import load_scene
+from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, PARTICIPANTS_TOPIC, TICK_QOS, tick_done_topic
+from folder_line.ros.nodes.belt_conveyor import BeltConveyor
+from folder_line.ros.nodes.crank_drive import CrankDrive
+from folder_line.ros.nodes.feed_transporter import FeedTransporter
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import MachineNode
+from folder_line.ros.nodes.sheet_counter import SheetCounter
+from folder_line.ros.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
 
 if TYPE_CHECKING:
     from conftest import Received, Ros

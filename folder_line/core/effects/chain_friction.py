@@ -1,7 +1,7 @@
 """Effect ``chain_friction``: efficiency, forces and sprocket torque of the delivery (D).
 
 Source: paper 002 and MACHINES.md section D, eqs. (1)-(9), as implemented (friction
-terms as losses, states instead of NaN) in :mod:`folder_line.core.delivery`::
+terms as losses, states instead of NaN) in :mod:`folder_line.core.mechanisms.delivery`::
 
     P_AB = P_k / (cos a - f_Bp |sin a| - f_B r_B |sin b| / (K_v cos a))        (1)
     P_ch = P_AB (cos(a - b) + f_Ap |sin(a - b)| + f_A r_A |sin b| / cos a)      (4)
@@ -14,11 +14,11 @@ the forces and ``M_1`` are 0 and ``eta`` is 0 -- the state says why; nothing is 
 
 Where the carriages are
 -----------------------
-:mod:`folder_line.core.chain` (kinematics, shared with the folder simulation): carriage
+:mod:`folder_line.core.mechanisms.chain` (kinematics, shared with the folder simulation): carriage
 ``k`` takes sheet ``k`` at ``Θ_pick(k) = (k + 1) T + t_out``, the chain runs at
 ``v_A = pitch / T``, and a carriage is on the stroke from ``L_transfer`` to
 ``L_transfer + S`` of chain travel after its pickup; its stroke position ``u`` follows
-from :class:`~folder_line.core.chain.ChainPath`.
+from :class:`~folder_line.core.mechanisms.chain.ChainPath`.
 
 * **Every carriage loads the chain.** The chain carries a carriage every ``pitch``
   whether or not it holds a sheet, so the load is periodic in Θ with period ``T``.
@@ -48,17 +48,17 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.chain import ChainPath, ChainSchedule, chain_path, schedule
-from folder_line.core.delivery import (
+from folder_line.core.limits import MOTOR_SPEED
+from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule, chain_path, schedule
+from folder_line.core.mechanisms.delivery import (
     RETURN_SECTIONS,
     STATE_OK,
     DeliveryParams,
     evaluate_stroke,
     evaluate_stroke_point,
 )
-from folder_line.core.limits import MOTOR_SPEED
-from folder_line.core.roots import find_sign_changes
-from folder_line.core.validate import non_negative, one_of, positive
+from folder_line.core.numerics.roots import find_sign_changes
+from folder_line.core.numerics.validate import non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -89,7 +89,7 @@ class Params:
         Sprocket radius, m (> 0).
     return_section : {'geometric', 'paper_mirror'}
         Slope sign on the second section, as in
-        :func:`folder_line.core.delivery.evaluate_stroke` (``'geometric'`` is the
+        :func:`folder_line.core.mechanisms.delivery.evaluate_stroke` (``'geometric'`` is the
         kinematically consistent one).
     """
 
@@ -116,7 +116,7 @@ class ChainFrictionState:
     K_v : ndarray
         Carriage speed over chain speed.
     state : ndarray of int8
-        :data:`folder_line.core.delivery.STATE_NAMES` index.
+        :data:`folder_line.core.mechanisms.delivery.STATE_NAMES` index.
     P_AB, P_ch : ndarray
         Rod force and chain pull, N.
     M_1 : ndarray
@@ -197,7 +197,7 @@ def _stroke_torque(
     """Sum of M_1 (N m) over the carriages on the stroke at Θ (membership by Θ itself).
 
     A carriage exactly at the entry or the exit (to rounding) counts as on the stroke,
-    at ``u = 0`` or ``u = 2`` (:meth:`folder_line.core.chain.ChainSchedule.stroke_travel`).
+    at ``u = 0`` or ``u = 2`` (:meth:`folder_line.core.mechanisms.chain.ChainSchedule.stroke_travel`).
     """
     a0, slack = sch.stroke_travel(th)
     total = np.zeros(th.shape)
@@ -228,14 +228,14 @@ def master_load_torque(scene: Any, Theta: npt.ArrayLike, omega_nom: float | None
 def stroke_kinks(params: Params, delivery: DeliveryParams, n: int = 4001) -> FloatArray:
     """Stroke positions in (0, 2) where the torque ``M_1(u)`` is not smooth.
 
-    The friction terms are magnitudes (:mod:`folder_line.core.delivery`):
+    The friction terms are magnitudes (:mod:`folder_line.core.mechanisms.delivery`):
     ``|sin(alpha - beta)|`` and ``|tan(alpha - beta)|`` have a kink where
     ``alpha - beta`` changes sign (pair A's sliding friction reverses), ``|sin beta|``
     where ``beta`` does -- only at the section ends, since ``psi' >= 0`` keeps the sign
     of ``beta`` within a section -- and the formula switches sections at ``u = 1``
     (a jump if ``psi'(1) != 0``). Returns ``u = 1`` and every sign change of
     ``alpha - beta`` on a grid of ``n`` points per section, refined by Brent's method
-    (:func:`folder_line.core.roots.find_sign_changes`; touches are smooth and are not
+    (:func:`folder_line.core.numerics.roots.find_sign_changes`; touches are smooth and are not
     reported).
     """
     rs = params.return_section

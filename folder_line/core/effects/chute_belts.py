@@ -16,14 +16,14 @@ Model
   meanwhile; the belt runs along the chute, so the leaf's distance from the pivot is
   the belt travel whatever the swing does.
 * Belt speed. The belt (motor 9) is geared to the master drive like every speed of
-  the line (:mod:`folder_line.core.drive`): it runs at ``v_tr · λ(t) · f(t)`` with λ
+  the line (:mod:`folder_line.core.mechanisms.drive`): it runs at ``v_tr · λ(t) · f(t)`` with λ
   the drive's speed factor and ``f`` the belt slow-down factor of the ``faults``
   effect (1 without faults). Its travel since t = 0 is
 
       P(t) = v_tr ∫₀ᵗ λ f dt = P(b_i) + v_tr f_i (Θ(t) − Θ(b_i))   for b_i <= t < b_{i+1}
 
   with ``b_i`` the slow-down boundaries (f piecewise constant) and Θ the master
-  phase: exact, no quadrature (:class:`folder_line.core.belt.BeltPhase`, shared with
+  phase: exact, no quadrature (:class:`folder_line.core.mechanisms.belt.BeltPhase`, shared with
   the folder's feed belt).
 * Exit time. The leaf leaves when the belt has moved ``l`` since its entry,
   ``P(t_exit) = P(t_enter) + l``; inverting the piecewise form,
@@ -62,9 +62,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.belt import BeltPhase
-from folder_line.core.drive import Drive
-from folder_line.core.validate import in_range
+from folder_line.core.mechanisms.belt import BeltPhase
+from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.numerics.validate import in_range
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -107,7 +107,7 @@ class BeltProfile:
         Nominal belt speed, m/s (> 0).
     phase : BeltPhase
         Belt phase ``B(t)`` (nominal s; travel ``v_tr B``) with the slow-downs,
-        :class:`folder_line.core.belt.BeltPhase`.
+        :class:`folder_line.core.mechanisms.belt.BeltPhase`.
     """
 
     v_tr: float

@@ -6,7 +6,7 @@ late by ``late_delay`` s with ``p_late``. Per machine cycle, a belt slow-down st
 with probability ``p_slowdown`` at a uniformly drawn time in the cycle, scales the
 belt speed by ``slowdown_factor`` for ``slowdown_duration`` s; overlapping
 slow-downs are merged. Draws come from the scene seed's named streams
-(:func:`folder_line.core.rng.stream`), so the same scene and seed give the same
+(:func:`folder_line.core.numerics.rng.stream`), so the same scene and seed give the same
 faults, and listing or removing another effect does not change them.
 """
 
@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.events import make_events, merge_events
-from folder_line.core.validate import in_range, non_negative
+from folder_line.core.line.events import make_events, merge_events
+from folder_line.core.numerics.validate import in_range, non_negative
 
 __all__ = ['Params', 'SheetFaults', 'Slowdowns', 'belt_factor', 'draw_sheet_faults', 'draw_slowdowns', 'fault_events']
 

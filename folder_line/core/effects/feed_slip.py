@@ -39,7 +39,7 @@ The time the slip costs over the ideal ride, ``t - L / V1``, is
 ``sign(V1 - V0) (V1 - V0)² / (2 a V1)`` when it reaches belt speed: a faster belt
 eats more of it, a stronger hold-down less.
 
-Variable drive: the simulator (:mod:`folder_line.core.folder_sim`) freezes the
+Variable drive: the simulator (:mod:`folder_line.core.line.folder_sim`) freezes the
 speeds at the hand-over, ``V0 = λ_h V_d``, ``V1 = λ_h f_h V_tr`` (λ_h the drive's
 speed factor, f_h a belt slow-down factor at the hand-over), for the slip phase
 only; after the slip the signature rides the belt, whose travel is integrated
@@ -54,8 +54,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.constants import G
-from folder_line.core.validate import in_range, non_negative, positive
+from folder_line.core.numerics.constants import G
+from folder_line.core.numerics.validate import in_range, non_negative, positive
 from folder_line.errors import ParameterError
 
 __all__ = ['Params', 'SlipArrival', 'accel', 'arrival', 'min_belt_speed', 'slip_cost']

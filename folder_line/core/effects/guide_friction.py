@@ -41,7 +41,7 @@ A sliding leaf sticks when ṡ reaches 0 (then σ <= 0 since ṡ was falling); i
 again at the first t with σ(t) > 0. A leaf entering at rest (``v0 = 0``) is stuck
 from its entry if σ(t_enter) <= 0. Events: ``leaf_stick`` at the stick time, and
 ``leaf_slip`` at the slip time; both are localised by root-finding
-(:func:`folder_line.core.roots.brentq`): the stick time on the step's dense
+(:func:`folder_line.core.numerics.roots.brentq`): the stick time on the step's dense
 interpolant of ṡ (ṡ = 0), the slip time on σ(t) itself with the exact kinematics, in
 the bracket of the scan below.
 
@@ -56,7 +56,7 @@ localised on the step's cubic Hermite interpolants (``s`` from s, ṡ at both en
 
 * exit: ``s = l`` — vectorised bisection of the interpolant to the float resolution
   of the step fraction (every leaf exits once, so this is the bulk);
-* stop: ``ṡ = 0`` — :func:`folder_line.core.roots.brentq` per event.
+* stop: ``ṡ = 0`` — :func:`folder_line.core.numerics.roots.brentq` per event.
 
 |N| has a kink where N changes sign; a step across it would drop RK4 to third order
 (a stage sampled a distance δ on the wrong side of the kink costs ~ h μ |N'| δ), so
@@ -97,9 +97,9 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.constants import G
-from folder_line.core.roots import brent, brentq
-from folder_line.core.validate import in_range, non_negative
+from folder_line.core.numerics.constants import G
+from folder_line.core.numerics.roots import brent, brentq
+from folder_line.core.numerics.validate import in_range, non_negative
 from folder_line.errors import ParameterError
 
 __all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide', 'switching']

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.validate import in_range
+from folder_line.core.numerics.validate import in_range
 
 __all__ = ['Params', 'damaged', 'upper_margin']
 

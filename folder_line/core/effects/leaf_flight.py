@@ -29,7 +29,7 @@ Landing time (y(t) = y_floor, H = y0 − y_floor > 0):
   time (past the apex, where f' < 0) converges monotonically after at most one step;
   it is safeguarded by bisection of the bracket and run vectorised over all leaves
   until the step is below 2 ulp of t. (A bracketed root-finder like
-  :func:`folder_line.core.roots.brentq` returns the same root to ~1e-15 s, tested; this
+  :func:`folder_line.core.numerics.roots.brentq` returns the same root to ~1e-15 s, tested; this
   vectorised form avoids a Python call per leaf.)
 
 Landing x is ``x(t_land)``; leaves landing in [x_left, x_right] are counted in the
@@ -50,8 +50,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.constants import G
-from folder_line.core.validate import in_range
+from folder_line.core.numerics.constants import G
+from folder_line.core.numerics.validate import in_range
 from folder_line.errors import ParameterError
 
 __all__ = ['Histogram', 'Params', 'histogram', 'landing', 'landing_time', 'phi1', 'phi2', 'state']

@@ -8,7 +8,7 @@ standstill, stop by a brake torque).
 Equations
 ---------
 State ``y = (Θ, ω)``: Θ the master phase in nominal seconds (the drive's phase,
-:mod:`folder_line.core.drive`), ω the master-shaft speed (rad/s)::
+:mod:`folder_line.core.mechanisms.drive`), ω the master-shaft speed (rad/s)::
 
     dΘ/dt = ω / ω_nom                                      (λ = ω / ω_nom)
     J dω/dt = T_0 (1 - ω/ω_0) - b ω - T_load(Θ)            motor on,  0 <= t < t_stop
@@ -32,12 +32,12 @@ Discontinuities, handled exactly
 * **Brake.** The run is integrated in segments: motor on over ``[0, min(t_stop,
   duration)]``; from ``t_stop`` the brake segment, whose right-hand side is the ω > 0
   branch (the brake and the load oppose the motion), ends at the root ω = 0 located on
-  the dense output (:class:`~folder_line.core.integrators.Terminal`); from then on the
+  the dense output (:class:`~folder_line.core.numerics.integrators.Terminal`); from then on the
   shaft stands (the brake holds it; nothing drives it) and Θ is constant.
   ``t_stop >= duration``: the motor never stops. ``T_brake = 0``: the shaft coasts
   down on ``b`` and the load (it may never reach rest).
 * **Chain load.** The load jumps where a carriage enters or leaves the stroke; those
-  Θ are breaks of the integrator (:class:`~folder_line.core.integrators.Breaks`):
+  Θ are breaks of the integrator (:class:`~folder_line.core.numerics.integrators.Breaks`):
   no step straddles one, so both methods keep their order.
 
 Periodic steady state (``periodic=True``, the default)
@@ -57,7 +57,7 @@ transient's steps only (~8 s of it on the suggested scene values: 0.2-0.6 s of C
 Supervisor commands (switching times)
 -------------------------------------
 :func:`build_drive` takes the supervisor's commands
-(:class:`folder_line.core.drive.Command`): ``hold``/``stop`` at ``t`` switch the motor
+(:class:`folder_line.core.mechanisms.drive.Command`): ``hold``/``stop`` at ``t`` switch the motor
 off and apply the brake from ``t`` (the brake segment above, from the state at ``t``);
 ``unhold``/``start`` switch it on again from the state at ``t`` (standstill or still
 coasting down). The scene's ``t_stop`` is one more motor-off switch. Switches that do
@@ -102,11 +102,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core import integrators as ig
-from folder_line.core.drive import Command, check_commands
 from folder_line.core.effects import chain_friction
 from folder_line.core.limits import HORIZON
-from folder_line.core.validate import in_range, non_negative, one_of, positive
+from folder_line.core.mechanisms.drive import Command, check_commands
+from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics.validate import in_range, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -367,7 +367,7 @@ class MotorSegment:
 
 
 class MotorDrive:
-    """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.drive`).
+    """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.mechanisms.drive`).
 
     Built by :func:`build_drive`: a list of :class:`MotorSegment` (motor on / off),
     switched at the scene's ``t_stop`` and at the supervisor's commands.
@@ -595,7 +595,7 @@ def build_drive(scene: Any, duration: float, *, periodic: bool = True, commands:
     periodic : bool
         Take the periodic-steady-state shortcut (module docstring).
     commands : iterable of Command
-        Supervisor commands (:class:`folder_line.core.drive.Command`, sorted by time):
+        Supervisor commands (:class:`folder_line.core.mechanisms.drive.Command`, sorted by time):
         ``hold``/``stop`` switch the motor off and apply the brake from their time,
         ``unhold``/``start`` switch it on again from the state there. The scene's
         ``t_stop`` is one more motor-off switch.

@@ -33,7 +33,7 @@ sum::
 and the n-th bounce starts at ``(2 V / a_f) e (1 - e^{n-1}) / (1 - e)`` after the
 first impact.
 
-Constraints (evaluated by :mod:`folder_line.core.constraints`):
+Constraints (evaluated by :mod:`folder_line.core.line.constraints`):
 ``settled_before_knife`` = knife contact − settled (s) and ``rebound`` = ``tolerance``
 − first rebound distance (m), the fold tolerance at the stops.
 
@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.validate import in_range, positive
+from folder_line.core.numerics.validate import in_range, positive
 from folder_line.errors import ParameterError
 
 __all__ = [

@@ -1,0 +1,1 @@
+"""The ``folder-line`` command line and its console outputs (tables, summaries, the papers' report)."""

@@ -1,0 +1,409 @@
+"""The ``folder-line`` command: thin verbs over the core and the report.
+
+Every bad input ends in one line on stderr naming the parameter and its value,
+and exit code 2; nothing is left half-written. Output targets are checked before any
+work (:mod:`folder_line.files.atomic`): a file target must be a regular file or missing (a
+symbolic link to a regular file is followed, never replaced), an output folder must be a
+folder, and it is locked for the verb's duration so that a second process writing into
+it is refused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import NoReturn
+
+from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
+from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
+
+#: the option that names each verb's output, for errors raised where it is not known
+_OUTPUT_OPTION = {
+    'kinematics': '--csv',
+    'simulate': '--json',
+    'run': '--out',
+    'report': '--out',
+    'analyze': '--out',
+    'bench': '--out',
+    'bag': 'DIR',
+}
+#: longest error line printed, characters (each value in it is already cut to 80)
+_LINE_CHARS = 2000
+
+__all__ = ['main']
+
+EXIT_USAGE = 2
+EXIT_RUN_FAILED = 1
+
+
+def _samples(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'--samples={bounded_repr(text)}: must be a whole number >= 2') from None
+    if n < 2 or n > 100_000_000:
+        raise argparse.ArgumentTypeError(f'--samples={bounded_repr(text)}: must be in [2, 100000000]')
+    return n
+
+
+def _limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
+    """An option in the physical range ``limit`` (:mod:`folder_line.core.limits`, the same bounds as the scene
+    loader's and the node parameters'); ``also``: one word that is also accepted, as 0.0 (``max``)."""
+    extra = f' or {also}' if also else ''
+
+    def parse(text: str) -> float:
+        if also and text.strip().lower() == also:
+            return 0.0
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'{option}={bounded_repr(text)}: must be a number in {limit.text()}{extra}'
+            ) from None
+        if not limit.lo <= value <= limit.hi:  # NaN fails too
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
+        return value
+
+    return parse
+
+
+_duration = _limited('--duration', DURATION)
+# the monitor's own knobs (display, not line physics)
+_MONITOR_RATE = Limit('monitor refresh rate', 0.1, 60.0, 'Hz', 'a screen refresh')
+_MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the rates are counted over')
+_MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
+#: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
+_rtf = _limited('--rtf', RTF, also='max')
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse`` whose usage errors are one line too (values cut, a pointer to ``--help``)."""
+
+    def error(self, message: str) -> NoReturn:
+        words = (shorten(w) for w in message.split())  # a value given on the command line is one word
+        text = shorten(' '.join(words), _LINE_CHARS)
+        self.exit(EXIT_USAGE, f'{self.prog}: error: {text} (see {self.prog} --help)\n')
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    from folder_line.accuracy.bench import STUDIES
+
+    parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
+    sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
+
+    kin = sub.add_parser('kinematics', help='table of one mechanism over a crank turn (or the delivery stroke)')
+    kin.add_argument('mechanism', choices=('layup', 'knife', 'delivery'))
+    kin.add_argument('--params', metavar='FILE.yaml', help='any subset of the parameters; the rest are the defaults')
+    kin.add_argument('--samples', type=_samples, default=360, metavar='N', help='number of samples (default 360)')
+    kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
+
+    sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
+    sim.add_argument(
+        '--scene',
+        default='folder',
+        metavar='NAME|FILE',
+        help='shipped scene name (folder, layup, line) or a scene YAML file (default folder)',
+    )
+    sim.add_argument('--duration', type=_duration, default=60.0, metavar='S', help='line time, s (default 60)')
+    sim.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='MACHINE.KEY=VALUE',
+        help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
+    )
+    sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+
+    run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
+    run.add_argument('--scene', default='folder', metavar='NAME|FILE', help='scene (default folder)')
+    run.add_argument('--duration', type=_duration, default=20.0, metavar='S', help='line time, s (default 20)')
+    run.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='MACHINE.KEY=VALUE',
+        help='override a scene value (repeatable)',
+    )
+    run.add_argument(
+        '--rtf',
+        type=_rtf,
+        default=1.0,
+        metavar='X|max',
+        help='real-time factor ceiling (default 1); max: as fast as the slowest node allows',
+    )
+    run.add_argument(
+        '--clock',
+        choices=('lockstep', 'wall'),
+        default='lockstep',
+        help='lockstep: sim time waits for every node, the answer never depends on load (default); '
+        'wall: paced by the wall clock for hardware in the loop, late ticks counted',
+    )
+    run.add_argument(
+        '--lost-timeout',
+        type=_limited('--lost-timeout', LOST_TIMEOUT),
+        default=3.0,
+        metavar='S',
+        help='wall time a tick waits for a node before the node is declared lost (default 3)',
+    )
+    run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+    run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
+
+    mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
+    mon.add_argument(
+        '--rate',
+        type=_limited('--rate', _MONITOR_RATE),
+        default=4.0,
+        metavar='HZ',
+        help='screen refreshes per second (default 4)',
+    )
+    mon.add_argument(
+        '--once',
+        action='store_true',
+        help='print one plain-text snapshot after collecting for the rate window, then exit',
+    )
+    mon.add_argument(
+        '--window',
+        type=_limited('--window', _MONITOR_WINDOW),
+        default=2.0,
+        metavar='S',
+        help='window of the topic rates, s of wall time (default 2)',
+    )
+    mon.add_argument(
+        '--timeout',
+        type=_limited('--timeout', _MONITOR_TIMEOUT),
+        default=10.0,
+        metavar='S',
+        help='with --once: longest wait for the first message, s (default 10)',
+    )
+
+    bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
+    bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
+    bag_info = bag_sub.add_parser('info', help='topics, counts, line time and custom data of a bag')
+    bag_info.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    bag_repair = bag_sub.add_parser(
+        'repair', help='rebuild metadata.yaml from the MCAP files present, salvaging an unfinished last file'
+    )
+    bag_repair.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+
+    rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
+    rep.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+
+    ana = sub.add_parser('analyze', help='replay analysis of a recorded run: report.md and plots (no ROS needed)')
+    ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
+    ana.add_argument('--out', metavar='DIR', help='output directory (default RUN_DIR/analysis)')
+    ana.add_argument('--csv', action='store_true', help='also write one CSV per topic to DIR/csv/')
+
+    bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
+    bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
+    acc = bench_sub.add_parser(
+        'accuracy',
+        help='error against CPU time per simulated second for every accuracy knob: CSV, markdown, Pareto plot',
+    )
+    acc.add_argument('--out', default='out/accuracy', metavar='DIR', help='output directory (default ./out/accuracy)')
+    acc.add_argument('--quick', action='store_true', help='fewer knob settings, shorter spans (under a minute)')
+    acc.add_argument(
+        '--only',
+        action='append',
+        metavar='STUDY',
+        default=[],
+        choices=STUDIES,
+        help=f'run only this study (repeatable): {", ".join(STUDIES)}',
+    )
+    return parser
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from folder_line.accuracy.bench import run_benchmark
+    from folder_line.accuracy.output import write_outputs
+    from folder_line.files.atomic import claim_output_dir
+
+    files = ('accuracy.csv', 'accuracy.md', 'accuracy.png', 'accuracy.json')
+    with claim_output_dir(args.out, '--out', files) as out:  # before any work: the results need a place
+        result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
+        command = (
+            'folder-line bench accuracy'
+            + (' --quick' if args.quick else '')
+            + ''.join(f' --only {s}' for s in args.only)
+        )
+        for path in write_outputs(result, out, command):
+            print(f'wrote {path}')
+    return 0
+
+
+def _cmd_kinematics(args: argparse.Namespace) -> int:
+    from folder_line.cli.tables import kinematics_table, print_summary
+    from folder_line.files.atomic import check_output_file, write_csv_atomic
+
+    if args.csv:
+        check_output_file(args.csv, '--csv')
+    table = kinematics_table(args.mechanism, args.params, args.samples)
+    print_summary(args.mechanism, table, sys.stdout)
+    if args.csv:
+        dest = write_csv_atomic(args.csv, table)
+        print(f'wrote {dest} ({args.samples} rows, {len(table)} columns)')
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from folder_line.cli.summary import print_summary
+    from folder_line.config.scenes import load_scene, parse_set
+    from folder_line.core.line.model import simulate
+    from folder_line.files.atomic import check_output_file, write_json_atomic
+
+    if args.json:
+        check_output_file(args.json, '--json')
+    scene = load_scene(args.scene, parse_set(args.overrides))
+    result = simulate(scene, args.duration, sample_rate=0.0)
+    summary = result.summary()
+    print_summary(summary, sys.stdout)
+    if args.json:
+        dest = write_json_atomic(args.json, summary)
+        print(f'wrote {dest}')
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from folder_line.files.atomic import claim_output_dir
+    from folder_line.ros.run import BAG_DIR, RunConfig, print_run_summary, run_line
+
+    if args.clock == 'wall' and args.rtf == 0.0:
+        print(
+            "folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)", file=sys.stderr
+        )
+        return EXIT_USAGE
+    cfg = RunConfig(
+        scene=args.scene,
+        duration=args.duration,
+        overrides=tuple(args.overrides),
+        rtf=args.rtf,
+        out=Path(args.out),
+        processes=args.processes,
+        clock=args.clock,
+        lost_timeout=args.lost_timeout,
+    )
+    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(BAG_DIR, 'logs')):
+        result = run_line(cfg, sys.stdout)
+    print_run_summary(result.summary, cfg.out, sys.stdout)
+    verdict = result.summary['outcome']
+    if not verdict['ok']:
+        print(f'folder-line: run failed: {verdict["message"]}', file=sys.stderr)
+        return EXIT_RUN_FAILED
+    return 0
+
+
+def _cmd_monitor(args: argparse.Namespace) -> int:
+    from folder_line.ros.monitor import run_monitor
+
+    return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
+
+
+def _cmd_bag(args: argparse.Namespace) -> int:
+    from folder_line.bag.bag import METADATA_FILE, bag_info_lines, read_bag, repair
+    from folder_line.files.atomic import check_output_dir, claim_output_dir
+    from folder_line.ros.run import BAG_DIR
+
+    if args.bag_verb == 'repair':
+        bag = Path(args.dir)
+        check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
+        with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
+            if bag.is_dir() and bag.resolve().name == BAG_DIR:
+                claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))
+            claims.enter_context(claim_output_dir(bag, 'DIR', files=(METADATA_FILE,), create=False))
+            result = repair(args.dir)
+        print(f'repaired {args.dir}: {result.describe()}')
+        print(f'wrote {result.metadata}')
+        return 0
+    for line in bag_info_lines(read_bag(args.dir)):
+        print(line)
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from folder_line.cli.report import REPORT_FILES, write_report
+    from folder_line.files.atomic import claim_output_dir
+
+    with claim_output_dir(args.out, '--out', REPORT_FILES) as out:
+        write_report(out, sys.stdout)
+    return 0
+
+
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from folder_line.analysis.analysis import analyze, print_analysis
+
+    print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
+    return 0
+
+
+#: argument -> how the command line names it, for an OS error on a path it gave
+_PATH_ARGUMENTS = {
+    'scene': '--scene',
+    'params': '--params',
+    'json': '--json',
+    'csv': '--csv',
+    'out': '--out',
+    'path': 'RUN_DIR|BAG',
+    'dir': 'DIR',
+}
+
+
+def _os_error_text(args: argparse.Namespace, exc: OSError) -> str:
+    """One line for an OS error: the argument that named the path (the one it is, or lies under), the path
+    and the OS reason; a write without a path is the verb's output's."""
+    from folder_line.errors import path_repr
+
+    reason = exc.strerror or str(exc)
+    if exc.filename is None:
+        return f'{_OUTPUT_OPTION[args.verb]}: {reason}'
+    path = str(exc.filename)
+    label = ''
+    for attr, option in _PATH_ARGUMENTS.items():
+        given = getattr(args, attr, None)
+        if isinstance(given, str) and given and (path == given or path.startswith(given.rstrip('/') + '/')):
+            label = f'{option}: '
+            break
+    return f'{label}{path_repr(path)}: {reason}'
+
+
+def _error(text: str) -> None:
+    """Print ``text`` as one line on stderr (newlines folded, cut to :data:`_LINE_CHARS`)."""
+    from folder_line.errors import shorten
+
+    print(f'folder-line: error: {shorten(" ".join(text.split()), _LINE_CHARS)}', file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``folder-line``; returns the process exit code."""
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    handler = {
+        'kinematics': _cmd_kinematics,
+        'simulate': _cmd_simulate,
+        'run': _cmd_run,
+        'monitor': _cmd_monitor,
+        'report': _cmd_report,
+        'bag': _cmd_bag,
+        'analyze': _cmd_analyze,
+        'bench': _cmd_bench,
+    }[args.verb]
+    try:
+        return handler(args)
+    except OutputError as exc:
+        _error(str(exc.with_option(_OUTPUT_OPTION[args.verb])))
+        return EXIT_USAGE
+    except FolderLineError as exc:
+        _error(str(exc))
+        return EXIT_USAGE
+    except OSError as exc:  # the OS refused to open, read or write a path deep inside a verb
+        _error(_os_error_text(args, exc))
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,289 @@
+"""The report of the default configuration: the papers' published results next to
+what the model computes, the three mechanisms' tables as CSV, and plots.
+
+This is what ``make run`` shows (``folder-line report --out DIR``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from folder_line.analysis.plots import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.cli.tables import kinematics_table
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms import cyclogram, delivery, knife, layup
+from folder_line.files.atomic import write_csv_atomic, write_text_atomic
+
+__all__ = ['REPORT_FILES', 'Check', 'published_checks', 'write_report']
+
+#: the files :func:`write_report` writes into its folder
+REPORT_FILES = (
+    'report.md',
+    'layup.csv',
+    'knife.csv',
+    'delivery.csv',
+    'layup_speeds.png',
+    'layup_geometry.png',
+    'knife_cyclogram.png',
+    'delivery_efficiency.png',
+)
+
+PAPER_V_TR = 0.230 / 0.025  # m/s, paper 001 eq. (5): 230 mm in 0.025 s
+
+
+@dataclass(frozen=True)
+class Check:
+    """One published figure against the model."""
+
+    paper: str
+    quantity: str
+    published: str
+    model: str
+    agrees: bool
+
+
+def _defaults() -> dict[str, object]:
+    return {kind: load_params(kind) for kind in ('layup', 'knife', 'delivery', 'cyclogram')}
+
+
+def published_checks(p: dict[str, object] | None = None) -> list[Check]:
+    """The papers' published results, recomputed from the parameters ``p`` (defaults if None)."""
+    p = p or _defaults()
+    lay, kn, dl, cy = p['layup'], p['knife'], p['delivery'], p['cyclogram']
+    checks: list[Check] = []
+
+    # D: efficiency (paper 002, Fig. 2)
+    ev = delivery.evaluate(dl, np.linspace(0.0, 1.0, 20001))
+    eta_end, eta_const = float(ev.eta[-1]), float(ev.eta[0])
+    checks.append(
+        Check(
+            'D',
+            'eta at the decel/accel boundary (xi = 1), lowest of the section',
+            '0.69',
+            f'{eta_end:.4f} (min {ev.eta.min():.4f})',
+            abs(eta_end - 0.69) < 0.005 and ev.eta.min() == eta_end,
+        )
+    )
+    checks.append(
+        Check('D', 'eta at constant carriage speed (xi = 0)', '0.98', f'{eta_const:.4f}', 0.98 <= eta_const < 0.99)
+    )
+
+    # F: cyclogram (paper 001)
+    tm = cyclogram.cycle_timing(cy, kn)
+    checks.append(
+        Check(
+            'F',
+            'printing speed V_d, D = 267.38 mm at 25000 rev/h',
+            '5.83 m/s',
+            f'{tm.V_d:.4f} m/s',
+            abs(tm.V_d - 5.83) < 0.005,
+        )
+    )
+    checks.append(Check('F', 'cycle T at 50000 rev/h', '0.072 s', f'{tm.T:.6f} s', abs(tm.T - 0.072) < 1e-12))
+    checks.append(
+        Check(
+            'F',
+            'folding + knife exit (knife window)',
+            '0.03 s',
+            f'{tm.t_knife:.5f} s',
+            abs(tm.t_knife - 0.03) < 0.03 * 0.005,
+        )
+    )
+    checks.append(
+        Check(
+            'F',
+            'feed time with the 10 % reserve',
+            '0.025 s',
+            f'{tm.t_allowed:.5f} s',
+            abs(tm.t_allowed - 0.025) < 0.025 * 0.015,
+        )
+    )
+    checks.append(
+        Check(
+            'F',
+            'minimum 2nd-transporter speed V_tr',
+            '~9.2 m/s',
+            f'{tm.V_tr_min:.3f} m/s',
+            abs(tm.V_tr_min - 9.2) < 9.2 * 0.015,
+        )
+    )
+    checks.append(Check('F', 'V_tr / V_d', '~1.6', f'{tm.ratio_min:.3f}', abs(tm.ratio_min - 1.6) < 0.03))
+
+    # L: exit speeds (paper 000, Figs. 4-5)
+    ext = layup.swing_extremes(lay)
+    v_ext = max(max(abs(e.point.vC), abs(e.point.vE)) for e in ext)
+    checks.append(Check('L', 'v_C, v_E at both swing extremes', '0', f'{v_ext:.2e} m/s', v_ext < 1e-9))
+    st = layup.LayupModel(lay).arrays(2.0 * math.pi * np.arange(100_000) / 100_000, accelerations=False)
+    va_min = float(min(st.vaC.min(), st.vaE.min()))
+    checks.append(
+        Check(
+            'L',
+            f'min absolute exit speed with belts at v_tr = {lay.v_tr:g} m/s',
+            f'>= {lay.v_tr:g} m/s',
+            f'{va_min:.6f} m/s',
+            va_min >= lay.v_tr,
+        )
+    )
+    return checks
+
+
+def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
+    plt = pyplot()
+    ext = layup.swing_extremes(lay)
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    st = exit_speed_curves(ax1, ax2, lay, lay.v_tr)
+    ax1.set_ylabel('swing speed, m/s')
+    ax1.set_title('L: exit speeds without belts (paper Fig. 4): zero at the swing extremes')
+    ax1.legend(loc='upper right')
+    ax2.set_ylabel('absolute exit speed, m/s')
+    ax2.set_xlabel('crank angle $\\varphi$, deg')
+    ax2.set_title(f'L: with belts at $v_{{tr}}$ = {lay.v_tr:g} m/s (paper Fig. 5): never below $v_{{tr}}$')
+    ax2.legend(loc='center right')
+    fig.tight_layout()
+    speeds = save_figure(fig, out / 'layup_speeds.png')
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.plot(st.xC, st.yC, color='C0', lw=2, label='path of exit C')
+    ax.plot(st.xE, st.yE, color='C1', lw=2, label='path of exit E')
+    o1 = (lay.a, lay.b)
+    for e, style in zip(ext, ('-', '--'), strict=True):
+        s1 = layup.LayupModel(lay).arrays(np.array([e.phi]), accelerations=False)
+        pts = {k: (float(getattr(s1, 'x' + k)[0]), float(getattr(s1, 'y' + k)[0])) for k in 'ABCE'}
+        chain = [o1, pts['A'], pts['B'], (0.0, 0.0), pts['C'], pts['E'], (lay.O2O3, 0.0)]
+        ax.plot(
+            *zip(*chain, strict=True),
+            style,
+            color='k',
+            marker='o',
+            ms=4,
+            lw=1,
+            label=f'{e.kind} dead centre, phi = {math.degrees(e.phi):.1f} deg',
+        )
+    for name, xy in (('O1', o1), ('O2', (0.0, 0.0)), ('O3', (lay.O2O3, 0.0))):
+        ax.annotate(name, xy, textcoords='offset points', xytext=(5, 5))
+    ax.set_aspect('equal')
+    ax.set_xlabel('x, m')
+    ax.set_ylabel('y, m')
+    ax.set_title('L: six-bar at both swing extremes')
+    ax.set_ylim(-1.15, 0.35)
+    ax.legend(loc='upper right', fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return [speeds, save_figure(fig, out / 'layup_geometry.png')]
+
+
+def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path) -> Path:
+    plt = pyplot()
+
+    tm = cyclogram.cycle_timing(cy, kn)
+    t = np.linspace(tm.knife.t_in, tm.knife.t_in + tm.T, 1001)
+    ks = knife.state_at_time(kn, t)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, gridspec_kw={'height_ratios': [2, 1.3]})
+    ms = 1e3 * (t - tm.knife.t_in)
+    ax1.plot(ms, ks.s * 1e3, label='knife height s')
+    ax1.axhline(kn.s_clear * 1e3, color='r', ls='--', lw=1, label=f's_clear = {kn.s_clear * 1e3:.1f} mm')
+    ax1.fill_between(
+        ms,
+        kn.s_min * 1e3,
+        kn.s_max * 1e3,
+        where=ks.occupies,
+        color='r',
+        alpha=0.12,
+        label=f'knife window {tm.t_knife * 1e3:.2f} ms',
+    )
+    ax1.set_ylabel('s, mm')
+    ax1.set_title(f'F: crank-slider knife at {kn.n_k:g} rev/h (T = {tm.T * 1e3:.1f} ms)')
+    ax1.legend(loc='upper right', fontsize=8)
+    for ph in tm.timeline:
+        a, b = 1e3 * (ph.t_start - tm.knife.t_in), 1e3 * (ph.t_end - tm.knife.t_in)
+        ax2.barh(3, b - a, left=a, color=PHASE_COLOURS[ph.name], alpha=0.6)
+        ax2.text((a + b) / 2, 3, f'{ph.name}\n{(b - a):.1f} ms', ha='center', va='center', fontsize=8)
+    feed0 = 1e3 * (tm.knife.t_out - tm.knife.t_in)
+    cases = (('V_tr = V_d', tm.V_d), ('paper V_tr', PAPER_V_TR), ('model V_tr,min', tm.V_tr_min))
+    for row, (_label, v) in enumerate(cases):
+        t_feed = 1e3 * cy.L_feed / v
+        ok = tm.feed_margin(v) >= -1e-12  # V_tr,min itself passes, up to rounding
+        ax2.barh(row, t_feed, left=feed0, color='tab:green' if ok else 'tab:orange', alpha=0.8)
+        ax2.text(1.0, row, f'{v:.2f} m/s: {t_feed:.1f} ms, {"fits" if ok else "late"}', va='center', fontsize=8)
+    ax2.set_yticks(range(len(cases) + 1), [c[0] for c in cases] + ['cyclogram'])
+    ax2.axvline(feed0 + 1e3 * tm.t_allowed, color='k', ls=':', lw=1)
+    ax2.set_xlabel('time from knife entry, ms')
+    ax2.set_title('cyclogram (paper Figs. 1-2); dotted: end of the feed window less the 10 % reserve', fontsize=9)
+    ax2.set_xlim(0, 1e3 * tm.T)
+    fig.tight_layout()
+    return save_figure(fig, out / 'knife_cyclogram.png')
+
+
+def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
+    plt = pyplot()
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    stroke_curves(ax1, ax2, dl, ('paper_mirror', 'geometric'))
+    ax1.set_ylabel('instantaneous efficiency')
+    ax1.set_title(
+        f'D: efficiency along the stroke (paper Fig. 2), Lambda = {dl.Lambda:g}, '
+        f'alpha_m = {dl.alpha_m_deg:g} deg, {dl.law}'
+    )
+    ax1.legend(fontsize=8, loc='lower left')
+    ax2.set_ylabel('carriage speed ratio K_v')
+    ax2.set_xlabel('stroke position u (deceleration section 0..1, acceleration section 1..2)')
+    ax2.legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, out / 'delivery_efficiency.png')
+
+
+def write_report(out: Path, stream: IO[str]) -> list[Path]:
+    """Print the report of the defaults and write ``report.md``, CSV tables and PNG plots to ``out``."""
+    p = _defaults()
+    out.mkdir(parents=True, exist_ok=True)
+    checks = published_checks(p)
+    tm = cyclogram.cycle_timing(p['cyclogram'], p['knife'])
+    sw = layup.sweep(p['layup'])
+    k_u, k_min = delivery.stroke_minimum(p['delivery'], 'K_v')
+
+    lines = [
+        '# folder_line: the default configuration against the papers',
+        '',
+        '| mech. | quantity | paper | model | agrees |',
+        '|---|---|---|---|---|',
+    ]
+    lines += [
+        f'| {c.paper} | {c.quantity} | {c.published} | {c.model} | {"yes" if c.agrees else "NO"} |' for c in checks
+    ]
+    lines += [
+        '',
+        '## Derived figures',
+        '',
+        f'- L: exits sweep x = {sw.xC[0]:.3f}..{sw.xC[1]:.3f} m (C) and {sw.xE[0]:.3f}..{sw.xE[1]:.3f} m (E).',
+        f'- F: knife window {tm.t_knife * 1e3:.3f} ms, dwell {tm.t_dwell * 1e3:.2f} ms, '
+        f'feed window {tm.t_fw * 1e3:.3f} ms, allowed feed time {tm.t_allowed * 1e3:.3f} ms; '
+        f'feed margin at V_tr = V_d: {tm.feed_margin(tm.V_d) * 1e3:.3f} ms, '
+        f"at the paper's {PAPER_V_TR:.1f} m/s: {tm.feed_margin(PAPER_V_TR) * 1e3:.3f} ms.",
+        f'- D: slowest carriage K_v = {k_min:.4f} at stroke position u = {k_u:.4f} (geometric return section).',
+    ]
+
+    written = [out / 'report.md']
+    for mech in ('layup', 'knife', 'delivery'):
+        written.append(
+            write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101))
+        )
+    written += _plot_layup(p['layup'], out)
+    written.append(_plot_knife(p['knife'], p['cyclogram'], out))
+    written.append(_plot_delivery(p['delivery'], out))
+    lines += ['', '## Plots', ''] + [f'![{w.stem}]({w.name})' for w in written if w.suffix == '.png']
+    write_text_atomic(out / 'report.md', '\n'.join(lines) + '\n')
+
+    for line in lines:
+        if not line.startswith('!['):
+            print(line, file=stream)
+    print('', file=stream)
+    print(f'{sum(c.agrees for c in checks)} of {len(checks)} published results reproduced.', file=stream)
+    print(f'Wrote {len(written)} files to {out.resolve()}:', file=stream)
+    for w in written:
+        print(f'  {w.name}', file=stream)
+    return written

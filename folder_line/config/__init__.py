@@ -1,0 +1,1 @@
+"""Configuration: default parameters from ``config/``, scenes, user files and ``--set`` overrides."""

@@ -1,0 +1,108 @@
+"""Load the mechanisms' parameters: defaults from ``config/`` merged with a user file.
+
+The defaults live only in ``config/<kind>.yaml``; the frozen dataclasses of the
+core carry no defaults of their own, so there is one place to change them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import os
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from folder_line.errors import ParameterError
+from folder_line.files.yamlio import load_yaml_file
+
+__all__ = ['KINDS', 'config_dir', 'load_params', 'read_yaml_mapping']
+
+#: kind -> (module, dataclass) of its validated parameters
+KINDS: dict[str, tuple[str, str]] = {
+    'layup': ('folder_line.core.mechanisms.layup', 'LayupParams'),
+    'knife': ('folder_line.core.mechanisms.knife', 'KnifeParams'),
+    'delivery': ('folder_line.core.mechanisms.delivery', 'DeliveryParams'),
+    'cyclogram': ('folder_line.core.mechanisms.cyclogram', 'CyclogramParams'),
+}
+
+
+def config_dir() -> Path:
+    """Directory holding the default ``*.yaml`` files.
+
+    Looked up, in order: ``$FOLDER_LINE_CONFIG``; ``config/`` beside the
+    package source (a checkout or an editable install); ``share/folder_line/config``
+    under the interpreter prefix (pip or colcon install); the ament index.
+    """
+    candidates: list[Path] = []
+    env = os.environ.get('FOLDER_LINE_CONFIG')
+    if env:
+        candidates.append(Path(env))
+    candidates.append(Path(__file__).resolve().parents[2] / 'config')
+    candidates.append(Path(sys.prefix) / 'share' / 'folder_line' / 'config')
+    try:  # a real ROS 2 install
+        from ament_index_python.packages import get_package_share_directory
+
+        candidates.append(Path(get_package_share_directory('folder_line')) / 'config')
+    except Exception:  # noqa: BLE001 - ament index absent or package not installed there
+        pass
+    for c in candidates:
+        if (c / 'layup.yaml').is_file():
+            return c
+    msg = 'no folder_line config directory found; looked in ' + ', '.join(str(c) for c in candidates)
+    raise FileNotFoundError(msg)
+
+
+def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
+    """Read a YAML file that must hold a mapping (an empty file is an empty mapping).
+
+    Read by :func:`folder_line.files.yamlio.load_yaml_file`: a regular UTF-8 file of at most
+    1 MiB, no tags, no duplicate keys, aliases bounded; errors name the line and column.
+    """
+    data = load_yaml_file(path, what)
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ParameterError(what, str(path), 'must be a YAML mapping of key: value')
+    return data
+
+
+def _param_class(kind: str) -> type:
+    if kind not in KINDS:
+        raise ParameterError('kind', kind, f'must be one of {", ".join(KINDS)}')
+    module, name = KINDS[kind]
+    return getattr(importlib.import_module(module), name)
+
+
+def load_params(
+    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> Any:
+    """Validated parameters of one mechanism.
+
+    Parameters
+    ----------
+    kind : {'layup', 'knife', 'delivery', 'cyclogram'}
+        Which mechanism.
+    path : path-like, optional
+        YAML file with any subset of the keys; the rest come from the defaults.
+    overrides : mapping, optional
+        Applied last (e.g. from the command line).
+
+    Raises
+    ------
+    ParameterError
+        Unknown key, wrong type, out of range; the message names the key and value.
+    """
+    cls = _param_class(kind)
+    fields = [f.name for f in dataclasses.fields(cls)]
+    values = read_yaml_mapping(config_dir() / f'{kind}.yaml', f'{kind} defaults')
+    for source in (read_yaml_mapping(Path(path), '--params') if path is not None else {}, overrides or {}):
+        for key, value in source.items():
+            if key not in fields:
+                raise ParameterError(f'{kind}.{key}', value, f'unknown {kind} parameter; known: {", ".join(fields)}')
+            values[key] = value
+    missing = [f for f in fields if f not in values]
+    if missing:
+        raise ParameterError(f'{kind}.{missing[0]}', None, f'{kind} parameter has no value (defaults file incomplete)')
+    return cls(**{k: values[k] for k in fields})

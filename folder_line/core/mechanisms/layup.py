@@ -1,0 +1,1024 @@
+"""L — the leaf layup six-bar: crank-rocker O1-A-B-O2 driving the double rocker O2-C-E-O3.
+
+Project frame (MACHINES.md, section L): O2 at the origin, x toward O3, y up;
+O3 = (O2O3, 0); O1 = (a, b); crank pin ``A = O1 + R_kr (cos φ, sin φ)``, φ increasing
+(counter-clockwise) at ``ω = 2π n_kr / 60``.
+
+Loop 1 (O1-A-B-O2)
+    B is the intersection of circle(A, l2) and circle(O2, O2B) with
+    ``(O2 - A) × (B - A) < 0`` (equivalently ``(A - O2) × (B - O2) > 0``, i.e. branch
+    +1 of the pair (O2, A) in :mod:`folder_line.core.numerics.loop`). C = B · l3 / O2B.
+Loop 2 (O2-C-E-O3)
+    E is the intersection of circle(C, l4) and circle(O3, l5) with
+    ``(O3 - C) × (E - C) < 0`` (branch +1 of the pair (O3, C)).
+
+Outputs: θ3, θ5 (angles of O2C and O3E from +x, rad, in (-π, π]); ω3, ω5 (rad/s) and
+ε3, ε5 (rad/s²) from the differentiated loop equations; the exit speeds across the
+chutes ``v_C = ω3 l3``, ``v_E = ω5 l5`` (signed, m/s) and, with the belt speed
+``v_tr`` along the chutes, the absolute exit speeds ``v_aC = sqrt(v_C² + v_tr²)``,
+``v_aE = sqrt(v_E² + v_tr²)`` (paper eq. 25).
+
+Method. Positions are closed-form circle–circle intersections (Heron's discriminant,
+see :mod:`folder_line.core.numerics.loop`). Velocities come from differentiating
+``|B - A|² = l2²`` (B turning about O2: ``dB/dt = ω3 B⊥``) and ``|E - C|² = l4²``;
+the 2×2 system of each dyad has the closed Cramer solution
+``ω3 = (B - A)·(dA/dt) / ((A - O2) × (B - O2))`` and
+``ω5 = (E - C)·(dC/dt) / ((C - O3) × (E - O3))``, whose denominators are twice the
+dyads' triangle areas; they vanish only at a toggle, which validation excludes.
+The paper's projection-theorem formulas live in :mod:`folder_line.core.mechanisms.layup_paper`,
+as a cross-check only.
+
+Validation. :class:`LayupParams` checks every value, requires loop 1 to be a Grashof
+crank-rocker with the crank the shortest link, and runs :func:`check_assembly`: both
+loops must assemble, away from toggles, over a whole crank turn. So every accepted
+parameter set has finite kinematics at every crank angle.
+
+Crank-angle range. Every entry point reduces φ to [-π, π] with the IEEE remainder by
+the float ``TAU = 2π`` (:func:`reduce_angle`; exact, no rounding), so results are
+exactly periodic in ``TAU``. Precision is that of the input: a float φ of magnitude
+``|φ|`` carries an absolute error up to ``ulp(|φ|)/2`` (5.8e-11 rad at 1e6 rad,
+4.8e-7 rad at 6.3e9 rad ≈ 1e9 turns), so callers that run for long keep the phase
+as an integer number of turns plus a fraction and pass the fraction · TAU.
+
+Speed. :meth:`LayupModel.point` is a pure-``math`` scalar path for node ticks;
+:meth:`LayupModel.arrays` is vectorised, processes the angles in cache-sized chunks
+with in-place ufuncs, and gets cos φ and sin φ from one ``t = tan(φ/2)``:
+``cos φ = 2/(1 + t²) - 1``, ``sin φ = t · 2/(1 + t²)`` (finite for φ in [-π, π], few-ulp
+accurate); NumPy's float64 tan is SIMD-vectorised on this class of CPU (about 1 ns per
+element) while its sin and cos are scalar libm calls (8-14 ns).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
+from folder_line.core.numerics.loop import TOGGLE_TOL
+from folder_line.core.numerics.validate import as_float, non_negative, positive
+from folder_line.errors import AssemblyError, ParameterError
+
+__all__ = [
+    'TAU',
+    'LOOP1',
+    'LOOP2',
+    'GRASHOF_REL_TOL',
+    'classify_fourbar',
+    'reduce_angle',
+    'LayupParams',
+    'LayupPoint',
+    'LayupState',
+    'LayupModel',
+    'AssemblyMargins',
+    'check_assembly',
+    'layup_kinematics',
+    'layup_point',
+    'SwingExtreme',
+    'swing_extremes',
+    'Sweep',
+    'sweep',
+]
+
+TAU = 2.0 * math.pi
+_PI = math.pi
+#: mechanism names used in AssemblyError
+LOOP1 = 'layup loop O1-A-B-O2'
+LOOP2 = 'layup loop O2-C-E-O3'
+#: relative tolerance of the Grashof boundary s + l = p + q (a change-point linkage)
+GRASHOF_REL_TOL = 1e-12
+#: crank angles sampled per turn by check_assembly before refinement
+ASSEMBLY_SAMPLES = 4096
+#: angles per chunk in LayupModel.arrays (keeps the scratch arrays in L2 cache)
+CHUNK = 16384
+
+
+def classify_fourbar(
+    ground: float, crank: float, coupler: float, rocker: float, *, rel_tol: float = GRASHOF_REL_TOL
+) -> str:
+    """Grashof class of a planar four-bar, seen from its input link ``crank``.
+
+    Parameters
+    ----------
+    ground : float
+        Fixed link (distance between the two ground pivots), m.
+    crank : float
+        Input link, pivoted on the ground, m.
+    coupler : float
+        Link opposite the ground, m.
+    rocker : float
+        Output link, pivoted on the ground, m.
+    rel_tol : float, optional
+        ``s + l`` and ``p + q`` closer than ``rel_tol · (s + l + p + q)`` count as equal.
+
+    Returns
+    -------
+    str
+        With ``s``, ``l`` the shortest and longest links and ``p``, ``q`` the others:
+        ``'change-point'`` if ``s + l = p + q`` (within ``rel_tol``; the links can
+        all line up and the linkage can switch branch there); ``'non-Grashof'``
+        (triple rocker) if ``s + l > p + q``; otherwise, by which link is the unique
+        shortest: ``'crank-rocker'`` (the input), ``'rocker-crank'`` (the output),
+        ``'double-crank'`` (the ground; a drag link), ``'double-rocker'`` (the coupler).
+    """
+    links = (ground, crank, coupler, rocker)
+    srt = sorted(links)
+    shortest, p, q, longest = srt
+    excess = (shortest + longest) - (p + q)
+    if abs(excess) <= rel_tol * (shortest + longest + p + q):
+        return 'change-point'
+    if excess > 0.0:
+        return 'non-Grashof'
+    # Grashof: strictly s + l < p + q, hence s is unique (s = p would force l < q).
+    return {0: 'double-crank', 1: 'crank-rocker', 2: 'double-rocker', 3: 'rocker-crank'}[links.index(shortest)]
+
+
+def reduce_angle(phi: npt.ArrayLike) -> float | np.ndarray:
+    """Reduce crank angles to [-π, π] exactly: the IEEE remainder by the float ``TAU``.
+
+    Parameters
+    ----------
+    phi : float or array_like
+        Crank angle(s), rad; must be finite.
+
+    Returns
+    -------
+    float or ndarray
+        ``math.remainder(phi, TAU)`` elementwise (exact; at a tie ±π the sign of the
+        array result follows ``phi``). Values already in [-π, π] come back unchanged.
+
+    Raises
+    ------
+    ParameterError
+        A crank angle is NaN or infinite.
+    """
+    if isinstance(phi, (float, int)) and not isinstance(phi, bool):
+        x = float(phi)
+        if -_PI <= x <= _PI:
+            return x
+        if not math.isfinite(x):
+            raise ParameterError('phi', phi, 'crank angle must be finite')
+        return math.remainder(x, TAU)
+    arr = np.asarray(phi, dtype=float)
+    if arr.size == 0 or (arr.min() >= -_PI and arr.max() <= _PI):
+        return arr
+    if not np.isfinite(arr).all():
+        bad = arr.reshape(-1)[np.flatnonzero(~np.isfinite(arr.reshape(-1)))[0]]
+        raise ParameterError('phi', float(bad), 'crank angle must be finite')
+    r = np.fmod(arr, TAU)  # exact
+    r = np.where(r > _PI, r - TAU, r)  # exact (Sterbenz)
+    return np.where(r < -_PI, r + TAU, r)
+
+
+def _reduce_chunk(ph: np.ndarray, r: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """:func:`reduce_angle` of a 1-D array into the buffer ``r`` (same results, no allocation)."""
+    if not (math.isfinite(ph.min()) and math.isfinite(ph.max())):  # NaN propagates into min
+        bad = ph[np.flatnonzero(~np.isfinite(ph))[0]]
+        raise ParameterError('phi', float(bad), 'crank angle must be finite')
+    np.fmod(ph, TAU, out=r)
+    np.greater(r, _PI, out=mask)
+    np.subtract(r, TAU, out=r, where=mask)
+    np.less(r, -_PI, out=mask)
+    np.add(r, TAU, out=r, where=mask)
+    return r
+
+
+@dataclass(frozen=True)
+class LayupParams:
+    """Validated dimensions and speeds of the layup six-bar (defaults: ``config/layup.yaml``).
+
+    Parameters
+    ----------
+    R_kr : float
+        Crank radius O1A, m (> 0).
+    n_kr : float
+        Crank speed, rev/min (> 0; counter-clockwise in the project frame).
+    a, b : float
+        Position of the crank pivot O1 relative to O2, m (any finite values).
+    l2 : float
+        Rod AB, m (> 0).
+    O2B : float
+        Rod attachment B on transporter 3, distance from its pivot O2, m (> 0).
+    l3 : float
+        Transporter 3 (chute) O2C, exit C, m (> 0).
+    l4 : float
+        Coupler CE, m (> 0).
+    l5 : float
+        Transporter 4 (chute) O3E, exit E, m (> 0).
+    O2O3 : float
+        Distance between the chute pivots, m (> 0).
+    v_tr : float
+        Belt speed along the chutes, m/s (>= 0).
+
+    Raises
+    ------
+    ParameterError
+        A value is not a finite number or out of range, or loop O1-A-B-O2 is not a
+        Grashof crank-rocker with the crank the shortest link (the message names the
+        keys and gives the classification; the Grashof boundary is a change point).
+    AssemblyError
+        A loop cannot be assembled, or passes a toggle, somewhere in a crank turn
+        (see :func:`check_assembly`); the message gives the crank angle.
+    """
+
+    R_kr: float
+    n_kr: float
+    a: float
+    b: float
+    l2: float
+    O2B: float
+    l3: float
+    l4: float
+    l5: float
+    O2O3: float
+    v_tr: float
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            key = f'layup.{f.name}'
+            value = getattr(self, f.name)
+            if f.name in ('a', 'b'):
+                x = as_float(key, value)
+            elif f.name == 'v_tr':  # 0: chutes without belts
+                x = 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
+            elif f.name == 'n_kr':
+                x = CRANK_SPEED.check(key, value)
+            else:
+                x = positive(key, value)
+            object.__setattr__(self, f.name, x)
+        ground = math.hypot(self.a, self.b)
+        kind = classify_fourbar(ground, self.R_kr, self.l2, self.O2B)
+        if kind != 'crank-rocker':
+            links = {'R_kr': self.R_kr, '|O1O2|=hypot(a,b)': ground, 'l2': self.l2, 'O2B': self.O2B}
+            srt = sorted(links.values())
+            detail = f'shortest + longest = {srt[0] + srt[3]:.12g} m vs the other two = {srt[1] + srt[2]:.12g} m'
+            if kind == 'change-point':
+                why = 'is on the Grashof boundary (a change-point linkage that can flip branch)'
+            elif kind == 'non-Grashof':
+                why = 'is non-Grashof (a triple rocker: the crank cannot turn fully)'
+            else:
+                why = f'is a {kind}'
+            msg = (
+                f'loop O1-A-B-O2 {why}; {detail}; it must be a Grashof crank-rocker '
+                f'(crank R_kr the shortest link, s + l < p + q)'
+            )
+            raise ParameterError('layup.R_kr,a,b,l2,O2B', links, msg)
+        check_assembly(self)
+
+    @property
+    def omega(self) -> float:
+        """Crank angular velocity ``2π n_kr / 60``, rad/s."""
+        return TAU * self.n_kr / 60.0
+
+
+class LayupPoint(NamedTuple):
+    """One crank position from the scalar path (:meth:`LayupModel.point`).
+
+    Fields: exits ``xC, yC, xE, yE`` (m); chute angles ``theta3, theta5`` (rad, from +x);
+    ``omega3, omega5`` (rad/s, signed); exit speeds across the chutes ``vC, vE`` (m/s,
+    signed); absolute exit speeds with the belts ``vaC, vaE`` (m/s).
+    """
+
+    xC: float
+    yC: float
+    xE: float
+    yE: float
+    theta3: float
+    theta5: float
+    omega3: float
+    omega5: float
+    vC: float
+    vE: float
+    vaC: float
+    vaE: float
+
+
+@dataclass(frozen=True)
+class LayupState:
+    """Vectorised kinematics (:meth:`LayupModel.arrays`); every array has the shape of ``phi``.
+
+    Attributes
+    ----------
+    phi : ndarray
+        Crank angles as given, rad.
+    xA, yA, xB, yB, xC, yC, xE, yE : ndarray
+        Joints A (crank pin), B (rod on chute 3), C and E (chute exits), m.
+    theta3, theta5 : ndarray
+        Angles of O2C and O3E from +x, rad, in (-π, π].
+    omega3, omega5 : ndarray
+        Their angular velocities, rad/s.
+    eps3, eps5 : ndarray or None
+        Their angular accelerations, rad/s² (None when not requested).
+    vC, vE : ndarray
+        Exit speeds across the chutes ``ω3 l3``, ``ω5 l5``, m/s (signed).
+    vaC, vaE : ndarray
+        Absolute exit speeds with the belts, ``sqrt(v² + v_tr²)``, m/s.
+    margin1, margin2 : ndarray
+        Toggle margins of the loops: sine of the transmission angle (at B between
+        BA and BO2; at E between EC and EO3), in (0, 1]; 0 would be a toggle.
+    """
+
+    phi: np.ndarray
+    xA: np.ndarray
+    yA: np.ndarray
+    xB: np.ndarray
+    yB: np.ndarray
+    xC: np.ndarray
+    yC: np.ndarray
+    xE: np.ndarray
+    yE: np.ndarray
+    theta3: np.ndarray
+    theta5: np.ndarray
+    omega3: np.ndarray
+    omega5: np.ndarray
+    eps3: np.ndarray | None
+    eps5: np.ndarray | None
+    vC: np.ndarray
+    vE: np.ndarray
+    vaC: np.ndarray
+    vaE: np.ndarray
+    margin1: np.ndarray
+    margin2: np.ndarray
+
+
+_ROWS = (
+    'xA',
+    'yA',
+    'xB',
+    'yB',
+    'xC',
+    'yC',
+    'xE',
+    'yE',
+    'theta3',
+    'theta5',
+    'omega3',
+    'omega5',
+    'vC',
+    'vE',
+    'vaC',
+    'vaE',
+    'margin1',
+    'margin2',
+    'eps3',
+    'eps5',
+)
+
+
+class LayupModel:
+    """Prepared layup kinematics: constants computed once, scalar and vectorised paths.
+
+    Parameters
+    ----------
+    params : LayupParams
+        Validated parameters. (Any object with the same attributes is accepted; an
+        unvalidated one may raise :class:`AssemblyError` from the evaluations.)
+
+    Notes
+    -----
+    With ``d² = |A - O2|²``, loop 1 gives ``B = k1 A + k2 A⊥`` where
+    ``k1 = 1/2 + (O2B² - l2²) / (2 d²)``, ``k2 = S1 / (2 d²)``,
+    ``S1 = sqrt(((O2B + l2)² - d²) (d² - (O2B - l2)²)) = 2 (A × B)``; loop 2 likewise
+    about O3 with ``C - O3``, ``l5`` and ``l4``.
+    """
+
+    #: the scalar path, ``point(phi, omega=None) -> LayupPoint`` (a closure over the constants)
+    point: Callable[..., LayupPoint]
+
+    def __init__(self, params: LayupParams) -> None:
+        self.params = params
+        p = params
+        self._R = p.R_kr
+        self._a = p.a
+        self._b = p.b
+        self._omega = TAU * p.n_kr / 60.0
+        self._p = p.O2B
+        self._l2 = p.l2
+        self._r3 = p.l3 / p.O2B
+        self._l3 = p.l3
+        self._l4 = p.l4
+        self._l5 = p.l5
+        self._d0 = p.O2O3
+        self._vt2 = p.v_tr * p.v_tr
+        self._P1 = (p.O2B + p.l2) ** 2
+        self._M1 = (p.O2B - p.l2) ** 2
+        self._g1 = 0.5 * (p.O2B**2 - p.l2**2)
+        self._n1 = 1.0 / (2.0 * p.O2B * p.l2)
+        self._P2 = (p.l5 + p.l4) ** 2
+        self._M2 = (p.l5 - p.l4) ** 2
+        self._g2 = 0.5 * (p.l5**2 - p.l4**2)
+        self._n2 = 1.0 / (2.0 * p.l5 * p.l4)
+        self.point = self._make_point()
+
+    # ------------------------------------------------------------------ scalar path
+    def _make_point(self):  # noqa: ANN202 - returns the closure documented as `point`
+        R, a, b, w_default = self._R, self._a, self._b, self._omega
+        P1, M1, g1 = self._P1, self._M1, self._g1
+        P2, M2, g2 = self._P2, self._M2, self._g2
+        r3, l3, l5, d0, vt2 = self._r3, self._l3, self._l5, self._d0, self._vt2
+        cos, sin, sqrt, atan2 = math.cos, math.sin, math.sqrt, math.atan2
+        fail = self._fail_scalar
+        Point = LayupPoint
+        lo, hi = -_PI, _PI
+
+        def point(phi: float, omega: float | None = None) -> LayupPoint:
+            """Kinematics at one crank angle, pure ``math`` (a few µs).
+
+            Parameters
+            ----------
+            phi : float
+                Crank angle, rad (reduced with :func:`reduce_angle`).
+            omega : float, optional
+                Crank angular velocity, rad/s; default ``params.omega``.
+
+            Returns
+            -------
+            LayupPoint
+
+            Raises
+            ------
+            AssemblyError
+                Only for unvalidated parameters: a loop fails at ``phi``.
+            """
+            if not lo <= phi <= hi:
+                phi = reduce_angle(phi)
+            w = w_default if omega is None else omega
+            c = cos(phi)
+            s = sin(phi)
+            ax = a + R * c
+            ay = b + R * s
+            d2 = ax * ax + ay * ay
+            e1 = (P1 - d2) * (d2 - M1)
+            if not e1 > 0.0:
+                fail(phi, 1)
+            s1 = sqrt(e1)
+            q = 1.0 / d2
+            k1 = 0.5 + g1 * q
+            k2 = 0.5 * s1 * q
+            bx = k1 * ax - k2 * ay
+            by = k1 * ay + k2 * ax
+            w3 = 2.0 * w * R * ((by - ay) * c - (bx - ax) * s) / s1
+            cx = r3 * bx
+            cy = r3 * by
+            dx = cx - d0
+            e2 = dx * dx + cy * cy
+            f2 = (P2 - e2) * (e2 - M2)
+            if not f2 > 0.0:
+                fail(phi, 2)
+            s2 = sqrt(f2)
+            q2 = 1.0 / e2
+            m1 = 0.5 + g2 * q2
+            m2 = 0.5 * s2 * q2
+            wx = m1 * dx - m2 * cy
+            wy = m1 * cy + m2 * dx
+            w5 = 2.0 * w3 * ((wy - cy) * cx - (wx - dx) * cy) / s2
+            vc = w3 * l3
+            ve = w5 * l5
+            return Point(
+                cx,
+                cy,
+                wx + d0,
+                wy,
+                atan2(by, bx),
+                atan2(wy, wx),
+                w3,
+                w5,
+                vc,
+                ve,
+                sqrt(vc * vc + vt2),
+                sqrt(ve * ve + vt2),
+            )
+
+        return point
+
+    def discriminants_scalar(self, phi: float) -> tuple[float, float]:
+        """Normalised discriminants (sin² of the transmission angles) of both loops at one angle.
+
+        Parameters
+        ----------
+        phi : float
+            Crank angle, rad.
+
+        Returns
+        -------
+        D1, D2 : float
+            Loop O1-A-B-O2 and loop O2-C-E-O3; ``< 0`` where a loop does not close.
+            Where loop 1 does not close, D2 is evaluated with B at the tangent point.
+        """
+        phi = reduce_angle(phi)
+        ax = self._a + self._R * math.cos(phi)
+        ay = self._b + self._R * math.sin(phi)
+        d2 = ax * ax + ay * ay
+        e1 = (self._P1 - d2) * (d2 - self._M1)
+        q = 1.0 / d2
+        k1 = 0.5 + self._g1 * q
+        k2 = 0.5 * math.sqrt(max(e1, 0.0)) * q
+        cx = self._r3 * (k1 * ax - k2 * ay)
+        cy = self._r3 * (k1 * ay + k2 * ax)
+        dx = cx - self._d0
+        e2 = dx * dx + cy * cy
+        f2 = (self._P2 - e2) * (e2 - self._M2)
+        return e1 * self._n1 * self._n1, f2 * self._n2 * self._n2
+
+    def discriminants(self, phi: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorised :meth:`discriminants_scalar`.
+
+        Parameters
+        ----------
+        phi : array_like
+            Crank angles, rad.
+
+        Returns
+        -------
+        D1, D2 : ndarray
+            Normalised discriminants of loops 1 and 2, shape of ``phi``.
+        """
+        ph = reduce_angle(np.asarray(phi, dtype=float))
+        ax = self._a + self._R * np.cos(ph)
+        ay = self._b + self._R * np.sin(ph)
+        d2 = ax * ax + ay * ay
+        e1 = (self._P1 - d2) * (d2 - self._M1)
+        q = 1.0 / d2
+        k1 = 0.5 + self._g1 * q
+        k2 = 0.5 * np.sqrt(np.maximum(e1, 0.0)) * q
+        cx = self._r3 * (k1 * ax - k2 * ay)
+        cy = self._r3 * (k1 * ay + k2 * ax)
+        dx = cx - self._d0
+        e2 = dx * dx + cy * cy
+        f2 = (self._P2 - e2) * (e2 - self._M2)
+        return e1 * self._n1 * self._n1, f2 * self._n2 * self._n2
+
+    def _fail_scalar(self, phi: float, loop: int) -> None:
+        d1, d2 = self.discriminants_scalar(phi)
+        if loop == 1:
+            raise AssemblyError(LOOP1, phi, _disc_reason(d1))
+        raise AssemblyError(LOOP2, phi, _disc_reason(d2))
+
+    # ------------------------------------------------------------- vectorised path
+    def arrays(
+        self, phi: npt.ArrayLike, *, omega: float | None = None, alpha: float = 0.0, accelerations: bool = True
+    ) -> LayupState:
+        """Kinematics at many crank angles.
+
+        Parameters
+        ----------
+        phi : array_like
+            Crank angles, rad, any shape (reduced with :func:`reduce_angle`).
+        omega : float, optional
+            Crank angular velocity, rad/s; default ``params.omega``.
+        alpha : float, optional
+            Crank angular acceleration, rad/s² (enters ε3, ε5 only); default 0.
+        accelerations : bool, optional
+            Compute ``eps3``, ``eps5`` (else they are None; about 30 % faster).
+
+        Returns
+        -------
+        LayupState
+            Arrays of the shape of ``phi``.
+
+        Raises
+        ------
+        AssemblyError
+            Only for unvalidated parameters: names the first crank angle (C order)
+            where a loop fails.
+        ParameterError
+            A crank angle is NaN or infinite.
+        """
+        phi_in = np.asarray(phi, dtype=float)
+        shape = phi_in.shape
+        flat = phi_in.reshape(-1)
+        n = flat.size
+        w = self._omega if omega is None else float(omega)
+        nrows = 20 if accelerations else 18
+        out = np.empty((nrows, n))
+        m = min(CHUNK, max(n, 1))
+        scratch = np.empty((9, m))
+        mask = np.empty(m, dtype=bool)
+        for start in range(0, n, CHUNK):
+            stop = min(start + CHUNK, n)
+            ph = flat[start:stop]
+            if not (ph.min() >= -_PI and ph.max() <= _PI):
+                ph = _reduce_chunk(ph, scratch[8, : stop - start], mask[: stop - start])
+            self._kernel(ph, out[:, start:stop], scratch[:8, : stop - start], w, flat[start:stop])
+            if accelerations:
+                self._accel(out[:, start:stop], w, float(alpha))
+        rows = {name: out[i].reshape(shape) for i, name in enumerate(_ROWS[:nrows])}
+        if not accelerations:
+            rows['eps3'] = rows['eps5'] = None
+        return LayupState(phi=phi_in, **rows)
+
+    def _kernel(self, ph: np.ndarray, o: np.ndarray, t: np.ndarray, w: float, phi_given: np.ndarray) -> None:
+        """Positions and velocities for one chunk, in place: 78 ufunc passes and 2 reductions."""
+        mul, add, sub, div, sqrt = np.multiply, np.add, np.subtract, np.divide, np.sqrt
+        xA, yA, xB, yB, xC, yC, xE, yE, th3, th5, w3, w5, vC, vE, vaC, vaE, mg1, mg2 = o[:18]
+        T, G, S, Cc, U, V, W, Z = t
+        # cos, sin from t = tan(phi/2): cos = 2/(1+t²) - 1, sin = t·2/(1+t²) (phi in [-π, π])
+        mul(ph, 0.5, out=T)
+        np.tan(T, out=T)
+        mul(T, T, out=G)
+        add(G, 1.0, out=G)
+        div(2.0, G, out=G)
+        mul(T, G, out=S)
+        sub(G, 1.0, out=Cc)
+        # crank pin A
+        mul(Cc, self._R, out=xA)
+        add(xA, self._a, out=xA)
+        mul(S, self._R, out=yA)
+        add(yA, self._b, out=yA)
+        # loop 1: T = d², G = S1 = sqrt(((p+l2)² - d²)(d² - (p-l2)²))
+        mul(xA, xA, out=T)
+        mul(yA, yA, out=G)
+        add(T, G, out=T)
+        sub(self._P1, T, out=G)
+        sub(T, self._M1, out=U)
+        mul(G, U, out=G)
+        if not G.min() > 0.0:
+            self._fail_array(phi_given, G, 1)
+        sqrt(G, out=G)
+        mul(G, self._n1, out=mg1)
+        div(1.0, T, out=T)  # q = 1/d²
+        mul(T, self._g1, out=U)
+        add(U, 0.5, out=U)  # k1
+        mul(G, T, out=V)
+        mul(V, 0.5, out=V)  # k2
+        mul(U, xA, out=xB)
+        mul(V, yA, out=W)
+        sub(xB, W, out=xB)
+        mul(U, yA, out=yB)
+        mul(V, xA, out=W)
+        add(yB, W, out=yB)
+        # omega3 = 2 ω R ((yB - yA) cos - (xB - xA) sin) / S1
+        sub(yB, yA, out=U)
+        mul(U, Cc, out=U)
+        sub(xB, xA, out=V)
+        mul(V, S, out=V)
+        sub(U, V, out=w3)
+        div(w3, G, out=w3)
+        mul(w3, 2.0 * w * self._R, out=w3)
+        np.arctan2(yB, xB, out=th3)
+        mul(xB, self._r3, out=xC)
+        mul(yB, self._r3, out=yC)
+        # loop 2 about O3: U = C - O3 (x), T = e², V = S2
+        sub(xC, self._d0, out=U)
+        mul(U, U, out=T)
+        mul(yC, yC, out=V)
+        add(T, V, out=T)
+        sub(self._P2, T, out=V)
+        sub(T, self._M2, out=W)
+        mul(V, W, out=V)
+        if not V.min() > 0.0:
+            self._fail_array(phi_given, V, 2)
+        sqrt(V, out=V)
+        mul(V, self._n2, out=mg2)
+        div(1.0, T, out=T)  # q2
+        mul(T, self._g2, out=W)
+        add(W, 0.5, out=W)  # m1
+        mul(V, T, out=T)
+        mul(T, 0.5, out=T)  # m2
+        mul(W, U, out=xE)
+        mul(T, yC, out=Z)
+        sub(xE, Z, out=xE)  # E - O3, x
+        mul(W, yC, out=yE)
+        mul(T, U, out=Z)
+        add(yE, Z, out=yE)  # E - O3, y
+        np.arctan2(yE, xE, out=th5)
+        # omega5 = 2 ω3 ((E - C) · C⊥) / S2
+        sub(yE, yC, out=W)
+        mul(W, xC, out=W)
+        sub(xE, U, out=Z)
+        mul(Z, yC, out=Z)
+        sub(W, Z, out=w5)
+        div(w5, V, out=w5)
+        mul(w5, 2.0, out=w5)
+        mul(w5, w3, out=w5)
+        add(xE, self._d0, out=xE)
+        mul(w3, self._l3, out=vC)
+        mul(w5, self._l5, out=vE)
+        mul(vC, vC, out=vaC)
+        add(vaC, self._vt2, out=vaC)
+        sqrt(vaC, out=vaC)
+        mul(vE, vE, out=vaE)
+        add(vaE, self._vt2, out=vaE)
+        sqrt(vaE, out=vaE)
+
+    def _accel(self, o: np.ndarray, w: float, alpha: float) -> None:
+        """ε3, ε5 for one chunk from the twice-differentiated loop equations."""
+        xA, yA, xB, yB, xC, yC, xE, yE, _, _, w3, w5 = o[:12]
+        mg1, mg2 = o[16], o[17]
+        a, b = self._a, self._b
+        # loop 1: ε3 (A × B) = ω3² (B - A)·B + (B - A)·Ä - |dB/dt - dA/dt|²,
+        # Ä = α R (-sin, cos) - ω² R (cos, sin),  A × B = S1/2 = margin1 · O2B · l2
+        rc = xA - a  # R cos
+        rs = yA - b  # R sin
+        ux = xB - xA
+        uy = yB - yA
+        bdotu = xB * ux + yB * uy
+        acc_dot = alpha * (uy * rc - ux * rs) - w * w * (ux * rc + uy * rs)
+        rvx = -w3 * yB + w * rs  # dB/dt - dA/dt
+        rvy = w3 * xB - w * rc
+        num = w3 * w3 * bdotu + acc_dot - (rvx * rvx + rvy * rvy)
+        e3 = o[18]
+        np.divide(num, mg1 * (self._p * self._l2), out=e3)
+        # loop 2: ε5 ((C - O3) × (E - O3)) = ω5² (E - C)·(E - O3) + (E - C)·C̈ - |dE/dt - dC/dt|²,
+        # C̈ = ε3 C⊥ - ω3² C
+        wx = xE - self._d0
+        wy = yE
+        ux = xE - xC
+        uy = yE - yC
+        cddot = e3 * (uy * xC - ux * yC) - w3 * w3 * (ux * xC + uy * yC)
+        rvx = -w5 * wy + w3 * yC  # dE/dt - dC/dt
+        rvy = w5 * wx - w3 * xC
+        num = w5 * w5 * (ux * wx + uy * wy) + cddot - (rvx * rvx + rvy * rvy)
+        np.divide(num, mg2 * (self._l4 * self._l5), out=o[19])
+
+    def _fail_array(self, phi_given: np.ndarray, e: np.ndarray, loop: int) -> None:
+        i = int(np.flatnonzero(~(e > 0.0))[0])
+        self._fail_scalar(float(phi_given[i]), loop)
+
+
+def _disc_reason(d: float) -> str:
+    if d < -TOGGLE_TOL:
+        return f'the circles do not meet (normalised discriminant {d:.3g} < 0)'
+    return (
+        f'the loop is at a toggle (transmission angle {math.asin(math.sqrt(max(d, 0.0))):.3g} rad, '
+        f'normalised discriminant {d:.3g} <= {TOGGLE_TOL:g}): the linkage locks there'
+    )
+
+
+def _crossing_reason(dmin: float, phimin: float) -> str:
+    return (
+        f'the circles stop meeting here: the normalised discriminant changes sign '
+        f'(turning forward; it falls to {dmin:.3g} near phi={phimin % TAU:.6g} rad)'
+    )
+
+
+class AssemblyMargins(NamedTuple):
+    """Toggle margins over a crank turn (:func:`check_assembly`).
+
+    Fields: ``margin1``, ``margin2`` — smallest sine of the transmission angle of
+    loops O1-A-B-O2 and O2-C-E-O3 (dimensionless); ``phi1``, ``phi2`` — crank angles
+    where they occur, rad in [0, 2π).
+    """
+
+    margin1: float
+    phi1: float
+    margin2: float
+    phi2: float
+
+
+def _golden_min(f, lo: float, hi: float, iters: int = 60) -> tuple[float, float]:  # noqa: ANN001
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1 = hi - g * (hi - lo)
+    x2 = lo + g * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    for _ in range(iters):
+        if f1 <= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = f(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = f(x2)
+    return (x1, f1) if f1 <= f2 else (x2, f2)
+
+
+def _first_crossing(f, lo: float, hi: float) -> float:  # noqa: ANN001
+    """Bisect ``f(lo) >= 0 > f(hi)`` down to adjacent floats or 1e-13 rad; first failing angle."""
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= 1e-13 or mid in (lo, hi):
+            break
+        if f(mid) >= 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMargins:
+    """Check that both loops close, away from toggles, over a whole crank turn.
+
+    ``n`` equally spaced crank angles in [0, 2π) are evaluated; a sign change of a
+    loop's normalised discriminant is refined by bisection to about 1e-13 rad, and
+    every sampled local minimum of it by a golden-section search, so a failure
+    between samples is found too.
+
+    Parameters
+    ----------
+    params : LayupParams
+        The parameters (called by ``LayupParams.__post_init__``).
+    n : int, optional
+        Samples per turn.
+
+    Returns
+    -------
+    AssemblyMargins
+        Smallest toggle margin of each loop and where it occurs.
+
+    Raises
+    ------
+    AssemblyError
+        Names the loop and the first crank angle in [0, 2π) (turning forward) where
+        it stops closing (the discriminant changes sign there), or where it reaches
+        a toggle (normalised discriminant <= ``TOGGLE_TOL``: it would lock). Loop
+        O1-A-B-O2 is checked first.
+    """
+    model = LayupModel(params)
+    phis = np.arange(n) * (TAU / n)
+    discs = model.discriminants(phis)
+    result: list[float] = []
+    for k, name in enumerate((LOOP1, LOOP2)):
+        D = discs[k]
+
+        def f(x: float, k: int = k) -> float:
+            return model.discriminants_scalar(x)[k]
+
+        neg = D < 0.0
+        if neg.all():
+            raise AssemblyError(
+                name, 0.0, f'cannot be assembled at any crank angle (largest normalised discriminant {D.max():.3g} < 0)'
+            )
+        if not neg.any():
+            # refine the sampled local minima (at most the 4 lowest)
+            lows = np.flatnonzero((np.roll(D, 1) >= D) & (np.roll(D, -1) >= D))
+            lows = lows[np.argsort(D[lows])][:4]
+            best_i, best_phi, best = int(lows[0]), float(phis[lows[0]]), float(D[lows[0]])
+            for i in lows:
+                x, fx = _golden_min(f, float(phis[i]) - TAU / n, float(phis[i]) + TAU / n)
+                if fx < best:
+                    best_i, best_phi, best = int(i), x, fx
+            if best < 0.0:
+                # a failure between samples: it starts after the sample before the minimum
+                lo = float(phis[best_i]) - TAU / n
+                crossing = _first_crossing(f, lo, best_phi)
+                raise AssemblyError(name, float(np.remainder(crossing, TAU)), _crossing_reason(best, best_phi))
+            if best <= TOGGLE_TOL:
+                raise AssemblyError(name, float(np.remainder(best_phi, TAU)), _disc_reason(best))
+            result += [math.sqrt(best), float(np.remainder(best_phi, TAU))]
+            continue
+        entries = np.flatnonzero(neg & ~np.roll(neg, 1))
+        i = int(entries[0])
+        lo = float(phis[i - 1]) - (TAU if i == 0 else 0.0)
+        crossing = _first_crossing(f, lo, float(phis[i]))
+        j = int(np.argmin(D))
+        raise AssemblyError(name, float(np.remainder(crossing, TAU)), _crossing_reason(float(D[j]), float(phis[j])))
+    return AssemblyMargins(*result)
+
+
+@functools.lru_cache(maxsize=32)
+def _model(params: LayupParams) -> LayupModel:
+    return LayupModel(params)
+
+
+def layup_kinematics(
+    params: LayupParams,
+    phi: npt.ArrayLike,
+    *,
+    omega: float | None = None,
+    alpha: float = 0.0,
+    accelerations: bool = True,
+) -> LayupState:
+    """Vectorised kinematics; see :meth:`LayupModel.arrays` (same arguments, model cached).
+
+    Parameters
+    ----------
+    params : LayupParams
+        Validated parameters.
+    phi : array_like
+        Crank angles, rad.
+    omega : float, optional
+        Crank angular velocity, rad/s; default ``params.omega``.
+    alpha : float, optional
+        Crank angular acceleration, rad/s².
+    accelerations : bool, optional
+        Compute ε3, ε5.
+
+    Returns
+    -------
+    LayupState
+    """
+    return _model(params).arrays(phi, omega=omega, alpha=alpha, accelerations=accelerations)
+
+
+def layup_point(params: LayupParams, phi: float) -> LayupPoint:
+    """Scalar kinematics at one crank angle; see :meth:`LayupModel.point`.
+
+    For per-tick use keep a :class:`LayupModel` and call its ``point`` (no cache lookup).
+
+    Parameters
+    ----------
+    params : LayupParams
+        Validated parameters.
+    phi : float
+        Crank angle, rad.
+
+    Returns
+    -------
+    LayupPoint
+    """
+    return _model(params).point(phi)
+
+
+class SwingExtreme(NamedTuple):
+    """A rocker dead centre (ω3 = 0): ``kind`` is 'extended' (crank and rod in line,
+    |O1B| = l2 + R_kr) or 'folded' (|O1B| = l2 - R_kr); ``phi`` the crank angle, rad in
+    [0, 2π); ``point`` the kinematics there."""
+
+    kind: str
+    phi: float
+    point: LayupPoint
+
+
+def swing_extremes(params: LayupParams) -> tuple[SwingExtreme, SwingExtreme]:
+    """The two crank angles where chute 3 (and with it chute 4) stops: ω3 = 0.
+
+    Closed form: at a rocker dead centre O1, A and B are collinear, so B lies on
+    circle(O1, l2 ± R_kr) and on circle(O2, O2B) (on the branch with
+    ``(O1 - O2) × (B - O2) > 0``, the one that matches the assembly branch there),
+    and A = O1 ± R_kr (B - O1)/|B - O1|.
+
+    Parameters
+    ----------
+    params : LayupParams
+        Validated parameters.
+
+    Returns
+    -------
+    (SwingExtreme, SwingExtreme)
+        The extended and the folded dead centre.
+    """
+    model = _model(params)
+    a, b, R, p, l2 = params.a, params.b, params.R_kr, params.O2B, params.l2
+    out = []
+    for kind, rho, sgn in (('extended', l2 + R, 1.0), ('folded', l2 - R, -1.0)):
+        dx, dy = a, b
+        d2 = dx * dx + dy * dy
+        disc = ((p + rho) ** 2 - d2) * (d2 - (p - rho) ** 2)  # > 0 for a crank-rocker
+        along = 0.5 + (p * p - rho * rho) / (2.0 * d2)
+        across = 0.5 * math.sqrt(disc) / d2
+        bx = along * dx - across * dy
+        by = along * dy + across * dx
+        phi = math.atan2(sgn * (by - b), sgn * (bx - a))
+        out.append(SwingExtreme(kind, phi % TAU, model.point(phi)))
+    return out[0], out[1]
+
+
+class Sweep(NamedTuple):
+    """Ranges swept by the chute exits over a crank turn, m.
+
+    Fields ``xC``, ``xE``, ``yC``, ``yE``: (min, max) tuples; ``x`` the (min, max) of
+    both exits together.
+    """
+
+    xC: tuple[float, float]
+    yC: tuple[float, float]
+    xE: tuple[float, float]
+    yE: tuple[float, float]
+    x: tuple[float, float]
+
+
+def _arc_box(theta: np.ndarray, extra: list[float], r: float, cx: float) -> tuple[tuple[float, float], ...]:
+    """x and y ranges of the points ``(cx + r cos t, r sin t)`` for t over the arc spanned by the angles."""
+    ref = extra[0]
+    rel = np.concatenate([np.asarray(theta, dtype=float).ravel(), extra]) - ref
+    rel = np.remainder(rel + _PI, TAU) - _PI  # unwrapped about the first extreme
+    t0, t1 = ref + float(rel.min()), ref + float(rel.max())
+    cand_x = [t0, t1] + [k * _PI for k in range(math.ceil(t0 / _PI), math.floor(t1 / _PI) + 1)]
+    cand_y = [t0, t1] + [(k + 0.5) * _PI for k in range(math.ceil(t0 / _PI - 0.5), math.floor(t1 / _PI - 0.5) + 1)]
+    xs = [cx + r * math.cos(t) for t in cand_x]
+    ys = [r * math.sin(t) for t in cand_y]
+    return (min(xs), max(xs)), (min(ys), max(ys))
+
+
+def sweep(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> Sweep:
+    """Ranges swept by the exits C and E (container coverage).
+
+    Each exit moves on a circle about its pivot, over the arc of chute angles the
+    crank turn produces; the arc's ends are the chute angles at the rocker dead
+    centres (exact, :func:`swing_extremes`), widened by ``n`` sampled angles in case
+    a geometry gives chute 4 extra turning points. The x and y ranges of the arc
+    follow in closed form (including a chute passing straight down, where the
+    exit is lowest).
+
+    Parameters
+    ----------
+    params : LayupParams
+        Validated parameters.
+    n : int, optional
+        Samples per turn.
+
+    Returns
+    -------
+    Sweep
+    """
+    st = _model(params).arrays(np.arange(n) * (TAU / n), accelerations=False)
+    ext = swing_extremes(params)
+    xc, yc = _arc_box(st.theta3, [e.point.theta3 for e in ext], params.l3, 0.0)
+    xe, ye = _arc_box(st.theta5, [e.point.theta5 for e in ext], params.l5, params.O2O3)
+    return Sweep(xc, yc, xe, ye, (min(xc[0], xe[0]), max(xc[1], xe[1])))

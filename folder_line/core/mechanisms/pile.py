@@ -1,0 +1,163 @@
+"""The sheet counter's joint: the delivery's pile table, or the floor of the layup container.
+
+The counted sheets lie on a table that a lift lowers by one sheet thickness per sheet,
+so that the top of the stack stays where the sheets arrive (the delivery height for
+the pile, the floor height ``container.y_floor`` for the leaves). That table is the one
+joint of node ``sheet_counter``: prismatic, vertical, m, 0 at t = 0 and negative
+downward.
+
+* Scenes with the delivery D (``scene.has_delivery``): joint ``pile_table``, lowered per
+  ``released_on_pile`` event (one folded signature released by the carriage).
+* Other scenes: joint ``container_floor``, lowered per ``leaf_landed`` event (a leaf
+  landed between the container walls; only ``leaf_flight`` lands leaves, so without it
+  the floor stays at 0).
+
+These are exactly the events the node counts (:func:`counted_event`). Model (ours; the
+papers say nothing about the pile): after each counted sheet, at its event time t_i,
+the lift lowers the table by the thickness h (``sheets.thickness``) at constant speed
+over the settle time τ (:data:`T_LOWER`):
+
+    z(t) = −h Σ_i r((t − t_i) / τ),      r(s) = min(max(s, 0), 1)            m
+    ż(t) = −(h / τ) #{i : t_i ≤ t < t_i + τ}                                m/s
+
+so z is continuous, non-increasing, and exactly ``−h n`` once the n-th sheet's lowering
+has ended (t ≥ t_n + τ, before the next sheet). Sheets closer together than τ (a double
+sheet, two leaves landing at once) overlap and add their speeds. ż is the right
+derivative of z (the table moves from t_i on and is at rest again at t_i + τ), so a
+forward difference of z over a step without a kink inside equals ż. Both depend on
+the event times up to t only: a model built for a longer horizon gives the same
+values. No effort is computed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
+from folder_line.core.numerics.validate import positive
+
+__all__ = ['NODE', 'T_LOWER', 'PileTable', 'counted_event', 'pile_table']
+
+#: the node that owns the table
+NODE = 'sheet_counter'
+#: settle time τ over which the lift lowers the table by one sheet thickness, s (ours: well
+#: inside the folder's cycle of 0.072 s, so between two signatures the table rests)
+T_LOWER = 0.02
+
+
+def counted_event(has_delivery: bool) -> str:
+    """Event kind the sheet counter counts: ``released_on_pile`` with the delivery, else ``leaf_landed``."""
+    return 'released_on_pile' if has_delivery else 'leaf_landed'
+
+
+@dataclass(frozen=True, eq=False)
+class PileTable:
+    """The table under the counted sheets (see the module docstring for the model).
+
+    Parameters
+    ----------
+    joint : str
+        Joint name, ``'pile_table'`` or ``'container_floor'``.
+    times : array_like, shape (M,)
+        Event times of the counted sheets, s, sorted ascending (one per sheet; equal
+        times are several sheets).
+    thickness : float
+        Thickness h of one sheet on the stack, m (> 0).
+    t_lower : float
+        Settle time τ of one lowering, s (> 0).
+
+    Attributes
+    ----------
+    nodes : dict of str to tuple of str
+        ``{'sheet_counter': (joint,)}``, as the line's parts give theirs.
+    """
+
+    joint: str
+    times: np.ndarray
+    thickness: float
+    t_lower: float = T_LOWER
+    nodes: dict[str, tuple[str, ...]] = field(init=False)
+    _ends: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        times = np.array(self.times, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(times)):
+            raise ValueError(f'PileTable: times must be finite, got {times[~np.isfinite(times)][:3]!r}')
+        if times.size > 1 and np.any(np.diff(times) < 0.0):
+            raise ValueError('PileTable: times must be sorted ascending')
+        times.setflags(write=False)
+        object.__setattr__(self, 'times', times)
+        object.__setattr__(self, 'thickness', positive('thickness', self.thickness))
+        object.__setattr__(self, 't_lower', positive('t_lower', self.t_lower))
+        ends = times + self.t_lower  # non-decreasing, as the times are
+        ends.setflags(write=False)
+        object.__setattr__(self, '_ends', ends)
+        object.__setattr__(self, 'nodes', {NODE: (self.joint,)})
+
+    @property
+    def speed(self) -> float:
+        """Lowering speed of one sheet's lowering, h / τ, m/s."""
+        return self.thickness / self.t_lower
+
+    def state(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Table height z and velocity ż at line times ``t``.
+
+        Parameters
+        ----------
+        t : array_like, shape (N,)
+            Line times, s (finite).
+
+        Returns
+        -------
+        z : ndarray, shape (N,)
+            Height, m (<= 0): −h × (sheets lowered so far, fractions for those still
+            lowering).
+        zdot : ndarray, shape (N,)
+            Velocity, m/s (<= 0): −(h/τ) × (sheets lowering at t).
+        """
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(tt)):
+            raise ValueError('PileTable.state: t must be finite')
+        started = np.searchsorted(self.times, tt, side='right')  # t_i <= t
+        done = np.searchsorted(self._ends, tt, side='right')  # t_i + τ <= t: fully lowered
+        active = started - done  # lowering at t: indices done .. started - 1
+        lowered = done.astype(float)
+        for j in range(int(active.max()) if active.size else 0):
+            on = active > j
+            i = done[on] + j
+            lowered[on] += np.clip((tt[on] - self.times[i]) / self.t_lower, 0.0, 1.0)
+        return -self.thickness * lowered + 0.0, -self.speed * active.astype(float) + 0.0  # + 0: no -0.0
+
+    def sample_node(
+        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
+        """Joint states of ``sheet_counter`` at ``t`` (``theta`` and ``lam`` unused: the lift is not
+        geared to the master drive), as the line's parts give theirs."""
+        if node != NODE:
+            raise KeyError(f'node {node!r} has no table joint; nodes: {NODE}')
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        z, zdot = self.state(tt)
+        return stack_samples(NODE, (self.joint,), tt, [z], [zdot])
+
+
+def pile_table(has_delivery: bool, events: np.ndarray, thickness: float, t_lower: float = T_LOWER) -> PileTable:
+    """The sheet counter's table for a line's sorted event table.
+
+    Parameters
+    ----------
+    has_delivery : bool
+        The scene has the delivery D: ``pile_table`` under ``released_on_pile``; else
+        ``container_floor`` under ``leaf_landed``.
+    events : ndarray of EVENT_DTYPE
+        All events of the line, sorted by time.
+    thickness : float
+        Sheet thickness, m (``scene.sheets.thickness``).
+    t_lower : float
+        Settle time of one lowering, s.
+    """
+    kind = EVENT_KINDS.index(counted_event(has_delivery))
+    times = events['t'][events['kind'] == kind]
+    return PileTable('pile_table' if has_delivery else 'container_floor', times, thickness, t_lower)

@@ -1,0 +1,1 @@
+"""Files: writing that never destroys what was there, and bounded reading of YAML."""

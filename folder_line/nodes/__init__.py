@@ -1,8 +1,0 @@
-"""ROS 2 nodes of the line: thin rclpy adapters over :mod:`folder_line.core`.
-
-Every node declares its parameters from a :class:`~folder_line.nodes.common.ParamSpec`
-table, runs on simulated time published by :mod:`folder_line.nodes.line_clock`, and
-is started by a module-level ``main(args=None)`` built on
-:func:`~folder_line.nodes.common.run_node`. Topic names live in
-:mod:`folder_line.nodes.common` and nowhere else.
-"""

@@ -1,0 +1,793 @@
+"""What every node of the line shares: topic names, parameter specs, sim time, ``main``.
+
+A node of the line is a thin adapter (see ``STYLE.md``): it declares its
+parameters from a table of :class:`ParamSpec` with :func:`declare_parameters`
+(which installs the validation), takes ``t`` from the ticks of ``/clock`` (lockstep,
+:mod:`folder_line.ros.lockstep`; its own clock runs on that simulated time), calls the
+core, fills the message and publishes on one of the topics named here. Its module ends with::
+
+    def main(args: list[str] | None = None) -> int:
+        return run_node(MyNode, args)
+
+Topics of the line
+------------------
+==================================  =================================  ==========================================
+topic                               type                               meaning
+==================================  =================================  ==========================================
+``/clock``                          ``rosgraph_msgs/msg/Clock``        simulated time, published by ``line_clock``
+``/line/<node>/joint_states``       ``sensor_msgs/msg/JointState``     joint positions (rad or m), velocities
+                                                                       (rad/s or m/s), efforts (N m or N) of one
+                                                                       machine; ``<node>`` is the node's name
+``/line/events``                    ``sensor_msgs/msg/TimeReference``  discrete events of the line (kinds:
+                                                                       ``folder_line.core.line.events.EVENT_KINDS``)
+``/diagnostics``                    ``diagnostic_msgs/msg/             constraint margins and faults, per machine
+                                    DiagnosticArray``
+``/line/supervisor/state``          ``std_msgs/msg/String``            state of the line's supervisor
+``/line/sheet_counter/count``       ``std_msgs/msg/UInt64``            sheets delivered so far
+``/line/sheet_counter/rate``        ``std_msgs/msg/Float64``           sheets (or leaves) per second
+``/line/sheet_counter/landing_x``   ``std_msgs/msg/Float64``           landing x of each leaf, m (layup)
+``/line/supervisor/commands``       ``sensor_msgs/msg/TimeReference``  drive commands: ``source`` = hold, unhold,
+                                                                       stop or start; ``time_ref`` = effective
+                                                                       sim time
+==================================  =================================  ==========================================
+
+The table is also data (:data:`TOPICS`) so that tests and bag tools use the
+same names and types.
+"""
+
+from __future__ import annotations
+
+import faulthandler
+import gc
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
+from rclpy.validate_node_name import validate_node_name
+
+from folder_line.errors import FolderLineError, ParameterError
+
+__all__ = [
+    'CLOCK_TOPIC',
+    'EVENTS_TOPIC',
+    'DIAGNOSTICS_TOPIC',
+    'SUPERVISOR_STATE_TOPIC',
+    'SHEET_COUNT_TOPIC',
+    'SHEET_RATE_TOPIC',
+    'LANDING_TOPIC',
+    'COMMANDS_TOPIC',
+    'COMMANDS_QOS',
+    'JOINT_STATES_TOPIC_PATTERN',
+    'TopicInfo',
+    'TOPICS',
+    'joint_states_topic',
+    'CLOCK_QOS',
+    'PUBLISH_DEPTH',
+    'NS_PER_S',
+    'TIME_MSG_MAX_NS',
+    'seconds_to_ns',
+    'ns_to_time_msg',
+    'time_msg_to_ns',
+    'ParamValue',
+    'ParamSpec',
+    'CrossCheck',
+    'make_screen',
+    'make_validator',
+    'declare_parameters',
+    'parameter_values',
+    'sim_time_overrides',
+    'EXIT_OK',
+    'EXIT_BAD_PARAMETER',
+    'SPIN_PERIOD',
+    'LINGER',
+    'run_node',
+    'events_executor',
+]
+
+# --------------------------------------------------------------------------- topics
+
+CLOCK_TOPIC = '/clock'
+"""Simulated time (``rosgraph_msgs/msg/Clock``); its only publisher is ``line_clock``."""
+
+EVENTS_TOPIC = '/line/events'
+"""Discrete events of the line (``sensor_msgs/msg/TimeReference``)."""
+
+DIAGNOSTICS_TOPIC = '/diagnostics'
+"""Constraint margins and faults (``diagnostic_msgs/msg/DiagnosticArray``)."""
+
+SUPERVISOR_STATE_TOPIC = '/line/supervisor/state'
+"""State of the line's supervisor (``std_msgs/msg/String``)."""
+
+SHEET_COUNT_TOPIC = '/line/sheet_counter/count'
+"""Number of sheets delivered so far (``std_msgs/msg/UInt64``)."""
+
+SHEET_RATE_TOPIC = '/line/sheet_counter/rate'
+"""Sheets (or leaves) per second over the counter's window (``std_msgs/msg/Float64``)."""
+
+LANDING_TOPIC = '/line/sheet_counter/landing_x'
+"""Landing x of each leaf on the container floor, m (``std_msgs/msg/Float64``; layup scenes)."""
+
+COMMANDS_TOPIC = '/line/supervisor/commands'
+"""The supervisor's drive commands (``sensor_msgs/msg/TimeReference``: ``source`` = hold, unhold,
+stop or start; ``time_ref`` = effective sim time). Reliable, transient-local, keep-all, so
+a node that starts late still learns every command."""
+
+JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
+"""Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """One topic of the line.
+
+    Parameters
+    ----------
+    name : str
+        Absolute topic name; ``{node}`` stands for a node's name in a pattern.
+    type : str
+        Message type as ``package/msg/Name`` (the spelling of bags and of ``ros2 topic``).
+    description : str
+        What is published there, with units.
+    """
+
+    name: str
+    type: str
+    description: str
+
+
+TOPICS: tuple[TopicInfo, ...] = (
+    TopicInfo(CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock', 'simulated time, integer ns; published by line_clock'),
+    TopicInfo(
+        JOINT_STATES_TOPIC_PATTERN,
+        'sensor_msgs/msg/JointState',
+        'joint positions (rad or m), velocities (rad/s or m/s), efforts (N m or N) of one machine',
+    ),
+    TopicInfo(
+        EVENTS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'discrete events of the line (kinds: folder_line.core.line.events.EVENT_KINDS)',
+    ),
+    TopicInfo(DIAGNOSTICS_TOPIC, 'diagnostic_msgs/msg/DiagnosticArray', 'constraint margins and faults'),
+    TopicInfo(SUPERVISOR_STATE_TOPIC, 'std_msgs/msg/String', 'state of the line supervisor'),
+    TopicInfo(SHEET_COUNT_TOPIC, 'std_msgs/msg/UInt64', 'sheets delivered so far'),
+    TopicInfo(SHEET_RATE_TOPIC, 'std_msgs/msg/Float64', 'sheets (or leaves) per second over the counter window'),
+    TopicInfo(LANDING_TOPIC, 'std_msgs/msg/Float64', 'landing x of each leaf, m (layup scenes)'),
+    TopicInfo(
+        COMMANDS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time',
+    ),
+)
+
+
+def joint_states_topic(node_name: str) -> str:
+    """``/line/<node_name>/joint_states``.
+
+    Parameters
+    ----------
+    node_name : str
+        A valid ROS node name (no namespace), e.g. ``'knife'``.
+
+    Raises
+    ------
+    rclpy.exceptions.InvalidNodeNameException
+        ``node_name`` is not a valid node name.
+    """
+    validate_node_name(node_name)
+    return JOINT_STATES_TOPIC_PATTERN.format(node=node_name)
+
+
+COMMANDS_QOS = QoSProfile(
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    history=HistoryPolicy.KEEP_ALL,
+)
+"""QoS of the supervisor's command topic: every command reaches every node, late joiners too."""
+
+PUBLISH_DEPTH = 1000
+"""History depth of every line publisher: a reliable subscriber (the recorder) that falls
+behind by up to this many messages still gets them all."""
+
+CLOCK_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+"""QoS of the ``/clock`` publisher: reliable, so that it also matches the best-effort
+subscription every node's ``TimeSource`` makes, and recorders that want every tick."""
+
+# --------------------------------------------------------------------------- time
+
+NS_PER_S = 1_000_000_000
+TIME_MSG_MAX_NS = (2**31 - 1) * NS_PER_S + NS_PER_S - 1
+"""Largest time a ``builtin_interfaces/msg/Time`` holds (``sec`` is an int32), ns."""
+
+
+def seconds_to_ns(seconds: float) -> int:
+    """Round a time in seconds to integer nanoseconds, exactly.
+
+    The float's exact binary value is rounded (half to even), so
+    ``seconds_to_ns(0.1) == 100_000_000`` with no ``0.1 * 1e9`` error.
+
+    Parameters
+    ----------
+    seconds : float
+        Finite time, s.
+
+    Returns
+    -------
+    int
+        Time, ns.
+
+    Raises
+    ------
+    ValueError
+        ``seconds`` is NaN or infinite.
+    """
+    if not math.isfinite(seconds):
+        msg = f'seconds={seconds!r}: must be finite'
+        raise ValueError(msg)
+    return round(Fraction(seconds) * NS_PER_S)
+
+
+def ns_to_time_msg(ns: int) -> TimeMsg:
+    """A ``builtin_interfaces/msg/Time`` for ``ns`` nanoseconds (``sec = ns // 1e9``, ``nanosec = ns % 1e9``).
+
+    Raises
+    ------
+    ValueError
+        ``ns`` is negative or beyond :data:`TIME_MSG_MAX_NS`.
+    """
+    if not 0 <= ns <= TIME_MSG_MAX_NS:
+        msg = f'ns={ns!r}: must be in [0, {TIME_MSG_MAX_NS}] to fit builtin_interfaces/msg/Time'
+        raise ValueError(msg)
+    sec, nanosec = divmod(ns, NS_PER_S)
+    return TimeMsg(sec=sec, nanosec=nanosec)
+
+
+def time_msg_to_ns(stamp: TimeMsg) -> int:
+    """Integer nanoseconds of a ``builtin_interfaces/msg/Time``."""
+    return stamp.sec * NS_PER_S + stamp.nanosec
+
+
+# --------------------------------------------------------------------------- parameters
+
+ParamValue = bool | int | float | str
+"""The scalar parameter types a :class:`ParamSpec` supports."""
+
+CrossCheck = Callable[[Mapping[str, Any]], None]
+"""A node's check across its parameters: gets the values the node would have after a
+change and raises :class:`folder_line.errors.FolderLineError` (typically by building
+the core's parameter dataclass) if that combination is invalid."""
+
+_KINDS: dict[type, tuple[str, Parameter.Type]] = {
+    bool: ('a bool', Parameter.Type.BOOL),
+    int: ('an integer', Parameter.Type.INTEGER),
+    float: ('a float', Parameter.Type.DOUBLE),
+    str: ('a string', Parameter.Type.STRING),
+}
+
+
+def _type_name(value: object) -> str:
+    return 'nothing (parameter unset)' if value is None else type(value).__name__
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one node parameter: default, meaning, unit, allowed values.
+
+    The parameter's ROS type is that of ``default``: a float parameter has a float
+    default (``200.0``, not ``200``), and then refuses integers, as ROS does.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name, e.g. ``'rtf'``.
+    default : bool, int, float or str
+        Default value; also fixes the type.
+    description : str
+        One line: what the parameter does.
+    unit : str, optional
+        Unit of a number (``'s'``, ``'Hz'``, ``'m/s'``; empty for a dimensionless one).
+    bounds : (lo, hi), optional
+        Allowed range of a number, closed unless ``low_open``/``high_open``;
+        either end may be infinite. Finite bounds become the descriptor's
+        ``FloatingPointRange``/``IntegerRange``.
+    low_open, high_open : bool, optional
+        Exclude ``lo``/``hi`` themselves (ROS ranges are closed; the open end is
+        enforced by the validation callback and stated in ``additional_constraints``).
+    choices : tuple of str, optional
+        Allowed values of a string parameter.
+    read_only : bool, optional
+        Settable only at start (``--ros-args -p name:=value`` or overrides).
+
+    Raises
+    ------
+    ParameterError
+        The spec itself is inconsistent (default of an unsupported type or outside
+        its own bounds or choices, bounds on a string, choices on a number, ...).
+    """
+
+    name: str
+    default: ParamValue
+    description: str
+    unit: str = ''
+    bounds: tuple[float, float] | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[str, ...] = ()
+    read_only: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.name or not isinstance(self.name, str):
+            raise ParameterError('ParamSpec.name', self.name, 'must be a non-empty string')
+        if type(self.default) not in _KINDS:
+            raise ParameterError(self.name, self.default, 'default must be a bool, int, float or str')
+        numeric = type(self.default) in (int, float)
+        if self.bounds is not None:
+            if not numeric:
+                raise ParameterError(self.name, self.bounds, 'bounds are for int or float parameters')
+            lo, hi = self.bounds
+            if math.isnan(lo) or math.isnan(hi) or not lo < hi:
+                raise ParameterError(self.name, self.bounds, 'bounds must be (lo, hi) with lo < hi')
+        elif self.low_open or self.high_open:
+            raise ParameterError(self.name, self.bounds, 'low_open/high_open need bounds')
+        if self.choices:
+            if not isinstance(self.default, str):
+                raise ParameterError(self.name, self.choices, 'choices are for string parameters')
+            if not all(isinstance(c, str) for c in self.choices) or len(set(self.choices)) != len(self.choices):
+                raise ParameterError(self.name, self.choices, 'choices must be distinct strings')
+        self.check(self.default)
+
+    @property
+    def type(self) -> Parameter.Type:
+        """ROS type of the parameter (from the default)."""
+        return _KINDS[type(self.default)][1]
+
+    def constraint_text(self) -> str:
+        """Allowed values in words, e.g. ``'a float in (0, 1000]'``, ``'a float in [1, 1000] Hz'``."""
+        parts = [_KINDS[type(self.default)][0]]
+        if self.bounds is not None:
+            lo, hi = self.bounds
+            left = '(' if self.low_open else '['
+            right = ')' if self.high_open else ']'
+            parts.append(f'in {left}{lo:g}, {hi:g}{right}')
+        if self.choices:
+            parts.append('one of ' + ', '.join(self.choices))
+        if self.unit:
+            parts.append(self.unit)
+        return ' '.join(parts)
+
+    def check(self, value: object) -> ParamValue:
+        """Return ``value`` if this parameter accepts it, else raise.
+
+        Parameters
+        ----------
+        value : object
+            Proposed value (a ``Parameter.value``).
+
+        Returns
+        -------
+        bool, int, float or str
+            ``value`` itself (never converted).
+
+        Raises
+        ------
+        ParameterError
+            Wrong type, NaN or infinite, out of bounds, or not one of the choices;
+            the message names the parameter and the value.
+        """
+        kind = type(self.default)
+        # bool is an int subclass and int is not a float here: compare exact types.
+        if type(value) is not kind:
+            hint = ''
+            if kind is float and type(value) is int:
+                hint = f' (write {value}.0)'
+            msg = f'must be {_KINDS[kind][0]}{hint}, got {_type_name(value)}'
+            raise ParameterError(self.name, value, msg)
+        if kind is float and not math.isfinite(value):  # type: ignore[arg-type]
+            raise ParameterError(self.name, value, 'must be finite (not NaN or inf)')
+        if self.bounds is not None:
+            lo, hi = self.bounds
+            bad_lo = value <= lo if self.low_open else value < lo  # type: ignore[operator]
+            bad_hi = value >= hi if self.high_open else value > hi  # type: ignore[operator]
+            if bad_lo or bad_hi:
+                raise ParameterError(self.name, value, f'must be {self.constraint_text()}')
+        if self.choices and value not in self.choices:
+            raise ParameterError(self.name, value, f'must be one of {", ".join(self.choices)}')
+        return value  # type: ignore[return-value]
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The ``ParameterDescriptor`` to declare the parameter with (a new one each call)."""
+        description = self.description + (f' [{self.unit}]' if self.unit else '')
+        descriptor = ParameterDescriptor(
+            description=description,
+            additional_constraints=self.constraint_text(),
+            read_only=self.read_only,
+        )
+        if self.bounds is not None and all(math.isfinite(b) for b in self.bounds):
+            lo, hi = self.bounds
+            if self.type == Parameter.Type.DOUBLE:
+                descriptor.floating_point_range = [
+                    FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)
+                ]
+            else:
+                descriptor.integer_range = [IntegerRange(from_value=math.ceil(lo), to_value=math.floor(hi), step=0)]
+        return descriptor
+
+
+def parameter_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
+    """Current values of the spec'd parameters of ``node``, by name."""
+    return {spec.name: node.get_parameter(spec.name).value for spec in specs}
+
+
+class _Refused(Parameter):
+    """Stand-in for a proposed value that its spec refuses (see :func:`make_screen`).
+
+    It carries the spec's default, so rclpy's own descriptor checks pass, and the
+    reason, which the validator then returns.
+    """
+
+    def __init__(self, spec: ParamSpec, reason: str) -> None:
+        super().__init__(spec.name, spec.type, spec.default)
+        self.reason = reason
+
+
+def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter]], list[Parameter]]:
+    """The pre-set parameters callback of a node (see :func:`declare_parameters`).
+
+    rclpy applies the declared descriptor before any on-set callback and refuses
+    a value of the wrong ROS type with ``"Wrong parameter type, expected '1' got
+    '4'"`` (type codes, no name). So that every refusal has one format naming the
+    parameter and the value, this callback, which runs first, replaces each
+    proposed value its :class:`ParamSpec` refuses by a stand-in holding the
+    spec's default and the reason; the validator of :func:`make_validator` then
+    refuses the stand-in with that reason, so nothing is applied. Values the spec
+    accepts pass unchanged. (rclpy still answers read-only parameters itself.)
+    """
+    by_name = {spec.name: spec for spec in specs}
+
+    def screen(parameters: list[Parameter]) -> list[Parameter]:
+        out: list[Parameter] = []
+        for parameter in parameters:
+            spec = by_name.get(parameter.name)
+            if spec is not None and not isinstance(parameter, _Refused):
+                try:
+                    spec.check(parameter.value)
+                except ParameterError as err:
+                    parameter = _Refused(spec, str(err))
+            out.append(parameter)
+        return out
+
+    return screen
+
+
+def make_validator(
+    specs: Sequence[ParamSpec],
+    current: Callable[[], Mapping[str, Any]],
+    cross_check: CrossCheck | None = None,
+) -> Callable[[list[Parameter]], SetParametersResult]:
+    """The on-set parameters callback of a node (see :func:`declare_parameters`).
+
+    Each proposed parameter that has a spec is checked with :meth:`ParamSpec.check`
+    (or, if :func:`make_screen` already refused it, carries its reason); parameters
+    without a spec (``use_sim_time``, QoS overrides, ...) pass. Then
+    ``cross_check`` gets the current values updated with every proposed parameter.
+    A refusal keeps the old values (rclpy applies nothing) and its reason names the
+    parameter and the value: ``"rtf=nan: must be finite (not NaN or inf)"``,
+    ``"rtf=5: must be a float (write 5.0), got int"``, or for the cross-check
+    ``"lo=2.0 rejected: <the core's error>"``.
+
+    Parameters
+    ----------
+    specs : sequence of ParamSpec
+        The node's parameters.
+    current : callable
+        Returns the node's current values by name (e.g. ``lambda: parameter_values(node, specs)``).
+    cross_check : CrossCheck, optional
+        Node-specific check across parameters; its ``FolderLineError`` becomes the reason.
+
+    Returns
+    -------
+    callable
+        ``callback(parameters) -> SetParametersResult``.
+    """
+    by_name = {spec.name: spec for spec in specs}
+
+    def validate(parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if isinstance(parameter, _Refused):
+                return SetParametersResult(successful=False, reason=parameter.reason)
+            spec = by_name.get(parameter.name)
+            if spec is not None:
+                try:
+                    spec.check(parameter.value)
+                except ParameterError as err:
+                    return SetParametersResult(successful=False, reason=str(err))
+        if cross_check is not None:
+            values = dict(current())
+            values.update({p.name: p.value for p in parameters})
+            try:
+                cross_check(values)
+            except FolderLineError as err:
+                change = ', '.join(f'{p.name}={p.value!r}' for p in parameters)
+                return SetParametersResult(successful=False, reason=f'{change} rejected: {err}')
+        return SetParametersResult(successful=True)
+
+    return validate
+
+
+def declare_parameters(node: Node, specs: Sequence[ParamSpec], cross_check: CrossCheck | None = None) -> dict[str, Any]:
+    """Declare ``specs`` on ``node``, check the starting values, install the validation.
+
+    Starting values are the defaults unless overridden (``--ros-args -p``,
+    parameter files, ``parameter_overrides``); they pass the same checks as later
+    changes, so a node never starts on a value it would refuse. Then
+    :func:`make_screen` is installed as the pre-set and :func:`make_validator` as
+    the on-set parameters callback. Call it once per node, with all its specs, and
+    add no other pre-set callback (rclpy concatenates the lists they return);
+    apply accepted changes in a post-set callback
+    (``node.add_post_set_parameters_callback``).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node (declares nothing else with these names).
+    specs : sequence of ParamSpec
+        Its parameters; names must be distinct.
+    cross_check : CrossCheck, optional
+        See :func:`make_validator`; also run once on the starting values.
+
+    Returns
+    -------
+    dict
+        The starting values by name.
+
+    Raises
+    ------
+    ParameterError
+        A starting value is refused by its spec.
+    FolderLineError
+        ``cross_check`` refuses the starting values.
+    rclpy.exceptions.ParameterException
+        rclpy refused an override itself (wrong type, outside a finite range).
+    """
+    names = [spec.name for spec in specs]
+    if len(set(names)) != len(names):
+        raise ParameterError('specs', names, 'parameter names must be distinct')
+    node.declare_parameters('', [(spec.name, spec.default, spec.descriptor()) for spec in specs])
+    values = parameter_values(node, specs)
+    for spec in specs:
+        spec.check(values[spec.name])
+    if cross_check is not None:
+        cross_check(dict(values))
+    node.add_pre_set_parameters_callback(make_screen(specs))
+    node.add_on_set_parameters_callback(make_validator(specs, lambda: parameter_values(node, specs), cross_check))
+    return values
+
+
+def sim_time_overrides(
+    parameter_overrides: Iterable[Parameter] | None = None, *, use_sim_time: bool = True
+) -> list[Parameter]:
+    """Node ``parameter_overrides`` with ``use_sim_time`` set.
+
+    A helper for nodes outside the line (tests): the line's own nodes set
+    ``use_sim_time`` themselves and refuse it off (:class:`folder_line.ros.nodes.machine.MachineNode`),
+    or refuse it on (``line_clock``). An explicit ``use_sim_time`` among
+    ``parameter_overrides`` wins; constructor overrides take precedence over ``--ros-args -p``.
+
+    Parameters
+    ----------
+    parameter_overrides : iterable of Parameter, optional
+        The caller's overrides, kept.
+    use_sim_time : bool, optional
+        Value to add when the caller gave none.
+    """
+    overrides = list(parameter_overrides or [])
+    if not any(p.name == 'use_sim_time' for p in overrides):
+        overrides.append(Parameter('use_sim_time', Parameter.Type.BOOL, use_sim_time))
+    return overrides
+
+
+# --------------------------------------------------------------------------- main
+
+EXIT_OK = 0
+EXIT_BAD_PARAMETER = 2
+
+
+SPIN_PERIOD = 0.1
+"""Longest wall time, s, that :func:`run_node` waits before it looks at a stop request."""
+
+LINGER = 0.2
+"""Wall time, s, that :func:`run_node` keeps a node that is ``done`` alive before destroying it, so
+that subscribers in other processes still get its last messages."""
+
+TEARDOWN_TIMEOUT = 5.0
+"""Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
+
+
+def run_node(
+    node_factory: Callable[[], Node],
+    args: Sequence[str] | None = None,
+    *,
+    teardown_timeout: float | None = None,
+    exit_code: Callable[[Node], int] | None = None,
+) -> int:
+    """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
+
+    The node is built by ``node_factory()`` in the default context and spun by a
+    events executor (:func:`events_executor`) until SIGINT or SIGTERM, until the context is shut
+    down from elsewhere, or, if the node has a ``done`` attribute holding an
+    ``rclpy.task.Future``, until that future completes (a node that finishes on its
+    own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
+
+    Signals are handled synchronously, in the spinning thread: rclpy's own
+    handlers are not installed (``SignalHandlerOptions.NO``); a Python handler only
+    records the request and the spin, which never waits longer than
+    :data:`SPIN_PERIOD`, stops between two callbacks. rclpy's handlers would shut
+    the context down from another thread while a callback may be using it, which
+    ends in ``RCLError: publisher's context is invalid`` tracebacks (about one
+    Ctrl-C in three on a 1 kHz publisher here) and occasionally a crash under load.
+    A second SIGINT while stopping raises ``KeyboardInterrupt``, still caught.
+    Called from another thread, it installs no signal handler at all.
+
+    Teardown. Destroying the node can hang inside the middleware: with both cores
+    busy, one of 20 runs of ``folder-line run --processes`` (120 node stops) hung in
+    ``Node.destroy_node`` (rcl's node finalisation with Fast DDS) until killed. When
+    the node runs as a process of its own (``args`` from ``sys.argv``, the main
+    thread), its work is done by then, so a watchdog ends the process after
+    ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
+    stderr and the exit code it would have returned; if the hang holds the GIL (no Python
+    thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
+    exit code 1.
+
+    Parameters
+    ----------
+    node_factory : callable
+        Usually the node class; called with no arguments.
+    args : sequence of str, optional
+        Command line for ``rclpy.init`` (``None``: ``sys.argv``).
+    teardown_timeout : float, optional
+        Seconds allowed for the teardown before the process exits anyway; default
+        :data:`TEARDOWN_TIMEOUT` for a process's own node (``args`` None, main thread),
+        else no watchdog (a test calling this must not lose its process).
+    exit_code : callable, optional
+        ``exit_code(node)``: the exit code of a node that ran (default 0), e.g. non-zero
+        when ``line_clock`` lost a participant.
+
+    Returns
+    -------
+    int
+        :data:`EXIT_OK` (0) on a stop request or completion; :data:`EXIT_BAD_PARAMETER`
+        (2) when the node refuses its parameters, after one line on stderr naming
+        the parameter and value.
+    """
+    name = getattr(node_factory, 'NODE_NAME', getattr(node_factory, '__name__', 'node'))
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: object) -> None:
+        if stop.is_set() and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        stop.set()
+
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    if teardown_timeout is None and args is None and in_main_thread:
+        teardown_timeout = TEARDOWN_TIMEOUT
+    watchdog: threading.Timer | None = None
+
+    def arm(code: int) -> None:
+        nonlocal watchdog
+        if teardown_timeout is None or watchdog is not None:
+            return
+
+        def expire() -> None:
+            print(
+                f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
+                'exiting anyway (the node had stopped)',
+                file=sys.stderr,
+                flush=True,
+            )
+            sys.stdout.flush()
+            os._exit(code)
+
+        watchdog = threading.Timer(teardown_timeout, expire)
+        watchdog.daemon = True
+        watchdog.start()
+        # the middleware can hang holding the GIL (a peer process stopped while it holds a shared-memory lock),
+        # and then no Python thread runs: faulthandler's C thread ends the process all the same, with the stacks
+        faulthandler.dump_traceback_later(teardown_timeout + 2.0, exit=True)
+
+    previous: dict[int, Any] = {}
+    if in_main_thread:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, on_signal)
+    try:
+        with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
+            try:
+                node = node_factory()
+            except (FolderLineError, ParameterException) as err:
+                refused = f'{name}: error: {err}'
+            else:
+                refused = None
+            if refused is not None:
+                # the half-built node hangs off the traceback, which is gone now: collect it while the
+                # context is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
+                gc.collect()
+                print(refused, file=sys.stderr)
+                return EXIT_BAD_PARAMETER
+            code = EXIT_OK
+            try:
+                _spin(node, stop)
+                code = EXIT_OK if exit_code is None else exit_code(node)
+            finally:
+                arm(code)
+                node.destroy_node()
+            return code
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (FolderLineError, ParameterException) as err:
+        print(f'{name}: error: {err}', file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+    except RCLError as err:  # e.g. a --ros-args rule rcl cannot parse
+        print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+    finally:
+        if watchdog is not None:
+            watchdog.cancel()
+            faulthandler.cancel_dump_traceback_later()
+        for signum, handler in previous.items():
+            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+    return EXIT_OK
+
+
+def events_executor(context: Any) -> Any:
+    """An ``rclpy.experimental.EventsExecutor`` for ``context``: the line's executor.
+
+    It costs a third of ``SingleThreadedExecutor``'s CPU per message here (``bench/bench_nodes.py``).
+    Its constructor enables ``faulthandler`` on ``sys.stderr``, which fails where ``sys.stderr`` has
+    no file descriptor (a captured stream, a notebook): the process's own stderr is used then.
+    """
+    try:
+        sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        saved, sys.stderr = sys.stderr, sys.__stderr__
+        try:
+            return EventsExecutor(context=context)
+        finally:
+            sys.stderr = saved
+    return EventsExecutor(context=context)
+
+
+def _spin(node: Node, stop: threading.Event) -> None:
+    done = getattr(node, 'done', None)
+    if not isinstance(done, Future):
+        done = None
+    executor = events_executor(node.context)
+    try:
+        executor.add_node(node)
+        while not stop.is_set() and node.context.ok() and not (done is not None and done.done()):
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+        if done is not None and done.done():
+            # a subscriber in another process reads the last messages out of this process's
+            # shared memory (Fast DDS), which goes with it: linger before the node is destroyed
+            deadline = time.monotonic() + LINGER
+            while not stop.is_set() and node.context.ok() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=min(SPIN_PERIOD, max(deadline - time.monotonic(), 0.0)))
+    finally:
+        executor.shutdown()

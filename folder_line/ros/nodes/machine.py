@@ -1,0 +1,409 @@
+"""What the machine nodes share: the scene, the line model, the tick.
+
+``crank_drive``, ``belt_conveyor``, ``feed_transporter``, ``sheet_counter`` and the
+``supervisor`` are :class:`MachineNode` subclasses. Each builds the line model of its
+scene once (:class:`folder_line.core.line.model.LineModel`, shared by the nodes of one
+process) and is a lockstep participant (:mod:`folder_line.ros.lockstep`): on
+every tick ``t`` of ``/clock`` it publishes
+
+* the exact events of its machines with times in ``(t_prev, t]`` on
+  ``/line/events`` as ``sensor_msgs/TimeReference``: ``time_ref`` is the event time
+  (nearest ns), ``header.stamp`` the tick, ``header.frame_id`` the node,
+  ``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'``
+  (:func:`folder_line.event_text.event_source`, re-exported here);
+* its joints' states on ``/line/<node>/joint_states`` at every point of its own
+  grid (``rate`` Hz of sim time) in ``(t_prev, t]``, stamped with that grid point,
+  so the clock's tick rate changes how many messages go out per tick, never what
+  they hold;
+
+then acknowledges the tick on ``/line/<node>/tick_done``. In lockstep, a machine
+node runs tick ``t`` only once the supervisor's previous tick is complete (its
+acknowledgement and every drive command it counts are in), so every command
+decided before ``t`` is applied: what a node publishes at stamp ``t`` depends only
+on the scene, ``t`` and the supervisor's commands (``/line/supervisor/commands``,
+each with its effective time), never on the load of the machine.
+
+Inputs that are malformed, unknown or out of order (a command of an unknown kind,
+from anyone but the supervisor, or effective before the last tick published) are
+rejected: logged once per kind, counted (:attr:`MachineNode.rejected`, in the
+supervisor's diagnostics), and the node goes on. ``use_sim_time`` cannot be turned
+off: it is refused at start and at run time.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from array import array
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from sensor_msgs.msg import JointState, TimeReference
+
+from folder_line.config.scenes import load_scene, parse_set
+from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.model import LineModel
+from folder_line.core.mechanisms.drive import Command
+from folder_line.errors import ParameterError
+from folder_line.event_text import event_source, parse_event_source
+from folder_line.ros.common import (
+    COMMANDS_QOS,
+    COMMANDS_TOPIC,
+    EVENTS_TOPIC,
+    NS_PER_S,
+    ParamSpec,
+    declare_parameters,
+    joint_states_topic,
+    ns_to_time_msg,
+    time_msg_to_ns,
+)
+from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
+
+__all__ = [
+    'EVENT_OWNER',
+    'MACHINE_SPECS',
+    'MachineNode',
+    'event_source',
+    'line_model',
+    'parse_event_source',
+    'parse_overrides',
+]
+
+#: which node publishes which event kind
+EVENT_OWNER: dict[str, str] = {
+    'knife_contact': 'crank_drive',
+    'knife_exit': 'crank_drive',
+    'sheet_handover': 'feed_transporter',
+    'at_stops': 'feed_transporter',
+    'bounce': 'feed_transporter',
+    'settled': 'feed_transporter',
+    'released_on_pile': 'sheet_counter',
+    'leaf_landed': 'sheet_counter',
+    'leaf_spilled': 'sheet_counter',
+    'leaf_enter': 'belt_conveyor',
+    'leaf_exit': 'belt_conveyor',
+    'leaf_damaged': 'belt_conveyor',
+    'leaf_stick': 'belt_conveyor',
+    'leaf_slip': 'belt_conveyor',
+    'fault_missing': 'belt_conveyor',
+    'fault_double': 'belt_conveyor',
+    'fault_late': 'belt_conveyor',
+    'belt_slowdown_start': 'belt_conveyor',
+    'belt_slowdown_end': 'belt_conveyor',
+}
+assert set(EVENT_OWNER) == set(EVENT_KINDS), 'every event kind needs a publishing node'
+
+MACHINE_SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec('scene', 'folder', 'Scene name (config/scenes) or path of a scene YAML file', read_only=True),
+    ParamSpec(
+        'overrides',
+        '',
+        'Scene overrides, "MACHINE.KEY=VALUE" separated by ";" (e.g. "feed_transporter.V_tr=5.833;seed=3")',
+        read_only=True,
+    ),
+    ParamSpec(
+        'horizon',
+        3600.0,
+        'Line time the model is built for; the node stops publishing after it',
+        unit='s',
+        bounds=HORIZON.bounds,
+        read_only=True,
+    ),
+    ParamSpec(
+        'rate',
+        200.0,
+        'Joint-state rate in simulated time (its own grid; changing it is harmless)',
+        unit='Hz',
+        bounds=TICK_RATE.bounds,
+    ),
+    ParamSpec(
+        'lost_timeout',
+        3.0,
+        'Wall time a tick waits for the supervisor before it is declared lost',
+        unit='s',
+        bounds=LOST_TIMEOUT.bounds,
+        read_only=True,
+    ),
+)
+
+#: grid points of joint states sampled from the model in one call (see MachineNode._joint_row)
+SAMPLE_BATCH = 100
+
+#: the drive command kinds a machine node accepts
+COMMAND_KINDS = ('hold', 'unhold', 'stop', 'start')
+
+
+def parse_overrides(text: str) -> dict[str, Any]:
+    """``'a.b=1;c=2'`` -> ``{'a.b': 1, 'c': 2}`` (empty items ignored)."""
+    return parse_set(item.strip() for item in text.split(';') if item.strip())
+
+
+@functools.lru_cache(maxsize=8)
+def line_model(scene: str, overrides: str, horizon: float, commands: tuple[Command, ...]) -> LineModel:
+    """The line model for a scene, shared by every node of a process that asks for the same one."""
+    return LineModel(load_scene(scene, parse_overrides(overrides)), horizon, commands)
+
+
+#: what :mod:`folder_line.config.scenes` calls the node parameters in its errors (the CLI's options)
+_CLI_NAMES = {'--scene': 'scene', '--set': 'overrides'}
+
+
+def _check_scene(values: Mapping[str, Any]) -> None:
+    if values.get('use_sim_time') is False:
+        raise ParameterError(
+            'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+        )
+    try:
+        load_scene(values['scene'], parse_overrides(values['overrides']))
+    except ParameterError as err:  # name the node's parameter, not the CLI option
+        if err.key not in _CLI_NAMES:
+            raise
+        raise ParameterError(_CLI_NAMES[err.key], err.value, err.reason) from None
+
+
+class MachineNode(Node):
+    """Base of the machine nodes (see the module docstring).
+
+    Parameters
+    ----------
+    parameter_overrides : iterable of Parameter, optional
+        Starting parameter values (``use_sim_time`` is on; false is refused).
+    **kwargs
+        Passed to ``rclpy.node.Node``.
+
+    Attributes
+    ----------
+    done : rclpy.task.Future
+        Completes when the clock's last tick (its announced end) is done.
+    rejected : dict of str to int
+        Inputs rejected so far, per kind.
+    """
+
+    NODE_NAME = 'machine'
+    EXTRA_SPECS: tuple[ParamSpec, ...] = ()
+
+    def __init__(self, *, parameter_overrides: Iterable[Parameter] | None = None, **kwargs: Any) -> None:
+        overrides = list(parameter_overrides or [])
+        super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
+        # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
+        if self.get_parameter('use_sim_time').value is False and (
+            any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides
+        ):
+            raise ParameterError(
+                'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+            )
+        self.set_parameters([Parameter('use_sim_time', value=True)])
+        self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_scene)
+        self._key = (self.values['scene'], self.values['overrides'], self.values['horizon'])
+        self.commands: tuple[Command, ...] = ()
+        self.kinds = np.array(
+            [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
+        )
+        self._set_model(line_model(*self._key, self.commands))
+        self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
+        self.joints = self.model.nodes.get(self.NODE_NAME, ())
+        self._last_ns: int | None = None  # the latest tick published
+        self._grid_ns: int | None = None  # the latest grid point published
+        self._period_ns = round(NS_PER_S / self.values['rate'])
+        self._batch: tuple[int, int, list[tuple[array[float], array[float], array[float]]]] | None = None
+        self._names: list[str] = list(self.joints)
+        # one joint state message, refilled for every grid point (publishing serializes it at once)
+        self._joint_msg = JointState()
+        self._joint_msg.header.frame_id = self.NODE_NAME
+        self._joint_msg.name = self._names
+        self._horizon_logged = False
+        self.rejected: dict[str, int] = {}
+        self.published_joint_states = 0
+        self.published_events = 0
+        self.done: Future = Future()
+        self._joint_pub = (
+            self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), LINE_QOS) if self.joints else None
+        )
+        self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
+        self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
+        self.lockstep = Participant(
+            self,
+            self.depends,
+            self._on_tick,
+            needs=self.needs,
+            on_lost=self.on_lost,
+            on_reject=self.reject,
+            on_end=self._on_end,
+            lost_timeout=self.values['lost_timeout'],
+        )
+        self.add_post_set_parameters_callback(self._apply)
+        self.setup()
+        self.on_model()
+        self.get_logger().info(
+            f'scene {self.model.scene.name!r}, joints {list(self.joints)}, '
+            f'{self.values["rate"]:g} Hz of sim time, horizon {self.values["horizon"]:g} s'
+        )
+
+    # ------------------------------------------------------------------ hooks
+
+    def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
+        """The producers this node waits for: in lockstep, the supervisor's commands."""
+        return {'supervisor': ('commands',)} if a.clock == 'lockstep' else {}
+
+    def needs(self, stamp: int, previous: int | None) -> int | None:
+        """Tick ``stamp`` runs once the producers' ``previous`` tick is complete."""
+        return previous
+
+    def on_lost(self, producer: str, waited: float, stamp: int) -> None:
+        """A producer this node waits for was declared lost (logged by the participant)."""
+
+    def setup(self) -> None:
+        """Subclass hook: create extra publishers."""
+
+    def on_model(self) -> None:
+        """Subclass hook: the line model was (re)built (at start and after each command)."""
+
+    def publish_sample(self, stamp_ns: int, t: float) -> None:
+        """Subclass hook: called at every grid point ``t`` (after the joint states)."""
+
+    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
+        """Subclass hook: called every tick with this node's events of ``(t_prev, t]`` (after the samples)."""
+
+    def published_counts(self) -> dict[str, int]:
+        """Messages this node has published so far, per topic (the recorder's loss accounting).
+
+        Subclasses with more publishers add theirs.
+        """
+        counts = {EVENTS_TOPIC: self.published_events}
+        if self._joint_pub is not None:
+            counts[joint_states_topic(self.NODE_NAME)] = self.published_joint_states
+        return counts
+
+    def reject(self, kind: str, reason: str) -> None:
+        """Count a rejected input of ``kind``; log the first of each kind."""
+        n = self.rejected.get(kind, 0)
+        self.rejected[kind] = n + 1
+        if n == 0:
+            self.get_logger().warning(f'rejected {kind}: {reason} (further rejections of this kind are only counted)')
+
+    def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
+        """Publish and count (the tick's acknowledgement carries the counts)."""
+        self.lockstep.publish(publisher, msg, stream)
+
+    # ------------------------------------------------------------------ internals
+
+    def _apply(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'rate':
+                self._period_ns = round(NS_PER_S / parameter.value)
+
+    def _on_command(self, msg: TimeReference) -> None:
+        if msg.header.frame_id != 'supervisor':
+            self.reject(
+                'command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the supervisor only'
+            )
+            return
+        if msg.source not in COMMAND_KINDS:
+            self.reject('command', f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)})')
+            return
+        command = Command(t=time_msg_to_ns(msg.time_ref) / NS_PER_S, kind=msg.source)
+        if command in self.commands:
+            self.reject('command', f'{command.kind} at {command.t:.9f} s repeated')
+            return
+        if self._last_ns is not None and command.t * NS_PER_S < self._last_ns:
+            self.reject(
+                'command',
+                f'{command.kind} effective at {command.t:.9f} s arrived after stamp '
+                f'{self._last_ns / NS_PER_S:.9f} s was published',
+            )
+            return
+        self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
+        self._set_model(line_model(*self._key, self.commands))
+        self._batch = None
+        self.on_model()
+        self.lockstep.received('supervisor', 'commands')
+
+    def _set_model(self, model: LineModel) -> None:
+        """Take a (re)built model, with this node's own events picked out once (a tick only slices them)."""
+        self.model = model
+        ev = model.events
+        self._own_events = ev[np.isin(ev['kind'], self.kinds)] if ev.size else ev
+        self._own_t = self._own_events['t']
+
+    def _on_tick(self, stamp_ns: int) -> None:
+        if stamp_ns > self.horizon_ns:
+            if not self._horizon_logged:
+                self.get_logger().error(
+                    f'sim time {stamp_ns / NS_PER_S:.9f} s passed the horizon '
+                    f'{self.values["horizon"]:g} s: publishing nothing more'
+                )
+                self._horizon_logged = True
+            return
+        self.publish_at(stamp_ns)
+
+    def _on_end(self, stamp_ns: int) -> None:
+        if not self.done.done():
+            self.done.set_result(stamp_ns)
+
+    def grid_points(self, stamp_ns: int) -> list[int]:
+        """This node's grid points in ``(last grid point, stamp_ns]`` (the first tick is one)."""
+        if self._grid_ns is None:
+            return [stamp_ns]
+        first = self._grid_ns + self._period_ns
+        return list(range(first, stamp_ns + 1, self._period_ns))
+
+    def _joint_row(self, g: int) -> tuple[array[float], array[float], array[float]]:
+        """Position, velocity, effort of this node's joints at grid point ``g`` (ns).
+
+        The model is sampled :data:`SAMPLE_BATCH` grid points at a time (one numpy call
+        costs about as much for one point as for a hundred); the batch is dropped when the
+        model changes (a command) or the grid does (``rate``), so every row is the model's
+        value at its own time, whatever the clock's tick rate.
+        """
+        c = self._batch
+        if c is not None:
+            first, period, rows = c
+            i, off = divmod(g - first, period)
+            if period == self._period_ns and off == 0 and 0 <= i < len(rows):
+                return rows[i]
+        n = max(1, min(SAMPLE_BATCH, (self.horizon_ns - g) // self._period_ns + 1))
+        times = np.array([g + k * self._period_ns for k in range(n)], dtype=float) / NS_PER_S
+        js = self.model.sample(self.NODE_NAME, times)
+        if list(js.names) != self._names:
+            self._names = list(js.names)
+            self._joint_msg.name = self._names
+        # array('d') rows: the message takes them as they are (a list is checked value by value)
+        pos, vel = [array('d', row) for row in js.position], [array('d', row) for row in js.velocity]
+        eff = [array('d')] * n if js.effort is None else [array('d', row) for row in js.effort]
+        rows = list(zip(pos, vel, eff, strict=True))
+        self._batch = (g, self._period_ns, rows)
+        return rows[0]
+
+    def publish_at(self, stamp_ns: int) -> None:
+        """Publish everything of the tick at ``stamp_ns`` (sim time, ns)."""
+        t = stamp_ns / NS_PER_S
+        t_prev = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
+        self._last_ns = stamp_ns
+        stamp = ns_to_time_msg(stamp_ns)
+        i0, i1 = np.searchsorted(self._own_t, (t_prev, t), side='right')  # this node's events of (t_prev, t]
+        mine = self._own_events[i0 : max(i0, i1)]
+        for row in mine:
+            ref = TimeReference()
+            ref.header.stamp = stamp
+            ref.header.frame_id = self.NODE_NAME
+            ref.time_ref = ns_to_time_msg(max(0, round(float(row['t']) * NS_PER_S)))
+            ref.source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
+            self.publish(self._event_pub, ref, 'events')
+            self.published_events += 1
+        points = self.grid_points(stamp_ns)
+        if points:
+            self._grid_ns = points[-1]
+            for g in points:
+                if self._joint_pub is not None:
+                    msg = self._joint_msg
+                    msg.position, msg.velocity, msg.effort = self._joint_row(g)
+                    msg.header.stamp = ns_to_time_msg(g)
+                    self.publish(self._joint_pub, msg)
+                    self.published_joint_states += 1
+                self.publish_sample(g, g / NS_PER_S)
+        self.publish_extra(stamp_ns, t, mine)

@@ -1,0 +1,113 @@
+"""Node ``sheet_counter``: the pile of the delivery and the floor of the layup container.
+
+Counts sheets released on the pile (scenes with the delivery) or, without a delivery,
+leaves landed in the container (layup scenes), and publishes, at every point ``t`` of
+its grid (``rate`` Hz of sim time):
+
+* ``/line/sheet_counter/count`` (``std_msgs/UInt64``): sheets counted up to ``t``;
+* ``/line/sheet_counter/rate`` (``std_msgs/Float64``): sheets per second over the last
+  ``rate_window`` s of sim time (over the elapsed time while ``t`` is shorter);
+* ``/line/sheet_counter/joint_states`` (``sensor_msgs/JointState``): the table under the
+  counted sheets, one prismatic joint (:mod:`folder_line.core.mechanisms.pile`), lowered by the
+  sheet thickness ``h`` (scene key ``sheets.thickness``, m) per counted sheet at constant
+  speed over ``τ`` = :data:`folder_line.core.mechanisms.pile.T_LOWER` (0.02 s) from the sheet's
+  event time ``t_i``, so that the top of the stack stays where the sheets arrive:
+
+  - ``pile_table`` (scenes with the delivery): the pile table's height, m, 0 at t = 0,
+    negative downward, and its velocity, m/s;
+  - ``container_floor`` (other scenes): the container floor's height relative to
+    ``container.y_floor`` (where the leaves land), m, 0 at t = 0, negative downward,
+    and its velocity, m/s;
+
+  position ``z(t) = -h Σ_i clip((t - t_i)/τ, 0, 1)`` (exactly ``-h n`` once n sheets
+  have settled), velocity ``-(h/τ) #{i: t_i <= t < t_i + τ}``; no effort;
+
+and, per landed leaf, ``/line/sheet_counter/landing_x`` (``std_msgs/Float64``, m), besides
+its ``released_on_pile``, ``leaf_landed`` and ``leaf_spilled`` events on ``/line/events``.
+Other parameters: see :mod:`folder_line.ros.nodes.machine`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from std_msgs.msg import Float64, UInt64
+
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.mechanisms.pile import counted_event
+from folder_line.ros.common import (
+    LANDING_TOPIC,
+    SHEET_COUNT_TOPIC,
+    SHEET_RATE_TOPIC,
+    ParamSpec,
+    run_node,
+)
+from folder_line.ros.lockstep import LINE_QOS
+from folder_line.ros.nodes.machine import MachineNode
+
+__all__ = ['SheetCounter', 'counted_kind', 'main']
+
+
+def counted_kind(has_delivery: bool) -> int:
+    """Event-kind index the counter counts: sheets on the pile, else leaves in the container."""
+    return EVENT_KINDS.index(counted_event(has_delivery))
+
+
+class SheetCounter(MachineNode):
+    """The ``sheet_counter`` node."""
+
+    NODE_NAME = 'sheet_counter'
+    EXTRA_SPECS = (
+        ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s', bounds=(0.001, 3600.0)),
+    )
+
+    def setup(self) -> None:
+        self._count_pub = self.create_publisher(UInt64, SHEET_COUNT_TOPIC, LINE_QOS)
+        self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, LINE_QOS)
+        self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, LINE_QOS)
+        self._landed = EVENT_KINDS.index('leaf_landed')
+        self.published_count = self.published_rate = self.published_landing = 0
+
+    def on_model(self) -> None:
+        ev = self.model.events
+        self._times = ev[ev['kind'] == counted_kind(self.model.scene.has_delivery)]['t']
+
+    def count_at(self, t: float) -> int:
+        """Sheets counted with event time <= t."""
+        return int(np.searchsorted(self._times, t, side='right'))
+
+    def rate_at(self, t: float) -> float:
+        """Sheets per second over ``(t - window, t]`` (the elapsed time if shorter), 0 at t = 0."""
+        window = min(self.values['rate_window'], t)
+        if window <= 0.0:
+            return 0.0
+        return (self.count_at(t) - self.count_at(t - window)) / window
+
+    def publish_sample(self, stamp_ns: int, t: float) -> None:
+        self.publish(self._count_pub, UInt64(data=self.count_at(t)))
+        self.published_count += 1
+        self.publish(self._rate_pub, Float64(data=self.rate_at(t)))
+        self.published_rate += 1
+
+    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
+        for row in events[events['kind'] == self._landed]:
+            self.publish(self._landing_pub, Float64(data=float(row['value'])))
+            self.published_landing += 1
+
+    def published_counts(self) -> dict[str, int]:
+        return {
+            **super().published_counts(),
+            SHEET_COUNT_TOPIC: self.published_count,
+            SHEET_RATE_TOPIC: self.published_rate,
+            LANDING_TOPIC: self.published_landing,
+        }
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run ``sheet_counter`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
+    return run_node(SheetCounter, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,496 @@
+"""Node ``supervisor``: the line's state (PackML), its enforcement, its commands, its diagnostics.
+
+The node is an adapter around :class:`folder_line.core.supervision.decisions.Supervisor` (the
+logic, pure and replayable offline): it feeds it what it hears and publishes what it
+decides. It is a lockstep participant (:mod:`folder_line.ros.lockstep`) that waits,
+at every tick ``t``, for every machine participant's tick ``t`` to be complete: their
+acknowledgements are in and so is every event they count. Only then is the logic
+advanced to ``t`` (the watermark is exact), so a cycle is never judged on missing
+input, however busy the machine; a slow node only slows sim time down.
+
+Inputs
+------
+* ``/line/events``: the exact events the machine nodes publish (``time_ref`` = the
+  event time), counted per publishing node (``header.frame_id``, which must be the
+  node that owns the event kind); judged cycle by cycle with the same constraint
+  code as the batch simulator (:mod:`folder_line.core.line.constraints`, causal evaluation);
+* ``/line/<node>/joint_states`` of every node of the scene with joints, and
+  ``/line/sheet_counter/rate`` and ``/line/sheet_counter/landing_x``: checked for NaN/inf;
+* ``/line/<node>/tick_done``: the machine participants' acknowledgements.
+
+A participant that does not complete a tick within ``lost_timeout`` s of wall time is
+*lost*: the logic aborts with cause ``lost:<node>`` (ABORTING, then ABORTED at
+standstill) and judges nothing after that time. A malformed, unknown or out-of-order
+input on any subscribed topic is rejected, logged once per kind and counted in the
+``folder_line/supervisor/inputs`` diagnostic; the node keeps running.
+
+A timing violation commands ``hold`` at the next machine cycle boundary at least
+``command_lead`` after the violating cycle's decision (HOLDING, HELD at standstill),
+a missing sheet ``suspend`` (SUSPENDING, SUSPENDED), a double sheet ``double_sheet``
+(hold or abort), a NaN/inf ``abort`` (``stop`` of the drive ``command_lead`` after
+the decision; ABORTING, ABORTED, which only ``clear`` leaves). With ``enforce`` false
+nothing is commanded, only reported.
+
+Outputs
+-------
+* ``/line/supervisor/state`` (``std_msgs/String``, transient-local: a late
+  ``ros2 topic echo`` gets the current state): the PackML state at every point of
+  its grid (``rate``) and on every accepted command.
+* ``/line/supervisor/commands`` (``sensor_msgs/TimeReference``): drive commands
+  (``source`` = hold, unhold, stop or start; ``time_ref`` = effective sim time;
+  ``header.stamp`` = the time of the decision; ``header.frame_id`` = ``supervisor``).
+* ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``) at ``diag_rate`` Hz of sim
+  time: one status per cyclogram constraint of the scene, with the margin of the
+  latest evaluated cycle, the smallest margin so far, the unit, and the counts of
+  evaluations and violations as key/values; level OK, WARN (violated before) or
+  ERROR (violated in the latest cycle); and ``folder_line/supervisor/inputs`` with the
+  rejected inputs per kind. And, as they happen (stamped with their time), one array
+  per event of the logic: ``folder_line/supervisor/violation`` (ERROR: ``t``,
+  ``cycle``, ``constraint``, ``margin``, ``unit``, ``action``, ``state``),
+  ``folder_line/supervisor/balance`` at every stop (``fed``, ``delivered``,
+  ``in_machine`` and where; OK, or ERROR if a sheet is lost),
+  ``folder_line/supervisor/operator`` per operator command; each also carries
+  ``t_start``, ``watermark`` and ``late`` so that a bag of the run replays through
+  :func:`folder_line.core.supervision.decisions.replay`.
+* Services (``std_srvs/Trigger``) ``/line/supervisor/{start,stop,hold,unhold,suspend,
+  unsuspend,reset,clear,abort}``: a legal command answers ``success`` with its
+  effective time and publishes a drive command; an illegal one answers
+  ``success = False`` with the reason (:class:`folder_line.core.supervision.packml.PackML`).
+  A command is timed at the clock: decided at the latest tick the supervisor
+  completed, it takes effect at the next cycle boundary at least ``command_lead`` s
+  later (hold, suspend, stop), or ``command_lead`` s later (start, unhold,
+  unsuspend, abort). ``command_lead`` must exceed the clock's tick step (the machine
+  nodes may already be one tick further); a command that cannot be timed so is refused.
+
+The scene's drive starts the line at t = 0, so the supervisor starts in STARTING
+and enters EXECUTE when the drive reaches speed. Acting states end on the check grid
+(``n / rate``): HOLDING, SUSPENDING, STOPPING and ABORTING at standstill, STARTING,
+UNHOLDING and UNSUSPENDING at speed (λ >= 0.99), RESETTING and CLEARING at the next
+grid point.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState, TimeReference
+from std_msgs.msg import Float64, String
+from std_srvs.srv import Trigger
+
+from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS
+from folder_line.core.mechanisms.drive import Command
+from folder_line.core.supervision.decisions import DRIVE_COMMANDS, SPEED_REACHED, Balance, Violation
+from folder_line.core.supervision.decisions import Supervisor as Logic
+from folder_line.ros.common import (
+    COMMANDS_QOS,
+    COMMANDS_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    NS_PER_S,
+    PUBLISH_DEPTH,
+    SHEET_RATE_TOPIC,
+    SUPERVISOR_STATE_TOPIC,
+    ParamSpec,
+    joint_states_topic,
+    ns_to_time_msg,
+    run_node,
+    seconds_to_ns,
+    time_msg_to_ns,
+)
+from folder_line.ros.lockstep import LINE_QOS, MACHINE_NODES, Announcement
+from folder_line.ros.nodes.machine import EVENT_OWNER, MachineNode, line_model, parse_event_source
+
+__all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
+
+#: service name -> (PackML command, drive command or None, waits for the next cycle boundary)
+SERVICES: dict[str, tuple[str, str | None, bool]] = {
+    name: (name, *DRIVE_COMMANDS[name])
+    for name in ('start', 'stop', 'hold', 'unhold', 'suspend', 'unsuspend', 'reset', 'clear', 'abort')
+}
+
+STATE_QOS = QoSProfile(
+    depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+
+
+def _non_finite(*arrays: Any) -> int:
+    """NaN and inf values in ``arrays`` (sequences of float)."""
+    # a NaN or an inf makes the sum non-finite, so a finite sum (the usual case, in C) needs no count;
+    # a non-finite sum may come from an overflow of finite values, so the count itself is exact
+    if math.isfinite(sum(sum(a) for a in arrays)):
+        return 0
+    return sum(int(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=float)))) for a in arrays if len(a))
+
+
+class Supervisor(MachineNode):
+    """The ``supervisor`` node (see the module docstring).
+
+    Attributes
+    ----------
+    logic : folder_line.core.supervision.decisions.Supervisor
+        The decisions, violations, balances and transitions.
+    """
+
+    NODE_NAME = 'supervisor'
+    EXTRA_SPECS = (
+        ParamSpec(
+            'command_lead',
+            0.1,
+            'Earliest effective time of a drive command after its decision, in sim '
+            "time (must exceed the clock's tick step)",
+            unit='s',
+            bounds=(0.001, 60.0),
+            read_only=True,
+        ),
+        ParamSpec('diag_rate', 1.0, 'Rate of /diagnostics in sim time', unit='Hz', bounds=(0.01, 1000.0)),
+        ParamSpec(
+            'enforce', True, 'Command hold, suspend and abort on violations (false: only report)', read_only=True
+        ),
+        ParamSpec('double_sheet', 'hold', 'What a double sheet leads to', choices=('hold', 'abort'), read_only=True),
+    )
+
+    def setup(self) -> None:
+        v = self.values
+        joint_nodes = list(self.model.nodes)
+        key = self._key
+        self.logic = Logic(
+            self.model.scene,
+            v['horizon'],
+            periods={},
+            lead=v['command_lead'],
+            check_period=1.0 / v['rate'],
+            enforce=v['enforce'],
+            double=v['double_sheet'],
+            state='STARTING',
+            t_start=None,
+            model_factory=lambda commands: line_model(*key, commands),
+        )
+        self._joint_nodes = tuple(joint_nodes)
+        self._rows: list[tuple[float, int, int, int, float]] = []
+        self._n_violations = self._n_balances = 0
+        self._n_rejected = 0
+        self._clock_step: int | None = None
+        self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
+        self._cmd_pub = self.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
+        self._next_diag_ns = 0
+        self.published_state = self.published_diagnostics = self.published_commands = 0
+        self.create_subscription(TimeReference, EVENTS_TOPIC, self._on_event, LINE_QOS)
+        for node in joint_nodes:
+            self.create_subscription(JointState, joint_states_topic(node), self._on_joints(node), LINE_QOS)
+        for topic in (SHEET_RATE_TOPIC, LANDING_TOPIC):
+            self.create_subscription(Float64, topic, self._on_float(topic), LINE_QOS)
+        for name in SERVICES:
+            self.create_service(Trigger, f'/line/supervisor/{name}', self._service(name))
+
+    def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
+        """Every machine participant, with its events."""
+        return {n: ('events',) for n in MACHINE_NODES if n != self.NODE_NAME}
+
+    def needs(self, stamp: int, previous: int | None) -> int | None:
+        """Tick ``stamp`` runs once every machine participant's tick ``stamp`` is complete."""
+        if previous is not None:
+            step = stamp - previous
+            self._clock_step = step if self._clock_step is None else max(self._clock_step, step)
+        return stamp
+
+    def on_lost(self, producer: str, waited: float, stamp: int) -> None:
+        """A machine participant stopped answering: abort, naming it (decided at the last complete tick)."""
+        t = max(self.logic.now, 0.0) if math.isfinite(self.logic.now) else 0.0
+        self.logic.lost(producer, t, waited)
+
+    @property
+    def packml(self) -> Any:
+        """The PackML state machine (state and history) of the logic."""
+        return self.logic.packml
+
+    # ------------------------------------------------------------------ inputs
+
+    def _on_event(self, msg: TimeReference) -> None:
+        try:
+            kind, sheet, cycle, value = parse_event_source(msg.source)
+        except ValueError as err:
+            self.reject('event', f'cannot parse {msg.source[:60]!r}: {err}')
+            return
+        owner = EVENT_OWNER[kind]
+        if msg.header.frame_id != owner:
+            self.reject('event', f'{kind} from {msg.header.frame_id[:40]!r}: only {owner} publishes it')
+            return
+        t_ns = time_msg_to_ns(msg.time_ref)
+        # late: its tick (header.stamp) was complete already. Not its time_ref: an event just after a tick is
+        # published at the next tick, yet its time rounded to the ns can be that tick's stamp
+        tick_ns = time_msg_to_ns(msg.header.stamp)
+        ledger = self.lockstep.ledger
+        last = ledger.complete(owner) if ledger is not None and ledger.knows(owner) else None
+        if last is not None and tick_ns <= last:
+            self.reject(
+                'event',
+                f'{kind} at {t_ns / NS_PER_S:.9f} s from {owner} arrived after its tick '
+                f'{tick_ns / NS_PER_S:.9f} s was complete',
+            )
+            return
+        if not math.isfinite(value):
+            self.logic.bad_value(EVENTS_TOPIC, max(time_msg_to_ns(msg.header.stamp) / NS_PER_S, self.logic.now))
+        else:
+            self._rows.append((t_ns / NS_PER_S, EVENT_KINDS.index(kind), sheet, cycle, value))
+        self.lockstep.received(owner, 'events')
+
+    def _on_joints(self, node: str) -> Callable[[JointState], None]:
+        topic = joint_states_topic(node)
+
+        def on_joints(msg: JointState) -> None:
+            if msg.header.frame_id != node:
+                self.reject('joint_states', f'{topic} from {msg.header.frame_id[:40]!r}: only {node} publishes it')
+                return
+            bad = _non_finite(msg.position, msg.velocity, msg.effort)
+            if bad:
+                stamp = time_msg_to_ns(msg.header.stamp) / NS_PER_S
+                self.logic.bad_value(topic, max(stamp, self.logic.now) if math.isfinite(stamp) else self.logic.now, bad)
+
+        return on_joints
+
+    def _on_float(self, topic: str) -> Callable[[Float64], None]:
+        def on_float(msg: Float64) -> None:
+            if not math.isfinite(msg.data):
+                self.logic.bad_value(topic, max(self.logic.now, 0.0))
+
+        return on_float
+
+    # ------------------------------------------------------------------ services
+
+    def _service(self, name: str) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
+        def handle(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+            response.success, response.message = self.request(name)
+            return response
+
+        return handle
+
+    def request(self, name: str) -> tuple[bool, str]:
+        """Apply service ``name`` at the latest tick completed; returns (success, message)."""
+        at_boundary = SERVICES[name][2]
+        lead_ns = seconds_to_ns(self.values['command_lead'])
+        if SERVICES[name][1] is not None and self._clock_step is not None and self._clock_step >= lead_ns:
+            return False, (
+                f'{name}: refused: the clock steps {self._clock_step / NS_PER_S:g} s per tick, not less '
+                f'than command_lead = {self.values["command_lead"]:g} s, so the command could take effect '
+                'in a tick the machines already published'
+            )
+        out = self.logic.command(name)
+        self._publish_outputs()
+        self._publish_status(
+            'operator',
+            out.ok,
+            f'{name}: {"accepted" if out.ok else out.message}',
+            {'t': self.logic.now, 'command': name, 'accepted': out.ok},
+        )
+        if not out.ok:
+            return False, out.message
+        # publish the new state now: RESETTING and CLEARING end at the next grid point, before a tick publishes
+        self._publish_state()
+        if out.command is None:
+            return True, f'{name}: {self.packml.state}'
+        where = 'the next cycle boundary' if at_boundary else f'{self.values["command_lead"]:g} s after the request'
+        return True, (
+            f'{name}: {self.packml.state}, drive {out.command.kind} effective at {out.command.t:.6f} s ({where})'
+        )
+
+    # ------------------------------------------------------------------ tick
+
+    def publish_at(self, stamp_ns: int) -> None:
+        """Advance the logic to the tick (every machine participant's input up to it is in), then publish."""
+        if self._rows:
+            rows, self._rows = self._rows, []
+            self.logic.feed(np.array(rows, dtype=EVENT_DTYPE))
+        self.logic.tick(stamp_ns / NS_PER_S)
+        self._publish_outputs()
+        super().publish_at(stamp_ns)
+
+    def publish_sample(self, stamp_ns: int, t: float) -> None:
+        self._publish_state()
+
+    def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
+        if stamp_ns >= self._next_diag_ns:
+            arr = self.diagnostics(stamp_ns, t)
+            self.publish(self._diag_pub, arr)
+            self.published_diagnostics += 1
+            self._next_diag_ns = stamp_ns + round(NS_PER_S / self.values['diag_rate'])
+
+    def _publish_state(self) -> None:
+        self.publish(self._state_pub, String(data=self.packml.state))
+        self.published_state += 1
+
+    def _publish_outputs(self) -> None:
+        for t, command in self.logic.take_commands():
+            self._publish_command(t, command)
+        violations = self.logic.violations
+        for v in violations[self._n_violations :]:
+            self._publish_violation(v)
+        self._n_violations = len(violations)
+        balances = self.logic.balances
+        for b in balances[self._n_balances :]:
+            self._publish_balance(b)
+        self._n_balances = len(balances)
+
+    def _publish_command(self, t: float, command: Command) -> None:
+        msg = TimeReference()
+        msg.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)))
+        msg.header.frame_id = self.NODE_NAME
+        msg.time_ref = ns_to_time_msg(round(command.t * NS_PER_S))
+        msg.source = command.kind
+        self.publish(self._cmd_pub, msg, 'commands')  # also reaches this node's own subscription (its model)
+        self.published_commands += 1
+
+    def _publish_status(
+        self, what: str, ok: bool, message: str, values: dict[str, Any], stamp: float | None = None
+    ) -> None:
+        arr = DiagnosticArray()
+        t = self.logic.now if stamp is None else stamp
+        arr.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)) if math.isfinite(t) else 0)
+        status = DiagnosticStatus()
+        status.name = f'folder_line/supervisor/{what}'
+        status.hardware_id = self.model.scene.name
+        status.level = DiagnosticStatus.OK if ok else DiagnosticStatus.ERROR
+        status.message = message
+        extra = {'t_start': self.logic.t_start, 'watermark': self.logic.now, 'late': self.logic.late}
+        status.values = [
+            KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v)) for k, v in {**values, **extra}.items()
+        ]
+        arr.status.append(status)
+        arr.header.frame_id = self.NODE_NAME
+        self.publish(self._diag_pub, arr)
+        self.published_diagnostics += 1
+
+    def _publish_violation(self, v: Violation) -> None:
+        self.get_logger().warning(
+            f'{v.constraint} violated in cycle {v.cycle} at {v.t:.6f} s, margin {v.margin:.6g} '
+            f'{v.unit}: {v.action} ({v.state})'
+        )
+        self._publish_status(
+            'violation',
+            False,
+            f'{v.constraint} violated in cycle {v.cycle}: {v.action}',
+            {
+                't': v.t,
+                'cycle': v.cycle,
+                'constraint': v.constraint,
+                'margin': v.margin,
+                'unit': v.unit,
+                'action': v.action,
+                'state': v.state,
+            },
+            stamp=v.t,
+        )
+
+    def _publish_balance(self, b: Balance) -> None:
+        if b.missing:  # a participant was lost: no number is judged on what never arrived
+            self.get_logger().warning(f'sheet balance at {b.t:.6f} s ({b.state}) not judged: {b.missing}')
+            self._publish_status(
+                'balance',
+                False,
+                f'{b.state}: not judged: {b.missing}',
+                {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False},
+                stamp=b.t,
+            )
+            return
+        if not b.ok:
+            self.get_logger().error(
+                f'sheet balance broken at {b.t:.6f} s ({b.state}): fed {b.fed}, delivered '
+                f'{b.delivered}, in the machine {b.in_machine}'
+            )
+        self._publish_status(
+            'balance',
+            b.ok,
+            f'{b.state}: fed {b.fed} = delivered {b.delivered} + in the '
+            f'machine {b.in_machine}' + ('' if b.ok else ' BROKEN'),
+            {
+                't': b.t,
+                'state': b.state,
+                'fed': b.fed,
+                'delivered': b.delivered,
+                'in_machine': b.in_machine,
+                **b.detail,
+                'ok': b.ok,
+            },
+            stamp=b.t,
+        )
+
+    def published_counts(self) -> dict[str, int]:
+        return {
+            **super().published_counts(),
+            SUPERVISOR_STATE_TOPIC: self.published_state,
+            DIAGNOSTICS_TOPIC: self.published_diagnostics,
+            COMMANDS_TOPIC: self.published_commands,
+        }
+
+    def diagnostics(self, stamp_ns: int, t: float) -> DiagnosticArray:
+        """One status per constraint, from the cycles evaluated by time ``t``."""
+        arr = DiagnosticArray()
+        arr.header.stamp = ns_to_time_msg(stamp_ns)
+        arr.header.frame_id = self.NODE_NAME
+        inputs = DiagnosticStatus(name='folder_line/supervisor/inputs', hardware_id=self.model.scene.name)
+        total = sum(self.rejected.values())
+        inputs.level = DiagnosticStatus.WARN if total else DiagnosticStatus.OK
+        inputs.message = f'{total} inputs rejected' if total else 'no input rejected'
+        inputs.values = [KeyValue(key=k, value=str(n)) for k, n in sorted(self.rejected.items())]
+        lost = self.logic.lost_nodes
+        if lost:
+            inputs.level = DiagnosticStatus.ERROR
+            inputs.message += f'; participants lost: {", ".join(lost)}'
+            inputs.values.append(KeyValue(key='lost', value=','.join(lost)))
+        for c in self.model.constraints:
+            decided = c.decided_by(t)
+            n = int(np.count_nonzero(decided))
+            status = DiagnosticStatus()
+            status.name = f'folder_line/{c.name}'
+            status.hardware_id = self.model.scene.name
+            if n == 0:
+                status.level = DiagnosticStatus.OK
+                status.message = 'no cycle evaluated yet'
+                status.values = [KeyValue(key='unit', value=c.unit), KeyValue(key='evaluations', value='0')]
+            else:
+                done = c.margin[decided]
+                i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
+                violations = int(np.count_nonzero(done < 0.0))
+                last = float(c.margin[i_last])
+                status.level = (
+                    DiagnosticStatus.ERROR
+                    if last < 0.0
+                    else DiagnosticStatus.WARN
+                    if violations
+                    else DiagnosticStatus.OK
+                )
+                status.message = (
+                    f'violated in cycle {int(c.cycle[i_last])}'
+                    if last < 0.0
+                    else f'{violations} violations so far'
+                    if violations
+                    else 'ok'
+                )
+                values: dict[str, Any] = {
+                    'margin': repr(last),
+                    'unit': c.unit,
+                    'cycle': str(int(c.cycle[i_last])),
+                    'min_margin': repr(float(done.min())),
+                    'violations': str(violations),
+                    'evaluations': str(n),
+                }
+                status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+            arr.status.append(status)
+        arr.status.append(inputs)  # last: the constraints keep their places in the array
+        return arr
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run ``supervisor`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
+    return run_node(Supervisor, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,574 @@
+"""``folder-line run``: start the line's nodes, let it run in lockstep, stop cleanly, report.
+
+In-process (default): ``line_clock`` and the five machine nodes in one process on
+one executor (``rclpy.experimental.EventsExecutor``) in a private context, as a
+component container would run them. With ``processes=True``: one process per node,
+started from the node executables as a launch file would, and stopped with SIGINT;
+each child dies with this process (``PR_SET_PDEATHSIG``), so a killed ``run`` leaves
+nothing behind. Either way a recorder in this process (``line_recorder``, a lockstep
+participant) subscribes to every line topic, hands every message to a
+:class:`folder_line.bag.bag.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
+of line time) and compares what arrived with the batch simulation (``simulate``).
+
+Time is lockstep by default (:mod:`folder_line.ros.lockstep`): sim time advances a
+tick only when every participant, the recorder included, has finished the previous
+one, so a busy machine slows sim time down and never changes what is published.
+``clock='wall'`` paces by the wall clock instead and counts late participants.
+
+The outcome is honest (:func:`outcome`): the run succeeds only when the line reached
+the end of ``duration`` in the state the scene expects (EXECUTE, as ``simulate``
+says) with no participant lost; otherwise one line names the state, the cause, the
+cycle and the node, and ``folder-line run`` exits non-zero. SIGTERM is handled like
+SIGINT: the bag is closed, ``run.json`` written and every child ended.
+
+Loss accounting: in-process, every node counts what it publishes (``published_counts()``),
+so ``run.json`` has ``published`` and ``lost`` (= published - recorded) per topic. With
+``processes=True`` the publishers live in other processes: ``published`` and ``lost``
+are ``null`` there, and ``loss_accounting`` says so (the lockstep itself guarantees that
+every acknowledged message was recorded).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from folder_line.core.limits import HORIZON_MARGIN
+from folder_line.files.atomic import write_json_atomic
+
+__all__ = [
+    'BAG_DIR',
+    'LINE_NODES',
+    'RunConfig',
+    'RunResult',
+    'add_machine_nodes',
+    'clock_parameters',
+    'node_parameters',
+    'other_line',
+    'outcome',
+    'print_run_summary',
+    'run_line',
+]
+
+from folder_line.interfaces import MACHINE_NODES as LINE_NODES  # noqa: E402  (the nodes, in start order)
+
+#: the run's bag, under ``cfg.out``
+BAG_DIR = 'bag'
+
+_PROCESSES_LOSS = (
+    'unavailable with --processes: the publishers run in other processes and their counts are not collected'
+)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What to run.
+
+    Attributes
+    ----------
+    scene : str
+        Scene name or file.
+    duration : float
+        Line time, s.
+    overrides : tuple of str
+        ``MACHINE.KEY=VALUE`` items.
+    rtf : float
+        Real-time factor ceiling of ``line_clock``; 0 = as fast as the line allows (lockstep).
+    rate : float
+        Publishing rate of the machine nodes, Hz of sim time.
+    out : Path
+        Output directory.
+    processes : bool
+        One process per node instead of one executor.
+    clock : {'lockstep', 'wall'}
+        Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
+    lost_timeout : float
+        Wall seconds a tick may wait for a participant before it is declared lost.
+    """
+
+    scene: str = 'folder'
+    duration: float = 20.0
+    overrides: tuple[str, ...] = ()
+    rtf: float = 1.0
+    rate: float = 200.0
+    out: Path = Path('out')
+    processes: bool = False
+    clock: str = 'lockstep'
+    lost_timeout: float = 3.0
+
+
+@dataclass
+class RunResult:
+    """What a run produced: per-topic message counts and the summary written to ``run.json``."""
+
+    counts: dict[str, int] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    exit_codes: dict[str, int] = field(default_factory=dict)
+
+
+def node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
+    """The parameters ``run`` gives machine node ``name`` (scene, overrides, horizon, rate, lost_timeout)."""
+    params: dict[str, Any] = {
+        'scene': cfg.scene,
+        'horizon': cfg.duration + HORIZON_MARGIN,
+        'rate': cfg.rate,
+        'lost_timeout': cfg.lost_timeout,
+    }
+    if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
+        params['overrides'] = ';'.join(cfg.overrides)
+    return params
+
+
+class _Progress:
+    """A progress bar on a terminal; on a pipe or file, one line per tenth."""
+
+    def __init__(self, stream: IO[str], total: float, width: int = 40) -> None:
+        self.stream, self.total, self.width = stream, total, width
+        self.tty = hasattr(stream, 'isatty') and stream.isatty()
+        self.tenths = -1
+
+    def show(self, t: float) -> None:
+        fraction = min(max(t / self.total, 0.0), 1.0)
+        done = int(self.width * fraction)
+        line = f'[{"#" * done}{"." * (self.width - done)}] {t:7.2f} / {self.total:g} s of line time'
+        if self.tty:
+            self.stream.write('\r' + line)
+        elif int(10 * fraction) > self.tenths:
+            self.tenths = int(10 * fraction)
+            self.stream.write(line + '\n')
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write('\n')
+
+
+def _clear_previous_bag(path: Path) -> None:
+    """Remove the bag of a previous run at ``path``; refuse anything that is not one."""
+    from folder_line.bag.bag import BagError
+
+    if not path.exists():
+        return
+    ours = path.is_dir() and all(
+        p.is_file() and (p.name == 'metadata.yaml' or p.suffix in ('.mcap', '.truncated', '.tmp'))
+        for p in path.iterdir()
+    )
+    if not ours:
+        msg = f'{path}: exists and is not a bag of a previous run; move it away or choose another --out'
+        raise BagError(msg)
+    shutil.rmtree(path)
+
+
+def _end_lost(proc: subprocess.Popen[bytes] | None) -> None:
+    """End the process of a participant declared lost, at once: the line goes on without it, and a stopped
+    (SIGSTOP) node holds shared-memory locks of Fast DDS that would hang the others' teardown at the end."""
+    if proc is not None and proc.poll() is None:
+        proc.send_signal(signal.SIGCONT)
+        proc.send_signal(signal.SIGINT)
+
+
+def _published_counts(nodes: list[Any]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for node in nodes:
+        for topic, n in node.published_counts().items():
+            counts[topic] = counts.get(topic, 0) + n
+    return counts
+
+
+def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
+    """The parameters ``run`` gives ``line_clock``."""
+    return {
+        'rate': cfg.rate,
+        'rtf': float(cfg.rtf),
+        'clock': cfg.clock,
+        'duration': float(cfg.duration),
+        'participants': ','.join(participants),
+        'lost_timeout': cfg.lost_timeout,
+    }
+
+
+def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
+    """Build the five machine nodes of :data:`LINE_NODES` in ``context`` with the run's parameters
+    (scene, overrides, horizon, rate) and add them to ``executor``; returns them in that order."""
+    from rclpy.parameter import Parameter
+
+    from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
+
+    classes = {
+        'crank_drive': crank_drive.CrankDrive,
+        'belt_conveyor': belt_conveyor.BeltConveyor,
+        'feed_transporter': feed_transporter.FeedTransporter,
+        'sheet_counter': sheet_counter.SheetCounter,
+        'supervisor': supervisor.Supervisor,
+    }
+    nodes = []
+    for name in LINE_NODES:
+        overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name).items()]
+        node = classes[name](parameter_overrides=overrides, context=context)
+        executor.add_node(node)
+        nodes.append(node)
+    return nodes
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Ask the kernel to SIGTERM this (child) process when its parent dies (Linux ``PR_SET_PDEATHSIG``)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass
+
+
+#: wall seconds ``run`` looks for another line before it starts its own: DDS discovery between two
+#: processes takes 0.1 s, or up to the 3 s announcement period of Fast DDS when the first exchange is
+#: missed (measured here: 24 of 62 probes found a running line only after 0.75-3.1 s, none later)
+OTHER_LINE_WAIT = 4.0
+_NAME_WAIT = 1.0  # wall s to learn the node of a publisher found (DDS discovery reports its endpoint first)
+_UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoint whose node is not known yet
+
+
+def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
+    """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
+    is not ours, seen within ``wait`` s of discovery."""
+    from folder_line.ros.common import CLOCK_TOPIC
+    from folder_line.ros.lockstep import PARTICIPANTS_TOPIC
+
+    deadline = time.monotonic() + wait
+    seen: float | None = None  # when a publisher was first seen: its node's name follows its endpoint
+    while True:
+        for topic in (CLOCK_TOPIC, PARTICIPANTS_TOPIC):
+            infos = node.get_publishers_info_by_topic(topic)
+            named = [i for i in infos if i.node_name != _UNKNOWN_NODE]
+            if named or (infos and seen is not None and time.monotonic() > seen + _NAME_WAIT):
+                who = (
+                    named[0].node_namespace.rstrip('/') + '/' + named[0].node_name
+                    if named
+                    else 'a node whose name is not known yet'
+                )
+                return f'{topic} is already published on ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")} by {who}'
+            if infos and seen is None:
+                seen = time.monotonic()
+        if seen is None and time.monotonic() >= deadline:
+            return None
+        executor.spin_once(timeout_sec=0.05)
+
+
+def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
+    """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``.
+
+    Raises
+    ------
+    folder_line.errors.FolderLineError
+        Bad scene or overrides, an ``--out`` that holds something else, or another line on this
+        ROS domain (checked before anything is written).
+    """
+    import rclpy
+    import yaml
+    from rclpy.parameter import Parameter
+
+    from folder_line.bag.bag import BagWriter
+    from folder_line.config.scenes import parse_set, scene_mapping
+    from folder_line.core.line.model import check_size
+    from folder_line.core.line.scene import parse_scene
+    from folder_line.errors import FolderLineError
+    from folder_line.interfaces import RECORDER
+    from folder_line.ros.common import events_executor
+    from folder_line.ros.nodes.line_clock import LineClock
+    from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+
+    mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
+    scene = parse_scene(mapping)  # fail early, before any node starts
+    check_size(scene, cfg.duration, cfg.duration + HORIZON_MARGIN, '--duration')  # the nodes' horizon's cycles
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    executor = events_executor(ctx)
+    result = RunResult()
+    procs: dict[str, subprocess.Popen[bytes]] = {}
+    nodes: list[Any] = []
+    bag = None
+    recorder: Any = None
+    ended_lost: set[str] = set()  # lost participants whose process was ended
+    interrupted: list[str] = []
+    participants = (*LINE_NODES, RECORDER)
+
+    def on_signal(signum: int, frame: object) -> None:
+        interrupted.append(signal.Signals(signum).name)
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    t_wall = time.perf_counter()
+    try:
+        probe = rclpy.create_node('folder_line_run_probe', context=ctx)
+        executor.add_node(probe)
+        other = other_line(probe, executor)
+        executor.remove_node(probe)
+        probe.destroy_node()
+        if other is not None:
+            msg = (
+                f'another line is running: {other}; stop it, or give this run its own '
+                'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)'
+            )
+            raise FolderLineError(msg)
+        cfg.out.mkdir(parents=True, exist_ok=True)
+        bag_path = cfg.out / BAG_DIR
+        _clear_previous_bag(bag_path)
+        bag = BagWriter(
+            bag_path,
+            scene_source=yaml.safe_dump(mapping, sort_keys=False),
+            effects=list(scene.effects),
+            scene_name=scene.name,
+            topics=LINE_TOPICS,
+            custom={
+                'folder_line.scene_arg': str(cfg.scene),
+                'folder_line.overrides': json.dumps(cfg.overrides),
+                'folder_line.mode': 'processes' if cfg.processes else 'in-process',
+                'folder_line.clock': cfg.clock,
+            },
+        )
+        recorder = LineRecorder(sink=bag.write_serialized, context=ctx, lost_timeout=cfg.lost_timeout)
+        executor.add_node(recorder)
+        clock_params = clock_parameters(cfg, participants)
+        if cfg.processes:
+            env = dict(os.environ)
+            logs = cfg.out / 'logs'  # each process's stderr
+            logs.mkdir(exist_ok=True)
+            commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in LINE_NODES}
+            commands['line_clock'] = [
+                f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}' for k, v in clock_params.items()
+            ]
+            for name, args in commands.items():
+                cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
+                for a in args:
+                    cmd += ['-p', a]
+                # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
+                with open(logs / f'{name}.log', 'wb') as log:
+                    procs[name] = subprocess.Popen(
+                        cmd, env=env, stdout=subprocess.DEVNULL, stderr=log, preexec_fn=_die_with_parent
+                    )
+            clock = None
+            done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
+        else:
+            nodes += add_machine_nodes(cfg, ctx, executor)
+            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()], context=ctx)
+            nodes.append(clock)
+            executor.add_node(clock)
+            done = clock.done.done
+        last_draw = 0.0
+        progress = _Progress(stream, cfg.duration)
+        while not done() and not interrupted:
+            if clock is not None:
+                executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
+            else:
+                executor.spin_once(timeout_sec=0.05)
+            now = time.perf_counter()
+            if now - last_draw > 0.2:
+                progress.show(recorder.sim_time)
+                last_draw = now
+                if recorder.count_publishers('/clock') > 1:
+                    interrupted.append('another /clock publisher appeared on this ROS domain')
+            if recorder.write_error is not None:
+                interrupted.append('the bag could not be written')
+            for name in set(recorder.lost) - ended_lost:  # once each
+                ended_lost.add(name)
+                _end_lost(procs.get(name))
+        if interrupted and clock is not None:
+            executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
+        # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
+        deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
+        while time.perf_counter() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        progress.show(recorder.sim_time)
+        progress.close()
+        recorder.flush()
+        if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
+            raise recorder.write_error
+        result.counts = dict(recorder.counts)
+        published = None if cfg.processes else _published_counts(nodes)
+        bag.close(published)
+        lost = dict(recorder.lost)
+        if clock is not None:
+            lost.update({n: t for n, t in clock.lost.items() if n not in lost})
+        result.summary = _summary(
+            cfg,
+            scene,
+            recorder,
+            time.perf_counter() - t_wall,
+            interrupted,
+            lost,
+            None if clock is None else clock.rtf_achieved,
+        )
+        result.summary.update(_bag_summary(bag, published))
+    finally:
+        if procs and not interrupted and procs['line_clock'].poll() is not None:
+            # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
+            # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
+            lost_nodes = set(result.summary.get('lost_participants') or ())
+            for name in (lost_nodes & set(procs)) - ended_lost:  # a stopped node holds shared-memory locks
+                _end_lost(procs[name])
+            deadline = time.monotonic() + 15.0
+            for name, proc in procs.items():
+                if name not in lost_nodes:
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+                proc.send_signal(signal.SIGCONT)  # a stopped child (SIGSTOP, Ctrl-Z) ends now, not in 15 s
+        for name, proc in procs.items():
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            result.exit_codes[name] = proc.returncode
+        executor.shutdown()
+        if bag is not None and (recorder is None or recorder.write_error is None):
+            bag.close()  # no-op after a normal end; after an error, finishes what was recorded
+        for node in nodes:
+            node.destroy_node()
+        ctx.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if procs:
+        result.summary['exit_codes'] = result.exit_codes
+        clock_code = result.exit_codes.get('line_clock')
+        if clock_code not in (0, None) and not result.summary.get('lost_participants'):
+            result.summary['lost_participants'] = {'line_clock': result.summary['sim_time_reached_s']}
+    result.summary['outcome'] = outcome(result.summary)
+    write_json_atomic(cfg.out / 'run.json', result.summary)
+    return result
+
+
+def outcome(summary: dict[str, Any]) -> dict[str, Any]:
+    """Whether the run ended as the scene expects, and if not, one line that says why.
+
+    ``ok`` only when sim time reached ``duration``, the run was not interrupted, no
+    participant was lost and the supervisor ended in the state ``simulate`` expects
+    (EXECUTE: the scenes start the line and nothing stops it unless a constraint is
+    violated, which ``simulate`` reports as a violation).
+    """
+    expected = 'EXECUTE' if summary['expected_from_simulate']['violations'] == 0 else None
+    problems: list[str] = []
+    lost = summary.get('lost_participants') or {}
+    for node, t in lost.items():
+        problems.append(f'participant {node} lost at {t:.6f} s')
+    if summary.get('interrupted'):
+        problems.append(f'interrupted ({summary["interrupted"]}) at {summary["sim_time_reached_s"]:.6f} s')
+    elif summary['sim_time_reached_s'] < summary['duration_s']:
+        problems.append(f'sim time stopped at {summary["sim_time_reached_s"]:.6f} s of {summary["duration_s"]:g} s')
+    state = summary['supervisor_state']
+    cause = summary.get('cause')
+    if expected is not None and state != expected:
+        what = f'line ended {state or "with no supervisor state"}'
+        if cause:
+            what += f': {cause}'
+        problems.insert(0, what)
+    elif expected is None and state == 'EXECUTE':
+        problems.append('simulate expects violations, yet the line ended in EXECUTE')
+    ok = not problems
+    return {
+        'ok': ok,
+        'expected_state': expected,
+        'state': state,
+        'message': 'line ended EXECUTE as the scene expects' if ok else '; '.join(problems),
+    }
+
+
+def _summary(
+    cfg: RunConfig,
+    scene: Any,
+    recorder: Any,
+    wall: float,
+    interrupted: list[str],
+    lost: dict[str, float],
+    rtf: float | None,
+) -> dict[str, Any]:
+    from folder_line.core.line.model import simulate
+
+    expected = simulate(scene, min(recorder.sim_time, cfg.duration) or cfg.duration, sample_rate=0.0).summary()
+    cause = None
+    for st in recorder.diagnostics:  # the first violation that changed the state, with its cycle and node
+        values = {kv.key: kv.value for kv in st.values}
+        if st.name == 'folder_line/supervisor/violation' and values.get('action') not in (None, 'none'):
+            constraint = values.get('constraint', '')
+            node = constraint.split(':', 1)[1] if constraint.startswith('lost:') else None
+            cause = (
+                f'{constraint} in cycle {values.get("cycle")} at {float(values.get("t", "nan")):.6f} s '
+                f'-> {values.get("action")}' + (f' (node {node})' if node else '')
+            )
+            break
+    return {
+        'scene': scene.name,
+        'duration_s': cfg.duration,
+        'sim_time_reached_s': recorder.sim_time,
+        'wall_time_s': wall,
+        'rtf_requested': cfg.rtf if cfg.rtf > 0 else 'max',
+        'rtf_achieved': rtf if rtf is not None else recorder.rtf_achieved(),
+        'mode': 'processes' if cfg.processes else 'in-process',
+        'clock': cfg.clock,
+        'interrupted': ', '.join(interrupted) if interrupted else False,
+        'lost_participants': lost,
+        'cause': cause,
+        'messages': dict(sorted(recorder.counts.items())),
+        'events_received': dict(sorted(recorder.event_counts.items())),
+        'sheets_counted': recorder.sheet_count,
+        'supervisor_state': recorder.state,
+        'expected_from_simulate': {
+            'sheets_counted': expected['sheets_counted'],
+            'events': expected['events'],
+            'violations': expected['violations']['count'],
+        },
+    }
+
+
+def _bag_summary(bag: Any, published: dict[str, int] | None) -> dict[str, Any]:
+    recorded = dict(sorted(bag.counts.items()))
+    out: dict[str, Any] = {
+        'bag': {'path': str(bag.path), 'segments': len(bag.files), 'messages': recorded},
+        'published': None if published is None else {t: published.get(t, 0) for t in recorded},
+        'lost': None if published is None else {t: published.get(t, 0) - n for t, n in recorded.items()},
+    }
+    out['loss_accounting'] = (
+        _PROCESSES_LOSS
+        if published is None
+        else 'in-process: published counted by the nodes, recorded counted in the bag'
+    )
+    return out
+
+
+def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -> None:
+    """Human-readable end of ``folder-line run``."""
+    print(
+        f'scene {summary["scene"]}: {summary["sim_time_reached_s"]:.3f} s of line time in '
+        f'{summary["wall_time_s"]:.1f} s ({summary["mode"]}, {summary["clock"]} clock, rtf achieved '
+        f'{summary["rtf_achieved"]:.2f}, ceiling {summary["rtf_requested"]})',
+        file=stream,
+    )
+    print(
+        f'supervisor: {summary["supervisor_state"]}   sheets counted: {summary["sheets_counted"]} '
+        f'(simulate: {summary["expected_from_simulate"]["sheets_counted"]})',
+        file=stream,
+    )
+    print('messages received per topic:', file=stream)
+    for topic, n in summary['messages'].items():
+        print(f'  {topic:<40} {n}', file=stream)
+    if 'bag' in summary:
+        lost = summary.get('lost')
+        if lost is None:
+            print(f'lost messages: unknown ({summary.get("loss_accounting", "")})', file=stream)
+        elif any(lost.values()):
+            print('lost messages: ' + ', '.join(f'{t} {n}' for t, n in lost.items() if n), file=stream)
+        else:
+            print('lost messages: 0 on every topic', file=stream)
+        print(f'wrote {summary["bag"]["path"]} ({summary["bag"]["segments"]} segments)', file=stream)
+    print(f'wrote {out_dir / "run.json"}', file=stream)
