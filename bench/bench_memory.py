@@ -25,7 +25,7 @@ def _peak(scene: str, duration: float) -> tuple[int, int, int]:
     code = """
 import json, resource, sys
 sys.path.insert(0, sys.argv[3])
-from folder_line.core.line.events import EVENT_KINDS
+from folder_line.interfaces import EVENT_KINDS
 from folder_line.core.line.model import simulate
 from folder_line.config.scenes import load_scene
 scene = load_scene(sys.argv[1], {})

@@ -109,12 +109,11 @@ def line_fanout(rate: float) -> dict[str, int]:
     import rclpy
     from rclpy.parameter import Parameter
 
-    from folder_line.interfaces import KNOWN_PARTICIPANTS, RECORDER
+    from folder_line.interfaces import KNOWN_PARTICIPANTS, tick_done_topic
     from folder_line.ros.common import events_executor
-    from folder_line.ros.lockstep import tick_done_topic
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
 
     cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
     ctx = rclpy.Context()
@@ -123,7 +122,7 @@ def line_fanout(rate: float) -> dict[str, int]:
     recorder = LineRecorder(context=ctx)
     executor.add_node(recorder)
     nodes = [recorder, *add_machine_nodes(cfg, ctx, executor)]
-    params = clock_parameters(cfg, (*LINE_NODES, RECORDER))
+    params = clock_parameters(cfg, KNOWN_PARTICIPANTS)
     clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], context=ctx)
     nodes.append(clock)
     executor.add_node(clock)
@@ -167,8 +166,7 @@ def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, d
 def line(duration: float, rate: float, processes: bool) -> dict[str, Any]:
     """Runs of ``duration`` and ``2 duration``: the CPU per tick is their difference over the extra ticks, so
     start-up (imports, models, discovery) cancels out; the rtf reached is the longer run's."""
-    from folder_line.interfaces import KNOWN_PARTICIPANTS
-    from folder_line.ros.lockstep import tick_done_topic
+    from folder_line.interfaces import KNOWN_PARTICIPANTS, tick_done_topic
 
     cpu1, _, _ = _run(duration, rate, processes)
     cpu2, rtf, s = _run(2 * duration, rate, processes)

@@ -1,16 +1,317 @@
-"""Names of the line's interfaces that every layer may import (no rclpy here).
+"""The line's interfaces, in one place and without rclpy: names, topics, events, time.
 
-The ROS adapters (:mod:`folder_line.ros.nodes`), ``folder-line run``, the analysis and the
-launch file take the node names from here.
+Every layer takes these from here: the ROS nodes and ``folder-line run``
+(:mod:`folder_line.ros`), the bag tools (:mod:`folder_line.bag`), the analysis
+(:mod:`folder_line.analysis`), the monitor and the launch file. The numpy core
+(:mod:`folder_line.core`) does not import this module: it knows machines, not ROS node
+names; :data:`NODE_OF_UNIT` maps one to the other.
+
+Topics
+------
+==================================  =================================  ==========================================
+topic                               type                               meaning
+==================================  =================================  ==========================================
+``/clock``                          ``rosgraph_msgs/msg/Clock``        simulated time, published by ``line_clock``
+``/line/<node>/joint_states``       ``sensor_msgs/msg/JointState``     joint positions (rad or m), velocities
+                                                                       (rad/s or m/s), efforts (N m or N) of one
+                                                                       machine; ``<node>`` is the node's name
+``/line/events``                    ``sensor_msgs/msg/TimeReference``  discrete events of the line (kinds:
+                                                                       ``EVENT_KINDS``)
+``/diagnostics``                    ``diagnostic_msgs/msg/             constraint margins and faults, per machine
+                                    DiagnosticArray``
+``/line/supervisor/state``          ``std_msgs/msg/String``            state of the line's supervisor
+``/line/sheet_counter/count``       ``std_msgs/msg/UInt64``            sheets delivered so far
+``/line/sheet_counter/rate``        ``std_msgs/msg/Float64``           sheets (or leaves) per second
+``/line/sheet_counter/landing_x``   ``std_msgs/msg/Float64``           landing x of each leaf, m (layup)
+``/line/supervisor/commands``       ``sensor_msgs/msg/TimeReference``  drive commands: ``source`` = hold, unhold,
+                                                                       stop or start; ``time_ref`` = effective
+                                                                       sim time
+``/line/participants``              ``std_msgs/msg/String``            ``line_clock``'s announcement: clock mode,
+                                                                       end and the lockstep participants
+==================================  =================================  ==========================================
+
+The table is also data (:data:`TOPICS`); :data:`LINE_TOPIC_TYPES` lists every topic a
+recorder takes, with its type. The ROS side maps the types to message classes.
+
+Events
+------
+The machine nodes publish each exact event of the batch model on ``/line/events``
+(``sensor_msgs/TimeReference``): ``time_ref`` is the event time (nearest ns) and
+``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'`` (:func:`event_source`,
+:func:`parse_event_source`). :data:`EVENT_OWNER` says which node publishes each kind.
+
+Time
+----
+Times on the wire are integer nanoseconds (:data:`NS_PER_S`); a
+``builtin_interfaces/Time`` holds at most :data:`TIME_MSG_MAX_NS`.
 """
 
 from __future__ import annotations
 
-__all__ = ['KNOWN_PARTICIPANTS', 'MACHINE_NODES', 'RECORDER']
+import re
+from dataclasses import dataclass
 
+from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.numerics.timebase import NS_PER_S, seconds_to_ns
+
+__all__ = [
+    'CLOCK_TOPIC',
+    'COMMANDS_TOPIC',
+    'COMMAND_KINDS',
+    'DIAGNOSTICS_TOPIC',
+    'EVENTS_TOPIC',
+    'EVENT_KINDS',
+    'EVENT_OWNER',
+    'JOINT_NODES',
+    'JOINT_STATES_TOPIC_PATTERN',
+    'KNOWN_PARTICIPANTS',
+    'LANDING_TOPIC',
+    'LINE_CLOCK',
+    'LINE_TOPIC_TYPES',
+    'MACHINE_NODES',
+    'NODE_OF_UNIT',
+    'NS_PER_S',
+    'PARTICIPANTS_TOPIC',
+    'RECORDER',
+    'SHEET_COUNT_TOPIC',
+    'SHEET_RATE_TOPIC',
+    'SOURCE_PATTERN',
+    'SUPERVISOR',
+    'SUPERVISOR_STATE_TOPIC',
+    'TICK_DONE_PATTERN',
+    'TIME_MSG_MAX_NS',
+    'TOPICS',
+    'TopicInfo',
+    'event_source',
+    'joint_states_node',
+    'joint_states_topic',
+    'parse_event_source',
+    'seconds_to_ns',
+    'tick_done_topic',
+]
+
+# --------------------------------------------------------------------------- nodes
+
+#: the machine nodes that publish joint states, in start order
+JOINT_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')
+#: the supervisor's node name
+SUPERVISOR = 'supervisor'
 #: the machine nodes of the line, in start order
-MACHINE_NODES: tuple[str, ...] = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
+MACHINE_NODES: tuple[str, ...] = (*JOINT_NODES, SUPERVISOR)
+#: the node that owns simulated time
+LINE_CLOCK = 'line_clock'
 #: the recorder's node name (a lockstep participant when ``folder-line run`` records)
 RECORDER = 'line_recorder'
 #: every node that can take part in the lockstep
 KNOWN_PARTICIPANTS: tuple[str, ...] = (*MACHINE_NODES, RECORDER)
+
+#: the core's machine units (:data:`folder_line.core.line.model.UNITS`) -> the node that runs each
+NODE_OF_UNIT: dict[str, str] = {
+    'drive': 'crank_drive',
+    'belts': 'belt_conveyor',
+    'feed': 'feed_transporter',
+    'counter': 'sheet_counter',
+}
+
+# --------------------------------------------------------------------------- time
+
+TIME_MSG_MAX_NS = (2**31 - 1) * NS_PER_S + NS_PER_S - 1
+"""Largest time a ``builtin_interfaces/msg/Time`` holds (``sec`` is an int32), ns."""
+
+# --------------------------------------------------------------------------- topics
+
+CLOCK_TOPIC = '/clock'
+"""Simulated time (``rosgraph_msgs/msg/Clock``); its only publisher is ``line_clock``."""
+
+EVENTS_TOPIC = '/line/events'
+"""Discrete events of the line (``sensor_msgs/msg/TimeReference``)."""
+
+DIAGNOSTICS_TOPIC = '/diagnostics'
+"""Constraint margins and faults (``diagnostic_msgs/msg/DiagnosticArray``)."""
+
+SUPERVISOR_STATE_TOPIC = '/line/supervisor/state'
+"""State of the line's supervisor (``std_msgs/msg/String``)."""
+
+SHEET_COUNT_TOPIC = '/line/sheet_counter/count'
+"""Number of sheets delivered so far (``std_msgs/msg/UInt64``)."""
+
+SHEET_RATE_TOPIC = '/line/sheet_counter/rate'
+"""Sheets (or leaves) per second over the counter's window (``std_msgs/msg/Float64``)."""
+
+LANDING_TOPIC = '/line/sheet_counter/landing_x'
+"""Landing x of each leaf on the container floor, m (``std_msgs/msg/Float64``; layup scenes)."""
+
+COMMANDS_TOPIC = '/line/supervisor/commands'
+"""The supervisor's drive commands (``sensor_msgs/msg/TimeReference``: ``source`` = hold, unhold,
+stop or start; ``time_ref`` = effective sim time). Reliable, transient-local, keep-all, so
+a node that starts late still learns every command."""
+
+PARTICIPANTS_TOPIC = '/line/participants'
+"""``line_clock``'s announcement of the lockstep participants (``std_msgs/msg/String``)."""
+
+JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
+"""Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
+
+TICK_DONE_PATTERN = '/line/{node}/tick_done'
+"""A participant's acknowledgement of a tick (``sensor_msgs/msg/TimeReference``); see :func:`tick_done_topic`."""
+
+#: the drive commands the supervisor publishes on :data:`COMMANDS_TOPIC`
+COMMAND_KINDS: tuple[str, ...] = ('hold', 'unhold', 'stop', 'start')
+
+_NODE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+
+
+def _node_topic(pattern: str, node: str) -> str:
+    if not _NODE_NAME.match(node):
+        msg = f'node name {node!r}: must start with a letter and hold only letters, digits and _'
+        raise ValueError(msg)
+    return pattern.format(node=node)
+
+
+def joint_states_topic(node: str) -> str:
+    """``/line/<node>/joint_states``.
+
+    Raises
+    ------
+    ValueError
+        ``node`` is not a plain node name (letters, digits, ``_``; no namespace).
+    """
+    return _node_topic(JOINT_STATES_TOPIC_PATTERN, node)
+
+
+def joint_states_node(topic: str) -> str | None:
+    """The node whose joint states ``topic`` carries, or None if it is not a joint-states topic."""
+    head, _, tail = JOINT_STATES_TOPIC_PATTERN.partition('{node}')
+    if topic.startswith(head) and topic.endswith(tail) and len(topic) > len(head) + len(tail):
+        node = topic[len(head) : len(topic) - len(tail)]
+        return node if _NODE_NAME.match(node) else None
+    return None
+
+
+def tick_done_topic(node: str) -> str:
+    """``/line/<node>/tick_done``, the participant's acknowledgements.
+
+    Raises
+    ------
+    ValueError
+        ``node`` is not a plain node name.
+    """
+    return _node_topic(TICK_DONE_PATTERN, node)
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """One topic of the line.
+
+    Parameters
+    ----------
+    name : str
+        Absolute topic name; ``{node}`` stands for a node's name in a pattern.
+    type : str
+        Message type as ``package/msg/Name`` (the spelling of bags and of ``ros2 topic``).
+    description : str
+        What is published there, with units.
+    """
+
+    name: str
+    type: str
+    description: str
+
+
+TOPICS: tuple[TopicInfo, ...] = (
+    TopicInfo(CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock', 'simulated time, integer ns; published by line_clock'),
+    TopicInfo(
+        JOINT_STATES_TOPIC_PATTERN,
+        'sensor_msgs/msg/JointState',
+        'joint positions (rad or m), velocities (rad/s or m/s), efforts (N m or N) of one machine',
+    ),
+    TopicInfo(
+        EVENTS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'discrete events of the line (kinds: folder_line.interfaces.EVENT_KINDS)',
+    ),
+    TopicInfo(DIAGNOSTICS_TOPIC, 'diagnostic_msgs/msg/DiagnosticArray', 'constraint margins and faults'),
+    TopicInfo(SUPERVISOR_STATE_TOPIC, 'std_msgs/msg/String', 'state of the line supervisor'),
+    TopicInfo(SHEET_COUNT_TOPIC, 'std_msgs/msg/UInt64', 'sheets delivered so far'),
+    TopicInfo(SHEET_RATE_TOPIC, 'std_msgs/msg/Float64', 'sheets (or leaves) per second over the counter window'),
+    TopicInfo(LANDING_TOPIC, 'std_msgs/msg/Float64', 'landing x of each leaf, m (layup scenes)'),
+    TopicInfo(
+        COMMANDS_TOPIC,
+        'sensor_msgs/msg/TimeReference',
+        'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time',
+    ),
+    TopicInfo(
+        PARTICIPANTS_TOPIC,
+        'std_msgs/msg/String',
+        "line_clock's announcement: clock mode, end and the lockstep participants",
+    ),
+)
+
+#: every topic a recorder of the line takes -> its type (``package/msg/Name``)
+LINE_TOPIC_TYPES: dict[str, str] = {
+    CLOCK_TOPIC: 'rosgraph_msgs/msg/Clock',
+    **{joint_states_topic(n): 'sensor_msgs/msg/JointState' for n in JOINT_NODES},
+    EVENTS_TOPIC: 'sensor_msgs/msg/TimeReference',
+    DIAGNOSTICS_TOPIC: 'diagnostic_msgs/msg/DiagnosticArray',
+    SUPERVISOR_STATE_TOPIC: 'std_msgs/msg/String',
+    SHEET_COUNT_TOPIC: 'std_msgs/msg/UInt64',
+    SHEET_RATE_TOPIC: 'std_msgs/msg/Float64',
+    LANDING_TOPIC: 'std_msgs/msg/Float64',
+    COMMANDS_TOPIC: 'sensor_msgs/msg/TimeReference',
+    PARTICIPANTS_TOPIC: 'std_msgs/msg/String',
+}
+
+# --------------------------------------------------------------------------- events
+
+#: which node publishes which event kind
+EVENT_OWNER: dict[str, str] = {
+    'knife_contact': 'crank_drive',
+    'knife_exit': 'crank_drive',
+    'sheet_handover': 'feed_transporter',
+    'at_stops': 'feed_transporter',
+    'bounce': 'feed_transporter',
+    'settled': 'feed_transporter',
+    'released_on_pile': 'sheet_counter',
+    'leaf_landed': 'sheet_counter',
+    'leaf_spilled': 'sheet_counter',
+    'leaf_enter': 'belt_conveyor',
+    'leaf_exit': 'belt_conveyor',
+    'leaf_damaged': 'belt_conveyor',
+    'leaf_stick': 'belt_conveyor',
+    'leaf_slip': 'belt_conveyor',
+    'fault_missing': 'belt_conveyor',
+    'fault_double': 'belt_conveyor',
+    'fault_late': 'belt_conveyor',
+    'belt_slowdown_start': 'belt_conveyor',
+    'belt_slowdown_end': 'belt_conveyor',
+}
+if set(EVENT_OWNER) != set(EVENT_KINDS):  # pragma: no cover - a programming error, caught on import
+    raise RuntimeError('every event kind needs a publishing node')
+
+#: the ``source`` of an event; ``value`` is Python's ``repr`` of a float (round-trip exact)
+SOURCE_PATTERN = re.compile(r'^(?P<kind>\w+) sheet=(?P<sheet>-?\d+) cycle=(?P<cycle>-?\d+) value=(?P<value>\S+)$')
+
+
+def event_source(kind: str, sheet: int, cycle: int, value: float) -> str:
+    """``TimeReference.source`` of an event: ``'<kind> sheet=<id> cycle=<k> value=<repr>'``."""
+    return f'{kind} sheet={int(sheet)} cycle={int(cycle)} value={float(value)!r}'
+
+
+def parse_event_source(source: str) -> tuple[str, int, int, float]:
+    """Inverse of :func:`event_source`: ``(kind, sheet, cycle, value)``.
+
+    Raises
+    ------
+    ValueError
+        ``source`` is not of that form, or names an unknown event kind.
+    """
+    m = SOURCE_PATTERN.match(source)
+    if m is None or m['kind'] not in EVENT_KINDS:
+        msg = f'not an event source: {source!r}'
+        raise ValueError(msg)
+    try:
+        value = float(m['value'])
+    except ValueError:
+        msg = f'not an event source (value): {source!r}'
+        raise ValueError(msg) from None
+    return m['kind'], int(m['sheet']), int(m['cycle']), value

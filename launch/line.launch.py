@@ -23,9 +23,8 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
+from folder_line.interfaces import MACHINE_NODES  # the installed package names its nodes once
 from launch import LaunchDescription
-
-MACHINE_NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
 
 ARGUMENTS = (
     ('scene', 'folder', 'scene name (config/scenes) or path of a scene YAML file'),

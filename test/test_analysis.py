@@ -44,9 +44,8 @@ from folder_line.analysis.analysis import (
     recorded_transitions,
     transitions_agree,
 )
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel, simulate
-from folder_line.event_text import event_source, parse_event_source
+from folder_line.interfaces import EVENT_KINDS, event_source, parse_event_source
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
 pytestmark = [
@@ -400,21 +399,15 @@ def test_transitions_agree_allows_states_within_one_tick() -> None:
 
 
 def test_topic_names_are_the_nodes() -> None:
-    from folder_line.analysis import analysis
+    from folder_line import interfaces
     from folder_line.ros import common
 
-    for name in (
-        'CLOCK_TOPIC',
-        'EVENTS_TOPIC',
-        'COMMANDS_TOPIC',
-        'SHEET_COUNT_TOPIC',
-        'LANDING_TOPIC',
-        'DIAGNOSTICS_TOPIC',
-    ):
-        assert getattr(analysis, name) == getattr(common, name)
-    assert STATE_TOPIC == common.SUPERVISOR_STATE_TOPIC
-    node = 'feed_transporter'
-    assert analysis.JOINT_STATES_PREFIX + node + analysis.JOINT_STATES_SUFFIX == common.joint_states_topic(node)
+    assert STATE_TOPIC == interfaces.SUPERVISOR_STATE_TOPIC
+    for node in interfaces.JOINT_NODES:
+        topic = common.joint_states_topic(node)
+        assert interfaces.joint_states_node(topic) == node
+    assert interfaces.joint_states_node('/line/events') is None
+    assert interfaces.joint_states_node('/line//joint_states') is None
 
 
 def test_supervisor_defaults_are_the_nodes() -> None:
@@ -482,9 +475,6 @@ def test_event_source_round_trip(kind: str, sheet: int, cycle: int, value: float
 
 
 def test_event_source_rejects_other_text() -> None:
-    from folder_line.ros.nodes import machine
-
-    assert machine.parse_event_source is parse_event_source and machine.event_source is event_source
     for bad in (
         'hold',
         'knife_contact sheet=1 cycle=2',

@@ -15,21 +15,21 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
 from folder_line.cli.main import main
-from folder_line.core.line.events import EVENT_KINDS
-from folder_line.ros.common import (
+from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
     EVENTS_TOPIC,
     LANDING_TOPIC,
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
-    joint_states_topic,
-    ns_to_time_msg,
+    event_source,
 )
+from folder_line.ros.common import joint_states_topic, ns_to_time_msg
 from folder_line.ros.monitor import MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats, run_monitor
-from folder_line.ros.nodes.machine import event_source, line_model
+from folder_line.ros.nodes.machine import line_model
 from folder_line.ros.nodes.supervisor import Supervisor
 from folder_line.ros.recorder import LINE_TOPICS
 

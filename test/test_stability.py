@@ -51,8 +51,9 @@ from folder_line.core.mechanisms.layup import (
 )
 from folder_line.core.numerics import loop
 from folder_line.core.numerics.roots import find_sign_changes
-from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock
+from folder_line.core.numerics.timebase import ShaftClock
 from folder_line.errors import AssemblyError, IntegrationError, ParameterError
+from folder_line.interfaces import NS_PER_S
 
 EPS = float(np.finfo(float).eps)
 DELTAS = (-1e-12, 1e-12)

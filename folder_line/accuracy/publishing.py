@@ -400,11 +400,11 @@ def live_cost(
     from folder_line.bag.bag import BagWriter
     from folder_line.config.scenes import scene_mapping
     from folder_line.core.line.scene import parse_scene
-    from folder_line.interfaces import RECORDER
+    from folder_line.interfaces import KNOWN_PARTICIPANTS
     from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import LINE_NODES, RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
 
     TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)
@@ -443,7 +443,7 @@ def live_cost(
             machines = add_machine_nodes(cfg, ctx, executor)
             nodes += machines
             joint_nodes = {n.NODE_NAME: n for n in machines if n.NODE_NAME in _JOINT_NODES}
-            params = {**clock_parameters(cfg, (*LINE_NODES, RECORDER)), 'rate': clock_rate}
+            params = {**clock_parameters(cfg, KNOWN_PARTICIPANTS), 'rate': clock_rate}
             clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)

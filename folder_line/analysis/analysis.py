@@ -72,11 +72,10 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
-from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS, ConstraintSeries, event_kind
+from folder_line.core.line.events import EVENT_DTYPE, ConstraintSeries, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Command, Drive
 from folder_line.errors import FolderLineError, ParameterError
-from folder_line.event_text import parse_event_source
 from folder_line.files.atomic import (
     check_output_file,
     claim_output_dir,
@@ -85,6 +84,19 @@ from folder_line.files.atomic import (
     write_text_atomic,
 )
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    COMMANDS_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    NS_PER_S,
+    SHEET_COUNT_TOPIC,
+    SUPERVISOR_STATE_TOPIC,
+    joint_states_node,
+    parse_event_source,
+)
 
 __all__ = [
     'CLOCK_TOPIC',
@@ -115,17 +127,9 @@ __all__ = [
     'transitions_agree',
 ]
 
-# the line's topics (folder_line.ros.common names them; that module needs rclpy, this one must not)
-CLOCK_TOPIC = '/clock'
-EVENTS_TOPIC = '/line/events'
-STATE_TOPIC = '/line/supervisor/state'
-COMMANDS_TOPIC = '/line/supervisor/commands'
-SHEET_COUNT_TOPIC = '/line/sheet_counter/count'
-LANDING_TOPIC = '/line/sheet_counter/landing_x'
-DIAGNOSTICS_TOPIC = '/diagnostics'
+STATE_TOPIC = SUPERVISOR_STATE_TOPIC
 #: the statuses the supervisor publishes on /diagnostics for its decisions
 SUPERVISOR_STATUS_PREFIX = 'folder_line/supervisor/'
-JOINT_STATES_PREFIX, JOINT_STATES_SUFFIX = '/line/', '/joint_states'
 
 #: figure file -> what it shows (the captions of report.md)
 FIGURES: dict[str, str] = {
@@ -139,7 +143,6 @@ FIGURES: dict[str, str] = {
     'landing.png': 'L: where the leaves landed across the container',
 }
 
-NS_PER_S = 1_000_000_000
 #: cycles shown in the Gantt chart by default
 GANTT_CYCLES = 8
 
@@ -368,8 +371,7 @@ def read_recording(
                 bad_events += 1
                 continue
             ev_rows.append((_time_ns(msg.time_ref), EVENT_KINDS.index(kind), sheet, cycle, value))
-        elif topic.startswith(JOINT_STATES_PREFIX) and topic.endswith(JOINT_STATES_SUFFIX):
-            node = topic[len(JOINT_STATES_PREFIX) : -len(JOINT_STATES_SUFFIX)]
+        elif (node := joint_states_node(topic)) is not None:
             acc = joints.get(node)
             if acc is None:
                 acc = joints[node] = _Joints(node, msg.name)

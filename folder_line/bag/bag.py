@@ -60,6 +60,7 @@ import yaml
 from folder_line import __version__
 from folder_line.errors import FolderLineError
 from folder_line.files.atomic import write_text_atomic
+from folder_line.interfaces import NS_PER_S
 
 __all__ = [
     'KEY_COMPLETE',
@@ -102,7 +103,6 @@ KEY_REPAIR = 'folder_line.repair'
 #: ``'false'`` while the writer has the bag open, ``'true'`` once it closed it, ``'repaired'`` after :func:`repair`
 KEY_COMPLETE = 'folder_line.complete'
 
-NS_PER_S = 1_000_000_000
 _SPLIT = re.compile(r'_(\d+)\.mcap$')
 
 

@@ -1,4 +1,4 @@
-"""What every node of the line shares: topic names, parameter specs, sim time, ``main``.
+"""What every node of the line shares: QoS, parameter specs, sim time messages, ``main``.
 
 A node of the line is a thin adapter (see ``STYLE.md``): it declares its
 parameters from a table of :class:`ParamSpec` with :func:`declare_parameters`
@@ -9,30 +9,7 @@ core, fills the message and publishes on one of the topics named here. Its modul
     def main(args: list[str] | None = None) -> int:
         return run_node(MyNode, args)
 
-Topics of the line
-------------------
-==================================  =================================  ==========================================
-topic                               type                               meaning
-==================================  =================================  ==========================================
-``/clock``                          ``rosgraph_msgs/msg/Clock``        simulated time, published by ``line_clock``
-``/line/<node>/joint_states``       ``sensor_msgs/msg/JointState``     joint positions (rad or m), velocities
-                                                                       (rad/s or m/s), efforts (N m or N) of one
-                                                                       machine; ``<node>`` is the node's name
-``/line/events``                    ``sensor_msgs/msg/TimeReference``  discrete events of the line (kinds:
-                                                                       ``folder_line.core.line.events.EVENT_KINDS``)
-``/diagnostics``                    ``diagnostic_msgs/msg/             constraint margins and faults, per machine
-                                    DiagnosticArray``
-``/line/supervisor/state``          ``std_msgs/msg/String``            state of the line's supervisor
-``/line/sheet_counter/count``       ``std_msgs/msg/UInt64``            sheets delivered so far
-``/line/sheet_counter/rate``        ``std_msgs/msg/Float64``           sheets (or leaves) per second
-``/line/sheet_counter/landing_x``   ``std_msgs/msg/Float64``           landing x of each leaf, m (layup)
-``/line/supervisor/commands``       ``sensor_msgs/msg/TimeReference``  drive commands: ``source`` = hold, unhold,
-                                                                       stop or start; ``time_ref`` = effective
-                                                                       sim time
-==================================  =================================  ==========================================
-
-The table is also data (:data:`TOPICS`) so that tests and bag tools use the
-same names and types.
+Topic names and types are in :mod:`folder_line.interfaces`; the QoS profiles are here.
 """
 
 from __future__ import annotations
@@ -47,7 +24,6 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
 import rclpy
@@ -64,27 +40,15 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.validate_node_name import validate_node_name
 
+from folder_line import interfaces
 from folder_line.errors import FolderLineError, ParameterError
+from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS
 
 __all__ = [
-    'CLOCK_TOPIC',
-    'EVENTS_TOPIC',
-    'DIAGNOSTICS_TOPIC',
-    'SUPERVISOR_STATE_TOPIC',
-    'SHEET_COUNT_TOPIC',
-    'SHEET_RATE_TOPIC',
-    'LANDING_TOPIC',
-    'COMMANDS_TOPIC',
     'COMMANDS_QOS',
-    'JOINT_STATES_TOPIC_PATTERN',
-    'TopicInfo',
-    'TOPICS',
     'joint_states_topic',
     'CLOCK_QOS',
     'PUBLISH_DEPTH',
-    'NS_PER_S',
-    'TIME_MSG_MAX_NS',
-    'seconds_to_ns',
     'ns_to_time_msg',
     'time_msg_to_ns',
     'ParamValue',
@@ -105,79 +69,6 @@ __all__ = [
 
 # --------------------------------------------------------------------------- topics
 
-CLOCK_TOPIC = '/clock'
-"""Simulated time (``rosgraph_msgs/msg/Clock``); its only publisher is ``line_clock``."""
-
-EVENTS_TOPIC = '/line/events'
-"""Discrete events of the line (``sensor_msgs/msg/TimeReference``)."""
-
-DIAGNOSTICS_TOPIC = '/diagnostics'
-"""Constraint margins and faults (``diagnostic_msgs/msg/DiagnosticArray``)."""
-
-SUPERVISOR_STATE_TOPIC = '/line/supervisor/state'
-"""State of the line's supervisor (``std_msgs/msg/String``)."""
-
-SHEET_COUNT_TOPIC = '/line/sheet_counter/count'
-"""Number of sheets delivered so far (``std_msgs/msg/UInt64``)."""
-
-SHEET_RATE_TOPIC = '/line/sheet_counter/rate'
-"""Sheets (or leaves) per second over the counter's window (``std_msgs/msg/Float64``)."""
-
-LANDING_TOPIC = '/line/sheet_counter/landing_x'
-"""Landing x of each leaf on the container floor, m (``std_msgs/msg/Float64``; layup scenes)."""
-
-COMMANDS_TOPIC = '/line/supervisor/commands'
-"""The supervisor's drive commands (``sensor_msgs/msg/TimeReference``: ``source`` = hold, unhold,
-stop or start; ``time_ref`` = effective sim time). Reliable, transient-local, keep-all, so
-a node that starts late still learns every command."""
-
-JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
-"""Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
-
-
-@dataclass(frozen=True)
-class TopicInfo:
-    """One topic of the line.
-
-    Parameters
-    ----------
-    name : str
-        Absolute topic name; ``{node}`` stands for a node's name in a pattern.
-    type : str
-        Message type as ``package/msg/Name`` (the spelling of bags and of ``ros2 topic``).
-    description : str
-        What is published there, with units.
-    """
-
-    name: str
-    type: str
-    description: str
-
-
-TOPICS: tuple[TopicInfo, ...] = (
-    TopicInfo(CLOCK_TOPIC, 'rosgraph_msgs/msg/Clock', 'simulated time, integer ns; published by line_clock'),
-    TopicInfo(
-        JOINT_STATES_TOPIC_PATTERN,
-        'sensor_msgs/msg/JointState',
-        'joint positions (rad or m), velocities (rad/s or m/s), efforts (N m or N) of one machine',
-    ),
-    TopicInfo(
-        EVENTS_TOPIC,
-        'sensor_msgs/msg/TimeReference',
-        'discrete events of the line (kinds: folder_line.core.line.events.EVENT_KINDS)',
-    ),
-    TopicInfo(DIAGNOSTICS_TOPIC, 'diagnostic_msgs/msg/DiagnosticArray', 'constraint margins and faults'),
-    TopicInfo(SUPERVISOR_STATE_TOPIC, 'std_msgs/msg/String', 'state of the line supervisor'),
-    TopicInfo(SHEET_COUNT_TOPIC, 'std_msgs/msg/UInt64', 'sheets delivered so far'),
-    TopicInfo(SHEET_RATE_TOPIC, 'std_msgs/msg/Float64', 'sheets (or leaves) per second over the counter window'),
-    TopicInfo(LANDING_TOPIC, 'std_msgs/msg/Float64', 'landing x of each leaf, m (layup scenes)'),
-    TopicInfo(
-        COMMANDS_TOPIC,
-        'sensor_msgs/msg/TimeReference',
-        'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time',
-    ),
-)
-
 
 def joint_states_topic(node_name: str) -> str:
     """``/line/<node_name>/joint_states``.
@@ -193,7 +84,7 @@ def joint_states_topic(node_name: str) -> str:
         ``node_name`` is not a valid node name.
     """
     validate_node_name(node_name)
-    return JOINT_STATES_TOPIC_PATTERN.format(node=node_name)
+    return interfaces.joint_states_topic(node_name)
 
 
 COMMANDS_QOS = QoSProfile(
@@ -213,37 +104,6 @@ CLOCK_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIAB
 subscription every node's ``TimeSource`` makes, and recorders that want every tick."""
 
 # --------------------------------------------------------------------------- time
-
-NS_PER_S = 1_000_000_000
-TIME_MSG_MAX_NS = (2**31 - 1) * NS_PER_S + NS_PER_S - 1
-"""Largest time a ``builtin_interfaces/msg/Time`` holds (``sec`` is an int32), ns."""
-
-
-def seconds_to_ns(seconds: float) -> int:
-    """Round a time in seconds to integer nanoseconds, exactly.
-
-    The float's exact binary value is rounded (half to even), so
-    ``seconds_to_ns(0.1) == 100_000_000`` with no ``0.1 * 1e9`` error.
-
-    Parameters
-    ----------
-    seconds : float
-        Finite time, s.
-
-    Returns
-    -------
-    int
-        Time, ns.
-
-    Raises
-    ------
-    ValueError
-        ``seconds`` is NaN or infinite.
-    """
-    if not math.isfinite(seconds):
-        msg = f'seconds={seconds!r}: must be finite'
-        raise ValueError(msg)
-    return round(Fraction(seconds) * NS_PER_S)
 
 
 def ns_to_time_msg(ns: int) -> TimeMsg:

@@ -54,18 +54,21 @@ from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
 from folder_line.core.supervision.lockstep import TickLedger, format_counts, parse_counts
-from folder_line.interfaces import KNOWN_PARTICIPANTS, MACHINE_NODES, RECORDER
-from folder_line.ros.common import CLOCK_TOPIC, NS_PER_S, PUBLISH_DEPTH, ns_to_time_msg, time_msg_to_ns
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    KNOWN_PARTICIPANTS,
+    MACHINE_NODES,
+    NS_PER_S,
+    PARTICIPANTS_TOPIC,
+    tick_done_topic,
+)
+from folder_line.ros.common import PUBLISH_DEPTH, ns_to_time_msg, time_msg_to_ns
 
 __all__ = [
     'CLOCK_MODES',
-    'KNOWN_PARTICIPANTS',
     'DEFAULT_PARTICIPANTS',
     'LINE_QOS',
-    'MACHINE_NODES',
     'PARTICIPANTS_QOS',
-    'PARTICIPANTS_TOPIC',
-    'RECORDER',
     'TICK_QOS',
     'Announcement',
     'Participant',
@@ -73,12 +76,9 @@ __all__ = [
     'parse_announcement',
     'participant_names',
     'read_ack',
-    'tick_done_topic',
 ]
 
-PARTICIPANTS_TOPIC = '/line/participants'
 HEARTBEAT = 0.1  # wall s: a participant that waits repeats its latest acknowledgement this often
-TICK_DONE_PATTERN = '/line/{node}/tick_done'
 
 #: what ``line_clock`` waits for when started by hand with no ``participants``
 DEFAULT_PARTICIPANTS: tuple[str, ...] = MACHINE_NODES
@@ -96,11 +96,6 @@ PARTICIPANTS_QOS = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 CLOCK_SUB_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def tick_done_topic(node: str) -> str:
-    """``/line/<node>/tick_done``."""
-    return TICK_DONE_PATTERN.format(node=node)
 
 
 @dataclass(frozen=True)

@@ -49,22 +49,21 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import MessageInfo
 
-from folder_line.core.line.events import EVENT_KINDS
-from folder_line.ros.common import (
+from folder_line.interfaces import (
     CLOCK_TOPIC,
-    COMMANDS_QOS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
     EVENTS_TOPIC,
     JOINT_STATES_TOPIC_PATTERN,
     LANDING_TOPIC,
     NS_PER_S,
+    PARTICIPANTS_TOPIC,
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
-    time_msg_to_ns,
 )
-from folder_line.ros.lockstep import PARTICIPANTS_TOPIC
+from folder_line.ros.common import COMMANDS_QOS, time_msg_to_ns
 from folder_line.ros.recorder import LINE_TOPICS
 
 __all__ = [

@@ -29,31 +29,25 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, Header, String, UInt64
 
-from folder_line.event_text import parse_event_source
-from folder_line.ros.common import (
+from folder_line.interfaces import (
     CLOCK_TOPIC,
-    COMMANDS_QOS,
+    COMMAND_KINDS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_OWNER,
     EVENTS_TOPIC,
     LANDING_TOPIC,
+    MACHINE_NODES,
     NS_PER_S,
+    PARTICIPANTS_TOPIC,
+    RECORDER,
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
-    joint_states_topic,
-    time_msg_to_ns,
+    parse_event_source,
 )
-from folder_line.ros.lockstep import (
-    CLOCK_SUB_QOS,
-    LINE_QOS,
-    MACHINE_NODES,
-    PARTICIPANTS_TOPIC,
-    RECORDER,
-    Announcement,
-    Participant,
-)
-from folder_line.ros.nodes.machine import COMMAND_KINDS, EVENT_OWNER
+from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, time_msg_to_ns
+from folder_line.ros.lockstep import CLOCK_SUB_QOS, LINE_QOS, Announcement, Participant
 from folder_line.ros.nodes.supervisor import STATE_QOS
 
 __all__ = ['LINE_TOPICS', 'LineRecorder']

@@ -46,10 +46,10 @@ from typing import IO, Any
 
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.files.atomic import write_json_atomic
+from folder_line.interfaces import MACHINE_NODES
 
 __all__ = [
     'BAG_DIR',
-    'LINE_NODES',
     'RunConfig',
     'RunResult',
     'add_machine_nodes',
@@ -61,7 +61,6 @@ __all__ = [
     'run_line',
 ]
 
-from folder_line.interfaces import MACHINE_NODES as LINE_NODES  # noqa: E402  (the nodes, in start order)
 
 #: the run's bag, under ``cfg.out``
 BAG_DIR = 'bag'
@@ -199,7 +198,7 @@ def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str,
 
 
 def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
-    """Build the five machine nodes of :data:`LINE_NODES` in ``context`` with the run's parameters
+    """Build the five machine nodes of :data:`MACHINE_NODES` in ``context`` with the run's parameters
     (scene, overrides, horizon, rate) and add them to ``executor``; returns them in that order."""
     from rclpy.parameter import Parameter
 
@@ -213,7 +212,7 @@ def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
         'supervisor': supervisor.Supervisor,
     }
     nodes = []
-    for name in LINE_NODES:
+    for name in MACHINE_NODES:
         overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name).items()]
         node = classes[name](parameter_overrides=overrides, context=context)
         executor.add_node(node)
@@ -241,8 +240,7 @@ _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoi
 def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
     is not ours, seen within ``wait`` s of discovery."""
-    from folder_line.ros.common import CLOCK_TOPIC
-    from folder_line.ros.lockstep import PARTICIPANTS_TOPIC
+    from folder_line.interfaces import CLOCK_TOPIC, PARTICIPANTS_TOPIC
 
     deadline = time.monotonic() + wait
     seen: float | None = None  # when a publisher was first seen: its node's name follows its endpoint
@@ -282,7 +280,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     from folder_line.core.line.model import check_size
     from folder_line.core.line.scene import parse_scene
     from folder_line.errors import FolderLineError
-    from folder_line.interfaces import RECORDER
+    from folder_line.interfaces import KNOWN_PARTICIPANTS
     from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
@@ -300,7 +298,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     recorder: Any = None
     ended_lost: set[str] = set()  # lost participants whose process was ended
     interrupted: list[str] = []
-    participants = (*LINE_NODES, RECORDER)
+    participants = KNOWN_PARTICIPANTS
 
     def on_signal(signum: int, frame: object) -> None:
         interrupted.append(signal.Signals(signum).name)
@@ -342,7 +340,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             env = dict(os.environ)
             logs = cfg.out / 'logs'  # each process's stderr
             logs.mkdir(exist_ok=True)
-            commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in LINE_NODES}
+            commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in MACHINE_NODES}
             commands['line_clock'] = [
                 f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}' for k, v in clock_params.items()
             ]

@@ -14,7 +14,7 @@ from scipy.integrate import quad
 
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
-from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import delivery_plan, simulate_folder
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
@@ -25,6 +25,7 @@ from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.delivery import evaluate_stroke, stroke_minimum
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
 from folder_line.core.numerics.rng import stream
+from folder_line.interfaces import EVENT_KINDS
 
 HOUR = 3600.0
 BOUNCE = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05}

@@ -17,13 +17,13 @@ from scipy.integrate import quad
 
 from folder_line.config.params import config_dir, load_params, read_yaml_mapping
 from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.layup_sim import LayupKinematics, leaf_stream, simulate_layup
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
 from folder_line.core.mechanisms.layup import TAU, LayupModel, swing_extremes
 from folder_line.errors import ParameterError
+from folder_line.interfaces import EVENT_KINDS
 
 P = load_params('layup')
 LAYUP = dataclasses.asdict(P)

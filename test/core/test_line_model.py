@@ -12,11 +12,12 @@ from hypothesis import strategies as st
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
-from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.model import NODES, LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Command
+from folder_line.interfaces import EVENT_KINDS
 
 DURATION = {'folder': 12.0, 'layup': 12.0, 'line': 12.0}
 

@@ -14,11 +14,11 @@ from scipy.integrate import solve_ivp
 
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import make_drive, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.errors import ParameterError
+from folder_line.interfaces import EVENT_KINDS
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
 MOTOR: dict[str, Any] = dict(

@@ -11,11 +11,11 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from folder_line.config.scenes import load_scene, scene_mapping
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import NODES, LineModel
 from folder_line.core.line.scene import parse_scene
 from folder_line.core.mechanisms.pile import NODE, T_LOWER, PileTable, counted_event, pile_table
 from folder_line.errors import ParameterError
+from folder_line.interfaces import EVENT_KINDS
 
 H = 0.0005  # m
 TAU = 0.02  # s

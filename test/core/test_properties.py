@@ -31,8 +31,9 @@ from folder_line.core.mechanisms.layup import (
 from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics import loop
 from folder_line.core.numerics.roots import RTOL, brent, find_sign_changes
-from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock
+from folder_line.core.numerics.timebase import ShaftClock
 from folder_line.errors import AssemblyError, ParameterError
+from folder_line.interfaces import NS_PER_S
 
 EPS = float(np.finfo(float).eps)
 PROPS = settings(max_examples=60, deadline=None, derandomize=True)

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from folder_line.core.numerics.timebase import NS_PER_S, ShaftClock, seconds_to_ns
+from folder_line.core.numerics.timebase import ShaftClock
+from folder_line.interfaces import NS_PER_S, seconds_to_ns
 
 
 def test_knife_crank_period_is_exact() -> None:
@@ -45,5 +46,5 @@ def test_phase0_and_rounding() -> None:
     assert seconds_to_ns(0.072) == 72_000_000
     with pytest.raises(ValueError, match='rev_per_s'):
         ShaftClock(-1.0)
-    with pytest.raises(ValueError, match='t='):
+    with pytest.raises(ValueError, match='seconds='):
         seconds_to_ns(float('nan'))

@@ -291,12 +291,9 @@ def assert_bag_is_model(
     import numpy as np
 
     from folder_line.config.scenes import load_scene
-    from folder_line.core.line.events import EVENT_KINDS
     from folder_line.core.line.model import LineModel
     from folder_line.core.mechanisms.pile import counted_event
-    from folder_line.event_text import parse_event_source
-    from folder_line.interfaces import MACHINE_NODES
-    from folder_line.ros.nodes.machine import COMMAND_KINDS, EVENT_OWNER
+    from folder_line.interfaces import COMMAND_KINDS, EVENT_KINDS, EVENT_OWNER, MACHINE_NODES, parse_event_source
 
     ns = 1_000_000_000
     step = round(ns / rate)

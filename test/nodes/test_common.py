@@ -20,14 +20,13 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.task import Future
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
+from folder_line import interfaces
 from folder_line.errors import AssemblyError, ParameterError
+from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS, TOPICS, seconds_to_ns
 from folder_line.ros import common
 from folder_line.ros.common import (
     EXIT_BAD_PARAMETER,
     EXIT_OK,
-    NS_PER_S,
-    TIME_MSG_MAX_NS,
-    TOPICS,
     ParamSpec,
     declare_parameters,
     joint_states_topic,
@@ -36,7 +35,6 @@ from folder_line.ros.common import (
     ns_to_time_msg,
     parameter_values,
     run_node,
-    seconds_to_ns,
     sim_time_overrides,
     time_msg_to_ns,
 )
@@ -240,15 +238,15 @@ def test_topics_are_valid_names_of_existing_message_types() -> None:
         assert kind == 'msg'
         assert hasattr(importlib.import_module(f'{package}.msg'), name), topic.type
         # documented in the module docstring table, under the same name
-        assert f'``{topic.name.replace("{node}", "<node>")}``' in common.__doc__
+        assert f'``{topic.name.replace("{node}", "<node>")}``' in interfaces.__doc__
 
 
 def test_topic_constants() -> None:
-    assert common.CLOCK_TOPIC == '/clock'
-    assert common.EVENTS_TOPIC == '/line/events'
-    assert common.DIAGNOSTICS_TOPIC == '/diagnostics'
-    assert common.SUPERVISOR_STATE_TOPIC == '/line/supervisor/state'
-    assert common.SHEET_COUNT_TOPIC == '/line/sheet_counter/count'
+    assert interfaces.CLOCK_TOPIC == '/clock'
+    assert interfaces.EVENTS_TOPIC == '/line/events'
+    assert interfaces.DIAGNOSTICS_TOPIC == '/diagnostics'
+    assert interfaces.SUPERVISOR_STATE_TOPIC == '/line/supervisor/state'
+    assert interfaces.SHEET_COUNT_TOPIC == '/line/sheet_counter/count'
     assert joint_states_topic('knife') == '/line/knife/joint_states'
     with pytest.raises(InvalidNodeNameException):
         joint_states_topic('bad/name')

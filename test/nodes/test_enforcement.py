@@ -30,26 +30,25 @@ from test_line_clock import FakeParticipant, grid
 from test_supervisor import on_grid
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS, event_kind
+from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.decisions import SPEED_REACHED, replay
-from folder_line.ros.common import (
-    COMMANDS_QOS,
+from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
     EVENTS_TOPIC,
     NS_PER_S,
     SUPERVISOR_STATE_TOPIC,
-    joint_states_topic,
-    time_msg_to_ns,
+    parse_event_source,
 )
+from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, time_msg_to_ns
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
 from folder_line.ros.nodes.line_clock import LineClock
-from folder_line.ros.nodes.machine import parse_event_source
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import STATE_QOS, Supervisor
 

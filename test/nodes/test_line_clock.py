@@ -35,20 +35,25 @@ from std_msgs.msg import String
 
 from folder_line.core.supervision.lockstep import format_counts
 from folder_line.errors import ParameterError
-from folder_line.ros.common import CLOCK_TOPIC, DIAGNOSTICS_TOPIC, NS_PER_S, ns_to_time_msg, time_msg_to_ns
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    KNOWN_PARTICIPANTS,
+    MACHINE_NODES,
+    NS_PER_S,
+    PARTICIPANTS_TOPIC,
+    tick_done_topic,
+)
+from folder_line.ros.common import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.lockstep import (
     CLOCK_SUB_QOS,
-    KNOWN_PARTICIPANTS,
     LINE_QOS,
-    MACHINE_NODES,
     PARTICIPANTS_QOS,
-    PARTICIPANTS_TOPIC,
     TICK_QOS,
     Announcement,
     format_announcement,
     parse_announcement,
     read_ack,
-    tick_done_topic,
 )
 from folder_line.ros.nodes.line_clock import EXIT_LOST, SPECS, LineClock, parse_participants
 

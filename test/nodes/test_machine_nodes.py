@@ -28,27 +28,29 @@ from std_msgs.msg import Float64, UInt64
 from test_line_clock import FakeParticipant, grid
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel
 from folder_line.errors import ParameterError
-from folder_line.ros.common import (
+from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
+    EVENT_KINDS,
+    EVENT_OWNER,
     EVENTS_TOPIC,
     LANDING_TOPIC,
     NS_PER_S,
+    PARTICIPANTS_TOPIC,
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     TOPICS,
-    joint_states_topic,
-    time_msg_to_ns,
+    parse_event_source,
+    tick_done_topic,
 )
-from folder_line.ros.lockstep import PARTICIPANTS_TOPIC, tick_done_topic
+from folder_line.ros.common import joint_states_topic, time_msg_to_ns
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
 from folder_line.ros.nodes.line_clock import LineClock
-from folder_line.ros.nodes.machine import EVENT_OWNER, MACHINE_SPECS, MachineNode, parse_event_source
+from folder_line.ros.nodes.machine import MACHINE_SPECS, MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
 from folder_line.ros.nodes.supervisor import Supervisor
 

@@ -28,21 +28,20 @@ from std_srvs.srv import Trigger
 from test_line_clock import FakeParticipant, grid
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.drive import Command
-from folder_line.ros.common import (
-    COMMANDS_QOS,
+from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
     EVENTS_TOPIC,
     NS_PER_S,
+    PARTICIPANTS_TOPIC,
     SUPERVISOR_STATE_TOPIC,
-    joint_states_topic,
-    ns_to_time_msg,
-    time_msg_to_ns,
+    tick_done_topic,
 )
-from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, PARTICIPANTS_TOPIC, TICK_QOS, tick_done_topic
+from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter

@@ -19,15 +19,35 @@ from folder_line.core.numerics.validate import positive
 
 __all__ = ['NS_PER_S', 'ShaftClock', 'seconds_to_ns']
 
+#: nanoseconds per second (the one definition; :mod:`folder_line.interfaces` re-exports it)
 NS_PER_S = 1_000_000_000
 
 
-def seconds_to_ns(t: float) -> int:
-    """Round a time in seconds to the nearest integer nanosecond."""
-    if not math.isfinite(t):
-        msg = f't={t!r}: must be finite'
+def seconds_to_ns(seconds: float) -> int:
+    """Round a time in seconds to integer nanoseconds, exactly.
+
+    The float's exact binary value is rounded (half to even), so
+    ``seconds_to_ns(0.1) == 100_000_000`` with no ``0.1 * 1e9`` error.
+
+    Parameters
+    ----------
+    seconds : float
+        Finite time, s.
+
+    Returns
+    -------
+    int
+        Time, ns.
+
+    Raises
+    ------
+    ValueError
+        ``seconds`` is NaN or infinite.
+    """
+    if not math.isfinite(seconds):
+        msg = f'seconds={seconds!r}: must be finite'
         raise ValueError(msg)
-    return round(Fraction(t) * NS_PER_S)
+    return round(Fraction(seconds) * NS_PER_S)
 
 
 class ShaftClock:

@@ -61,31 +61,27 @@ from std_msgs.msg import String
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, TICK_RATE
 from folder_line.core.supervision.lockstep import TickLedger
 from folder_line.errors import ParameterError
-from folder_line.ros.common import (
-    CLOCK_QOS,
+from folder_line.interfaces import (
     CLOCK_TOPIC,
     DIAGNOSTICS_TOPIC,
+    KNOWN_PARTICIPANTS,
     NS_PER_S,
+    PARTICIPANTS_TOPIC,
     TIME_MSG_MAX_NS,
-    ParamSpec,
-    declare_parameters,
-    ns_to_time_msg,
-    run_node,
     seconds_to_ns,
+    tick_done_topic,
 )
+from folder_line.ros.common import CLOCK_QOS, ParamSpec, declare_parameters, ns_to_time_msg, run_node
 from folder_line.ros.lockstep import (
     CLOCK_MODES,
     DEFAULT_PARTICIPANTS,
-    KNOWN_PARTICIPANTS,
     LINE_QOS,
     PARTICIPANTS_QOS,
-    PARTICIPANTS_TOPIC,
     TICK_QOS,
     Announcement,
     format_announcement,
     participant_names,
     read_ack,
-    tick_done_topic,
 )
 
 __all__ = ['EXIT_LOST', 'NODE_NAME', 'SPECS', 'LineClock', 'main', 'parse_participants']

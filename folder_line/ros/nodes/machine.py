@@ -46,16 +46,20 @@ from sensor_msgs.msg import JointState, TimeReference
 
 from folder_line.config.scenes import load_scene, parse_set
 from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.drive import Command
 from folder_line.errors import ParameterError
-from folder_line.event_text import event_source, parse_event_source
-from folder_line.ros.common import (
-    COMMANDS_QOS,
+from folder_line.interfaces import (
+    COMMAND_KINDS,
     COMMANDS_TOPIC,
+    EVENT_KINDS,
+    EVENT_OWNER,
     EVENTS_TOPIC,
     NS_PER_S,
+    event_source,
+)
+from folder_line.ros.common import (
+    COMMANDS_QOS,
     ParamSpec,
     declare_parameters,
     joint_states_topic,
@@ -65,38 +69,12 @@ from folder_line.ros.common import (
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 
 __all__ = [
-    'EVENT_OWNER',
     'MACHINE_SPECS',
     'MachineNode',
-    'event_source',
     'line_model',
-    'parse_event_source',
     'parse_overrides',
 ]
 
-#: which node publishes which event kind
-EVENT_OWNER: dict[str, str] = {
-    'knife_contact': 'crank_drive',
-    'knife_exit': 'crank_drive',
-    'sheet_handover': 'feed_transporter',
-    'at_stops': 'feed_transporter',
-    'bounce': 'feed_transporter',
-    'settled': 'feed_transporter',
-    'released_on_pile': 'sheet_counter',
-    'leaf_landed': 'sheet_counter',
-    'leaf_spilled': 'sheet_counter',
-    'leaf_enter': 'belt_conveyor',
-    'leaf_exit': 'belt_conveyor',
-    'leaf_damaged': 'belt_conveyor',
-    'leaf_stick': 'belt_conveyor',
-    'leaf_slip': 'belt_conveyor',
-    'fault_missing': 'belt_conveyor',
-    'fault_double': 'belt_conveyor',
-    'fault_late': 'belt_conveyor',
-    'belt_slowdown_start': 'belt_conveyor',
-    'belt_slowdown_end': 'belt_conveyor',
-}
-assert set(EVENT_OWNER) == set(EVENT_KINDS), 'every event kind needs a publishing node'
 
 MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('scene', 'folder', 'Scene name (config/scenes) or path of a scene YAML file', read_only=True),
@@ -135,7 +113,6 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
 SAMPLE_BATCH = 100
 
 #: the drive command kinds a machine node accepts
-COMMAND_KINDS = ('hold', 'unhold', 'stop', 'start')
 
 
 def parse_overrides(text: str) -> dict[str, Any]:

@@ -83,29 +83,35 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
-from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS
+from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.decisions import DRIVE_COMMANDS, SPEED_REACHED, Balance, Violation
 from folder_line.core.supervision.decisions import Supervisor as Logic
-from folder_line.ros.common import (
-    COMMANDS_QOS,
+from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
+    EVENT_OWNER,
     EVENTS_TOPIC,
     LANDING_TOPIC,
+    MACHINE_NODES,
     NS_PER_S,
-    PUBLISH_DEPTH,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
+    parse_event_source,
+    seconds_to_ns,
+)
+from folder_line.ros.common import (
+    COMMANDS_QOS,
+    PUBLISH_DEPTH,
     ParamSpec,
     joint_states_topic,
     ns_to_time_msg,
     run_node,
-    seconds_to_ns,
     time_msg_to_ns,
 )
-from folder_line.ros.lockstep import LINE_QOS, MACHINE_NODES, Announcement
-from folder_line.ros.nodes.machine import EVENT_OWNER, MachineNode, line_model, parse_event_source
+from folder_line.ros.lockstep import LINE_QOS, Announcement
+from folder_line.ros.nodes.machine import MachineNode, line_model
 
 __all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
