@@ -14,6 +14,7 @@ __all__ = [
     'ParameterError',
     'InputFileError',
     'OutputError',
+    'BagError',
     'path_repr',
     'AssemblyError',
     'RootFindingError',
@@ -155,6 +156,10 @@ class OutputError(FolderLineError, OSError):
     def with_option(self, option: str) -> OutputError:
         """The same error naming ``option`` (unless it already names one)."""
         return self if self.option else OutputError(option, self.path, self.reason)
+
+
+class BagError(FolderLineError):
+    """A bag cannot be written, read or repaired; the message names the path and the reason."""
 
 
 class AssemblyError(FolderLineError, ValueError):

@@ -21,7 +21,7 @@ from builtin_interfaces.msg import Time
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 
-from folder_line.bag.bag import BagWriter
+from folder_line.bag.writer import BagWriter
 from folder_line.ros.recorder import LINE_TOPICS
 
 JOINTS = '/line/crank_drive/joint_states'

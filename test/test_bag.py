@@ -27,17 +27,13 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
 from folder_line import __version__
-from folder_line.bag.bag import (
-    KEY_PUBLISHED,
-    BagError,
-    BagWriter,
-    read_bag,
-    repair,
-    repair_bag,
-    segment_files,
-    serialize,
-)
+from folder_line.bag.metadata import KEY_PUBLISHED, segment_files
+from folder_line.bag.reader import read_bag
+from folder_line.bag.repair import repair, repair_bag
+from folder_line.bag.types import serialize
+from folder_line.bag.writer import BagWriter
 from folder_line.cli.main import main as cli_main
+from folder_line.errors import BagError
 from folder_line.ros.recorder import LINE_TOPICS
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours

@@ -22,8 +22,11 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from folder_line.bag.bag import BagError, bag_info_lines, read_bag, repair, segment_files
+from folder_line.bag.metadata import segment_files
+from folder_line.bag.reader import bag_info_lines, read_bag
+from folder_line.bag.repair import repair
 from folder_line.cli.main import main as cli_main
+from folder_line.errors import BagError
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / 'test' / '_bag_crash_writer.py'

@@ -126,7 +126,7 @@ def test_a_scene_or_parameter_file_that_is_not_a_file(
 
 def _bag_dir(tmp_path: Path) -> Path:
     """A real (empty) bag of the folder scene."""
-    from folder_line.bag.bag import BagWriter
+    from folder_line.bag.writer import BagWriter
     from folder_line.config.scenes import scene_mapping
     from folder_line.ros.recorder import LINE_TOPICS
 

@@ -159,7 +159,7 @@ FILE_VERBS = {
 
 def _empty_bag(run_dir: Path) -> Path:
     """A bag with the folder scene and no messages (what ``analyze`` needs to reach its output)."""
-    from folder_line.bag.bag import BagWriter
+    from folder_line.bag.writer import BagWriter
     from folder_line.config.scenes import scene_mapping
     from folder_line.ros.recorder import LINE_TOPICS
 

@@ -397,7 +397,7 @@ def live_cost(
     import yaml
     from rclpy.parameter import Parameter
 
-    from folder_line.bag.bag import BagWriter
+    from folder_line.bag.writer import BagWriter
     from folder_line.config.scenes import scene_mapping
     from folder_line.core.line.scene import parse_scene
     from folder_line.interfaces import KNOWN_PARTICIPANTS

@@ -1,6 +1,6 @@
 """Replay analysis of a recorded run: ``folder-line analyze RUN_DIR|BAG [--out DIR] [--csv]``.
 
-:func:`analyze` reads a run's bag (:mod:`folder_line.bag.bag`; ``RUN_DIR`` is what
+:func:`analyze` reads a run's bag (:mod:`folder_line.bag.reader`; ``RUN_DIR`` is what
 ``folder-line run --out RUN_DIR`` wrote: ``run.json`` and ``bag/``) and writes to
 ``--out`` (default ``RUN_DIR/analysis``)
 
@@ -193,7 +193,7 @@ class Recording:
     Attributes
     ----------
     bag : BagContents
-        The bag (:func:`folder_line.bag.bag.read_bag`).
+        The bag (:func:`folder_line.bag.reader.read_bag`).
     run : dict or None
         ``run.json`` of the run directory, if there is one.
     scene : Scene
@@ -335,9 +335,9 @@ def read_recording(
     ParameterError
         ``path`` is neither; the bag holds no scene, or one that does not validate.
     BagError
-        The bag cannot be opened (:func:`folder_line.bag.bag.read_bag`).
+        The bag cannot be opened (:func:`folder_line.bag.reader.read_bag`).
     """
-    from folder_line.bag.bag import read_bag
+    from folder_line.bag.reader import read_bag
 
     bag_dir, run = _resolve(path)
     contents = read_bag(bag_dir)

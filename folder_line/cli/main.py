@@ -303,7 +303,9 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def _cmd_bag(args: argparse.Namespace) -> int:
-    from folder_line.bag.bag import METADATA_FILE, bag_info_lines, read_bag, repair
+    from folder_line.bag.metadata import METADATA_FILE
+    from folder_line.bag.reader import bag_info_lines, read_bag
+    from folder_line.bag.repair import repair
     from folder_line.files.atomic import check_output_dir, claim_output_dir
     from folder_line.ros.run import BAG_DIR
 

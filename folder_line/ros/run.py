@@ -7,7 +7,7 @@ started from the node executables as a launch file would, and stopped with SIGIN
 each child dies with this process (``PR_SET_PDEATHSIG``), so a killed ``run`` leaves
 nothing behind. Either way a recorder in this process (``line_recorder``, a lockstep
 participant) subscribes to every line topic, hands every message to a
-:class:`folder_line.bag.bag.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
+:class:`folder_line.bag.writer.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
 of line time) and compares what arrived with the batch simulation (``simulate``).
 
 Time is lockstep by default (:mod:`folder_line.ros.lockstep`): sim time advances a
@@ -155,7 +155,7 @@ class _Progress:
 
 def _clear_previous_bag(path: Path) -> None:
     """Remove the bag of a previous run at ``path``; refuse anything that is not one."""
-    from folder_line.bag.bag import BagError
+    from folder_line.errors import BagError
 
     if not path.exists():
         return
@@ -275,7 +275,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     import yaml
     from rclpy.parameter import Parameter
 
-    from folder_line.bag.bag import BagWriter
+    from folder_line.bag.writer import BagWriter
     from folder_line.config.scenes import parse_set, scene_mapping
     from folder_line.core.line.model import check_size
     from folder_line.core.line.scene import parse_scene

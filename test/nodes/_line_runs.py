@@ -4,7 +4,7 @@
   plus a unique tag variable, stdout and stderr to files (a pipe nobody reads could block it);
   :func:`wait_for_line_time` waits for its progress output to reach a line time.
 * :func:`read_bag_mcap` reads a run's bag with the independent reader (``mcap`` and
-  ``mcap-ros2-support``, decoding from the schema text in each file; not ``folder_line.bag.bag``),
+  ``mcap-ros2-support``, decoding from the schema text in each file; not ``folder_line.bag``),
   per topic and publishing node, in order; :func:`plain` makes a message comparable.
 * :func:`assert_bag_is_model` compares a bag with the batch model, tick by tick.
 * :func:`children`, :func:`tagged` and :func:`line_processes` find processes through ``/proc`` (Linux).

@@ -278,7 +278,7 @@ def test_a_run_that_fills_the_disk_ends_in_one_line_and_leaves_a_partial_bag(
         assert main(['run', '--duration', '2', '--rtf', 'max', '--out', str(out)]) == 2
         err = [line for line in capfd.readouterr().err.splitlines() if not line.startswith('[INFO]')]
         assert err == [f"folder-line: error: --out: '{out / 'bag' / 'bag_0.mcap'}': No space left on device"], err
-        from folder_line.bag.bag import read_bag
+        from folder_line.bag.reader import read_bag
 
         assert read_bag(out / 'bag').custom['folder_line.complete'] == 'false'
         assert not (out / 'run.json').exists()
