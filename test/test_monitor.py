@@ -27,11 +27,12 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     event_source,
 )
-from folder_line.ros.common import joint_states_topic, ns_to_time_msg
 from folder_line.ros.monitor import MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats, run_monitor
 from folder_line.ros.nodes.machine import line_model
 from folder_line.ros.nodes.supervisor import Supervisor
 from folder_line.ros.recorder import LINE_TOPICS
+from folder_line.ros.time_msg import ns_to_time_msg
+from folder_line.ros.topics import joint_states_topic
 
 CRANK = joint_states_topic('crank_drive')
 

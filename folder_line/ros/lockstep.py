@@ -62,7 +62,8 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     tick_done_topic,
 )
-from folder_line.ros.common import PUBLISH_DEPTH, ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import PUBLISH_DEPTH
 
 __all__ = [
     'CLOCK_MODES',

@@ -63,8 +63,9 @@ from folder_line.interfaces import (
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
 )
-from folder_line.ros.common import COMMANDS_QOS, time_msg_to_ns
 from folder_line.ros.recorder import LINE_TOPICS
+from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS
 
 __all__ = [
     'WINDOW',

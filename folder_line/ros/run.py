@@ -281,9 +281,9 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     from folder_line.core.line.scene import parse_scene
     from folder_line.errors import FolderLineError
     from folder_line.interfaces import KNOWN_PARTICIPANTS
-    from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.ros.runtime import events_executor
 
     mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
     scene = parse_scene(mapping)  # fail early, before any node starts
