@@ -297,7 +297,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
-    from folder_line.ros.monitor import run_monitor
+    from folder_line.cli.monitor import run_monitor  # loads rclpy: only this verb needs DDS
 
     return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
 
