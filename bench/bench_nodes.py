@@ -110,10 +110,10 @@ def line_fanout(rate: float) -> dict[str, int]:
     from rclpy.parameter import Parameter
 
     from folder_line.interfaces import KNOWN_PARTICIPANTS, tick_done_topic
-    from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
     from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.runtime import events_executor
 
     cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
     ctx = rclpy.Context()

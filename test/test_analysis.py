@@ -400,11 +400,11 @@ def test_transitions_agree_allows_states_within_one_tick() -> None:
 
 def test_topic_names_are_the_nodes() -> None:
     from folder_line import interfaces
-    from folder_line.ros import common
+    from folder_line.ros.topics import joint_states_topic
 
     assert STATE_TOPIC == interfaces.SUPERVISOR_STATE_TOPIC
     for node in interfaces.JOINT_NODES:
-        topic = common.joint_states_topic(node)
+        topic = joint_states_topic(node)
         assert interfaces.joint_states_node(topic) == node
     assert interfaces.joint_states_node('/line/events') is None
     assert interfaces.joint_states_node('/line//joint_states') is None

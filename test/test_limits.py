@@ -47,7 +47,7 @@ _OPTIONS = [
 def test_cli_options_take_the_range_of_their_limit(
     words: list[str], limit: L.Limit, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    parser = cli._build_parser()
+    parser = cli.build_parser()
     option = words[-1].lstrip('-').replace('-', '_')
     verb, flag = words
     for value in (limit.lo, limit.hi):
@@ -61,7 +61,7 @@ def test_cli_options_take_the_range_of_their_limit(
 
 
 def test_rtf_max_is_no_ceiling() -> None:
-    assert cli._build_parser().parse_args(['run', '--rtf', 'max']).rtf == 0.0
+    assert cli.build_parser().parse_args(['run', '--rtf', 'max']).rtf == 0.0
 
 
 # --------------------------------------------------------------------------- nodes

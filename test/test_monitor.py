@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import ast
 import math
+import os
+import subprocess
 import sys
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -15,6 +19,8 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
 from folder_line.cli.main import main
+from folder_line.cli.monitor import run_monitor
+from folder_line.cli.monitor_view import LEVELS, MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
@@ -27,11 +33,12 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     event_source,
 )
-from folder_line.ros.common import joint_states_topic, ns_to_time_msg
-from folder_line.ros.monitor import MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats, run_monitor
+from folder_line.ros import monitor as ros_monitor
 from folder_line.ros.nodes.machine import line_model
 from folder_line.ros.nodes.supervisor import Supervisor
 from folder_line.ros.recorder import LINE_TOPICS
+from folder_line.ros.time_msg import ns_to_time_msg
+from folder_line.ros.topics import joint_states_topic
 
 CRANK = joint_states_topic('crank_drive')
 
@@ -324,6 +331,38 @@ def test_before_any_message() -> None:
     lines = MonitorState(LINE_TOPICS).render(100, 30)
     assert 'supervisor ?' in lines[0] and 'waiting for the line' in lines[1]
     assert all(row(lines, topic)[1:] == ['0.0', '0', '-'] for topic in LINE_TOPICS)
+
+
+# --------------------------------------------------------------------------- layering
+
+
+def test_diagnostic_levels_are_those_of_the_message() -> None:
+    names = ('OK', 'WARN', 'ERROR', 'STALE')
+    assert {getattr(DiagnosticStatus, name)[0]: name for name in names} == LEVELS
+
+
+def test_the_view_needs_no_ros_and_the_ros_side_no_cli() -> None:
+    repo = Path(__file__).resolve().parent.parent
+    code = (
+        'import sys, folder_line.cli.monitor_view; '
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        "('rclpy', 'rosidl_runtime_py', 'sensor_msgs', 'std_msgs', 'diagnostic_msgs', 'builtin_interfaces')))"
+    )
+    proc = subprocess.run(
+        [sys.executable, '-c', code],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=repo,
+        timeout=60,
+        env={**os.environ, 'PYTHONPATH': str(repo)},
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == '[]'
+    tree = ast.parse(Path(ros_monitor.__file__).read_text(encoding='utf-8'))
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert not [m for m in imported if m and m.startswith('folder_line.cli')]
 
 
 # --------------------------------------------------------------------------- command line

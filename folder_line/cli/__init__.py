@@ -1,1 +1,1 @@
-"""The ``folder-line`` command line and its console outputs (tables, summaries, the papers' report)."""
+"""The ``folder-line`` command line and its console outputs (tables, summaries, the papers' report, the monitor)."""

@@ -17,8 +17,26 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from folder_line.accuracy.bench import STUDIES, run_benchmark
+from folder_line.accuracy.output import write_outputs
+from folder_line.analysis.analysis import analyze, print_analysis
+from folder_line.bag.metadata import METADATA_FILE
+from folder_line.bag.reader import bag_info_lines, read_bag
+from folder_line.bag.repair import repair
+from folder_line.cli import summary, tables
+from folder_line.cli.report import REPORT_FILES, write_report
+from folder_line.config.scenes import load_scene, parse_set
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
-from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
+from folder_line.core.line.model import simulate
+from folder_line.errors import FolderLineError, OutputError, bounded_repr, path_repr, shorten
+from folder_line.files.atomic import (
+    check_output_dir,
+    check_output_file,
+    claim_output_dir,
+    write_csv_atomic,
+    write_json_atomic,
+)
+from folder_line.ros import run as ros_run
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -33,7 +51,7 @@ _OUTPUT_OPTION = {
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
 
-__all__ = ['main']
+__all__ = ['build_parser', 'main']
 
 EXIT_USAGE = 2
 EXIT_RUN_FAILED = 1
@@ -88,9 +106,8 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f'{self.prog}: error: {text} (see {self.prog} --help)\n')
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    from folder_line.accuracy.bench import STUDIES
-
+def build_parser() -> argparse.ArgumentParser:
+    """The ``folder-line`` argument parser: every verb and option, with its range checks."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
 
@@ -218,10 +235,6 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from folder_line.accuracy.bench import run_benchmark
-    from folder_line.accuracy.output import write_outputs
-    from folder_line.files.atomic import claim_output_dir
-
     files = ('accuracy.csv', 'accuracy.md', 'accuracy.png', 'accuracy.json')
     with claim_output_dir(args.out, '--out', files) as out:  # before any work: the results need a place
         result = run_benchmark(quick=args.quick, only=args.only, stream=sys.stdout)
@@ -236,13 +249,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_kinematics(args: argparse.Namespace) -> int:
-    from folder_line.cli.tables import kinematics_table, print_summary
-    from folder_line.files.atomic import check_output_file, write_csv_atomic
-
     if args.csv:
         check_output_file(args.csv, '--csv')
-    table = kinematics_table(args.mechanism, args.params, args.samples)
-    print_summary(args.mechanism, table, sys.stdout)
+    table = tables.kinematics_table(args.mechanism, args.params, args.samples)
+    tables.print_summary(args.mechanism, table, sys.stdout)
     if args.csv:
         dest = write_csv_atomic(args.csv, table)
         print(f'wrote {dest} ({args.samples} rows, {len(table)} columns)')
@@ -250,33 +260,25 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from folder_line.cli.summary import print_summary
-    from folder_line.config.scenes import load_scene, parse_set
-    from folder_line.core.line.model import simulate
-    from folder_line.files.atomic import check_output_file, write_json_atomic
-
     if args.json:
         check_output_file(args.json, '--json')
     scene = load_scene(args.scene, parse_set(args.overrides))
     result = simulate(scene, args.duration, sample_rate=0.0)
-    summary = result.summary()
-    print_summary(summary, sys.stdout)
+    result_summary = result.summary()
+    summary.print_summary(result_summary, sys.stdout)
     if args.json:
-        dest = write_json_atomic(args.json, summary)
+        dest = write_json_atomic(args.json, result_summary)
         print(f'wrote {dest}')
     return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from folder_line.files.atomic import claim_output_dir
-    from folder_line.ros.run import BAG_DIR, RunConfig, print_run_summary, run_line
-
     if args.clock == 'wall' and args.rtf == 0.0:
         print(
             "folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)", file=sys.stderr
         )
         return EXIT_USAGE
-    cfg = RunConfig(
+    cfg = ros_run.RunConfig(
         scene=args.scene,
         duration=args.duration,
         overrides=tuple(args.overrides),
@@ -286,9 +288,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         clock=args.clock,
         lost_timeout=args.lost_timeout,
     )
-    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(BAG_DIR, 'logs')):
-        result = run_line(cfg, sys.stdout)
-    print_run_summary(result.summary, cfg.out, sys.stdout)
+    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(ros_run.BAG_DIR, 'logs')):
+        result = ros_run.run_line(cfg, sys.stdout)
+    ros_run.print_run_summary(result.summary, cfg.out, sys.stdout)
     verdict = result.summary['outcome']
     if not verdict['ok']:
         print(f'folder-line: run failed: {verdict["message"]}', file=sys.stderr)
@@ -297,23 +299,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
-    from folder_line.ros.monitor import run_monitor
+    from folder_line.cli.monitor import run_monitor  # loads rclpy: only this verb needs DDS
 
     return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
 
 
 def _cmd_bag(args: argparse.Namespace) -> int:
-    from folder_line.bag.metadata import METADATA_FILE
-    from folder_line.bag.reader import bag_info_lines, read_bag
-    from folder_line.bag.repair import repair
-    from folder_line.files.atomic import check_output_dir, claim_output_dir
-    from folder_line.ros.run import BAG_DIR
-
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
         check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
         with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
-            if bag.is_dir() and bag.resolve().name == BAG_DIR:
+            if bag.is_dir() and bag.resolve().name == ros_run.BAG_DIR:
                 claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))
             claims.enter_context(claim_output_dir(bag, 'DIR', files=(METADATA_FILE,), create=False))
             result = repair(args.dir)
@@ -326,17 +322,12 @@ def _cmd_bag(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from folder_line.cli.report import REPORT_FILES, write_report
-    from folder_line.files.atomic import claim_output_dir
-
     with claim_output_dir(args.out, '--out', REPORT_FILES) as out:
         write_report(out, sys.stdout)
     return 0
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from folder_line.analysis.analysis import analyze, print_analysis
-
     print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
     return 0
 
@@ -356,8 +347,6 @@ _PATH_ARGUMENTS = {
 def _os_error_text(args: argparse.Namespace, exc: OSError) -> str:
     """One line for an OS error: the argument that named the path (the one it is, or lies under), the path
     and the OS reason; a write without a path is the verb's output's."""
-    from folder_line.errors import path_repr
-
     reason = exc.strerror or str(exc)
     if exc.filename is None:
         return f'{_OUTPUT_OPTION[args.verb]}: {reason}'
@@ -373,14 +362,12 @@ def _os_error_text(args: argparse.Namespace, exc: OSError) -> str:
 
 def _error(text: str) -> None:
     """Print ``text`` as one line on stderr (newlines folded, cut to :data:`_LINE_CHARS`)."""
-    from folder_line.errors import shorten
-
     print(f'folder-line: error: {shorten(" ".join(text.split()), _LINE_CHARS)}', file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``folder-line``; returns the process exit code."""
-    parser = _build_parser()
+    parser = build_parser()
     args = parser.parse_args(argv)
     handler = {
         'kinematics': _cmd_kinematics,

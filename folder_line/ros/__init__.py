@@ -1,1 +1,21 @@
-"""The ROS 2 side: nodes, lockstep protocol, parameter specs, ``run``, the recorder, the monitor."""
+"""The ROS 2 side of the line: rclpy adapters over :mod:`folder_line.core`.
+
+========================  ==================================================================
+module                    holds
+========================  ==================================================================
+``topics``                QoS profiles of the line's topics, ``joint_states_topic``
+``time_msg``              integer nanoseconds <-> ``builtin_interfaces/msg/Time``
+``parameters``            ``ParamSpec`` tables, ``declare_parameters`` and the validation
+``runtime``               ``run_node`` (a node process: spin, stop, teardown, exit code),
+                          ``events_executor``
+``lockstep``              the lockstep protocol: acknowledgements, announcement, lost nodes
+``nodes/``                the nodes, one per file, each with ``main(args=None)``
+``recorder``              the recorder that takes every topic for the bag
+``run``                   ``folder-line run``: the line in one process or one per node
+``monitor``               the monitor's subscriptions, feeding a view it is given
+========================  ==================================================================
+
+Names and message types of the topics are in :mod:`folder_line.interfaces` (no rclpy).
+This package's ``__init__`` imports nothing: :mod:`folder_line.ros.run` is imported
+without rclpy (``folder-line bag``, the analysis), and the rest loads rclpy on import.
+"""

@@ -47,8 +47,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
@@ -62,7 +65,8 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     tick_done_topic,
 )
-from folder_line.ros.common import PUBLISH_DEPTH, ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import PUBLISH_DEPTH
 
 __all__ = [
     'CLOCK_MODES',
@@ -153,8 +157,6 @@ def participant_names(text: str) -> tuple[str, ...]:
 
 @functools.cache
 def _typestore() -> Any:
-    from rosbags.typesys import Stores, get_typestore
-
     return get_typestore(Stores.ROS2_KILTED)
 
 
@@ -429,7 +431,4 @@ class Participant:
 
 
 def _steady(node: Node) -> Any:
-    from rclpy.clock import Clock
-    from rclpy.clock_type import ClockType
-
     return Clock(clock_type=ClockType.STEADY_TIME)

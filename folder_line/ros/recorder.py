@@ -46,9 +46,10 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     parse_event_source,
 )
-from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, time_msg_to_ns
 from folder_line.ros.lockstep import CLOCK_SUB_QOS, LINE_QOS, Announcement, Participant
 from folder_line.ros.nodes.supervisor import STATE_QOS
+from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 __all__ = ['LINE_TOPICS', 'LineRecorder']
 

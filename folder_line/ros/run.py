@@ -44,9 +44,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+import yaml
+
+from folder_line.bag.writer import BagWriter
+from folder_line.config.scenes import parse_set, scene_mapping
 from folder_line.core.limits import HORIZON_MARGIN
+from folder_line.core.line.model import check_size, simulate
+from folder_line.core.line.scene import parse_scene
+from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
-from folder_line.interfaces import MACHINE_NODES
+from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
 
 __all__ = [
     'BAG_DIR',
@@ -155,8 +162,6 @@ class _Progress:
 
 def _clear_previous_bag(path: Path) -> None:
     """Remove the bag of a previous run at ``path``; refuse anything that is not one."""
-    from folder_line.errors import BagError
-
     if not path.exists():
         return
     ours = path.is_dir() and all(
@@ -200,6 +205,7 @@ def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str,
 def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
     """Build the five machine nodes of :data:`MACHINE_NODES` in ``context`` with the run's parameters
     (scene, overrides, horizon, rate) and add them to ``executor``; returns them in that order."""
+    # rclpy and the nodes on use: `folder-line bag` and the analysis import this module without DDS
     from rclpy.parameter import Parameter
 
     from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
@@ -240,8 +246,6 @@ _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoi
 def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
     is not ours, seen within ``wait`` s of discovery."""
-    from folder_line.interfaces import CLOCK_TOPIC, PARTICIPANTS_TOPIC
-
     deadline = time.monotonic() + wait
     seen: float | None = None  # when a publisher was first seen: its node's name follows its endpoint
     while True:
@@ -271,19 +275,13 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         Bad scene or overrides, an ``--out`` that holds something else, or another line on this
         ROS domain (checked before anything is written).
     """
+    # rclpy and the nodes on use: `folder-line bag` and the analysis import this module without DDS
     import rclpy
-    import yaml
     from rclpy.parameter import Parameter
 
-    from folder_line.bag.writer import BagWriter
-    from folder_line.config.scenes import parse_set, scene_mapping
-    from folder_line.core.line.model import check_size
-    from folder_line.core.line.scene import parse_scene
-    from folder_line.errors import FolderLineError
-    from folder_line.interfaces import KNOWN_PARTICIPANTS
-    from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+    from folder_line.ros.runtime import events_executor
 
     mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
     scene = parse_scene(mapping)  # fail early, before any node starts
@@ -491,8 +489,6 @@ def _summary(
     lost: dict[str, float],
     rtf: float | None,
 ) -> dict[str, Any]:
-    from folder_line.core.line.model import simulate
-
     expected = simulate(scene, min(recorder.sim_time, cfg.duration) or cfg.duration, sample_rate=0.0).summary()
     cause = None
     for st in recorder.diagnostics:  # the first violation that changed the state, with its cycle and node

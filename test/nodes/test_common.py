@@ -1,4 +1,4 @@
-"""folder_line.ros.common: parameter specs and validation, topics, time, run_node."""
+"""folder_line.ros.parameters, .topics, .time_msg, .runtime: parameter specs and validation, topics, time, run_node."""
 
 from __future__ import annotations
 
@@ -23,21 +23,17 @@ from rclpy.validate_full_topic_name import validate_full_topic_name
 from folder_line import interfaces
 from folder_line.errors import AssemblyError, ParameterError
 from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS, TOPICS, seconds_to_ns
-from folder_line.ros import common
-from folder_line.ros.common import (
-    EXIT_BAD_PARAMETER,
-    EXIT_OK,
+from folder_line.ros.parameters import (
     ParamSpec,
     declare_parameters,
-    joint_states_topic,
     make_screen,
     make_validator,
-    ns_to_time_msg,
     parameter_values,
-    run_node,
     sim_time_overrides,
-    time_msg_to_ns,
 )
+from folder_line.ros.runtime import EXIT_BAD_PARAMETER, EXIT_OK, TEARDOWN_TIMEOUT, run_node
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import joint_states_topic
 
 if TYPE_CHECKING:
     from conftest import Ros
@@ -470,7 +466,7 @@ import sys, time
 sys.path.insert(0, {repo!r})
 from rclpy.node import Node
 from rclpy.task import Future
-from folder_line.ros.common import run_node
+from folder_line.ros.runtime import run_node
 
 class Hanging(Node):
     """Done at once; its teardown hangs as the middleware's sometimes does."""
@@ -506,7 +502,7 @@ def test_a_node_process_whose_teardown_hangs_exits_after_the_timeout(timeout: fl
         timeout=60,
     )
     elapsed = time.monotonic() - t0
-    limit = common.TEARDOWN_TIMEOUT if timeout is None else timeout
+    limit = TEARDOWN_TIMEOUT if timeout is None else timeout
     assert proc.returncode == 0, proc.stderr
     assert (
         proc.stderr.count(

@@ -44,13 +44,14 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     parse_event_source,
 )
-from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, time_msg_to_ns
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import STATE_QOS, Supervisor
+from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 if TYPE_CHECKING:
     from conftest import Received, Ros

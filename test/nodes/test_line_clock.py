@@ -44,7 +44,6 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     tick_done_topic,
 )
-from folder_line.ros.common import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.lockstep import (
     CLOCK_SUB_QOS,
     LINE_QOS,
@@ -56,6 +55,7 @@ from folder_line.ros.lockstep import (
     read_ack,
 )
 from folder_line.ros.nodes.line_clock import EXIT_LOST, SPECS, LineClock, parse_participants
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 
 if TYPE_CHECKING:
     from conftest import Ros

@@ -45,7 +45,6 @@ from folder_line.interfaces import (
     parse_event_source,
     tick_done_topic,
 )
-from folder_line.ros.common import joint_states_topic, time_msg_to_ns
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
@@ -53,6 +52,8 @@ from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MACHINE_SPECS, MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
 from folder_line.ros.nodes.supervisor import Supervisor
+from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.topics import joint_states_topic
 
 if TYPE_CHECKING:
     from conftest import Received, Ros

@@ -29,13 +29,13 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from folder_line.ros.common import joint_states_topic
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import Supervisor
+from folder_line.ros.topics import joint_states_topic
 
 REPO = Path(__file__).resolve().parents[2]
 JOINT_TOPICS = [joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')]

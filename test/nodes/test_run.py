@@ -33,9 +33,10 @@ from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import simulate
 from folder_line.interfaces import COMMANDS_TOPIC, EVENTS_TOPIC, MACHINE_NODES, PARTICIPANTS_TOPIC, tick_done_topic
-from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, ns_to_time_msg
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.run import OTHER_LINE_WAIT
+from folder_line.ros.time_msg import ns_to_time_msg
+from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 if TYPE_CHECKING:
     from conftest import Ros

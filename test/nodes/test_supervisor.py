@@ -40,7 +40,6 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     tick_done_topic,
 )
-from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
@@ -49,6 +48,8 @@ from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 if TYPE_CHECKING:
     from conftest import Received, Ros

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import sys
 
-from folder_line.ros.common import run_node
 from folder_line.ros.nodes.machine import MachineNode
+from folder_line.ros.runtime import run_node
 
 __all__ = ['CrankDrive', 'main']
 

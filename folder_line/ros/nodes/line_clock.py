@@ -71,7 +71,6 @@ from folder_line.interfaces import (
     seconds_to_ns,
     tick_done_topic,
 )
-from folder_line.ros.common import CLOCK_QOS, ParamSpec, declare_parameters, ns_to_time_msg, run_node
 from folder_line.ros.lockstep import (
     CLOCK_MODES,
     DEFAULT_PARTICIPANTS,
@@ -83,6 +82,10 @@ from folder_line.ros.lockstep import (
     participant_names,
     read_ack,
 )
+from folder_line.ros.parameters import ParamSpec, declare_parameters
+from folder_line.ros.runtime import run_node
+from folder_line.ros.time_msg import ns_to_time_msg
+from folder_line.ros.topics import CLOCK_QOS
 
 __all__ = ['EXIT_LOST', 'NODE_NAME', 'SPECS', 'LineClock', 'main', 'parse_participants']
 

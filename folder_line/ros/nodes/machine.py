@@ -58,15 +58,10 @@ from folder_line.interfaces import (
     NS_PER_S,
     event_source,
 )
-from folder_line.ros.common import (
-    COMMANDS_QOS,
-    ParamSpec,
-    declare_parameters,
-    joint_states_topic,
-    ns_to_time_msg,
-    time_msg_to_ns,
-)
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
+from folder_line.ros.parameters import ParamSpec, declare_parameters
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 __all__ = [
     'MACHINE_SPECS',

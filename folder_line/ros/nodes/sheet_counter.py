@@ -36,9 +36,10 @@ from std_msgs.msg import Float64, UInt64
 
 from folder_line.core.mechanisms.pile import counted_event
 from folder_line.interfaces import EVENT_KINDS, LANDING_TOPIC, SHEET_COUNT_TOPIC, SHEET_RATE_TOPIC
-from folder_line.ros.common import ParamSpec, run_node
 from folder_line.ros.lockstep import LINE_QOS
 from folder_line.ros.nodes.machine import MachineNode
+from folder_line.ros.parameters import ParamSpec
+from folder_line.ros.runtime import run_node
 
 __all__ = ['SheetCounter', 'counted_kind', 'main']
 

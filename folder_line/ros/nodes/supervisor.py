@@ -101,17 +101,12 @@ from folder_line.interfaces import (
     parse_event_source,
     seconds_to_ns,
 )
-from folder_line.ros.common import (
-    COMMANDS_QOS,
-    PUBLISH_DEPTH,
-    ParamSpec,
-    joint_states_topic,
-    ns_to_time_msg,
-    run_node,
-    time_msg_to_ns,
-)
 from folder_line.ros.lockstep import LINE_QOS, Announcement
 from folder_line.ros.nodes.machine import MachineNode, line_model
+from folder_line.ros.parameters import ParamSpec
+from folder_line.ros.runtime import run_node
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, joint_states_topic
 
 __all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 

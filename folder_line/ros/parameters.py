@@ -1,132 +1,34 @@
-"""What every node of the line shares: QoS, parameter specs, sim time messages, ``main``.
+"""Node parameters: a table of :class:`ParamSpec` declared and validated in one call.
 
-A node of the line is a thin adapter (see ``STYLE.md``): it declares its
-parameters from a table of :class:`ParamSpec` with :func:`declare_parameters`
-(which installs the validation), takes ``t`` from the ticks of ``/clock`` (lockstep,
-:mod:`folder_line.ros.lockstep`; its own clock runs on that simulated time), calls the
-core, fills the message and publishes on one of the topics named here. Its module ends with::
-
-    def main(args: list[str] | None = None) -> int:
-        return run_node(MyNode, args)
-
-Topic names and types are in :mod:`folder_line.interfaces`; the QoS profiles are here.
+A node of the line declares its parameters from a table of :class:`ParamSpec` with
+:func:`declare_parameters`, which checks the starting values and installs the
+validation (:func:`make_screen` before rclpy's own checks, :func:`make_validator` on
+set), so that every refusal names the parameter and the value.
 """
 
 from __future__ import annotations
 
-import faulthandler
-import gc
 import math
-import os
-import signal
-import sys
-import threading
-import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import rclpy
-from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rclpy._rclpy_pybind11 import RCLError
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
-from rclpy.task import Future
-from rclpy.validate_node_name import validate_node_name
 
-from folder_line import interfaces
 from folder_line.errors import FolderLineError, ParameterError
-from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS
 
 __all__ = [
-    'COMMANDS_QOS',
-    'joint_states_topic',
-    'CLOCK_QOS',
-    'PUBLISH_DEPTH',
-    'ns_to_time_msg',
-    'time_msg_to_ns',
-    'ParamValue',
-    'ParamSpec',
     'CrossCheck',
+    'ParamSpec',
+    'ParamValue',
+    'declare_parameters',
     'make_screen',
     'make_validator',
-    'declare_parameters',
     'parameter_values',
     'sim_time_overrides',
-    'EXIT_OK',
-    'EXIT_BAD_PARAMETER',
-    'SPIN_PERIOD',
-    'LINGER',
-    'run_node',
-    'events_executor',
 ]
-
-# --------------------------------------------------------------------------- topics
-
-
-def joint_states_topic(node_name: str) -> str:
-    """``/line/<node_name>/joint_states``.
-
-    Parameters
-    ----------
-    node_name : str
-        A valid ROS node name (no namespace), e.g. ``'knife'``.
-
-    Raises
-    ------
-    rclpy.exceptions.InvalidNodeNameException
-        ``node_name`` is not a valid node name.
-    """
-    validate_node_name(node_name)
-    return interfaces.joint_states_topic(node_name)
-
-
-COMMANDS_QOS = QoSProfile(
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    history=HistoryPolicy.KEEP_ALL,
-)
-"""QoS of the supervisor's command topic: every command reaches every node, late joiners too."""
-
-PUBLISH_DEPTH = 1000
-"""History depth of every line publisher: a reliable subscriber (the recorder) that falls
-behind by up to this many messages still gets them all."""
-
-CLOCK_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-"""QoS of the ``/clock`` publisher: reliable, so that it also matches the best-effort
-subscription every node's ``TimeSource`` makes, and recorders that want every tick."""
-
-# --------------------------------------------------------------------------- time
-
-
-def ns_to_time_msg(ns: int) -> TimeMsg:
-    """A ``builtin_interfaces/msg/Time`` for ``ns`` nanoseconds (``sec = ns // 1e9``, ``nanosec = ns % 1e9``).
-
-    Raises
-    ------
-    ValueError
-        ``ns`` is negative or beyond :data:`TIME_MSG_MAX_NS`.
-    """
-    if not 0 <= ns <= TIME_MSG_MAX_NS:
-        msg = f'ns={ns!r}: must be in [0, {TIME_MSG_MAX_NS}] to fit builtin_interfaces/msg/Time'
-        raise ValueError(msg)
-    sec, nanosec = divmod(ns, NS_PER_S)
-    return TimeMsg(sec=sec, nanosec=nanosec)
-
-
-def time_msg_to_ns(stamp: TimeMsg) -> int:
-    """Integer nanoseconds of a ``builtin_interfaces/msg/Time``."""
-    return stamp.sec * NS_PER_S + stamp.nanosec
-
-
-# --------------------------------------------------------------------------- parameters
 
 ParamValue = bool | int | float | str
 """The scalar parameter types a :class:`ParamSpec` supports."""
@@ -463,191 +365,3 @@ def sim_time_overrides(
     if not any(p.name == 'use_sim_time' for p in overrides):
         overrides.append(Parameter('use_sim_time', Parameter.Type.BOOL, use_sim_time))
     return overrides
-
-
-# --------------------------------------------------------------------------- main
-
-EXIT_OK = 0
-EXIT_BAD_PARAMETER = 2
-
-
-SPIN_PERIOD = 0.1
-"""Longest wall time, s, that :func:`run_node` waits before it looks at a stop request."""
-
-LINGER = 0.2
-"""Wall time, s, that :func:`run_node` keeps a node that is ``done`` alive before destroying it, so
-that subscribers in other processes still get its last messages."""
-
-TEARDOWN_TIMEOUT = 5.0
-"""Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
-
-
-def run_node(
-    node_factory: Callable[[], Node],
-    args: Sequence[str] | None = None,
-    *,
-    teardown_timeout: float | None = None,
-    exit_code: Callable[[Node], int] | None = None,
-) -> int:
-    """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
-
-    The node is built by ``node_factory()`` in the default context and spun by a
-    events executor (:func:`events_executor`) until SIGINT or SIGTERM, until the context is shut
-    down from elsewhere, or, if the node has a ``done`` attribute holding an
-    ``rclpy.task.Future``, until that future completes (a node that finishes on its
-    own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
-
-    Signals are handled synchronously, in the spinning thread: rclpy's own
-    handlers are not installed (``SignalHandlerOptions.NO``); a Python handler only
-    records the request and the spin, which never waits longer than
-    :data:`SPIN_PERIOD`, stops between two callbacks. rclpy's handlers would shut
-    the context down from another thread while a callback may be using it, which
-    ends in ``RCLError: publisher's context is invalid`` tracebacks (about one
-    Ctrl-C in three on a 1 kHz publisher here) and occasionally a crash under load.
-    A second SIGINT while stopping raises ``KeyboardInterrupt``, still caught.
-    Called from another thread, it installs no signal handler at all.
-
-    Teardown. Destroying the node can hang inside the middleware: with both cores
-    busy, one of 20 runs of ``folder-line run --processes`` (120 node stops) hung in
-    ``Node.destroy_node`` (rcl's node finalisation with Fast DDS) until killed. When
-    the node runs as a process of its own (``args`` from ``sys.argv``, the main
-    thread), its work is done by then, so a watchdog ends the process after
-    ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
-    stderr and the exit code it would have returned; if the hang holds the GIL (no Python
-    thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
-    exit code 1.
-
-    Parameters
-    ----------
-    node_factory : callable
-        Usually the node class; called with no arguments.
-    args : sequence of str, optional
-        Command line for ``rclpy.init`` (``None``: ``sys.argv``).
-    teardown_timeout : float, optional
-        Seconds allowed for the teardown before the process exits anyway; default
-        :data:`TEARDOWN_TIMEOUT` for a process's own node (``args`` None, main thread),
-        else no watchdog (a test calling this must not lose its process).
-    exit_code : callable, optional
-        ``exit_code(node)``: the exit code of a node that ran (default 0), e.g. non-zero
-        when ``line_clock`` lost a participant.
-
-    Returns
-    -------
-    int
-        :data:`EXIT_OK` (0) on a stop request or completion; :data:`EXIT_BAD_PARAMETER`
-        (2) when the node refuses its parameters, after one line on stderr naming
-        the parameter and value.
-    """
-    name = getattr(node_factory, 'NODE_NAME', getattr(node_factory, '__name__', 'node'))
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: object) -> None:
-        if stop.is_set() and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        stop.set()
-
-    in_main_thread = threading.current_thread() is threading.main_thread()
-    if teardown_timeout is None and args is None and in_main_thread:
-        teardown_timeout = TEARDOWN_TIMEOUT
-    watchdog: threading.Timer | None = None
-
-    def arm(code: int) -> None:
-        nonlocal watchdog
-        if teardown_timeout is None or watchdog is not None:
-            return
-
-        def expire() -> None:
-            print(
-                f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
-                'exiting anyway (the node had stopped)',
-                file=sys.stderr,
-                flush=True,
-            )
-            sys.stdout.flush()
-            os._exit(code)
-
-        watchdog = threading.Timer(teardown_timeout, expire)
-        watchdog.daemon = True
-        watchdog.start()
-        # the middleware can hang holding the GIL (a peer process stopped while it holds a shared-memory lock),
-        # and then no Python thread runs: faulthandler's C thread ends the process all the same, with the stacks
-        faulthandler.dump_traceback_later(teardown_timeout + 2.0, exit=True)
-
-    previous: dict[int, Any] = {}
-    if in_main_thread:
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            previous[signum] = signal.signal(signum, on_signal)
-    try:
-        with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
-            try:
-                node = node_factory()
-            except (FolderLineError, ParameterException) as err:
-                refused = f'{name}: error: {err}'
-            else:
-                refused = None
-            if refused is not None:
-                # the half-built node hangs off the traceback, which is gone now: collect it while the
-                # context is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
-                gc.collect()
-                print(refused, file=sys.stderr)
-                return EXIT_BAD_PARAMETER
-            code = EXIT_OK
-            try:
-                _spin(node, stop)
-                code = EXIT_OK if exit_code is None else exit_code(node)
-            finally:
-                arm(code)
-                node.destroy_node()
-            return code
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (FolderLineError, ParameterException) as err:
-        print(f'{name}: error: {err}', file=sys.stderr)
-        return EXIT_BAD_PARAMETER
-    except RCLError as err:  # e.g. a --ros-args rule rcl cannot parse
-        print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
-        return EXIT_BAD_PARAMETER
-    finally:
-        if watchdog is not None:
-            watchdog.cancel()
-            faulthandler.cancel_dump_traceback_later()
-        for signum, handler in previous.items():
-            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
-    return EXIT_OK
-
-
-def events_executor(context: Any) -> Any:
-    """An ``rclpy.experimental.EventsExecutor`` for ``context``: the line's executor.
-
-    It costs a third of ``SingleThreadedExecutor``'s CPU per message here (``bench/bench_nodes.py``).
-    Its constructor enables ``faulthandler`` on ``sys.stderr``, which fails where ``sys.stderr`` has
-    no file descriptor (a captured stream, a notebook): the process's own stderr is used then.
-    """
-    try:
-        sys.stderr.fileno()
-    except (AttributeError, OSError, ValueError):
-        saved, sys.stderr = sys.stderr, sys.__stderr__
-        try:
-            return EventsExecutor(context=context)
-        finally:
-            sys.stderr = saved
-    return EventsExecutor(context=context)
-
-
-def _spin(node: Node, stop: threading.Event) -> None:
-    done = getattr(node, 'done', None)
-    if not isinstance(done, Future):
-        done = None
-    executor = events_executor(node.context)
-    try:
-        executor.add_node(node)
-        while not stop.is_set() and node.context.ok() and not (done is not None and done.done()):
-            executor.spin_once(timeout_sec=SPIN_PERIOD)
-        if done is not None and done.done():
-            # a subscriber in another process reads the last messages out of this process's
-            # shared memory (Fast DDS), which goes with it: linger before the node is destroyed
-            deadline = time.monotonic() + LINGER
-            while not stop.is_set() and node.context.ok() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=min(SPIN_PERIOD, max(deadline - time.monotonic(), 0.0)))
-    finally:
-        executor.shutdown()
