@@ -82,6 +82,7 @@ __all__ = [
     'TIME_MSG_MAX_NS',
     'TOPICS',
     'TopicInfo',
+    'UNIT_OF_NODE',
     'event_source',
     'joint_states_node',
     'joint_states_topic',
@@ -112,6 +113,8 @@ NODE_OF_UNIT: dict[str, str] = {
     'feed': 'feed_transporter',
     'counter': 'sheet_counter',
 }
+#: the node -> the core's machine unit it runs (the inverse of :data:`NODE_OF_UNIT`)
+UNIT_OF_NODE: dict[str, str] = {node: unit for unit, node in NODE_OF_UNIT.items()}
 
 # --------------------------------------------------------------------------- time
 

@@ -130,13 +130,13 @@ def test_the_poison_works(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_samples_cover_every_node_and_are_finite() -> None:
     r = simulate(load_scene('line'), 4.0, sample_rate=200.0)
-    assert set(r.samples) == {'crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter'}
+    assert set(r.samples) == {'drive', 'belts', 'feed', 'counter'}
     for js in r.samples.values():
         assert js.t.size == 801 and js.position.shape == (801, len(js.names))
         assert np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))
-    assert r.samples['feed_transporter'].effort is not None  # chain_friction listed: sprocket torque
-    assert 'knife' in r.samples['crank_drive'].names and 'transporter3' in r.samples['crank_drive'].names
-    assert r.samples['sheet_counter'].names == ('pile_table',)  # the line has the delivery: the pile
+    assert r.samples['feed'].effort is not None  # chain_friction listed: sprocket torque
+    assert 'knife' in r.samples['drive'].names and 'transporter3' in r.samples['drive'].names
+    assert r.samples['counter'].names == ('pile_table',)  # the line has the delivery: the pile
 
 
 def test_simulate_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

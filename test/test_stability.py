@@ -595,7 +595,7 @@ class TestLongRuns:
         period = 1 / rate
         t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) * rate) * period) for t in t_big])
         assert np.all(t_small < float(period))
-        big, small = model.sample('crank_drive', t_big), model.sample('crank_drive', t_small)
+        big, small = model.sample('drive', t_big), model.sample('drive', t_small)
         w_max = np.abs(big.velocity).max()
         for k in range(t_big.size):
             frac = exact_frac_turns(float(t_big[k]), rate)
@@ -634,7 +634,7 @@ class TestLongRuns:
                 assert err <= 8e-9 and err <= 1e-9 * row['t'], (kind, float(err))
         t_big = np.array([1e7 + 0.5, 1e7 + 123.456])
         t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) / T) * T) for t in t_big])
-        big, small = model.sample('crank_drive', t_big), model.sample('crank_drive', t_small)
+        big, small = model.sample('drive', t_big), model.sample('drive', t_small)
         for k in range(t_big.size):
             frac = exact_frac_turns(float(t_big[k]), 1 / T)
             assert angle_diff(float(big.position[k, 0]), float(2 * PI_50 * frac)) <= 1e-9

@@ -81,13 +81,15 @@ from numpy.typing import NDArray
 
 from folder_line.accuracy.measure import Row
 from folder_line.core.limits import TICK_RATE
-from folder_line.core.line.model import NODES, LineModel
+from folder_line.core.line.model import LineModel
 from folder_line.errors import MeasurementError, ParameterError
+from folder_line.interfaces import JOINT_NODES, UNIT_OF_NODE
 
 __all__ = [
     'FINE_RATE',
     'JOINT',
     'JOINT_NODE',
+    'JOINT_UNIT',
     'METHODS',
     'MIN_PUBLISHED',
     'RATES',
@@ -111,6 +113,7 @@ __all__ = [
 SCENE = 'folder'
 #: node and joint measured (the knife position, m)
 JOINT_NODE = 'crank_drive'
+JOINT_UNIT = UNIT_OF_NODE[JOINT_NODE]
 JOINT = 'knife'
 #: the two reconstruction methods, in report order
 METHODS = ('linear interpolation', 'cubic Hermite')
@@ -126,7 +129,7 @@ RTF_MAX = 2.0
 #: least fraction of the owed ticks that must have been published for a cost to count
 MIN_PUBLISHED = 0.9
 #: the machine nodes with joints in the folder scene (their JointState messages are counted)
-_JOINT_NODES = NODES
+_JOINT_NODES = JOINT_NODES
 
 
 # --------------------------------------------------------------------------- error
@@ -178,7 +181,7 @@ def knife_stream(
     if not (math.isfinite(rate) and rate > 0.0):
         raise ParameterError('rate', rate, 'must be a finite rate > 0 Hz')
     t = sample_times(duration, rate)
-    js = model.sample(JOINT_NODE, t)
+    js = model.sample(JOINT_UNIT, t)
     j = js.names.index(JOINT)
     return t, np.ascontiguousarray(js.position[:, j]), np.ascontiguousarray(js.velocity[:, j])
 
@@ -249,7 +252,7 @@ def reconstruction_error(
     model = knife_model(duration) if model is None else model
     t_k, p_k, v_k = knife_stream(model, rate, duration)
     t = np.arange(math.floor(t_k[-1] * fine_rate) + 1, dtype=float) / fine_rate
-    js = model.sample(JOINT_NODE, t)
+    js = model.sample(JOINT_UNIT, t)
     exact = js.position[:, js.names.index(JOINT)]
     return float(np.max(np.abs(reconstruct(method, t_k, p_k, v_k, t) - exact)))
 

@@ -36,6 +36,7 @@ from folder_line.interfaces import (
     DIAGNOSTICS_TOPIC,
     EVENT_OWNER,
     EVENTS_TOPIC,
+    JOINT_NODES,
     LANDING_TOPIC,
     MACHINE_NODES,
     NS_PER_S,
@@ -56,10 +57,7 @@ __all__ = ['LINE_TOPICS', 'LineRecorder']
 #: topic -> message class, every topic of the line
 LINE_TOPICS: dict[str, type] = {
     CLOCK_TOPIC: Clock,
-    joint_states_topic('crank_drive'): JointState,
-    joint_states_topic('belt_conveyor'): JointState,
-    joint_states_topic('feed_transporter'): JointState,
-    joint_states_topic('sheet_counter'): JointState,
+    **{joint_states_topic(node): JointState for node in JOINT_NODES},
     EVENTS_TOPIC: TimeReference,
     DIAGNOSTICS_TOPIC: DiagnosticArray,
     SUPERVISOR_STATE_TOPIC: String,

@@ -23,9 +23,10 @@ import pytest
 
 from folder_line.accuracy import publishing as pub
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.model import NODES, LineModel
+from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.errors import MeasurementError, ParameterError
+from folder_line.interfaces import JOINT_NODES
 
 DURATION = 2.0  # s of line time the errors are measured over
 # rosidl_generator_py (imported by the first node) imports lark 0.12, which imports the
@@ -107,7 +108,7 @@ def test_core_knife_agrees_with_an_independent_crank_slider_in_mpmath() -> None:
     kp = _knife()
     t_dead = np.arange(0, 40) * kp.period / 2  # both dead centres, where s'' is largest
     t = np.sort(np.concatenate([rng.uniform(0.0, DURATION, 300), t_dead[t_dead <= DURATION]]))
-    js = _model().sample(pub.JOINT_NODE, t)
+    js = _model().sample(pub.JOINT_UNIT, t)
     j = js.names.index(pub.JOINT)
     with mp.workdps(30):
         exact = [_mp_knife(float(x)) for x in t]
@@ -202,7 +203,7 @@ def test_live_cost_grows_with_the_rate() -> None:
     for c in (low, high):
         pub.check_published(c)  # >= 90 % of the ticks published: the cost is of a line that keeps up
         assert c.published_fraction >= pub.MIN_PUBLISHED
-        assert set(c.published) == set(NODES)  # sheet_counter too: the pile table
+        assert set(c.published) == set(JOINT_NODES)  # sheet_counter too: the pile table
         assert max(c.published.values()) <= c.ticks_owed + 2  # never more than one message per tick
         assert any(c.rtf == pytest.approx(pub.default_rtf(c.rate) / k) for k in (1, 2, 4))
         assert c.span == pytest.approx(200.0 / c.rate, rel=0.05)

@@ -14,8 +14,9 @@ from scipy.integrate import quad
 
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
+from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import event_kind
-from folder_line.core.line.folder_sim import delivery_plan, simulate_folder
+from folder_line.core.line.folder_sim import simulate_folder
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms import chain
@@ -185,7 +186,7 @@ def test_release_is_where_the_sampled_carriage_is_slowest() -> None:
     res = simulate_folder(scene, ConstantDrive(), 0.5, t)
     rel = _of(res.events, 'released_on_pile')
     assert rel.size >= 3
-    js = res.samples['feed_transporter']
+    js = res.samples['feed']
     v = js.velocity[:, js.names.index('carriage')]
     for t_r in rel['t']:
         near = np.abs(t - t_r) < 0.01
@@ -386,11 +387,11 @@ def test_chain_friction_torque_is_the_only_effort() -> None:
     scene = _scene({'chain_friction': CHAIN})
     t = sample_times(2.0, 500.0)
     res = simulate_folder(scene, ConstantDrive(), 2.0, t)
-    js = res.samples['feed_transporter']
+    js = res.samples['feed']
     assert js.names == ('feed_belt', 'chain', 'carriage')
     assert_allclose(js.effort[:, 1], chain_friction.sprocket_torque(scene, t), rtol=0, atol=0)
     assert np.all(js.effort[:, [0, 2]] == 0.0)
-    assert np.all(res.samples['crank_drive'].effort == 0.0) and np.all(res.samples['belt_conveyor'].effort == 0.0)
+    assert np.all(res.samples['drive'].effort == 0.0) and np.all(res.samples['belts'].effort == 0.0)
     # chain_friction's carriages are ours: torque exactly where our carriage is on the stroke
     on = js.velocity[:, 2] > 0.0
     assert on.sum() > 100 and (~on).sum() > 100
@@ -435,17 +436,17 @@ def test_samples_are_consistent_with_their_velocities() -> None:
     rate = 50_000.0
     t = sample_times(0.6, rate)
     res = simulate_folder(scene, drive, 0.6, t)
-    crank = res.samples['crank_drive']
+    crank = res.samples['drive']
     assert crank.names == ('knife_crank', 'knife')
     phi = crank.position[:, 0]
     assert np.all((phi >= 0) & (phi < 2 * math.pi))
     assert_allclose(crank.velocity[:, 0], tm.omega_k * drive.rate(t))
     kp = scene.machines['knife']
     assert_allclose(crank.position[:, 1], knf.position(kp, phi))
-    belt = res.samples['belt_conveyor']
+    belt = res.samples['belts']
     assert belt.names == ('first_transporter',)
     assert_allclose(belt.position[:, 0], tm.V_d * drive.theta(t))
-    ft = res.samples['feed_transporter']
+    ft = res.samples['feed']
     assert ft.names == ('feed_belt', 'chain', 'carriage')
     dt = 1.0 / rate
     for name in ft.names + crank.names[1:]:
@@ -498,7 +499,7 @@ def test_without_delivery_the_knife_counts() -> None:
     s = res.summary
     assert s['sheets_counted'] == s['cycles'] == _of(res.events, 'knife_contact').size
     assert 'release_at_min_speed' not in _constraints(res)
-    assert res.samples['feed_transporter'].names == ('feed_belt',)
+    assert res.samples['feed'].names == ('feed_belt',)
     assert _of(res.events, 'released_on_pile').size == 0
 
 

@@ -380,7 +380,7 @@ def test_effects_not_listed_are_never_called(monkeypatch: pytest.MonkeyPatch, li
     if 'leaf_flight' not in listed:
         assert res.summary['leaves_landed'] == 0 and 'landing_cv' not in res.summary
     if 'chute_belts' not in listed:
-        assert 'belt_conveyor' not in res.samples and res.constraints == []
+        assert 'belts' not in res.samples and res.constraints == []
 
 
 # ---------------------------------------------------------------------------- faults
@@ -444,7 +444,7 @@ def test_belt_slowdowns_delay_the_exits_exactly() -> None:
         v = pt.vE if i % 2 else pt.vC
         assert row['value'] == pytest.approx(math.hypot(v, 2.8 * factor(b)), rel=1e-12)
     assert slowed > 5
-    belt = res.samples['belt_conveyor']
+    belt = res.samples['belts']
     assert belt.names == ('chute_belts',)
     # position is the integral of velocity (trapezoid on the 50 Hz grid, exact between slow-downs)
     dv = np.diff(belt.position[:, 0]) - 0.5 * (belt.velocity[1:, 0] + belt.velocity[:-1, 0]) * 0.02
@@ -458,7 +458,7 @@ def test_belt_slowdowns_delay_the_exits_exactly() -> None:
 def test_samples() -> None:
     t = sample_times(6.0, 25.0)
     res = run(scene({**BELTS}), 6.0, t_samples=t)
-    cd = res.samples['crank_drive']
+    cd = res.samples['drive']
     assert cd.names == ('layup_crank', 'transporter3', 'transporter4')
     assert cd.position.shape == cd.velocity.shape == (t.size, 3) and cd.effort is None
     assert ((cd.position[:, 0] >= 0.0) & (cd.position[:, 0] < TAU)).all()
@@ -468,7 +468,7 @@ def test_samples() -> None:
     st = LayupModel(P).arrays(OMEGA * t)
     assert_allclose(cd.position[:, 1], st.theta3, atol=1e-12)
     assert_allclose(cd.velocity[:, 2], st.omega5, atol=1e-12)
-    belt = res.samples['belt_conveyor']
+    belt = res.samples['belts']
     assert_allclose(belt.position[:, 0], 2.8 * t, atol=1e-12)
     assert_allclose(belt.velocity[:, 0], 2.8)
     assert all(np.isfinite(a).all() for a in (cd.position, cd.velocity, belt.position, belt.velocity))
@@ -478,9 +478,9 @@ def test_samples_follow_a_ramp_drive() -> None:
     drive = RampDrive(2.0)
     t = sample_times(4.0, 10.0)
     res = run(scene({**BELTS}, drive={'profile': 'ramp', 't_ramp': 2.0}), 4.0, drive=drive, t_samples=t)
-    cd = res.samples['crank_drive']
+    cd = res.samples['drive']
     assert_allclose(cd.velocity[:, 0], OMEGA * drive.rate(t))
-    assert_allclose(res.samples['belt_conveyor'].position[:, 0], 2.8 * drive.theta(t), atol=1e-12)
+    assert_allclose(res.samples['belts'].position[:, 0], 2.8 * drive.theta(t), atol=1e-12)
 
 
 def test_no_samples_when_the_grid_is_empty() -> None:
@@ -529,7 +529,7 @@ def test_a_run_without_leaves(effects: dict[str, Any]) -> None:
     assert res.events.size == 0 and res.summary['leaves'] == 0
     assert res.summary['min_exit_speed'] is None
     json.dumps(res.summary, allow_nan=False)
-    assert res.samples['crank_drive'].position.shape == (2, 3)
+    assert res.samples['drive'].position.shape == (2, 3)
 
 
 def test_cost_one_hour_with_belts() -> None:

@@ -14,7 +14,7 @@ from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
 from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import FolderLine
-from folder_line.core.line.model import NODES, LineModel, LineResult, sample_times, simulate
+from folder_line.core.line.model import UNITS, LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Command
 from folder_line.interfaces import EVENT_KINDS
@@ -45,7 +45,7 @@ def _rows(js: Any, i: Any) -> Any:
     from folder_line.core.line.events import JointSamples
 
     return JointSamples(
-        js.machine, js.names, js.t[i], js.position[i], js.velocity[i], None if js.effort is None else js.effort[i]
+        js.unit, js.names, js.t[i], js.position[i], js.velocity[i], None if js.effort is None else js.effort[i]
     )
 
 
@@ -55,14 +55,14 @@ def _rows(js: Any, i: Any) -> Any:
 @pytest.mark.parametrize('name', sorted(DURATION))
 def test_nodes_and_joint_names_are_simulates(runs: dict[str, Any], name: str) -> None:
     model, res = runs[name]
-    assert model.nodes == {node: js.names for node, js in res.samples.items()}
-    assert list(model.nodes) == [n for n in NODES if n in res.samples]
-    assert model.nodes['sheet_counter'] == (('container_floor',) if name == 'layup' else ('pile_table',))
-    with pytest.raises(KeyError, match='nodes'):
+    assert model.units == {unit: js.names for unit, js in res.samples.items()}
+    assert list(model.units) == [u for u in UNITS if u in res.samples]
+    assert model.units['counter'] == (('container_floor',) if name == 'layup' else ('pile_table',))
+    with pytest.raises(KeyError, match='units'):
         model.sample('supervisor', np.array([1.0]))
     if name == 'layup':
-        with pytest.raises(KeyError, match='feed_transporter'):
-            model.sample('feed_transporter', np.array([1.0]))
+        with pytest.raises(KeyError, match='feed'):
+            model.sample('feed', np.array([1.0]))
 
 
 @settings(max_examples=300, deadline=None)
@@ -80,7 +80,7 @@ def test_one_tick_is_simulates_row_bit_for_bit(runs: dict[str, Any], name: str, 
 @pytest.mark.parametrize('name', sorted(DURATION))
 def test_order_and_chunking_do_not_change_values(runs: dict[str, Any], name: str) -> None:
     model, res = runs[name]
-    t = res.samples['crank_drive'].t
+    t = res.samples['drive'].t
     perm = np.random.default_rng(3).permutation(t.size)
     for node, js in res.samples.items():
         assert _same(model.sample(node, t), js)
@@ -98,18 +98,18 @@ def test_a_longer_horizon_agrees_on_the_shorter_one(name: str, short: float, lon
     a, b = LineModel(scene, short), LineModel(scene, long)
     assert a.events.tobytes() == b.events_between(-math.inf, short).tobytes()
     t = np.linspace(0.0, short, 1001)
-    for node in a.nodes:
+    for node in a.units:
         assert _same(a.sample(node, t), b.sample(node, t)), node
 
 
 def test_fast_torque_is_chain_frictions_bit_for_bit() -> None:
-    """The one-tick path of feed_transporter reuses the carriage's stroke evaluation for the torque."""
+    """The one-tick path of the feed unit reuses the carriage's stroke evaluation for the torque."""
     scene = load_scene('folder')
     line = LineModel(scene, 5.0)._parts['folder']
     assert isinstance(line, FolderLine)
     t = np.random.default_rng(5).uniform(0.0, 5.0, 3000)
     ref = chain_friction.sprocket_torque(scene, line.drive.theta(t))
-    got = np.array([line.sample_node('feed_transporter', np.array([x])).effort[0, 1] for x in t])
+    got = np.array([line.sample_unit('feed', np.array([x])).effort[0, 1] for x in t])
     assert got.tobytes() == ref.tobytes()
     assert np.count_nonzero(got) > 1000 and np.count_nonzero(got == 0.0) > 500
 
@@ -213,9 +213,9 @@ def test_events_before_a_command_are_unchanged(name: str, t_c: float) -> None:
     )
     assert held.events.tobytes() != plain.events.tobytes()  # and the command does change the future
     t = np.linspace(0.0, t_c, 501)[:-1]
-    for node in plain.nodes:
+    for node in plain.units:
         assert _same(plain.sample(node, t), held.sample(node, t)), node
-    for node in held.nodes:
+    for node in held.units:
         js = held.sample(node, np.linspace(0.0, 18.0, 3601))
         assert np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))
     for c in held.constraints:
@@ -302,8 +302,8 @@ def test_layup_hold_stops_crank_and_belts(runs: dict[str, Any]) -> None:
     scene = load_scene('layup')
     m = LineModel(scene, 15.0, [Command(4.0, 'hold'), Command(9.0, 'unhold')])
     t = np.linspace(4.6, 9.0, 441)[:-1]
-    crank = m.sample('crank_drive', t)
-    belt = m.sample('belt_conveyor', t)
+    crank = m.sample('drive', t)
+    belt = m.sample('belts', t)
     assert np.all(crank.position == crank.position[0]) and np.all(crank.velocity == 0.0)
     assert np.all(belt.position == belt.position[0]) and np.all(belt.velocity == 0.0)
     # no leaf leaves a standing chute (the leaf stream itself is upstream, in line time)

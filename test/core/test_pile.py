@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from folder_line.config.scenes import load_scene, scene_mapping
-from folder_line.core.line.model import NODES, LineModel
+from folder_line.core.line.model import UNITS, LineModel
 from folder_line.core.line.scene import parse_scene
-from folder_line.core.mechanisms.pile import NODE, T_LOWER, PileTable, counted_event, pile_table
+from folder_line.core.mechanisms.pile import T_LOWER, UNIT, PileTable, counted_event, pile_table
 from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS
 
@@ -113,8 +113,8 @@ def test_bad_input_is_refused() -> None:
         PileTable('pile_table', np.array([math.nan]), H)
     with pytest.raises(ValueError, match='finite'):
         PileTable('pile_table', np.array([1.0]), H).state(np.array([math.nan]))
-    with pytest.raises(KeyError, match='sheet_counter'):
-        PileTable('pile_table', np.array([1.0]), H).sample_node('crank_drive', np.array([1.0]))
+    with pytest.raises(KeyError, match='counter'):
+        PileTable('pile_table', np.array([1.0]), H).sample_unit('drive', np.array([1.0]))
 
 
 # ------------------------------------------------------------------ in the line
@@ -135,19 +135,19 @@ def test_the_line_lowers_one_thickness_per_counted_sheet(name: str, joint: str, 
     horizon = 30.0
     model = LineModel(scene, horizon)
     assert counted_event(scene.has_delivery) == kind
-    assert model.nodes[NODE] == (joint,) and list(model.nodes)[-1] == NODE and NODE in NODES
+    assert model.units[UNIT] == (joint,) and list(model.units)[-1] == UNIT and UNIT in UNITS
     h = scene.sheets.thickness
     times = model.events['t'][model.events['kind'] == EVENT_KINDS.index(kind)]
     assert times.size > 100
     # between two sheets, once the table has settled: exactly -n h, at rest
     ts, n = _settled(times, T_LOWER, horizon)
     assert ts.size > 0.5 * times.size
-    js = model.sample(NODE, ts)
+    js = model.sample(UNIT, ts)
     assert js.names == (joint,) and js.effort is None
     assert np.array_equal(js.position[:, 0], -h * n.astype(float)) and np.all(js.velocity == 0.0)
     # on a node's grid: finite, non-increasing, between the settled and the arrived sheets
     t = np.arange(0.0, horizon, 1.0 / 200.0)
-    js = model.sample(NODE, t)
+    js = model.sample(UNIT, t)
     z, v = js.position[:, 0], js.velocity[:, 0]
     assert np.all(np.isfinite(z)) and np.all(np.isfinite(v)) and np.all(np.diff(z) <= 0.0)
     counted = np.searchsorted(times, t, side='right')  # what the node counts at t
@@ -156,7 +156,7 @@ def test_the_line_lowers_one_thickness_per_counted_sheet(name: str, joint: str, 
     # a tick is the same as the grid, bit for bit
     i = np.random.default_rng(1).integers(0, t.size, 50)
     for k in i:
-        one = model.sample(NODE, np.array([t[k]]))
+        one = model.sample(UNIT, np.array([t[k]]))
         assert one.position[0, 0] == z[k] and one.velocity[0, 0] == v[k]
     assert pile_table(scene.has_delivery, model.events, h).state(t)[0].tobytes() == z.tobytes()
 
@@ -166,7 +166,7 @@ def test_a_layup_without_flight_lands_nothing() -> None:
     del data['effects']['leaf_flight']  # unlisted: no leaf lands, the floor stays
     scene = parse_scene(data)
     model = LineModel(scene, 5.0)
-    js = model.sample(NODE, np.linspace(0.0, 5.0, 101))
+    js = model.sample(UNIT, np.linspace(0.0, 5.0, 101))
     assert js.names == ('container_floor',) and np.all(js.position == 0.0) and np.all(js.velocity == 0.0)
 
 
@@ -176,7 +176,7 @@ def test_the_thickness_is_a_scene_key() -> None:
     scene = load_scene('folder', {'sheets.thickness': 0.001})
     model = LineModel(scene, 3.0)
     n = int(np.count_nonzero(model.events['kind'] == EVENT_KINDS.index('released_on_pile')))
-    assert model.sample(NODE, np.array([3.0])).position[0, 0] == pytest.approx(-0.001 * n, rel=0.02)
+    assert model.sample(UNIT, np.array([3.0])).position[0, 0] == pytest.approx(-0.001 * n, rel=0.02)
     for bad in (0.0, -1e-4, 0.2, math.nan, math.inf, 'thin', True):
         with pytest.raises(ParameterError, match=r'sheets\.thickness'):
             load_scene('folder', {'sheets.thickness': bad})

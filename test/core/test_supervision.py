@@ -25,6 +25,7 @@ from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.decisions import (
     DRIVE_COMMANDS,
+    SHEET_UNIT,
     STOP_STATES,
     TIMING_CONSTRAINTS,
     Supervisor,
@@ -33,11 +34,18 @@ from folder_line.core.supervision.decisions import (
 )
 from folder_line.core.supervision.packml import ACTING, COMMANDS
 from folder_line.errors import ParameterError
+from folder_line.interfaces import NODE_OF_UNIT
 
 H = 8.0  # model horizon, s
 P = 0.005  # node period and check grid, s
 NODES = {'crank_drive': P, 'belt_conveyor': P, 'feed_transporter': P}
-KW: dict[str, Any] = {'periods': NODES, 'stale_periods': 5.0, 'lead': 0.01, 'check_period': P}
+KW: dict[str, Any] = {
+    'periods': NODES,
+    'stale_periods': 5.0,
+    'lead': 0.01,
+    'check_period': P,
+    'sheet_source': NODE_OF_UNIT[SHEET_UNIT],
+}
 SCENE = load_scene('folder_faults')
 T = cycle_timing(SCENE.machines['cyclogram'], SCENE.machines['knife']).T
 NOT_LATE = {'faults.p_late': 0.0}

@@ -293,7 +293,14 @@ def assert_bag_is_model(
     from folder_line.config.scenes import load_scene
     from folder_line.core.line.model import LineModel
     from folder_line.core.mechanisms.pile import counted_event
-    from folder_line.interfaces import COMMAND_KINDS, EVENT_KINDS, EVENT_OWNER, MACHINE_NODES, parse_event_source
+    from folder_line.interfaces import (
+        COMMAND_KINDS,
+        EVENT_KINDS,
+        EVENT_OWNER,
+        MACHINE_NODES,
+        NODE_OF_UNIT,
+        parse_event_source,
+    )
 
     ns = 1_000_000_000
     step = round(ns / rate)
@@ -305,14 +312,15 @@ def assert_bag_is_model(
     assert [r.msg.clock.sec * ns + r.msg.clock.nanosec for r in clock] == ticks
     assert [r.log_ns for r in clock] == ticks
 
-    assert set(model.nodes) <= set(MACHINE_NODES) and model.nodes
-    for node, joints in model.nodes.items():
+    nodes = {NODE_OF_UNIT[unit]: (unit, joints) for unit, joints in model.units.items()}
+    assert set(nodes) <= set(MACHINE_NODES) and nodes
+    for node, (unit, joints) in nodes.items():
         recs = records[(f'/line/{node}/joint_states', node)]
         stamps = [stamp_ns(r.msg) for r in recs]
         assert stamps == ticks, (node, len(stamps), n_ticks)
         assert [r.log_ns for r in recs] == ticks and [r.publish_ns for r in recs] == ticks, node
         assert all(tuple(r.msg.name) == joints for r in recs), node
-        expect = model.sample(node, np.array(stamps) / ns)
+        expect = model.sample(unit, np.array(stamps) / ns)
         np.testing.assert_allclose([r.msg.position for r in recs], expect.position, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose([r.msg.velocity for r in recs], expect.velocity, rtol=1e-9, atol=1e-9)
         if expect.effort is None:

@@ -42,6 +42,7 @@ from folder_line.interfaces import (
     EVENTS_TOPIC,
     NS_PER_S,
     SUPERVISOR_STATE_TOPIC,
+    UNIT_OF_NODE,
     parse_event_source,
 )
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
@@ -236,7 +237,9 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     crank = joints['crank_drive'].messages
     stamps = np.array([time_msg_to_ns(m.header.stamp) for m in crank])
     assert stamps.tolist() == ticks
-    np.testing.assert_array_equal([m.velocity for m in crank], model.sample('crank_drive', stamps / NS_PER_S).velocity)
+    np.testing.assert_array_equal(
+        [m.velocity for m in crank], model.sample(UNIT_OF_NODE['crank_drive'], stamps / NS_PER_S).velocity
+    )
     speed = np.array([m.velocity[0] for m in crank])
     ramp = (stamps >= t_hold * NS_PER_S) & (stamps < (t_hold + scene.drive.t_brake) * NS_PER_S)
     assert ramp.sum() >= 49 and np.all(np.diff(speed[ramp]) < 0.0)  # down along the brake ramp

@@ -37,11 +37,13 @@ from folder_line.interfaces import (
     EVENT_OWNER,
     EVENTS_TOPIC,
     LANDING_TOPIC,
+    NODE_OF_UNIT,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     TOPICS,
+    UNIT_OF_NODE,
     parse_event_source,
     tick_done_topic,
 )
@@ -179,7 +181,7 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     scene = load_scene(scene_name)
     model = LineModel(scene, horizon)  # built here, not the nodes' cached one
     joints = EXPECTED_JOINTS[scene_name]
-    assert model.nodes == joints
+    assert {NODE_OF_UNIT[unit]: names for unit, names in model.units.items()} == joints
 
     nodes = {
         name: ros.add(cls(context=ros.context, parameter_overrides=params(scene=scene_name, horizon=horizon)))
@@ -244,7 +246,7 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
         msgs = received.messages
         stamps = np.array([stamp_ns(m) for m in msgs])
         assert stamps.tolist() == points, name
-        expect = model.sample(name, stamps / NS_PER_S)
+        expect = model.sample(UNIT_OF_NODE[name], stamps / NS_PER_S)
         names = joints[name]
         position = np.array([m.position for m in msgs])
         velocity = np.array([m.velocity for m in msgs])
@@ -363,7 +365,7 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     stamps = [stamp_ns(m) for m in crank_js.messages]
     assert stamps == grid(0, NS_PER_S // 2, STEP) + [3 * NS_PER_S // 2]  # then 1.5 s; 2.5 s is past the end
     model = LineModel(load_scene('folder'), 3.0)
-    expect = model.sample('crank_drive', np.array(stamps) / NS_PER_S)
+    expect = model.sample(UNIT_OF_NODE['crank_drive'], np.array(stamps) / NS_PER_S)
     np.testing.assert_array_equal([m.position for m in crank_js.messages], expect.position)
     assert [stamp_ns(m) for m in belt_js.messages] == grid(0, end, STEP)
     assert crank.ticks == nodes['belt_conveyor'].ticks == grid(0, end, STEP)  # every tick, acknowledged

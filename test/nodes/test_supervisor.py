@@ -38,6 +38,7 @@ from folder_line.interfaces import (
     NS_PER_S,
     PARTICIPANTS_TOPIC,
     SUPERVISOR_STATE_TOPIC,
+    UNIT_OF_NODE,
     tick_done_topic,
 )
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
@@ -250,7 +251,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, m.source) for m in line.commands.messages] == cmds
     stamps = np.array([time_msg_to_ns(m.header.stamp) for m in line.crank.messages])
     assert stamps.tolist() == grid(0, line.end, STEP)
-    expect = model.sample('crank_drive', stamps / NS_PER_S)
+    expect = model.sample(UNIT_OF_NODE['crank_drive'], stamps / NS_PER_S)
     np.testing.assert_array_equal([m.position for m in line.crank.messages], expect.position)
     np.testing.assert_array_equal([m.velocity for m in line.crank.messages], expect.velocity)
     moving = [m for m in line.crank.messages if time_msg_to_ns(m.header.stamp) > t_speed * NS_PER_S]

@@ -57,8 +57,11 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.core.effects import chute_belts, leaf_damage
+from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.mechanisms.cyclogram import CycleTiming
+from folder_line.core.mechanisms.delivery import evaluate_stroke
 from folder_line.core.mechanisms.drive import Drive
 
 __all__ = [
@@ -148,7 +151,7 @@ def evaluate_folder_constraints(
     scene: Any,
     drive: Drive | None = None,
     *,
-    plan: Any = None,
+    plan: DeliveryPlan | None = None,
     causal: bool = False,
 ) -> list[ConstraintSeries]:
     """Per-cycle margins of the folder's (and delivery's) constraints.
@@ -164,7 +167,7 @@ def folder_evaluation(
     scene: Any,
     drive: Drive | None = None,
     *,
-    plan: Any = None,
+    plan: DeliveryPlan | None = None,
     causal: bool = False,
 ) -> FolderEvaluation:
     """Per-cycle margins of the folder's (and delivery's) constraints, with the signature counts.
@@ -181,7 +184,7 @@ def folder_evaluation(
         Master drive, to map the deadline and the release phase between Θ and t;
         None means Θ = t (steady nominal speed).
     plan : DeliveryPlan, optional
-        :func:`folder_line.core.line.folder_sim.delivery_plan` of the scene, if already at
+        :func:`folder_line.core.line.delivery_plan.delivery_plan` of the scene, if already at
         hand (it is derived from the scene otherwise).
     causal : bool, optional
         Judge each cycle on the rows up to its knife contact only (module docstring);
@@ -309,11 +312,7 @@ def folder_evaluation(
     # release_at_min_speed
     if 'delivery' in scene.machines:
         if plan is None:
-            from folder_line.core.line.folder_sim import delivery_plan
-
             plan = delivery_plan(scene, timing)
-        from folder_line.core.mechanisms.delivery import evaluate_stroke
-
         rel = _rows(ev, 'released_on_pile')
         if rel.size:
             travel = plan.schedule.travel(theta(rel['t']), rel['cycle'])
@@ -359,22 +358,19 @@ def chute_speed_series(scene: Any, leaf: np.ndarray, t_exit: np.ndarray, speed: 
     """
     if not scene.has('chute_belts'):
         return None
-    from folder_line.core.effects import effect_module
-
-    belts = effect_module('chute_belts')
     bp = scene.effect('chute_belts')
     speed = np.asarray(speed, dtype=float)
     upper = None
     desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
     if scene.has('leaf_damage'):
         dp = scene.effect('leaf_damage')
-        upper = effect_module('leaf_damage').upper_margin(dp, speed)
+        upper = leaf_damage.upper_margin(dp, speed)
         desc += f' and < v_damage = {dp.v_damage:g} m/s'
     return ConstraintSeries(
         'chute_speed',
         'm/s',
         np.asarray(leaf, dtype=np.int64),
-        belts.speed_margin(bp, speed, upper),
+        chute_belts.speed_margin(bp, speed, upper),
         desc + ' (per leaf)',
         t=np.asarray(t_exit, dtype=float),
     )

@@ -116,12 +116,12 @@ def merge_events(tables: Iterable[np.ndarray]) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class JointSamples:
-    """Joint states of one machine sampled on a time grid (a JointState stream).
+    """Joint states of one machine unit sampled on a time grid (a JointState stream).
 
     Attributes
     ----------
-    machine : str
-        Machine (node) name, e.g. ``'crank_drive'``.
+    unit : str
+        Machine unit, one of :data:`folder_line.core.line.model.UNITS`, e.g. ``'drive'``.
     names : tuple of str
         Joint names, J of them.
     t : ndarray, shape (N,)
@@ -132,7 +132,7 @@ class JointSamples:
         Efforts (N·m or N) where the scene computes them.
     """
 
-    machine: str
+    unit: str
     names: tuple[str, ...]
     t: np.ndarray
     position: np.ndarray
@@ -184,7 +184,7 @@ class ConstraintSeries:
 
 
 def stack_samples(
-    machine: str,
+    unit: str,
     names: Sequence[str],
     t: np.ndarray,
     positions: Sequence[np.ndarray],
@@ -195,7 +195,7 @@ def stack_samples(
     pos = np.column_stack(positions) if positions else np.zeros((t.size, 0))
     vel = np.column_stack(velocities) if velocities else np.zeros((t.size, 0))
     eff = np.column_stack(efforts) if efforts is not None else None
-    return JointSamples(machine, tuple(names), t, pos, vel, eff)
+    return JointSamples(unit, tuple(names), t, pos, vel, eff)
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,9 +207,8 @@ class SubResult:
     events : ndarray of EVENT_DTYPE
         Exact events, any order (merged and sorted by the caller).
     samples : dict of str to JointSamples
-        Node name (``crank_drive``, ``belt_conveyor``, ``feed_transporter``) -> joint
-        states on the common sample grid; joints of the same node from several parts
-        are concatenated by the caller.
+        Unit (``drive``, ``belts``, ``feed``) -> joint states on the common sample
+        grid; joints of the same unit from several parts are concatenated by the caller.
     constraints : list of ConstraintSeries
         Constraints evaluated per cycle (or per leaf).
     summary : dict
@@ -226,15 +225,15 @@ class LinePart:
     """Base of one part of the line (:class:`~folder_line.core.line.folder_sim.FolderLine`,
     :class:`~folder_line.core.line.layup_sim.LayupLine`): built once, sampled anywhere.
 
-    A subclass sets ``drive``, ``events``, ``constraints``, ``summary`` and ``nodes``
-    (node -> joint names) and implements :meth:`sample_node`.
+    A subclass sets ``drive``, ``events``, ``constraints``, ``summary`` and ``units``
+    (unit -> joint names) and implements :meth:`sample_unit`.
     """
 
     drive: Any
     events: np.ndarray
     constraints: list[ConstraintSeries]
     summary: dict[str, object]
-    nodes: dict[str, tuple[str, ...]]
+    units: dict[str, tuple[str, ...]]
 
     def result(self, t_samples: npt.ArrayLike) -> SubResult:
         """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
@@ -245,7 +244,7 @@ class LinePart:
     def sample(
         self, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> dict[str, JointSamples]:
-        """Joint states of every node of this part at times ``t``.
+        """Joint states of every unit of this part at times ``t``.
 
         Parameters
         ----------
@@ -256,12 +255,12 @@ class LinePart:
         """
         t = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(t, theta, lam)
-        return {node: self.sample_node(node, t, theta, lam) for node in self.nodes}
+        return {unit: self.sample_unit(unit, t, theta, lam) for unit in self.units}
 
-    def sample_node(
-        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of one node at ``t`` (subclass)."""
+        """Joint states of one unit at ``t`` (subclass)."""
         raise NotImplementedError
 
     def _drive_state(

@@ -65,12 +65,12 @@ checked in the summary). Sheets are numbered 0, 1, ... in cycle order over the
 signatures actually fed (a double fault feeds two with consecutive ids; a missing
 one takes no id).
 
-Joint samples (on ``t_samples``; λ = ``drive.rate``, f the belt slow-down factor)
--------------------------------------------------------------------------------
-* ``crank_drive``: ``knife_crank`` (φ_k wrapped to [0, 2π), ω_k λ),
+Joint samples per unit (on ``t_samples``; λ = ``drive.rate``, f the belt slow-down factor)
+----------------------------------------------------------------------------------------
+* ``drive``: ``knife_crank`` (φ_k wrapped to [0, 2π), ω_k λ),
   ``knife`` (s(φ_k) m, v(φ_k) λ m/s);
-* ``belt_conveyor``: ``first_transporter`` (V_d Θ m, V_d λ m/s);
-* ``feed_transporter``: ``feed_belt`` (its travel, V_tr λ f), and with a delivery
+* ``belts``: ``first_transporter`` (V_d Θ m, V_d λ m/s);
+* ``feed`` (the feed transporter): ``feed_belt`` (its travel, V_tr λ f), and with a delivery
   ``chain`` (v_A Θ, v_A λ) and ``carriage``: the carriage on the stroke (the one
   that entered it last), its displacement from the stroke start
   ``u x_max + l (1 - cos α(u))`` (``= u x_max`` at both ends of the stroke; the
@@ -91,6 +91,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
+from folder_line.core.line.constraints import evaluate_folder_constraints
+from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import (
     JointSamples,
     LinePart,
@@ -100,19 +103,16 @@ from folder_line.core.line.events import (
     merge_events,
     stack_samples,
 )
-from folder_line.core.line.machines import ChainParams
-from folder_line.core.mechanisms import chain
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.belt import BeltPhase
-from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
 from folder_line.errors import ParameterError
 
 __all__ = [
-    'DeliveryPlan',
+    'DeliveryPlan',  # re-exported: its home is folder_line.core.line.delivery_plan
     'FolderLine',
     'delivery_plan',
     'simulate_folder',
@@ -121,84 +121,6 @@ __all__ = [
 TWO_PI = 2.0 * math.pi
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
 _LAMBDA_FLOOR = 1e-9
-
-
-# --------------------------------------------------------------------------- delivery
-
-
-@dataclass(frozen=True, eq=False)
-class DeliveryPlan:
-    """What the folder simulation needs of the delivery (derived once per scene).
-
-    Attributes
-    ----------
-    params : DeliveryParams
-        The transporter.
-    chain : ChainParams
-        Chain geometry.
-    path : ChainPath
-        Arc length along the guide (:mod:`folder_line.core.mechanisms.chain`).
-    schedule : ChainSchedule
-        Where the carriages are; carriage k takes sheet k at ``schedule.pickup_phase(k)``.
-    rod : float
-        Rod length ``l``, m.
-    u_rel : float
-        Stroke position of the slowest carriage, where the sheet is released.
-    K_v_rel : float
-        ``K_v`` there (the stroke's minimum).
-    s_rel : float
-        Chain travel from the stroke start to ``u_rel``, m.
-    travel_rel : float
-        ``L_transfer + s_rel``: chain travel from the take-over at the folding
-        rollers to the release, m.
-    """
-
-    params: dlv.DeliveryParams
-    chain: ChainParams
-    path: ChainPath
-    schedule: ChainSchedule
-    rod: float
-    u_rel: float
-    K_v_rel: float
-    s_rel: float
-    travel_rel: float
-
-    @property
-    def v_A(self) -> float:
-        """Chain speed per unit master phase, ``pitch / T``, m/s at nominal speed."""
-        return self.schedule.v_A
-
-    def release_phase(self, cycle: npt.ArrayLike) -> np.ndarray:
-        """Master phase Θ at which carriage ``cycle`` releases sheet ``cycle`` on the pile, nominal s."""
-        return self.schedule.phase_of_travel(self.travel_rel, cycle)
-
-
-def delivery_plan(scene: Any, timing: CycleTiming) -> DeliveryPlan | None:
-    """The delivery's derived figures, or None if the scene has no delivery.
-
-    ``timing`` must be the scene's cycle timing: its ``T`` is the schedule's (checked).
-    """
-    if 'delivery' not in scene.machines:
-        return None
-    params: dlv.DeliveryParams = scene.machines['delivery']
-    chain_p: ChainParams = scene.machines['delivery_chain']
-    sch = chain.schedule(scene)
-    if sch.T != timing.T or sch.theta_pick0 != timing.T + timing.knife.t_out:
-        raise ValueError('delivery_plan: timing is not the cycle timing of this scene')
-    path = chain.chain_path(scene)
-    u_rel, kv_rel = dlv.stroke_minimum(params, 'K_v', return_section='geometric')
-    s_rel = float(path.arc(u_rel))
-    return DeliveryPlan(
-        params=params,
-        chain=chain_p,
-        path=path,
-        schedule=sch,
-        rod=params.rod_length(chain_p.x_max),
-        u_rel=float(u_rel),
-        K_v_rel=float(kv_rel),
-        s_rel=s_rel,
-        travel_rel=chain_p.L_transfer + s_rel,
-    )
 
 
 # --------------------------------------------------------------------------- helpers
@@ -230,6 +152,317 @@ class _Sheets:
     arrived: np.ndarray  # at the stops by the end
     t_a: np.ndarray  # valid where arrived
     v_imp: np.ndarray  # valid where arrived
+
+
+# --------------------------------------------------------------------------- steps of FolderLine
+
+
+@dataclass(frozen=True, eq=False)
+class _Setup:
+    """What every step of :class:`FolderLine`'s construction reads: the scene's folder on one drive."""
+
+    scene: Any
+    drive: Drive
+    duration: float
+    theta_end: float  # Θ at ``duration``, nominal s
+    timing: CycleTiming
+    V_tr: float
+    phase: float  # ``sheets.phase``, nominal s
+    plan: DeliveryPlan | None
+    slip: Any  # the listed effects' parameters, or None
+    bounce: Any
+    faults: Any
+
+
+@dataclass(frozen=True, eq=False)
+class _Stream:
+    """The hand-over slots and the signatures fed by the end (:func:`_hand_overs`)."""
+
+    slots: np.ndarray  # hand-over slot (cycle) indices with a nominal hand-over by the end
+    theta_nom: np.ndarray  # nominal hand-over phase of each slot
+    sheet_faults: Any  # faults.SheetFaults of the slots, or None without ``faults``
+    slowdowns: Any  # faults' belt slow-downs, or None
+    missing: np.ndarray  # per slot
+    double: np.ndarray
+    delay: np.ndarray  # per slot, nominal s
+    cycle: np.ndarray  # per signature fed: its slot
+    theta_h: np.ndarray  # per signature fed: hand-over phase
+    ids: np.ndarray  # per signature fed: sheet id
+    t_h: np.ndarray  # per signature fed: hand-over time, s
+
+
+@dataclass(frozen=True, eq=False)
+class _Knife:
+    """Knife contacts and exits by the end: cycle indices and times (:func:`_knife_cycles`)."""
+
+    k_c: np.ndarray
+    t_c: np.ndarray
+    k_x: np.ndarray
+    t_x: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Fates:
+    """What became of each signature fed (:func:`_fates`)."""
+
+    folded: np.ndarray  # at the stops by its cycle's knife contact
+    jammed: np.ndarray  # its cycle's knife came first
+    released: np.ndarray  # released on the pile by the end (with a delivery)
+    t_rel: np.ndarray  # valid where released
+    counted: np.ndarray  # released (with a delivery), else folded
+
+
+def _setup(scene: Any, drive: Drive, duration: float) -> _Setup:
+    timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+    duration = float(duration)
+    return _Setup(
+        scene=scene,
+        drive=drive,
+        duration=duration,
+        theta_end=float(np.asarray(drive.theta(duration))),
+        timing=timing,
+        V_tr=float(scene.machines['feed_transporter'].V_tr),
+        phase=float(scene.sheets.phase),
+        plan=delivery_plan(scene, timing),
+        slip=scene.effect('feed_slip'),
+        bounce=scene.effect('stop_bounce'),
+        faults=scene.effect('faults'),
+    )
+
+
+def _hand_overs(s: _Setup) -> _Stream:
+    """Hand-over slots, the faults drawn for them and the signatures fed by the end."""
+    T, t_out = s.timing.T, s.timing.knife.t_out
+    slots = _indices(t_out + s.phase, T, s.theta_end)
+    theta_nom = slots * T + (t_out + s.phase)
+    sf = slowdowns = None
+    if s.faults is not None:
+        sf = faults.draw_sheet_faults(s.faults, slots.size, stream(s.scene.seed, 'folder.faults'))
+        slowdowns = faults.draw_slowdowns(s.faults, s.duration, T, stream(s.scene.seed, 'folder.slowdowns'))
+        missing, double, delay = sf.missing, sf.double, np.asarray(sf.delay, dtype=float)
+    else:
+        missing = np.zeros(slots.size, dtype=bool)
+        double = np.zeros(slots.size, dtype=bool)
+        delay = np.zeros(slots.size)
+    mult = np.where(missing, 0, np.where(double, 2, 1))
+    # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing:
+    # the line starts at Θ = 0, and its first cycle then runs empty (one_per_cycle flags it)
+    mult = np.where(theta_nom + delay < 0.0, 0, mult)
+    cyc_all = np.repeat(slots, mult)
+    theta_h_all = np.repeat(theta_nom + delay, mult)
+    fed = theta_h_all <= s.theta_end
+    cyc = cyc_all[fed]
+    theta_h = theta_h_all[fed]
+    return _Stream(
+        slots=slots,
+        theta_nom=theta_nom,
+        sheet_faults=sf,
+        slowdowns=slowdowns,
+        missing=missing,
+        double=double,
+        delay=delay,
+        cycle=cyc,
+        theta_h=theta_h,
+        ids=np.arange(cyc.size, dtype=np.int64),
+        t_h=np.asarray(s.drive.time_of(theta_h), dtype=float) if cyc.size else np.zeros(0),
+    )
+
+
+def _belt_phase(s: _Setup, st: _Stream) -> BeltPhase:
+    """The feed belt's travel in master phase, with the faults' slow-downs."""
+    sd = st.slowdowns
+    if sd is None:
+        return BeltPhase(s.drive, s.duration)
+    return BeltPhase(s.drive, s.duration, sd.t_start, sd.t_end, sd.factor)
+
+
+def _fault_events(s: _Setup, st: _Stream) -> list[np.ndarray]:
+    """The ``fault_*`` and ``belt_slowdown_*`` events (none without ``faults``)."""
+    if s.faults is None:
+        return []
+    slots, cyc, ids = st.slots, st.cycle, st.ids
+    first_id = np.full(slots.size, -1, dtype=np.int64)
+    fed_slot = np.zeros(slots.size, dtype=bool)
+    fed_slot[cyc] = True
+    # id of the first signature of each slot (ids are in slot order)
+    starts = np.searchsorted(cyc, slots, side='left')
+    first_id[fed_slot] = ids[starts[fed_slot]]
+    t_nom = np.asarray(s.drive.time_of(st.theta_nom), dtype=float) if slots.size else np.zeros(0)
+    table = faults.fault_events(st.sheet_faults, t_nom, first_id, slots, st.slowdowns, s.duration)
+    return [table[table['t'] >= 0.0]]  # a slot before the line starts has no fault either
+
+
+def _knife_cycles(s: _Setup) -> _Knife:
+    """Knife contact of cycle k at Θ = (k+1)T + t_in, exit at (k+1)T + t_out (those by the end)."""
+    T, t_in, t_out, drive = s.timing.T, s.timing.knife.t_in, s.timing.knife.t_out, s.drive
+    k_c = _indices(T + t_in, T, s.theta_end)
+    t_c = np.asarray(drive.time_of(k_c * T + (T + t_in)), dtype=float) if k_c.size else np.zeros(0)
+    k_x = _indices(T + t_out, T, s.theta_end)
+    t_x = np.asarray(drive.time_of(k_x * T + (T + t_out)), dtype=float) if k_x.size else np.zeros(0)
+    return _Knife(k_c, t_c, k_x, t_x)
+
+
+def _fates(s: _Setup, sheets: _Sheets, knife: _Knife) -> _Fates:
+    """Folded or jammed at the knife; released on the pile (with a delivery); counted."""
+    n = sheets.sheet.size
+    # folded: at the stops by its cycle's knife contact (cycle k's contact is t_c[k])
+    has_contact = sheets.cycle < knife.k_c.size
+    t_contact = np.zeros(n)
+    t_contact[has_contact] = knife.t_c[sheets.cycle[has_contact]]
+    folded = has_contact & sheets.arrived & (sheets.t_a <= t_contact)
+    jammed = has_contact & ~folded
+    released = np.zeros(n, dtype=bool)
+    t_rel = np.zeros(n)
+    if s.plan is None:
+        return _Fates(folded, jammed, released, t_rel, folded)
+    theta_rel = s.plan.release_phase(sheets.cycle)
+    released = folded & (theta_rel <= s.theta_end)
+    if released.any():
+        t_rel[released] = np.asarray(s.drive.time_of(theta_rel[released]), dtype=float)
+    released &= t_rel <= s.duration
+    return _Fates(folded, jammed, released, t_rel, released)
+
+
+def _bounces(s: _Setup, sheets: _Sheets) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """``bounce`` and ``settled`` events and the summary's ``stop_bounce`` figures (none without it)."""
+    if s.bounce is None:
+        return [], {}
+    ids = sheets.sheet
+    arr = np.flatnonzero(sheets.arrived)
+    sched = stop_bounce.bounce_schedule(s.bounce, sheets.v_imp[arr])
+    t_settled = sheets.t_a.copy()
+    t_settled[arr] = sheets.t_a[arr] + sched.settle
+    tb = sheets.t_a[arr][sched.index] + sched.dt
+    keep = tb <= s.duration
+    tables = [
+        make_events(
+            'bounce',
+            tb[keep],
+            sheet=ids[arr][sched.index][keep],
+            cycle=sheets.cycle[arr][sched.index][keep],
+            value=sched.rebound[keep],
+        )
+    ]
+    sk = arr[t_settled[arr] <= s.duration]
+    tables.append(make_events('settled', t_settled[sk], sheet=ids[sk], cycle=sheets.cycle[sk]))
+    nominal = float(s.V_tr)
+    info = {
+        'bounces_at_V_tr': int(stop_bounce.bounce_count(s.bounce, nominal)),
+        'settle_time_at_V_tr': _json_float(stop_bounce.settle_time(s.bounce, nominal)),
+        'first_rebound_at_V_tr': _json_float(stop_bounce.first_rebound(s.bounce, nominal)),
+        'bounces_max': int(sched.count.max()) if sched.count.size else 0,
+        'settle_time_max': _json_float(sched.settle.max()) if sched.settle.size else 0.0,
+    }
+    return tables, info
+
+
+def _sheet_events(s: _Setup, sheets: _Sheets, knife: _Knife, fates: _Fates) -> list[np.ndarray]:
+    """``sheet_handover``, ``at_stops``, ``knife_contact``, ``knife_exit`` and ``released_on_pile``."""
+    ids, cyc, arrived = sheets.sheet, sheets.cycle, sheets.arrived
+    tables = [
+        make_events('sheet_handover', sheets.t_h, sheet=ids, cycle=cyc),
+        make_events(
+            'at_stops', sheets.t_a[arrived], sheet=ids[arrived], cycle=cyc[arrived], value=sheets.v_imp[arrived]
+        ),
+        make_events('knife_contact', knife.t_c, cycle=knife.k_c),
+        make_events('knife_exit', knife.t_x, cycle=knife.k_x),
+    ]
+    if s.plan is not None:
+        rel = fates.released
+        tables.append(make_events('released_on_pile', fates.t_rel[rel], sheet=ids[rel], cycle=cyc[rel]))
+    return tables
+
+
+def _summary(
+    s: _Setup,
+    st: _Stream,
+    sheets: _Sheets,
+    knife: _Knife,
+    fates: _Fates,
+    events: np.ndarray,
+    bounce_info: dict[str, Any],
+) -> dict[str, Any]:
+    """The JSON-ready figures of the folder (see the ``simulate`` verb of the CLI)."""
+    timing, V_tr, phase, plan = s.timing, s.V_tr, s.phase, s.plan
+    V_d, T, L = timing.V_d, timing.T, timing.L_feed
+    ids = sheets.sheet
+    n_fed = int(ids.size)
+    n_counted = int(np.count_nonzero(fates.counted))
+    # in the machine, from the event table: handed over, but no pile release (or not folded) by the end
+    gone = events['sheet'][events['kind'] == event_kind('released_on_pile')] if plan is not None else ids[fates.folded]
+    handed = events['sheet'][events['kind'] == event_kind('sheet_handover')]
+    in_machine = int(np.count_nonzero(~np.isin(handed, gone)))
+    t_feed = L / V_tr
+    summary: dict[str, Any] = {
+        'cycles': int(knife.k_c.size),
+        'cycles_started': int(_indices(timing.knife.t_out, T, s.theta_end).size),
+        'sheets_fed': n_fed,
+        'sheets_at_stops': int(np.count_nonzero(sheets.arrived)),
+        'sheets_folded': int(np.count_nonzero(fates.folded)),
+        'sheets_jammed': int(np.count_nonzero(fates.jammed)),
+        'sheets_counted': n_counted,
+        'sheets_in_machine': in_machine,
+        'sheets_balance_ok': bool(handed.size == n_fed and n_fed == n_counted + in_machine),
+        'V_d': _json_float(V_d),
+        'V_tr': _json_float(V_tr),
+        'v_tr_over_v_d': _json_float(V_tr / V_d),
+        'V_tr_min': _json_float(timing.V_tr_min),
+        'timing': {
+            'T': _json_float(T),
+            't_in': _json_float(timing.knife.t_in),
+            't_out': _json_float(timing.knife.t_out),
+            't_knife': _json_float(timing.t_knife),
+            't_dwell': _json_float(timing.t_dwell),
+            't_fw': _json_float(timing.t_fw),
+            't_allowed': _json_float(timing.t_allowed),
+        },
+        # nominal speed, no faults: what each part of the cycle leaves over (s)
+        'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
+    }
+    if s.slip is not None:
+        cost = float(feed_slip.slip_cost(s.slip, V_d, V_tr, L))
+        summary['feed_slip'] = _slip_info(s, cost)
+        summary['slack']['slip_cost'] = _json_float(cost)
+        t_feed += cost
+    summary['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
+    rest = (T - timing.t_knife) - phase - t_feed
+    summary['slack']['rest_at_stops'] = _json_float(rest)
+    if s.bounce is not None:
+        settle = bounce_info['settle_time_at_V_tr']
+        summary['slack']['settle_time'] = settle
+        summary['slack']['settled_margin'] = _json_float(rest - settle)
+        summary['stop_bounce'] = bounce_info
+    if plan is not None:
+        summary['release'] = {
+            'u_rel': _json_float(plan.u_rel),
+            'K_v': _json_float(plan.K_v_rel),
+            'chain_travel': _json_float(plan.travel_rel),
+            'v_A': _json_float(plan.v_A),
+            'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
+        }
+    if s.faults is not None:
+        summary['faults'] = {
+            'missing': int(np.count_nonzero(st.missing)),
+            'double': int(np.count_nonzero(st.double)),
+            'late': int(np.count_nonzero(st.delay > 0.0)),
+            'slowdowns': int(np.asarray(st.slowdowns.t_start).size) if st.slowdowns is not None else 0,
+        }
+    return summary
+
+
+def _slip_info(s: _Setup, cost: float) -> dict[str, Any]:
+    """The summary's ``feed_slip`` figures."""
+    timing, L = s.timing, s.timing.L_feed
+    info: dict[str, Any] = {
+        'accel': _json_float(s.slip.accel),
+        'slip_cost': _json_float(cost),
+        'feed_margin_with_slip': _json_float(timing.t_allowed - L / s.V_tr - cost),
+    }
+    try:
+        info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(s.slip, timing.V_d, L, timing.t_allowed))
+    except ParameterError:
+        info['V_tr_min_with_slip'] = None
+    return info
 
 
 # --------------------------------------------------------------------------- simulation
@@ -266,277 +499,77 @@ class FolderLine(LinePart):
         The cycle.
     plan : DeliveryPlan or None
         The delivery's derived figures.
+    units : dict of str to tuple of str
+        Unit (``drive``, ``belts``, ``feed``) -> its joint names.
     """
 
     def __init__(self, scene: Any, drive: Drive, duration: float) -> None:
-        from folder_line.core.line.constraints import evaluate_folder_constraints
+        s = _setup(scene, drive, duration)
+        st = _hand_overs(s)
+        belt = _belt_phase(s, st)
+        sheets = _feed(drive, s.duration, belt, st, s.timing.V_d, s.V_tr, s.timing.L_feed, s.slip)
+        knife = _knife_cycles(s)
+        fates = _fates(s, sheets, knife)
+        bounce_tables, bounce_info = _bounces(s, sheets)
+        events = merge_events([*_fault_events(s, st), *bounce_tables, *_sheet_events(s, sheets, knife, fates)])
 
-        knife_p: knf.KnifeParams = scene.machines['knife']
-        timing = cycle_timing(scene.machines['cyclogram'], knife_p)
-        V_tr = float(scene.machines['feed_transporter'].V_tr)
-        V_d, T = timing.V_d, timing.T
-        t_in, t_out = timing.knife.t_in, timing.knife.t_out
-        L = timing.L_feed
-        phase = float(scene.sheets.phase)
-        duration = float(duration)
-        theta_end = float(np.asarray(drive.theta(duration)))
-
-        slip = scene.effect('feed_slip')
-        bounce = scene.effect('stop_bounce')
-        faults_p = scene.effect('faults')
-        plan = delivery_plan(scene, timing)
-
-        # ---- hand-over slots, faults and the signatures fed
-        slots = _indices(t_out + phase, T, theta_end)
-        theta_nom = slots * T + (t_out + phase)
-        tables: list[np.ndarray] = []
-        slowdowns = None
-        if faults_p is not None:
-            from folder_line.core.effects import faults
-
-            sf = faults.draw_sheet_faults(faults_p, slots.size, stream(scene.seed, 'folder.faults'))
-            slowdowns = faults.draw_slowdowns(faults_p, duration, T, stream(scene.seed, 'folder.slowdowns'))
-            missing, double, delay = sf.missing, sf.double, np.asarray(sf.delay, dtype=float)
-        else:
-            missing = np.zeros(slots.size, dtype=bool)
-            double = np.zeros(slots.size, dtype=bool)
-            delay = np.zeros(slots.size)
-        mult = np.where(missing, 0, np.where(double, 2, 1))
-        # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing:
-        # the line starts at Θ = 0, and its first cycle then runs empty (one_per_cycle flags it)
-        mult = np.where(theta_nom + delay < 0.0, 0, mult)
-        cyc_all = np.repeat(slots, mult)
-        theta_h_all = np.repeat(theta_nom + delay, mult)
-        fed = theta_h_all <= theta_end
-        cyc = cyc_all[fed]
-        theta_h = theta_h_all[fed]
-        ids = np.arange(cyc.size, dtype=np.int64)
-        t_h = np.asarray(drive.time_of(theta_h), dtype=float) if cyc.size else np.zeros(0)
-        belt = (
-            BeltPhase(drive, duration)
-            if slowdowns is None
-            else BeltPhase(drive, duration, slowdowns.t_start, slowdowns.t_end, slowdowns.factor)
-        )
-
-        if faults_p is not None:
-            from folder_line.core.effects import faults
-
-            first_id = np.full(slots.size, -1, dtype=np.int64)
-            fed_slot = np.zeros(slots.size, dtype=bool)
-            fed_slot[cyc] = True
-            # id of the first signature of each slot (ids are in slot order)
-            starts = np.searchsorted(cyc, slots, side='left')
-            first_id[fed_slot] = ids[starts[fed_slot]]
-            t_nom = np.asarray(drive.time_of(theta_nom), dtype=float) if slots.size else np.zeros(0)
-            table = faults.fault_events(sf, t_nom, first_id, slots, slowdowns, duration)
-            tables.append(table[table['t'] >= 0.0])  # a slot before the line starts has no fault either
-
-        sheets = _feed(drive, duration, belt, ids, cyc, theta_h, t_h, V_d, V_tr, L, slip)
-
-        # ---- knife cycles
-        k_c = _indices(T + t_in, T, theta_end)
-        t_c = np.asarray(drive.time_of(k_c * T + (T + t_in)), dtype=float) if k_c.size else np.zeros(0)
-        k_x = _indices(T + t_out, T, theta_end)
-        t_x = np.asarray(drive.time_of(k_x * T + (T + t_out)), dtype=float) if k_x.size else np.zeros(0)
-
-        # folded: at the stops by its cycle's knife contact (cycle k's contact is t_c[k])
-        has_contact = sheets.cycle < k_c.size
-        t_contact = np.zeros(ids.size)
-        t_contact[has_contact] = t_c[sheets.cycle[has_contact]]
-        folded = has_contact & sheets.arrived & (sheets.t_a <= t_contact)
-        jammed = has_contact & ~folded
-
-        # ---- stop bounce
-        bounce_info: dict[str, Any] = {}
-        if bounce is not None:
-            from folder_line.core.effects import stop_bounce
-
-            arr = np.flatnonzero(sheets.arrived)
-            sched = stop_bounce.bounce_schedule(bounce, sheets.v_imp[arr])
-            t_settled = sheets.t_a.copy()
-            t_settled[arr] = sheets.t_a[arr] + sched.settle
-            tb = sheets.t_a[arr][sched.index] + sched.dt
-            keep = tb <= duration
-            tables.append(
-                make_events(
-                    'bounce',
-                    tb[keep],
-                    sheet=ids[arr][sched.index][keep],
-                    cycle=sheets.cycle[arr][sched.index][keep],
-                    value=sched.rebound[keep],
-                )
-            )
-            sk = arr[t_settled[arr] <= duration]
-            tables.append(make_events('settled', t_settled[sk], sheet=ids[sk], cycle=sheets.cycle[sk]))
-            nominal = float(V_tr)
-            bounce_info = {
-                'bounces_at_V_tr': int(stop_bounce.bounce_count(bounce, nominal)),
-                'settle_time_at_V_tr': _json_float(stop_bounce.settle_time(bounce, nominal)),
-                'first_rebound_at_V_tr': _json_float(stop_bounce.first_rebound(bounce, nominal)),
-                'bounces_max': int(sched.count.max()) if sched.count.size else 0,
-                'settle_time_max': _json_float(sched.settle.max()) if sched.settle.size else 0.0,
-            }
-
-        # ---- delivery
-        released = np.zeros(ids.size, dtype=bool)
-        t_rel = np.zeros(ids.size)
-        if plan is not None:
-            theta_rel = plan.release_phase(sheets.cycle)
-            released = folded & (theta_rel <= theta_end)
-            if released.any():
-                t_rel[released] = np.asarray(drive.time_of(theta_rel[released]), dtype=float)
-            released &= t_rel <= duration
-            counted = released
-        else:
-            counted = folded
-
-        # ---- events
-        arrived = sheets.arrived
-        tables += [
-            make_events('sheet_handover', t_h, sheet=ids, cycle=cyc),
-            make_events(
-                'at_stops', sheets.t_a[arrived], sheet=ids[arrived], cycle=cyc[arrived], value=sheets.v_imp[arrived]
-            ),
-            make_events('knife_contact', t_c, cycle=k_c),
-            make_events('knife_exit', t_x, cycle=k_x),
-        ]
-        if plan is not None:
-            tables.append(make_events('released_on_pile', t_rel[released], sheet=ids[released], cycle=cyc[released]))
-        events = merge_events(tables)
-
-        constraints = evaluate_folder_constraints(events, timing, scene, drive, plan=plan)
-
-        # ---- summary
-        n_fed = int(ids.size)
-        n_counted = int(np.count_nonzero(counted))
-        # in the machine, from the event table: handed over, but no pile release (or not folded) by the end
-        gone = events['sheet'][events['kind'] == event_kind('released_on_pile')] if plan is not None else ids[folded]
-        handed = events['sheet'][events['kind'] == event_kind('sheet_handover')]
-        in_machine = int(np.count_nonzero(~np.isin(handed, gone)))
-        t_feed = L / V_tr
-        summary: dict[str, Any] = {
-            'cycles': int(k_c.size),
-            'cycles_started': int(_indices(t_out, T, theta_end).size),
-            'sheets_fed': n_fed,
-            'sheets_at_stops': int(np.count_nonzero(arrived)),
-            'sheets_folded': int(np.count_nonzero(folded)),
-            'sheets_jammed': int(np.count_nonzero(jammed)),
-            'sheets_counted': n_counted,
-            'sheets_in_machine': in_machine,
-            'sheets_balance_ok': bool(handed.size == n_fed and n_fed == n_counted + in_machine),
-            'V_d': _json_float(V_d),
-            'V_tr': _json_float(V_tr),
-            'v_tr_over_v_d': _json_float(V_tr / V_d),
-            'V_tr_min': _json_float(timing.V_tr_min),
-            'timing': {
-                'T': _json_float(T),
-                't_in': _json_float(t_in),
-                't_out': _json_float(t_out),
-                't_knife': _json_float(timing.t_knife),
-                't_dwell': _json_float(timing.t_dwell),
-                't_fw': _json_float(timing.t_fw),
-                't_allowed': _json_float(timing.t_allowed),
-            },
-            # nominal speed, no faults: what each part of the cycle leaves over (s)
-            'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
-        }
-        if slip is not None:
-            from folder_line.core.effects import feed_slip
-
-            cost = float(feed_slip.slip_cost(slip, V_d, V_tr, L))
-            info: dict[str, Any] = {
-                'accel': _json_float(slip.accel),
-                'slip_cost': _json_float(cost),
-                'feed_margin_with_slip': _json_float(timing.t_allowed - L / V_tr - cost),
-            }
-            try:
-                info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(slip, V_d, L, timing.t_allowed))
-            except ParameterError:
-                info['V_tr_min_with_slip'] = None
-            summary['feed_slip'] = info
-            summary['slack']['slip_cost'] = _json_float(cost)
-            t_feed += cost
-        summary['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
-        rest = (T - timing.t_knife) - phase - t_feed
-        summary['slack']['rest_at_stops'] = _json_float(rest)
-        if bounce is not None:
-            settle = bounce_info['settle_time_at_V_tr']
-            summary['slack']['settle_time'] = settle
-            summary['slack']['settled_margin'] = _json_float(rest - settle)
-            summary['stop_bounce'] = bounce_info
-        if plan is not None:
-            summary['release'] = {
-                'u_rel': _json_float(plan.u_rel),
-                'K_v': _json_float(plan.K_v_rel),
-                'chain_travel': _json_float(plan.travel_rel),
-                'v_A': _json_float(plan.v_A),
-                'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
-            }
-        if faults_p is not None:
-            summary['faults'] = {
-                'missing': int(np.count_nonzero(missing)),
-                'double': int(np.count_nonzero(double)),
-                'late': int(np.count_nonzero(delay > 0.0)),
-                'slowdowns': int(np.asarray(slowdowns.t_start).size) if slowdowns is not None else 0,
-            }
         self.scene = scene
         self.drive = drive
-        self.duration = duration
-        self.timing = timing
-        self.V_tr = V_tr
+        self.duration = s.duration
+        self.timing = s.timing
+        self.V_tr = s.V_tr
         self.belt = belt
-        self.plan = plan
+        self.plan = s.plan
         self.events = events
-        self.constraints = constraints
-        self.summary = summary
-
-        self.knife = knife_p
-        self.with_torque = scene.has('chain_friction') and plan is not None
+        self.constraints = evaluate_folder_constraints(events, s.timing, scene, drive, plan=s.plan)
+        self.summary = _summary(s, st, sheets, knife, fates, events, bounce_info)
+        self.knife: knf.KnifeParams = scene.machines['knife']
+        self.with_torque = scene.has('chain_friction') and s.plan is not None
         self.torque_params = scene.effect('chain_friction') if self.with_torque else None
-        self.nodes: dict[str, tuple[str, ...]] = {
-            'crank_drive': ('knife_crank', 'knife'),
-            'belt_conveyor': ('first_transporter',),
-            'feed_transporter': ('feed_belt', 'chain', 'carriage') if plan is not None else ('feed_belt',),
+        self.units: dict[str, tuple[str, ...]] = {
+            'drive': ('knife_crank', 'knife'),
+            'belts': ('first_transporter',),
+            'feed': ('feed_belt', 'chain', 'carriage') if s.plan is not None else ('feed_belt',),
         }
 
     # ------------------------------------------------------------------ joint states
 
-    def sample_node(
-        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of one node (``crank_drive``, ``belt_conveyor``, ``feed_transporter``) at ``t``."""
+        """Joint states of one unit (``drive``, ``belts``, ``feed``) at ``t``."""
         t = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(t, theta, lam)
         timing = self.timing
         wt = self.with_torque
-        if node == 'crank_drive':
+        if unit == 'drive':
             kp = self.knife
             phi = np.mod(timing.omega_k * theta, TWO_PI)
             s = knf.position(kp, phi)
             v = knf.velocity(kp, phi) * lam
             zeros = np.zeros(t.size)
             return stack_samples(
-                'crank_drive',
+                'drive',
                 ('knife_crank', 'knife'),
                 t,
                 [phi, s],
                 [timing.omega_k * lam, v],
                 [zeros, zeros] if wt else None,
             )
-        if node == 'belt_conveyor':
+        if unit == 'belts':
             return stack_samples(
-                'belt_conveyor',
+                'belts',
                 ('first_transporter',),
                 t,
                 [timing.V_d * theta],
                 [timing.V_d * lam],
                 [np.zeros(t.size)] if wt else None,
             )
-        if node == 'feed_transporter':
-            return self._feed_transporter(t, theta, lam)
-        raise KeyError(f'node {node!r} has no folder joints; nodes: {", ".join(self.nodes)}')
+        if unit == 'feed':
+            return self._feed_unit(t, theta, lam)
+        raise KeyError(f'unit {unit!r} has no folder joints; units: {", ".join(self.units)}')
 
-    def _feed_transporter(self, t: np.ndarray, theta: np.ndarray, lam: np.ndarray) -> JointSamples:
+    def _feed_unit(self, t: np.ndarray, theta: np.ndarray, lam: np.ndarray) -> JointSamples:
         V_tr, belt, plan = self.V_tr, self.belt, self.plan
         zeros = np.zeros(t.size)
         b = belt.at(t, theta)
@@ -565,13 +598,11 @@ class FolderLine(LinePart):
                 if t.size == 1:  # a node's tick: reuse the carriage's stroke evaluation
                     torque = self._sprocket_torque(a0, slack, on, u, st)
                 else:
-                    from folder_line.core.effects import chain_friction
-
                     torque = np.asarray(chain_friction.sprocket_torque(self.scene, theta), dtype=float)
                 if torque.shape != t.shape or not np.all(np.isfinite(torque)):
                     raise ValueError('chain_friction.sprocket_torque must return finite values shaped like Θ')
                 eff += [torque, zeros]
-        return stack_samples('feed_transporter', tuple(names), t, pos, vel, eff)
+        return stack_samples('feed', tuple(names), t, pos, vel, eff)
 
     def _sprocket_torque(
         self, a0: np.ndarray, slack: np.ndarray, on0: np.ndarray, u0: np.ndarray | None, st0: Any
@@ -582,8 +613,6 @@ class FolderLine(LinePart):
         ``chain_friction._stroke_torque`` (a test compares the two bit for bit), but the
         newest carriage's stroke evaluation is the carriage joint's own where it is the
         same (geometric return section), which halves the cost of the tick."""
-        from folder_line.core.effects import chain_friction
-
         p = self.torque_params
         plan = self.plan
         assert p is not None and plan is not None
@@ -620,7 +649,7 @@ def simulate_folder(scene: Any, drive: Drive, duration: float, t_samples: np.nda
     Returns
     -------
     SubResult
-        Events (see the module docstring), samples per node, constraints
+        Events (see the module docstring), samples per unit, constraints
         (:func:`folder_line.core.line.constraints.evaluate_folder_constraints`), summary.
     """
     return FolderLine(scene, drive, duration).result(t_samples)
@@ -630,16 +659,14 @@ def _feed(
     drive: Drive,
     duration: float,
     belt: BeltPhase,
-    ids: np.ndarray,
-    cyc: np.ndarray,
-    theta_h: np.ndarray,
-    t_h: np.ndarray,
+    st: _Stream,
     V_d: float,
     V_tr: float,
     L: float,
     slip: Any,
 ) -> _Sheets:
     """Arrival at the stops of every signature handed over (exact, vectorised)."""
+    ids, cyc, theta_h, t_h = st.ids, st.cycle, st.theta_h, st.t_h
     n = ids.size
     arrived = np.zeros(n, dtype=bool)
     t_a = np.zeros(n)
@@ -653,8 +680,6 @@ def _feed(
         ride = b_a <= b_end
         idx = np.flatnonzero(ride)
     else:
-        from folder_line.core.effects import feed_slip
-
         lam = np.maximum(np.asarray(drive.rate(t_h), dtype=float), _LAMBDA_FLOOR)
         f_h = belt.factor(t_h)
         sa = feed_slip.arrival(slip, lam * V_d, lam * f_h * V_tr, L)

@@ -457,37 +457,37 @@ class LayupLine(LinePart):
         self.events = merge_events(tables)
         self.constraints = constraints
         self.summary = summary
-        self.nodes: dict[str, tuple[str, ...]] = {'crank_drive': ('layup_crank', 'transporter3', 'transporter4')}
+        self.units: dict[str, tuple[str, ...]] = {'drive': ('layup_crank', 'transporter3', 'transporter4')}
         if belts_on:
-            self.nodes['belt_conveyor'] = ('chute_belts',)
+            self.units['belts'] = ('chute_belts',)
 
-    def sample_node(
-        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of one node (``crank_drive``; ``belt_conveyor`` with belts) at ``t``."""
+        """Joint states of one unit (``drive``; ``belts`` with belts) at ``t``."""
         t = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(t, theta, lam)
         kin = self.kinematics
-        if node == 'crank_drive':
+        if unit == 'drive':
             phi = kin.wrap(theta * kin.turns_rate)
             st = kin.model.arrays(phi, accelerations=False)  # θ, ω do not depend on the accelerations
             return stack_samples(
-                'crank_drive',
+                'drive',
                 ['layup_crank', 'transporter3', 'transporter4'],
                 t,
                 [phi, st.theta3, st.theta5],
                 [kin.omega * lam, st.omega3 * lam, st.omega5 * lam],
             )
-        if node == 'belt_conveyor' and self.profile is not None:
+        if unit == 'belts' and self.profile is not None:
             pr = self.profile
             return stack_samples(
-                'belt_conveyor',
+                'belts',
                 ['chute_belts'],
                 t,
                 [pr.v_tr * pr.phase.at(t, theta)],
                 [pr.v_tr * lam * pr.phase.factor(t)],
             )
-        raise KeyError(f'node {node!r} has no layup joints; nodes: {", ".join(self.nodes)}')
+        raise KeyError(f'unit {unit!r} has no layup joints; units: {", ".join(self.units)}')
 
 
 def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
@@ -512,10 +512,10 @@ def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndar
           ``leaf_damaged`` (value: exit speed) with ``leaf_damage``;
           ``leaf_stick``/``leaf_slip`` with ``guide_friction``; the fault events with
           ``faults``. ``sheet`` is the leaf id, ``cycle`` the crank cycle at the event.
-        * samples (if ``t_samples`` is not empty): node ``crank_drive``, joints
+        * samples (if ``t_samples`` is not empty): unit ``drive``, joints
           ``layup_crank`` (φ in [0, 2π), ω λ), ``transporter3`` (θ3, ω3),
-          ``transporter4`` (θ5, ω5), rad and rad/s; with belts, node
-          ``belt_conveyor``, joint ``chute_belts``: belt travel since t = 0, m (v_tr Θ,
+          ``transporter4`` (θ5, ω5), rad and rad/s; with belts, unit
+          ``belts``, joint ``chute_belts``: belt travel since t = 0, m (v_tr Θ,
           less the travel lost in slow-downs), and belt speed v_tr λ f, m/s.
         * constraints: ``chute_speed`` per exited leaf (``cycle`` = leaf id), m/s, with
           belts (:mod:`folder_line.core.effects.chute_belts`).

@@ -6,7 +6,7 @@
 the drive (with the supervisor's commands, :func:`make_drive`), (b) the exact event
 list and (c) the cyclogram constraints evaluated per cycle; and, from the events, the
 sheet counter's table (:mod:`folder_line.core.mechanisms.pile`). Joint states are then
-sampled at any times (:meth:`LineModel.sample`, one node at a time: what a node's
+sampled at any times (:meth:`LineModel.sample`, one unit at a time: what a node's
 timer tick needs). Only the effects the scene lists run.
 
 :func:`simulate` is ``LineModel(scene, duration, commands).result(duration, rate)``:
@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.effects import motor_dynamics
 from folder_line.core.limits import DURATION, HORIZON, SAMPLE_RATE
 from folder_line.core.line.events import (
     EVENT_KINDS,
@@ -41,6 +42,8 @@ from folder_line.core.line.events import (
     JointSamples,
     merge_events,
 )
+from folder_line.core.line.folder_sim import FolderLine
+from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command, Drive, check_commands, commanded_drive, theta_rate
 from folder_line.core.mechanisms.pile import pile_table
@@ -52,7 +55,7 @@ __all__ = [
     'BYTES_PER_LEAF',
     'MAX_CYCLES',
     'MEMORY_SHARE',
-    'NODES',
+    'UNITS',
     'LineModel',
     'LineResult',
     'check_size',
@@ -62,9 +65,12 @@ __all__ = [
     'simulate',
 ]
 
-#: the machine nodes that carry joints, in publishing order (``sheet_counter``: the table under the
-#: counted sheets, :mod:`folder_line.core.mechanisms.pile`, in every scene)
-NODES = ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')
+#: the line's machine units that carry joints, in publishing order: ``drive`` the master drive's crank
+#: shafts (the knife; the layup crank and its chutes), ``belts`` the belts that bring the sheets in (the
+#: folder's first transporter; the layup's chute belts), ``feed`` the folder's feed transporter with the
+#: delivery chain, ``counter`` the table under the counted sheets (:mod:`folder_line.core.mechanisms.pile`,
+#: in every scene). The ROS side runs each in a node of its own (``folder_line.interfaces.NODE_OF_UNIT``).
+UNITS = ('drive', 'belts', 'feed', 'counter')
 
 #: longest horizon of a model, s (:data:`folder_line.core.limits.HORIZON`)
 MAX_DURATION = HORIZON.hi
@@ -102,7 +108,7 @@ class LineResult:
     events : ndarray of EVENT_DTYPE
         Exact events sorted by time.
     samples : dict of str to JointSamples
-        Node name -> joint states on the sample grid.
+        Unit (:data:`UNITS`) -> joint states on the sample grid.
     constraints : list of ConstraintSeries
         Per-cycle constraint margins.
     parts : dict of str to dict
@@ -187,8 +193,6 @@ def make_drive(scene: Scene, duration: float, commands: Iterable[Command] = ()) 
     Without commands both are exactly the drives of a run without a supervisor.
     """
     if scene.has('motor_dynamics'):
-        from folder_line.core.effects import motor_dynamics
-
         return motor_dynamics.build_drive(scene, duration, commands=commands)
     return commanded_drive(scene.drive, commands)
 
@@ -201,8 +205,8 @@ def sample_times(duration: float, rate: float) -> np.ndarray:
     return np.arange(n, dtype=float) / rate
 
 
-def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
-    """Joints of one node from several parts, concatenated in part order (efforts 0 where a part has none)."""
+def _merge(unit: str, parts: list[JointSamples]) -> JointSamples:
+    """Joints of one unit from several parts, concatenated in part order (efforts 0 where a part has none)."""
     merged = parts[0]
     for js in parts[1:]:
         prev = merged
@@ -215,7 +219,7 @@ def _merge(node: str, parts: list[JointSamples]) -> JointSamples:
                 ]
             )
         merged = JointSamples(
-            node,
+            unit,
             prev.names + js.names,
             prev.t,
             np.hstack([prev.position, js.position]),
@@ -275,7 +279,7 @@ class LineModel:
 
     Construction computes everything that depends only on the scene, the horizon and
     the commands: the master drive, every event in ``[0, horizon]``, the constraints
-    and the parts' summaries. :meth:`sample` then gives a node's joint states at any
+    and the parts' summaries. :meth:`sample` then gives a unit's joint states at any
     times in ``[0, horizon]`` (bit for bit what :func:`simulate` samples at the same
     times), :meth:`events_between` the events of a tick.
 
@@ -311,12 +315,8 @@ class LineModel:
         check_size(scene, self.horizon, float(np.asarray(self.drive.theta(np.array(self.horizon)))))
         self._parts: dict[str, Any] = {}
         if scene.has_folder:
-            from folder_line.core.line.folder_sim import FolderLine
-
             self._parts['folder'] = FolderLine(scene, self.drive, self.horizon)
         if scene.has_layup:
-            from folder_line.core.line.layup_sim import LayupLine
-
             self._parts['layup'] = LayupLine(scene, self.drive, self.horizon)
         parts = list(self._parts.values())
         self.events = merge_events(p.events for p in parts)
@@ -324,32 +324,32 @@ class LineModel:
         self.constraints: list[ConstraintSeries] = [c for p in parts for c in p.constraints]
         self.parts: dict[str, dict[str, Any]] = {name: p.summary for name, p in self._parts.items()}
         table = pile_table(scene.has_delivery, self.events, scene.sheets.thickness)
-        nodes: dict[str, list[Any]] = {}
+        units: dict[str, list[Any]] = {}
         for p in [*parts, table]:
-            for node in p.nodes:
-                nodes.setdefault(node, []).append(p)
-        self._node_parts = {node: nodes[node] for node in NODES if node in nodes}
-        self._nodes = {node: tuple(name for p in ps for name in p.nodes[node]) for node, ps in self._node_parts.items()}
+            for unit in p.units:
+                units.setdefault(unit, []).append(p)
+        self._unit_parts = {unit: units[unit] for unit in UNITS if unit in units}
+        self._units = {unit: tuple(name for p in ps for name in p.units[unit]) for unit, ps in self._unit_parts.items()}
         self._theta_end = float(np.asarray(self.drive.theta(np.array(self.horizon))))
         self._cycle = self._cycle_definition()
 
     # ------------------------------------------------------------------ joint states
 
     @property
-    def nodes(self) -> dict[str, tuple[str, ...]]:
-        """Node -> its joint names (in the order of :meth:`sample`'s columns); nodes without joints absent."""
-        return dict(self._nodes)
+    def units(self) -> dict[str, tuple[str, ...]]:
+        """Unit -> its joint names (in the order of :meth:`sample`'s columns); units without joints absent."""
+        return dict(self._units)
 
     def _drive_state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return theta_rate(self.drive, t)
 
-    def sample(self, node: str, t: npt.ArrayLike) -> JointSamples:
-        """Joint states of one node at line times ``t``.
+    def sample(self, unit: str, t: npt.ArrayLike) -> JointSamples:
+        """Joint states of one unit at line times ``t``.
 
         Parameters
         ----------
-        node : {'crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter'}
-            A node of :attr:`nodes`.
+        unit : {'drive', 'belts', 'feed', 'counter'}
+            A unit of :attr:`units` (:data:`UNITS`).
         t : array_like, shape (N,)
             Line times, s, in ``[0, horizon]`` (a node's tick: one element).
 
@@ -357,31 +357,31 @@ class LineModel:
         -------
         JointSamples
             Positions and velocities shaped (N, J) (efforts where the scene computes
-            them), the joints of L and F of the same node concatenated F first, as
-            :func:`simulate` does. ``sheet_counter``: one joint, ``pile_table`` with
+            them), the joints of L and F of the same unit concatenated F first, as
+            :func:`simulate` does. ``counter``: one joint, ``pile_table`` with
             the delivery, else ``container_floor`` (m, m/s; no effort;
             :mod:`folder_line.core.mechanisms.pile`).
 
         Raises
         ------
         KeyError
-            ``node`` has no joints in this scene (the message lists the nodes).
+            ``unit`` has no joints in this scene (the message lists the units).
         """
-        parts = self._node_parts.get(node)
+        parts = self._unit_parts.get(unit)
         if parts is None:
-            msg = f'node {node!r} has no joints in scene {self.scene.name!r}; nodes: {", ".join(self._nodes)}'
+            msg = f'unit {unit!r} has no joints in scene {self.scene.name!r}; units: {", ".join(self._units)}'
             raise KeyError(msg)
         tt = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(tt)
-        return _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
+        return _merge(unit, [p.sample_unit(unit, tt, theta, lam) for p in parts])
 
     def sample_all(self, t: npt.ArrayLike) -> dict[str, JointSamples]:
-        """Joint states of every node at line times ``t`` (node -> JointSamples)."""
+        """Joint states of every unit at line times ``t`` (unit -> JointSamples)."""
         tt = np.asarray(t, dtype=float).reshape(-1)
         theta, lam = self._drive_state(tt)
         return {
-            node: _merge(node, [p.sample_node(node, tt, theta, lam) for p in parts])
-            for node, parts in self._node_parts.items()
+            unit: _merge(unit, [p.sample_unit(unit, tt, theta, lam) for p in parts])
+            for unit, parts in self._unit_parts.items()
         }
 
     # ------------------------------------------------------------------ events

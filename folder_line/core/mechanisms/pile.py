@@ -3,7 +3,7 @@
 The counted sheets lie on a table that a lift lowers by one sheet thickness per sheet,
 so that the top of the stack stays where the sheets arrive (the delivery height for
 the pile, the floor height ``container.y_floor`` for the leaves). That table is the one
-joint of node ``sheet_counter``: prismatic, vertical, m, 0 at t = 0 and negative
+joint of unit ``counter``: prismatic, vertical, m, 0 at t = 0 and negative
 downward.
 
 * Scenes with the delivery D (``scene.has_delivery``): joint ``pile_table``, lowered per
@@ -39,10 +39,10 @@ import numpy.typing as npt
 from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
 from folder_line.core.numerics.validate import positive
 
-__all__ = ['NODE', 'T_LOWER', 'PileTable', 'counted_event', 'pile_table']
+__all__ = ['T_LOWER', 'UNIT', 'PileTable', 'counted_event', 'pile_table']
 
-#: the node that owns the table
-NODE = 'sheet_counter'
+#: the unit that owns the table (:data:`folder_line.core.line.model.UNITS`)
+UNIT = 'counter'
 #: settle time τ over which the lift lowers the table by one sheet thickness, s (ours: well
 #: inside the folder's cycle of 0.072 s, so between two signatures the table rests)
 T_LOWER = 0.02
@@ -71,15 +71,15 @@ class PileTable:
 
     Attributes
     ----------
-    nodes : dict of str to tuple of str
-        ``{'sheet_counter': (joint,)}``, as the line's parts give theirs.
+    units : dict of str to tuple of str
+        ``{'counter': (joint,)}``, as the line's parts give theirs.
     """
 
     joint: str
     times: np.ndarray
     thickness: float
     t_lower: float = T_LOWER
-    nodes: dict[str, tuple[str, ...]] = field(init=False)
+    units: dict[str, tuple[str, ...]] = field(init=False)
     _ends: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -95,7 +95,7 @@ class PileTable:
         ends = times + self.t_lower  # non-decreasing, as the times are
         ends.setflags(write=False)
         object.__setattr__(self, '_ends', ends)
-        object.__setattr__(self, 'nodes', {NODE: (self.joint,)})
+        object.__setattr__(self, 'units', {UNIT: (self.joint,)})
 
     @property
     def speed(self) -> float:
@@ -131,16 +131,16 @@ class PileTable:
             lowered[on] += np.clip((tt[on] - self.times[i]) / self.t_lower, 0.0, 1.0)
         return -self.thickness * lowered + 0.0, -self.speed * active.astype(float) + 0.0  # + 0: no -0.0
 
-    def sample_node(
-        self, node: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of ``sheet_counter`` at ``t`` (``theta`` and ``lam`` unused: the lift is not
+        """Joint states of ``counter`` at ``t`` (``theta`` and ``lam`` unused: the lift is not
         geared to the master drive), as the line's parts give theirs."""
-        if node != NODE:
-            raise KeyError(f'node {node!r} has no table joint; nodes: {NODE}')
+        if unit != UNIT:
+            raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
         tt = np.asarray(t, dtype=float).reshape(-1)
         z, zdot = self.state(tt)
-        return stack_samples(NODE, (self.joint,), tt, [z], [zdot])
+        return stack_samples(UNIT, (self.joint,), tt, [z], [zdot])
 
 
 def pile_table(has_delivery: bool, events: np.ndarray, thickness: float, t_lower: float = T_LOWER) -> PileTable:

@@ -56,6 +56,7 @@ from folder_line.interfaces import (
     EVENT_OWNER,
     EVENTS_TOPIC,
     NS_PER_S,
+    UNIT_OF_NODE,
     event_source,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
@@ -178,7 +179,8 @@ class MachineNode(Node):
         )
         self._set_model(line_model(*self._key, self.commands))
         self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
-        self.joints = self.model.nodes.get(self.NODE_NAME, ())
+        self.unit = UNIT_OF_NODE.get(self.NODE_NAME, '')  # the core's machine unit this node runs ('' none)
+        self.joints = self.model.units.get(self.unit, ())
         self._last_ns: int | None = None  # the latest tick published
         self._grid_ns: int | None = None  # the latest grid point published
         self._period_ns = round(NS_PER_S / self.values['rate'])
@@ -340,7 +342,7 @@ class MachineNode(Node):
                 return rows[i]
         n = max(1, min(SAMPLE_BATCH, (self.horizon_ns - g) // self._period_ns + 1))
         times = np.array([g + k * self._period_ns for k in range(n)], dtype=float) / NS_PER_S
-        js = self.model.sample(self.NODE_NAME, times)
+        js = self.model.sample(self.unit, times)
         if list(js.names) != self._names:
             self._names = list(js.names)
             self._joint_msg.name = self._names

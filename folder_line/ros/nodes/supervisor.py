@@ -95,6 +95,7 @@ from folder_line.interfaces import (
     EVENTS_TOPIC,
     LANDING_TOPIC,
     MACHINE_NODES,
+    NODE_OF_UNIT,
     NS_PER_S,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
@@ -159,7 +160,7 @@ class Supervisor(MachineNode):
 
     def setup(self) -> None:
         v = self.values
-        joint_nodes = list(self.model.nodes)
+        joint_nodes = [NODE_OF_UNIT[unit] for unit in self.model.units]
         key = self._key
         self.logic = Logic(
             self.model.scene,

@@ -1,0 +1,223 @@
+"""Command scheduling: the drive commands issued, their effective times, and when acting states end.
+
+Drive commands (:mod:`folder_line.core.mechanisms.drive`): ``hold``, ``suspend`` and ``stop``
+take the drive down from the next machine cycle boundary at least ``lead`` s after
+the decision (:meth:`folder_line.core.line.model.LineModel.next_cycle_boundary`; the line
+stops between two sheets), ``abort`` from ``lead`` s after it (``stop`` kind),
+``start``, ``unhold`` and ``unsuspend`` bring it back ``lead`` s after the command.
+``lead`` is the time the command needs to reach every node before it is due;
+effective times are rounded to the nanosecond (the resolution of the command
+topic), so that the supervisor and the nodes build the same drive.
+
+The line model under a new command is built only when a decision needs the drive after
+that command's effective time (:meth:`DriveSchedule.model_before`): before its time a
+command changes nothing, bit for bit, so a node can publish the command first.
+
+An acting state ends at the first check-grid point at or after its drive command's
+effective time where the drive is at speed (λ >= ``speed_reached``: STARTING,
+UNHOLDING, UNSUSPENDING) or at standstill (λ = 0: HOLDING, SUSPENDING, STOPPING,
+ABORTING, COMPLETING); RESETTING and CLEARING end at the next grid point
+(:class:`ActingState`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from folder_line.core.line.model import LineModel
+from folder_line.core.mechanisms.drive import Command, Drive
+from folder_line.core.supervision.grid import CheckGrid
+from folder_line.core.supervision.packml import ACTING, PackML, Transition
+
+__all__ = [
+    'ACTING_ENDS',
+    'DRIVE_COMMANDS',
+    'STOP_STATES',
+    'ActingState',
+    'DriveSchedule',
+    'ModelFactory',
+    'line_models',
+]
+
+#: PackML command -> (drive command kind or None, waits for the next machine cycle boundary)
+DRIVE_COMMANDS: dict[str, tuple[str | None, bool]] = {
+    'start': ('start', False),
+    'stop': ('stop', True),
+    'hold': ('hold', True),
+    'unhold': ('unhold', False),
+    'suspend': ('hold', True),
+    'unsuspend': ('unhold', False),
+    'abort': ('stop', False),
+    'complete': ('stop', True),
+    'reset': (None, False),
+    'clear': (None, False),
+}
+#: acting state -> what ends it
+ACTING_ENDS: dict[str, str] = {
+    'STARTING': 'speed',
+    'UNHOLDING': 'speed',
+    'UNSUSPENDING': 'speed',
+    'HOLDING': 'standstill',
+    'SUSPENDING': 'standstill',
+    'STOPPING': 'standstill',
+    'ABORTING': 'standstill',
+    'COMPLETING': 'standstill',
+    'RESETTING': 'next',
+    'CLEARING': 'next',
+}
+if set(ACTING_ENDS) != set(ACTING):  # pragma: no cover - a programming error, caught on import
+    raise RuntimeError('every acting state needs an end')
+#: waiting states in which the line stands: the sheet balance is checked on entering them
+STOP_STATES = ('HELD', 'SUSPENDED', 'STOPPED', 'ABORTED', 'COMPLETE')
+
+_NS = 1_000_000_000
+_CAUSES = {'speed': 'drive at speed', 'standstill': 'drive at standstill', 'next': 'done'}
+
+#: commands -> the line model under them (a :class:`~folder_line.core.line.model.LineModel`)
+ModelFactory = Callable[[tuple[Command, ...]], Any]
+
+
+def _ns_round(t: float) -> float:
+    """``t`` rounded to the nanosecond (what a ``builtin_interfaces/Time`` carries), s."""
+    return round(t * _NS) / _NS
+
+
+def line_models(scene: Any, horizon: float) -> ModelFactory:
+    """``commands -> LineModel(scene, horizon, commands)``, the last five kept."""
+    cache: dict[tuple[Command, ...], LineModel] = {}
+
+    def model_factory(commands: tuple[Command, ...]) -> LineModel:
+        if commands not in cache:
+            if len(cache) > 4:
+                cache.pop(next(iter(cache)))
+            cache[commands] = LineModel(scene, horizon, commands)
+        return cache[commands]
+
+    return model_factory
+
+
+class DriveSchedule:
+    """The drive commands issued so far and the line model under them.
+
+    Parameters
+    ----------
+    factory : callable
+        ``commands -> LineModel``: the drive, the machine cycles and the cycle boundaries
+        under the issued commands.
+    lead : float
+        Earliest effective time of a drive command after its decision, s (>= 0).
+
+    Attributes
+    ----------
+    commands : tuple of Command
+        Issued, sorted by effective time.
+    issued : list of (float, Command)
+        ``(decision time, command)`` not yet taken (:meth:`take`), in issue order.
+    """
+
+    def __init__(self, factory: ModelFactory, lead: float) -> None:
+        self._factory = factory
+        self.lead = lead
+        self.commands: tuple[Command, ...] = ()
+        self.issued: list[tuple[float, Command]] = []
+        self._model: Any = None
+        self._model_commands: tuple[Command, ...] = ()
+
+    @property
+    def model(self) -> Any:
+        """The line model under the commands issued so far (built on first use after a command)."""
+        if self._model is None or self._model_commands != self.commands:
+            self._model = self._factory(self.commands)
+            self._model_commands = self.commands
+        return self._model
+
+    def model_before(self, t: float) -> Any:
+        """A line model that is right at times before ``t``: the one in use if no command issued since it
+        was built is effective before ``t`` (a command changes nothing before its time), else :attr:`model`."""
+        if self._model is not None:
+            unbuilt = [c.t for c in self.commands if c not in self._model_commands]
+            if not unbuilt or t < min(unbuilt):
+                return self._model
+        return self.model
+
+    def effective(self, t: float, at_boundary: bool) -> float:
+        """Effective time of a drive command decided at ``t``: ``lead`` later, then (``at_boundary``) at the
+        next machine cycle boundary, rounded to the nanosecond."""
+        earliest = t + self.lead
+        if at_boundary:
+            b = float(self.model_before(earliest).next_cycle_boundary(earliest))
+            if math.isfinite(b) and self.model_before(b) is not self.model_before(earliest):
+                b = float(self.model.next_cycle_boundary(earliest))
+            if math.isfinite(b):  # else no further cycle (the line stands, or the horizon): at once
+                earliest = b
+        return _ns_round(earliest)
+
+    def issue(self, t: float, cmd: Command) -> None:
+        """Command ``cmd``, decided at ``t``, is issued (the model under it is built when first needed)."""
+        self.commands = tuple(sorted(self.commands + (cmd,), key=lambda c: c.t))
+        self.issued.append((t, cmd))
+
+    def take(self) -> list[tuple[float, Command]]:
+        """``(decision time, drive command)`` issued since the last call, in issue order."""
+        out, self.issued = self.issued, []
+        return out
+
+
+class ActingState:
+    """When the current acting state ends, on the check grid.
+
+    Parameters
+    ----------
+    grid : CheckGrid
+    speed_reached : float
+        Speed factor at which a run command's acting state ends.
+    since : float
+        When the current acting state's drive command is effective (or its command's
+        time), s.
+    """
+
+    def __init__(self, grid: CheckGrid, speed_reached: float, since: float) -> None:
+        self.grid = grid
+        self.speed_reached = speed_reached
+        self.since = since
+        self._grid_from = -1  # first grid index not yet known to fail the acting state's condition
+
+    def begin(self, since: float) -> None:
+        """A command was applied: the new state's condition holds from ``since`` on (s)."""
+        self.since = since
+        self._grid_from = -1
+
+    def completion(self, state: str, W: float, drive_before: Callable[[], Drive]) -> float | None:
+        """Grid time at which acting state ``state`` ends, if by ``W`` (None for a waiting state).
+
+        ``drive_before()`` gives the drive that is right before ``W`` (called only if the
+        state ends at speed or at standstill).
+        """
+        end = ACTING_ENDS.get(state)
+        if end is None:
+            return None
+        first = self.grid.index_after if end == 'next' else self.grid.index_at_or_after
+        n0 = max(first(self.since), self._grid_from)
+        n1 = self.grid.index_after(W) - 1  # last grid index <= W
+        if n1 < n0:
+            return None
+        if end == 'next':
+            return n0 * self.grid.h
+        g = np.arange(n0, n1 + 1, dtype=float) * self.grid.h
+        lam = np.asarray(drive_before().rate(g), dtype=float)
+        hit = lam >= self.speed_reached if end == 'speed' else lam <= 0.0
+        j = int(np.argmax(hit)) if hit.size else 0
+        if hit.size and hit[j]:
+            return float(g[j])
+        self._grid_from = n1 + 1
+        return None
+
+    def end(self, packml: PackML, t: float) -> Transition:
+        """End the acting state of ``packml`` at ``t`` (its :meth:`completion`)."""
+        tr = packml.state_complete(t, _CAUSES[ACTING_ENDS[packml.state]])
+        self._grid_from = -1
+        return tr

@@ -1,0 +1,162 @@
+"""Cycle evaluation: the constraints the supervisor judges, each at its own decision time.
+
+The events fed are kept until judged, and :meth:`CycleEvaluation.due` turns those due by a
+watermark into decisions (:class:`Due`), in time order:
+
+* a folder cycle at its ``knife_contact``, on the events up to that instant: the *same*
+  code as the batch simulator, :func:`folder_line.core.line.constraints.folder_evaluation`
+  with ``causal=True`` (each cycle sees only the rows up to its own knife contact, so the
+  batching of the feed does not matter);
+* ``release_at_min_speed`` at the ``released_on_pile`` time;
+* the layup's ``chute_speed`` at each ``leaf_exit``
+  (:func:`folder_line.core.line.constraints.evaluate_layup_constraints`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
+from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
+from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
+from folder_line.core.mechanisms.drive import Drive
+
+__all__ = ['CycleEvaluation', 'Due']
+
+_FOLDER_KINDS = np.array(
+    [event_kind(k) for k in ('sheet_handover', 'at_stops', 'bounce', 'settled', 'knife_contact')], dtype=np.int16
+)
+_CONTACT = event_kind('knife_contact')
+_RELEASE = event_kind('released_on_pile')
+_LEAF_EXIT = event_kind('leaf_exit')
+
+
+@dataclass(frozen=True)
+class Due:
+    """A decision due at ``t``: one evaluated cycle (or release, or leaf exit)."""
+
+    t: float
+    order: int
+    cycle: int
+    margins: tuple[tuple[str, str, float], ...]  # (name, unit, margin)
+    signatures: int = 1
+    source: str = 'folder'  # 'folder', 'release', 'layup'
+
+
+class CycleEvaluation:
+    """The events not yet judged, and the evaluations they give.
+
+    Parameters
+    ----------
+    scene : Scene
+        The line's scene (the folder's cycle timing and delivery plan are derived once).
+
+    Attributes
+    ----------
+    timing : CycleTiming or None
+        The folder's cycle (None without the folder).
+    plan : DeliveryPlan or None
+        The delivery's figures (None without the delivery).
+    folder_done : int
+        The last folder cycle judged.
+    """
+
+    def __init__(self, scene: Any) -> None:
+        self.scene = scene
+        self.timing: CycleTiming | None = None
+        self.plan: DeliveryPlan | None = None
+        if scene.has_folder:
+            self.timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+            self.plan = delivery_plan(scene, self.timing)
+        self._folder = np.zeros(0, dtype=EVENT_DTYPE)
+        self._releases = np.zeros(0, dtype=EVENT_DTYPE)
+        self._exits = np.zeros(0, dtype=EVENT_DTYPE)
+        self.folder_done = -1  # last folder cycle judged
+        self._release_done = -math.inf  # last release time judged
+        self._exit_done = -math.inf  # last leaf exit time judged
+
+    def add(self, rows: np.ndarray) -> None:
+        """Keep the rows (finite, of EVENT_DTYPE) that a later evaluation needs."""
+        kind = rows['kind']
+        f = rows[np.isin(kind, _FOLDER_KINDS) & (rows['cycle'] > self.folder_done)]
+        if f.size:
+            self._folder = np.concatenate([self._folder, f])
+        r = rows[kind == _RELEASE]
+        if r.size:
+            self._releases = np.concatenate([self._releases, r])
+        x = rows[kind == _LEAF_EXIT]
+        if x.size:
+            self._exits = np.concatenate([self._exits, x])
+
+    def due(self, W: float, drive_before: Callable[[], Drive]) -> list[Due]:
+        """The evaluations due by ``W`` that are not yet taken, in time order.
+
+        ``drive_before()`` gives the drive that is right before ``W``; it is called (a
+        line model may have to be built) only if a folder cycle or a release is due.
+        """
+        items: list[Due] = []
+        drive = None
+        fb = self._folder
+        if self.timing is not None and fb.size:
+            contact = (fb['kind'] == _CONTACT) & (fb['t'] <= W) & (fb['cycle'] > self.folder_done)
+            if contact.any():
+                drive = drive_before()
+                last = int(fb['cycle'][contact].max())
+                sub = fb[
+                    (fb['cycle'] > self.folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)
+                ]
+                ev = folder_evaluation(sub, self.timing, self.scene, drive, plan=self.plan, causal=True)
+                per: dict[int, list[tuple[str, str, float]]] = {int(c): [] for c in ev.cycle}
+                for s in ev.constraints:
+                    if s.name == 'release_at_min_speed':
+                        continue
+                    for c, m in zip(s.cycle.tolist(), s.margin.tolist(), strict=True):
+                        per[int(c)].append((s.name, s.unit, float(m)))
+                for c, tc, n in zip(ev.cycle.tolist(), ev.t.tolist(), ev.signatures.tolist(), strict=True):
+                    items.append(Due(float(tc), 0, int(c), tuple(per[int(c)]), int(n), 'folder'))
+        rb = self._releases
+        if self.timing is not None and rb.size:
+            due = (rb['t'] <= W) & (rb['t'] > self._release_done)
+            if due.any():
+                drive = drive_before() if drive is None else drive
+                ev = folder_evaluation(rb[due], self.timing, self.scene, drive, plan=self.plan, causal=True)
+                for s in ev.constraints:
+                    if s.name == 'release_at_min_speed':
+                        for c, m, tr in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
+                            items.append(Due(float(tr), 1, int(c), ((s.name, s.unit, float(m)),), 1, 'release'))
+        xb = self._exits
+        if xb.size:
+            due = (xb['t'] <= W) & (xb['t'] > self._exit_done)
+            if due.any():
+                for s in evaluate_layup_constraints(xb[due], self.scene):
+                    for c, m, tx in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
+                        items.append(Due(float(tx), 2, int(c), ((s.name, s.unit, float(m)),), 1, 'layup'))
+        items.sort(key=lambda it: (it.t, it.order, it.cycle))
+        return items
+
+    def taken(self, it: Due) -> None:
+        """The evaluation ``it`` was taken: its rows are judged."""
+        if it.source == 'folder':
+            self.folder_done = max(self.folder_done, it.cycle)
+        elif it.source == 'release':
+            self._release_done = max(self._release_done, it.t)
+        else:
+            self._exit_done = max(self._exit_done, it.t)
+
+    def commit(self) -> None:
+        """Drop the buffered rows of what has been judged."""
+        fb = self._folder
+        if fb.size:
+            self._folder = fb[fb['cycle'] > self.folder_done]
+        rb = self._releases
+        if rb.size:
+            self._releases = rb[rb['t'] > self._release_done]
+        xb = self._exits
+        if xb.size:
+            self._exits = xb[xb['t'] > self._exit_done]

@@ -1,0 +1,214 @@
+"""The supervisor offline: :func:`replay` of a recorded stream, :func:`run_closed_loop` of the live loop.
+
+:func:`replay` runs a :class:`~folder_line.core.supervision.supervisor.Supervisor` over what a
+live supervisor was fed and reproduces its transitions exactly; :func:`run_closed_loop`
+runs the live loop without ROS (the line model's events fed step by step, the supervisor's
+commands fed back) and returns what it fed, the input of :func:`replay`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.supervision.settings import CHECK_PERIOD
+from folder_line.core.supervision.supervisor import Supervisor
+from folder_line.errors import ParameterError
+
+__all__ = ['replay', 'run_closed_loop']
+
+
+def replay(
+    scene: Any,
+    horizon: float,
+    events: np.ndarray,
+    *,
+    heard: Mapping[str, Iterable[float]] | None = None,
+    clock: Iterable[float] = (),
+    bad_values: Iterable[tuple[float, str, int]] = (),
+    operator: Iterable[tuple[float, str]] = (),
+    lost: Iterable[tuple[float, str, float]] = (),
+    until: float | None = None,
+    **params: Any,
+) -> Supervisor:
+    """Run a :class:`~folder_line.core.supervision.supervisor.Supervisor` over a recorded stream.
+
+    Parameters
+    ----------
+    scene : Scene
+    horizon : float
+        The live run's model horizon, s.
+    events : ndarray of EVENT_DTYPE
+        The events the live supervisor was fed (any order).
+    heard : mapping of str to iterable of float, optional
+        Node -> the stamps at which it was heard, s.
+    clock : iterable of float
+        Stamps of the clock messages, s (with ``clock_ticks``).
+    bad_values : iterable of (float, str, int)
+        ``(stamp, topic, count)`` of messages with NaN/inf.
+    operator : iterable of (float, str)
+        Operator commands ``(t, command)`` (the live ``operator_log``; refused ones
+        are refused again).
+    lost : iterable of (float, str, float)
+        Participants lost ``(t, node, waited wall s)`` (the live ``lost:<node>`` violations).
+    until : float, optional
+        The live run's last watermark, s (default: the latest input time).
+    **params
+        :class:`Supervisor` parameters; ``t_start`` as the live one's.
+
+    Returns
+    -------
+    Supervisor
+        After the replay: its ``transitions``, ``commands``, ``violations`` and
+        ``balances`` are the live run's.
+    """
+    sup = Supervisor(scene, horizon, **params)
+    ev = np.sort(np.asarray(events).reshape(-1), order='t', kind='stable')
+    hd = {n: np.sort(np.asarray(list(ts), dtype=float)) for n, ts in (heard or {}).items()}
+    clk = np.sort(np.asarray(list(clock), dtype=float))
+    bad = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
+    ops = sorted(((float(t), str(name)) for t, name in operator), key=lambda x: x[0])
+    gone = sorted((float(t), str(n), float(w)) for t, n, w in lost)
+    times = [ev['t'][-1]] if ev.size else []
+    times += [float(a[-1]) for a in hd.values() if a.size] + [b[0] for b in bad] + [o[0] for o in ops]
+    times += [g[0] for g in gone]
+    times += [float(clk[-1])] if clk.size else []
+    end = float(until) if until is not None else (max(times) if times else 0.0)
+    i_ev = i_c = 0
+    i_h = dict.fromkeys(hd, 0)
+    i_b = i_g = 0
+
+    def feed_to(t: float) -> None:
+        nonlocal i_ev, i_b, i_c, i_g
+        j = int(np.searchsorted(ev['t'], t, side='right'))
+        sup.feed(ev[i_ev:j])
+        i_ev = max(i_ev, j)
+        for n, a in hd.items():
+            j = int(np.searchsorted(a, t, side='right'))
+            sup.heard(n, a[i_h[n] : j])
+            i_h[n] = max(i_h[n], j)
+        j = int(np.searchsorted(clk, t, side='right'))
+        sup.clock(clk[i_c:j])
+        i_c = max(i_c, j)
+        while i_b < len(bad) and bad[i_b][0] <= t:
+            sup.bad_value(bad[i_b][1], bad[i_b][0], bad[i_b][2])
+            i_b += 1
+        while i_g < len(gone) and gone[i_g][0] <= t:
+            sup.lost(gone[i_g][1], gone[i_g][0], gone[i_g][2])
+            i_g += 1
+
+    if sup.t_start is None:
+        raise ParameterError('t_start', None, "replay needs the live run's t_start")
+    for t_op, name in ops:
+        feed_to(t_op)
+        sup.tick(t_op)
+        sup.command(name, t_op)
+    feed_to(end)
+    sup.tick(end)
+    return sup
+
+
+def run_closed_loop(
+    scene: Any,
+    horizon: float,
+    duration: float,
+    *,
+    step: float = CHECK_PERIOD,
+    operator: Iterable[tuple[float, str]] = (),
+    silent: Mapping[str, float] | None = None,
+    bad_values: Iterable[tuple[float, str, int]] = (),
+    **params: Any,
+) -> tuple[Supervisor, Any, dict]:
+    """The live loop offline: the line model's events fed step by step, the supervisor's commands fed back.
+
+    Every ``step`` s of line time: the events of the current model (built with the
+    commands issued so far) up to the step, every watched node heard at its own
+    ticks (``n P``) unless ``silent`` from some time, a clock message (with
+    ``clock_ticks``), the bad values due; then a tick;
+    an operator command due is given at its step. A command whose effective time is
+    not after the step at which it was issued would rewrite events already fed: it
+    raises (choose ``lead`` >= ``step``).
+
+    Parameters
+    ----------
+    scene, horizon
+        As for :class:`Supervisor`.
+    duration : float
+        Line time to run, s (<= horizon).
+    step : float
+        Feed and tick spacing, s.
+    operator : iterable of (float, str)
+        Operator commands, given at the first step at or after their time.
+    silent : mapping of str to float, optional
+        Node -> time from which it is no longer heard (it died).
+    bad_values : iterable of (float, str, int)
+        NaN/inf observations ``(stamp, topic, count)``, fed at their step.
+    **params
+        :class:`Supervisor` parameters.
+
+    Returns
+    -------
+    (Supervisor, LineModel, dict)
+        The supervisor, the final model, and what was fed (``events``, ``heard``,
+        ``clock``, ``bad_values``, ``operator`` as given to the supervisor, ``until``): the input
+        of :func:`replay`.
+    """
+    sup = Supervisor(scene, horizon, **params)
+    silent = dict(silent or {})
+    ops = sorted(((float(t), str(n)) for t, n in operator), key=lambda x: x[0])
+    bads = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
+    fed: list[np.ndarray] = []
+    heard: dict[str, list[float]] = {n: [] for n in sup.watched}
+    given: list[tuple[float, str]] = []
+    bad_given: list[tuple[float, str, int]] = []
+    clock: list[float] = []
+    n_steps = math.floor(duration / step + 1e-9)
+    prev = -math.inf
+    for i in range(1, n_steps + 1):
+        W = i * step
+        model = sup.model
+        rows = model.events_between(prev, W)
+        sup.feed(rows)
+        fed.append(rows)
+        for node, period in sup.watched.items():
+            lo = 0 if not math.isfinite(prev) else math.floor(prev / period) + 1
+            ticks = np.arange(lo, math.floor(W / period + 1e-9) + 1, dtype=float) * period
+            ticks = ticks[(ticks > prev) & (ticks <= W) & (ticks < silent.get(node, math.inf))]
+            sup.heard(node, ticks)
+            heard[node] += ticks.tolist()
+        if sup.clock_ticks:  # the clock publishes every step
+            sup.clock(W)
+            clock.append(W)
+        while bads and bads[0][0] <= W:
+            b = bads.pop(0)
+            sup.bad_value(b[1], b[0], b[2])
+            bad_given.append(b)
+        new = sup.tick(W)
+        while ops and ops[0][0] <= W:
+            _, name = ops.pop(0)
+            out = sup.command(name, W)
+            given.append((W, name))
+            if out.command is not None:
+                new.append(out.command)
+        for c in new:
+            if c.t <= W:
+                raise ParameterError(
+                    'lead',
+                    sup.settings.lead,
+                    f'command {c.kind} effective at {c.t!r} s, not after the '
+                    f'events already fed up to {W!r} s: use lead >= step',
+                )
+        prev = W
+    inputs = {
+        'events': np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
+        'heard': {n: np.asarray(v) for n, v in heard.items()},
+        'clock': np.asarray(clock),
+        'bad_values': bad_given,
+        'operator': given,
+        'until': prev,
+    }
+    return sup, sup.model, inputs
