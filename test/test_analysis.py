@@ -26,26 +26,32 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from folder_line.analysis.analysis import (
-    CLOCK_TOPIC,
-    COMMANDS_TOPIC,
-    DIAGNOSTICS_TOPIC,
-    EVENTS_TOPIC,
-    LANDING_TOPIC,
-    SHEET_COUNT_TOPIC,
-    STATE_TOPIC,
+from folder_line.analysis import (
     SUPERVISOR_DEFAULTS,
     AnalysisResult,
     analyze,
     csv_name,
     cycle_rows,
     efficiency_data,
+    evaluate,
     exit_speed_data,
+    landing_data,
     recorded_transitions,
     transitions_agree,
 )
 from folder_line.core.line.model import LineModel, simulate
-from folder_line.interfaces import EVENT_KINDS, event_source, parse_event_source
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    COMMANDS_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    SHEET_COUNT_TOPIC,
+    SUPERVISOR_STATE_TOPIC,
+    event_source,
+    parse_event_source,
+)
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
 pytestmark = [
@@ -248,7 +254,8 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
     diag = tables[DIAGNOSTICS_TOPIC]
     assert 'status[0].name' in diag[0] and 'status[0].values.evaluations' in diag[0]
     assert tables[CLOCK_TOPIC][0] == ['log_time_ns', 'clock.sec', 'clock.nanosec']
-    assert tables[STATE_TOPIC][0] == ['log_time_ns', 'data'] and tables[STATE_TOPIC][-1][1] == 'EXECUTE'
+    states = tables[SUPERVISOR_STATE_TOPIC]
+    assert states[0] == ['log_time_ns', 'data'] and states[-1][1] == 'EXECUTE'
     assert len(tables[COMMANDS_TOPIC]) == 1 and len(tables[LANDING_TOPIC]) == 1  # header only: no message
     assert int(tables[SHEET_COUNT_TOPIC][-1][1]) == rec.sheet_count
     assert not list(csv_dir.glob('.*.tmp'))
@@ -256,13 +263,12 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
 
 def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisResult]) -> None:
     """η and K_v at the stroke positions recovered from the recorded carriage, the recorded torque."""
-    from folder_line.analysis.analysis import _evaluate
     from folder_line.core.effects import chain_friction
     from folder_line.core.mechanisms import delivery as dlv
 
     _, result = folder
     rec = result.recording
-    ev = _evaluate(rec)
+    ev = evaluate(rec)
     data = efficiency_data(rec, ev)
     assert data is not None and data['u'].size > 100
     plan = ev.plan
@@ -281,11 +287,9 @@ def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisRe
 
 
 def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult]) -> None:
-    from folder_line.analysis.analysis import _evaluate
-
     _, result = folder
     rec = result.recording
-    ev = _evaluate(rec)
+    ev = evaluate(rec)
     rows = cycle_rows(rec, ev, 5)
     assert [r['cycle'] for r in rows] == [0, 1, 2, 3, 4]
     tm = ev.timing
@@ -328,8 +332,6 @@ def test_layup_figures_and_numbers(layup: tuple[Path, AnalysisResult]) -> None:
     rec = result.recording
     assert rec.sheet_count == expected['sheets_counted']
     # the landing histogram is the simulator's
-    from folder_line.analysis.analysis import landing_data
-
     land = landing_data(rec)
     assert land is not None
     assert land['counts'].tolist() == expected['landing_histogram']['counts']
@@ -402,7 +404,6 @@ def test_topic_names_are_the_nodes() -> None:
     from folder_line import interfaces
     from folder_line.ros import common
 
-    assert STATE_TOPIC == interfaces.SUPERVISOR_STATE_TOPIC
     for node in interfaces.JOINT_NODES:
         topic = common.joint_states_topic(node)
         assert interfaces.joint_states_node(topic) == node
@@ -446,7 +447,7 @@ def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys
 def test_analysis_needs_no_ros(folder: tuple[Path, AnalysisResult], tmp_path: Path) -> None:
     run, _ = folder
     code = (
-        'import sys; from folder_line.analysis.analysis import analyze; '
+        'import sys; from folder_line.analysis import analyze; '
         f'r = analyze({str(run / "bag")!r}, {str(tmp_path)!r}); '
         "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
         "'sensor_msgs', 'std_msgs')); print(len(r.figures), bad)"

@@ -333,7 +333,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from folder_line.analysis.analysis import analyze, print_analysis
+    from folder_line.analysis import analyze, print_analysis
 
     print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
     return 0
