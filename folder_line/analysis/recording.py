@@ -169,9 +169,9 @@ def run_conventions(duration: float = 0.0) -> tuple[str, float]:
         The name of the bag's directory in a run directory, and the horizon the machine
         nodes of a run of ``duration`` s build their line model for, s.
     """
-    # The analysis' one use of folder_line.ros, imported here so that importing the analysis
-    # never loads the ROS side (ros/ may import rclpy). #12 moves these pure helpers out of
-    # ros/; then this becomes a module-level import.
+    # The analysis' one use of folder_line.ros, imported here, not with the module: ros/ is the
+    # ROS side of the package and the analysis must import without it (test_analysis_needs_no_ros).
+    # #12 moves these pure helpers out of ros/; then this becomes a module-level import.
     from folder_line.ros.run import BAG_DIR, RunConfig, node_parameters
 
     return BAG_DIR, float(node_parameters(RunConfig(duration=duration), 'crank_drive')['horizon'])
