@@ -1,11 +1,17 @@
 """Replay analysis of recorded runs (``folder-line analyze``): real bags of real runs.
 
-Three in-process runs of the line, each on this process's own ROS domain and
-recorded by ``run_line`` in ``tmp_path``: the folder scene (2 s), the layup scene
+Recorded runs, no DDS: the committed runs of the folder scene and of the layup scene
+(2 s each, ``test/data/``, see its README), copied into ``tmp_path`` and analysed
+there. The figures, the CSVs, the figures' data, the CLI and the absence of ROS are
+checked on them, the data against the model's kinematics sample by sample.
+
+Live runs: three in-process runs of the line, each on this process's own ROS domain
+and recorded by ``run_line`` in ``tmp_path``: the folder scene (2 s), the layup scene
 (2 s) and the folder with seeded faults (2 s: a late sheet in cycle 13 makes the
-supervisor hold the line). The analysis of each is checked against ``simulate`` of
-the bag's scene for the line time reached, against the line model event by event
-at the nanosecond, and against the model's kinematics sample by sample.
+supervisor hold the line). What the live line did is checked there: the analysis of
+each against ``simulate`` of the bag's scene for the line time reached, the events
+against the line model at the nanosecond, the replayed supervisor against the states
+the live one published.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -26,26 +33,32 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from folder_line.analysis.analysis import (
-    CLOCK_TOPIC,
-    COMMANDS_TOPIC,
-    DIAGNOSTICS_TOPIC,
-    EVENTS_TOPIC,
-    LANDING_TOPIC,
-    SHEET_COUNT_TOPIC,
-    STATE_TOPIC,
+from folder_line.analysis import (
     SUPERVISOR_DEFAULTS,
     AnalysisResult,
     analyze,
     csv_name,
     cycle_rows,
     efficiency_data,
+    evaluate,
     exit_speed_data,
+    landing_data,
     recorded_transitions,
     transitions_agree,
 )
 from folder_line.core.line.model import LineModel, simulate
-from folder_line.interfaces import EVENT_KINDS, event_source, parse_event_source
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    COMMANDS_TOPIC,
+    DIAGNOSTICS_TOPIC,
+    EVENT_KINDS,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    SHEET_COUNT_TOPIC,
+    SUPERVISOR_STATE_TOPIC,
+    event_source,
+    parse_event_source,
+)
 
 # rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
 pytestmark = [
@@ -54,6 +67,7 @@ pytestmark = [
 ]
 
 REPO = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).resolve().parent / 'data'
 PNG = b'\x89PNG\r\n\x1a\n'
 
 
@@ -71,20 +85,37 @@ def _record(base: Path, scene: str, duration: float) -> Path:
     return out
 
 
+def _recorded(base: Path, scene: str) -> Path:
+    """A copy in ``base`` of the committed run of ``scene`` (test/data/README.md): no DDS."""
+    return Path(shutil.copytree(DATA / f'{scene}_run', base / scene))
+
+
 @pytest.fixture(scope='module')
-def folder(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
-    run = _record(tmp_path_factory.mktemp('runs'), 'folder', 2.0)
+def folder_recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
+    run = _recorded(tmp_path_factory.mktemp('recorded'), 'folder')
     yield run, analyze(run, run / 'analysis', csv=True)
 
 
 @pytest.fixture(scope='module')
-def layup(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
+def layup_recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
+    run = _recorded(tmp_path_factory.mktemp('recorded'), 'layup')
+    yield run, analyze(run / 'bag')  # a bag directory; default output beside it
+
+
+@pytest.fixture(scope='module')
+def folder_live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
+    run = _record(tmp_path_factory.mktemp('runs'), 'folder', 2.0)
+    yield run, analyze(run, run / 'analysis')
+
+
+@pytest.fixture(scope='module')
+def layup_live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
     run = _record(tmp_path_factory.mktemp('runs'), 'layup', 2.0)
     yield run, analyze(run / 'bag')  # a bag directory; default output beside it
 
 
 @pytest.fixture(scope='module')
-def faults(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
+def faults_live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, AnalysisResult]]:
     run = _record(tmp_path_factory.mktemp('runs'), 'folder_faults', 2.0)
     yield run, analyze(run, run / 'analysis')
 
@@ -173,8 +204,8 @@ def _check_events(result: AnalysisResult, run: Path) -> None:
 # --------------------------------------------------------------------------- folder
 
 
-def test_folder_figures(folder: tuple[Path, AnalysisResult]) -> None:
-    _, result = folder
+def test_folder_figures(folder_recorded: tuple[Path, AnalysisResult]) -> None:
+    _, result = folder_recorded
     assert set(result.figures) == {'efficiency.png', 'cyclogram.png', 'margins.png'}
     for path in result.figures.values():
         _check_png(path)
@@ -185,8 +216,8 @@ def test_folder_figures(folder: tuple[Path, AnalysisResult]) -> None:
     assert not (result.out / 'exit_speeds.png').exists() and not (result.out / 'landing.png').exists()
 
 
-def test_folder_numbers_match_simulate(folder: tuple[Path, AnalysisResult]) -> None:
-    run, result = folder
+def test_folder_numbers_match_simulate(folder_live: tuple[Path, AnalysisResult]) -> None:
+    run, result = folder_live
     expected = _check_numbers(result)
     rec = result.recording
     assert rec.t_end == json.loads((run / 'run.json').read_text())['sim_time_reached_s'] == 2.0
@@ -200,15 +231,15 @@ def test_folder_numbers_match_simulate(folder: tuple[Path, AnalysisResult]) -> N
         assert f'| {topic} | {info.type} | {info.count} | {info.count} | 0 |' in report
 
 
-def test_folder_events_equal_the_line_model_to_the_ns(folder: tuple[Path, AnalysisResult]) -> None:
-    run, result = folder
+def test_folder_events_equal_the_line_model_to_the_ns(folder_live: tuple[Path, AnalysisResult]) -> None:
+    run, result = folder_live
     _check_events(result, run)
 
 
-def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> None:
+def test_folder_csv_one_file_per_topic(folder_recorded: tuple[Path, AnalysisResult]) -> None:
     import csv
 
-    _, result = folder
+    _, result = folder_recorded
     rec = result.recording
     csv_dir = result.out / 'csv'
     assert set(result.csv) == set(rec.bag.topics)
@@ -248,21 +279,21 @@ def test_folder_csv_one_file_per_topic(folder: tuple[Path, AnalysisResult]) -> N
     diag = tables[DIAGNOSTICS_TOPIC]
     assert 'status[0].name' in diag[0] and 'status[0].values.evaluations' in diag[0]
     assert tables[CLOCK_TOPIC][0] == ['log_time_ns', 'clock.sec', 'clock.nanosec']
-    assert tables[STATE_TOPIC][0] == ['log_time_ns', 'data'] and tables[STATE_TOPIC][-1][1] == 'EXECUTE'
+    states = tables[SUPERVISOR_STATE_TOPIC]
+    assert states[0] == ['log_time_ns', 'data'] and states[-1][1] == 'EXECUTE'
     assert len(tables[COMMANDS_TOPIC]) == 1 and len(tables[LANDING_TOPIC]) == 1  # header only: no message
     assert int(tables[SHEET_COUNT_TOPIC][-1][1]) == rec.sheet_count
     assert not list(csv_dir.glob('.*.tmp'))
 
 
-def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisResult]) -> None:
+def test_efficiency_data_is_the_recorded_delivery(folder_recorded: tuple[Path, AnalysisResult]) -> None:
     """η and K_v at the stroke positions recovered from the recorded carriage, the recorded torque."""
-    from folder_line.analysis.analysis import _evaluate
     from folder_line.core.effects import chain_friction
     from folder_line.core.mechanisms import delivery as dlv
 
-    _, result = folder
+    _, result = folder_recorded
     rec = result.recording
-    ev = _evaluate(rec)
+    ev = evaluate(rec)
     data = efficiency_data(rec, ev)
     assert data is not None and data['u'].size > 100
     plan = ev.plan
@@ -280,12 +311,10 @@ def test_efficiency_data_is_the_recorded_delivery(folder: tuple[Path, AnalysisRe
     np.testing.assert_allclose(data['torque'], chain_friction.sprocket_torque(rec.scene, theta), rtol=1e-9, atol=1e-9)
 
 
-def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult]) -> None:
-    from folder_line.analysis.analysis import _evaluate
-
-    _, result = folder
+def test_cyclogram_rows_follow_the_operations(folder_recorded: tuple[Path, AnalysisResult]) -> None:
+    _, result = folder_recorded
     rec = result.recording
-    ev = _evaluate(rec)
+    ev = evaluate(rec)
     rows = cycle_rows(rec, ev, 5)
     assert [r['cycle'] for r in rows] == [0, 1, 2, 3, 4]
     tm = ev.timing
@@ -316,20 +345,22 @@ def test_cyclogram_rows_follow_the_operations(folder: tuple[Path, AnalysisResult
 # --------------------------------------------------------------------------- layup
 
 
-def test_layup_figures_and_numbers(layup: tuple[Path, AnalysisResult]) -> None:
-    run, result = layup
+def test_layup_figures(layup_recorded: tuple[Path, AnalysisResult]) -> None:
+    run, result = layup_recorded
     assert result.out == run / 'analysis'
     assert set(result.figures) == {'exit_speeds.png', 'margins.png', 'landing.png'}
     for path in result.figures.values():
         _check_png(path)
     assert result.csv == {} and not (result.out / 'csv').exists()
+
+
+def test_layup_numbers_match_simulate(layup_live: tuple[Path, AnalysisResult]) -> None:
+    _, result = layup_live
     expected = _check_numbers(result)
     assert expected['sheets_counted'] > 10  # leaves landed
     rec = result.recording
     assert rec.sheet_count == expected['sheets_counted']
     # the landing histogram is the simulator's
-    from folder_line.analysis.analysis import landing_data
-
     land = landing_data(rec)
     assert land is not None
     assert land['counts'].tolist() == expected['landing_histogram']['counts']
@@ -339,16 +370,16 @@ def test_layup_figures_and_numbers(layup: tuple[Path, AnalysisResult]) -> None:
     np.testing.assert_array_equal(np.sort(rec.landing_x), np.sort(land['x']))
 
 
-def test_layup_events_equal_the_line_model_to_the_ns(layup: tuple[Path, AnalysisResult]) -> None:
-    run, result = layup
+def test_layup_events_equal_the_line_model_to_the_ns(layup_live: tuple[Path, AnalysisResult]) -> None:
+    run, result = layup_live
     _check_events(result, run)
 
 
-def test_exit_speeds_are_the_recorded_kinematics(layup: tuple[Path, AnalysisResult]) -> None:
+def test_exit_speeds_are_the_recorded_kinematics(layup_recorded: tuple[Path, AnalysisResult]) -> None:
     """v_C = ω3 l3 from the recorded joint states is the six-bar's at the recorded crank angle."""
     from folder_line.core.mechanisms.layup import LayupModel
 
-    _, result = layup
+    _, result = layup_recorded
     rec = result.recording
     data = exit_speed_data(rec)
     assert data is not None and data['t'].size >= 150
@@ -366,10 +397,10 @@ def test_exit_speeds_are_the_recorded_kinematics(layup: tuple[Path, AnalysisResu
 # --------------------------------------------------------------------------- supervisor
 
 
-def test_replay_reproduces_the_recorded_states(faults: tuple[Path, AnalysisResult]) -> None:
+def test_replay_reproduces_the_recorded_states(faults_live: tuple[Path, AnalysisResult]) -> None:
     """The folder with faults: the recorded events replayed through the supervisor logic take the
     live run's transitions (a late sheet in cycle 13 holds the line)."""
-    _, result = faults
+    _, result = faults_live
     s = result.summary
     recorded = [t['to'] for t in recorded_transitions(result.recording.states)]
     replayed = [t['to'] for t in s['transitions']]
@@ -402,7 +433,6 @@ def test_topic_names_are_the_nodes() -> None:
     from folder_line import interfaces
     from folder_line.ros.topics import joint_states_topic
 
-    assert STATE_TOPIC == interfaces.SUPERVISOR_STATE_TOPIC
     for node in interfaces.JOINT_NODES:
         topic = joint_states_topic(node)
         assert interfaces.joint_states_node(topic) == node
@@ -424,10 +454,12 @@ def test_supervisor_defaults_are_the_nodes() -> None:
 # --------------------------------------------------------------------------- CLI, boundary, event text
 
 
-def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_analyze(
+    folder_recorded: tuple[Path, AnalysisResult], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from folder_line.cli.main import main
 
-    run, result = folder
+    run, result = folder_recorded
     out = tmp_path / 'cli'
     assert main(['analyze', str(run), '--out', str(out), '--csv']) == 0
     printed = capsys.readouterr().out
@@ -443,10 +475,10 @@ def test_cli_analyze(folder: tuple[Path, AnalysisResult], tmp_path: Path, capsys
         assert err.count('\n') == 1 and err.startswith('folder-line: error: RUN_DIR|BAG='), err
 
 
-def test_analysis_needs_no_ros(folder: tuple[Path, AnalysisResult], tmp_path: Path) -> None:
-    run, _ = folder
+def test_analysis_needs_no_ros(folder_recorded: tuple[Path, AnalysisResult], tmp_path: Path) -> None:
+    run, _ = folder_recorded
     code = (
-        'import sys; from folder_line.analysis.analysis import analyze; '
+        'import sys; from folder_line.analysis import analyze; '
         f'r = analyze({str(run / "bag")!r}, {str(tmp_path)!r}); '
         "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
         "'sensor_msgs', 'std_msgs')); print(len(r.figures), bad)"

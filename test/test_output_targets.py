@@ -517,7 +517,7 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(
 def test_analyze_checks_every_csv_target_before_it_writes_anything(
     tmp_path: Path, run_dir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from folder_line.analysis.analysis import csv_name
+    from folder_line.analysis import csv_name
 
     out = tmp_path / 'analysis'
     (out / 'csv').mkdir(parents=True)

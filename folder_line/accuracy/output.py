@@ -141,7 +141,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     """
     from matplotlib import ticker
 
-    from folder_line.analysis.plots import DPI, pyplot
+    from folder_line.analysis.figures import DPI, pyplot
 
     plt = pyplot()
     panels = _panels(rows)

@@ -1,1 +1,60 @@
-"""Analysis of a recorded run: reading a bag, replaying the supervisor, figures, report."""
+"""Replay analysis of a recorded run (``folder-line analyze``), without ROS: the bag is read with rosbags.
+
+The modules, in the order the data flows:
+
+:mod:`~folder_line.analysis.recording`
+    a run directory or a bag decoded into a :class:`Recording` (:func:`read_recording`);
+:mod:`~folder_line.analysis.replay`
+    the recorded events judged by the line's constraint code (:func:`evaluate`) and the
+    supervisor's logic replayed on the recorded inputs (:func:`replay_transitions`);
+:mod:`~folder_line.analysis.figure_data` and :mod:`~folder_line.analysis.figures`
+    what each figure shows, as arrays, and the figures drawn (with the papers' model
+    curves that ``folder-line report`` draws too);
+:mod:`~folder_line.analysis.csv_export`
+    every message of the bag as CSV, one file per topic;
+:mod:`~folder_line.analysis.report`
+    :func:`analyze`: ``report.md``, the figures and the CSVs written; :func:`print_analysis`.
+"""
+
+from folder_line.analysis.csv_export import CsvCollector, csv_name, flatten_message
+from folder_line.analysis.figure_data import GANTT_CYCLES, cycle_rows, efficiency_data, exit_speed_data, landing_data
+from folder_line.analysis.figures import FIGURES, draw_figures
+from folder_line.analysis.recording import RecordedJoints, Recording, read_recording
+from folder_line.analysis.replay import (
+    KEY_SUPERVISOR,
+    SUPERVISOR_DEFAULTS,
+    Evaluation,
+    evaluate,
+    recorded_transitions,
+    replay_transitions,
+    supervisor_parameters,
+    transitions_agree,
+)
+from folder_line.analysis.report import AnalysisResult, analyze, print_analysis
+
+__all__ = [
+    'FIGURES',
+    'GANTT_CYCLES',
+    'KEY_SUPERVISOR',
+    'SUPERVISOR_DEFAULTS',
+    'AnalysisResult',
+    'CsvCollector',
+    'Evaluation',
+    'RecordedJoints',
+    'Recording',
+    'analyze',
+    'csv_name',
+    'cycle_rows',
+    'draw_figures',
+    'efficiency_data',
+    'evaluate',
+    'exit_speed_data',
+    'flatten_message',
+    'landing_data',
+    'print_analysis',
+    'read_recording',
+    'recorded_transitions',
+    'replay_transitions',
+    'supervisor_parameters',
+    'transitions_agree',
+]

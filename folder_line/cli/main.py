@@ -19,7 +19,7 @@ from typing import NoReturn
 
 from folder_line.accuracy.bench import STUDIES, run_benchmark
 from folder_line.accuracy.output import write_outputs
-from folder_line.analysis.analysis import analyze, print_analysis
+from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair

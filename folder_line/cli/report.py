@@ -13,7 +13,7 @@ from typing import IO
 
 import numpy as np
 
-from folder_line.analysis.plots import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.analysis.figures import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
 from folder_line.config.params import load_params
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup

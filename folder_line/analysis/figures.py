@@ -1,0 +1,613 @@
+"""Figures: the papers' curves, shared by ``folder-line report`` and ``folder-line analyze``, and the
+figures of a recorded run.
+
+The papers' figures are drawn once here -- the layup's exit speeds against the crank
+angle (paper L, figs. 4-5, :func:`exit_speed_curves`), the delivery's efficiency and
+carriage speed along the stroke (paper D, fig. 2, :func:`stroke_curves`), the colours of
+the cyclogram's phases (paper F, figs. 1-2, :data:`PHASE_COLOURS`) -- so that the model
+curves of the report of the defaults (:mod:`folder_line.cli.report`) and the curves the
+recorded points of a run are drawn against are the same.
+
+:func:`draw_figures` draws a recorded run's figures (:data:`FIGURES`, those the scene has):
+
+``exit_speeds.png`` (scenes with the layup)
+    the chutes' exit speeds ``v_C = ω3 l3``, ``v_E = ω5 l5`` and the absolute ones
+    ``v_aC``, ``v_aE`` with the recorded belt speed against the recorded crank angle,
+    over the model's curves (paper L, figs. 4-5), with the leaves' exit speeds
+    (:func:`~folder_line.analysis.figure_data.exit_speed_data`);
+``efficiency.png`` (scenes with the delivery)
+    the efficiency ``η`` and the carriage speed ratio ``K_v`` at the recorded carriage
+    positions along the stroke, over the model's curves (paper D, fig. 2), and the
+    recorded sprocket torque (``chain_friction``; :func:`~folder_line.analysis.figure_data.efficiency_data`);
+``cyclogram.png`` (scenes with the folder)
+    the first cycles as a Gantt chart of the operations А (feed: hand-over -> at the
+    stops), Б (settle and dwell: at the stops -> settled -> knife contact), В (knife:
+    contact -> exit) and Г (delivery: knife exit -> released on the pile), each cycle
+    annotated with its margins (paper F, figs. 1-2; :func:`~folder_line.analysis.figure_data.cycle_rows`);
+``margins.png``
+    a histogram of each constraint's margins over all cycles, violations in red;
+``landing.png`` (scenes with ``leaf_flight``)
+    where the leaves landed across the container (``leaf_landed`` events), with the
+    spilled ones (:func:`~folder_line.analysis.figure_data.landing_data`).
+
+Figures are written atomically (:func:`save_figure`). matplotlib is imported when the
+first figure is drawn, with the Agg back end (:func:`pyplot`).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from folder_line.analysis.figure_data import (
+    GANTT_CYCLES,
+    cycle_rows,
+    efficiency_data,
+    exit_speed_data,
+    landing_data,
+)
+from folder_line.analysis.recording import Recording
+from folder_line.analysis.replay import Evaluation
+from folder_line.core.effects import chain_friction
+from folder_line.core.mechanisms import delivery, layup
+from folder_line.files.atomic import write_bytes_atomic
+
+__all__ = [
+    'DPI',
+    'FIGURES',
+    'MAX_POINTS',
+    'OPERATIONS',
+    'PHASE_COLOURS',
+    'draw_figures',
+    'exit_speed_curves',
+    'pyplot',
+    'save_figure',
+    'stroke_curves',
+]
+
+#: figure file -> what it shows (the captions of report.md)
+FIGURES: dict[str, str] = {
+    'exit_speeds.png': 'L: exit speeds against the crank angle, recorded (points) over the model (lines); '
+    'paper L figs. 4-5',
+    'efficiency.png': 'D: efficiency, carriage speed ratio and sprocket torque at the recorded carriage '
+    'positions along the stroke; paper D fig. 2',
+    'cyclogram.png': 'F: the first cycles as a Gantt chart of the operations А, Б, В, Г with their margins; '
+    'paper F figs. 1-2',
+    'margins.png': 'margins of every constraint over all cycles (violations in red)',
+    'landing.png': 'L: where the leaves landed across the container',
+}
+
+#: colours of the cyclogram's phases (knife over the table, feed, dwell at the stops)
+PHASE_COLOURS: dict[str, str] = {'knife': 'tab:red', 'feed': 'tab:green', 'dwell': 'tab:blue'}
+
+#: resolution of the PNGs, dots per inch
+DPI = 110
+
+
+# --------------------------------------------------------------------------- drawing
+
+
+def pyplot() -> Any:
+    """``matplotlib.pyplot`` on the non-interactive Agg back end (no display needed)."""
+    # imported here, not with the module: matplotlib takes a while to import and its back end
+    # must be chosen before pyplot is imported; importing the analysis does neither
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = DPI) -> Path:
+    """Write ``fig`` as a PNG to ``path`` atomically (:func:`folder_line.files.atomic.write_bytes_atomic`)
+    and close it; a failure leaves no partial file behind."""
+    try:
+        buf = io.BytesIO()
+        fig.savefig(buf, format='png', dpi=dpi)
+        return write_bytes_atomic(path, buf.getvalue())
+    finally:
+        pyplot().close(fig)
+
+
+def exit_speed_curves(
+    ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n: int = 721, show_swing_on_abs: bool = True
+) -> Any:
+    """The layup's exit speeds against the crank angle at nominal speed (paper L, figs. 4-5).
+
+    Draws ``v_C``, ``v_E`` (m/s, signed: the exits' swing speed across the chutes) on
+    ``ax_swing`` and the absolute exit speeds ``v_aC``, ``v_aE`` with belts at
+    ``v_tr`` on ``ax_abs``; both with the swing extremes (dotted) and the crank angle
+    in degrees on [0, 360].
+
+    Parameters
+    ----------
+    ax_swing, ax_abs : matplotlib Axes
+    params : LayupParams
+        The six-bar.
+    v_tr : float
+        Belt speed, m/s (0: no belts, ``v_aC = |v_C|``).
+    n : int
+        Crank angles on [0, 2π].
+    show_swing_on_abs : bool
+        Also draw ``|v_C|`` on ``ax_abs`` for comparison.
+
+    Returns
+    -------
+    LayupState
+        The curves' kinematics (``phi`` in rad).
+    """
+    phi = np.linspace(0.0, 2.0 * math.pi, n)
+    st = layup.LayupModel(params).arrays(phi, accelerations=False)
+    deg = np.degrees(phi)
+    va_c = np.sqrt(st.vC * st.vC + v_tr * v_tr)
+    va_e = np.sqrt(st.vE * st.vE + v_tr * v_tr)
+    ax_swing.plot(deg, st.vC, label='$v_C$ (exit of transporter 3)')
+    ax_swing.plot(deg, st.vE, '--', label='$v_E$ (exit of transporter 4)')
+    ax_swing.axhline(0.0, color='k', lw=0.5)
+    ax_abs.plot(deg, va_c, label=r'$v_{aC}=\sqrt{v_C^2+v_{tr}^2}$')
+    ax_abs.plot(deg, va_e, '--', label=r'$v_{aE}$')
+    if show_swing_on_abs:
+        ax_abs.plot(deg, np.abs(st.vC), color='C2', lw=0.8, label='$|v_C|$ without belts')
+    ax_abs.axhline(v_tr, color='k', lw=0.5)
+    for e in layup.swing_extremes(params):
+        for ax in (ax_swing, ax_abs):
+            ax.axvline(math.degrees(e.phi), color='grey', ls=':', lw=1)
+    ax_abs.set_xlim(0, 360)
+    return st
+
+
+def stroke_curves(
+    ax_eta: Any,
+    ax_kv: Any | None,
+    params: Any,
+    modes: Sequence[str] = ('paper_mirror', 'geometric'),
+    *,
+    n: int = 2001,
+    pairs: bool = True,
+) -> Any:
+    """The delivery's efficiency (and carriage speed ratio) along the stroke (paper D, fig. 2).
+
+    Draws ``eta(u)`` for each return-section mode on ``ax_eta`` (with ``eta_A``,
+    ``eta_B`` of the first mode dotted if ``pairs``) and ``K_v(u)`` on ``ax_kv``;
+    ``u`` in [0, 2]: the deceleration section 0..1, the acceleration section 1..2.
+
+    Returns
+    -------
+    DeliverySamples
+        The first mode's curve.
+    """
+    u = np.linspace(0.0, 2.0, n)
+    styles = ('-', '--', '-.', ':')
+    first = None
+    for mode, style in zip(modes, styles, strict=False):
+        ev = delivery.evaluate_stroke(params, u, return_section=mode)
+        first = ev if first is None else first
+        ax_eta.plot(u, ev.eta, style, label=f'eta ({mode} return section)')
+        if ax_kv is not None:
+            ax_kv.plot(u, ev.K_v, style, label=f'K_v ({mode})')
+    if pairs and first is not None:
+        ax_eta.plot(u, first.eta_A, ':', lw=1, label='eta_A')
+        ax_eta.plot(u, first.eta_B, ':', lw=1, label='eta_B')
+    for ax in (ax_eta, ax_kv):
+        if ax is not None:
+            ax.axvline(1.0, color='grey', lw=0.8)
+            ax.grid(alpha=0.3)
+    return first
+
+
+# --------------------------------------------------------------------------- figures of a recorded run
+
+
+#: most points drawn per recorded series (an hour of samples is thinned evenly for the figure)
+MAX_POINTS = 5000
+
+
+def _thin(n: int, cap: int = MAX_POINTS) -> slice:
+    """Every k-th sample so that at most ``cap`` of ``n`` are drawn."""
+    return slice(None, None, max(1, math.ceil(n / cap)))
+
+
+def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+    data = exit_speed_data(rec)
+    if data is None:
+        return None
+    plt = pyplot()
+    scene = rec.scene
+    n_samples = data['t'].size
+    lp = scene.machine('layup')
+    v_tr = float(lp.v_tr) if scene.has('chute_belts') else 0.0
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
+    exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
+    k = _thin(data['t'].size)
+    data = {name: v[k] for name, v in data.items()}
+    deg = np.degrees(data['phi'])
+    ax1.plot(deg, data['vC'], 'o', ms=3, color='C0', alpha=0.7, label=r'recorded $\omega_3 l_3$')
+    ax1.plot(deg, data['vE'], 's', ms=3, color='C1', mfc='none', alpha=0.7, label=r'recorded $\omega_5 l_5$')
+    ax2.plot(deg, data['vaC'], 'o', ms=3, color='C0', alpha=0.7, label='recorded $v_{aC}$')
+    ax2.plot(deg, data['vaE'], 's', ms=3, color='C1', mfc='none', alpha=0.7, label='recorded $v_{aE}$')
+    exits = rec.events_of('leaf_exit')
+    if exits.size:
+        turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
+        kin_phi = np.mod(2.0 * math.pi * turns, 2.0 * math.pi)
+        c_e = exits['sheet'] % 2 == 1
+        ax2.plot(
+            np.degrees(kin_phi[~c_e]),
+            exits['value'][~c_e],
+            'v',
+            ms=6,
+            color='C3',
+            label=f'leaf exits at C ({int(np.count_nonzero(~c_e))})',
+        )
+        ax2.plot(
+            np.degrees(kin_phi[c_e]),
+            exits['value'][c_e],
+            '^',
+            ms=6,
+            color='C4',
+            label=f'leaf exits at E ({int(np.count_nonzero(c_e))})',
+        )
+    if scene.has('chute_belts'):
+        vmin = float(scene.effect('chute_belts').v_min)
+        ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
+    ax1.set_ylabel('swing speed across the chute, m/s')
+    ax1.set_title(
+        f'L: exit speeds, {n_samples} recorded samples over {rec.t_end:.3f} s '
+        '(lines: model at nominal speed; paper Fig. 4)',
+        fontsize=10,
+    )
+    ax1.legend(loc='upper right', fontsize=8)
+    ax2.set_ylabel('absolute exit speed, m/s')
+    ax2.set_xlabel(r'crank angle $\varphi$, deg')
+    belt = (
+        f'recorded belt speed {data["v_belt"].min():.3f}..{data["v_belt"].max():.3f} m/s'
+        if scene.has('chute_belts') and data['v_belt'].size
+        else 'no belts'
+    )
+    ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
+    ax2.legend(loc='lower right', fontsize=8, ncol=2)
+    fig.tight_layout()
+    return save_figure(fig, out / 'exit_speeds.png')
+
+
+def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+    data = efficiency_data(rec, ev)
+    if data is None:
+        return None
+    plt = pyplot()
+    plan = ev.plan
+    with_torque = data['torque'].size > 0
+    rows = 3 if with_torque else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
+    ax_eta, ax_kv = axes[0], axes[1]
+    stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
+    k = _thin(data['u'].size)
+    ax_eta.plot(
+        data['u'][k],
+        data['eta'][k],
+        'o',
+        ms=3,
+        color='k',
+        alpha=0.6,
+        label=f'at the recorded carriage positions ({data["u"].size})',
+    )
+    m = data['moving'][k]
+    ax_kv.plot(
+        data['u'][k][m],
+        data['K_v'][k][m],
+        'o',
+        ms=3,
+        color='k',
+        alpha=0.6,
+        label='recorded carriage speed / chain speed',
+    )
+    for ax in axes:
+        ax.axvline(plan.u_rel, color='tab:purple', ls='--', lw=1)
+    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color='tab:purple', va='bottom', fontsize=8)
+    ax_eta.set_ylabel('efficiency $\\eta$')
+    ax_eta.set_title(
+        f'D: efficiency along the stroke (paper Fig. 2), recorded over {rec.t_end:.3f} s; '
+        f'min eta at the samples {data["eta"].min():.3f}'
+        if data['eta'].size
+        else 'D: efficiency along the stroke (paper Fig. 2)',
+        fontsize=10,
+    )
+    ax_eta.legend(fontsize=8, loc='lower left')
+    ax_kv.set_ylabel('carriage speed ratio $K_v$')
+    ax_kv.legend(fontsize=8, loc='lower left')
+    if with_torque:
+        ax_t = axes[2]
+        sch = plan.schedule
+        theta = sch.theta_enter0 + np.linspace(0.0, sch.T, 4001, endpoint=False)
+        a0, slack = sch.stroke_travel(theta)
+        on = a0 <= sch.S + slack
+        u_m = plan.path.position(np.clip(a0[on], 0.0, sch.S))
+        tq = np.asarray(chain_friction.sprocket_torque(rec.scene, theta[on]), dtype=float)
+        order = np.argsort(u_m)
+        ax_t.plot(u_m[order], tq[order], color='C2', label='model: all carriages on the stroke')
+        ax_t.plot(data['u'][k], data['torque'][k], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
+        ax_t.set_ylabel('sprocket torque $M_1$, N m')
+        ax_t.legend(fontsize=8, loc='upper right')
+        ax_t.grid(alpha=0.3)
+    axes[-1].set_xlabel('stroke position u of the newest carriage (deceleration 0..1, acceleration 1..2)')
+    fig.tight_layout()
+    return save_figure(fig, out / 'efficiency.png')
+
+
+#: the operations of the cyclogram (paper F): letter, label, colour
+OPERATIONS = (
+    ('А', 'feed: hand-over -> at the stops', 'tab:green'),
+    ('Б', 'settle + dwell: at the stops -> settled -> knife contact', 'tab:blue'),
+    ('В', 'knife: contact -> exit', 'tab:red'),
+    ('Г', 'delivery: knife exit -> released on the pile', 'tab:purple'),
+)
+
+
+_MARGIN_FORMAT = {
+    'feed_window': ('feed', 1e3, 'ms'),
+    'settled_before_knife': ('settled', 1e3, 'ms'),
+    'one_per_cycle': ('sheets', 1.0, ''),
+    'rebound': ('rebound', 1e3, 'mm'),
+    'release_at_min_speed': ('K_v at release', 1.0, ''),
+}
+
+
+def _margin_text(margins: Mapping[str, float]) -> str:
+    parts = []
+    for name, m in margins.items():
+        label, scale, unit = _MARGIN_FORMAT.get(name, (name, 1.0, ''))
+        if name == 'one_per_cycle':
+            parts.append('1 sheet' if m == 0.0 else f'{round(-m)} sheet(s) off')
+        else:
+            parts.append(f'{label} {m * scale:+.3g}{" " + unit if unit else ""}')
+    return ' | '.join(parts)
+
+
+def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path | None:
+    rows = cycle_rows(rec, ev, n)
+    timing = ev.timing
+    if timing is None:
+        return None
+    plt = pyplot()
+    ms = 1e3
+    fig, ax = plt.subplots(figsize=(12, 2.2 + 0.55 * (len(rows) + 1)))
+    colours = {letter: colour for letter, _, colour in OPERATIONS}
+    x_max = timing.T * ms
+    # the nominal cycle of the paper's cyclogram, from the knife exit
+    for ph in timing.timeline:
+        a = (ph.t_start - timing.knife.t_out) % timing.T
+        b = a + ph.duration
+        for lo, hi in ((a, min(b, timing.T)), (0.0, b - timing.T)) if b > timing.T else ((a, b),):
+            if hi > lo:
+                ax.barh(-1, (hi - lo) * ms, left=lo * ms, height=0.5, color=PHASE_COLOURS[ph.name], alpha=0.35)
+        ax.text((a + min(b, timing.T)) / 2 * ms, -1, ph.name, ha='center', va='center', fontsize=7)
+    ax.axvline(timing.t_allowed * ms, color='k', ls=':', lw=1)
+    for i, row in enumerate(rows):
+        t0 = row['start']
+        n_s = max(len(row['sheets']), 1)
+        h = 0.6 / n_s
+        for j, s in enumerate(row['sheets']):
+            y = i - 0.3 + h * (j + 0.5)
+            segs = [
+                ('А', s['handover'], s['at_stops'], None),
+                ('Б', s['at_stops'], s['settled'], '////'),
+                (
+                    'Б',
+                    s['settled'],
+                    row['contact'] if s['settled'] is not None and s['settled'] <= row['contact'] else None,
+                    None,
+                ),
+            ]
+            if s['release'] is not None and row['exit'] is not None:
+                segs.append(('Г', row['exit'], s['release'], None))
+            for letter, a, b, hatch in segs:
+                if a is None or b is None or b < a:
+                    continue
+                ax.barh(
+                    y,
+                    (b - a) * ms,
+                    left=(a - t0) * ms,
+                    height=h * 0.9,
+                    color=colours[letter],
+                    alpha=0.45 if hatch else 0.8,
+                    hatch=hatch,
+                    edgecolor='white' if hatch else None,
+                )
+                x_max = max(x_max, (b - t0) * ms)
+        if not row['sheets']:
+            ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
+        if row['exit'] is not None:
+            ax.barh(
+                i,
+                (row['exit'] - row['contact']) * ms,
+                left=(row['contact'] - t0) * ms,
+                height=0.6,
+                color=colours['В'],
+                alpha=0.8,
+            )
+            x_max = max(x_max, (row['exit'] - t0) * ms)
+        ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
+        x_max = max(x_max, (row['deadline'] - t0) * ms)
+    text_x = x_max * 1.03
+    for i, row in enumerate(rows):
+        bad = any(m < 0.0 for m in row['margins'].values())
+        ax.text(text_x, i, _margin_text(row['margins']), va='center', fontsize=7.5, color='r' if bad else 'k')
+    ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
+    ax.set_yticks([-1] + list(range(len(rows))), ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
+    for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
+        if any(m < 0.0 for m in row['margins'].values()):
+            label.set_color('r')
+        if i and row['cycle'] != rows[i - 1]['cycle'] + 1:  # cycles left out
+            ax.axhline(i - 0.5, color='grey', ls='--', lw=0.8)
+    ax.invert_yaxis()
+    ax.set_xlim(0, x_max * 1.9)
+    ticks = plt.MaxNLocator(nbins=8).tick_values(0.0, x_max)
+    ax.set_xticks(ticks[(ticks >= 0.0) & (ticks <= x_max)])
+    ax.axvline(x_max * 1.015, color='grey', lw=0.5)
+    ax.set_xlabel('time from the start of the cycle (the knife exit of the cycle before), ms')
+    handles = [plt.Rectangle((0, 0), 1, 1, color=c, alpha=0.8) for _, _, c in OPERATIONS]
+    labels = [f'{letter}: {label}' for letter, label, _ in OPERATIONS]
+    handles.append(plt.Line2D([0], [0], color='k', lw=2))
+    labels.append('feed deadline of the cycle (window start + t_allowed)')
+    fig.legend(handles, labels, loc='lower center', ncol=2, fontsize=8, frameon=False)
+    shown = (
+        f'the first {len(rows)}'
+        if [r['cycle'] for r in rows] == list(range(len(rows)))
+        else f'the first {n} and the first violated'
+    )
+    ax.set_title(
+        f'F: cyclogram of {shown} of {ev.cycles} cycles (paper F figs. 1-2), '
+        f'T = {timing.T * ms:.1f} ms; hatched: bouncing at the stops',
+        fontsize=10,
+    )
+    ax.grid(axis='x', alpha=0.3)
+    fig.tight_layout(rect=(0.0, 0.85 / fig.get_figheight(), 1.0, 1.0))
+    return save_figure(fig, out / 'cyclogram.png')
+
+
+_DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
+
+
+def _margin_bins(m: np.ndarray, unit: str, bins: int = 30) -> np.ndarray:
+    """Histogram edges for margins ``m``: whole numbers for ``sheets``; one bin about the value where
+    the margins are equal to rounding (relative spread <= 1e-6)."""
+    lo, hi = float(m.min()), float(m.max())
+    if unit == 'sheets':
+        return np.arange(math.floor(lo) - 0.5, math.ceil(hi) + 1.0)
+    if hi - lo <= 1e-6 * max(abs(lo), abs(hi)):
+        mid = 0.5 * (lo + hi)
+        half = max(abs(mid) * 0.02, 1e-12)
+        return np.array([mid - half, mid + half])
+    return np.linspace(lo, hi, bins + 1)
+
+
+def _plot_margins(ev: Evaluation, out: Path) -> Path:
+    plt = pyplot()
+    series = [c for c in ev.constraints]
+    n = max(len(series), 1)
+    cols = 2 if n > 1 else 1
+    nrows = math.ceil(n / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(5.2 * cols, 3.0 * nrows + 0.4), squeeze=False)
+    for ax in axes.ravel()[len(series) :]:
+        ax.axis('off')
+    if not series:
+        axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
+    for ax, c in zip(axes.ravel(), series, strict=False):
+        scale, unit = _DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
+        m = c.margin * scale
+        nv = int(np.count_nonzero(c.violated))
+        ax.set_title(
+            f'{c.name}: {c.margin.size} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k'
+        )
+        ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
+        ax.set_ylabel('count')
+        if m.size == 0:
+            ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
+            continue
+        edges = _margin_bins(m, c.unit)
+        ax.hist(
+            [m[m >= 0.0], m[m < 0.0]],
+            bins=edges,
+            stacked=True,
+            color=['C0', 'tab:red'],
+            label=['passed', f'violated ({nv})' if nv else '_nolegend_'],
+        )
+        if edges[0] <= 0.0 <= edges[-1]:
+            ax.axvline(0.0, color='k', lw=1)
+        ax.axvline(float(m.min()), color='tab:orange', ls='--', lw=1, label=f'min {m.min():.4g}')
+        ax.legend(fontsize=7)
+        ax.ticklabel_format(axis='x', style='sci', scilimits=(-3, 4), useOffset=False)
+        if edges.size == 2:  # equal margins (to rounding): one bar
+            width = edges[1] - edges[0]
+            ax.set_xlim(edges[0] - width, edges[1] + width)
+    fig.tight_layout()
+    return save_figure(fig, out / 'margins.png')
+
+
+def _plot_landing(rec: Recording, out: Path) -> Path | None:
+    data = landing_data(rec)
+    if data is None:
+        return None
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    edges, counts = data['edges'], data['counts']
+    ax.bar(
+        edges[:-1],
+        counts,
+        width=np.diff(edges),
+        align='edge',
+        color='C0',
+        edgecolor='white',
+        label=f'landed ({int(counts.sum())})',
+    )
+    if data['spilled'].size:
+        ax.plot(
+            data['spilled'],
+            np.zeros(data['spilled'].size),
+            'x',
+            color='tab:red',
+            ms=8,
+            mew=2,
+            label=f'spilled over a wall ({data["spilled"].size})',
+        )
+    ax.plot(
+        data['x'],
+        np.full(data['x'].size, -0.04 * max(counts.max(initial=1), 1)),
+        '|',
+        color='k',
+        ms=10,
+        label='landing x of each leaf',
+    )
+    for wall in (data['x_left'], data['x_right']):
+        ax.axvline(wall, color='k', lw=3)
+    width = data['x_right'] - data['x_left']
+    ax.set_xlim(data['x_left'] - 0.1 * width, data['x_right'] + 0.1 * width)
+    cv = 'n/a' if data['cv'] is None else f'{data["cv"]:.3f}'
+    ax.set_title(
+        f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}) over {rec.t_end:.3f} s',
+        fontsize=10,
+    )
+    ax.set_xlabel('x on the container floor, m (thick lines: the walls)')
+    ax.set_ylabel('leaves per bin')
+    ax.yaxis.set_major_locator(plt.MaxNLocator(integer=True))
+    ax.legend(fontsize=8, loc='upper right')
+    fig.tight_layout()
+    return save_figure(fig, out / 'landing.png')
+
+
+def draw_figures(rec: Recording, ev: Evaluation, out: Path, gantt_cycles: int = GANTT_CYCLES) -> dict[str, Path]:
+    """Draw the figures of :data:`FIGURES` the scene has into ``out``.
+
+    Parameters
+    ----------
+    rec : Recording
+    ev : Evaluation
+        ``rec`` judged (:func:`folder_line.analysis.replay.evaluate`).
+    out : Path
+        An existing directory.
+    gantt_cycles : int
+        Cycles in the cyclogram.
+
+    Returns
+    -------
+    dict of str to Path
+        Figure file name -> the file written, in the order of :data:`FIGURES`.
+    """
+    figures: dict[str, Path] = {}
+    for name, draw in (
+        ('exit_speeds.png', lambda: _plot_exit_speeds(rec, ev, out)),
+        ('efficiency.png', lambda: _plot_efficiency(rec, ev, out)),
+        ('cyclogram.png', lambda: _plot_cyclogram(rec, ev, out, gantt_cycles)),
+        ('margins.png', lambda: _plot_margins(ev, out)),
+        ('landing.png', lambda: _plot_landing(rec, out)),
+    ):
+        written = draw()
+        if written is not None:
+            figures[name] = written
+    return figures

@@ -1,0 +1,263 @@
+"""The recorded run judged again: the line's constraints on the recorded events, the supervisor replayed.
+
+The same constraint code as the line
+------------------------------------
+:func:`evaluate` judges the events of a :class:`~folder_line.analysis.recording.Recording`
+with the functions the batch simulator and the live supervisor call,
+:func:`folder_line.core.line.constraints.folder_evaluation` and
+:func:`folder_line.core.line.constraints.evaluate_layup_constraints`, on the scene stored
+in the bag and its drive under the recorded supervisor commands. Its numbers are
+therefore those of ``simulate(scene, t_end, commands=...)`` for a run of ``t_end`` s (up
+to the ns rounding of the event times), and the per-constraint figures are computed by
+:meth:`folder_line.core.line.model.LineResult.summary`, as the ``simulate`` verb's are.
+
+State transitions
+-----------------
+The recorded inputs of the live supervisor -- the events, the joint-state stamps
+(liveness), the ``/clock`` messages, the operator's commands -- are replayed through
+:func:`folder_line.core.supervision.decisions.replay`, the logic the live node runs
+(:func:`replay_transitions`): the transitions with their decision times and causes, and
+the violations as the supervisor decided them (causal, with the action taken).
+:func:`transitions_agree` says whether they agree with the states recorded on
+``/line/supervisor/state`` (:func:`recorded_transitions`). The node's parameters are
+read from the bag's custom data ``folder_line.supervisor`` (JSON) if it is there, else
+they are the ones ``folder-line run`` starts the node with (:data:`SUPERVISOR_DEFAULTS`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from folder_line.analysis.recording import Recording
+from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
+from folder_line.core.line.events import ConstraintSeries
+from folder_line.core.line.folder_sim import delivery_plan
+from folder_line.core.line.model import LineModel, LineResult, make_drive
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.drive import Command, Drive
+from folder_line.core.supervision import decisions as supervision
+from folder_line.interfaces import NS_PER_S
+
+__all__ = [
+    'KEY_SUPERVISOR',
+    'SUPERVISOR_DEFAULTS',
+    'Evaluation',
+    'evaluate',
+    'recorded_transitions',
+    'replay_transitions',
+    'supervisor_parameters',
+    'transitions_agree',
+]
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """The recorded events judged by the line's constraint code (:func:`evaluate`).
+
+    Attributes
+    ----------
+    drive : Drive
+        The scene's drive under the recorded commands, up to the run's horizon.
+    timing : CycleTiming or None
+        The folder's cycle timing (None without the folder).
+    plan : DeliveryPlan or None
+        The delivery's plan (None without the folder).
+    constraints : list of ConstraintSeries
+        Every constraint judged, per cycle or leaf.
+    signatures : ndarray of int64
+        Sheets per folder cycle (empty without the folder).
+    cycles, sheets_counted : int
+    summary : dict
+        :meth:`folder_line.core.line.model.LineResult.summary` of the recorded events,
+        with ``cycles`` and ``sheets_counted``.
+    """
+
+    drive: Drive
+    timing: Any
+    plan: Any
+    constraints: list[ConstraintSeries]
+    signatures: np.ndarray
+    cycles: int
+    sheets_counted: int
+    summary: dict[str, Any]
+
+
+def evaluate(rec: Recording) -> Evaluation:
+    """The recorded events judged by the line's constraint code; the simulate-style summary."""
+    scene = rec.scene
+    drive = make_drive(scene, rec.horizon, rec.commands)
+    timing = plan = None
+    constraints: list[ConstraintSeries] = []
+    signatures = np.zeros(0, dtype=np.int64)
+    if scene.has_folder:
+        timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+        plan = delivery_plan(scene, timing)
+        fe = folder_evaluation(rec.events, timing, scene, drive, plan=plan)
+        constraints += fe.constraints
+        signatures = fe.signatures
+    if scene.has_layup:
+        constraints += evaluate_layup_constraints(rec.events, scene)
+    if scene.has_folder:
+        cycles = int(rec.events_of('knife_contact').size)
+        sheets = int(rec.events_of('released_on_pile').size if plan is not None else signatures.sum())
+    else:
+        lp = scene.machine('layup')
+        theta_end = float(np.asarray(drive.theta(np.asarray(rec.t_end)), dtype=float))
+        cycles = math.floor(theta_end * (lp.n_kr / 60.0))
+        sheets = int(rec.events_of('leaf_landed').size)
+    n_viol = sum(int(np.count_nonzero(c.violated)) for c in constraints)
+    summary = LineResult(
+        scene=scene, duration=max(rec.t_end, 1e-9), events=rec.events, samples={}, constraints=constraints, parts={}
+    ).summary(max_violations=max(n_viol, 1))
+    summary['cycles'] = cycles
+    summary['sheets_counted'] = sheets
+    return Evaluation(drive, timing, plan, constraints, signatures, cycles, sheets, summary)
+
+
+def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[dict[str, Any]]:
+    """The state changes of a ``/line/supervisor/state`` sequence.
+
+    Returns
+    -------
+    list of dict
+        ``{'t': log time of the first message in the new state (s), 'from': ..., 'to': ...}``;
+        the first state is reported as a change from ``''``.
+    """
+    out: list[dict[str, Any]] = []
+    prev = ''
+    for t_ns, state in states:
+        if state != prev:
+            out.append({'t': t_ns / NS_PER_S, 'from': prev, 'to': state})
+            prev = state
+    return out
+
+
+#: the live supervisor node's parameters as ``folder-line run`` starts it (its defaults, and the
+#: rate of :class:`folder_line.ros.run.RunConfig`); a bag's custom data ``folder_line.supervisor``
+#: (JSON) overrides them. test/test_analysis.py keeps them equal to the node's.
+SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
+#: custom data key of the supervisor's parameters in a bag
+KEY_SUPERVISOR = 'folder_line.supervisor'
+
+
+def supervisor_parameters(rec: Recording) -> dict[str, Any]:
+    """The live supervisor's parameters: :data:`SUPERVISOR_DEFAULTS`, updated from the bag if it has them."""
+    params = dict(SUPERVISOR_DEFAULTS)
+    text = rec.bag.custom.get(KEY_SUPERVISOR)
+    if text:
+        try:
+            stored = json.loads(text)
+        except ValueError:
+            stored = None
+        if isinstance(stored, dict):
+            params.update({k: v for k, v in stored.items() if k in params})
+    return params
+
+
+def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) -> tuple[list[dict[str, Any]], Any]:
+    """Replay the recorded inputs through :func:`folder_line.core.supervision.decisions.replay`.
+
+    The live supervisor node runs in lockstep: at every tick it is fed the events up to
+    that tick (all of them: it waits until every machine node's tick is complete), the
+    NaN/inf values found and the operator's commands, and decides exactly at the tick.
+    All of these are in the bag (the operator's commands, lost participants and the
+    first watermark in the supervisor's ``/diagnostics`` statuses). Its parameters:
+    :func:`supervisor_parameters`, updated from ``params``.
+
+    Returns
+    -------
+    (list of dict, Supervisor)
+        The transitions ``{'t', 'from', 'to', 'cause'}`` (decision time, s) and the
+        replayed supervisor (its ``violations``, ``commands``, ``balances``).
+    """
+    p = supervisor_parameters(rec)
+    p.update(params or {})
+    scene = rec.scene
+    horizon = rec.horizon
+    period = 1.0 / float(p['rate'])
+    base = LineModel(scene, horizon)
+    cache: dict[tuple[Command, ...], Any] = {(): base}
+
+    def model_factory(commands: tuple[Command, ...]) -> Any:
+        if commands not in cache:
+            cache[commands] = LineModel(scene, horizon, commands)
+        return cache[commands]
+
+    starts = [float(v['t_start']) for _, _, v in rec.supervisor_status if 't_start' in v]
+    if starts:
+        t_start = starts[0]
+    elif rec.diagnostics_ns.size:  # the first tick published the first /diagnostics, stamped with its time
+        t_start = int(rec.diagnostics_ns.min()) / NS_PER_S  # the first watermark
+    else:
+        t_start = 0.0
+    operator = [
+        (float(v['t']), v['command'])
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/operator') and 't' in v and 'command' in v
+    ]
+    lost = [
+        (float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')
+    ]
+    kwargs: dict[str, Any] = {
+        'periods': {},
+        'lead': float(p['command_lead']),
+        'check_period': period,
+        'enforce': bool(p['enforce']),
+        'double': str(p['double_sheet']),
+        'state': 'STARTING',
+        't_start': t_start,
+        'model_factory': model_factory,
+    }
+    sup = supervision.replay(
+        scene,
+        horizon,
+        rec.events,
+        bad_values=rec.bad_values,
+        operator=operator,
+        lost=lost,
+        until=max(rec.t_end, t_start),
+        **kwargs,
+    )
+    out = [
+        {'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
+        for tr in sup.transitions
+    ]
+    return out, sup
+
+
+def transitions_agree(
+    replayed: Sequence[Mapping[str, Any]], recorded: Sequence[Mapping[str, Any]], initial: str = 'STARTING'
+) -> bool:
+    """Whether the recorded state sequence is the replayed one, as the state topic can show it.
+
+    The supervisor publishes its state once per tick: states it passes through within
+    one tick do not appear on the topic. So the recorded sequence of states must be
+    the replayed one (``initial`` then each transition's target) with at most such
+    states left out, ending in the same state; and each replayed transition must be
+    decided before the recording first shows its target.
+    """
+    full = [initial] + [str(t['to']) for t in replayed]
+    seen = [str(t['to']) for t in recorded]
+    if not seen:
+        return not replayed
+    if seen[-1] != full[-1]:
+        return False
+    i = 0
+    for state in seen:  # a subsequence of full
+        while i < len(full) and full[i] != state:
+            i += 1
+        if i == len(full):
+            return False
+        i += 1
+    shown = {}
+    for t in recorded:
+        shown.setdefault(str(t['to']), float(t['t']))
+    return all(float(t['t']) <= shown.get(str(t['to']), math.inf) for t in replayed)

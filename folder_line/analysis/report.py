@@ -1,0 +1,329 @@
+"""``folder-line analyze RUN_DIR|BAG [--out DIR] [--csv]``: the analysis of a recorded run, written.
+
+:func:`analyze` reads a run's bag (:func:`folder_line.analysis.recording.read_recording`),
+judges it (:func:`folder_line.analysis.replay.evaluate`), replays the supervisor
+(:func:`folder_line.analysis.replay.replay_transitions`) and writes to ``--out``
+(default ``RUN_DIR/analysis``)
+
+``report.md``
+    the run's numbers -- cycles, sheets counted, per-constraint minimum margins, the
+    violations (cycle, constraint, margin), the supervisor's state transitions (replayed,
+    and whether they agree with the recorded ones), the messages recorded and lost --
+    and the figures;
+the figures
+    those of :data:`folder_line.analysis.figures.FIGURES` the scene has
+    (:func:`folder_line.analysis.figures.draw_figures`);
+``csv/<topic>.csv`` (``--csv``)
+    every message of every topic of the bag, one row each
+    (:mod:`folder_line.analysis.csv_export`).
+
+The numbers of ``report.md`` are those of ``simulate(scene, t_end, commands=...)`` for a
+run of ``t_end`` s: the recorded events are judged by the line's own constraint code.
+:func:`print_analysis` prints the headline numbers, as ``folder-line analyze`` does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from folder_line.analysis.csv_export import CsvCollector
+from folder_line.analysis.figure_data import GANTT_CYCLES
+from folder_line.analysis.figures import FIGURES, draw_figures
+from folder_line.analysis.recording import Recording, read_recording
+from folder_line.analysis.replay import (
+    Evaluation,
+    evaluate,
+    recorded_transitions,
+    replay_transitions,
+    transitions_agree,
+)
+from folder_line.core.line.events import ConstraintSeries
+from folder_line.errors import FolderLineError, ParameterError
+from folder_line.files.atomic import claim_output_dir, write_text_atomic
+
+__all__ = ['AnalysisResult', 'analyze', 'print_analysis']
+
+
+@dataclass(frozen=True, eq=False)
+class AnalysisResult:
+    """What :func:`analyze` wrote and computed.
+
+    Attributes
+    ----------
+    out : Path
+        The output directory.
+    report : Path
+        ``report.md``.
+    figures : dict of str to Path
+        Figure file name -> path, for the figures the scene has.
+    csv : dict of str to Path
+        Topic -> its CSV (empty without ``csv=True``).
+    summary : dict
+        The numbers of the report: ``scene``, ``t_end``, ``cycles``,
+        ``sheets_counted``, ``sheet_counter``, ``min_margin`` (per constraint:
+        ``margin``, ``unit``, ``cycle``, ``evaluations``, ``violations``),
+        ``violations`` (count and every one), ``events`` (count per kind),
+        ``transitions``, ``transitions_source``, ``replay_matches``, ``messages``, ``lost``.
+    recording : Recording
+    constraints : list of ConstraintSeries
+        The constraints judged on the recorded events.
+    """
+
+    out: Path
+    report: Path
+    figures: dict[str, Path]
+    csv: dict[str, Path]
+    summary: dict[str, Any]
+    recording: Recording
+    constraints: list[ConstraintSeries] = field(default_factory=list)
+
+
+def _fmt(x: float) -> str:
+    return f'{x:.6g}'
+
+
+def _report_lines(
+    rec: Recording, ev: Evaluation, summary: dict[str, Any], figures: Mapping[str, Path], csv_files: Mapping[str, Path]
+) -> list[str]:
+    scene = rec.scene
+    bag = rec.bag
+    lines = [
+        f'# Analysis of the run: scene `{scene.name}`',
+        '',
+        f'- bag: `{bag.path}` ({len(bag.files)} files, {bag.message_count} messages)',
+        f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
+        f'- line time reached: {rec.t_end:.9g} s; drive commands recorded: '
+        + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
+        (
+            "- numbers: the recorded events judged by the line's constraint code "
+            '(`folder_line.core.line.constraints`), as `simulate(scene, line time reached)` judges its own'
+        ),
+        '',
+        '## Summary',
+        '',
+        '| quantity | value |',
+        '|---|---|',
+        f'| cycles | {summary["cycles"]} |',
+        f'| sheets counted | {summary["sheets_counted"]} |',
+        (
+            f'| sheets counted by sheet_counter (last /line/sheet_counter/count) | '
+            f'{"-" if rec.sheet_count is None else rec.sheet_count} |'
+        ),
+        f'| events | {int(rec.events.size)} |',
+        f'| violations | {summary["violations"]["count"]} |',
+    ]
+    if rec.bad_events:
+        lines.append(f'| /line/events messages that are not events | {rec.bad_events} |')
+    lines += ['', '## Events', '', '| kind | count |', '|---|---|']
+    lines += [f'| {k} | {n} |' for k, n in summary['events'].items()]
+    lines += [
+        '',
+        '## Constraints',
+        '',
+        '| constraint | unit | evaluations | min margin | at cycle | violations |',
+        '|---|---|---|---|---|---|',
+    ]
+    for name, m in summary['min_margin'].items():
+        lines.append(
+            f'| {name} | {m["unit"]} | {m["evaluations"]} | {_fmt(m["margin"])} | {m["cycle"]} | {m["violations"]} |'
+        )
+    if not summary['min_margin']:
+        lines.append('| (none evaluated) | | | | | |')
+    lines += ['', '## Violations', '']
+    viol = summary['violations']['first']
+    if viol:
+        decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist(), strict=True)) for c in ev.constraints}
+        lines += ['| cycle | constraint | margin | unit | decided at t, s |', '|---|---|---|---|---|']
+        lines += [
+            f'| {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
+            f'{decided.get(v["constraint"], {}).get(v["cycle"], float("nan")):.9g} |'
+            for v in viol
+        ]
+    else:
+        lines.append('No constraint was violated.')
+    lines += ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
+    recorded = summary.get('recorded_transitions', [])
+    shown = {}
+    for tr in recorded:
+        shown.setdefault(tr['to'], tr['t'])
+    if summary['transitions']:
+        lines += ['| t, s | from | to | cause | first recorded on /line/supervisor/state, s |', '|---|---|---|---|---|']
+        lines += [
+            f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | '
+            f'{shown[tr["to"]]:.9g} |'
+            if tr['to'] in shown
+            else f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | - |'
+            for tr in summary['transitions']
+        ]
+    else:
+        lines.append('No state transition.')
+    lines += [
+        '',
+        'Recorded states: ' + (' -> '.join(f'{tr["to"]} ({tr["t"]:.3f} s)' for tr in recorded) or 'none') + '.',
+    ]
+    decided = summary.get('replay_violations')
+    if decided:
+        lines += [
+            '',
+            '### Violations as the supervisor decided them (replay, causal)',
+            '',
+            '| t, s | cycle | constraint | margin | unit | action | state |',
+            '|---|---|---|---|---|---|---|',
+        ]
+        lines += [
+            f'| {v["t"]:.9g} | {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
+            f'{v["action"]} | {v["state"]} |'
+            for v in decided
+        ]
+    lines += ['', '## Messages', '']
+    published = rec.bag.published
+    lost = summary.get('lost')
+    lines += ['| topic | type | recorded | published | lost |', '|---|---|---|---|---|']
+    for topic, info in rec.bag.topics.items():
+        pub = '-' if published is None else published.get(topic, '-')
+        ls = '-' if lost is None else lost.get(topic, '-')
+        lines.append(f'| {topic} | {info.type} | {info.count} | {pub} | {ls} |')
+    if rec.run is not None and rec.run.get('loss_accounting'):
+        lines += ['', f'Loss accounting (run.json): {rec.run["loss_accounting"]}.']
+    elif rec.run is None:
+        lines += ['', 'No run.json: lost messages unknown.']
+    if csv_files:
+        lines += [
+            '',
+            '## CSV',
+            '',
+            f'One file per topic in `csv/` ({len(csv_files)} files): '
+            + ', '.join(f'`{p.name}`' for p in csv_files.values())
+            + '.',
+        ]
+    lines += ['', '## Figures', '']
+    for name, path in figures.items():
+        lines += [f'**{name}**: {FIGURES[name]}.', '', f'![{path.stem}]({path.name})', '']
+    missing = [n for n in FIGURES if n not in figures]
+    if missing:
+        lines.append('Not drawn (the scene has no such part): ' + ', '.join(missing) + '.')
+    return lines
+
+
+def analyze(
+    path: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
+    csv: bool = False,
+    *,
+    gantt_cycles: int = GANTT_CYCLES,
+) -> AnalysisResult:
+    """Analyse a recorded run: figures, ``report.md`` and, with ``csv``, one CSV per topic.
+
+    Parameters
+    ----------
+    path : path-like
+        A run directory (``run.json``, ``bag/``) or a bag directory.
+    out : path-like, optional
+        Output directory; default ``<run directory>/analysis`` (the bag's parent
+        directory when a bag is given).
+    csv : bool
+        Also write ``csv/<topic>.csv`` for every topic of the bag.
+    gantt_cycles : int
+        Cycles in the cyclogram (>= 1).
+
+    Returns
+    -------
+    AnalysisResult
+
+    Raises
+    ------
+    ParameterError, BagError
+        A bad path, a bag that cannot be read or holds no valid scene.
+    """
+    if not (isinstance(gantt_cycles, int) and gantt_cycles >= 1):
+        raise ParameterError('gantt_cycles', gantt_cycles, 'must be a whole number >= 1')
+    collector = CsvCollector() if csv else None
+    rec = read_recording(path, collector)
+    out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
+    with claim_output_dir(out_dir, '--out', files=('report.md', *FIGURES), dirs=('csv',) if csv else ()):
+        return _write_analysis(rec, out_dir, collector, gantt_cycles)
+
+
+def _write_analysis(rec: Recording, out_dir: Path, collector: CsvCollector | None, gantt_cycles: int) -> AnalysisResult:
+    """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
+    if collector is not None:  # every CSV target is checked before anything is written
+        collector.check(out_dir / 'csv', list(rec.bag.topics), '--out')
+    ev = evaluate(rec)
+
+    summary = dict(ev.summary)
+    summary['t_end'] = rec.t_end
+    summary['sheet_counter'] = rec.sheet_count
+    summary['messages'] = {t: s.count for t, s in rec.bag.topics.items()}
+    summary['lost'] = None if rec.run is None else rec.run.get('lost')
+    recorded = recorded_transitions(rec.states)
+    summary['recorded_transitions'] = recorded
+    try:
+        replayed, sup = replay_transitions(rec)
+    except (FolderLineError, ValueError, TypeError) as exc:  # a stream the logic rejects: say so, keep the record
+        replayed, sup = None, None
+        why = f'{type(exc).__name__}: {exc}'
+    if replayed is None:
+        summary['transitions'] = recorded
+        summary['replay_matches'] = None
+        summary['transitions_source'] = (
+            'the states published on /line/supervisor/state (the replay through '
+            f'folder_line.core.supervision.decisions.replay failed: {why})'
+        )
+    else:
+        summary['transitions'] = replayed
+        summary['replay_matches'] = transitions_agree(replayed, recorded)
+        summary['replay_violations'] = [dataclasses.asdict(v) for v in sup.violations]
+        summary['transitions_source'] = (
+            'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
+            'through '
+            'folder_line.core.supervision.decisions.replay (decision times); '
+            + (
+                'they agree with the states recorded on /line/supervisor/state'
+                if summary['replay_matches']
+                else 'they do NOT agree with the states recorded on /line/supervisor/state: '
+                + ' -> '.join(t['to'] for t in recorded)
+            )
+        )
+
+    figures = draw_figures(rec, ev, out_dir, gantt_cycles)
+    csv_files = collector.write(out_dir / 'csv', list(rec.bag.topics)) if collector is not None else {}
+    report = write_text_atomic(
+        out_dir / 'report.md', '\n'.join(_report_lines(rec, ev, summary, figures, csv_files)) + '\n'
+    )
+    return AnalysisResult(
+        out=out_dir,
+        report=report,
+        figures=figures,
+        csv=csv_files,
+        summary=summary,
+        recording=rec,
+        constraints=ev.constraints,
+    )
+
+
+def print_analysis(result: AnalysisResult, stream: Any) -> None:
+    """What ``folder-line analyze`` prints: the headline numbers and the files written."""
+    s = result.summary
+    print(
+        f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles, '
+        f'{s["sheets_counted"]} sheets counted, {s["violations"]["count"]} violations',
+        file=stream,
+    )
+    for name, m in s['min_margin'].items():
+        print(
+            f'  {name:<24} min margin {m["margin"]:.6g} {m["unit"]} (cycle {m["cycle"]}), '
+            f'{m["violations"]} of {m["evaluations"]} violated',
+            file=stream,
+        )
+    if s['transitions']:
+        print('states: ' + ' -> '.join(t['to'] for t in s['transitions']), file=stream)
+    print(f'wrote {result.report}', file=stream)
+    for path in result.figures.values():
+        print(f'wrote {path}', file=stream)
+    if result.csv:
+        print(f'wrote {len(result.csv)} CSV files to {result.out / "csv"}', file=stream)
