@@ -109,11 +109,12 @@ def line_fanout(rate: float) -> dict[str, int]:
     import rclpy
     from rclpy.parameter import Parameter
 
+    from folder_line.config.run_config import RunConfig, clock_parameters
     from folder_line.interfaces import KNOWN_PARTICIPANTS, tick_done_topic
     from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import add_machine_nodes
 
     cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
     ctx = rclpy.Context()
@@ -139,7 +140,8 @@ def line_fanout(rate: float) -> dict[str, int]:
 
 def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, dict]:
     """One lockstep run at rtf max: (CPU s of this process and its children, rtf reached, summary)."""
-    from folder_line.ros.run import RunConfig, run_line
+    from folder_line.config.run_config import RunConfig
+    from folder_line.ros.run import run_line
 
     with tempfile.TemporaryDirectory(prefix='bench_nodes_') as tmp:
         cfg = RunConfig(scene='folder', duration=duration, rtf=0.0, rate=rate, out=Path(tmp), processes=processes)

@@ -49,3 +49,14 @@ def test_the_check_catches_a_forbidden_import(tmp_path: Path) -> None:
     bad = tmp_path / 'bad.py'
     bad.write_text('import rclpy\nfrom sensor_msgs.msg import JointState\nimport scipy.integrate\n')
     assert sorted(n for n in _imports(bad) if not _allowed(n)) == ['rclpy', 'scipy.integrate', 'sensor_msgs.msg']
+
+
+def test_analysis_and_config_do_not_import_the_ros_layer() -> None:
+    """What the analysis of a run needs (the run's parameters, its folder layout) is in folder_line/config."""
+    package = CORE.parent
+    offenders = {
+        str(p.relative_to(package.parent)): sorted(n for n in _imports(p) if n.split('.')[:2] == ['folder_line', 'ros'])
+        for folder in ('analysis', 'config')
+        for p in sorted((package / folder).rglob('*.py'))
+    }
+    assert {k: v for k, v in offenders.items() if v} == {}

@@ -398,13 +398,14 @@ def live_cost(
     from rclpy.parameter import Parameter
 
     from folder_line.bag.bag import BagWriter
+    from folder_line.config.run_config import RunConfig, clock_parameters
     from folder_line.config.scenes import scene_mapping
     from folder_line.core.line.scene import parse_scene
     from folder_line.interfaces import KNOWN_PARTICIPANTS
     from folder_line.ros.common import events_executor
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import add_machine_nodes
 
     TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)

@@ -71,6 +71,7 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.config.run_config import SUPERVISOR_DEFAULTS
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.events import EVENT_DTYPE, ConstraintSeries, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
@@ -253,7 +254,7 @@ class Recording:
 
 def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]:
     """(bag directory, run.json or None) of a run directory or a bag directory."""
-    from folder_line.ros.run import BAG_DIR
+    from folder_line.config.run_config import BAG_DIR
 
     p = Path(path)
     if not p.is_dir():
@@ -531,7 +532,7 @@ def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
     It matters only for a scene with ``motor_dynamics``, whose drive is integrated up to
     the horizon; without ``run.json`` the line time reached is used.
     """
-    from folder_line.ros.run import RunConfig, node_parameters
+    from folder_line.config.run_config import RunConfig, node_parameters
 
     horizon = t_end
     if run is not None and isinstance(run.get('duration_s'), (int, float)) and run['duration_s'] > 0:
@@ -606,10 +607,6 @@ def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[dict[str, An
     return out
 
 
-#: the live supervisor node's parameters as ``folder-line run`` starts it (its defaults, and the
-#: rate of :class:`folder_line.ros.run.RunConfig`); a bag's custom data ``folder_line.supervisor``
-#: (JSON) overrides them. test/test_analysis.py keeps them equal to the node's.
-SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
 #: custom data key of the supervisor's parameters in a bag
 KEY_SUPERVISOR = 'folder_line.supervisor'
 

@@ -15,10 +15,13 @@ import contextlib
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.errors import FolderLineError, OutputError, bounded_repr, shorten
+
+if TYPE_CHECKING:
+    from folder_line.config.scenes import InputNames
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -249,6 +252,13 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scene_options() -> InputNames:
+    """The scene loader's inputs in the command line's words: its options."""
+    from folder_line.config.scenes import InputNames
+
+    return InputNames(scene='--scene', overrides='--set')
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from folder_line.cli.summary import print_summary
     from folder_line.config.scenes import load_scene, parse_set
@@ -257,7 +267,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     if args.json:
         check_output_file(args.json, '--json')
-    scene = load_scene(args.scene, parse_set(args.overrides))
+    names = _scene_options()
+    scene = load_scene(args.scene, parse_set(args.overrides, names), names=names)
     result = simulate(scene, args.duration, sample_rate=0.0)
     summary = result.summary()
     print_summary(summary, sys.stdout)
@@ -268,8 +279,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
     from folder_line.files.atomic import claim_output_dir
-    from folder_line.ros.run import BAG_DIR, RunConfig, print_run_summary, run_line
+    from folder_line.ros.run import print_run_summary, run_line
 
     if args.clock == 'wall' and args.rtf == 0.0:
         print(
@@ -286,8 +298,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         clock=args.clock,
         lost_timeout=args.lost_timeout,
     )
-    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(BAG_DIR, 'logs')):
-        result = run_line(cfg, sys.stdout)
+    with claim_output_dir(cfg.out, '--out', files=('run.json', SCENE_FILE), dirs=(BAG_DIR, 'logs')):
+        result = run_line(cfg, sys.stdout, _scene_options())
     print_run_summary(result.summary, cfg.out, sys.stdout)
     verdict = result.summary['outcome']
     if not verdict['ok']:
@@ -304,8 +316,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
 
 def _cmd_bag(args: argparse.Namespace) -> int:
     from folder_line.bag.bag import METADATA_FILE, bag_info_lines, read_bag, repair
+    from folder_line.config.run_config import BAG_DIR
     from folder_line.files.atomic import check_output_dir, claim_output_dir
-    from folder_line.ros.run import BAG_DIR
 
     if args.bag_verb == 'repair':
         bag = Path(args.dir)

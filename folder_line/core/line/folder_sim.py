@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -110,6 +110,9 @@ from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'DeliveryPlan',
@@ -173,7 +176,7 @@ class DeliveryPlan:
         return self.schedule.phase_of_travel(self.travel_rel, cycle)
 
 
-def delivery_plan(scene: Any, timing: CycleTiming) -> DeliveryPlan | None:
+def delivery_plan(scene: Scene, timing: CycleTiming) -> DeliveryPlan | None:
     """The delivery's derived figures, or None if the scene has no delivery.
 
     ``timing`` must be the scene's cycle timing: its ``T`` is the schedule's (checked).
@@ -268,7 +271,7 @@ class FolderLine(LinePart):
         The delivery's derived figures.
     """
 
-    def __init__(self, scene: Any, drive: Drive, duration: float) -> None:
+    def __init__(self, scene: Scene, drive: Drive, duration: float) -> None:
         from folder_line.core.line.constraints import evaluate_folder_constraints
 
         knife_p: knf.KnifeParams = scene.machines['knife']
@@ -601,7 +604,7 @@ class FolderLine(LinePart):
         return total
 
 
-def simulate_folder(scene: Any, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
+def simulate_folder(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
     """Simulate the folder (and its delivery) for ``duration`` seconds of line time.
 
     A thin wrapper: ``FolderLine(scene, drive, duration).result(t_samples)``.

@@ -107,7 +107,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -117,6 +117,9 @@ from folder_line.core.mechanisms.drive import Command
 from folder_line.core.numerics.validate import as_float, one_of, positive
 from folder_line.core.supervision.packml import ACTING, PackML, Transition
 from folder_line.errors import ParameterError, TransitionError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'CHECK_PERIOD',
@@ -410,7 +413,7 @@ class Supervisor:
 
     def __init__(
         self,
-        scene: Any,
+        scene: Scene,
         horizon: float,
         *,
         periods: Mapping[str, float] | None = None,
@@ -1097,7 +1100,7 @@ class Supervisor:
 
 
 def replay(
-    scene: Any,
+    scene: Scene,
     horizon: float,
     events: np.ndarray,
     *,
@@ -1187,7 +1190,7 @@ def replay(
 
 
 def run_closed_loop(
-    scene: Any,
+    scene: Scene,
     horizon: float,
     duration: float,
     *,
