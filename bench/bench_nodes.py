@@ -109,10 +109,11 @@ def line_fanout(rate: float) -> dict[str, int]:
     import rclpy
     from rclpy.parameter import Parameter
 
+    from folder_line.config.run_config import RunConfig, clock_parameters
     from folder_line.interfaces import KNOWN_PARTICIPANTS, tick_done_topic
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import add_machine_nodes
     from folder_line.ros.runtime import events_executor
 
     cfg = RunConfig(scene='folder', duration=1.0, rtf=0.0, rate=rate)
@@ -139,7 +140,8 @@ def line_fanout(rate: float) -> dict[str, int]:
 
 def _run(duration: float, rate: float, processes: bool) -> tuple[float, float, dict]:
     """One lockstep run at rtf max: (CPU s of this process and its children, rtf reached, summary)."""
-    from folder_line.ros.run import RunConfig, run_line
+    from folder_line.config.run_config import RunConfig
+    from folder_line.ros.run import run_line
 
     with tempfile.TemporaryDirectory(prefix='bench_nodes_') as tmp:
         cfg = RunConfig(scene='folder', duration=duration, rtf=0.0, rate=rate, out=Path(tmp), processes=processes)

@@ -73,7 +73,8 @@ PNG = b'\x89PNG\r\n\x1a\n'
 
 def _record(base: Path, scene: str, duration: float) -> Path:
     """Run the line in-process (rtf 2) on this process's own ROS domain; the run directory."""
-    from folder_line.ros.run import RunConfig, run_line
+    from folder_line.config.run_config import RunConfig
+    from folder_line.ros.run import run_line
 
     out = base / scene
     with pytest.MonkeyPatch.context() as mp:
@@ -442,8 +443,8 @@ def test_topic_names_are_the_nodes() -> None:
 
 def test_supervisor_defaults_are_the_nodes() -> None:
     """SUPERVISOR_DEFAULTS mirrors the live node's parameter defaults and the run's rate."""
+    from folder_line.config.run_config import RunConfig
     from folder_line.ros.nodes.supervisor import Supervisor
-    from folder_line.ros.run import RunConfig
 
     specs = {spec.name: spec.default for spec in Supervisor.EXTRA_SPECS}
     mirrored = {k: v for k, v in SUPERVISOR_DEFAULTS.items() if k != 'rate'}

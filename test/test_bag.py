@@ -391,8 +391,9 @@ def test_run_line_records_every_message(tmp_path: Path, monkeypatch: pytest.Monk
     """In-process run of the folder scene, 2 s at rtf 2: the bag has what the recorder got, nothing lost."""
     import io
 
+    from folder_line.config.run_config import RunConfig
     from folder_line.config.scenes import scene_mapping
-    from folder_line.ros.run import RunConfig, run_line
+    from folder_line.ros.run import run_line
 
     monkeypatch.setenv('ROS_DOMAIN_ID', str(101 + os.getpid() % 100))  # not the domain of any other graph
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')

@@ -13,13 +13,13 @@ from pathlib import Path
 import pytest
 
 from folder_line.cli import main as cli
+from folder_line.config.run_config import RunConfig, node_parameters
 from folder_line.config.scenes import load_scene
 from folder_line.core import limits as L
 from folder_line.core.line.model import LineModel
 from folder_line.errors import ParameterError
 from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 from folder_line.ros.nodes.machine import MACHINE_SPECS
-from folder_line.ros.run import RunConfig, node_parameters
 
 README = Path(__file__).resolve().parents[1] / 'README.md'
 

@@ -249,6 +249,16 @@ def test_what_a_verb_would_overwrite_inside_its_folder_is_checked_first(
     assert snapshot(tmp_path) == before
 
 
+def test_the_merged_scene_a_run_writes_is_checked_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / 'out'
+    out.mkdir()
+    _dir(out / 'scene.yaml')  # run writes the merged scene there for its nodes
+    before = snapshot(tmp_path)
+    line = refused(['run', '--duration', '1', '--out', str(out)], capsys)
+    assert f"--out='{out / 'scene.yaml'}'" in line and 'is a directory' in line, line
+    assert snapshot(tmp_path) == before
+
+
 def test_symlink_to_a_regular_file_is_followed_and_stays_a_link(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -502,7 +512,7 @@ def test_a_write_refused_deep_inside_a_run_is_one_line(
     out = tmp_path / 'out'
     segment = out / 'bag' / 'bag_0.mcap'
 
-    def full(cfg: Any, stream: Any) -> Any:  # the bag writer meets a full disk (no ROS needed to show the CLI)
+    def full(cfg: Any, *rest: Any) -> Any:  # the bag writer meets a full disk (no ROS needed to show the CLI)
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(segment))
 
     monkeypatch.setattr(folder_line.ros.run, 'run_line', full)

@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
-from folder_line.config.scenes import list_scenes, load_scene, parse_set, scene_mapping
+from folder_line.config.scenes import (
+    InputNames,
+    list_scenes,
+    load_scene,
+    parse_set,
+    scene_mapping,
+    shared_scene,
+    write_scene,
+)
 from folder_line.core.effects import EFFECTS
+from folder_line.core.line.scene import Scene
 from folder_line.errors import ParameterError
 
 MINIMAL = """
@@ -132,3 +143,50 @@ def test_unknown_scene_name_lists_shipped() -> None:
 def test_scene_mapping_keeps_effect_order(tmp_path: Path) -> None:
     data = scene_mapping(_write(tmp_path, MINIMAL + 'effects: [b_first, {a_second: {k: 1}}]\n'))
     assert list(data['effects']) == ['b_first', 'a_second']
+
+
+def test_errors_name_the_inputs_in_the_callers_words(tmp_path: Path) -> None:
+    cli = InputNames(scene='--scene', overrides='--set')
+    for names, scene, overrides in ((cli, '--scene', '--set'), (InputNames(), 'scene', 'overrides')):
+        with pytest.raises(ParameterError, match=rf"^{scene}='nope': no such scene; shipped scenes: folder, "):
+            load_scene('nope', names=names)
+        with pytest.raises(ParameterError, match=rf"^{scene}='{tmp_path}/none.yaml': no such file"):
+            load_scene(tmp_path / 'none.yaml', names=names)
+        with pytest.raises(ParameterError, match=rf"^{overrides}='V_tr': must be KEY=VALUE"):
+            parse_set(['V_tr'], names)
+
+
+def test_a_scene_is_parsed_once_per_process_and_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    parses: list[str] = []
+    build = Scene.__init__
+
+    def counted(self: Scene, *args: Any, **kwargs: Any) -> None:
+        build(self, *args, **kwargs)
+        parses.append(self.name)
+
+    monkeypatch.setattr(Scene, '__init__', counted)
+    path = _write(tmp_path, MINIMAL)
+    first = shared_scene(path, {'seed': 2})
+    assert shared_scene(str(path), {'seed': 2}) is first and len(parses) == 1
+    assert shared_scene(path, {'seed': 3}).seed == 3 and len(parses) == 2  # other overrides: another scene
+    os.utime(path, ns=(0, 0))  # the file changed: parsed again
+    assert shared_scene(path, {'seed': 2}) == first and len(parses) == 3
+    # a merged scene written by write_scene is that scene: loading it shares it, parsing it gives it
+    merged = tmp_path / 'out' / 'scene.yaml'
+    text = write_scene(merged, first)
+    assert merged.read_text() == text and len(parses) == 3
+    assert shared_scene(merged) is first and len(parses) == 3
+    assert load_scene(merged) == first and len(parses) == 4
+
+
+def test_unknown_keys_are_judged_once_by_the_builder(tmp_path: Path) -> None:
+    """Merging places values; the builder names the unknown key and lists the known ones."""
+    with pytest.raises(ParameterError) as exc:
+        load_scene(_write(tmp_path, MINIMAL), {'feed_transporter.V_x': 1})
+    assert str(exc.value).startswith('feed_transporter.V_x=1: unknown feed_transporter parameter; known: ')
+    data = scene_mapping(_write(tmp_path, MINIMAL + 'sheets: {bogus: 2}\n'))  # placed, not judged
+    assert data['sheets']['bogus'] == 2
+    with pytest.raises(ParameterError, match=r'^sheets\.bogus=2: unknown sheets parameter; known: interval, '):
+        load_scene(_write(tmp_path, MINIMAL + 'sheets: {bogus: 2}\n'))
+    with pytest.raises(ParameterError, match=r'^effects\.faults=5: must be a mapping of key: value'):
+        load_scene(_write(tmp_path, MINIMAL + 'effects: {faults: 5}\n'))

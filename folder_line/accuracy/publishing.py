@@ -401,12 +401,13 @@ def live_cost(
     from rclpy.parameter import Parameter
 
     from folder_line.bag.writer import BagWriter
+    from folder_line.config.run_config import RunConfig, clock_parameters
     from folder_line.config.scenes import scene_mapping
     from folder_line.core.line.scene import parse_scene
     from folder_line.interfaces import KNOWN_PARTICIPANTS
     from folder_line.ros.nodes.line_clock import LineClock
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import RunConfig, add_machine_nodes, clock_parameters
+    from folder_line.ros.run import add_machine_nodes
     from folder_line.ros.runtime import events_executor
 
     TICK_RATE.check('rate', rate)

@@ -25,7 +25,8 @@ from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
 from folder_line.cli import summary, tables
 from folder_line.cli.report import REPORT_FILES, write_report
-from folder_line.config.scenes import load_scene, parse_set
+from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
+from folder_line.config.scenes import InputNames, load_scene, parse_set
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
 from folder_line.errors import FolderLineError, OutputError, bounded_repr, path_repr, shorten
@@ -259,10 +260,16 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scene_options() -> InputNames:
+    """The scene loader's inputs in the command line's words: its options."""
+    return InputNames(scene='--scene', overrides='--set')
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, '--json')
-    scene = load_scene(args.scene, parse_set(args.overrides))
+    names = _scene_options()
+    scene = load_scene(args.scene, parse_set(args.overrides, names), names=names)
     result = simulate(scene, args.duration, sample_rate=0.0)
     result_summary = result.summary()
     summary.print_summary(result_summary, sys.stdout)
@@ -278,7 +285,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             "folder-line: error: --rtf='max': needs --clock lockstep (the wall clock paces a wall run)", file=sys.stderr
         )
         return EXIT_USAGE
-    cfg = ros_run.RunConfig(
+    cfg = RunConfig(
         scene=args.scene,
         duration=args.duration,
         overrides=tuple(args.overrides),
@@ -288,8 +295,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         clock=args.clock,
         lost_timeout=args.lost_timeout,
     )
-    with claim_output_dir(cfg.out, '--out', files=('run.json',), dirs=(ros_run.BAG_DIR, 'logs')):
-        result = ros_run.run_line(cfg, sys.stdout)
+    with claim_output_dir(cfg.out, '--out', files=('run.json', SCENE_FILE), dirs=(BAG_DIR, 'logs')):
+        result = ros_run.run_line(cfg, sys.stdout, _scene_options())
     ros_run.print_run_summary(result.summary, cfg.out, sys.stdout)
     verdict = result.summary['outcome']
     if not verdict['ok']:
@@ -309,7 +316,7 @@ def _cmd_bag(args: argparse.Namespace) -> int:
         bag = Path(args.dir)
         check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
         with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
-            if bag.is_dir() and bag.resolve().name == ros_run.BAG_DIR:
+            if bag.is_dir() and bag.resolve().name == BAG_DIR:
                 claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))
             claims.enter_context(claim_output_dir(bag, 'DIR', files=(METADATA_FILE,), create=False))
             result = repair(args.dir)

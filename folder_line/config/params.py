@@ -6,26 +6,25 @@ core carry no defaults of their own, so there is one place to change them.
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
 import os
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, overload
 
+from folder_line.core.line.scene import MACHINES, MachineParams
+from folder_line.core.mechanisms.cyclogram import CyclogramParams
+from folder_line.core.mechanisms.delivery import DeliveryParams
+from folder_line.core.mechanisms.knife import KnifeParams
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 from folder_line.files.yamlio import load_yaml_file
 
 __all__ = ['KINDS', 'config_dir', 'load_params', 'read_yaml_mapping']
 
-#: kind -> (module, dataclass) of its validated parameters
-KINDS: dict[str, tuple[str, str]] = {
-    'layup': ('folder_line.core.mechanisms.layup', 'LayupParams'),
-    'knife': ('folder_line.core.mechanisms.knife', 'KnifeParams'),
-    'delivery': ('folder_line.core.mechanisms.delivery', 'DeliveryParams'),
-    'cyclogram': ('folder_line.core.mechanisms.cyclogram', 'CyclogramParams'),
-}
+#: the mechanisms ``folder-line kinematics`` samples: machine sections of :data:`folder_line.core.line.scene.MACHINES`
+KINDS: tuple[str, ...] = ('layup', 'knife', 'delivery', 'cyclogram')
 
 
 def config_dir() -> Path:
@@ -68,16 +67,31 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     return data
 
 
-def _param_class(kind: str) -> type:
-    if kind not in KINDS:
-        raise ParameterError('kind', kind, f'must be one of {", ".join(KINDS)}')
-    module, name = KINDS[kind]
-    return getattr(importlib.import_module(module), name)
+@overload
+def load_params(
+    kind: Literal['layup'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> LayupParams: ...
+@overload
+def load_params(
+    kind: Literal['knife'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> KnifeParams: ...
+@overload
+def load_params(
+    kind: Literal['delivery'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> DeliveryParams: ...
+@overload
+def load_params(
+    kind: Literal['cyclogram'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> CyclogramParams: ...
+@overload
+def load_params(
+    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+) -> MachineParams: ...
 
 
 def load_params(
     kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
-) -> Any:
+) -> MachineParams:
     """Validated parameters of one mechanism.
 
     Parameters
@@ -94,15 +108,9 @@ def load_params(
     ParameterError
         Unknown key, wrong type, out of range; the message names the key and value.
     """
-    cls = _param_class(kind)
-    fields = [f.name for f in dataclasses.fields(cls)]
+    if kind not in KINDS:
+        raise ParameterError('kind', kind, f'must be one of {", ".join(KINDS)}')
     values = read_yaml_mapping(config_dir() / f'{kind}.yaml', f'{kind} defaults')
-    for source in (read_yaml_mapping(Path(path), '--params') if path is not None else {}, overrides or {}):
-        for key, value in source.items():
-            if key not in fields:
-                raise ParameterError(f'{kind}.{key}', value, f'unknown {kind} parameter; known: {", ".join(fields)}')
-            values[key] = value
-    missing = [f for f in fields if f not in values]
-    if missing:
-        raise ParameterError(f'{kind}.{missing[0]}', None, f'{kind} parameter has no value (defaults file incomplete)')
-    return cls(**{k: values[k] for k in fields})
+    values.update(read_yaml_mapping(Path(path), '--params') if path is not None else {})
+    values.update(overrides or {})
+    return build(MACHINES[kind], values, kind, f'{kind} parameter')

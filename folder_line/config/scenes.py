@@ -4,8 +4,15 @@ A scene file's machine sections may give any subset of a machine's keys; the res
 come from ``config/<section>.yaml``. ``--set KEY=VALUE`` overrides are applied last:
 ``<machine>.<key>`` (``feed_transporter.V_tr=5.833``), ``<effect>.<key>`` for a
 listed effect (``feed_slip.mu=0.2``), ``sheets.<key>``, ``drive.<key>``, ``seed``,
-``sample_rate``. The merged mapping is validated by
-:func:`folder_line.core.line.scene.parse_scene`.
+``sample_rate``. Merging only places values; the merged mapping is validated once, by
+:func:`folder_line.core.line.scene.parse_scene`, which names every unknown key.
+
+The loader's two inputs, the scene and its overrides, are named in errors by the caller's
+:class:`InputNames`: the command line says ``--scene``/``--set``, a node ``scene``/``overrides``.
+
+``folder-line run`` writes the merged scene once (:func:`write_scene`, ``<out>/scene.yaml``)
+and gives its path to the nodes; :func:`shared_scene` parses a scene once per process
+(the nodes of one process, and ``run`` itself in-process, share one :class:`Scene`).
 """
 
 from __future__ import annotations
@@ -13,20 +20,51 @@ from __future__ import annotations
 import contextlib
 import copy
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Hashable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import EFFECTS
-from folder_line.core.line.scene import MACHINE_KINDS, Scene, parse_scene
+from folder_line.core.line.scene import MACHINES, Scene, parse_scene
 from folder_line.errors import InputFileError, ParameterError
+from folder_line.files.atomic import write_text_atomic
 from folder_line.files.yamlio import load_yaml
 
-__all__ = ['SET_VALUE_CHARS', 'list_scenes', 'load_scene', 'parse_set', 'resolve_scene', 'scene_mapping']
+__all__ = [
+    'SET_VALUE_CHARS',
+    'InputNames',
+    'list_scenes',
+    'load_scene',
+    'parse_set',
+    'resolve_scene',
+    'scene_mapping',
+    'scene_text',
+    'shared_scene',
+    'write_scene',
+]
 
 #: longest VALUE of ``--set KEY=VALUE``, characters
 SET_VALUE_CHARS = 100
+
+
+@dataclass(frozen=True)
+class InputNames:
+    """What a front end calls the loader's inputs, so that the loader's errors name them in its words.
+
+    Attributes
+    ----------
+    scene : str
+        The scene name or file (the command line: ``--scene``; a node: ``scene``).
+    overrides : str
+        The ``KEY=VALUE`` overrides (the command line: ``--set``; a node: ``overrides``).
+    """
+
+    scene: str = 'scene'
+    overrides: str = 'overrides'
 
 
 def list_scenes() -> list[str]:
@@ -34,34 +72,37 @@ def list_scenes() -> list[str]:
     return sorted(p.stem for p in (config_dir() / 'scenes').glob('*.yaml'))
 
 
-def resolve_scene(name_or_path: str | os.PathLike[str]) -> Path:
-    """Path of a scene given by name (``folder``) or by file path."""
+def resolve_scene(name_or_path: str | os.PathLike[str], names: InputNames = InputNames()) -> Path:
+    """Path of a scene given by name (``folder``) or by file path (errors name ``names.scene``)."""
     text = str(name_or_path)
     path = Path(text)
     if path.suffix in ('.yaml', '.yml') or os.sep in text or (path.exists() and not path.is_dir()):
         if not path.exists():  # anything else that is there (a FIFO, a folder) is refused by the reader
-            raise InputFileError('--scene', text, 'no such file')
+            raise InputFileError(names.scene, text, 'no such file')
         return path
     shipped = config_dir() / 'scenes' / f'{text}.yaml'
     if not shipped.is_file():
-        raise ParameterError('--scene', text, f'no such scene; shipped scenes: {", ".join(list_scenes())}')
+        raise ParameterError(names.scene, text, f'no such scene; shipped scenes: {", ".join(list_scenes())}')
     return shipped
 
 
-def parse_set(items: Iterable[str]) -> dict[str, Any]:
-    """``['feed_transporter.V_tr=5.833', ...]`` -> ``{'feed_transporter.V_tr': 5.833}`` (values as YAML scalars)."""
+def parse_set(items: Iterable[str], names: InputNames = InputNames()) -> dict[str, Any]:
+    """``['feed_transporter.V_tr=5.833', ...]`` -> ``{'feed_transporter.V_tr': 5.833}`` (values as YAML scalars).
+
+    An item that is not ``KEY=VALUE`` is refused naming ``names.overrides``; a bad value, naming its key.
+    """
     out: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition('=')
         key = key.strip()
         if not sep or not key:
-            raise ParameterError('--set', item, 'must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833')
+            raise ParameterError(names.overrides, item, 'must be KEY=VALUE, e.g. feed_transporter.V_tr=5.833')
         if not raw.strip():
             raise ParameterError(key, raw, 'needs a value (KEY=VALUE)')
         if len(raw) > SET_VALUE_CHARS:
             raise ParameterError(key, raw, f'value is {len(raw)} characters long; at most {SET_VALUE_CHARS}')
         try:
-            value = load_yaml(raw, key, '--set') if raw.strip() else None
+            value = load_yaml(raw, key, names.overrides) if raw.strip() else None
         except ParameterError:  # not a YAML scalar: the text as given
             value = raw
         if isinstance(value, str):  # YAML 1.1 reads 1e9 as a string; a user means the number
@@ -73,6 +114,13 @@ def parse_set(items: Iterable[str]) -> dict[str, Any]:
     return out
 
 
+def _section(values: Any) -> Any:
+    """A section's mapping, copied (None: empty); anything else as given, for the builder to refuse."""
+    if values is None:
+        return {}
+    return dict(values) if isinstance(values, Mapping) else values
+
+
 def _effects_mapping(raw: Any) -> dict[str, Any]:
     if raw is None:
         return {}
@@ -82,41 +130,52 @@ def _effects_mapping(raw: Any) -> dict[str, Any]:
             if isinstance(item, str):
                 out[item] = {}
             elif isinstance(item, Mapping) and len(item) == 1:
-                out.update({k: dict(v or {}) for k, v in item.items()})
+                out.update({k: _section(v) for k, v in item.items()})
             else:
                 raise ParameterError('effects', item, 'each entry must be a name or {name: {params}}')
         return out
     if isinstance(raw, Mapping):
-        return {k: dict(v or {}) for k, v in raw.items()}
+        return {k: _section(v) for k, v in raw.items()}
     raise ParameterError('effects', raw, 'must be a list or a mapping of effect names')
 
 
-def scene_mapping(name_or_path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The complete mapping of a scene: file, defaults and overrides merged (not yet validated)."""
-    path = resolve_scene(name_or_path)
-    data = read_yaml_mapping(path, '--scene')
-    data = copy.deepcopy(data)
+def scene_mapping(
+    name_or_path: str | os.PathLike[str],
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    names: InputNames = InputNames(),
+) -> dict[str, Any]:
+    """The complete mapping of a scene: file, defaults and overrides merged (not yet validated).
+
+    Merging places values and checks only what it must to place them (the file holds a
+    mapping of machines; an override addresses a section the scene has); every key and
+    value is judged once, by :func:`folder_line.core.line.scene.parse_scene`.
+    """
+    return _merge(resolve_scene(name_or_path, names), overrides, names)
+
+
+def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -> dict[str, Any]:
+    data = copy.deepcopy(read_yaml_mapping(path, names.scene))
     data.setdefault('name', path.stem)
     machines_in = data.get('machines')
     if not isinstance(machines_in, Mapping) or not machines_in:
-        raise ParameterError(
-            'machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINE_KINDS)}'
-        )
-    machines: dict[str, dict[str, Any]] = {}
+        raise ParameterError('machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINES)}')
+    machines: dict[Any, Any] = {}
     for section, values in machines_in.items():
-        if section not in MACHINE_KINDS:
-            raise ParameterError('machines', section, f'unknown machine; known: {", ".join(MACHINE_KINDS)}')
+        if section not in MACHINES:  # refused by parse_scene, naming the known ones
+            machines[section] = values
+            continue
         if values is not None and not isinstance(values, Mapping):
             raise ParameterError(f'machines.{section}', values, 'must be a mapping of key: value')
         merged = read_yaml_mapping(config_dir() / f'{section}.yaml', f'{section} defaults')
-        for key, value in (values or {}).items():
-            if key not in merged:
-                raise ParameterError(f'{section}.{key}', value, f'unknown key; known: {", ".join(merged)}')
-            merged[key] = value
+        merged.update(values or {})
         machines[section] = merged
     data['machines'] = machines
     sheets = read_yaml_mapping(config_dir() / 'sheets.yaml', 'sheets defaults')
-    sheets.update(data.get('sheets') or {})
+    sheets_in = data.get('sheets')
+    if sheets_in is not None and not isinstance(sheets_in, Mapping):
+        raise ParameterError('sheets', sheets_in, 'must be a mapping of key: value')
+    sheets.update(sheets_in or {})
     data['sheets'] = sheets
     data['effects'] = _effects_mapping(data.get('effects'))
     data.setdefault('drive', {'profile': 'constant'})
@@ -134,7 +193,7 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
         raise ParameterError(
             key, value, 'must be SECTION.KEY (a machine, a listed effect, sheets or drive), seed or sample_rate'
         )
-    if head in MACHINE_KINDS:
+    if head in MACHINES:
         section = data['machines'].get(head)
         if section is None:
             raise ParameterError(
@@ -155,15 +214,20 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
         raise ParameterError(
             key,
             value,
-            f'unknown section; a section is a machine ({", ".join(MACHINE_KINDS)}), '
+            f'unknown section; a section is a machine ({", ".join(MACHINES)}), '
             'sheets, drive, or an effect the scene lists',
         )
-    if (head in MACHINE_KINDS or head == 'sheets') and field not in section:
-        raise ParameterError(key, value, f'unknown key; {head} has {", ".join(section)}')
+    if not isinstance(section, dict):  # a section the file gave as something else: parse_scene names it
+        return
     section[field] = value
 
 
-def load_scene(name_or_path: str | os.PathLike[str], overrides: Mapping[str, Any] | None = None) -> Scene:
+def load_scene(
+    name_or_path: str | os.PathLike[str],
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    names: InputNames = InputNames(),
+) -> Scene:
     """Load, merge and validate a scene.
 
     Parameters
@@ -172,10 +236,80 @@ def load_scene(name_or_path: str | os.PathLike[str], overrides: Mapping[str, Any
         A shipped scene name (``folder``, ``layup``, ``line``) or a YAML file.
     overrides : mapping, optional
         ``{'feed_transporter.V_tr': 5.833, ...}`` as from ``--set``.
+    names : InputNames, optional
+        What the caller calls the scene and the overrides, for the errors.
 
     Raises
     ------
     ParameterError, AssemblyError
         Naming the offending key and value.
     """
-    return parse_scene(scene_mapping(name_or_path, overrides))
+    return parse_scene(scene_mapping(name_or_path, overrides, names=names))
+
+
+# --------------------------------------------------------------------------- one parse per process
+
+#: scenes parsed in this process, by (file identity, overrides); the oldest goes beyond :data:`_SHARED_MAX`
+_SHARED: dict[Hashable, Scene] = {}
+_SHARED_MAX = 8
+
+
+def _identity(path: Path) -> tuple[str, int, int, int, int]:
+    """The file as it is now: a rewritten or replaced file is another one."""
+    st = path.stat()
+    return (str(path.resolve()), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _remember(key: Hashable, scene: Scene) -> None:
+    _SHARED.pop(key, None)
+    _SHARED[key] = scene
+    while len(_SHARED) > _SHARED_MAX:
+        del _SHARED[next(iter(_SHARED))]
+
+
+def shared_scene(
+    name_or_path: str | os.PathLike[str],
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    names: InputNames = InputNames(),
+) -> Scene:
+    """:func:`load_scene`, parsed once per process for the same file (unchanged) and overrides.
+
+    The nodes of one process share the scene this way, and in-process with ``folder-line run``
+    the scene it wrote (:func:`write_scene`). Errors are not remembered: a bad scene is refused
+    at every call.
+    """
+    path = resolve_scene(name_or_path, names)
+    try:
+        key: Hashable = (_identity(path), tuple((overrides or {}).items()))
+        hash(key)
+    except (OSError, TypeError):  # cannot be told apart from another version or overrides: no sharing
+        return parse_scene(_merge(path, overrides, names))
+    scene = _SHARED.get(key)
+    if scene is None:
+        scene = parse_scene(_merge(path, overrides, names))
+        _remember(key, scene)
+    return scene
+
+
+def scene_text(scene: Scene) -> str:
+    """The YAML of a scene's complete mapping (what it was parsed from): defaults and overrides merged in."""
+    return yaml.safe_dump(dict(scene.source), sort_keys=False)
+
+
+def write_scene(path: str | os.PathLike[str], scene: Scene) -> str:
+    """Write the merged scene to ``path`` atomically, for nodes to load; returns the text written.
+
+    Loading the file gives ``scene`` again (every key at its value, nothing left to merge), so it
+    is remembered as the file's scene: :func:`shared_scene` of ``path`` in this process does not
+    parse it again.
+
+    Raises
+    ------
+    OutputError
+        ``path`` must not be replaced or cannot be written (:func:`folder_line.files.atomic.write_text_atomic`).
+    """
+    text = scene_text(scene)
+    write_text_atomic(path, text)
+    _remember((_identity(Path(path)), ()), scene)
+    return text

@@ -10,6 +10,10 @@ participant) subscribes to every line topic, hands every message to a
 :class:`folder_line.bag.writer.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
 of line time) and compares what arrived with the batch simulation (``simulate``).
 
+The scene is parsed once: ``run`` merges it with the ``--set`` overrides, validates it and
+writes it to ``<out>/scene.yaml``; every node gets that path as its ``scene`` parameter
+(what to run and the node parameters: :mod:`folder_line.config.run_config`).
+
 Time is lockstep by default (:mod:`folder_line.ros.lockstep`): sim time advances a
 tick only when every participant, the recorder included, has finished the previous
 one, so a busy machine slows sim time down and never changes what is published.
@@ -42,26 +46,22 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
-
-import yaml
+from typing import IO, TYPE_CHECKING, Any
 
 from folder_line.bag.writer import BagWriter
-from folder_line.config.scenes import parse_set, scene_mapping
-from folder_line.core.limits import HORIZON_MARGIN
+from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
+from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
 from folder_line.core.line.model import check_size, simulate
-from folder_line.core.line.scene import parse_scene
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
 
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
+
 __all__ = [
-    'BAG_DIR',
-    'RunConfig',
     'RunResult',
     'add_machine_nodes',
-    'clock_parameters',
-    'node_parameters',
     'other_line',
     'outcome',
     'print_run_summary',
@@ -69,49 +69,9 @@ __all__ = [
 ]
 
 
-#: the run's bag, under ``cfg.out``
-BAG_DIR = 'bag'
-
 _PROCESSES_LOSS = (
     'unavailable with --processes: the publishers run in other processes and their counts are not collected'
 )
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """What to run.
-
-    Attributes
-    ----------
-    scene : str
-        Scene name or file.
-    duration : float
-        Line time, s.
-    overrides : tuple of str
-        ``MACHINE.KEY=VALUE`` items.
-    rtf : float
-        Real-time factor ceiling of ``line_clock``; 0 = as fast as the line allows (lockstep).
-    rate : float
-        Publishing rate of the machine nodes, Hz of sim time.
-    out : Path
-        Output directory.
-    processes : bool
-        One process per node instead of one executor.
-    clock : {'lockstep', 'wall'}
-        Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
-    lost_timeout : float
-        Wall seconds a tick may wait for a participant before it is declared lost.
-    """
-
-    scene: str = 'folder'
-    duration: float = 20.0
-    overrides: tuple[str, ...] = ()
-    rtf: float = 1.0
-    rate: float = 200.0
-    out: Path = Path('out')
-    processes: bool = False
-    clock: str = 'lockstep'
-    lost_timeout: float = 3.0
 
 
 @dataclass
@@ -121,19 +81,6 @@ class RunResult:
     counts: dict[str, int] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
     exit_codes: dict[str, int] = field(default_factory=dict)
-
-
-def node_parameters(cfg: RunConfig, name: str) -> dict[str, Any]:
-    """The parameters ``run`` gives machine node ``name`` (scene, overrides, horizon, rate, lost_timeout)."""
-    params: dict[str, Any] = {
-        'scene': cfg.scene,
-        'horizon': cfg.duration + HORIZON_MARGIN,
-        'rate': cfg.rate,
-        'lost_timeout': cfg.lost_timeout,
-    }
-    if cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
-        params['overrides'] = ';'.join(cfg.overrides)
-    return params
 
 
 class _Progress:
@@ -190,21 +137,12 @@ def _published_counts(nodes: list[Any]) -> dict[str, int]:
     return counts
 
 
-def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
-    """The parameters ``run`` gives ``line_clock``."""
-    return {
-        'rate': cfg.rate,
-        'rtf': float(cfg.rtf),
-        'clock': cfg.clock,
-        'duration': float(cfg.duration),
-        'participants': ','.join(participants),
-        'lost_timeout': cfg.lost_timeout,
-    }
-
-
-def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
+def add_machine_nodes(
+    cfg: RunConfig, context: Any, executor: Any, *, scene_file: str | os.PathLike[str] | None = None
+) -> list[Any]:
     """Build the five machine nodes of :data:`MACHINE_NODES` in ``context`` with the run's parameters
-    (scene, overrides, horizon, rate) and add them to ``executor``; returns them in that order."""
+    (:func:`folder_line.config.run_config.node_parameters`: the merged ``scene_file`` if given, else the
+    scene and overrides of ``cfg``) and add them to ``executor``; returns them in that order."""
     # rclpy and the nodes on use: `folder-line bag` and the analysis import this module without DDS
     from rclpy.parameter import Parameter
 
@@ -219,11 +157,19 @@ def add_machine_nodes(cfg: RunConfig, context: Any, executor: Any) -> list[Any]:
     }
     nodes = []
     for name in MACHINE_NODES:
-        overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name).items()]
+        overrides = [Parameter(k, value=v) for k, v in node_parameters(cfg, name, scene_file).items()]
         node = classes[name](parameter_overrides=overrides, context=context)
         executor.add_node(node)
         nodes.append(node)
     return nodes
+
+
+def _ros_arg(key: str, value: Any) -> str:
+    """``key:=value`` for ``--ros-args -p`` (rcl reads the value as YAML): a float as its ``repr``, a string
+    single-quoted, so that a path holding ``': '`` or ``' #'`` stays the string it is."""
+    if isinstance(value, str):
+        return "{}:='{}'".format(key, value.replace("'", "''"))
+    return f'{key}:={value!r}' if isinstance(value, float) else f'{key}:={value}'
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
@@ -266,8 +212,14 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
         executor.spin_once(timeout_sec=0.05)
 
 
-def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
+def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | None = None) -> RunResult:
     """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``.
+
+    The scene is parsed once, here: merged with the overrides, it is written to ``<out>/scene.yaml``
+    (:data:`folder_line.config.run_config.SCENE_FILE`) and every node loads that file; in-process
+    the nodes share the scene parsed here (:func:`folder_line.config.scenes.shared_scene`), with
+    ``--processes`` each node process parses the file once. ``names`` says how the errors name
+    the scene and the overrides (the command line: ``--scene``, ``--set``; default their plain names).
 
     Raises
     ------
@@ -283,9 +235,9 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
     from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
     from folder_line.ros.runtime import events_executor
 
-    mapping = scene_mapping(cfg.scene, parse_set(cfg.overrides))
-    scene = parse_scene(mapping)  # fail early, before any node starts
-    check_size(scene, cfg.duration, cfg.duration + HORIZON_MARGIN, '--duration')  # the nodes' horizon's cycles
+    names = names or InputNames()
+    scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
+    check_size(scene, cfg.duration, cfg.horizon, '--duration')  # the nodes' horizon's cycles
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)
@@ -318,9 +270,11 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
         cfg.out.mkdir(parents=True, exist_ok=True)
         bag_path = cfg.out / BAG_DIR
         _clear_previous_bag(bag_path)
+        scene_file = (cfg.out / SCENE_FILE).absolute()  # the nodes' processes may not share our cwd
+        scene_source = write_scene(scene_file, scene)
         bag = BagWriter(
             bag_path,
-            scene_source=yaml.safe_dump(mapping, sort_keys=False),
+            scene_source=scene_source,
             effects=list(scene.effects),
             scene_name=scene.name,
             topics=LINE_TOPICS,
@@ -338,10 +292,11 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             env = dict(os.environ)
             logs = cfg.out / 'logs'  # each process's stderr
             logs.mkdir(exist_ok=True)
-            commands = {name: [f'{k}:={v}' for k, v in node_parameters(cfg, name).items()] for name in MACHINE_NODES}
-            commands['line_clock'] = [
-                f'{k}:={v!r}' if isinstance(v, float) else f'{k}:={v}' for k, v in clock_params.items()
-            ]
+            commands = {
+                name: [_ros_arg(k, v) for k, v in node_parameters(cfg, name, scene_file).items()]
+                for name in MACHINE_NODES
+            }
+            commands['line_clock'] = [_ros_arg(k, v) for k, v in clock_params.items()]
             for name, args in commands.items():
                 cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
                 for a in args:
@@ -354,7 +309,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout) -> RunResult:
             clock = None
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
-            nodes += add_machine_nodes(cfg, ctx, executor)
+            nodes += add_machine_nodes(cfg, ctx, executor, scene_file=scene_file)
             clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
@@ -482,7 +437,7 @@ def outcome(summary: dict[str, Any]) -> dict[str, Any]:
 
 def _summary(
     cfg: RunConfig,
-    scene: Any,
+    scene: Scene,
     recorder: Any,
     wall: float,
     interrupted: list[str],

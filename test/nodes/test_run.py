@@ -13,7 +13,7 @@ import math
 import os
 import signal
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import pytest
 from _line_runs import (
@@ -30,8 +30,10 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
 
 from folder_line.cli.main import main
+from folder_line.config.run_config import SCENE_FILE
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import simulate
+from folder_line.core.line.scene import Scene
 from folder_line.interfaces import COMMANDS_TOPIC, EVENTS_TOPIC, MACHINE_NODES, PARTICIPANTS_TOPIC, tick_done_topic
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.run import OTHER_LINE_WAIT
@@ -74,6 +76,30 @@ def test_run_in_process(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> No
     assert messages[EVENTS_TOPIC] == sum(batch['events'].values())
     assert summary['published'] == summary['bag']['messages'] and set(summary['lost'].values()) == {0}
     assert_bag_is_model(read_bag_mcap(tmp_path / 'bag'), 'folder', duration, RATE)
+
+
+def test_an_in_process_run_parses_the_scene_once(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``run`` parses the scene once and writes it merged to ``<out>/scene.yaml``; the five nodes get
+    that path and share the parsed scene (before: every node parsed it twice, 7 parses in all)."""
+    parses: list[str] = []
+    build = Scene.__init__
+
+    def counted(self: Scene, *args: Any, **kwargs: Any) -> None:
+        build(self, *args, **kwargs)
+        parses.append(self.name)  # every parse ends in one Scene
+
+    monkeypatch.setattr(Scene, '__init__', counted)
+    argv = ['run', '--duration', '0.5', '--rtf', 'max', '--set', 'seed=3', '--set', 'feed_transporter.V_tr=9.4']
+    assert main([*argv, '--out', str(tmp_path)]) == 0
+    capfd.readouterr()
+    assert parses == ['folder']
+    assert json.loads((tmp_path / 'run.json').read_text())['outcome']['ok']
+    monkeypatch.undo()
+    written = load_scene(tmp_path / SCENE_FILE)  # the merged scene: nothing left to override
+    assert written == load_scene('folder', {'seed': 3, 'feed_transporter.V_tr': 9.4})
+    assert written.seed == 3 and written.machine('feed_transporter').V_tr == 9.4
 
 
 @pytest.mark.parametrize(

@@ -3,7 +3,9 @@
 Each effect is a small module of this package defining a frozen dataclass
 ``Params`` (no defaults: a listed effect must give every parameter) and the
 functions the simulator calls when, and only when, the scene lists the effect.
-The registry below says which machine sections an effect needs.
+The registry below says which machine sections an effect needs; a scene's effect
+parameters are built into the effect's ``Params`` by :func:`parse_effect_params`, with
+the one builder of validated parameters, :func:`folder_line.core.numerics.validate.build`.
 
 | effect | machines | what it adds |
 |---|---|---|
@@ -20,12 +22,12 @@ The registry below says which machine sections an effect needs.
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 
 __all__ = ['EFFECTS', 'EffectSpec', 'effect_module', 'parse_effect_params']
@@ -74,25 +76,15 @@ def effect_module(name: str) -> Any:
 
 
 def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
-    """Validated ``Params`` of effect ``name`` from the scene's mapping.
+    """Validated ``Params`` of effect ``name`` from the scene's mapping (None: no parameters given).
 
     Raises
     ------
     ParameterError
-        Unknown effect (listing the known ones), unknown or missing parameter (naming it
-        as ``effects.<name>.<key>``), or a bad value.
+        Unknown effect (listing the known ones), a value that is not a mapping, an unknown or
+        missing parameter (named ``effects.<name>.<key>``, listing the known or required ones),
+        or a bad value.
     """
-    cls = effect_module(name).Params
-    fields = [f.name for f in dataclasses.fields(cls)]
-    values = dict(values or {})
-    for key, value in values.items():
-        if key not in fields:
-            raise ParameterError(
-                f'effects.{name}.{key}',
-                value,
-                f'unknown parameter of effect {name}; its parameters: {", ".join(fields) or "none"}',
-            )
-    for key in fields:
-        if key not in values:
-            raise ParameterError(f'effects.{name}.{key}', None, f'missing: effect {name} needs {", ".join(fields)}')
-    return cls(**values)
+    return build(
+        effect_module(name).Params, {} if values is None else values, f'effects.{name}', f'parameter of effect {name}'
+    )

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +60,9 @@ from folder_line.core.mechanisms.delivery import (
 from folder_line.core.numerics.roots import find_sign_changes
 from folder_line.core.numerics.validate import non_negative, one_of, positive
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'ChainFrictionState',
@@ -162,14 +165,14 @@ def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> 
 # --------------------------------------------------------------------------- torques
 
 
-def _params(scene: Any) -> Params:
+def _params(scene: Scene) -> Params:
     p = scene.effect('chain_friction')
     if p is None:
         raise ParameterError('effects', 'chain_friction', f'scene {scene.name!r} does not list chain_friction')
     return p
 
 
-def sprocket_torque(scene: Any, Theta: npt.ArrayLike) -> FloatArray:
+def sprocket_torque(scene: Scene, Theta: npt.ArrayLike) -> FloatArray:
     """Sprocket torque M_1 (N m) of all carriages on the stroke at master phase Θ (vectorised).
 
     Parameters
@@ -210,7 +213,7 @@ def _stroke_torque(
     return total
 
 
-def master_load_torque(scene: Any, Theta: npt.ArrayLike, omega_nom: float | None = None) -> FloatArray:
+def master_load_torque(scene: Scene, Theta: npt.ArrayLike, omega_nom: float | None = None) -> FloatArray:
     """Sprocket torque reflected to the master shaft, ``M_1 omega_sprocket / omega_nom`` (N m).
 
     Parameters
@@ -286,7 +289,7 @@ class MasterLoad:
         other than ``'ok'``: there the model's forces are 0 but the real mechanism jams.
     """
 
-    def __init__(self, scene: Any, omega_nom: float) -> None:
+    def __init__(self, scene: Scene, omega_nom: float) -> None:
         self.params = _params(scene)
         self.delivery: DeliveryParams = scene.machine('delivery')
         self.schedule = schedule(scene)
@@ -409,7 +412,7 @@ class MasterLoad:
 _LOADS: dict[tuple[Any, ...], MasterLoad] = {}
 
 
-def master_load(scene: Any, omega_nom: float | None = None) -> MasterLoad:
+def master_load(scene: Scene, omega_nom: float | None = None) -> MasterLoad:
     """The scene's :class:`MasterLoad` (cached per parameters).
 
     ``omega_nom`` defaults to the scene's ``motor_dynamics.omega_nom``; without

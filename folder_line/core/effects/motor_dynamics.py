@@ -97,7 +97,7 @@ import bisect
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -108,6 +108,9 @@ from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics.validate import in_range, non_negative, one_of, positive
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'METHODS',
@@ -583,7 +586,9 @@ def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> li
     return out
 
 
-def build_drive(scene: Any, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()) -> MotorDrive:
+def build_drive(
+    scene: Scene, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()
+) -> MotorDrive:
     """Integrate the motor over ``[0, duration]``, segment by segment, and return the drive.
 
     Parameters

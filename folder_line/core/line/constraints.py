@@ -53,7 +53,7 @@ Constraints (margin >= 0 passes; every margin finite)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -63,6 +63,9 @@ from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.mechanisms.cyclogram import CycleTiming
 from folder_line.core.mechanisms.delivery import evaluate_stroke
 from folder_line.core.mechanisms.drive import Drive
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'FOLDER_CONSTRAINTS',
@@ -148,7 +151,7 @@ class FolderEvaluation:
 def evaluate_folder_constraints(
     events: np.ndarray,
     timing: CycleTiming,
-    scene: Any,
+    scene: Scene,
     drive: Drive | None = None,
     *,
     plan: DeliveryPlan | None = None,
@@ -164,7 +167,7 @@ def evaluate_folder_constraints(
 def folder_evaluation(
     events: np.ndarray,
     timing: CycleTiming,
-    scene: Any,
+    scene: Scene,
     drive: Drive | None = None,
     *,
     plan: DeliveryPlan | None = None,
@@ -336,7 +339,9 @@ def folder_evaluation(
     return FolderEvaluation(constraints=out, cycle=cc.astype(np.int64), signatures=counts, t=tc.copy())
 
 
-def chute_speed_series(scene: Any, leaf: np.ndarray, t_exit: np.ndarray, speed: np.ndarray) -> ConstraintSeries | None:
+def chute_speed_series(
+    scene: Scene, leaf: np.ndarray, t_exit: np.ndarray, speed: np.ndarray
+) -> ConstraintSeries | None:
     """The layup's ``chute_speed`` constraint per exited leaf, or None without ``chute_belts``.
 
     Margin ``speed - v_min`` (:func:`folder_line.core.effects.chute_belts.speed_margin`),
@@ -376,7 +381,7 @@ def chute_speed_series(scene: Any, leaf: np.ndarray, t_exit: np.ndarray, speed: 
     )
 
 
-def evaluate_layup_constraints(events: np.ndarray, scene: Any) -> list[ConstraintSeries]:
+def evaluate_layup_constraints(events: np.ndarray, scene: Scene) -> list[ConstraintSeries]:
     """The layup's constraints from any event table: ``chute_speed`` from the ``leaf_exit`` rows.
 
     A ``leaf_exit`` row carries the leaf's absolute exit speed (``value``), so the

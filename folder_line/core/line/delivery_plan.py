@@ -10,12 +10,12 @@ Both modules import it from here, so neither imports the other for it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.line.machines import ChainParams
+from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms import chain
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule
@@ -71,7 +71,7 @@ class DeliveryPlan:
         return self.schedule.phase_of_travel(self.travel_rel, cycle)
 
 
-def delivery_plan(scene: Any, timing: CycleTiming) -> DeliveryPlan | None:
+def delivery_plan(scene: Scene, timing: CycleTiming) -> DeliveryPlan | None:
     """The delivery's derived figures, or None if the scene has no delivery.
 
     ``timing`` must be the scene's cycle timing: its ``T`` is the schedule's (checked).

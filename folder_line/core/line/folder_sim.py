@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -110,6 +110,9 @@ from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'DeliveryPlan',  # re-exported: its home is folder_line.core.line.delivery_plan
@@ -161,7 +164,7 @@ class _Sheets:
 class _Setup:
     """What every step of :class:`FolderLine`'s construction reads: the scene's folder on one drive."""
 
-    scene: Any
+    scene: Scene
     drive: Drive
     duration: float
     theta_end: float  # Θ at ``duration``, nominal s
@@ -212,7 +215,7 @@ class _Fates:
     counted: np.ndarray  # released (with a delivery), else folded
 
 
-def _setup(scene: Any, drive: Drive, duration: float) -> _Setup:
+def _setup(scene: Scene, drive: Drive, duration: float) -> _Setup:
     timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
     duration = float(duration)
     return _Setup(
@@ -503,7 +506,7 @@ class FolderLine(LinePart):
         Unit (``drive``, ``belts``, ``feed``) -> its joint names.
     """
 
-    def __init__(self, scene: Any, drive: Drive, duration: float) -> None:
+    def __init__(self, scene: Scene, drive: Drive, duration: float) -> None:
         s = _setup(scene, drive, duration)
         st = _hand_overs(s)
         belt = _belt_phase(s, st)
@@ -630,7 +633,7 @@ class FolderLine(LinePart):
         return total
 
 
-def simulate_folder(scene: Any, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
+def simulate_folder(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
     """Simulate the folder (and its delivery) for ``duration`` seconds of line time.
 
     A thin wrapper: ``FolderLine(scene, drive, duration).result(t_samples)``.

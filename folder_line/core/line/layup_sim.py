@@ -76,7 +76,7 @@ drive and duration and samples the joint states at any times;
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -97,6 +97,9 @@ from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams, sweep, swing_extremes
 from folder_line.core.numerics import rng as rng_mod
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics', 'LayupLine', 'leaf_stream', 'simulate_layup']
 
@@ -279,7 +282,7 @@ class LayupLine(LinePart):
     kinematics : LayupKinematics
     """
 
-    def __init__(self, scene: Any, drive: Drive, duration: float) -> None:
+    def __init__(self, scene: Scene, drive: Drive, duration: float) -> None:
         lp: LayupParams = scene.machine('layup')
         kin = LayupKinematics(lp, drive)
         duration = float(duration)
@@ -490,7 +493,7 @@ class LayupLine(LinePart):
         raise KeyError(f'unit {unit!r} has no layup joints; units: {", ".join(self.units)}')
 
 
-def simulate_layup(scene: Any, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
+def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
     """Simulate the layup part of the line.
 
     Parameters

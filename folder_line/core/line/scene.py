@@ -1,38 +1,50 @@
 """A scene: which machines the line has, their parameters, the drive, the sheet
 stream and the effects to simulate. Validated once, frozen.
 
-:func:`parse_scene` takes the complete mapping (the YAML loader in
+:data:`MACHINES` is the one registry of machine sections: section name -> its
+parameter dataclass. :func:`parse_scene` takes the complete mapping (the YAML loader in
 :mod:`folder_line.config.scenes` has already merged the defaults and any ``--set``
-overrides) and rejects anything it does not know, naming it.
+overrides) and builds every part with :func:`folder_line.core.numerics.validate.build`,
+which rejects anything it does not know, naming it.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Literal, TypeAlias, overload
 
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.limits import SAMPLE_RATE
-from folder_line.core.line.machines import StreamParams
+from folder_line.core.line.machines import ChainParams, ContainerParams, FeedTransporterParams, StreamParams
+from folder_line.core.mechanisms.cyclogram import CyclogramParams
+from folder_line.core.mechanisms.delivery import DeliveryParams
 from folder_line.core.mechanisms.drive import DriveSpec
+from folder_line.core.mechanisms.knife import KnifeParams
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.numerics.validate import build, check_keys
 from folder_line.errors import ParameterError
 
-__all__ = ['MACHINE_KINDS', 'SCENE_KEYS', 'Scene', 'parse_scene']
+__all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'machine_class', 'parse_scene']
 
-#: machine section -> (module, parameter dataclass)
-MACHINE_KINDS: dict[str, tuple[str, str]] = {
-    'layup': ('folder_line.core.mechanisms.layup', 'LayupParams'),
-    'container': ('folder_line.core.line.machines', 'ContainerParams'),
-    'knife': ('folder_line.core.mechanisms.knife', 'KnifeParams'),
-    'cyclogram': ('folder_line.core.mechanisms.cyclogram', 'CyclogramParams'),
-    'feed_transporter': ('folder_line.core.line.machines', 'FeedTransporterParams'),
-    'delivery': ('folder_line.core.mechanisms.delivery', 'DeliveryParams'),
-    'delivery_chain': ('folder_line.core.line.machines', 'ChainParams'),
-}
+#: the parameters of one machine section
+MachineParams: TypeAlias = (
+    LayupParams | ContainerParams | KnifeParams | CyclogramParams | FeedTransporterParams | DeliveryParams | ChainParams
+)
+
+#: machine section -> its parameter dataclass: the one registry (scenes, ``folder-line kinematics``)
+MACHINES: Mapping[str, type[MachineParams]] = MappingProxyType(
+    {
+        'layup': LayupParams,
+        'container': ContainerParams,
+        'knife': KnifeParams,
+        'cyclogram': CyclogramParams,
+        'feed_transporter': FeedTransporterParams,
+        'delivery': DeliveryParams,
+        'delivery_chain': ChainParams,
+    }
+)
 
 #: sections a machine needs alongside it
 _NEEDS: dict[str, tuple[str, ...]] = {
@@ -47,63 +59,65 @@ _NEEDS: dict[str, tuple[str, ...]] = {
 SCENE_KEYS = ('name', 'description', 'machines', 'drive', 'sheets', 'effects', 'seed', 'sample_rate')
 
 
-def machine_class(section: str) -> type:
-    """Parameter dataclass of a machine section."""
-    if section not in MACHINE_KINDS:
-        raise ParameterError('machines', section, f'unknown machine; known: {", ".join(MACHINE_KINDS)}')
-    module, name = MACHINE_KINDS[section]
-    return getattr(importlib.import_module(module), name)
-
-
-def _build(cls: type, prefix: str, values: Mapping[str, Any]) -> Any:
-    if not isinstance(values, Mapping):
-        raise ParameterError(prefix, values, 'must be a mapping of key: value')
-    names = [f.name for f in dataclasses.fields(cls)]
-    for key, value in values.items():
-        if key not in names:
-            raise ParameterError(f'{prefix}.{key}', value, f'unknown key; known: {", ".join(names)}')
-    missing = [n for n in names if n not in values and cls.__dataclass_fields__[n].default is dataclasses.MISSING]
-    if missing:
-        raise ParameterError(f'{prefix}.{missing[0]}', None, 'missing')
-    try:
-        return cls(**values)
-    except ParameterError as exc:
-        if exc.key.startswith(prefix + '.') or '.' in exc.key:
-            raise
-        raise ParameterError(f'{prefix}.{exc.key}', exc.value, exc.reason) from None
+def machine_class(section: object) -> type[MachineParams]:
+    """Parameter dataclass of a machine section (ParameterError naming the known ones)."""
+    if not isinstance(section, str) or section not in MACHINES:
+        raise ParameterError('machines', section, f'unknown machine; known: {", ".join(MACHINES)}')
+    return MACHINES[section]
 
 
 @dataclass(frozen=True)
 class Scene:
     """A validated scene (see :func:`parse_scene`).
 
+    Equal scenes hash equal, so a scene can key a cache (the line models of the nodes
+    of one process, :func:`folder_line.ros.nodes.machine.scene_model`).
+
     Attributes
     ----------
     name, description : str
         For humans.
-    machines : Mapping[str, object]
-        Machine section -> validated parameters (``LayupParams``, ``KnifeParams`` ...).
+    machines : Mapping[str, MachineParams]
+        Machine section -> validated parameters (``LayupParams``, ``KnifeParams`` ...), in the
+        order the scene lists them; :meth:`machine` gives each with its own type.
     drive : DriveSpec
         Master drive profile.
     sheets : StreamParams
         The sheet/leaf stream.
     effects : Mapping[str, object]
-        Listed effect -> its validated ``Params``, in the order the scene lists them.
+        Listed effect -> its validated ``Params`` (of its module in :mod:`folder_line.core.effects`),
+        in the order the scene lists them.
     seed : int
         Seed of every random draw (faults, leaf jitter).
     sample_rate : float
         Joint-state sampling rate, Hz (0: events only).
+    source : Mapping[str, object]
+        The complete mapping it was parsed from (not compared).
     """
 
     name: str
     description: str
-    machines: Mapping[str, Any]
+    machines: Mapping[str, MachineParams]
     drive: DriveSpec
     sheets: StreamParams
     effects: Mapping[str, Any]
     seed: int
     sample_rate: float
     source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    def __hash__(self) -> int:
+        return hash(
+            (
+                self.name,
+                self.description,
+                frozenset(self.machines.items()),
+                self.drive,
+                self.sheets,
+                frozenset(self.effects.items()),
+                self.seed,
+                self.sample_rate,
+            )
+        )
 
     def has(self, effect: str) -> bool:
         """Whether the scene lists ``effect``."""
@@ -113,8 +127,25 @@ class Scene:
         """Params of a listed effect, or None."""
         return self.effects.get(name)
 
-    def machine(self, section: str) -> Any:
-        """Params of a machine section (ParameterError if the scene has none)."""
+    @overload
+    def machine(self, section: Literal['layup']) -> LayupParams: ...
+    @overload
+    def machine(self, section: Literal['container']) -> ContainerParams: ...
+    @overload
+    def machine(self, section: Literal['knife']) -> KnifeParams: ...
+    @overload
+    def machine(self, section: Literal['cyclogram']) -> CyclogramParams: ...
+    @overload
+    def machine(self, section: Literal['feed_transporter']) -> FeedTransporterParams: ...
+    @overload
+    def machine(self, section: Literal['delivery']) -> DeliveryParams: ...
+    @overload
+    def machine(self, section: Literal['delivery_chain']) -> ChainParams: ...
+    @overload
+    def machine(self, section: str) -> MachineParams: ...
+
+    def machine(self, section: str) -> MachineParams:
+        """Params of a machine section, typed by section (ParameterError if the scene has none)."""
         try:
             return self.machines[section]
         except KeyError:
@@ -152,15 +183,13 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
     Raises
     ------
     ParameterError
-        Names the offending key (``machines.knife.r_k``, ``effects.feed_slip.mu`` ...)
+        Names the offending key (``knife.r_k``, ``effects.feed_slip.mu`` ...)
         and value; an unknown effect lists the known ones; an effect whose machine is
         not in the scene says which machine is missing.
     """
     if not isinstance(data, Mapping):
         raise ParameterError('scene', data, 'must be a mapping')
-    for key in data:
-        if key not in SCENE_KEYS:
-            raise ParameterError(str(key), data[key], f'unknown scene key; known: {", ".join(SCENE_KEYS)}')
+    check_keys(data, SCENE_KEYS, '', 'scene key')
     name = data.get('name')
     if not isinstance(name, str) or not name:
         raise ParameterError('name', name, 'must be a non-empty string')
@@ -170,8 +199,10 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
 
     sections = data.get('machines') or {}
     if not isinstance(sections, Mapping) or not sections:
-        raise ParameterError('machines', sections, f'must map at least one machine; known: {", ".join(MACHINE_KINDS)}')
-    machines = {sec: _build(machine_class(sec), sec, values) for sec, values in sections.items()}
+        raise ParameterError('machines', sections, f'must map at least one machine; known: {", ".join(MACHINES)}')
+    machines: dict[str, MachineParams] = {
+        sec: build(machine_class(sec), values, sec, f'{sec} parameter') for sec, values in sections.items()
+    }
     for sec in machines:
         for need in _NEEDS.get(sec, ()):
             if need not in machines:
@@ -193,8 +224,8 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
                 )
         effects[ename] = parse_effect_params(ename, evalues)
 
-    drive = _build(DriveSpec, 'drive', data.get('drive') or {'profile': 'constant'})
-    sheets = _build(StreamParams, 'sheets', data.get('sheets') or {})
+    drive = build(DriveSpec, data.get('drive') or {'profile': 'constant'}, 'drive', 'drive parameter')
+    sheets = build(StreamParams, data.get('sheets') or {}, 'sheets', 'sheets parameter')
     seed = data.get('seed', 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
         raise ParameterError('seed', seed, 'must be a whole number in [0, 2**63)')

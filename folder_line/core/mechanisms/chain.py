@@ -56,7 +56,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -67,6 +67,9 @@ from folder_line.core.mechanisms.delivery import LAWS, DeliveryParams
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import positive
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'OFF_STROKE',
@@ -205,7 +208,7 @@ def _path(delivery: DeliveryParams, chain: ChainParams) -> ChainPath:
     return ChainPath(delivery, chain.x_max)
 
 
-def chain_path(scene: Any) -> ChainPath:
+def chain_path(scene: Scene) -> ChainPath:
     """The scene's :class:`ChainPath` (cached per delivery and chain parameters)."""
     return _path(scene.machine('delivery'), scene.machine('delivery_chain'))
 
@@ -318,7 +321,7 @@ def _schedule(delivery: DeliveryParams, chain: ChainParams, knife: knife_mod.Kni
     )
 
 
-def schedule(scene: Any) -> ChainSchedule:
+def schedule(scene: Scene) -> ChainSchedule:
     """The scene's :class:`ChainSchedule` (needs the ``knife``, ``delivery``, ``delivery_chain`` sections)."""
     return _schedule(scene.machine('delivery'), scene.machine('delivery_chain'), scene.machine('knife'))
 
@@ -326,7 +329,7 @@ def schedule(scene: Any) -> ChainSchedule:
 # --------------------------------------------------------------------------- chain <-> stroke
 
 
-def chain_to_stroke(scene: Any) -> Callable[[npt.ArrayLike], FloatArray]:
+def chain_to_stroke(scene: Scene) -> Callable[[npt.ArrayLike], FloatArray]:
     """Map chain travel since pickup (m) to stroke position ``u``.
 
     Returns
@@ -353,7 +356,7 @@ def chain_to_stroke(scene: Any) -> Callable[[npt.ArrayLike], FloatArray]:
     return to_stroke
 
 
-def stroke_to_chain(scene: Any, u: npt.ArrayLike) -> FloatArray:
+def stroke_to_chain(scene: Scene, u: npt.ArrayLike) -> FloatArray:
     """Chain travel since pickup (m) at which the carriage is at stroke position ``u`` (in [0, 2])."""
     uu = np.asarray(u, dtype=float)
     if not np.all(np.isfinite(uu)) or np.any((uu < -1e-9) | (uu > 2.0 + 1e-9)):

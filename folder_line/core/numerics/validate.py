@@ -1,16 +1,21 @@
-"""Value checks shared by the core's frozen parameter dataclasses.
+"""Value checks shared by the core's frozen parameter dataclasses, and the one builder of them.
 
 Each check raises :class:`folder_line.errors.ParameterError` naming the key and
-the value; none returns a modified value except :func:`as_float`.
+the value; none returns a modified value except :func:`as_float`. :func:`build` turns
+a mapping (from YAML or the command line) into a frozen dataclass, refusing unknown
+and missing keys by name; the dataclass checks its values itself.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Iterable, Mapping
+from typing import Any, ClassVar, Protocol, TypeVar
 
 from folder_line.errors import ParameterError
 
-__all__ = ['as_float', 'positive', 'non_negative', 'in_range', 'one_of']
+__all__ = ['Dataclass', 'as_float', 'build', 'check_keys', 'in_range', 'non_negative', 'one_of', 'positive']
 
 
 def as_float(key: str, value: object) -> float:
@@ -59,3 +64,89 @@ def one_of(key: str, value: object, allowed: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in allowed:
         raise ParameterError(key, value, f'must be one of {", ".join(allowed)}')
     return value
+
+
+# --------------------------------------------------------------------------- mapping -> frozen dataclass
+
+
+class Dataclass(Protocol):
+    """Any dataclass type (what :func:`build` builds)."""
+
+    __dataclass_fields__: ClassVar[dict[str, Any]]
+
+
+D = TypeVar('D', bound=Dataclass)
+
+
+def _dotted(key: str, name: object) -> str:
+    return f'{key}.{name}' if key else str(name)
+
+
+def check_keys(values: Mapping[Any, object], known: Iterable[str], key: str, what: str) -> None:
+    """Refuse the first key of ``values`` that is not in ``known``.
+
+    Parameters
+    ----------
+    values : mapping
+        What a file or the command line gave.
+    known : iterable of str
+        The accepted keys, in the order the message lists them.
+    key : str
+        Dotted name of ``values`` in messages (``'knife'``, ``'effects.faults'``; ``''`` at the top).
+    what : str
+        What one key is, in words (``'knife parameter'``, ``'scene key'``).
+
+    Raises
+    ------
+    ParameterError
+        ``<key>.<unknown>=<value>: unknown <what>; known: ...``.
+    """
+    names = tuple(known)
+    for name, value in values.items():
+        if name not in names:
+            raise ParameterError(_dotted(key, name), value, f'unknown {what}; known: {", ".join(names) or "none"}')
+
+
+def build(cls: type[D], values: object, key: str, what: str) -> D:
+    """The frozen dataclass ``cls`` from a mapping of its fields: the one mapping-to-dataclass validator.
+
+    Machines, effects, the scene's ``drive`` and ``sheets`` and the kinematics' ``--params`` are built
+    here; the dataclass's ``__post_init__`` checks the values.
+
+    Parameters
+    ----------
+    cls : dataclass type
+        What to build.
+    values : object
+        Must be a mapping of field name to value; fields with a default may be left out.
+    key : str
+        Dotted name of the mapping in messages; a field is named ``<key>.<field>``.
+    what : str
+        What one field is, in words (``'knife parameter'``, ``'parameter of effect faults'``).
+
+    Returns
+    -------
+    cls
+        The validated instance.
+
+    Raises
+    ------
+    ParameterError
+        ``values`` is not a mapping (naming ``key``); an unknown key (listing the known ones); a
+        field with no default left out (listing the required ones); or the dataclass's own
+        refusal, its key prefixed with ``<key>.`` if it names a bare field.
+    """
+    if not isinstance(values, Mapping):
+        raise ParameterError(key, values, 'must be a mapping of key: value')
+    fields = [f for f in dataclasses.fields(cls) if f.init]
+    check_keys(values, (f.name for f in fields), key, what)
+    required = [f.name for f in fields if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    missing = [name for name in required if name not in values]
+    if missing:
+        raise ParameterError(_dotted(key, missing[0]), None, f'missing {what}; required: {", ".join(required)}')
+    try:
+        return cls(**values)
+    except ParameterError as exc:
+        if not key or '.' in exc.key:
+            raise
+        raise ParameterError(_dotted(key, exc.key), exc.value, exc.reason) from None

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.line.scene import Scene
 
 __all__ = ['Balance', 'SheetBalance']
 
@@ -85,7 +85,7 @@ class SheetBalance:
         (else when folded).
     """
 
-    def __init__(self, scene: Any, with_delivery: bool) -> None:
+    def __init__(self, scene: Scene, with_delivery: bool) -> None:
         self.scene = scene
         self.with_delivery = with_delivery
         self._rows: list[np.ndarray] = []

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.model import LineModel
+from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command, Drive
 from folder_line.core.supervision.grid import CheckGrid
 from folder_line.core.supervision.packml import ACTING, PackML, Transition
@@ -86,7 +87,7 @@ def _ns_round(t: float) -> float:
     return round(t * _NS) / _NS
 
 
-def line_models(scene: Any, horizon: float) -> ModelFactory:
+def line_models(scene: Scene, horizon: float) -> ModelFactory:
     """``commands -> LineModel(scene, horizon, commands)``, the last five kept."""
     cache: dict[tuple[Command, ...], LineModel] = {}
 

@@ -17,13 +17,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 
@@ -67,7 +67,7 @@ class CycleEvaluation:
         The last folder cycle judged.
     """
 
-    def __init__(self, scene: Any) -> None:
+    def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.timing: CycleTiming | None = None
         self.plan: DeliveryPlan | None = None

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.scene import Scene
 from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.errors import ParameterError
@@ -23,7 +24,7 @@ __all__ = ['replay', 'run_closed_loop']
 
 
 def replay(
-    scene: Any,
+    scene: Scene,
     horizon: float,
     events: np.ndarray,
     *,
@@ -113,7 +114,7 @@ def replay(
 
 
 def run_closed_loop(
-    scene: Any,
+    scene: Scene,
     horizon: float,
     duration: float,
     *,

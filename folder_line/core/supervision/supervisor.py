@@ -86,6 +86,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command, Drive
 from folder_line.core.numerics.validate import as_float
 from folder_line.core.supervision.balance import Balance, SheetBalance
@@ -184,7 +185,7 @@ class Supervisor:
 
     def __init__(
         self,
-        scene: Any,
+        scene: Scene,
         horizon: float,
         *,
         periods: Mapping[str, float] | None = None,

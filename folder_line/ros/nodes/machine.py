@@ -44,9 +44,11 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 from sensor_msgs.msg import JointState, TimeReference
 
-from folder_line.config.scenes import load_scene, parse_set
+from folder_line.config.run_config import RATE
+from folder_line.config.scenes import InputNames, parse_set, shared_scene
 from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
 from folder_line.core.line.model import LineModel
+from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command
 from folder_line.errors import ParameterError
 from folder_line.interfaces import (
@@ -66,9 +68,12 @@ from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 __all__ = [
     'MACHINE_SPECS',
+    'NODE_NAMES',
     'MachineNode',
     'line_model',
+    'node_scene',
     'parse_overrides',
+    'scene_model',
 ]
 
 
@@ -90,7 +95,7 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         'rate',
-        200.0,
+        RATE,
         'Joint-state rate in simulated time (its own grid; changing it is harmless)',
         unit='Hz',
         bounds=TICK_RATE.bounds,
@@ -111,32 +116,38 @@ SAMPLE_BATCH = 100
 #: the drive command kinds a machine node accepts
 
 
+#: the scene loader's inputs in a node's words: its parameters
+NODE_NAMES = InputNames(scene='scene', overrides='overrides')
+
+
 def parse_overrides(text: str) -> dict[str, Any]:
-    """``'a.b=1;c=2'`` -> ``{'a.b': 1, 'c': 2}`` (empty items ignored)."""
-    return parse_set(item.strip() for item in text.split(';') if item.strip())
+    """``'a.b=1;c=2'`` -> ``{'a.b': 1, 'c': 2}`` (empty items ignored; errors name ``overrides``)."""
+    return parse_set((item.strip() for item in text.split(';') if item.strip()), NODE_NAMES)
+
+
+def node_scene(scene: str, overrides: str = '') -> Scene:
+    """The scene of the ``scene`` and ``overrides`` parameters, parsed once per process
+    (:func:`folder_line.config.scenes.shared_scene`); errors name those parameters."""
+    return shared_scene(scene, parse_overrides(overrides), names=NODE_NAMES)
 
 
 @functools.lru_cache(maxsize=8)
+def scene_model(scene: Scene, horizon: float, commands: tuple[Command, ...]) -> LineModel:
+    """The line model of a scene, shared by every node of a process that asks for the same one."""
+    return LineModel(scene, horizon, commands)
+
+
 def line_model(scene: str, overrides: str, horizon: float, commands: tuple[Command, ...]) -> LineModel:
-    """The line model for a scene, shared by every node of a process that asks for the same one."""
-    return LineModel(load_scene(scene, parse_overrides(overrides)), horizon, commands)
+    """:func:`scene_model` of the scene named by a node's ``scene`` and ``overrides`` parameters."""
+    return scene_model(node_scene(scene, overrides), horizon, commands)
 
 
-#: what :mod:`folder_line.config.scenes` calls the node parameters in its errors (the CLI's options)
-_CLI_NAMES = {'--scene': 'scene', '--set': 'overrides'}
-
-
-def _check_scene(values: Mapping[str, Any]) -> None:
+def _check_sim_time(values: Mapping[str, Any]) -> None:
+    # the scene and the overrides are read-only: loaded once, at start (MachineNode.__init__)
     if values.get('use_sim_time') is False:
         raise ParameterError(
             'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
         )
-    try:
-        load_scene(values['scene'], parse_overrides(values['overrides']))
-    except ParameterError as err:  # name the node's parameter, not the CLI option
-        if err.key not in _CLI_NAMES:
-            raise
-        raise ParameterError(_CLI_NAMES[err.key], err.value, err.reason) from None
 
 
 class MachineNode(Node):
@@ -171,13 +182,13 @@ class MachineNode(Node):
                 'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
             )
         self.set_parameters([Parameter('use_sim_time', value=True)])
-        self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_scene)
-        self._key = (self.values['scene'], self.values['overrides'], self.values['horizon'])
+        self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_sim_time)
+        self.scene: Scene = node_scene(self.values['scene'], self.values['overrides'])
         self.commands: tuple[Command, ...] = ()
         self.kinds = np.array(
             [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
         )
-        self._set_model(line_model(*self._key, self.commands))
+        self._set_model(scene_model(self.scene, self.values['horizon'], self.commands))
         self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
         self.unit = UNIT_OF_NODE.get(self.NODE_NAME, '')  # the core's machine unit this node runs ('' none)
         self.joints = self.model.units.get(self.unit, ())
@@ -292,7 +303,7 @@ class MachineNode(Node):
             )
             return
         self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
-        self._set_model(line_model(*self._key, self.commands))
+        self._set_model(scene_model(self.scene, self.values['horizon'], self.commands))
         self._batch = None
         self.on_model()
         self.lockstep.received('supervisor', 'commands')

@@ -83,6 +83,7 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
+from folder_line.config.run_config import SUPERVISOR_DEFAULTS
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.decisions import DRIVE_COMMANDS, SPEED_REACHED, Balance, Violation
@@ -103,7 +104,7 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement
-from folder_line.ros.nodes.machine import MachineNode, line_model
+from folder_line.ros.nodes.machine import MachineNode, scene_model
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -144,7 +145,7 @@ class Supervisor(MachineNode):
     EXTRA_SPECS = (
         ParamSpec(
             'command_lead',
-            0.1,
+            SUPERVISOR_DEFAULTS['command_lead'],
             'Earliest effective time of a drive command after its decision, in sim '
             "time (must exceed the clock's tick step)",
             unit='s',
@@ -153,15 +154,24 @@ class Supervisor(MachineNode):
         ),
         ParamSpec('diag_rate', 1.0, 'Rate of /diagnostics in sim time', unit='Hz', bounds=(0.01, 1000.0)),
         ParamSpec(
-            'enforce', True, 'Command hold, suspend and abort on violations (false: only report)', read_only=True
+            'enforce',
+            SUPERVISOR_DEFAULTS['enforce'],
+            'Command hold, suspend and abort on violations (false: only report)',
+            read_only=True,
         ),
-        ParamSpec('double_sheet', 'hold', 'What a double sheet leads to', choices=('hold', 'abort'), read_only=True),
+        ParamSpec(
+            'double_sheet',
+            SUPERVISOR_DEFAULTS['double_sheet'],
+            'What a double sheet leads to',
+            choices=('hold', 'abort'),
+            read_only=True,
+        ),
     )
 
     def setup(self) -> None:
         v = self.values
         joint_nodes = [NODE_OF_UNIT[unit] for unit in self.model.units]
-        key = self._key
+        scene, horizon = self.scene, v['horizon']
         self.logic = Logic(
             self.model.scene,
             v['horizon'],
@@ -172,7 +182,7 @@ class Supervisor(MachineNode):
             double=v['double_sheet'],
             state='STARTING',
             t_start=None,
-            model_factory=lambda commands: line_model(*key, commands),
+            model_factory=lambda commands: scene_model(scene, horizon, commands),
         )
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []

@@ -1,0 +1,125 @@
+"""What ``folder-line run`` runs, and the parameters it gives each node: pure, no ROS.
+
+:mod:`folder_line.ros.run` starts the line from a :class:`RunConfig`; the analysis of a
+run directory (:mod:`folder_line.analysis`) and the accuracy studies read the same rules
+from here, without importing the ROS layer.
+
+A run directory ``<out>/`` holds :data:`SCENE_FILE` (the merged scene, written once by
+the run and loaded by every node), :data:`BAG_DIR` (the bag), ``run.json`` and, with
+``--processes``, ``logs/``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from folder_line.core.limits import HORIZON_MARGIN
+
+__all__ = [
+    'BAG_DIR',
+    'RATE',
+    'SCENE_FILE',
+    'SUPERVISOR_DEFAULTS',
+    'RunConfig',
+    'clock_parameters',
+    'node_parameters',
+]
+
+#: the run's bag, under ``cfg.out``
+BAG_DIR = 'bag'
+#: the merged scene the run's nodes load, under ``cfg.out``
+SCENE_FILE = 'scene.yaml'
+
+#: tick rate of ``line_clock`` and joint-state rate of the machine nodes, Hz of sim time: the nodes'
+#: default and ``run``'s
+RATE = 200.0
+
+#: the ``supervisor`` node's parameters as ``folder-line run`` starts it: the node declares these defaults
+#: (with ``rate`` = :data:`RATE`), and the analysis replays a bag that does not record them with them
+SUPERVISOR_DEFAULTS: Mapping[str, Any] = MappingProxyType(
+    {'rate': RATE, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
+)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What to run.
+
+    Attributes
+    ----------
+    scene : str
+        Scene name or file.
+    duration : float
+        Line time, s.
+    overrides : tuple of str
+        ``MACHINE.KEY=VALUE`` items.
+    rtf : float
+        Real-time factor ceiling of ``line_clock``; 0 = as fast as the line allows (lockstep).
+    rate : float
+        Publishing rate of the machine nodes, Hz of sim time.
+    out : Path
+        Output directory.
+    processes : bool
+        One process per node instead of one executor.
+    clock : {'lockstep', 'wall'}
+        Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
+    lost_timeout : float
+        Wall seconds a tick may wait for a participant before it is declared lost.
+    """
+
+    scene: str = 'folder'
+    duration: float = 20.0
+    overrides: tuple[str, ...] = ()
+    rtf: float = 1.0
+    rate: float = RATE
+    out: Path = Path('out')
+    processes: bool = False
+    clock: str = 'lockstep'
+    lost_timeout: float = 3.0
+
+    @property
+    def horizon(self) -> float:
+        """Line time the nodes build their model for, s: the duration and a margin."""
+        return self.duration + HORIZON_MARGIN
+
+
+def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """The parameters ``run`` gives machine node ``name`` (every machine node gets the same).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The run.
+    name : str
+        The node (one of :data:`folder_line.interfaces.MACHINE_NODES`).
+    scene_file : path-like, optional
+        The merged scene the run wrote (:data:`SCENE_FILE`): the node loads it as it is. Without
+        it the node gets ``cfg.scene`` and the overrides joined by ``;``, as from a launch file.
+
+    Returns
+    -------
+    dict
+        ``scene`` (and ``overrides``), ``horizon``, ``rate``, ``lost_timeout``.
+    """
+    params: dict[str, Any] = {'scene': str(cfg.scene if scene_file is None else scene_file)}
+    if scene_file is None and cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
+        params['overrides'] = ';'.join(cfg.overrides)
+    params.update({'horizon': cfg.horizon, 'rate': cfg.rate, 'lost_timeout': cfg.lost_timeout})
+    return params
+
+
+def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
+    """The parameters ``run`` gives ``line_clock`` (its tick rate is the nodes' ``cfg.rate``)."""
+    return {
+        'rate': cfg.rate,
+        'rtf': float(cfg.rtf),
+        'clock': cfg.clock,
+        'duration': float(cfg.duration),
+        'participants': ','.join(participants),
+        'lost_timeout': cfg.lost_timeout,
+    }
