@@ -66,10 +66,12 @@ SECTION_NAMES = frozenset({'feed_transporter'})
 
 
 def _names_a_section(node: ast.Constant, parents: dict[ast.AST, ast.AST], tables: set[int]) -> bool:
-    """``node`` is used as a scene's machine section: ``x.machines[...]``, ``x.machine(...)``, or a key or an
-    element of a module-level table (the registry of sections and of what the effects need)."""
+    """``node`` is used as a scene's machine section: ``x.machines[...]``, ``x.machine(...)``, ``Literal[...]``,
+    or a key or an element of a module-level table (the registry of sections and of what the effects need)."""
     parent = parents.get(node)
     if isinstance(parent, ast.Subscript) and parent.slice is node:
+        if isinstance(parent.value, ast.Name) and parent.value.id == 'Literal':  # Scene.machine's typed overloads
+            return True
         return isinstance(parent.value, ast.Attribute) and parent.value.attr == 'machines'
     if isinstance(parent, ast.Call) and any(a is node for a in parent.args):
         return isinstance(parent.func, ast.Attribute) and parent.func.attr == 'machine'

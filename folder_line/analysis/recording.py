@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.bag.reader import read_bag
+from folder_line.config.run_config import BAG_DIR, RunConfig
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Command
@@ -42,7 +43,7 @@ from folder_line.interfaces import (
     parse_event_source,
 )
 
-__all__ = ['SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording', 'run_conventions']
+__all__ = ['SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
 
 #: the statuses the supervisor publishes on /diagnostics for its decisions
 SUPERVISOR_STATUS_PREFIX = 'folder_line/supervisor/'
@@ -155,28 +156,6 @@ class Recording:
         return self.events[self.events['kind'] == event_kind(kind)]
 
 
-def run_conventions(duration: float = 0.0) -> tuple[str, float]:
-    """What ``folder-line run`` decides that the analysis must know.
-
-    Parameters
-    ----------
-    duration : float
-        A run's line time (``run.json``'s ``duration_s``), s.
-
-    Returns
-    -------
-    (str, float)
-        The name of the bag's directory in a run directory, and the horizon the machine
-        nodes of a run of ``duration`` s build their line model for, s.
-    """
-    # The analysis' one use of folder_line.ros, imported here, not with the module: ros/ is the
-    # ROS side of the package and the analysis must import without it (test_analysis_needs_no_ros).
-    # #12 moves these pure helpers out of ros/; then this becomes a module-level import.
-    from folder_line.ros.run import BAG_DIR, RunConfig, node_parameters
-
-    return BAG_DIR, float(node_parameters(RunConfig(duration=duration), 'crank_drive')['horizon'])
-
-
 def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
     """The horizon the run's nodes built their line model for (``folder-line run``'s rule), s.
 
@@ -185,13 +164,13 @@ def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
     """
     horizon = t_end
     if run is not None and isinstance(run.get('duration_s'), (int, float)) and run['duration_s'] > 0:
-        _, horizon = run_conventions(float(run['duration_s']))
+        horizon = RunConfig(duration=float(run['duration_s'])).horizon
     return max(horizon, t_end, 1e-3)
 
 
 def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]:
     """(bag directory, run.json or None) of a run directory or a bag directory."""
-    bag_dir, _ = run_conventions()
+    bag_dir = BAG_DIR
     p = Path(path)
     if not p.is_dir():
         what = (
