@@ -4,6 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
+# the strictly typed part (mypy.ini); `$(BIN)/mypy` alone reports the whole package
+TYPED  := folder_line/core/numerics folder_line/core/mechanisms folder_line/core/effects folder_line/core/limits.py
 
 .PHONY: run report test bench accuracy clean
 
@@ -24,6 +26,7 @@ report: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff format --check --quiet .
 	$(BIN)/ruff check --quiet .
+	$(BIN)/mypy $(TYPED) --exclude 'folder_line/core/effects/__init__\.py$$'
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)
@@ -36,4 +39,4 @@ accuracy: $(STAMP)
 	$(BIN)/folder-line bench accuracy --out docs/accuracy
 
 clean:
-	rm -rf $(VENV) $(OUT) build *.egg-info .pytest_cache .hypothesis
+	rm -rf $(VENV) $(OUT) build *.egg-info .pytest_cache .hypothesis .mypy_cache

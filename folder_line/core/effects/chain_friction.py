@@ -54,6 +54,7 @@ from folder_line.core.mechanisms.delivery import (
     RETURN_SECTIONS,
     STATE_OK,
     DeliveryParams,
+    ReturnSection,
     evaluate_stroke,
     evaluate_stroke_point,
 )
@@ -98,7 +99,7 @@ class Params:
 
     P_k: float
     r: float
-    return_section: str
+    return_section: ReturnSection
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'P_k', non_negative('effects.chain_friction.P_k', self.P_k))
@@ -137,7 +138,8 @@ class ChainFrictionState:
     @property
     def ok(self) -> npt.NDArray[np.bool_]:
         """Mask of the ``'ok'`` samples."""
-        return self.state == STATE_OK
+        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
+        return ok
 
 
 def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> ChainFrictionState:
@@ -157,7 +159,7 @@ def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> 
     ChainFrictionState
         All finite; locked samples carry 0 forces and ``eta = 0`` with their state.
     """
-    s = evaluate_stroke(delivery, u, return_section=params.return_section)  # type: ignore[arg-type]
+    s = evaluate_stroke(delivery, u, return_section=params.return_section)
     f = s.forces(params.P_k, params.r)
     return ChainFrictionState(u=s.u, eta=s.eta, K_v=s.K_v, state=s.state, P_AB=f.P_AB, P_ch=f.P_ch, M_1=f.M_1)
 
@@ -166,7 +168,7 @@ def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> 
 
 
 def _params(scene: Scene) -> Params:
-    p = scene.effect('chain_friction')
+    p: Params | None = scene.effect('chain_friction')
     if p is None:
         raise ParameterError('effects', 'chain_friction', f'scene {scene.name!r} does not list chain_friction')
     return p
@@ -245,11 +247,11 @@ def stroke_kinks(params: Params, delivery: DeliveryParams, n: int = 4001) -> Flo
     out = [1.0]
     for lo, hi in ((0.0, 1.0), (1.0, 2.0)):
         grid = np.linspace(lo, hi, n)
-        st = evaluate_stroke(delivery, grid, return_section=rs)  # type: ignore[arg-type]
+        st = evaluate_stroke(delivery, grid, return_section=rs)
         vals = st.alpha - st.beta
 
         def f(u: float) -> float:
-            pt = evaluate_stroke_point(delivery, u, return_section=rs)  # type: ignore[arg-type]
+            pt = evaluate_stroke_point(delivery, u, return_section=rs)
             return pt.alpha - pt.beta
 
         found = find_sign_changes(f, grid, values=vals, xtol=1e-15)
@@ -308,7 +310,7 @@ class MasterLoad:
         self.offsets = tuple(float(o) for o in offs[keep])
         self._scale = self.params.P_k * self.params.r * self.ratio
         grid = np.linspace(0.0, 2.0, 4001)
-        st = evaluate_stroke(self.delivery, grid, return_section=self.params.return_section)  # type: ignore[arg-type]
+        st = evaluate_stroke(self.delivery, grid, return_section=self.params.return_section)
         self.locked_u = grid[st.state != STATE_OK]
         ends = list(self.offsets) + [sch.T]
         peak, area = 0.0, 0.0
@@ -404,7 +406,7 @@ class MasterLoad:
                 a = min(max(a0 + m * sch.pitch, 0.0), sch.S)
                 pt = evaluate_stroke_point(
                     self.delivery, self.path.position1(a), return_section=self.params.return_section
-                )  # type: ignore[arg-type]
+                )
                 total += pt.m_1
         return total * self._scale
 

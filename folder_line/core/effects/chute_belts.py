@@ -175,8 +175,8 @@ def belt_position(profile: BeltProfile, drive: Drive, t: npt.ArrayLike) -> np.nd
 
 def belt_speed(profile: BeltProfile, drive: Drive, t: npt.ArrayLike) -> np.ndarray:
     """Belt speed ``v_tr λ(t) f(t)``, m/s."""
-    t = np.asarray(t, dtype=float)
-    return profile.v_tr * np.asarray(drive.rate(t), dtype=float) * profile.phase.factor(t)
+    t = np.asarray(t, dtype=np.float64)
+    return profile.v_tr * np.asarray(drive.rate(t), dtype=np.float64) * profile.phase.factor(t)
 
 
 def exit_times(
@@ -218,8 +218,8 @@ def exit_times(
 
 def absolute_speed(v_across: npt.ArrayLike, v_along: npt.ArrayLike) -> np.ndarray:
     """Paper eq. (25): ``sqrt(v_across² + v_along²)``, m/s."""
-    a = np.asarray(v_across, dtype=float)
-    b = np.asarray(v_along, dtype=float)
+    a = np.asarray(v_across, dtype=np.float64)
+    b = np.asarray(v_along, dtype=np.float64)
     return np.sqrt(a * a + b * b)
 
 

@@ -181,7 +181,7 @@ def slip_cost(params: Params, V0: npt.ArrayLike, V1: npt.ArrayLike, L: npt.Array
     V0, V1, L : array_like
         As in :func:`arrival`.
     """
-    return arrival(params, V0, V1, L).t - np.asarray(L, dtype=float) / np.asarray(V1, dtype=float)
+    return arrival(params, V0, V1, L).t - np.asarray(L, dtype=np.float64) / np.asarray(V1, dtype=np.float64)
 
 
 def min_belt_speed(params: Params, V_d: float, L: float, t_allowed: float) -> float:

@@ -92,7 +92,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Generic, NamedTuple, TypeAlias, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -112,6 +112,11 @@ _KINK_MAXITER = 12
 _SCAN_BLOCK = 64
 #: bisection passes of the exit interpolant (step fraction in [0, 1] to 2**-55)
 _EXIT_BISECTIONS = 55
+
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+IntArray: TypeAlias = npt.NDArray[np.int64]
+#: float (one leaf) or float64 array (n leaves): the kinematics and the state share it
+_F = TypeVar('_F', float, FloatArray)
 
 
 @dataclass(frozen=True)
@@ -144,23 +149,23 @@ class Params:
         object.__setattr__(self, 'h', in_range('effects.guide_friction.h', self.h, 0.0, 0.05, lo_open=True))
 
 
-class ChuteState(NamedTuple):
+class ChuteState(NamedTuple, Generic[_F]):
     """Kinematics of each leaf's chute at given times (arrays, or floats for one leaf).
 
     Fields: ``sin``, ``cos`` — sin θ', cos θ' of the chute angle from the downward
     vertical; ``omega`` — dθ'/dt, rad/s; ``eps`` — d²θ'/dt², rad/s².
     """
 
-    sin: np.ndarray
-    cos: np.ndarray
-    omega: np.ndarray
-    eps: np.ndarray
+    sin: _F
+    cos: _F
+    omega: _F
+    eps: _F
 
 
 #: kin(t, chute) -> ChuteState: vectorised chute kinematics (chute 0: transporter 3, 1: transporter 4)
-KinFn = Callable[[np.ndarray, np.ndarray], ChuteState]
+KinFn: TypeAlias = Callable[[FloatArray, IntArray], ChuteState[FloatArray]]
 #: kin1(t, chute) -> ChuteState of floats: the same for one leaf (fast scalar path)
-Kin1Fn = Callable[[float, int], ChuteState]
+Kin1Fn: TypeAlias = Callable[[float, int], ChuteState[float]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,19 +198,19 @@ class SlideResult:
     steps: int = field(default=0)
 
 
-def normal(s: npt.ArrayLike, v: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+def normal(s: _F, v: _F, k: ChuteState[_F]) -> _F:
     """Wall push per unit mass ``N = ε s + 2 ω ṡ + g sin θ'``, m/s²."""
     return k.eps * s + 2.0 * k.omega * v + G * k.sin
 
 
-def acceleration(params: Params, s: npt.ArrayLike, v: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+def acceleration(params: Params, s: _F, v: _F, k: ChuteState[_F]) -> _F:
     """``s̈ = g cos θ' + ω² s − μ |N|`` while sliding outward (ṡ >= 0), m/s²."""
-    return G * k.cos + k.omega * k.omega * s - params.mu * np.abs(normal(s, v, k))
+    return G * k.cos + k.omega * k.omega * s - params.mu * abs(normal(s, v, k))
 
 
-def switching(params: Params, s: npt.ArrayLike, k: ChuteState) -> np.ndarray:
+def switching(params: Params, s: _F, k: ChuteState[_F]) -> _F:
     """``σ = g cos θ' + ω² s − μ |ε s + g sin θ'|`` of a leaf at rest: it slips where σ > 0, m/s²."""
-    return G * k.cos + k.omega * k.omega * s - params.mu * np.abs(k.eps * s + G * k.sin)
+    return G * k.cos + k.omega * k.omega * s - params.mu * abs(k.eps * s + G * k.sin)
 
 
 def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
@@ -240,8 +245,8 @@ def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
 
 
 def _hermite(
-    theta: np.ndarray, y0: np.ndarray, d0: np.ndarray, y1: np.ndarray, d1: np.ndarray, h: np.ndarray
-) -> np.ndarray:
+    theta: FloatArray, y0: FloatArray, d0: FloatArray, y1: FloatArray, d1: FloatArray, h: FloatArray
+) -> FloatArray:
     """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1]."""
     t2 = theta * theta
     t3 = t2 * theta
@@ -464,9 +469,11 @@ def slide(
     ids = np.arange(n, dtype=np.int64)
     s = np.full(n, params.s0)
     v = np.full(n, params.v0)
-    k0 = kin(t_enter, chute) if n else None
-    a = acceleration(params, s, v, k0) if n else np.zeros(0)
-    nrm = normal(s, v, k0) if n else np.zeros(0)
+    if n:
+        k0 = kin(t_enter, chute)
+        a, nrm = acceleration(params, s, v, k0), normal(s, v, k0)
+    else:
+        a, nrm = np.zeros(0), np.zeros(0)
     fresh = np.full(n, params.v0 == 0.0)
     if params.v0 == 0.0 and n:
         at_rest = a <= 0.0  # σ(t_enter) <= 0: stuck from the entry
@@ -655,19 +662,19 @@ def _resolve_stuck(
     ok = slip >= 0.0
     if not ok.any():
         return None
-    r = np.flatnonzero(ok)
-    tr = slip[r]
-    kr = kin(tr, ch[r])
-    zr = np.zeros(r.size)
+    rs = np.flatnonzero(ok)
+    tr = slip[rs]
+    kr = kin(tr, ch[rs])
+    zr = np.zeros(rs.size)
     return _Active(
-        ids[r],
+        ids[rs],
         tr,
-        s[r],
+        s[rs],
         zr,
-        acceleration(params, s[r], zr, kr),
-        normal(s[r], zr, kr),
-        ch[r],
-        length[r],
-        np.ones(r.size, dtype=bool),
+        acceleration(params, s[rs], zr, kr),
+        normal(s[rs], zr, kr),
+        ch[rs],
+        length[rs],
+        np.ones(rs.size, dtype=bool),
         tr.copy(),
     )

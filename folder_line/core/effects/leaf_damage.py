@@ -24,6 +24,7 @@ which is 0 (admissible) at the largest float below ``v_damage`` and −ulp < 0
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,4 +88,4 @@ def upper_margin(params: Params, speed: npt.ArrayLike) -> np.ndarray:
     -------
     ndarray of float
     """
-    return np.nextafter(params.v_damage, 0.0) - np.asarray(speed, dtype=float)
+    return math.nextafter(params.v_damage, 0.0) - np.asarray(speed, dtype=np.float64)

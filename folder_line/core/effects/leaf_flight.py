@@ -183,7 +183,7 @@ def landing_time(params: Params, y0: npt.ArrayLike, vy: npt.ArrayLike, y_floor: 
     c = vy + G / k
     lo = np.zeros_like(height)
     hi = (k * height + np.maximum(c, 0.0)) / G
-    t = np.clip(t0, lo, hi)
+    t: npt.NDArray[np.float64] = np.clip(t0, lo, hi)
     live = np.ones(t.shape, dtype=bool)
     for _ in range(_NEWTON_MAXITER):
         z = k * t

@@ -106,6 +106,7 @@ from folder_line.core.effects import chain_friction
 from folder_line.core.limits import HORIZON
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import in_range, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
@@ -189,7 +190,7 @@ class Params:
             object.__setattr__(self, name, positive(k + name, getattr(self, name)))
         for name in ('b', 't_stop', 'T_brake'):
             object.__setattr__(self, name, non_negative(k + name, getattr(self, name)))
-        object.__setattr__(self, 'rtol', in_range(k + 'rtol', self.rtol, 100 * ig.EPS, 1.0, hi_open=True))
+        object.__setattr__(self, 'rtol', in_range(k + 'rtol', self.rtol, 100 * EPS, 1.0, hi_open=True))
         one_of(k + 'method', self.method, METHODS)
         if not self.omega_nom < self.omega_0:
             raise ParameterError(
@@ -320,11 +321,12 @@ class MotorSegment:
             lists = (sol.t.tolist(), sol.h.tolist(), [sol.coef[:, i, :].T.tolist() for i in range(sol.steps)])
             object.__setattr__(self, '_lists', lists)
         tl = self.tail
-        shift = None
+        advance = None  # Θ gained over the whole periods skipped on the tail
         if tl is not None and t > tl.t_b:
             x = t - tl.t_a
             shift = math.floor(x / tl.period)
             t = tl.t_a + min(max(x - shift * tl.period, 0.0), tl.period)
+            advance = shift * tl.dtheta
         ts, hs, cs = lists
         i = min(max(bisect.bisect_right(ts, t) - 1, 0), len(hs) - 1)
         x = (t - ts[i]) / hs[i]
@@ -334,9 +336,9 @@ class MotorSegment:
             for k in (3, 2, 1, 0):
                 acc = acc * x + c[k]
             y.append(acc)
-        if shift is None:
+        if advance is None:
             return y[0], y[1]
-        return y[0] + shift * tl.dtheta, y[1] + 0.0  # type: ignore[union-attr]
+        return y[0] + advance, y[1] + 0.0
 
     def state(self, t: float) -> FloatArray:
         """``(Θ, ω)`` at time ``t`` of the segment (its end included): where the
@@ -349,7 +351,7 @@ class MotorSegment:
             ts = tl.t_a + min(max(x - n * tl.period, 0.0), tl.period)
             return np.array([float(sol.component(ts, 0)) + n * tl.dtheta, float(sol.component(ts, 1))])
         if t == sol.t_end:
-            return sol.y[-1].copy()
+            return sol.y[-1, :].copy()
         return np.array([float(sol.component(t, 0)), float(sol.component(t, 1))])
 
     def inverse(self, th: FloatArray) -> FloatArray:
@@ -661,7 +663,7 @@ def build_drive(
             bk = k * mark
             return bk if bk > v else (k + 1) * mark
 
-        def is_mark(v: float) -> bool:
+        def is_mark(b: float) -> bool:
             return True
 
     # with breaks the integrator passes the current piece; without (no load, no periodic marks) it does not

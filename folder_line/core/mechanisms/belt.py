@@ -23,6 +23,8 @@ from folder_line.core.mechanisms.drive import Drive
 
 __all__ = ['BeltPhase']
 
+FloatArray = npt.NDArray[np.float64]
+
 
 class BeltPhase:
     """Phase ``B(t)`` of a belt geared to the master drive, with slow-downs (nominal s).
@@ -69,7 +71,7 @@ class BeltPhase:
         """No slow-downs: ``B = Θ``."""
         return self.ts.size == 0
 
-    def factor(self, t: npt.ArrayLike) -> np.ndarray:
+    def factor(self, t: npt.ArrayLike) -> FloatArray:
         """Belt speed factor at line times ``t`` (1 outside slow-downs)."""
         t = np.asarray(t, dtype=float)
         if self.plain:
@@ -78,7 +80,7 @@ class BeltPhase:
         jc = np.clip(j, 0, None)
         return np.where((j >= 0) & (t < self.te_raw[jc]), self.f[jc], 1.0)
 
-    def at(self, t: npt.ArrayLike, theta: npt.ArrayLike | None = None) -> np.ndarray:
+    def at(self, t: npt.ArrayLike, theta: npt.ArrayLike | None = None) -> FloatArray:
         """``B(t)`` for line times ``t`` in [0, duration] (``theta``: Θ(t) if known), nominal s."""
         t = np.asarray(t, dtype=float)
         th = np.asarray(self.drive.theta(t) if theta is None else theta, dtype=float)
@@ -89,7 +91,7 @@ class BeltPhase:
         inner = np.asarray(self.drive.theta(np.minimum(t, self.te[jc])), dtype=float)
         return np.where(j >= 0, th - self.C[jc] - (1.0 - self.f[jc]) * (inner - self.th_s[jc]), th)
 
-    def theta_of(self, b: npt.ArrayLike) -> np.ndarray:
+    def theta_of(self, b: npt.ArrayLike) -> FloatArray:
         """Master phase Θ at which the belt phase is ``b``, nominal s."""
         b = np.asarray(b, dtype=float)
         if self.plain:

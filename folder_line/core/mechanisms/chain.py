@@ -142,33 +142,34 @@ class ChainPath:
         s = np.array(_cumsum_compensated(pieces.tolist()))
         g = self.slope(u)
         ds = np.diff(s)
-        self._u = u
-        self._s = s
-        self._du = du
+        self._u: FloatArray = u
+        self._s: FloatArray = s
+        self._du: FloatArray = du
         # cubic Hermite in tau = (u - u_i)/du_i: s = c0 + c1 tau + c2 tau^2 + c3 tau^3
-        self._c = np.stack(
+        self._c: FloatArray = np.stack(
             [s[:-1], du * g[:-1], 3.0 * ds - 2.0 * du * g[:-1] - du * g[1:], du * (g[:-1] + g[1:]) - 2.0 * ds]
         )
         self.length = float(s[-1])
         # plain lists for the scalar path (the ODE right-hand side)
-        self._u_list = u.tolist()
-        self._s_list = s.tolist()
-        self._c_list = self._c.T.tolist()
+        self._u_list: list[float] = u.tolist()
+        self._s_list: list[float] = s.tolist()
+        self._c_list: list[list[float]] = self._c.T.tolist()
 
     def slope(self, u: npt.ArrayLike) -> FloatArray:
         """``ds/du = x_max sqrt(1 + (Λ ψ'(ξ))²) = x_max / cos β`` at stroke positions ``u`` in [0, 2], m."""
-        uu = np.asarray(u, dtype=float)
+        uu = np.asarray(u, dtype=np.float64)
         xi = np.where(uu > 1.0, 2.0 - uu, uu)
-        return self.x_max * np.hypot(1.0, self.Lambda * np.asarray(self._dpsi(xi), dtype=float))
+        return self.x_max * np.hypot(1.0, self.Lambda * np.asarray(self._dpsi(xi), dtype=np.float64))
 
     def arc(self, u: npt.ArrayLike) -> FloatArray:
         """Chain travel from the start of the stroke to position ``u`` (in [0, 2], clipped), m."""
-        uu = np.clip(np.asarray(u, dtype=float), 0.0, 2.0)
+        uu = np.clip(np.asarray(u, dtype=np.float64), 0.0, 2.0)
         # uniform nodes: the interval is floor(u n) (continuous C1 pieces: a node is fine either side)
         i = np.minimum((uu * self._n).astype(np.int64), self._du.size - 1)
         tau = (uu - self._u[i]) / self._du[i]
-        c = self._c[:, i]
-        return ((c[3] * tau + c[2]) * tau + c[1]) * tau + c[0]
+        c: FloatArray = self._c[:, i]
+        travel: FloatArray = ((c[3] * tau + c[2]) * tau + c[1]) * tau + c[0]  # c[k] is typed Any
+        return travel
 
     def position(self, s: npt.ArrayLike) -> FloatArray:
         """Stroke position ``u`` at chain travel ``s`` from the stroke start (in [0, S], clipped).
@@ -176,13 +177,13 @@ class ChainPath:
         One element goes through :meth:`position1` (the same operations in plain
         Python, bit for bit the same result, ~20 times faster than the array path).
         """
-        sa = np.asarray(s, dtype=float)
+        sa = np.asarray(s, dtype=np.float64)
         if sa.size == 1:
             return np.full(sa.shape, self.position1(float(sa.reshape(-1)[0])))
         ss = np.clip(sa, 0.0, self.length)
         i = np.clip(np.searchsorted(self._s, ss, side='right') - 1, 0, self._du.size - 1)
-        c = self._c[:, i]
-        tau = (ss - c[0]) / (self._s[i + 1] - c[0])
+        c: FloatArray = self._c[:, i]
+        tau: FloatArray = (ss - c[0]) / (self._s[i + 1] - c[0])
         for _ in range(_NEWTON):  # Newton on the monotone cubic, from the chord guess
             p = ((c[3] * tau + c[2]) * tau + c[1]) * tau + c[0] - ss
             d = (3.0 * c[3] * tau + 2.0 * c[2]) * tau + c[1]
@@ -361,4 +362,5 @@ def stroke_to_chain(scene: Scene, u: npt.ArrayLike) -> FloatArray:
     uu = np.asarray(u, dtype=float)
     if not np.all(np.isfinite(uu)) or np.any((uu < -1e-9) | (uu > 2.0 + 1e-9)):
         raise ParameterError('u', u, 'must be finite and in [0, 2]')
-    return scene.machine('delivery_chain').L_transfer + chain_path(scene).arc(uu)
+    l_transfer: float = scene.machine('delivery_chain').L_transfer
+    return l_transfer + chain_path(scene).arc(uu)

@@ -108,7 +108,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -130,6 +130,7 @@ __all__ = [
     'SECTION_ACCELERATION',
     'SECTION_NAMES',
     'RETURN_SECTIONS',
+    'ReturnSection',
     'ProfileLaw',
     'LAWS',
     'law_names',
@@ -449,7 +450,8 @@ class DeliverySamples:
     @property
     def ok(self) -> npt.NDArray[np.bool_]:
         """Boolean mask of the ``'ok'`` samples."""
-        return self.state == STATE_OK
+        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
+        return ok
 
     def state_names(self) -> npt.NDArray[np.str_]:
         """State names (``'ok'``, ``'self_locking'``, ...) as a string array."""
@@ -544,7 +546,7 @@ def state_names(codes: npt.ArrayLike) -> npt.NDArray[np.str_]:
 
 def _unit_positions(key: str, values: npt.ArrayLike, hi: float) -> FloatArray:
     try:
-        arr = np.array(values, dtype=float)
+        arr = np.array(values, dtype=np.float64)
     except (TypeError, ValueError):
         raise ParameterError(key, values, 'must be a real number or an array of them') from None
     bad = ~np.isfinite(arr)
@@ -661,6 +663,33 @@ def _scaled1(c: float, g: float) -> float:
     return c * g  # python floats overflow to inf without raising
 
 
+class _PointCommon(TypedDict):
+    """The :class:`DeliveryPoint` fields every state fills."""
+
+    u: float
+    xi: float
+    section: int
+    psi: float
+    dpsi: float
+    alpha: float
+    beta: float
+    eta_O: float
+
+
+class _PointRatios(TypedDict):
+    """The :class:`DeliveryPoint` efficiencies and force ratios (all 0 unless the state is ok)."""
+
+    eta_A: float
+    eta_B: float
+    eta: float
+    p_AB: float
+    p_ch: float
+    m_1: float
+    p_AB_ideal: float
+    p_ch_ideal: float
+    m_1_ideal: float
+
+
 def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) -> DeliveryPoint:
     law = LAWS[p.law]
     psi = min(max(float(law.psi(xi)), 0.0), 1.0)
@@ -672,10 +701,10 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     c_a = math.sqrt((1.0 - s_a) * (1.0 + s_a))
     s_b, c_b = math.sin(beta), math.cos(beta)
     eta_O = 1.0 / (1.0 + p.f_O * p.r_O)
-    zeros = dict(
+    zeros = _PointRatios(
         eta_A=0.0, eta_B=0.0, eta=0.0, p_AB=0.0, p_ch=0.0, m_1=0.0, p_AB_ideal=0.0, p_ch_ideal=0.0, m_1_ideal=0.0
     )
-    common = dict(u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, eta_O=eta_O)
+    common = _PointCommon(u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, eta_O=eta_O)
     if c_a <= COS_ALPHA_TOL:
         return DeliveryPoint(**common, K_v=0.0, k_BA=0.0, state=STATE_SELF_LOCKING, **zeros)
     tan_a = s_a / c_a

@@ -69,6 +69,8 @@ __all__ = [
     'theta_rate',
 ]
 
+FloatArray = npt.NDArray[np.float64]
+
 DRIVE_PROFILES = ('constant', 'ramp')
 #: supervisor command kinds: the first two stop the drive, the last two run it
 COMMAND_KINDS = ('hold', 'stop', 'unhold', 'start')
@@ -301,10 +303,10 @@ class PiecewiseLinearDrive:
     """
 
     def __init__(self, t: npt.ArrayLike, theta: npt.ArrayLike, lam: npt.ArrayLike, acc: npt.ArrayLike) -> None:
-        self.t = np.array(t, dtype=float).ravel()
-        self.theta0 = np.array(theta, dtype=float).ravel()
-        self.lam0 = np.array(lam, dtype=float).ravel()
-        self.acc = np.array(acc, dtype=float).ravel()
+        self.t = np.array(t, dtype=np.float64).ravel()
+        self.theta0 = np.array(theta, dtype=np.float64).ravel()
+        self.lam0 = np.array(lam, dtype=np.float64).ravel()
+        self.acc = np.array(acc, dtype=np.float64).ravel()
         n = self.t.size
         if n < 1 or not (self.theta0.size == self.lam0.size == self.acc.size == n):
             raise ValueError('PiecewiseLinearDrive: t, theta, lam and acc need the same length >= 1')
@@ -317,36 +319,36 @@ class PiecewiseLinearDrive:
             raise ValueError('PiecewiseLinearDrive: knots must be finite')
         if np.any(np.diff(self.t) <= 0.0) or np.any(np.diff(self.theta0) < 0.0) or np.any(self.lam0 < 0.0):
             raise ValueError('PiecewiseLinearDrive: t must increase, theta must not decrease, lam must be >= 0')
-        self.length = np.append(np.diff(self.t), math.inf)  # segment durations (last: unbounded)
+        self.length: FloatArray = np.append(np.diff(self.t), math.inf)  # segment durations (last: unbounded)
 
-    def _segment(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _segment(self, t: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
         i = np.clip(np.searchsorted(self.t, t, side='right') - 1, 0, self.t.size - 1)
         return i, np.maximum(t - self.t[i], 0.0)
 
     def theta(self, t: npt.ArrayLike) -> np.ndarray:
         """Θ(t), nominal s."""
-        i, tau = self._segment(np.asarray(t, dtype=float))
+        i, tau = self._segment(np.asarray(t, dtype=np.float64))
         return self.theta0[i] + tau * (self.lam0[i] + 0.5 * self.acc[i] * tau)
 
     def rate(self, t: npt.ArrayLike) -> np.ndarray:
         """λ(t) (clipped at 0 against rounding at the end of a ramp down)."""
-        i, tau = self._segment(np.asarray(t, dtype=float))
+        i, tau = self._segment(np.asarray(t, dtype=np.float64))
         return np.maximum(self.lam0[i] + self.acc[i] * tau, 0.0)
 
     def rate_dot(self, t: npt.ArrayLike) -> np.ndarray:
         """dλ/dt, 1/s (right-continuous at the knots)."""
-        i, _ = self._segment(np.asarray(t, dtype=float))
+        i, _ = self._segment(np.asarray(t, dtype=np.float64))
         return self.acc[i].copy()
 
     def theta_rate(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``(Θ(t), λ(t))`` in one pass (the same values as :meth:`theta` and :meth:`rate`)."""
-        i, tau = self._segment(np.asarray(t, dtype=float))
+        i, tau = self._segment(np.asarray(t, dtype=np.float64))
         lam, acc = self.lam0[i], self.acc[i]
         return self.theta0[i] + tau * (lam + 0.5 * acc * tau), np.maximum(lam + acc * tau, 0.0)
 
     def time_of(self, theta: npt.ArrayLike) -> np.ndarray:
         """Earliest t with Θ(t) = theta, s (``t[0]`` for theta <= Θ(t[0]); ``inf`` if never reached)."""
-        th = np.asarray(theta, dtype=float)
+        th = np.asarray(theta, dtype=np.float64)
         if not np.all(np.isfinite(th)):
             raise ParameterError('theta', theta, 'must be finite')
         # the last knot with Θ_i < θ: a segment with Θ_i < θ <= Θ_{i+1}, never a plateau

@@ -251,6 +251,8 @@ def _phi_array(phi: ArrayLike) -> NDArray[np.float64]:
     return a
 
 
+# The kernels take the namespace ``xp`` (``math`` for a float, ``numpy`` for an array) and
+# return what it computes (float or float64 array); the callers bind the result to that type.
 def _s(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
     u = r * xp.sin(phi) - e
     return r * xp.cos(phi) + xp.sqrt(L * L - u * u)
@@ -296,7 +298,8 @@ def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     """
     if isinstance(phi, (bool, float, int)):
         return float(_s(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    return _s(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    s: NDArray[np.float64] = _s(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    return s
 
 
 @overload
@@ -325,7 +328,8 @@ def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     w = params.omega_k
     if isinstance(phi, (bool, float, int)):
         return w * float(_ds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    return w * _ds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    ds: NDArray[np.float64] = _ds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    return w * ds
 
 
 @overload
@@ -354,7 +358,8 @@ def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.floa
     w2 = params.omega_k**2
     if isinstance(phi, (bool, float, int)):
         return w2 * float(_dds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    return w2 * _dds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    dds: NDArray[np.float64] = _dds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    return w2 * dds
 
 
 @dataclass(frozen=True)
@@ -478,7 +483,8 @@ def window(params: KnifeParams) -> KnifeWindow:
             return smax - sc
         if phi == pin or phi == pin - TWO_PI:
             return smin - sc
-        return _s(math, r, L, e, phi) - sc
+        s: float = _s(math, r, L, e, phi)
+        return s - sc
 
     # both brackets ordered (g < 0, g > 0), so for e = 0 the iterates mirror: phi_in = -phi_out exactly
     phi_in = brent(g, pin - TWO_PI, po, xtol=WINDOW_XTOL, maxiter=200).root

@@ -54,7 +54,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from typing import Any, NamedTuple, NoReturn, Protocol, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -138,7 +138,13 @@ def classify_fourbar(
     return {0: 'double-crank', 1: 'crank-rocker', 2: 'double-rocker', 3: 'rocker-crank'}[links.index(shortest)]
 
 
-def reduce_angle(phi: npt.ArrayLike) -> float | np.ndarray:
+@overload
+def reduce_angle(phi: float) -> float: ...
+@overload
+def reduce_angle(phi: npt.NDArray[Any]) -> npt.NDArray[np.float64]: ...
+@overload
+def reduce_angle(phi: npt.ArrayLike) -> float | npt.NDArray[np.float64]: ...
+def reduce_angle(phi: npt.ArrayLike) -> float | npt.NDArray[np.float64]:
     """Reduce crank angles to [-π, π] exactly: the IEEE remainder by the float ``TAU``.
 
     Parameters
@@ -164,7 +170,7 @@ def reduce_angle(phi: npt.ArrayLike) -> float | np.ndarray:
         if not math.isfinite(x):
             raise ParameterError('phi', phi, 'crank angle must be finite')
         return math.remainder(x, TAU)
-    arr = np.asarray(phi, dtype=float)
+    arr = np.asarray(phi, dtype=np.float64)
     if arr.size == 0 or (arr.min() >= -_PI and arr.max() <= _PI):
         return arr
     if not np.isfinite(arr).all():
@@ -172,7 +178,8 @@ def reduce_angle(phi: npt.ArrayLike) -> float | np.ndarray:
         raise ParameterError('phi', float(bad), 'crank angle must be finite')
     r = np.fmod(arr, TAU)  # exact
     r = np.where(r > _PI, r - TAU, r)  # exact (Sterbenz)
-    return np.where(r < -_PI, r + TAU, r)
+    reduced: npt.NDArray[np.float64] = np.where(r < -_PI, r + TAU, r)
+    return reduced
 
 
 def _reduce_chunk(ph: np.ndarray, r: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -370,6 +377,12 @@ _ROWS = (
 )
 
 
+class _PointFn(Protocol):
+    """Signature of :attr:`LayupModel.point`."""
+
+    def __call__(self, phi: float, omega: float | None = None) -> LayupPoint: ...
+
+
 class LayupModel:
     """Prepared layup kinematics: constants computed once, scalar and vectorised paths.
 
@@ -388,7 +401,7 @@ class LayupModel:
     """
 
     #: the scalar path, ``point(phi, omega=None) -> LayupPoint`` (a closure over the constants)
-    point: Callable[..., LayupPoint]
+    point: _PointFn
 
     def __init__(self, params: LayupParams) -> None:
         self.params = params
@@ -416,7 +429,7 @@ class LayupModel:
         self.point = self._make_point()
 
     # ------------------------------------------------------------------ scalar path
-    def _make_point(self):  # noqa: ANN202 - returns the closure documented as `point`
+    def _make_point(self) -> _PointFn:
         R, a, b, w_default = self._R, self._a, self._b, self._omega
         P1, M1, g1 = self._P1, self._M1, self._g1
         P2, M2, g2 = self._P2, self._M2, self._g2
@@ -553,7 +566,7 @@ class LayupModel:
         f2 = (self._P2 - e2) * (e2 - self._M2)
         return e1 * self._n1 * self._n1, f2 * self._n2 * self._n2
 
-    def _fail_scalar(self, phi: float, loop: int) -> None:
+    def _fail_scalar(self, phi: float, loop: int) -> NoReturn:
         d1, d2 = self.discriminants_scalar(phi)
         if loop == 1:
             raise AssemblyError(LOOP1, phi, _disc_reason(d1))
@@ -771,7 +784,7 @@ class AssemblyMargins(NamedTuple):
     phi2: float
 
 
-def _golden_min(f, lo: float, hi: float, iters: int = 60) -> tuple[float, float]:  # noqa: ANN001
+def _golden_min(f: Callable[[float], float], lo: float, hi: float, iters: int = 60) -> tuple[float, float]:
     g = (math.sqrt(5.0) - 1.0) / 2.0
     x1 = hi - g * (hi - lo)
     x2 = lo + g * (hi - lo)
@@ -788,7 +801,7 @@ def _golden_min(f, lo: float, hi: float, iters: int = 60) -> tuple[float, float]
     return (x1, f1) if f1 <= f2 else (x2, f2)
 
 
-def _first_crossing(f, lo: float, hi: float) -> float:  # noqa: ANN001
+def _first_crossing(f: Callable[[float], float], lo: float, hi: float) -> float:
     """Bisect ``f(lo) >= 0 > f(hi)`` down to adjacent floats or 1e-13 rad; first failing angle."""
     for _ in range(200):
         mid = 0.5 * (lo + hi)
@@ -849,10 +862,10 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
             lows = np.flatnonzero((np.roll(D, 1) >= D) & (np.roll(D, -1) >= D))
             lows = lows[np.argsort(D[lows])][:4]
             best_i, best_phi, best = int(lows[0]), float(phis[lows[0]]), float(D[lows[0]])
-            for i in lows:
-                x, fx = _golden_min(f, float(phis[i]) - TAU / n, float(phis[i]) + TAU / n)
+            for low in lows:
+                x, fx = _golden_min(f, float(phis[low]) - TAU / n, float(phis[low]) + TAU / n)
                 if fx < best:
-                    best_i, best_phi, best = int(i), x, fx
+                    best_i, best_phi, best = int(low), x, fx
             if best < 0.0:
                 # a failure between samples: it starts after the sample before the minimum
                 lo = float(phis[best_i]) - TAU / n

@@ -50,7 +50,7 @@ Interpretation of the garbled scan
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -106,11 +106,16 @@ def paper_frame(params: LayupParams, phi: npt.ArrayLike) -> tuple[float, float, 
     phi_p : ndarray
         ``π - φ``, rad.
     """
-    return -params.a, -params.b, math.pi - np.asarray(phi, dtype=float)
+    return -params.a, -params.b, math.pi - np.asarray(phi, dtype=np.float64)
 
 
-def _acos(x: np.ndarray | float) -> np.ndarray:
-    return np.arccos(np.clip(x, -1.0, 1.0))
+@overload
+def _acos(x: float) -> float: ...
+@overload
+def _acos(x: npt.NDArray[Any]) -> npt.NDArray[np.float64]: ...
+def _acos(x: npt.NDArray[Any] | float) -> npt.NDArray[np.float64] | float:
+    angle: npt.NDArray[np.float64] | float = np.arccos(np.clip(x, -1.0, 1.0))  # np.clip of a union is typed Any
+    return angle
 
 
 def beta5(params: LayupParams) -> float:

@@ -173,7 +173,7 @@ class Terminal:
 def _horner(c: FloatArray, x: FloatArray) -> FloatArray:
     """``sum_k c[k] x^k`` with ``c`` shaped (5, q) or (5, q, m) and ``x`` shaped (q,)."""
     xx = x if c.ndim == 2 else x[:, None]
-    acc = c[4]
+    acc: FloatArray = c[4]
     for k in (3, 2, 1, 0):
         acc = acc * xx + c[k]
     return acc
@@ -182,7 +182,7 @@ def _horner(c: FloatArray, x: FloatArray) -> FloatArray:
 def _horner_d(c: FloatArray, x: FloatArray) -> FloatArray:
     """``d/dx sum_k c[k] x^k``, same shapes as :func:`_horner`."""
     xx = x if c.ndim == 2 else x[:, None]
-    acc = 4.0 * c[4]
+    acc: FloatArray = 4.0 * c[4]
     for k in (3, 2, 1):
         acc = acc * xx + k * c[k]
     return acc
@@ -282,10 +282,10 @@ class DenseSolution:
         break_value: FloatArray | None = None,
         max_landing_error: float = 0.0,
     ) -> None:
-        self.t = np.ascontiguousarray(t, dtype=float)
-        self.y = np.ascontiguousarray(y, dtype=float)
-        self.h = np.ascontiguousarray(h, dtype=float)
-        self.coef = np.ascontiguousarray(coef, dtype=float)
+        self.t = np.ascontiguousarray(t, dtype=np.float64)
+        self.y = np.ascontiguousarray(y, dtype=np.float64)
+        self.h = np.ascontiguousarray(h, dtype=np.float64)
+        self.coef = np.ascontiguousarray(coef, dtype=np.float64)
         n = self.h.shape[0]
         if n < 1 or self.t.shape != (n + 1,) or self.y.shape[0] != n + 1 or self.coef.shape[:2] != (5, n):
             msg = (
@@ -394,12 +394,12 @@ class DenseSolution:
         mid = np.flatnonzero(~low & ~high)
         if mid.size:
             tv = flat[mid]
-            k = np.searchsorted(Y, tv, side='left') - 1
-            x_end = (self.t[k + 1] - self.t[k]) / self.h[k]
-            y_lo, y_hi = Y[k], Y[k + 1]
+            ks = np.searchsorted(Y, tv, side='left') - 1
+            x_end = (self.t[ks + 1] - self.t[ks]) / self.h[ks]
+            y_lo, y_hi = Y[ks], Y[ks + 1]
             x0 = x_end * (tv - y_lo) / (y_hi - y_lo)
-            x = _poly_solve(self.coef[:, k, j], tv, x_end, 1.0, x0)
-            out[mid] = np.minimum(self.t[k] + x * self.h[k], self.t[k + 1])
+            x = _poly_solve(self.coef[:, ks, j], tv, x_end, 1.0, x0)
+            out[mid] = np.minimum(self.t[ks] + x * self.h[ks], self.t[ks + 1])
         return out.reshape(v.shape)
 
 

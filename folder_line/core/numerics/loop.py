@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeAlias, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -57,10 +58,19 @@ __all__ = [
 #: |normalised discriminant| at or below which two circles count as tangent (a toggle).
 TOGGLE_TOL = 1e-10
 
-ArrayLike = npt.ArrayLike
-FloatOrArray = float | np.ndarray
+ArrayLike: TypeAlias = npt.ArrayLike
+#: A float64 array (of any shape).
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+#: A float or a float64 array; arguments of this type broadcast together.
+FloatOrArray: TypeAlias = float | FloatArray
 
 
+@overload
+def normalised_discriminant(d2: float, r0: float, r1: float) -> float: ...
+@overload
+def normalised_discriminant(d2: FloatArray, r0: FloatOrArray, r1: FloatOrArray) -> FloatArray: ...
+@overload
+def normalised_discriminant(d2: ArrayLike, r0: ArrayLike, r1: ArrayLike) -> FloatOrArray: ...
 def normalised_discriminant(d2: ArrayLike, r0: ArrayLike, r1: ArrayLike) -> FloatOrArray:
     """Normalised discriminant ``D = sin² μ`` of two circles.
 
@@ -80,9 +90,9 @@ def normalised_discriminant(d2: ArrayLike, r0: ArrayLike, r1: ArrayLike) -> Floa
     """
     if isinstance(d2, float) and isinstance(r0, float) and isinstance(r1, float):
         return ((r0 + r1) ** 2 - d2) * (d2 - (r0 - r1) ** 2) / (4.0 * r0 * r0 * r1 * r1)
-    d2a = np.asarray(d2, dtype=float)
-    r0a = np.asarray(r0, dtype=float)
-    r1a = np.asarray(r1, dtype=float)
+    d2a = np.asarray(d2, dtype=np.float64)
+    r0a = np.asarray(r0, dtype=np.float64)
+    r1a = np.asarray(r1, dtype=np.float64)
     return ((r0a + r1a) ** 2 - d2a) * (d2a - (r0a - r1a) ** 2) / (4.0 * r0a * r0a * r1a * r1a)
 
 
@@ -100,13 +110,13 @@ class Intersection:
         ``|disc| <= tol``: tangent within tolerance; the joint velocity is unbounded there.
     """
 
-    x: np.ndarray
-    y: np.ndarray
-    disc: np.ndarray
-    toggle: np.ndarray
+    x: FloatArray
+    y: FloatArray
+    disc: FloatArray
+    toggle: npt.NDArray[np.bool_]
 
     @property
-    def margin(self) -> np.ndarray:
+    def margin(self) -> FloatArray:
         """Toggle margin ``sin μ = sqrt(max(disc, 0))``, dimensionless in [0, 1]."""
         return np.sqrt(np.maximum(self.disc, 0.0))
 
@@ -174,7 +184,7 @@ def circle_intersection(
         geometry is not finite; names the first such element's input (C order).
     """
     x0a, y0a, r0a, x1a, y1a, r1a, br, inp = np.broadcast_arrays(
-        *(np.asarray(v, dtype=float) for v in (x0, y0, r0, x1, y1, r1, branch, inputs))
+        *(np.asarray(v, dtype=np.float64) for v in (x0, y0, r0, x1, y1, r1, branch, inputs))
     )
     dx = x1a - x0a
     dy = y1a - y0a
@@ -301,15 +311,15 @@ def tracked_intersection(
 
 
 def solve2x2(
-    a11: ArrayLike, a12: ArrayLike, a21: ArrayLike, a22: ArrayLike, b1: ArrayLike, b2: ArrayLike
+    a11: FloatOrArray, a12: FloatOrArray, a21: FloatOrArray, a22: FloatOrArray, b1: FloatOrArray, b2: FloatOrArray
 ) -> tuple[FloatOrArray, FloatOrArray]:
     """Solve ``[[a11, a12], [a21, a22]] @ [x1, x2] = [b1, b2]`` by Cramer's rule, elementwise.
 
     Parameters
     ----------
-    a11, a12, a21, a22 : float or array_like
+    a11, a12, a21, a22 : float or ndarray
         Matrix entries (any consistent units).
-    b1, b2 : float or array_like
+    b1, b2 : float or ndarray
         Right-hand side.
 
     Returns
@@ -323,16 +333,16 @@ def solve2x2(
 
 
 def circle_point_velocity(
-    x: ArrayLike,
-    y: ArrayLike,
-    x0: ArrayLike,
-    y0: ArrayLike,
-    vx0: ArrayLike,
-    vy0: ArrayLike,
-    x1: ArrayLike,
-    y1: ArrayLike,
-    vx1: ArrayLike,
-    vy1: ArrayLike,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    x0: FloatOrArray,
+    y0: FloatOrArray,
+    vx0: FloatOrArray,
+    vy0: FloatOrArray,
+    x1: FloatOrArray,
+    y1: FloatOrArray,
+    vx1: FloatOrArray,
+    vy1: FloatOrArray,
 ) -> tuple[FloatOrArray, FloatOrArray]:
     """Velocity of the joint of a dyad from the differentiated loop equations.
 
@@ -342,11 +352,11 @@ def circle_point_velocity(
 
     Parameters
     ----------
-    x, y : float or array_like
+    x, y : float or ndarray
         The joint, m.
-    x0, y0, vx0, vy0 : float or array_like
+    x0, y0, vx0, vy0 : float or ndarray
         Centre ``c0``, m, and its velocity, m/s.
-    x1, y1, vx1, vy1 : float or array_like
+    x1, y1, vx1, vy1 : float or ndarray
         Centre ``c1``, m, and its velocity, m/s.
 
     Returns
@@ -354,30 +364,32 @@ def circle_point_velocity(
     vx, vy : float or ndarray
         Joint velocity, m/s (unbounded at a toggle; see :func:`solve2x2`).
     """
-    ex0 = np.subtract(x, x0)
-    ey0 = np.subtract(y, y0)
-    ex1 = np.subtract(x, x1)
-    ey1 = np.subtract(y, y1)
+    # np.subtract, not `-`: float inputs become NumPy scalars, so a toggle divides by zero
+    # the IEEE way (inf/nan) instead of raising ZeroDivisionError
+    ex0: FloatOrArray = np.subtract(x, x0)
+    ey0: FloatOrArray = np.subtract(y, y0)
+    ex1: FloatOrArray = np.subtract(x, x1)
+    ey1: FloatOrArray = np.subtract(y, y1)
     return solve2x2(ex0, ey0, ex1, ey1, ex0 * vx0 + ey0 * vy0, ex1 * vx1 + ey1 * vy1)
 
 
 def circle_point_acceleration(
-    x: ArrayLike,
-    y: ArrayLike,
-    vx: ArrayLike,
-    vy: ArrayLike,
-    x0: ArrayLike,
-    y0: ArrayLike,
-    vx0: ArrayLike,
-    vy0: ArrayLike,
-    ax0: ArrayLike,
-    ay0: ArrayLike,
-    x1: ArrayLike,
-    y1: ArrayLike,
-    vx1: ArrayLike,
-    vy1: ArrayLike,
-    ax1: ArrayLike,
-    ay1: ArrayLike,
+    x: FloatOrArray,
+    y: FloatOrArray,
+    vx: FloatOrArray,
+    vy: FloatOrArray,
+    x0: FloatOrArray,
+    y0: FloatOrArray,
+    vx0: FloatOrArray,
+    vy0: FloatOrArray,
+    ax0: FloatOrArray,
+    ay0: FloatOrArray,
+    x1: FloatOrArray,
+    y1: FloatOrArray,
+    vx1: FloatOrArray,
+    vy1: FloatOrArray,
+    ax1: FloatOrArray,
+    ay1: FloatOrArray,
 ) -> tuple[FloatOrArray, FloatOrArray]:
     """Acceleration of the joint of a dyad from the twice-differentiated loop equations.
 
@@ -385,11 +397,11 @@ def circle_point_acceleration(
 
     Parameters
     ----------
-    x, y, vx, vy : float or array_like
+    x, y, vx, vy : float or ndarray
         The joint, m, and its velocity, m/s (from :func:`circle_point_velocity`).
-    x0, y0, vx0, vy0, ax0, ay0 : float or array_like
+    x0, y0, vx0, vy0, ax0, ay0 : float or ndarray
         Centre ``c0``: position m, velocity m/s, acceleration m/s².
-    x1, y1, vx1, vy1, ax1, ay1 : float or array_like
+    x1, y1, vx1, vy1, ax1, ay1 : float or ndarray
         Centre ``c1``: position m, velocity m/s, acceleration m/s².
 
     Returns
@@ -397,14 +409,14 @@ def circle_point_acceleration(
     ax, ay : float or ndarray
         Joint acceleration, m/s² (unbounded at a toggle).
     """
-    ex0 = np.subtract(x, x0)
-    ey0 = np.subtract(y, y0)
-    ex1 = np.subtract(x, x1)
-    ey1 = np.subtract(y, y1)
-    ux0 = np.subtract(vx, vx0)
-    uy0 = np.subtract(vy, vy0)
-    ux1 = np.subtract(vx, vx1)
-    uy1 = np.subtract(vy, vy1)
+    ex0: FloatOrArray = np.subtract(x, x0)
+    ey0: FloatOrArray = np.subtract(y, y0)
+    ex1: FloatOrArray = np.subtract(x, x1)
+    ey1: FloatOrArray = np.subtract(y, y1)
+    ux0: FloatOrArray = np.subtract(vx, vx0)
+    uy0: FloatOrArray = np.subtract(vy, vy0)
+    ux1: FloatOrArray = np.subtract(vx, vx1)
+    uy1: FloatOrArray = np.subtract(vy, vy1)
     b1 = ex0 * ax0 + ey0 * ay0 - (ux0 * ux0 + uy0 * uy0)
     b2 = ex1 * ax1 + ey1 * ay1 - (ux1 * ux1 + uy1 * uy1)
     return solve2x2(ex0, ey0, ex1, ey1, b1, b2)
