@@ -15,7 +15,7 @@ State transitions
 -----------------
 The recorded inputs of the live supervisor -- the events, the joint-state stamps
 (liveness), the ``/clock`` messages, the operator's commands -- are replayed through
-:func:`folder_line.core.supervision.decisions.replay`, the logic the live node runs
+:func:`folder_line.core.supervision.offline.replay`, the logic the live node runs
 (:func:`replay_transitions`): the transitions with their decision times and causes, and
 the violations as the supervisor decided them (causal, with the action taken).
 :func:`transitions_agree` says whether they agree with the states recorded on
@@ -41,7 +41,7 @@ from folder_line.core.line.folder_sim import delivery_plan
 from folder_line.core.line.model import LineModel, LineResult, make_drive
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command, Drive
-from folder_line.core.supervision import decisions as supervision
+from folder_line.core.supervision.offline import replay
 from folder_line.interfaces import NS_PER_S
 
 __all__ = [
@@ -161,7 +161,7 @@ def supervisor_parameters(rec: Recording) -> dict[str, Any]:
 
 
 def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) -> tuple[list[dict[str, Any]], Any]:
-    """Replay the recorded inputs through :func:`folder_line.core.supervision.decisions.replay`.
+    """Replay the recorded inputs through :func:`folder_line.core.supervision.offline.replay`.
 
     The live supervisor node runs in lockstep: at every tick it is fed the events up to
     that tick (all of them: it waits until every machine node's tick is complete), the
@@ -216,7 +216,7 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         't_start': t_start,
         'model_factory': model_factory,
     }
-    sup = supervision.replay(
+    sup = replay(
         scene,
         horizon,
         rec.events,

@@ -272,7 +272,7 @@ def _write_analysis(rec: Recording, out_dir: Path, collector: CsvCollector | Non
         summary['replay_matches'] = None
         summary['transitions_source'] = (
             'the states published on /line/supervisor/state (the replay through '
-            f'folder_line.core.supervision.decisions.replay failed: {why})'
+            f'folder_line.core.supervision.offline.replay failed: {why})'
         )
     else:
         summary['transitions'] = replayed
@@ -281,7 +281,7 @@ def _write_analysis(rec: Recording, out_dir: Path, collector: CsvCollector | Non
         summary['transitions_source'] = (
             'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
             'through '
-            'folder_line.core.supervision.decisions.replay (decision times); '
+            'folder_line.core.supervision.offline.replay (decision times); '
             + (
                 'they agree with the states recorded on /line/supervisor/state'
                 if summary['replay_matches']

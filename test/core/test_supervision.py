@@ -23,16 +23,10 @@ from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
-from folder_line.core.supervision.decisions import (
-    DRIVE_COMMANDS,
-    SHEET_UNIT,
-    STOP_STATES,
-    TIMING_CONSTRAINTS,
-    Supervisor,
-    replay,
-    run_closed_loop,
-)
+from folder_line.core.supervision.commands import DRIVE_COMMANDS, STOP_STATES
+from folder_line.core.supervision.offline import replay, run_closed_loop
 from folder_line.core.supervision.packml import ACTING, COMMANDS
+from folder_line.core.supervision.supervisor import SHEET_UNIT, TIMING_CONSTRAINTS, Supervisor
 from folder_line.errors import ParameterError
 from folder_line.interfaces import NODE_OF_UNIT
 

@@ -6,7 +6,7 @@ The machine nodes, the supervisor and ``line_clock`` run in this process in lock
 that hangs), and a plain node listens to everything the supervisor hears. Expected
 times come from the line model (the batch simulation); at the end the recorded
 stream is replayed through the supervisor's logic offline
-(:func:`folder_line.core.supervision.decisions.replay`) and must give the same decisions.
+(:func:`folder_line.core.supervision.offline.replay`) and must give the same decisions.
 
 Wall time matters only where a node hangs: the supervisor declares it lost after its
 ``lost_timeout`` and ``line_clock`` after its own. While sim time is held nobody but
@@ -34,7 +34,8 @@ from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
-from folder_line.core.supervision.decisions import SPEED_REACHED, replay
+from folder_line.core.supervision.offline import replay
+from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,

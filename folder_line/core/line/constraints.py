@@ -15,7 +15,7 @@ table ends — its time is bounded by the table's last time, which is after the
 knife contact: the margin is then reported as that (negative) bound.
 
 Causal evaluation (``causal=True``, what the live supervisor uses,
-:mod:`folder_line.core.supervision.decisions`): each judged cycle sees only the rows at or
+:mod:`folder_line.core.supervision`): each judged cycle sees only the rows at or
 before its own knife contact — its decision time, the ``t`` of the series — as if
 the table ended there. A sheet handed over after its cycle's knife contact is not
 judged (the cycle had no sheet when it was decided); a sheet's ``at_stops``,

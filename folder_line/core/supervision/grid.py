@@ -1,7 +1,7 @@
 """The check grid ``t = n h``: where the supervisor decides liveness and the end of acting states.
 
 A decision on the grid has an exact time that depends on the inputs only, never on when
-the supervisor was called (:mod:`folder_line.core.supervision.decisions`). The rounding of
+the supervisor was called (:mod:`folder_line.core.supervision`). The rounding of
 ``t / h`` is corrected in both directions, so a grid point is ``n h`` as a float product,
 whatever the rounding of the division.
 """

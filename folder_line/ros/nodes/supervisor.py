@@ -1,6 +1,6 @@
 """Node ``supervisor``: the line's state (PackML), its enforcement, its commands, its diagnostics.
 
-The node is an adapter around :class:`folder_line.core.supervision.decisions.Supervisor` (the
+The node is an adapter around :class:`folder_line.core.supervision.supervisor.Supervisor` (the
 logic, pure and replayable offline): it feeds it what it hears and publishes what it
 decides. It is a lockstep participant (:mod:`folder_line.ros.lockstep`) that waits,
 at every tick ``t``, for every machine participant's tick ``t`` to be complete: their
@@ -51,7 +51,7 @@ Outputs
   ``in_machine`` and where; OK, or ERROR if a sheet is lost),
   ``folder_line/supervisor/operator`` per operator command; each also carries
   ``t_start``, ``watermark`` and ``late`` so that a bag of the run replays through
-  :func:`folder_line.core.supervision.decisions.replay`.
+  :func:`folder_line.core.supervision.offline.replay`.
 * Services (``std_srvs/Trigger``) ``/line/supervisor/{start,stop,hold,unhold,suspend,
   unsuspend,reset,clear,abort}``: a legal command answers ``success`` with its
   effective time and publishes a drive command; an illegal one answers
@@ -86,8 +86,11 @@ from std_srvs.srv import Trigger
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.mechanisms.drive import Command
-from folder_line.core.supervision.decisions import DRIVE_COMMANDS, SPEED_REACHED, Balance, Violation
-from folder_line.core.supervision.decisions import Supervisor as Logic
+from folder_line.core.supervision.balance import Balance
+from folder_line.core.supervision.commands import DRIVE_COMMANDS
+from folder_line.core.supervision.records import Violation
+from folder_line.core.supervision.settings import SPEED_REACHED
+from folder_line.core.supervision.supervisor import Supervisor as Logic
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -137,7 +140,7 @@ class Supervisor(MachineNode):
 
     Attributes
     ----------
-    logic : folder_line.core.supervision.decisions.Supervisor
+    logic : folder_line.core.supervision.supervisor.Supervisor
         The decisions, violations, balances and transitions.
     """
 
