@@ -152,14 +152,3 @@ def test_the_import_check_catches_an_import_in_a_function(tmp_path: Path) -> Non
     bad.parent.mkdir()
     bad.write_text('import math\n\n\ndef f():\n    from folder_line.core.line import model\n\n    return model\n')
     assert _function_level_imports(bad, tmp_path) == ['pkg/bad.py:5']
-
-
-def test_analysis_and_config_do_not_import_the_ros_layer() -> None:
-    """What the analysis of a run needs (the run's parameters, its folder layout) is in folder_line/config."""
-    package = CORE.parent
-    offenders = {
-        str(p.relative_to(package.parent)): sorted(n for n in _imports(p) if n.split('.')[:2] == ['folder_line', 'ros'])
-        for folder in ('analysis', 'config')
-        for p in sorted((package / folder).rglob('*.py'))
-    }
-    assert {k: v for k, v in offenders.items() if v} == {}

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
@@ -319,8 +320,6 @@ def run(quick: bool = False) -> list[Row]:
 
 
 def _main(argv: Sequence[str]) -> None:  # pragma: no cover - a developer's look at the numbers
-    import time
-
     t0 = time.process_time()
     rows = run(quick='--quick' in argv)
     for r in rows:

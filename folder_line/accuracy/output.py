@@ -6,6 +6,7 @@ atomically (:mod:`folder_line.files.atomic`): a failed run leaves the output dir
 
 from __future__ import annotations
 
+import csv
 import io
 import math
 from collections.abc import Sequence
@@ -15,6 +16,7 @@ from typing import Any
 from folder_line.accuracy.bench import BenchResult
 from folder_line.accuracy.measure import COLUMNS, Row
 from folder_line.accuracy.pareto import EqualErrorRatio, cheapest, curves, equal_error_ratio, pareto_front
+from folder_line.analysis.figures import DPI, pyplot
 from folder_line.files.atomic import write_bytes_atomic, write_json_atomic, write_text_atomic
 
 __all__ = ['COMPARISONS', 'TARGETS', 'comparisons', 'markdown', 'pareto_png', 'write_outputs']
@@ -139,9 +141,7 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
     Exact results (error 0) are drawn on the panel's floor, a decade below its least
     non-zero error, with an open marker.
     """
-    from matplotlib import ticker
-
-    from folder_line.analysis.figures import DPI, pyplot
+    from matplotlib import ticker  # matplotlib loads on use (pyplot() picks the back end first)
 
     plt = pyplot()
     panels = _panels(rows)
@@ -186,8 +186,6 @@ def pareto_png(rows: Sequence[Row]) -> bytes:
 
 
 def _csv_text(rows: Sequence[Row]) -> str:
-    import csv
-
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator='\n')
     w.writerow(COLUMNS)

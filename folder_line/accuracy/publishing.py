@@ -77,13 +77,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import rclpy
+import yaml
 from numpy.typing import NDArray
+from rclpy.parameter import Parameter
 
 from folder_line.accuracy.measure import Row
+from folder_line.bag.writer import BagWriter
+from folder_line.config.run_config import RunConfig, clock_parameters
+from folder_line.config.scenes import load_scene, scene_mapping
 from folder_line.core.limits import TICK_RATE
-from folder_line.core.line.model import LineModel
+from folder_line.core.line.model import LineModel, sample_times
+from folder_line.core.line.scene import parse_scene
 from folder_line.errors import MeasurementError, ParameterError
-from folder_line.interfaces import JOINT_NODES, UNIT_OF_NODE
+from folder_line.interfaces import JOINT_NODES, KNOWN_PARTICIPANTS, UNIT_OF_NODE
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+from folder_line.ros.run import add_machine_nodes
+from folder_line.ros.runtime import events_executor
 
 __all__ = [
     'FINE_RATE',
@@ -148,8 +159,6 @@ def knife_model(duration: float) -> LineModel:
     LineModel
         Built from the shipped scene without overrides.
     """
-    from folder_line.config.scenes import load_scene
-
     return LineModel(load_scene(SCENE), duration)
 
 
@@ -176,8 +185,6 @@ def knife_stream(
     velocity : ndarray
         Knife velocity at each stamp, m/s.
     """
-    from folder_line.core.line.model import sample_times
-
     if not (math.isfinite(rate) and rate > 0.0):
         raise ParameterError('rate', rate, 'must be a finite rate > 0 Hz')
     t = sample_times(duration, rate)
@@ -396,20 +403,6 @@ def live_cost(
     LiveCost
         The measurement; see :func:`check_published` for its validity.
     """
-    import rclpy
-    import yaml
-    from rclpy.parameter import Parameter
-
-    from folder_line.bag.writer import BagWriter
-    from folder_line.config.run_config import RunConfig, clock_parameters
-    from folder_line.config.scenes import scene_mapping
-    from folder_line.core.line.scene import parse_scene
-    from folder_line.interfaces import KNOWN_PARTICIPANTS
-    from folder_line.ros.nodes.line_clock import LineClock
-    from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.run import add_machine_nodes
-    from folder_line.ros.runtime import events_executor
-
     TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)
     if not (isinstance(span_ticks, int) and span_ticks >= 10):

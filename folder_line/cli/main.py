@@ -37,7 +37,6 @@ from folder_line.files.atomic import (
     write_csv_atomic,
     write_json_atomic,
 )
-from folder_line.ros import run as ros_run
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -295,6 +294,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         clock=args.clock,
         lost_timeout=args.lost_timeout,
     )
+    from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
+
     with claim_output_dir(cfg.out, '--out', files=('run.json', SCENE_FILE), dirs=(BAG_DIR, 'logs')):
         result = ros_run.run_line(cfg, sys.stdout, _scene_options())
     ros_run.print_run_summary(result.summary, cfg.out, sys.stdout)

@@ -16,6 +16,6 @@ module                    holds
 ========================  ==================================================================
 
 Names and message types of the topics are in :mod:`folder_line.interfaces` (no rclpy).
-This package's ``__init__`` imports nothing: :mod:`folder_line.ros.run` is imported
-without rclpy (``folder-line bag``, the analysis), and the rest loads rclpy on import.
+Every module here loads rclpy on import; nothing below this layer imports them (the
+command line imports :mod:`folder_line.ros.run` only for ``run``; see test/test_architecture.py).
 """

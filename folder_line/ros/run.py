@@ -48,6 +48,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
+import rclpy
+from rclpy.parameter import Parameter
+
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
@@ -55,6 +58,10 @@ from folder_line.core.line.model import check_size, simulate
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
+from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+from folder_line.ros.runtime import events_executor
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
@@ -143,11 +150,6 @@ def add_machine_nodes(
     """Build the five machine nodes of :data:`MACHINE_NODES` in ``context`` with the run's parameters
     (:func:`folder_line.config.run_config.node_parameters`: the merged ``scene_file`` if given, else the
     scene and overrides of ``cfg``) and add them to ``executor``; returns them in that order."""
-    # rclpy and the nodes on use: `folder-line bag` and the analysis import this module without DDS
-    from rclpy.parameter import Parameter
-
-    from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
-
     classes = {
         'crank_drive': crank_drive.CrankDrive,
         'belt_conveyor': belt_conveyor.BeltConveyor,
@@ -227,14 +229,6 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
         Bad scene or overrides, an ``--out`` that holds something else, or another line on this
         ROS domain (checked before anything is written).
     """
-    # rclpy and the nodes on use: `folder-line bag` and the analysis import this module without DDS
-    import rclpy
-    from rclpy.parameter import Parameter
-
-    from folder_line.ros.nodes.line_clock import LineClock
-    from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
-    from folder_line.ros.runtime import events_executor
-
     names = names or InputNames()
     scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
     check_size(scene, cfg.duration, cfg.horizon, '--duration')  # the nodes' horizon's cycles

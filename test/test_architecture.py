@@ -1,0 +1,157 @@
+"""The package's architecture, checked: parts import only what lies below them, no import cycles.
+
+The parts of ``folder_line`` and what each may import (besides itself)::
+
+    core        numpy-only physics and timing (errors only; test_core_boundary.py)
+    interfaces  names of topics, nodes, events, time (core)
+    files       writing that never destroys, bounded reading (errors)
+    config      defaults, scenes, run settings (core, interfaces, files)
+    bag         rosbag2/MCAP (core, interfaces, files, config)
+    ros         nodes, lockstep, run, recorder (all of the above)
+    analysis    a recorded run (all but ros: a bag is analysed without ROS)
+    accuracy    what accuracy costs (all but cli)
+    cli         the command line (everything)
+
+Imports inside functions count too: a dependency hidden in a function is still one.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / 'folder_line'
+
+_BASE = {'errors', '__init__'}
+#: part of folder_line -> the parts it may import
+MAY_IMPORT: dict[str, set[str]] = {
+    'errors': set(),
+    '__init__': set(),
+    'core': {'errors'},
+    'interfaces': {'core', *_BASE},
+    'files': set(_BASE),
+}
+MAY_IMPORT['config'] = {'core', 'interfaces', 'files', *_BASE}
+MAY_IMPORT['bag'] = {'config', *MAY_IMPORT['config']}
+MAY_IMPORT['ros'] = {'bag', *MAY_IMPORT['bag']}
+MAY_IMPORT['analysis'] = {'bag', *MAY_IMPORT['bag']}
+MAY_IMPORT['accuracy'] = {'ros', 'analysis', *MAY_IMPORT['ros']}
+MAY_IMPORT['cli'] = {'accuracy', *MAY_IMPORT['accuracy']}
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix('').parts
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PACKAGE.rglob('*.py'))}
+
+
+def _imports(path: Path) -> set[str]:
+    """folder_line modules imported by ``path``, inside functions too (not under ``if TYPE_CHECKING``)."""
+    tree = ast.parse(path.read_text(encoding='utf-8'))
+    known = _modules()
+    found: set[str] = set()
+
+    def visit(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.Import | ast.ImportFrom):
+                if isinstance(child, ast.Import):
+                    names = [a.name for a in child.names]
+                else:
+                    assert child.level == 0, f'{path}: relative import'
+                    base = child.module or ''
+                    names = [f'{base}.{a.name}' if f'{base}.{a.name}' in known else base for a in child.names]
+                found.update(n for n in names if n.split('.')[0] == 'folder_line')
+            elif isinstance(child, ast.If) and isinstance(child.test, ast.Name) and child.test.id == 'TYPE_CHECKING':
+                continue  # annotations only: no import at run time
+            visit(child)
+
+    visit(tree)
+    return found
+
+
+def _part(module: str) -> str:
+    return module.split('.')[1] if '.' in module else '__init__'
+
+
+def test_every_part_is_placed() -> None:
+    parts = {_part(m) for m in _modules()}
+    assert parts <= set(MAY_IMPORT), sorted(parts - set(MAY_IMPORT))
+
+
+def test_parts_import_only_what_lies_below() -> None:
+    wrong = sorted(
+        f'{m} imports {dep}'
+        for m, p in _modules().items()
+        for dep in _imports(p)
+        if _part(dep) != _part(m) and _part(dep) not in MAY_IMPORT[_part(m)]
+    )
+    assert wrong == []
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def strong(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            strong(v)
+    return out
+
+
+def test_no_import_cycles() -> None:
+    modules = _modules()
+    graph = {m: {d for d in _imports(p) if d in modules and d != m} for m, p in modules.items()}
+    # a package's __init__ importing its own modules is not a cycle of the design
+    graph = {m: {d for d in deps if not m.startswith(d + '.')} for m, deps in graph.items()}
+    assert _cycles(graph) == []
+
+
+def test_the_cycle_check_finds_a_cycle() -> None:
+    assert _cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
+
+
+@pytest.mark.parametrize(
+    'module', ['folder_line.interfaces', 'folder_line.config', 'folder_line.bag', 'folder_line.analysis']
+)
+def test_layers_below_ros_do_not_load_rclpy(module: str) -> None:
+    names = sorted(m for m in _modules() if m == module or m.startswith(module + '.'))
+    code = (
+        'import importlib, sys\n'
+        f'for m in {names!r}:\n'
+        '    importlib.import_module(m)\n'
+        'print(sorted(m for m in sys.modules if m.split(".")[0] == "rclpy"))'
+    )
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == '[]'
