@@ -155,3 +155,33 @@ def test_layers_below_ros_do_not_load_rclpy(module: str) -> None:
     )
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == '[]'
+
+
+#: (module file, imported module) -> why that import stands inside a function (every other import is at the top)
+FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
+    ('cli/main.py', 'folder_line.ros'): 'loads rclpy: only `folder-line run` needs DDS',
+    ('cli/main.py', 'folder_line.cli.monitor'): 'loads rclpy: only `folder-line monitor` needs DDS',
+    ('analysis/figures.py', 'matplotlib'): 'slow to import, and the back end must be chosen before pyplot',
+    ('analysis/figures.py', 'matplotlib.pyplot'): 'imported after matplotlib.use("Agg")',
+    ('accuracy/output.py', 'matplotlib'): 'matplotlib loads on use, after pyplot() chose the back end',
+    ('config/params.py', 'ament_index_python.packages'): 'present only on a ROS 2 install: tried, not required',
+}
+
+
+def _function_level_imports(path: Path) -> set[tuple[str, str]]:
+    tree = ast.parse(path.read_text(encoding='utf-8'))
+    rel = path.relative_to(PACKAGE).as_posix()
+    found: set[tuple[str, str]] = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            for n in ast.walk(fn):
+                if isinstance(n, ast.Import):
+                    found.update((rel, a.name) for a in n.names)
+                elif isinstance(n, ast.ImportFrom):
+                    found.add((rel, n.module or ''))
+    return found
+
+
+def test_imports_inside_functions_are_few_and_explained() -> None:
+    found = set().union(*(_function_level_imports(p) for p in _modules().values()))
+    assert found == set(FUNCTION_LEVEL_IMPORTS)
