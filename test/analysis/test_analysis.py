@@ -53,7 +53,7 @@ pytestmark = [
     for m in ('sre_parse', 'sre_constants')
 ]
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PNG = b'\x89PNG\r\n\x1a\n'
 
 

@@ -1,6 +1,6 @@
 """Writes a bag with a fake line clock until it is killed: the subject of test_bag_crash.py.
 
-``python test/_bag_crash_writer.py DIR --dt-ns N --segment-s S --chunk-size B [--flush-s F] [--block-after STEPS]``
+``python test/bag/_bag_crash_writer.py DIR --dt-ns N --segment-s S --chunk-size B [--flush-s F] [--block-after STEPS]``
 
 Step ``i`` (from 0) writes ``/clock`` at ``t_i = i * dt``, then a ``JointState`` on
 ``/line/crank_drive/joint_states`` with ``position = [i]`` stamped ``t_i``, and on every

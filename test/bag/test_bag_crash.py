@@ -1,6 +1,6 @@
 """Crash safety of the bag writer: SIGKILL the writing process, then open and repair the bag.
 
-The subject is ``test/_bag_crash_writer.py`` (a real process with a fake line clock,
+The subject is ``test/bag/_bag_crash_writer.py`` (a real process with a fake line clock,
 ``dt`` = 10 ms per step, three messages per five steps... see its docstring). What is
 promised: after SIGKILL the directory opens with rosbags as it is and every finished
 segment opens with the independent ``mcap`` reader, with every message of every
@@ -25,8 +25,8 @@ from mcap_ros2.decoder import DecoderFactory
 from folder_line.bag.bag import BagError, bag_info_lines, read_bag, repair, segment_files
 from folder_line.cli.main import main as cli_main
 
-REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / 'test' / '_bag_crash_writer.py'
+REPO = Path(__file__).resolve().parents[2]
+SCRIPT = REPO / 'test' / 'bag' / '_bag_crash_writer.py'
 DT_NS = 10_000_000  # 10 ms of line time per step
 SEGMENT_S = 1.0
 SEGMENT_NS = 1_000_000_000

@@ -21,7 +21,7 @@ from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 from folder_line.ros.nodes.machine import MACHINE_SPECS
 from folder_line.ros.run import RunConfig, node_parameters
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
+README = Path(__file__).resolve().parents[2] / 'README.md'
 
 
 def _beyond(limit: L.Limit) -> list[float]:

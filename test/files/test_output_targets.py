@@ -30,7 +30,7 @@ from folder_line.cli.main import main
 from folder_line.cli.report import REPORT_FILES
 from folder_line.files.atomic import claim_output_dir
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 ROOT = os.geteuid() == 0
 
 Snapshot = dict[str, tuple[Any, ...]]

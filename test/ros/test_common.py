@@ -40,7 +40,7 @@ from folder_line.ros.common import (
 )
 
 if TYPE_CHECKING:
-    from conftest import Ros
+    from .conftest import Ros
 
 # --------------------------------------------------------------------------- specs (no graph)
 

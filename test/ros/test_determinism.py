@@ -17,10 +17,11 @@ import json
 from pathlib import Path
 
 import pytest
-from _line_runs import assert_bag_is_model, read_bag_mcap
 
 from folder_line.interfaces import MACHINE_NODES
 from folder_line.ros.run import RunConfig, run_line
+
+from ._line_runs import assert_bag_is_model, read_bag_mcap
 
 #: the issue's runs: 20 s of the folder scene, 10 s of the whole line
 FOLDER_DURATION = 20.0

@@ -19,9 +19,10 @@ import signal
 from pathlib import Path
 
 import pytest
-from _line_runs import child_node, line_processes, read_bag_mcap, start_run, statuses, tagged, wait_for_line_time
 
 from folder_line.interfaces import MACHINE_NODES
+
+from ._line_runs import child_node, line_processes, read_bag_mcap, start_run, statuses, tagged, wait_for_line_time
 
 VICTIM = 'feed_transporter'
 DURATION = 4.0  # line time: the loss, the abort and the standstill after it (drive.t_brake 0.5 s)

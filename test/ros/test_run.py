@@ -16,15 +16,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
-from _line_runs import (
-    assert_bag_is_model,
-    line_processes,
-    read_bag_mcap,
-    start_run,
-    statuses,
-    tagged,
-    wait_for_line_time,
-)
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
@@ -37,8 +28,18 @@ from folder_line.ros.common import COMMANDS_QOS, joint_states_topic, ns_to_time_
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.run import OTHER_LINE_WAIT
 
+from ._line_runs import (
+    assert_bag_is_model,
+    line_processes,
+    read_bag_mcap,
+    start_run,
+    statuses,
+    tagged,
+    wait_for_line_time,
+)
+
 if TYPE_CHECKING:
-    from conftest import Ros
+    from .conftest import Ros
 
 RATE = 200.0  # the nodes' default, Hz of sim time
 TICK_TOPICS = (

@@ -9,13 +9,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-from _scenes import folder_scene
 
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms import chain
 from folder_line.core.mechanisms.delivery import STATE_OK, evaluate, evaluate_stroke
 from folder_line.errors import ParameterError
+
+from .._scenes import folder_scene
 
 CF = {'P_k': 50.0, 'r': 0.1, 'return_section': 'geometric'}
 MOTOR = dict(

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from _scenes import folder_scene
 from scipy.integrate import solve_ivp
 
 from folder_line.core.effects import chain_friction as cf
@@ -19,6 +18,8 @@ from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS
+
+from .._scenes import folder_scene
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
 MOTOR: dict[str, Any] = dict(

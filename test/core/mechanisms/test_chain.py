@@ -8,7 +8,6 @@ from typing import Any
 import mpmath as mp
 import numpy as np
 import pytest
-from _scenes import folder_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -22,6 +21,8 @@ from folder_line.core.mechanisms.chain import ChainPath
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.delivery import LAWS, evaluate_stroke
 from folder_line.errors import ParameterError
+
+from .._scenes import folder_scene
 
 
 def make_scene(*, delivery: dict[str, Any] | None = None, chain_p: dict[str, Any] | None = None) -> Scene:

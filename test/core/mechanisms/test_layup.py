@@ -635,4 +635,4 @@ def test_belt_keeps_exit_speeds_at_or_above_v_tr(phi: float) -> None:
 
 
 def test_benchmark_script_exists() -> None:
-    assert (Path(__file__).resolve().parents[2] / 'bench' / 'bench_layup.py').is_file()
+    assert (Path(__file__).resolve().parents[3] / 'bench' / 'bench_layup.py').is_file()

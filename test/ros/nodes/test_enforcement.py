@@ -26,8 +26,6 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from test_line_clock import FakeParticipant, grid
-from test_supervisor import on_grid
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
@@ -52,8 +50,11 @@ from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import STATE_QOS, Supervisor
 
+from .test_line_clock import FakeParticipant, grid
+from .test_supervisor import on_grid
+
 if TYPE_CHECKING:
-    from conftest import Received, Ros
+    from ..conftest import Received, Ros
 
 SCENE = 'folder_faults'
 HORIZON = 10.0

@@ -58,9 +58,9 @@ from folder_line.ros.lockstep import (
 from folder_line.ros.nodes.line_clock import EXIT_LOST, SPECS, LineClock, parse_participants
 
 if TYPE_CHECKING:
-    from conftest import Ros
+    from ..conftest import Ros
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 MS = 1_000_000  # ns
 

@@ -25,7 +25,6 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, UInt64
-from test_line_clock import FakeParticipant, grid
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel
@@ -54,10 +53,12 @@ from folder_line.ros.nodes.machine import MACHINE_SPECS, MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
 from folder_line.ros.nodes.supervisor import Supervisor
 
-if TYPE_CHECKING:
-    from conftest import Received, Ros
+from .test_line_clock import FakeParticipant, grid
 
-REPO = Path(__file__).resolve().parents[2]
+if TYPE_CHECKING:
+    from ..conftest import Received, Ros
+
+REPO = Path(__file__).resolve().parents[3]
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 TYPES = {t.name: t.type for t in TOPICS}
 MS = 1_000_000  # ns

@@ -25,7 +25,6 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from test_line_clock import FakeParticipant, grid
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel
@@ -50,8 +49,10 @@ from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
 
+from .test_line_clock import FakeParticipant, grid
+
 if TYPE_CHECKING:
-    from conftest import Received, Ros
+    from ..conftest import Received, Ros
 
 RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 MS = 1_000_000  # ns
