@@ -47,27 +47,16 @@ from folder_line.analysis.analysis import (
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.interfaces import EVENT_KINDS, event_source, parse_event_source
 
-# rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
-pytestmark = [
-    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-    for m in ('sre_parse', 'sre_constants')
-]
-
 REPO = Path(__file__).resolve().parents[2]
 PNG = b'\x89PNG\r\n\x1a\n'
 
 
 def _record(base: Path, scene: str, duration: float) -> Path:
-    """Run the line in-process (rtf 2) on this process's own ROS domain; the run directory."""
+    """Run the line in-process (rtf 2) on this process's own ROS domain (test/conftest.py); the run directory."""
     from folder_line.ros.run import RunConfig, run_line
 
     out = base / scene
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv('ROS_DOMAIN_ID', str(101 + (os.getpid() + 37) % 100))  # not the domain of any other graph
-        mp.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-        mp.delenv('ROS_STATIC_PEERS', raising=False)
-        mp.delenv('ROS_LOCALHOST_ONLY', raising=False)
-        run_line(RunConfig(scene=scene, duration=duration, rtf=2.0, out=out), io.StringIO())
+    run_line(RunConfig(scene=scene, duration=duration, rtf=2.0, out=out), io.StringIO())
     return out
 
 

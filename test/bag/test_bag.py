@@ -40,12 +40,6 @@ from folder_line.bag.bag import (
 from folder_line.cli.main import main as cli_main
 from folder_line.ros.recorder import LINE_TOPICS
 
-# rosidl_generator_py imports lark 0.12, which imports the deprecated sre_parse/sre_constants: not ours
-pytestmark = [
-    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-    for m in ('sre_parse', 'sre_constants')
-]
-
 JOINTS = '/line/crank_drive/joint_states'
 SCENE = (
     'name: test scene\n'
@@ -391,17 +385,13 @@ def test_cli_bag_info_and_repair(tmp_path: Path, capsys: pytest.CaptureFixture[s
         assert captured.err.count('\n') == 1 and captured.err.startswith('folder-line: error: ')
 
 
-def test_run_line_records_every_message(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_run_line_records_every_message(tmp_path: Path) -> None:
     """In-process run of the folder scene, 2 s at rtf 2: the bag has what the recorder got, nothing lost."""
     import io
 
     from folder_line.config.scenes import scene_mapping
     from folder_line.ros.run import RunConfig, run_line
 
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(101 + os.getpid() % 100))  # not the domain of any other graph
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
-    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
     out = tmp_path / 'out'
     (out / 'bag').mkdir(parents=True)
     (out / 'bag' / 'old_0.mcap').write_bytes(b'a previous run')  # replaced, as run.json is

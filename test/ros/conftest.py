@@ -1,25 +1,16 @@
-"""Node tests over real DDS: one ROS domain per test process, one rclpy context per test.
+"""Node tests over real DDS: one rclpy context per test (:func:`ros`).
 
-The domain id is derived from the pid (1..100, never 0, the default of any other ROS
-graph on the machine) and discovery is kept to this host; both are set in
-``os.environ`` before rclpy is imported, so the contexts of this process and the
-node processes it starts share them and nothing else does.
+The ROS domain (one per test process) and the discovery range are set for the whole test
+process by ``test/conftest.py`` (:mod:`_ros_env`), before rclpy is imported here; so the
+contexts of this process and the node processes it starts (``node_env``) share them and
+nothing else does.
 """
 
 from __future__ import annotations
 
-import os
-
-# read by rclpy when it is imported; only os.environ changes here, so the imports below count as at the top
-os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.pop('ROS_STATIC_PEERS', None)
-os.environ.pop('ROS_LOCALHOST_ONLY', None)  # deprecated; would conflict with the range above
-
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
@@ -28,10 +19,6 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-
-DOMAIN_ID = int(os.environ['ROS_DOMAIN_ID'])  # 1..100 from the pid, set above
-
-REPO = Path(__file__).resolve().parents[2]
 
 N = TypeVar('N', bound=Node)
 
@@ -99,13 +86,6 @@ class Ros:
         self.spin_until(lambda: False, seconds)
 
 
-def pytest_configure(config: pytest.Config) -> None:
-    # rosidl_generator_py (imported by the first node) imports lark 0.12, which
-    # imports the deprecated sre_parse/sre_constants: not ours, not actionable.
-    for module in ('sre_parse', 'sre_constants'):
-        config.addinivalue_line('filterwarnings', f"ignore:module '{module}' is deprecated:DeprecationWarning")
-
-
 @pytest.fixture
 def ros() -> Iterator[Ros]:
     """A :class:`Ros` with its own context, shut down after the test."""
@@ -119,13 +99,3 @@ def ros() -> Iterator[Ros]:
         for node in harness.nodes:
             node.destroy_node()
         rclpy.try_shutdown(context=context)
-
-
-@pytest.fixture
-def node_env() -> dict[str, str]:
-    """Environment for a node process: this process's domain, and the repository importable."""
-    env = dict(os.environ)
-    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO), env.get('PYTHONPATH', '')) if p)
-    env['PYTHONUNBUFFERED'] = '1'
-    env['RCUTILS_COLORIZED_OUTPUT'] = '0'
-    return env

@@ -2,7 +2,7 @@
 
 The line (the five machine nodes and ``line_clock`` in lockstep, as ``folder-line run``
 runs them in-process) spins in a thread of this process for the whole module; the
-monitor runs as a separate process in the same ROS domain (see ``conftest.py``). The
+monitor runs as a separate process in the same ROS domain (``test/conftest.py``). The
 monitor takes no part in the lockstep: the line runs as fast as its nodes answer, up
 to rtf 1, whatever the monitor does; how fast that is depends on the machine, so the
 rates shown are only required to be positive.
@@ -25,6 +25,7 @@ from typing import Any
 
 import pytest
 import rclpy
+from _ros_env import DOMAIN_ID
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -153,7 +154,7 @@ def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[s
 
 
 def test_once_without_a_line_says_so_and_exits_0(node_env: dict[str, str]) -> None:
-    env = dict(node_env, ROS_DOMAIN_ID=str(215 + int(node_env['ROS_DOMAIN_ID']) % 18))  # nobody there
+    env = dict(node_env, ROS_DOMAIN_ID=str(215 + DOMAIN_ID % 18))  # nobody there
     proc = subprocess.run(
         monitor_cmd('--once', '--timeout', '1'), env=env, capture_output=True, text=True, timeout=60, check=False
     )

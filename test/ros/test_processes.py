@@ -19,6 +19,7 @@ import signal
 from pathlib import Path
 
 import pytest
+from _ros_env import DOMAIN_ID
 
 from folder_line.interfaces import MACHINE_NODES
 
@@ -26,7 +27,6 @@ from ._line_runs import child_node, line_processes, read_bag_mcap, start_run, st
 
 VICTIM = 'feed_transporter'
 DURATION = 4.0  # line time: the loss, the abort and the standstill after it (drive.t_brake 0.5 s)
-DOMAIN = int(os.environ['ROS_DOMAIN_ID'])  # conftest's, for this test process and its children
 
 
 @pytest.mark.parametrize('sig', [signal.SIGKILL, signal.SIGSTOP], ids=['SIGKILL', 'SIGSTOP'])
@@ -85,4 +85,4 @@ def test_a_lost_node_is_named_the_line_aborts_and_run_fails(
     inputs = statuses(records, 'folder_line/supervisor/inputs')
     assert inputs[-1][1].get('lost') == VICTIM
 
-    assert tagged(run.tag) == {} and line_processes(out, DOMAIN, run.started) == {}  # nothing left
+    assert tagged(run.tag) == {} and line_processes(out, DOMAIN_ID, run.started) == {}  # nothing left

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
+from _ros_env import DOMAIN_ID
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
@@ -49,7 +50,6 @@ TICK_TOPICS = (
     '/line/sheet_counter/rate',
     *(joint_states_topic(n) for n in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter')),
 )
-DOMAIN = int(os.environ['ROS_DOMAIN_ID'])  # conftest's, for this test process and its children
 
 
 def test_run_in_process(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
@@ -124,7 +124,7 @@ def test_sigterm_closes_the_bag_writes_run_json_and_ends_every_node(
     if processes:
         assert set(summary['exit_codes']) == {*MACHINE_NODES, 'line_clock'}
     assert tagged(run.tag) == {}  # nothing of the run is left
-    assert line_processes(out, DOMAIN, run.started) == {}
+    assert line_processes(out, DOMAIN_ID, run.started) == {}
 
 
 def test_a_second_line_on_the_same_domain_is_refused(
@@ -140,7 +140,7 @@ def test_a_second_line_on_the_same_domain_is_refused(
         err = capfd.readouterr().err
         assert err.count('\n') == 1, err
         assert err.startswith('folder-line: error: another line is running: ') and 'line_clock' in err, err
-        assert f'ROS_DOMAIN_ID={DOMAIN}' in err
+        assert f'ROS_DOMAIN_ID={DOMAIN_ID}' in err
         assert not second.exists()  # refused before anything was written
         assert OTHER_LINE_WAIT < 4.0 / 0.5
         assert first.wait(timeout=120) == 0, first.text()
