@@ -11,14 +11,16 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from folder_line.config.params import load_params
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.line.model import make_drive, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.errors import ParameterError
+from folder_line.errors import IntegrationError, ParameterError
 from folder_line.interfaces import EVENT_KINDS
 
+from .._reference import EPS
 from .._scenes import folder_scene
 
 #: the suggested scene values (report): lambda_steady ~ 1 with the default chain load
@@ -392,3 +394,114 @@ def test_determinism() -> None:
     assert a.theta(t).tobytes() == b.theta(t).tobytes()
     assert a.solution.coef.tobytes() == b.solution.coef.tobytes()
     assert a.time_of(t).tobytes() == b.time_of(t).tobytes()
+
+
+# --------------------------------------------------------------------------- stiff start, tiny and huge steps
+#: tau = J / (T_0 / omega_0) = 1e-4 s: a stiff start
+STIFF: dict[str, Any] = {'J': 0.001, 'T_0': 1600.0, 'omega_0': 160.0, 'omega_nom': 152.4, 'b': 0.0}
+
+
+def motor_scene(**over: Any) -> Any:
+    """The layup machine (cheapest) with motor_dynamics only: no position-dependent load."""
+    return parse_scene(
+        {
+            'name': 'motor',
+            'machines': {'layup': dataclasses.asdict(load_params('layup'))},
+            'sheets': {'interval': 0.0625, 'jitter': 0.0, 'phase': 0.0, 'thickness': 0.0005},
+            'effects': {'motor_dynamics': {**MOTOR, **over}},
+        }
+    )
+
+
+def rk4_factor(z: float) -> float:
+    """RK4's amplification of the error on y' = -(1/tau) y per step, z = h / tau."""
+    return 1 - z + z * z / 2 - z**3 / 6 + z**4 / 24
+
+
+class TestStiffStartAndStepSizes:
+    """Stiff start from standstill; tiny and huge steps (closed forms, the RK4 recurrence)."""
+
+    @pytest.mark.parametrize('z', [2.21, 2.2, 0.5])
+    def test_rk4_stiff_start_up_to_the_step_limit(self, z: float) -> None:
+        """tau = 1e-4 s, h = z tau with z up to the accepted limit 2.21: the step values are exactly
+        w_ss (1 - R(z)^n) (RK4 on a linear ODE), so they rise monotonically to w_ss (R in (0, 1))
+        and reach lambda_ss; never NaN, never beyond w_ss; the cubic Hermite dense output between
+        the steps is monotone and >= 0. Beyond 2.21 (RK4 is stable to 2.785, but the dense output
+        overshoots from z* = 2.2134: omega < 0 in the first step from z ~ 2.65) build_drive refuses h."""
+        p = {**MOTOR, **STIFF}
+        tau = p['J'] / (p['T_0'] / p['omega_0'])
+        h = z * tau
+        n = 400
+        drive = md.build_drive(motor_scene(**STIFF, method='rk4', h=h), n * h, periodic=False)
+        sol = drive.segments[0].solution
+        w = sol.y[:, 1]
+        w_ss = p['T_0'] / (p['T_0'] / p['omega_0'])
+        R = rk4_factor(z)
+        assert 0.0 < R < 1.0
+        k = np.arange(w.size)
+        assert np.allclose(w, w_ss * (1.0 - R**k), rtol=0.0, atol=64 * EPS * w_ss)
+        assert np.all(np.diff(w) >= -4 * EPS * w_ss) and np.all(np.isfinite(sol.y))  # rounding at w_ss only
+        assert drive.rate(np.array(n * h))[()] == pytest.approx(w_ss / p['omega_nom'], rel=1e-9)  # no stall
+        t = np.linspace(0.0, n * h, 40001)
+        dense = drive.omega(t)
+        assert np.all(np.isfinite(dense)) and dense.max() <= w_ss * (1 + 1e-12)
+        assert dense.min() >= 0.0 and np.all(np.diff(dense) >= -4 * EPS * w_ss)
+        with pytest.raises(ParameterError, match='effects.motor_dynamics.h.*stalls and overshoots'):
+            md.build_drive(motor_scene(**STIFF, method='rk4', h=2.25 * tau), 0.01)
+        with pytest.raises(ParameterError, match='effects.motor_dynamics.h.*unstable here'):
+            md.build_drive(motor_scene(**STIFF, method='rk4', h=2.8 * tau), 0.01)
+
+    def test_dopri5_stiff_start(self) -> None:
+        """DOPRI5 from standstill with tau = 1e-4 s: stability-limited steps (~h = 3.3 tau, neither
+        blown up nor stalled), within 2e-7 of w_ss of the closed form, monotone up to its tolerance."""
+        p = {**MOTOR, **STIFF, 'rtol': 1e-8, 'atol': 1e-10}
+        duration = 0.5
+        drive = md.build_drive(motor_scene(**STIFF, rtol=1e-8, atol=1e-10), duration, periodic=False)
+        t = np.linspace(0.0, duration, 100001)
+        th, w = closed_form(p, t)
+        w_ss = w[-1]
+        got = drive.omega(t)
+        assert np.all(np.isfinite(got)) and np.all(np.isfinite(drive.theta(t)))
+        assert np.abs(got - w).max() <= 2e-8 * w_ss
+        assert np.abs(drive.theta(t) - th).max() <= 1e-9
+        assert duration / (3.4 * 1e-4) < drive.steps < duration / (2.0 * 1e-4)
+        assert (np.maximum.accumulate(got) - got).max() <= 10 * (p['rtol'] * w_ss + p['atol'])
+        assert got[-1] / p['omega_nom'] == pytest.approx(w_ss / p['omega_nom'], rel=2e-8)
+
+    def test_tiny_steps(self) -> None:
+        """h = 1e-9 s: over 1e-5 s (1e4 steps) RK4 is exact to rounding; over 1 s the run needs 1e9
+        steps and fails at once with the documented max-steps IntegrationError (not after minutes)."""
+        drive = md.build_drive(motor_scene(method='rk4', h=1e-9), 1e-5, periodic=False)
+        t = np.linspace(0.0, 1e-5, 101)
+        th, w = closed_form(MOTOR, t)
+        assert drive.steps == 10_000
+        assert np.abs(drive.omega(t) - w).max() <= 1e-15 * MOTOR['omega_0']
+        assert np.abs(drive.theta(t) - th).max() <= 1e-18
+        with pytest.raises(IntegrationError) as info:
+            md.build_drive(motor_scene(method='rk4', h=1e-9), 1.0, periodic=False)
+        msg = str(info.value)
+        assert f'more than max_steps={md.MAX_STEPS} steps' in msg and '1e+09 steps of h' in msg
+        assert info.value.step == 0 and info.value.h == 1e-9
+        with pytest.raises(IntegrationError, match='max_steps'):
+            md.build_drive(motor_scene(method='dopri5', h=1e-9), 1.0, periodic=False)
+
+    def test_huge_steps(self) -> None:
+        """h = 1 s: RK4 is refused up front (ParameterError naming h) where h c/J > 2.21; on a
+        gentle motor it is stable and equals the RK4 recurrence; DOPRI5 with max step 1 s matches
+        the closed form to its tolerance."""
+        with pytest.raises(ParameterError, match='effects.motor_dynamics.h') as info:
+            md.build_drive(motor_scene(method='rk4', h=1.0), 10.0)
+        assert 'unstable' in str(info.value) and info.value.value == 1.0
+        gentle = {'J': 20.0}
+        p = {**MOTOR, **gentle}
+        c = p['T_0'] / p['omega_0'] + p['b']
+        drive = md.build_drive(motor_scene(**gentle, method='rk4', h=1.0), 60.0, periodic=False)
+        w = drive.segments[0].solution.y[:, 1]
+        R = rk4_factor(c / p['J'])
+        assert np.allclose(w, p['T_0'] / c * (1 - R ** np.arange(w.size)), rtol=0.0, atol=1e-11)
+        drive = md.build_drive(motor_scene(method='dopri5', h=1.0), 20.0, periodic=False)
+        t = np.linspace(0.0, 20.0, 4001)
+        th, w = closed_form(MOTOR, t)
+        assert np.diff(drive.segments[0].solution.t).max() <= 1.0
+        assert np.abs(drive.omega(t) - w).max() <= 1e-7
+        assert np.abs(drive.theta(t) - th).max() <= 1e-9

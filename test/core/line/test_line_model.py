@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -10,14 +13,23 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from folder_line.config.params import config_dir, load_params, read_yaml_mapping
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
+from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import FolderLine
-from folder_line.core.line.model import NODES, LineModel, LineResult, sample_times, simulate
+from folder_line.core.line.model import MAX_DURATION, NODES, LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import knife as knf
+from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
+from folder_line.core.mechanisms.layup import TAU, LayupModel
+from folder_line.errors import AssemblyError, ParameterError
 from folder_line.interfaces import EVENT_KINDS
+
+from .._reference import PI_50, angle_diff, exact_frac_turns, ulp
 
 DURATION = {'folder': 12.0, 'layup': 12.0, 'line': 12.0}
 
@@ -375,3 +387,353 @@ def test_the_refusal_states_the_memory_the_model_would_need(monkeypatch: pytest.
     assert f'{leaves:.3g} leaves x {line_mod.BYTES_PER_LEAF} B' in reason
     assert f'at most {span * 1e9 / need:.4g} s of this scene' in reason
     line_mod.check_size(scene, span * 0.99e9 / need, span * 0.99e9 / need)  # what it says fits, fits
+
+
+# ----------------------------------------------------------------------- long runs, a touch of the stops, random scenes
+
+
+class TestLongRuns:
+    """Line times of 1e7 s without drift (exact rational references of :mod:`_reference`)."""
+
+    def test_layup_line_at_ten_million_seconds(self) -> None:
+        """LineModel to 1e7 + 100 s (leaves every 99991 s, crank at 31 rev/min so no exact cycle):
+        leaf_enter and leaf_exit times equal the exact rational sums to a few ulp(t) (~ns), the
+        exit speed is the model's at the exact crank phase, and joint samples near 1e7 s equal those
+        at the equivalent time of the first crank turn."""
+        over = {'sheets.interval': 99991.0, 'sheets.jitter': 0.0, 'sheets.phase': 0.123456789, 'layup.n_kr': 31.0}
+        scene = load_scene('layup', over)
+        horizon = 1e7 + 100.0
+        model = LineModel(scene, horizon)
+        ev = model.events
+        rate = Fraction(31, 60)  # crank turns per s
+        ent = ev[ev['kind'] == event_kind('leaf_enter')]
+        ext = ev[ev['kind'] == event_kind('leaf_exit')]
+        assert ent['t'].max() > 9.9e6 and ext['t'].max() > 9.9e6
+        exact_in = {int(j): Fraction(0.123456789) + int(j) * Fraction(99991.0) for j in ent['sheet']}
+        for row in ent:
+            assert abs(Fraction(float(row['t'])) - exact_in[int(row['sheet'])]) <= 2 * ulp(row['t'])
+        lp = scene.machine('layup')
+        lm = LayupModel(lp)
+        for row in ext[-6:]:
+            j = int(row['sheet'])
+            length = lp.l5 if j % 2 else lp.l3
+            t_exact = exact_in[j] + Fraction(length) / Fraction(lp.v_tr)
+            err = abs(Fraction(float(row['t'])) - t_exact)
+            assert err <= 4 * ulp(row['t']) and err <= 1e-9 * row['t']
+            frac = exact_frac_turns(float(row['t']), rate)
+            pt = lm.point(float(TAU * frac))
+            v_perp = pt.vE if j % 2 else pt.vC
+            assert row['value'] == pytest.approx(math.hypot(v_perp, lp.v_tr), abs=1e-8)
+        # joint samples at ~1e7 s against the equivalent time in the first crank turn
+        t_big = np.array([1e7 + 0.25, 1e7 + 1.3, 9999999.99, 1e7 + 37.123])
+        period = 1 / rate
+        t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) * rate) * period) for t in t_big])
+        assert np.all(t_small < float(period))
+        big, small = model.sample('crank_drive', t_big), model.sample('crank_drive', t_small)
+        w_max = np.abs(big.velocity).max()
+        for k in range(t_big.size):
+            frac = exact_frac_turns(float(t_big[k]), rate)
+            assert angle_diff(float(big.position[k, 0]), float(TAU * frac)) <= 1e-8
+            for jnt in range(big.position.shape[1]):
+                assert angle_diff(float(big.position[k, jnt]), float(small.position[k, jnt])) <= 1e-8 * w_max
+                assert abs(big.velocity[k, jnt] - small.velocity[k, jnt]) <= 1e-7 * w_max
+        with pytest.raises(ParameterError, match='horizon'):
+            LineModel(scene, MAX_DURATION * 1.5)
+
+    def test_folder_line_at_ten_million_seconds(self) -> None:
+        """The folder (a 7 rev/h knife: T = 514 s, 19444 cycles in 1e7 s -- the 50000 rev/h knife
+        would need 1.39e8 cycles of event arrays, see the report) at 1e7 s: knife, hand-over and
+        at-stops times equal the exact rational kinematics (pi to 50 digits) to a few ns."""
+        scene = load_scene('folder', {'knife.n_k': 7.0})
+        model = LineModel(scene, 1e7 + 600.0)
+        ev = model.events
+        kp = scene.machine('knife')
+        tm = cycle_timing(scene.machine('cyclogram'), kp)
+        kw = knf.window(kp)
+        T = Fraction(3600) / Fraction(kp.n_k)  # s per crank turn, exact
+        to_time = T / (2 * PI_50)  # s per rad of crank angle
+        t_in, t_out = Fraction(kw.phi_in) * to_time, Fraction(kw.phi_out) * to_time
+        feed = Fraction(tm.L_feed) / Fraction(scene.machine('feed_transporter').V_tr)
+        checks = {
+            'knife_contact': lambda k: (k + 1) * T + t_in,
+            'knife_exit': lambda k: (k + 1) * T + t_out,
+            'sheet_handover': lambda k: k * T + t_out + Fraction(scene.sheets.phase),
+            'at_stops': lambda k: k * T + t_out + Fraction(scene.sheets.phase) + feed,
+        }
+        for kind, exact in checks.items():
+            rows = ev[ev['kind'] == event_kind(kind)][-5:]
+            assert rows.size == 5 and rows['t'].min() > 9.99e6
+            for row in rows:
+                err = abs(Fraction(float(row['t'])) - exact(int(row['cycle'])))
+                assert err <= 8e-9 and err <= 1e-9 * row['t'], (kind, float(err))
+        t_big = np.array([1e7 + 0.5, 1e7 + 123.456])
+        t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) / T) * T) for t in t_big])
+        big, small = model.sample('crank_drive', t_big), model.sample('crank_drive', t_small)
+        for k in range(t_big.size):
+            frac = exact_frac_turns(float(t_big[k]), 1 / T)
+            assert angle_diff(float(big.position[k, 0]), float(2 * PI_50 * frac)) <= 1e-9
+            assert angle_diff(float(big.position[k, 0]), float(small.position[k, 0])) <= 1e-9
+            assert abs(big.position[k, 1] - small.position[k, 1]) <= 1e-11  # knife s, m
+            assert abs(big.velocity[k, 1] - small.velocity[k, 1]) <= 1e-12
+
+    def test_default_folder_restarted_after_a_hold_to_ten_million_seconds(self) -> None:
+        """The 50000 rev/h folder held from t = 1 s to 1e7 - 5 s and restarted: the events after the
+        restart sit where the exact piecewise-linear drive puts them, to a few ulp(1e7 s)."""
+        scene = load_scene('folder')
+        t_u = 1e7 - 5.0
+        model = LineModel(scene, 1e7 + 10.0, [Command(1.0, 'hold'), Command(t_u, 'unhold')])
+        kp = scene.machine('knife')
+        kw = knf.window(kp)
+        T = Fraction(3600) / Fraction(kp.n_k)
+        t_in = Fraction(kw.phi_in) * T / (2 * PI_50)
+        tb, tu = Fraction(scene.drive.t_brake), Fraction(scene.drive.t_restart)
+        theta_held = 1 + tb / 2  # Theta when the hold has stopped the drive
+
+        def time_of(theta: Fraction) -> Fraction:  # after the restart
+            d = theta - theta_held
+            assert d > tu / 2  # past the ramp: lambda = 1
+            return Fraction(t_u) + tu + (d - tu / 2)
+
+        rows = model.events[model.events['kind'] == event_kind('knife_contact')]
+        late = rows[rows['t'] > t_u]
+        assert late.size > 100
+        for row in late[-20:]:
+            err = abs(Fraction(float(row['t'])) - time_of((int(row['cycle']) + 1) * T + t_in))
+            assert err <= 2 * ulp(1e7)
+
+
+class TestGrazing:
+    """The front stops touched at zero speed: reported once or not at all, never twice."""
+
+    @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+    @given(
+        delta=st.one_of(st.sampled_from([0.0, 1e-15, -1e-15, 1e-12, -1e-12]), st.floats(-1e-6, 1e-6)),
+        k=st.integers(4, 9),
+    )
+    def test_sheet_edge_touching_the_stops(self, delta: float, k: int) -> None:
+        """The line's front-stop threshold: the supervisor holds the folder so that the drive comes to
+        rest with sheet k's edge exactly at the stops (delta = 0: a touch at zero speed), a hair
+        short of it (delta < 0: it arrives after the restart) or a hair past it (delta > 0: it
+        arrived while braking). Every sheet has at most one at_stops (exactly one if it got there),
+        at the drive phase of the stops, with the impact speed of the closed-form ramps; and at
+        most one 'settled'."""
+        scene = load_scene('folder')
+        timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
+        v_tr = scene.machine('feed_transporter').V_tr
+        theta_a = k * timing.T + timing.knife.t_out + scene.sheets.phase + timing.L_feed / v_tr
+        tb, tu = scene.drive.t_brake, scene.drive.t_restart
+        t_hold = theta_a - tb / 2 + delta  # braking covers tb/2 of Theta
+        t_unhold = t_hold + tb + 0.25  # stands still for 0.25 s
+        model = LineModel(scene, t_unhold + tu + 0.1, [Command(t_hold, 'hold'), Command(t_unhold, 'unhold')])
+        ev = model.events
+        stops = ev[ev['kind'] == event_kind('at_stops')]
+        _, counts = np.unique(stops['sheet'], return_counts=True)
+        assert counts.max() == 1
+        handed = ev[ev['kind'] == event_kind('sheet_handover')]['sheet']
+        assert set(stops['sheet']) <= set(handed)
+        settled = ev[ev['kind'] == event_kind('settled')]
+        assert np.unique(settled['sheet']).size == settled.size
+        row = stops[stops['sheet'] == k]
+        assert row.size == 1
+        t_a = float(row['t'][0])
+        assert float(model.drive.theta(np.array(t_a))) == pytest.approx(theta_a, abs=1e-14)
+        lam = float(model.drive.rate(np.array(t_a)))
+        assert row['value'][0] == pytest.approx(v_tr * lam, abs=1e-12)
+        # closed forms of the ramps (gap = Theta_a - Theta where the drive rests; > 0: short of the stops):
+        # reached while braking, lambda = sqrt(-2 gap / tb); after the restart, lambda = sqrt(2 gap / tu)
+        gap = theta_a - (t_hold + tb / 2)
+        if gap < -1e-13:
+            assert t_hold <= t_a <= t_hold + tb
+            assert lam == pytest.approx(math.sqrt(-2 * gap / tb), rel=1e-3)
+        elif gap > 1e-13:
+            assert t_a >= t_unhold
+            assert lam == pytest.approx(math.sqrt(2 * gap / tu), rel=1e-3)
+        assert 0.0 <= lam <= math.sqrt(2 * abs(gap) / min(tb, tu)) * (1 + 1e-3) + 1e-6
+
+
+def _defaults() -> dict[str, dict[str, Any]]:
+    out = {sec: dataclasses.asdict(load_params(sec)) for sec in ('layup', 'knife', 'cyclogram', 'delivery')}
+    for sec in ('container', 'feed_transporter', 'delivery_chain'):
+        out[sec] = read_yaml_mapping(config_dir() / f'{sec}.yaml', sec)
+    return out
+
+
+DEFAULTS = _defaults()
+#: documented ranges of the bounded parameters (the dataclasses' validation); the unbounded positive
+#: ones are drawn as a factor of the shipped default
+FACTOR = st.floats(0.5, 2.0)
+
+
+@st.composite
+def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
+    """A scene mapping with every value inside its documented type and range (combinations may
+    still be invalid: a non-Grashof loop, a knife level outside the stroke, a feed window < 0 ...)."""
+    machines: dict[str, Any] = {}
+    has_layup = draw(st.booleans())
+    has_folder = draw(st.booleans()) or not has_layup
+    effects: dict[str, Any] = {}
+    if has_layup:
+        lp = {k: v * draw(st.floats(0.7, 1.4)) for k, v in DEFAULTS['layup'].items()}
+        lp['n_kr'] = draw(st.floats(5.0, 120.0))
+        lp['v_tr'] = draw(st.floats(0.0, 8.0))
+        machines['layup'] = lp
+        machines['container'] = {
+            'x_left': draw(st.floats(-2.0, -0.2)),
+            'x_right': draw(st.floats(0.9, 3.0)),
+            'y_floor': draw(st.floats(-3.0, -0.9)),
+            'bins': draw(st.integers(2, 200)),
+        }
+        if draw(st.booleans()):
+            effects['chute_belts'] = {'v_min': draw(st.floats(0.0, 5.0))}
+        elif draw(st.booleans()):
+            effects['guide_friction'] = {
+                'mu': draw(st.floats(0.0, 2.0)),
+                's0': draw(st.floats(0.0, 0.6)),
+                'v0': draw(st.floats(0.0, 5.0)),
+                'h': draw(st.floats(2e-3, 0.05)),
+            }
+        if draw(st.booleans()):
+            effects['leaf_flight'] = {'drag': draw(st.floats(0.0, 10.0))}
+        if draw(st.booleans()):
+            effects['leaf_damage'] = {'v_damage': draw(st.floats(0.1, 10.0))}
+    if has_folder:
+        kd = DEFAULTS['knife']
+        r_k = kd['r_k'] * draw(FACTOR)
+        e = draw(st.floats(-0.05, 0.05))
+        L_k = (r_k + abs(e)) * draw(st.floats(0.95, 6.0))  # may fail L_k > r_k + |e|
+        lo = math.sqrt(max((L_k - r_k) ** 2 - e * e, 0.0))
+        hi = math.sqrt(max((L_k + r_k) ** 2 - e * e, 0.0))
+        machines['knife'] = {
+            'r_k': r_k,
+            'L_k': L_k,
+            'e': e,
+            'n_k': draw(st.floats(2e3, 2e5)),
+            's_clear': lo + (hi - lo) * draw(st.floats(-0.05, 1.05)),
+        }
+        cy = {k: v * draw(FACTOR) for k, v in DEFAULTS['cyclogram'].items() if k not in ('reserve', 'dwell_frac')}
+        cy['reserve'] = draw(st.floats(0.0, 0.99))
+        cy['dwell_frac'] = draw(st.floats(0.0, 0.99))
+        machines['cyclogram'] = cy
+        machines['feed_transporter'] = {'V_tr': draw(st.floats(0.5, 40.0))}
+        if draw(st.booleans()):
+            dd = dict(DEFAULTS['delivery'])
+            dd.update(
+                {
+                    'Lambda': draw(st.floats(0.05, 3.0)),
+                    'alpha_m_deg': draw(st.floats(1.0, 89.999)),
+                    'law': draw(st.sampled_from(dlv.law_names())),
+                }
+            )
+            for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
+                dd[key] = draw(st.floats(0.0, 0.4))
+            machines['delivery'] = dd
+            machines['delivery_chain'] = {
+                'x_max': draw(st.floats(0.05, 1.0)),
+                'pitch': draw(st.floats(0.2, 3.0)),
+                'L_transfer': draw(st.floats(0.0, 2.0)),
+            }
+            if draw(st.booleans()):
+                effects['chain_friction'] = {
+                    'P_k': draw(st.floats(0.0, 100.0)),
+                    'r': draw(st.floats(0.01, 0.5)),
+                    'return_section': draw(st.sampled_from(dlv.RETURN_SECTIONS)),
+                }
+        if draw(st.booleans()):
+            effects['stop_bounce'] = {
+                'e': draw(st.floats(0.0, 0.95)),
+                'a_f': draw(st.floats(10.0, 2000.0)),
+                'tolerance': draw(st.floats(1e-4, 0.01)),
+                'v_rest': draw(st.floats(0.01, 1.0)),
+            }
+        if draw(st.booleans()):
+            effects['feed_slip'] = {
+                'mu': draw(st.floats(0.05, 2.0)),
+                'p': draw(st.floats(0.0, 100.0)),
+                'm': draw(st.floats(0.005, 0.1)),
+            }
+    if draw(st.booleans()):
+        effects['faults'] = {
+            'p_missing': draw(st.floats(0.0, 1.0)),
+            'p_double': draw(st.floats(0.0, 1.0)),
+            'p_late': draw(st.floats(0.0, 1.0)),
+            'late_delay': draw(st.floats(0.0, 0.05)),
+            'p_slowdown': draw(st.floats(0.0, 1.0)),
+            'slowdown_factor': draw(st.floats(0.05, 1.0)),
+            'slowdown_duration': draw(st.floats(0.0, 0.2)),
+        }
+    if draw(st.integers(0, 3)) == 0:
+        omega_nom = draw(st.floats(50.0, 200.0))
+        effects['motor_dynamics'] = {
+            'J': draw(st.floats(0.05, 5.0)),
+            'T_0': draw(st.floats(20.0, 2000.0)),
+            'omega_0': omega_nom * draw(st.floats(1.01, 1.5)),
+            'omega_nom': omega_nom,
+            'b': draw(st.floats(0.0, 0.1)),
+            'method': draw(st.sampled_from(md.METHODS)),
+            'h': draw(st.floats(1e-3, 0.05)),
+            'rtol': draw(st.floats(1e-10, 1e-4)),
+            'atol': draw(st.floats(1e-12, 1e-6)),
+            't_stop': draw(st.sampled_from([1e9, 0.1, 0.0])),
+            'T_brake': draw(st.floats(0.0, 50.0)),
+        }
+    profile = draw(st.sampled_from(['constant', 'ramp']))
+    return {
+        'name': 'random',
+        'machines': machines,
+        'effects': effects,
+        'drive': {'profile': profile, 't_ramp': draw(st.floats(0.01, 1.0)), 't_brake': draw(st.floats(0.01, 1.0))},
+        'sheets': {
+            'interval': draw(st.floats(0.02, 0.5)),
+            'jitter': draw(st.floats(0.0, 0.99)),
+            'phase': draw(st.floats(0.0, 0.3)),
+            'thickness': draw(st.floats(1e-5, 0.01)),
+        },
+        'seed': draw(st.integers(0, 2**62)),
+        'sample_rate': draw(st.floats(0.0, 400.0)),
+    }
+
+
+def finite_tree(x: Any) -> bool:
+    """Every number in a nested summary (dicts, lists) is finite (None allowed)."""
+    if isinstance(x, dict):
+        return all(finite_tree(v) for v in x.values())
+    if isinstance(x, (list, tuple)):
+        return all(finite_tree(v) for v in x)
+    if isinstance(x, (bool, str)) or x is None:
+        return True
+    return bool(np.all(np.isfinite(x)))
+
+
+class TestRandomScenes:
+    """Random scenes within the documented ranges: finite outputs or a documented error."""
+
+    @settings(
+        max_examples=200,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    )
+    @given(data=scenes(), commands=st.sampled_from([(), ((0.1, 'hold'), (0.2, 'unhold'))]))
+    def test_random_scene_runs_finite_or_fails_documented(
+        self, data: dict[str, Any], commands: tuple[tuple[float, str], ...]
+    ) -> None:
+        try:
+            scene = parse_scene(data)
+            res = simulate(scene, 0.3, commands=[Command(t, kind) for t, kind in commands])
+        except ParameterError as exc:
+            assert exc.key and str(exc).startswith(f'{exc.key}=')  # names the parameter
+            return
+        except AssemblyError as exc:
+            assert exc.mechanism.startswith('layup loop') and math.isfinite(exc.phi)
+            assert str(exc).startswith(exc.mechanism)  # names the loop and the angle
+            return
+        ev = res.events
+        assert np.all(np.isfinite(ev['t'])) and np.all(np.isfinite(ev['value']))
+        assert np.all((ev['t'] >= 0.0) & (ev['t'] <= 0.3))
+        assert np.all(np.diff(ev['t']) >= 0.0)
+        for js in res.samples.values():
+            assert np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))
+            assert js.effort is None or np.all(np.isfinite(js.effort))
+        for c in res.constraints:
+            assert np.all(np.isfinite(c.margin))
+        assert finite_tree(res.summary())

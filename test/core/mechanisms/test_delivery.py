@@ -7,6 +7,7 @@ import math
 import warnings
 from typing import Any
 
+import mpmath as mp
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
@@ -666,3 +667,125 @@ def test_stroke_minimum_arguments() -> None:
         evaluate({'Lambda': 0.4}, 0.5)  # type: ignore[arg-type]
     u, kv = stroke_minimum(ref(), 'K_v', return_section='paper_mirror')
     assert u == pytest.approx(0.31806, abs=1e-4) and kv == pytest.approx(0.945047, abs=1e-6)
+
+
+# ------------------------------------------------------------------------ limits: alpha_m -> 90 deg, K_v -> 0, eta -> 0
+def delivery(**over: Any) -> dl.DeliveryParams:
+    base = dataclasses.asdict(load_params('delivery'))
+    base.update(over)
+    return dl.DeliveryParams(**base)
+
+
+FRICTIONLESS = {key: 0.0 for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O')}
+STROKE = np.concatenate([np.linspace(0.0, 2.0, 4001), [1.0 - 1e-15, 1.0 + 1e-15, 2.0 - 1e-12]])
+
+
+def all_finite(s: dl.DeliverySamples) -> bool:
+    return all(np.all(np.isfinite(getattr(s, f.name))) for f in dataclasses.fields(s))
+
+
+def non_ok_zeroed(s: dl.DeliverySamples) -> bool:
+    bad = s.state != dl.STATE_OK
+    return all(
+        np.all(getattr(s, n)[bad] == 0.0)
+        for n in ('eta', 'eta_A', 'eta_B', 'p_AB', 'p_ch', 'm_1', 'p_AB_ideal', 'p_ch_ideal', 'm_1_ideal')
+    )
+
+
+class TestDeliveryLimits:
+    """alpha_m -> 90 deg, K_v -> 0, eta -> 0: states, never NaN/inf, no warnings (mpmath references)."""
+
+    @pytest.mark.parametrize('alpha_m', [89.9999, 90.0 - 1e-9, math.nextafter(90.0, 0.0)])
+    @pytest.mark.parametrize('friction', [True, False])
+    def test_alpha_m_to_90(self, alpha_m: float, friction: bool) -> None:
+        """Near psi = 1 the rod stands almost across the guide: self_locking (geometric or by
+        friction), everything finite; where the model still holds, 1/cos(alpha) matches mpmath
+        (to the 1e-4 that the rounding of sin(alpha_m) next to 1 allows)."""
+        p = delivery(alpha_m_deg=alpha_m, **({} if friction else FRICTIONLESS))
+        for mode in dl.RETURN_SECTIONS:
+            s = dl.evaluate_stroke(p, STROKE, return_section=mode)
+            assert all_finite(s) and non_ok_zeroed(s)
+            end = np.abs(s.u - 1.0) < 1e-12  # psi = 1: alpha = alpha_m
+            assert np.all(s.state[end] == dl.STATE_SELF_LOCKING) or not friction and alpha_m == 89.9999
+            ok = s.state == dl.STATE_OK
+            assert ok.any()  # most of the stroke still works
+            with mp.workdps(40):
+                sa = mp.sin(mp.radians(mp.mpf(alpha_m)))
+                cos_ref = np.array([float(mp.sqrt(1 - (mp.mpf(float(x)) * sa) ** 2)) for x in s.psi[ok]])
+            assert np.allclose(s.p_AB_ideal[ok] * cos_ref, 1.0, rtol=1e-4, atol=0.0)
+            for u in (1.0, 0.999999, 1.5):  # the scalar path agrees on the state
+                assert dl.evaluate_stroke_point(p, u, return_section=mode).state == int(
+                    dl.evaluate_stroke(p, [u], return_section=mode).state[0]
+                )
+        if not friction and alpha_m == 89.9999:  # cos(alpha_m) = 1.7e-6 > COS_ALPHA_TOL: ok, force ~ 5.7e5 P_k
+            pt = dl.evaluate_point(p, 1.0)
+            assert pt.state == dl.STATE_OK and pt.p_AB == pytest.approx(1.0 / math.cos(math.radians(alpha_m)), rel=1e-4)
+        with pytest.raises(ParameterError, match='alpha_m_deg'):
+            delivery(alpha_m_deg=90.0)
+
+    @staticmethod
+    def kv_touch() -> tuple[float, float, float]:
+        """(alpha_m, Lambda*, xi*) with min K_v = 0 on the geometric return (mpmath): there
+        tan(alpha) tan|beta| = 1, i.e. Lambda* = 1 / max_xi(tan(alpha) psi'(xi))."""
+        alpha_m = 60.0
+        with mp.workdps(40):
+            sm = mp.sin(mp.radians(alpha_m))
+
+            def g(xi: Any) -> Any:  # tan(alpha) psi' for the sinusoidal law
+                psi = xi - mp.sin(2 * mp.pi * xi) / (2 * mp.pi)
+                sa = psi * sm
+                return sa / mp.sqrt(1 - sa * sa) * (1 - mp.cos(2 * mp.pi * xi))
+
+            xi = mp.findroot(lambda x: mp.diff(g, x), mp.mpf('0.67'))  # the maximum, near 0.67
+            return alpha_m, float(1 / g(xi)), float(xi)
+
+    @pytest.mark.parametrize('rel', [0.0, 1e-12, -1e-12, 1e-6, -1e-6])
+    def test_kv_to_zero(self, rel: float) -> None:
+        """K_v touches 0 at Lambda*: kv_zero there (|K_v| < 1e-9), carriage_reversed past it,
+        forces and efficiencies 0 in those states, all finite, no warnings."""
+        alpha_m, lam, xi = self.kv_touch()
+        p = delivery(alpha_m_deg=alpha_m, Lambda=lam * (1.0 + rel))
+        u_star = 2.0 - xi  # on the return section
+        pt = dl.evaluate_stroke_point(p, u_star)
+        # K_v(xi*) = cos(beta) (1 - tan(alpha) tan|beta|) ~ -rel cos(beta) near the touch
+        assert abs(pt.K_v + rel * math.cos(pt.beta)) <= 1e-6 * abs(rel) + 1e-13
+        if abs(pt.K_v) < dl.KV_TOL:
+            expect = dl.STATE_KV_ZERO
+        elif pt.K_v < 0.0:
+            expect = dl.STATE_CARRIAGE_REVERSED
+        else:  # eq. (3): eta_B = 1 - f_Bp |tan a| - f_B r_B |sin b| / (K_v cos^2 a) <= 0 locks by friction
+            ca = math.cos(pt.alpha)
+            eta_b = 1.0 - p.f_Bp * math.tan(pt.alpha) - p.f_B * p.r_B * abs(math.sin(pt.beta)) / (pt.K_v * ca * ca)
+            expect = dl.STATE_SELF_LOCKING if eta_b <= 0.0 else dl.STATE_OK
+        assert pt.state == expect
+        if rel == 0.0:
+            assert pt.state == dl.STATE_KV_ZERO
+        u = np.concatenate([STROKE, u_star + np.linspace(-1e-4, 1e-4, 201)])
+        s = dl.evaluate_stroke(p, u)
+        assert all_finite(s) and non_ok_zeroed(s)
+        reversed_ = s.state == dl.STATE_CARRIAGE_REVERSED
+        assert reversed_.any() == (rel > 1e-9)
+        assert np.all(s.K_v[reversed_] <= -dl.KV_TOL)
+
+    @pytest.mark.parametrize('margin', [1e-6, 1e-11, 1e-13, 0.0, -1e-6])
+    def test_eta_to_zero(self, margin: float) -> None:
+        """Only pair B's sliding friction: eta = 1 - f_Bp tan(alpha), 0 at psi = 1 for
+        f_Bp = (1 - margin) / tan(alpha_m). eta <= ETA_TOL is self_locking; above, the forces
+        grow like 1/eta but stay finite."""
+        alpha_m = 60.0
+        f_bp = (1.0 - margin) / math.tan(math.radians(alpha_m))
+        p = delivery(alpha_m_deg=alpha_m, **{**FRICTIONLESS, 'f_Bp': f_bp})
+        pt = dl.evaluate_point(p, 1.0)
+        with mp.workdps(40):
+            eta_ref = float(1 - mp.mpf(f_bp) * mp.tan(mp.radians(mp.mpf(alpha_m))))
+        if eta_ref > dl.ETA_TOL * 2:
+            assert pt.state == dl.STATE_OK
+            assert pt.eta == pytest.approx(eta_ref, rel=1e-15 / eta_ref + 1e-12)
+            assert pt.p_AB == pytest.approx(
+                1.0 / (math.cos(math.radians(alpha_m)) * eta_ref), rel=1e-15 / eta_ref + 1e-12
+            )
+        elif eta_ref < dl.ETA_TOL / 2:
+            assert pt.state == dl.STATE_SELF_LOCKING and pt.eta == 0.0 and pt.p_AB == 0.0
+        s = dl.evaluate(p, np.linspace(0.0, 1.0, 2001))
+        assert all_finite(s) and non_ok_zeroed(s)
+        assert np.all((s.eta >= 0.0) & (s.eta <= 1.0))

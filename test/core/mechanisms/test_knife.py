@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from fractions import Fraction
+from typing import Any
 
 import mpmath as mp
 import numpy as np
@@ -17,6 +19,8 @@ from folder_line.core.limits import KNIFE_SPEED
 from folder_line.core.mechanisms import knife as kn
 from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.errors import ParameterError
+
+from .._reference import DELTAS, EPS, angle_diff, exact_frac_turns, ulp
 
 mp.mp.dps = 40
 
@@ -301,3 +305,59 @@ def test_state_at_time_agrees_with_window(ref: KnifeParams) -> None:
     assert occ[inside].all() and not occ[outside].any()
     s0 = kn.state_at_time(ref, 0.0)
     assert s0.occupies is True and s0.s == 0.2 and isinstance(s0.v, float)
+
+
+# --------------------------------------------------------------------- dead centres (mpmath at 40 digits) and 1e9 turns
+
+
+class TestDeadCentres:
+    """v changes sign smoothly through the outer and inner dead centres, +-1e-12 rad."""
+
+    @pytest.mark.parametrize('e', [0.0, 0.012, -0.02])
+    @pytest.mark.parametrize('which', ['outer', 'inner'])
+    def test_knife_dead_centres(self, e: float, which: str) -> None:
+        """v changes sign through 0 with slope omega s''(phi_dc) (mpmath), a finite and continuous."""
+        p = kn.KnifeParams(r_k=0.04, L_k=0.16, e=e, n_k=50000.0, s_clear=0.1656)
+        dc = kn.dead_centres(p)
+        phi0 = dc.phi_outer if which == 'outer' else dc.phi_inner
+        with mp.workdps(40):
+            r, L, ee = mp.mpf(p.r_k), mp.mpf(p.L_k), mp.mpf(e)
+
+            def s(x: Any) -> Any:
+                return r * mp.cos(x) + mp.sqrt(L * L - (r * mp.sin(x) - ee) ** 2)
+
+            exact = mp.asin(ee / (L + r)) if which == 'outer' else mp.pi + mp.asin(ee / (L - r))
+            assert abs(float(exact) - phi0) <= ulp(phi0)
+            s2 = float(mp.diff(s, exact, 2))
+            s3 = float(mp.diff(s, exact, 3))
+        w = p.omega_k
+        assert (s2 < 0) == (which == 'outer')  # a maximum of s at the outer, a minimum at the inner dead centre
+        for d in DELTAS:
+            st = kn.state(p, phi0 + d)
+            assert all(math.isfinite(float(v)) for v in (st.s, st.v, st.a))
+            with mp.workdps(40):
+                off = float(mp.mpf(phi0 + d) - exact)  # d as represented, from the exact centre
+            v_ref = w * (s2 * off + 0.5 * s3 * off * off)
+            assert math.copysign(1.0, st.v) == math.copysign(1.0, s2 * d)
+            assert abs(st.v - v_ref) <= 4 * EPS * w * p.r_k + 1e-6 * abs(v_ref)
+            assert abs(st.s - (dc.s_max if which == 'outer' else dc.s_min)) <= 4 * ulp(p.L_k)
+            assert abs(st.a - w * w * s2) <= 1e-9 * abs(w * w * s2)
+
+
+class TestLongRuns:
+    """1e9 crank turns without drift (exact rational references of :mod:`_reference`)."""
+
+    def test_knife_float_path_at_a_billion_turns(self, ref: KnifeParams) -> None:
+        """knife.state_at_time computes phi = omega_k t afresh (no accumulation): at 1e9 turns
+        (t = 7.2e7 s) its phase error is a few ulp of phi, i.e. ~1e-8 s, 1.5e-16 of t."""
+        T = Fraction(3600) / Fraction(ref.n_k)
+        for t in (1e7 + 0.0123, 7.2e7 + 0.0123, float(10**9 * T + Fraction(1, 50))):
+            st_ = kn.state_at_time(ref, t)
+            with mp.workdps(50):
+                frac = exact_frac_turns(t, Fraction(ref.n_k) / 3600)
+                phi_ref = float(2 * mp.pi * mp.mpf(frac.numerator) / frac.denominator)
+            dphi = angle_diff(float(st_.phi), phi_ref)
+            assert dphi <= 8 * ulp(float(st_.phi))
+            assert dphi / ref.omega_k <= 1e-15 * t  # 6 orders inside 1e-9 relative
+            slope = abs(st_.v) / ref.omega_k  # |ds/dphi|, m/rad
+            assert st_.s == pytest.approx(kn.position(ref, phi_ref), abs=1.01 * slope * dphi + 0.05 * dphi**2 + 1e-15)

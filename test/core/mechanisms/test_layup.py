@@ -9,7 +9,9 @@ from fractions import Fraction
 from itertools import pairwise
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
+import mpmath as mp
 import numpy as np
 import pytest
 import yaml
@@ -40,7 +42,10 @@ from folder_line.core.numerics.loop import (
     circle_point_velocity,
     tracked_intersection,
 )
+from folder_line.core.numerics.roots import find_sign_changes
 from folder_line.errors import AssemblyError, ParameterError
+
+from .._reference import DELTAS, EPS, crank_turns_fully, mp_rate, mp_sixbar
 
 P = load_params('layup')
 M = LayupModel(P)
@@ -636,3 +641,145 @@ def test_belt_keeps_exit_speeds_at_or_above_v_tr(phi: float) -> None:
 
 def test_benchmark_script_exists() -> None:
     assert (Path(__file__).resolve().parents[3] / 'bench' / 'bench_layup.py').is_file()
+
+
+# ----------------------------------------------------------------------- dead centres and toggles (mpmath at 40 digits)
+
+
+class TestDeadCentresAndToggles:
+    """The six-bar at +-1e-12 rad of its dead centres and toggles, Grashof change points,
+    delta3 = 90 deg: against the mpmath loop closure of :mod:`_reference`."""
+
+    # ---- L six-bar: the rocker dead centres (swing extremes), both loops ----------------
+    @pytest.mark.parametrize('which', [0, 1])
+    def test_sixbar_swing_extremes(self, which: int) -> None:
+        """At the closed-form dead centres O1, A, B are collinear: omega3 = omega5 = 0.
+
+        Exact references: the dead-centre angle is the mpmath root of d(theta3)/dphi;
+        omega3, omega5 at phi_e +- 1e-12 are mpmath derivatives of the mpmath loop
+        closure at the same float angles; eps3 likewise (second derivative).
+        """
+        model = LayupModel(P)
+        w = P.omega
+        ext = swing_extremes(P)[which]
+        with mp.workdps(40):
+
+            def th3(x: Any) -> Any:
+                return mp_sixbar(P, x)['theta3']
+
+            def th5(x: Any) -> Any:
+                return mp_sixbar(P, x)['theta5']
+
+            root = mp.findroot(lambda x: mp.diff(th3, x), mp.mpf(ext.phi))
+            assert abs(float(root) - ext.phi) <= 4 * EPS  # the closed form is exact to rounding (of O(1) terms)
+            slope3 = float(mp.diff(th3, root, 2)) * w  # d(omega3)/dphi at the dead centre, rad/s per rad
+        pts = {d: model.point(ext.phi + d) for d in (*DELTAS, 0.0)}
+        arr = model.arrays(np.array([ext.phi + d for d in (*DELTAS, 0.0)]))
+        for pt in pts.values():
+            assert all(math.isfinite(v) for v in pt)
+        assert np.all(np.isfinite(np.stack([arr.eps3, arr.eps5])))
+        for d in DELTAS:
+            x = ext.phi + d
+            w3, w5 = pts[d].omega3, pts[d].omega5
+            w3_ref, w5_ref = mp_rate(th3, x) * w, mp_rate(th5, x) * w
+            with mp.workdps(40):
+                off = float(mp.mpf(x) - root)  # d, up to the 4.5e-17 of phi_e
+            # magnitude ~ |slope| 1e-12 and the sign of slope * d: a smooth sign change through 0
+            assert math.copysign(1.0, w3) == math.copysign(1.0, slope3 * d) == math.copysign(1.0, w3_ref)
+            assert abs(w3_ref - slope3 * off) <= 1e-6 * abs(slope3 * d)  # the reference is linear here
+            assert abs(w3 - w3_ref) <= 1e-14  # absolute rounding of omega3
+            assert abs(w3 - w3_ref) <= 1e-3 * abs(w3_ref)  # i.e. 0.1 % of a 1e-12-size value
+            assert abs(w5 - w5_ref) <= 1e-14 and math.copysign(1.0, w5) == math.copysign(1.0, w5_ref)
+            # positions continuous: the exits move by O(d^2) at a dead centre
+            assert math.hypot(pts[d].xC - pts[0.0].xC, pts[d].yC - pts[0.0].yC) <= 1e-15
+            assert math.hypot(pts[d].xE - pts[0.0].xE, pts[d].yE - pts[0.0].yE) <= 1e-15
+        # accelerations finite, continuous across, and equal to the mpmath second derivative
+        eps_ref = mp_rate(th3, ext.phi, 2) * w * w
+        assert np.allclose(arr.eps3, eps_ref, rtol=1e-9, atol=0.0)
+        assert abs(float(arr.eps3[0]) - float(arr.eps3[1])) <= 1e-9 * abs(eps_ref)
+
+    def test_sixbar_chute4_has_no_dead_centre_of_its_own(self) -> None:
+        """omega5 = 2 omega3 (E-C).C_perp / S2 vanishes only with omega3 on the defaults (O2, C, E never
+        in line): so the dead centres of both loops are the two swing extremes tested above."""
+        model = LayupModel(P)
+        phi = np.linspace(0.0, TAU, 20001)
+        s = model.arrays(phi, accelerations=False)
+        ratio = s.omega5 / np.where(s.omega3 == 0.0, 1.0, s.omega3)
+        assert ratio.min() > 0.5  # omega5 / omega3 bounded away from 0: no extra turning point of chute 4
+
+    def test_sixbar_toggle_geometry_is_rejected_and_finite_just_inside(self) -> None:
+        """Loop 1 on the Grashof boundary reaches a toggle (all four links in line) once a turn:
+        LayupParams rejects it (ParameterError naming the lengths); the raw model is finite at
+        phi_t - 1e-12 and +1e-12, or raises the documented AssemblyError naming phi, never NaN."""
+        base = dataclasses.asdict(P)
+        ground = math.hypot(P.a, P.b)
+        # ground longest: toggle where |A - O2| = ground + R_kr = l2 + O2B (crank pointing away from O2)
+        over = {**base, 'l2': ground + P.R_kr - P.O2B}
+        assert classify_fourbar(ground, P.R_kr, over['l2'], P.O2B) == 'change-point'
+        with pytest.raises(ParameterError, match='Grashof boundary') as info:
+            LayupParams(**over)
+        assert info.value.key == 'layup.R_kr,a,b,l2,O2B'
+        raw = LayupModel(type('Raw', (), over)())  # unvalidated: the model itself must stay finite or raise
+        phi_t = math.atan2(P.b, P.a)  # A farthest from O2
+        for d in (-1e-12, 1e-12, 0.0, -1e-9, 1e-9, -1e-6, 1e-6):
+            d1, d2 = raw.discriminants_scalar(phi_t + d)
+            assert math.isfinite(d1) and math.isfinite(d2)
+            assert -16 * EPS <= d1 <= 2 * d * d + 16 * EPS  # loop 1 touches its toggle: D1 ~ c d^2 >= 0
+            try:
+                pt = raw.point(phi_t + d)
+            except AssemblyError as exc:  # the documented error, naming the loop and the angle
+                assert exc.phi == phi_t + d and (exc.mechanism == LOOP1 or d2 < 0.0)
+            else:
+                assert all(math.isfinite(v) for v in pt)
+
+    # ---- Grashof classification and change points -------------------------------------------
+    @settings(max_examples=60, deadline=None, derandomize=True)
+    @given(
+        links=st.lists(st.integers(1, 2**20), min_size=3, max_size=3),
+        order=st.permutations(range(4)),
+        rel=st.sampled_from([0.0, 1e-13, -1e-13, 1e-9, -1e-9]),
+    )
+    def test_change_point_geometries(self, links: list[int], order: list[int], rel: float) -> None:
+        """s + l = p + q exactly (dyadic lengths, exact sums) is 'change-point' whichever link is ground
+        or input, and so is 1e-13 off (inside GRASHOF_REL_TOL). 1e-9 off it is a proper class that
+        agrees with the geometry (exact arithmetic): the input link turns fully iff 'crank-rocker' or
+        'double-crank'; a longest link made longer is 'non-Grashof'."""
+        a, b, c = sorted(links)
+        four = [a * 2.0**-20, b * 2.0**-20, c * 2.0**-20, (b + c - a) * 2.0**-20]  # s + l = p + q
+        four[3] *= 1.0 + rel
+        g = [four[i] for i in order]
+        kind = classify_fourbar(*g)
+        if abs(rel) < 1e-12:
+            assert kind == 'change-point'
+            return
+        assert kind != 'change-point'
+        assert crank_turns_fully(*g) == (kind in ('crank-rocker', 'double-crank'))
+        if rel > 0:
+            assert kind == 'non-Grashof'
+
+    # ---- delta3 = 90 deg ------------------------------------------------------------------
+    def test_branch_tracking_across_delta3_90(self) -> None:
+        """Where the paper switches root (delta3 = 90 deg) the loop closure has no choice to make:
+        E is continuous to O(step) on every scale from 1e-3 down to 1e-12 rad."""
+        model = LayupModel(P)
+
+        def d3(phi: float) -> float:  # angle at C between C->O2 and C->E, deg
+            pt = model.point(phi)
+            ux, uy, vx, vy = -pt.xC, -pt.yC, pt.xE - pt.xC, pt.yE - pt.yC
+            return math.degrees(math.atan2(abs(ux * vy - uy * vx), ux * vx + uy * vy))
+
+        grid = np.linspace(0.0, TAU, 3601)
+        vals = np.array([d3(x) for x in grid]) - 90.0
+        sc = find_sign_changes(lambda x: d3(x) - 90.0, grid, values=vals, xtol=1e-15)
+        assert len(sc) == 2
+        vmax = float(np.abs(model.arrays(grid, accelerations=False).vE).max()) / P.omega  # |dE/dphi|, m/rad
+        for phi_s in sc.x:
+            for h in (1e-3, 1e-6, 1e-9, 1e-12):
+                a, b = model.point(phi_s - h), model.point(phi_s + h)
+                assert math.hypot(a.xE - b.xE, a.yE - b.yE) <= 2 * h * vmax * (1 + 1e-9) + 4 * EPS
+                assert abs(a.omega5 - b.omega5) <= 2 * h * 10.0 + 1e-13  # |d omega5/dphi| < 10 rad/s per rad
+            # and it is the mpmath loop closure's E (the one root of the unsquared equations)
+            with mp.workdps(40):
+                ref = mp_sixbar(P, mp.mpf(float(phi_s)))['E']
+            pt = model.point(float(phi_s))
+            assert abs(pt.xE - float(ref[0])) <= 1e-15 and abs(pt.yE - float(ref[1])) <= 1e-15

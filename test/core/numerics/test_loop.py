@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
+import mpmath as mp
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
+from folder_line.core.mechanisms.layup import TAU, classify_fourbar
 from folder_line.core.numerics.loop import (
     TOGGLE_TOL,
+    Intersection,
     circle_intersection,
     circle_intersection_scalar,
     circle_point_acceleration,
@@ -21,6 +25,8 @@ from folder_line.core.numerics.loop import (
     tracked_intersection,
 )
 from folder_line.errors import AssemblyError
+
+from .._reference import mp_circle, mp_rate
 
 coord = st.floats(-10.0, 10.0, allow_nan=False)
 radius = st.floats(0.05, 5.0, allow_nan=False)
@@ -299,3 +305,120 @@ def test_scalar_inputs_give_scalars() -> None:
     assert_allclose((4.0 * vx + 3.0 * vy, (-4.0) * (vx - 1.0) + 3.0 * vy), (0.0, 0.0), atol=1e-15)
     assert_allclose([vx, vy], [0.5, -2.0 / 3.0], rtol=1e-15)
     assert_array_equal(np.shape(vx), ())
+
+
+# --------------------------------------------------------------------------- a four-bar at its dead centres and toggles
+
+
+class TestFourBarDeadCentresAndToggles:
+    """The four-bar of circle_intersection at +-1e-12 rad of its rocker dead centres, at its toggle
+    limit and at a change point: against the mpmath loop closure of :mod:`_reference`."""
+
+    @staticmethod
+    def fourbar(
+        phi: np.ndarray, d: float, R: float, coupler: float, q: float, w: float = 1.0, tol: float = TOGGLE_TOL
+    ) -> tuple[Intersection, np.ndarray, np.ndarray]:
+        """Crank O1 = 0 (radius R, speed w), rocker pivot O2 = (d, 0) (radius q), coupler of length ``coupler``:
+        B = circle(O2, q) x circle(A, coupler) on branch +1; velocity and acceleration of B."""
+        ax, ay = R * np.cos(phi), R * np.sin(phi)
+        vx, vy = -w * ay, w * ax
+        accx, accy = -w * w * ax, -w * w * ay
+        it = circle_intersection(d, 0.0, q, ax, ay, coupler, 1, inputs=phi, tol=tol, mechanism='four-bar')
+        zero = np.zeros_like(phi)
+        vb = np.array(circle_point_velocity(it.x, it.y, ax, ay, vx, vy, d, 0.0, zero, zero))
+        ab = np.array(
+            circle_point_acceleration(
+                it.x, it.y, vb[0], vb[1], ax, ay, vx, vy, accx, accy, d, 0.0, zero, zero, zero, zero
+            )
+        )
+        return it, vb, ab
+
+    @staticmethod
+    def mp_fourbar_B(phi: Any, d: float, R: float, coupler: float, q: float) -> tuple[Any, Any]:
+        Rm = mp.mpf(R)
+        return mp_circle(mp.mpf(d), 0, mp.mpf(q), Rm * mp.cos(phi), Rm * mp.sin(phi), mp.mpf(coupler), 1)
+
+    def test_fourbar_rocker_dead_centres(self) -> None:
+        """Crank-rocker (0.3, 0.9, 0.7 on ground 1.0): v_B changes sign at the collinear positions,
+        with |v_B| = |dv_B/dphi| 1e-12 (mpmath), a_B finite and continuous."""
+        d, R, coupler, q = 1.0, 0.3, 0.9, 0.7
+        assert classify_fourbar(d, R, coupler, q) == 'crank-rocker'
+        scan = np.linspace(0.0, TAU, 4001)
+        it0, vb, _ = self.fourbar(scan, d, R, coupler, q)
+        speed = (it0.x - d) * vb[1] - it0.y * vb[0]  # (B - O2) x v_B: the rocker's angular velocity * q^2
+        flips = np.flatnonzero(np.sign(speed[:-1]) != np.sign(speed[1:]))
+        assert len(flips) == 2
+        with mp.workdps(40):
+
+            def cross(x: Any) -> Any:  # (A - O1) x (B - A): 0 where O1, A, B are in line
+                bx, by = self.mp_fourbar_B(x, d, R, coupler, q)
+                ax, ay = R * mp.cos(x), R * mp.sin(x)
+                return ax * (by - ay) - ay * (bx - ax)
+
+            for i in flips:
+                phi0 = float(mp.findroot(cross, mp.mpf(float(scan[i]))))
+
+                def bx(x: Any) -> Any:
+                    return self.mp_fourbar_B(x, d, R, coupler, q)[0]
+
+                def by(x: Any) -> Any:
+                    return self.mp_fourbar_B(x, d, R, coupler, q)[1]
+
+                slope = math.hypot(mp_rate(bx, phi0, 2), mp_rate(by, phi0, 2))  # |dv_B/dphi| there, m/rad
+                assert abs(mp_rate(bx, phi0)) < 1e-14 and abs(mp_rate(by, phi0)) < 1e-14
+                phis = np.array([phi0 - 1e-12, phi0 + 1e-12])
+                it, v, a = self.fourbar(phis, d, R, coupler, q)
+                assert np.all(np.isfinite(v)) and np.all(np.isfinite(a)) and not it.toggle.any()
+                ref = np.array([[mp_rate(bx, x) for x in phis], [mp_rate(by, x) for x in phis]])
+                assert np.abs(v - ref).max() <= 1e-15
+                assert np.allclose(np.hypot(*v), slope * 1e-12, rtol=1e-2, atol=0.0)
+                assert np.all(np.sign(v[:, 0]) == -np.sign(v[:, 1]))  # each component reverses
+                assert np.abs(a[:, 0] - a[:, 1]).max() <= 1e-9 * np.abs(a).max()
+
+    def test_fourbar_toggle_limit_position(self) -> None:
+        """Non-Grashof (0.8, 0.5, 0.6 on 1.0): the crank's limit where coupler and rocker line up.
+        Just inside: finite, |v_B| ~ delta^-1/2 (mpmath); just past within the toggle tolerance: the
+        tangent point, flagged; further: AssemblyError naming the crank angle."""
+        d, R, coupler, q = 1.0, 0.8, 0.5, 0.6
+        assert classify_fourbar(d, R, coupler, q) == 'non-Grashof'
+        with mp.workdps(40):
+            phi_l = mp.acos((d * d + R * R - (coupler + q) ** 2) / (2 * d * R))  # |A - O2| = coupler + q
+        x_l = float(phi_l)
+        speeds = {}
+        for dl in (1e-12, 4e-12):
+            phi = x_l - dl
+            it, v, a = self.fourbar(np.array([phi]), d, R, coupler, q)
+            assert np.all(np.isfinite(v)) and np.all(np.isfinite(a))
+            with mp.workdps(40):
+                ref = math.hypot(
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, coupler, q)[0], phi),
+                    mp_rate(lambda x: self.mp_fourbar_B(x, d, R, coupler, q)[1], phi),
+                )
+                true_dl = float(phi_l - mp.mpf(phi))
+            speed = math.hypot(float(v[0, 0]), float(v[1, 0]))
+            assert abs(speed - ref) <= 1e-3 * ref
+            speeds[dl] = speed * math.sqrt(true_dl)
+        assert speeds[1e-12] == pytest.approx(speeds[4e-12], rel=1e-3)  # |v| sqrt(delta) constant
+        past = x_l + 1e-12  # position only: the velocity is unbounded at a toggle (documented)
+        it = circle_intersection(d, 0.0, q, R * math.cos(past), R * math.sin(past), coupler, 1, inputs=past)
+        x, y = float(it.x), float(it.y)
+        assert bool(it.toggle) and math.isfinite(x) and math.isfinite(y) and float(it.disc) < 0.0
+        miss = abs(math.hypot(x - d, y) - q) + abs(math.hypot(x - R * math.cos(past), y - R * math.sin(past)) - coupler)
+        assert miss <= 1e-11
+        with pytest.raises(AssemblyError) as info:
+            self.fourbar(np.array([x_l - 0.1, x_l + 1e-6]), d, R, coupler, q)
+        assert info.value.phi == x_l + 1e-6 and 'four-bar' in str(info.value)
+
+    def test_change_point_fourbar_is_never_nan(self) -> None:
+        """A change-point four-bar (0.4, 0.9, 0.5 on 1.0) turns fully but lines up at phi = pi:
+        around it the positions are finite, continuous and flagged as a toggle; LayupParams of a
+        change-point loop 1 is rejected (tested above)."""
+        d, R, coupler, q = 1.0, 0.4, 0.9, 0.5
+        assert classify_fourbar(d, R, coupler, q) == 'change-point'
+        phis = math.pi + np.array([-1e-6, -1e-12, 0.0, 1e-12, 1e-6])
+        it = circle_intersection(d, 0.0, q, R * np.cos(phis), R * np.sin(phis), coupler, 1, inputs=phis)
+        assert np.isfinite(it.x).all() and np.isfinite(it.y).all() and np.isfinite(it.disc).all()
+        assert it.toggle[1:4].all()
+        assert np.abs(np.diff(it.x[1:4])).max() <= 1e-11 and np.abs(np.diff(it.y[1:4])).max() <= 1e-11
+        # the normalised discriminant touches 0 quadratically: ~ c (phi - pi)^2
+        assert abs(it.disc[0]) < 1e-11 and abs(it.disc[1]) < 1e-20

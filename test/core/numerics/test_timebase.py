@@ -4,7 +4,7 @@ import math
 from fractions import Fraction
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from folder_line.core.numerics.timebase import ShaftClock
@@ -48,3 +48,29 @@ def test_phase0_and_rounding() -> None:
         ShaftClock(-1.0)
     with pytest.raises(ValueError, match='seconds='):
         seconds_to_ns(float('nan'))
+
+
+class TestLongRuns:
+    """1e9 crank turns without drift (exact rational references)."""
+
+    @settings(max_examples=60, deadline=None, derandomize=True)
+    @given(
+        num=st.integers(1, 10**6),
+        den=st.integers(1, 10**4),
+        turns=st.integers(0, 10**9),
+        extra_ns=st.integers(0, 10**9),
+        phase0=st.fractions(0, 1, max_denominator=10**6),
+    )
+    def test_shaft_clock_after_a_billion_turns_is_exact(
+        self, num: int, den: int, turns: int, extra_ns: int, phase0: Fraction
+    ) -> None:
+        speed = Fraction(num, den)  # rev/s
+        clock = ShaftClock(speed, phase0=phase0)
+        t_ns = int(turns / speed * NS_PER_S) + extra_ns  # ~1e9 turns and beyond
+        whole, frac = clock.turns(t_ns)
+        exact = Fraction(t_ns, NS_PER_S) * speed + phase0 % 1
+        assert whole == math.floor(exact)
+        assert abs(Fraction(frac) - (exact - whole)) <= Fraction(1, 2**53)  # only the final float rounding
+        # and the time of a turn at 1e9 turns is the nearest nanosecond
+        t_back = clock.time_of_turn(turns, 0.25)
+        assert abs(Fraction(t_back) - (turns + Fraction(0.25) - phase0 % 1) / speed * NS_PER_S) <= Fraction(1, 2)
