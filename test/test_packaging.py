@@ -33,11 +33,9 @@ def console_scripts() -> dict[str, str]:
 
 
 def _env(tmp: Path) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith('COLCON_')}
+    env = {k: v for k, v in os.environ.items() if not k.startswith('COLCON_')}  # ROS domain: test/conftest.py
     env['COLCON_HOME'] = str(tmp / 'colcon_home')  # no user defaults or mixins
     env['PYTHONDONTWRITEBYTECODE'] = '1'
-    env['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     return env
 
 

@@ -1,20 +1,12 @@
 """Study ``publishing``: the rebuilt knife position against theory, the reference against mpmath, the live cost.
 
-The live-line tests run real DDS: like ``test/nodes/conftest.py`` this module gives the
-test process its own ROS domain (from the pid, never 0) and keeps discovery on this
-host, in ``os.environ`` before rclpy is imported.
+The live-line tests run real DDS on the test process's own ROS domain, with discovery kept
+on this host (``test/conftest.py``).
 """
 
 from __future__ import annotations
 
-import os
 import re
-
-os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.pop('ROS_STATIC_PEERS', None)
-os.environ.pop('ROS_LOCALHOST_ONLY', None)  # deprecated; would conflict with the range above
-
 from functools import cache, lru_cache
 
 import mpmath as mp
@@ -29,12 +21,6 @@ from folder_line.errors import MeasurementError, ParameterError
 from folder_line.interfaces import JOINT_NODES
 
 DURATION = 2.0  # s of line time the errors are measured over
-# rosidl_generator_py (imported by the first node) imports lark 0.12, which imports the
-# deprecated sre_parse/sre_constants: not ours, not actionable (as in test/nodes/conftest.py)
-pytestmark = [
-    pytest.mark.filterwarnings(f"ignore:module '{m}' is deprecated:DeprecationWarning")
-    for m in ('sre_parse', 'sre_constants')
-]
 RESOLVED = tuple(r for r in pub.RATES if r >= 100.0)  # >= 7 samples per knife cycle: the asymptotic range
 
 

@@ -1,0 +1,142 @@
+"""One set of limits (issue 11): the CLI, the scene loader and the node parameters share each range.
+
+Each check takes its bounds from :mod:`folder_line.core.limits`, so a test that moved a bound in
+one place only fails here: the ends are accepted, a step beyond either end, a subnormal, NaN and
+inf are refused with the key, the value and the range.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from folder_line.cli import main as cli
+from folder_line.config.run_config import RunConfig, node_parameters
+from folder_line.config.scenes import load_scene
+from folder_line.core import limits as L
+from folder_line.core.line.model import LineModel
+from folder_line.errors import ParameterError
+from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
+from folder_line.ros.nodes.machine import MACHINE_SPECS
+
+README = Path(__file__).resolve().parents[2] / 'README.md'
+
+
+def _beyond(limit: L.Limit) -> list[float]:
+    """Values just outside ``limit`` and absurd ones."""
+    out = [math.nextafter(limit.hi, math.inf), limit.hi * 10.0, 1e308, math.nan, math.inf, -math.inf]
+    out += [math.nextafter(limit.lo, -math.inf), -1.0]
+    if limit.lo > 0.0:
+        out += [5e-324, 1e-300]
+    return out
+
+
+# --------------------------------------------------------------------------- command line
+
+_OPTIONS = [
+    (['simulate', '--duration'], L.DURATION),
+    (['run', '--duration'], L.DURATION),
+    (['run', '--rtf'], L.RTF),
+    (['run', '--lost-timeout'], L.LOST_TIMEOUT),
+]
+
+
+@pytest.mark.parametrize(('words', 'limit'), _OPTIONS, ids=lambda x: ' '.join(x) if isinstance(x, list) else '')
+def test_cli_options_take_the_range_of_their_limit(
+    words: list[str], limit: L.Limit, capsys: pytest.CaptureFixture[str]
+) -> None:
+    parser = cli.build_parser()
+    option = words[-1].lstrip('-').replace('-', '_')
+    verb, flag = words
+    for value in (limit.lo, limit.hi):
+        assert getattr(parser.parse_args([verb, f'{flag}={value!r}']), option) == value
+    for value in _beyond(limit):
+        with pytest.raises(SystemExit) as info:
+            parser.parse_args([verb, f'{flag}={value!r}'])
+        assert info.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f'{words[-1]}=' in err and f'must be in {limit.text()}' in err, err
+
+
+def test_rtf_max_is_no_ceiling() -> None:
+    assert cli.build_parser().parse_args(['run', '--rtf', 'max']).rtf == 0.0
+
+
+# --------------------------------------------------------------------------- nodes
+
+
+def _bounds(specs: tuple, name: str) -> tuple[float, float]:
+    spec = next(s for s in specs if s.name == name)
+    return spec.bounds
+
+
+def test_node_parameters_take_the_same_ranges() -> None:
+    assert _bounds(MACHINE_SPECS, 'horizon') == L.HORIZON.bounds
+    assert _bounds(MACHINE_SPECS, 'rate') == L.TICK_RATE.bounds
+    assert _bounds(MACHINE_SPECS, 'lost_timeout') == L.LOST_TIMEOUT.bounds
+    assert _bounds(CLOCK_SPECS, 'rate') == L.TICK_RATE.bounds
+    assert _bounds(CLOCK_SPECS, 'lost_timeout') == L.LOST_TIMEOUT.bounds
+    assert _bounds(CLOCK_SPECS, 'duration') == (0.0, L.DURATION.hi)  # 0: until interrupted
+    assert _bounds(CLOCK_SPECS, 'rtf') == (0.0, L.RTF.hi)  # 0: no ceiling; (0, lo) refused by the node
+
+
+def test_the_longest_run_gives_its_nodes_a_horizon_they_accept() -> None:
+    horizon = node_parameters(RunConfig(scene='folder', duration=L.DURATION.hi), 'crank_drive')['horizon']
+    assert L.HORIZON.lo <= horizon <= L.HORIZON.hi
+    assert node_parameters(RunConfig(scene='folder', duration=L.DURATION.lo), 'crank_drive')['horizon'] >= L.HORIZON.lo
+
+
+# --------------------------------------------------------------------------- scene keys
+
+_SCENE_KEYS = [
+    ('folder', 'knife.n_k', L.KNIFE_SPEED),
+    ('folder', 'cyclogram.n_c', L.CYLINDER_SPEED),
+    ('folder', 'feed_transporter.V_tr', L.LINEAR_SPEED),
+    ('folder', 'sheets.interval', L.SHEET_INTERVAL),
+    ('layup', 'layup.n_kr', L.CRANK_SPEED),
+    ('layup', 'layup.v_tr', L.LINEAR_SPEED),
+    ('folder', 'sample_rate', L.SAMPLE_RATE),
+]
+
+
+@pytest.mark.parametrize(('scene', 'key', 'limit'), _SCENE_KEYS, ids=[k for _, k, _ in _SCENE_KEYS])
+def test_scene_keys_take_the_range_of_their_limit(scene: str, key: str, limit: L.Limit) -> None:
+    for value in (limit.lo, limit.hi):
+        load_scene(scene, {key: value})  # both ends load
+    for value in _beyond(limit):
+        if key == 'layup.v_tr' and value == -1.0:
+            continue  # negative: refused as 'must be >= 0' (0 is a belt-less chute)
+        with pytest.raises(ParameterError) as info:
+            load_scene(scene, {key: value})
+        assert info.value.key == key
+        if math.isfinite(value) and not (key == 'layup.v_tr' and value < 0.0):
+            assert info.value.reason == f'must be in {limit.text()}', info.value.reason
+
+
+def test_a_belt_less_chute_is_still_a_speed_of_0() -> None:
+    assert load_scene('layup', {'layup.v_tr': 0.0}).machine('layup').v_tr == 0.0
+    with pytest.raises(ParameterError, match=r'must be in \[0.001, 1000\] m/s'):
+        load_scene('layup', {'layup.v_tr': 5e-324})
+
+
+def test_the_cli_refuses_an_absurd_speed_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    for value in ('1e-300', '1e308', '5e-324'):
+        assert cli.main(['simulate', '--duration', '1', '--set', f'knife.n_k={value}']) == 2
+        err = capsys.readouterr().err.strip()
+        assert err == f'folder-line: error: knife.n_k={float(value)!r}: must be in [1, 200000] rev/h', err
+
+
+def test_the_batch_model_and_simulate_use_the_same_ranges() -> None:
+    scene = load_scene('folder', {})
+    with pytest.raises(ParameterError, match=r'horizon=.*must be in \[0.001, 10003600\] s'):
+        LineModel(scene, math.nextafter(L.HORIZON.hi, math.inf))
+    with pytest.raises(ParameterError, match='horizon=5e-324'):
+        LineModel(scene, 5e-324)
+
+
+def test_the_readme_lists_every_limit() -> None:
+    text = README.read_text(encoding='utf-8')
+    for limit in L.LIMITS.values():
+        assert f'| {limit.what} | {limit.text()} |' in text, limit.what

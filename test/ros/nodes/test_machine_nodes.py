@@ -1,0 +1,491 @@
+"""The machine nodes over real DDS: topics, joint states, events and counts against the line model.
+
+Every node here runs in a private context on the test's executor (the ``ros``
+fixture) with ``line_clock`` in lockstep; a plain node subscribes to what they
+publish. What a node publishes at a point of its grid is a pure function of the
+scene and that time, so every received message is compared with
+:class:`folder_line.core.line.model.LineModel` built here independently, to the bit, at
+the message's own stamp, whatever the clock's tick rate.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pytest
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState, TimeReference
+from std_msgs.msg import Float64, UInt64
+
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.model import LineModel
+from folder_line.errors import ParameterError
+from folder_line.interfaces import (
+    CLOCK_TOPIC,
+    COMMANDS_TOPIC,
+    EVENT_KINDS,
+    EVENT_OWNER,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    NODE_OF_UNIT,
+    NS_PER_S,
+    PARTICIPANTS_TOPIC,
+    SHEET_COUNT_TOPIC,
+    SHEET_RATE_TOPIC,
+    TOPICS,
+    UNIT_OF_NODE,
+    parse_event_source,
+    tick_done_topic,
+)
+from folder_line.ros.nodes.belt_conveyor import BeltConveyor
+from folder_line.ros.nodes.crank_drive import CrankDrive
+from folder_line.ros.nodes.feed_transporter import FeedTransporter
+from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import MACHINE_SPECS, MachineNode
+from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
+from folder_line.ros.nodes.supervisor import Supervisor
+from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.topics import joint_states_topic
+
+from .test_line_clock import FakeParticipant, grid
+
+if TYPE_CHECKING:
+    from ..conftest import Received, Ros
+
+REPO = Path(__file__).resolve().parents[3]
+RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+TYPES = {t.name: t.type for t in TOPICS}
+MS = 1_000_000  # ns
+STEP = 5 * MS  # the nodes' grid at their default rate, 200 Hz
+
+
+# --------------------------------------------------------------------------- harness
+
+
+def recording(cls: type[MachineNode]) -> type[MachineNode]:
+    """``cls`` that also keeps the stamp (ns) of every tick it published."""
+
+    class Recording(cls):  # type: ignore[valid-type, misc]
+        def setup(self) -> None:
+            super().setup()
+            self.ticks: list[int] = []
+
+        def publish_at(self, stamp_ns: int) -> None:
+            super().publish_at(stamp_ns)
+            self.ticks.append(stamp_ns)
+
+    Recording.__name__ = cls.__name__
+    return Recording
+
+
+CLASSES: dict[str, type[MachineNode]] = {
+    'crank_drive': recording(CrankDrive),
+    'belt_conveyor': recording(BeltConveyor),
+    'feed_transporter': recording(FeedTransporter),
+    'sheet_counter': recording(SheetCounter),
+}
+ALL_CLASSES = (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter, Supervisor)
+
+
+def params(**values: Any) -> list[Parameter]:
+    return [Parameter(name, value=value) for name, value in values.items()]
+
+
+def subscribe(ros: Ros, node: Node, msg_type: type, topic: str) -> tuple[Received, Any]:
+    """A reliable, deep subscription collecting every message; returns it with the subscription."""
+    received = ros.subscribe(node, msg_type, topic, RELIABLE)
+    return received, list(node.subscriptions)[-1]
+
+
+def start_clock(ros: Ros, duration: float, participants: Any, **values: Any) -> LineClock:
+    """``line_clock`` in lockstep for ``duration`` s of sim time, no rtf ceiling unless given."""
+    values.setdefault('rtf', 0.0)
+    return ros.add(
+        LineClock(
+            context=ros.context,
+            parameter_overrides=params(duration=duration, participants=','.join(participants), **values),
+        )
+    )
+
+
+def stamp_ns(msg: Any) -> int:
+    return time_msg_to_ns(msg.header.stamp)
+
+
+def model_event_rows(model: LineModel, owner: str, t_end_ns: int) -> list[tuple[str, int, int, int, float]]:
+    """``(kind, sheet, cycle, time_ref ns, value)`` of the model's events of ``owner`` up to ``t_end_ns``."""
+    rows = []
+    for row in model.events:
+        kind = EVENT_KINDS[row['kind']]
+        t_ns = round(float(row['t']) * NS_PER_S)
+        if EVENT_OWNER[kind] == owner and t_ns <= t_end_ns:
+            rows.append((kind, int(row['sheet']), int(row['cycle']), t_ns, float(row['value'])))
+    return sorted(rows)
+
+
+def event_rows(messages: list[TimeReference]) -> list[tuple[str, int, int, int, float]]:
+    return sorted(
+        (*parse_event_source(m.source)[:3], time_msg_to_ns(m.time_ref), parse_event_source(m.source)[3])
+        for m in messages
+    )
+
+
+def use_events_executor(ros: Ros) -> None:
+    """Spin this test's nodes with rclpy's EventsExecutor, as the node processes and ``folder-line run`` do."""
+    ros.executor.shutdown()
+    ros.executor = EventsExecutor(context=ros.context)  # type: ignore[assignment]
+
+
+# --------------------------------------------------------------------------- the line in this process
+
+EXPECTED_JOINTS = {
+    'folder': {
+        'crank_drive': ('knife_crank', 'knife'),
+        'belt_conveyor': ('first_transporter',),
+        'feed_transporter': ('feed_belt', 'chain', 'carriage'),
+        'sheet_counter': ('pile_table',),
+    },
+    'layup': {
+        'crank_drive': ('layup_crank', 'transporter3', 'transporter4'),
+        'belt_conveyor': ('chute_belts',),
+        'sheet_counter': ('container_floor',),
+    },
+    'line': {
+        'crank_drive': ('knife_crank', 'knife', 'layup_crank', 'transporter3', 'transporter4'),
+        'belt_conveyor': ('first_transporter', 'chute_belts'),
+        'feed_transporter': ('feed_belt', 'chain', 'carriage'),
+        'sheet_counter': ('pile_table',),
+    },
+}
+
+
+@pytest.mark.parametrize(
+    ('scene_name', 'clock_rate'), [('folder', 200.0), ('layup', 200.0), ('line', 200.0), ('folder', 1.0)]
+)
+def test_machine_nodes_publish_the_line_model_at_their_grid_points(
+    ros: Ros, scene_name: str, clock_rate: float
+) -> None:
+    """At 1 tick per second of sim time the nodes publish exactly what they publish at 200: the same
+    messages at the same grid points (200 Hz, their own rate), only the events' header stamps (their
+    tick) differ."""
+    duration = 2.0
+    horizon = duration + 1.0
+    scene = load_scene(scene_name)
+    model = LineModel(scene, horizon)  # built here, not the nodes' cached one
+    joints = EXPECTED_JOINTS[scene_name]
+    assert {NODE_OF_UNIT[unit]: names for unit, names in model.units.items()} == joints
+
+    nodes = {
+        name: ros.add(cls(context=ros.context, parameter_overrides=params(scene=scene_name, horizon=horizon)))
+        for name, cls in CLASSES.items()
+    }
+    listener = ros.node('listener')
+    states = {name: subscribe(ros, listener, JointState, joint_states_topic(name)) for name in joints}
+    events, events_sub = subscribe(ros, listener, TimeReference, EVENTS_TOPIC)
+    counts, count_sub = subscribe(ros, listener, UInt64, SHEET_COUNT_TOPIC)
+    rates, rate_sub = subscribe(ros, listener, Float64, SHEET_RATE_TOPIC)
+    landings, landing_sub = subscribe(ros, listener, Float64, LANDING_TOPIC)
+    subs = [s for _, s in states.values()] + [count_sub, rate_sub, landing_sub]
+    # nothing is published before the clock runs: match every subscription first, then start it
+    assert ros.spin_until(
+        lambda: all(s.get_publisher_count() == 1 for s in subs) and events_sub.get_publisher_count() == len(nodes),
+        timeout=20.0,
+    )
+    clock = start_clock(ros, duration, nodes, rate=clock_rate)
+    end_ns = round(duration * NS_PER_S)
+    ticks = grid(0, end_ns, round(NS_PER_S / clock_rate))
+    points = grid(0, end_ns, STEP)  # the nodes' own grid
+
+    def complete() -> bool:
+        return (
+            clock.done.done()
+            and all(n.done.done() for n in nodes.values())
+            and all(len(states[k][0]) == nodes[k].published_joint_states for k in states)
+            and len(events) == sum(n.published_events for n in nodes.values())
+            and len(counts) == len(rates) == len(points)
+            and len(landings) == nodes['sheet_counter'].published_landing
+        )
+
+    assert ros.spin_until(complete, timeout=60.0)
+    # lockstep: every node ran every tick of the clock, in order, none skipped, and stopped at the end
+    assert clock.ticks == len(ticks)
+    for name, node in nodes.items():
+        assert node.ticks == ticks, name
+        assert node.lockstep.ticks == len(ticks) and node.done.result() == end_ns
+        assert node.rejected == {}
+
+    # graph: every topic of the line under its documented name and type
+    graph = dict(listener.get_topic_names_and_types())
+    expected = {
+        CLOCK_TOPIC: TYPES[CLOCK_TOPIC],
+        EVENTS_TOPIC: TYPES[EVENTS_TOPIC],
+        SHEET_COUNT_TOPIC: TYPES[SHEET_COUNT_TOPIC],
+        SHEET_RATE_TOPIC: TYPES[SHEET_RATE_TOPIC],
+        LANDING_TOPIC: TYPES[LANDING_TOPIC],
+        COMMANDS_TOPIC: TYPES[COMMANDS_TOPIC],
+        PARTICIPANTS_TOPIC: 'std_msgs/msg/String',
+    }
+    expected.update({joint_states_topic(n): 'sensor_msgs/msg/JointState' for n in joints})
+    expected.update({tick_done_topic(n): 'sensor_msgs/msg/TimeReference' for n in nodes})
+    for topic, type_name in expected.items():
+        assert graph.get(topic) == [type_name], (topic, graph.get(topic))
+    missing = set(CLASSES) - set(joints)  # layup: no feed transporter, no topic
+    assert not {joint_states_topic(n) for n in missing} & set(graph)
+    assert all(nodes[n]._joint_pub is None and nodes[n].published_joint_states == 0 for n in missing)
+
+    # joint states: at every grid point, exactly the model there
+    for name, (received, _) in states.items():
+        msgs = received.messages
+        stamps = np.array([stamp_ns(m) for m in msgs])
+        assert stamps.tolist() == points, name
+        expect = model.sample(UNIT_OF_NODE[name], stamps / NS_PER_S)
+        names = joints[name]
+        position = np.array([m.position for m in msgs])
+        velocity = np.array([m.velocity for m in msgs])
+        assert all(tuple(m.name) == names and m.header.frame_id == name for m in msgs)
+        assert position.shape == velocity.shape == (len(msgs), len(names))
+        assert np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))
+        np.testing.assert_array_equal(position, expect.position)
+        np.testing.assert_array_equal(velocity, expect.velocity)
+        effort = [list(m.effort) for m in msgs]
+        if expect.effort is not None:  # chain_friction: the sprocket torque on the chain, 0 on every other joint
+            assert scene.has('chain_friction')
+            effort_arr = np.array(effort)
+            assert effort_arr.shape == position.shape and np.all(np.isfinite(effort_arr))
+            np.testing.assert_array_equal(effort_arr, expect.effort)
+            chain = names.index('chain') if 'chain' in names else None
+            others = [i for i in range(len(names)) if i != chain]
+            assert np.all(effort_arr[:, others] == 0.0)
+            if chain is not None:
+                assert np.count_nonzero(effort_arr[:, chain] > 0.0) > len(msgs) // 2
+        else:
+            assert all(e == [] for e in effort)
+
+    # events: each published once, by its owner, at the first tick at or after its time, exactly the model's
+    by_owner: dict[str, list[TimeReference]] = {}
+    for m in events.messages:
+        by_owner.setdefault(m.header.frame_id, []).append(m)
+    assert set(by_owner) <= set(nodes)
+    tick_arr = np.array(ticks)
+    for owner in nodes:
+        mine = by_owner.get(owner, [])
+        for m in mine:
+            kind = parse_event_source(m.source)[0]
+            assert EVENT_OWNER[kind] == owner
+            t_ns, s_ns = time_msg_to_ns(m.time_ref), stamp_ns(m)
+            i = int(np.searchsorted(tick_arr, s_ns))
+            assert tick_arr[i] == s_ns and t_ns <= s_ns and (i == 0 or t_ns > tick_arr[i - 1])
+        got = event_rows(mine)
+        assert got == model_event_rows(model, owner, end_ns), owner
+        assert len(got) == len(set(got))
+    published = {EVENT_KINDS[k] for k in np.unique(model.events['kind'][model.events['t'] <= duration])}
+    assert {parse_event_source(m.source)[0] for m in events.messages} == published
+
+    # sheet counter: the count and rate at every grid point, the landing of every leaf
+    t = np.array(points) / NS_PER_S
+    counted = model.events[model.events['kind'] == counted_kind(scene.has_delivery)]['t']
+    n_expected = np.searchsorted(counted, t, side='right')
+    assert [m.data for m in counts.messages] == n_expected.tolist()
+    assert n_expected[-1] > 0
+    window = np.minimum(5.0, t)
+    lagged = np.searchsorted(counted, t - window, side='right')
+    expect_rate = np.where(window > 0.0, (n_expected - lagged) / np.where(window > 0.0, window, 1.0), 0.0)
+    assert [m.data for m in rates.messages] == expect_rate.tolist()
+    landed = model.events[(model.events['kind'] == EVENT_KINDS.index('leaf_landed')) & (model.events['t'] <= duration)][
+        'value'
+    ]
+    assert [m.data for m in landings.messages] == landed.tolist()
+    assert (len(landed) > 0) == scene.has_layup
+
+
+def test_a_node_publishes_nothing_past_its_horizon_and_still_answers_every_tick(ros: Ros) -> None:
+    node = ros.add(CLASSES['crank_drive'](context=ros.context, parameter_overrides=params(horizon=0.5)))
+    listener = ros.node('listener')
+    received, sub = subscribe(ros, listener, JointState, joint_states_topic('crank_drive'))
+    assert ros.spin_until(lambda: sub.get_publisher_count() == 1, timeout=20.0)
+    clock = start_clock(ros, 1.0, ['crank_drive'])
+    assert ros.spin_until(lambda: clock.done.done() and len(received) == node.published_joint_states, timeout=30.0)
+    assert [stamp_ns(m) for m in received.messages] == grid(0, NS_PER_S // 2, STEP)  # up to the horizon exactly
+    assert node.ticks == grid(0, NS_PER_S // 2, STEP)
+    assert node.lockstep.ticks == clock.ticks == 201 and node.done.result() == NS_PER_S
+    assert node._horizon_logged  # it saw sim time beyond the horizon and said so
+
+
+def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
+    """crank_drive to 1 Hz at 0.5 s of sim time, through its parameter service, on the full line spun by
+    an EventsExecutor: its joint states go on from its last grid point in 1 s steps, nothing else changes."""
+    use_events_executor(ros)
+    common = params(scene='folder', horizon=3.0)
+    nodes = {
+        cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=common))
+        for cls in (CLASSES['crank_drive'], CLASSES['belt_conveyor'], FeedTransporter, SheetCounter, Supervisor)
+    }
+    crank, sup = nodes['crank_drive'], nodes['supervisor']
+    hold = ros.add(FakeParticipant(ros.context, hold_from=NS_PER_S // 2))  # holds sim time at 0.5 s
+    listener = ros.node('listener')
+    client = AsyncParameterClient(listener, 'crank_drive')
+    crank_js, crank_sub = subscribe(ros, listener, JointState, joint_states_topic('crank_drive'))
+    belt_js, belt_sub = subscribe(ros, listener, JointState, joint_states_topic('belt_conveyor'))
+    events, events_sub = subscribe(ros, listener, TimeReference, EVENTS_TOPIC)
+    assert ros.spin_until(
+        lambda: (
+            crank_sub.get_publisher_count() == belt_sub.get_publisher_count() == 1
+            and events_sub.get_publisher_count() == 5
+            and client.services_are_ready()
+        ),
+        timeout=20.0,
+    )
+    clock = start_clock(ros, 2.0, [*nodes, 'line_recorder'], lost_timeout=60.0)
+    assert ros.spin_until(
+        lambda: hold.held == NS_PER_S // 2 and crank.lockstep.last_done == NS_PER_S // 2, timeout=30.0
+    )
+    future = client.set_parameters([Parameter('rate', value=1.0)])
+    assert ros.spin_until(future.done, timeout=20.0)
+    assert future.result().results[0].successful
+    hold.run_to(None)
+    assert ros.spin_until(
+        lambda: (
+            clock.done.done()
+            and all(n.done.done() for n in nodes.values())
+            and len(crank_js) == crank.published_joint_states
+            and len(belt_js) == nodes['belt_conveyor'].published_joint_states
+            and len(events) == sum(n.published_events for n in nodes.values())
+        ),
+        timeout=60.0,
+    )
+    end = 2 * NS_PER_S
+    stamps = [stamp_ns(m) for m in crank_js.messages]
+    assert stamps == grid(0, NS_PER_S // 2, STEP) + [3 * NS_PER_S // 2]  # then 1.5 s; 2.5 s is past the end
+    model = LineModel(load_scene('folder'), 3.0)
+    expect = model.sample(UNIT_OF_NODE['crank_drive'], np.array(stamps) / NS_PER_S)
+    np.testing.assert_array_equal([m.position for m in crank_js.messages], expect.position)
+    assert [stamp_ns(m) for m in belt_js.messages] == grid(0, end, STEP)
+    assert crank.ticks == nodes['belt_conveyor'].ticks == grid(0, end, STEP)  # every tick, acknowledged
+    for owner in nodes:
+        assert event_rows([m for m in events.messages if m.header.frame_id == owner]) == model_event_rows(
+            model, owner, end
+        ), owner
+    assert all(n.lockstep.ticks == 401 and n.rejected == {} for n in nodes.values())
+    assert sup.packml.state == 'EXECUTE' and sup.logic.violations == [] and sup.logic.lost_nodes == []
+    assert clock.lost == {} and clock.ticks == 401
+
+
+# --------------------------------------------------------------------------- parameters
+
+BAD_RATES = [
+    (math.nan, 'rate=nan: must be finite (not NaN or inf)'),
+    (math.inf, 'rate=inf: must be finite (not NaN or inf)'),
+    (0.0, 'rate=0.0: must be a float in [1, 10000] Hz'),
+    (20000.0, 'rate=20000.0: must be a float in [1, 10000] Hz'),
+    ('x', "rate='x': must be a float, got str"),
+    (100, 'rate=100: must be a float (write 100.0), got int'),
+]
+NO_WALL_CLOCK = (
+    "use_sim_time=False rejected: use_sim_time=False: a line node runs on the line's simulated time "
+    '(/clock); it cannot be turned off'
+)
+
+
+def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros) -> None:
+    nodes = [ros.add(cls(context=ros.context, parameter_overrides=params(horizon=2.0))) for cls in ALL_CLASSES]
+    caller = ros.node('caller')
+    clients = {n.get_name(): AsyncParameterClient(caller, n.get_name()) for n in nodes}
+    assert ros.spin_until(lambda: all(c.services_are_ready() for c in clients.values()), timeout=20.0)
+
+    def call(name: str, parameter: Parameter) -> tuple[bool, str]:
+        future = clients[name].set_parameters([parameter])
+        assert ros.spin_until(future.done, timeout=20.0)
+        [result] = future.result().results
+        return result.successful, result.reason
+
+    for node in nodes:
+        name = node.get_name()
+        assert node._period_ns == STEP
+        for value, reason in BAD_RATES:
+            assert call(name, Parameter('rate', value=value)) == (False, reason)
+            assert node.get_parameter('rate').value == 200.0 and node._period_ns == STEP
+        for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('horizon', 10.0), ('lost_timeout', 1.0)):
+            ok, reason = call(name, Parameter(read_only, value=value))
+            assert not ok and 'read-only' in reason and read_only in reason
+        assert node.get_parameter('scene').value == 'folder' and node.model.scene.name == 'folder'
+        # the wall clock is refused at run time, with the reason naming use_sim_time
+        assert call(name, Parameter('use_sim_time', value=False)) == (False, NO_WALL_CLOCK)
+        assert node.get_parameter('use_sim_time').value is True
+        assert call(name, Parameter('rate', value=400.0)) == (True, '')
+        assert node._period_ns == 2_500_000
+    ok, reason = call('sheet_counter', Parameter('rate_window', value=-1.0))
+    assert not ok and reason.startswith('rate_window=-1.0: must be a float in ')
+    assert nodes[3].values['rate_window'] == 5.0
+    assert {s.name for s in MACHINE_SPECS} == {'scene', 'overrides', 'horizon', 'rate', 'lost_timeout'}
+
+
+@pytest.mark.parametrize('cls', ALL_CLASSES, ids=lambda c: c.NODE_NAME)
+def test_a_node_refuses_to_start_on_the_wall_clock(ros: Ros, cls: type[MachineNode]) -> None:
+    with pytest.raises(ParameterError) as info:
+        cls(context=ros.context, parameter_overrides=params(use_sim_time=False))
+    assert str(info.value) == (
+        "use_sim_time=False: a line node runs on the line's simulated time (/clock); it cannot be turned off"
+    )
+
+
+BAD_STARTS = [
+    ('scene:=nope', "scene='nope': no such scene; shipped scenes: folder, "),
+    ('scene:=/nonexistent/scene.yaml', "scene='/nonexistent/scene.yaml': no such file"),
+    ('overrides:=feed_transporter.V_tr=-1', 'feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
+    ('use_sim_time:=false', "use_sim_time=False: a line node runs on the line's simulated time (/clock)"),
+    ('overrides:=feed_transporter.V_tr', "overrides='feed_transporter.V_tr': must be KEY=VALUE"),
+    ('rate:=nan', 'Invalid parameter value (nan) for parameter. Reason: Parameter rate out of range'),
+    ('lost_timeout:=0.0', 'Invalid parameter value (0.0) for parameter. Reason: Parameter lost_timeout out of range'),
+]
+
+
+def test_a_node_refuses_to_start_on_a_bad_scene_in_process(ros: Ros) -> None:
+    with pytest.raises(ParameterError, match=r"^scene='nope': no such scene"):
+        CrankDrive(context=ros.context, parameter_overrides=params(scene='nope'))
+    with pytest.raises(ParameterError, match=r'^feed_transporter\.V_tr=-1: must be in'):
+        FeedTransporter(context=ros.context, parameter_overrides=params(overrides='feed_transporter.V_tr=-1'))
+
+
+def test_node_processes_refuse_a_bad_start_with_exit_code_2(node_env: dict[str, str], tmp_path: Path) -> None:
+    cases = [
+        (node, param, words)
+        for node in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'supervisor')
+        for param, words in BAD_STARTS[:4]
+    ]
+    cases += [('crank_drive', param, words) for param, words in BAD_STARTS[4:]]
+    procs = []
+    for i, (node, param, _) in enumerate(cases):
+        err = tmp_path / f'{i}.err'
+        with open(err, 'wb') as stderr:
+            procs.append(
+                (
+                    subprocess.Popen(
+                        [sys.executable, '-m', f'folder_line.ros.nodes.{node}', '--ros-args', '-p', param],
+                        env=node_env,
+                        cwd=REPO,
+                        stdout=subprocess.DEVNULL,
+                        stderr=stderr,
+                    ),
+                    err,
+                )
+            )
+    try:
+        for (node, param, words), (proc, err) in zip(cases, procs, strict=True):
+            assert proc.wait(timeout=60) == 2, (node, param, err.read_text())
+            lines = err.read_text().splitlines()
+            assert len(lines) == 1 and lines[0].startswith(f'{node}: error: '), (node, param, lines)
+            assert words in lines[0], (words, lines[0])
+    finally:
+        for proc, _ in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
