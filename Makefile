@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
-# the strictly typed part (mypy.ini); `$(BIN)/mypy` alone reports the whole package
-TYPED  := folder_line/__init__.py folder_line/interfaces.py folder_line/errors.py folder_line/core folder_line/files folder_line/config folder_line/bag folder_line/analysis folder_line/cli folder_line/ros folder_line/accuracy
+# strictly typed (mypy.ini): the whole package
+TYPED  := folder_line
 
 .PHONY: run report test bench accuracy clean
 
