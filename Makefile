@@ -4,8 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out
-# the strictly typed part (mypy.ini); `$(BIN)/mypy` alone reports the whole package
-TYPED  := folder_line/core/numerics folder_line/core/mechanisms folder_line/core/effects folder_line/core/limits.py
+# strictly typed (mypy.ini): the whole package
+TYPED  := folder_line
 
 .PHONY: run report test bench accuracy clean
 
@@ -26,7 +26,7 @@ report: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff format --check --quiet .
 	$(BIN)/ruff check --quiet .
-	$(BIN)/mypy $(TYPED) --exclude 'folder_line/core/effects/__init__\.py$$'
+	$(BIN)/mypy $(TYPED)
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)

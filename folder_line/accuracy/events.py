@@ -357,13 +357,13 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
     V_tr, L = float(fl.V_tr), float(timing.L_feed)
     # the core's hand-over phase (folder_sim: slots * T + (t_out + phase)); the tests check
     # that drive.time_of of it is the sheet_handover time, bit for bit
-    theta_h = hand['cycle'].astype(float) * timing.T + (timing.knife.t_out + float(scene.sheets.phase))
+    theta_h: FloatArray = hand['cycle'].astype(float) * timing.T + (timing.knife.t_out + float(scene.sheets.phase))
     ids = hand['sheet'].astype(np.int64)
     t_core = np.full(ids.size, np.nan)
     pos = {int(s): i for i, s in enumerate(ids.tolist())}
     for s, t in zip(stops['sheet'].tolist(), stops['t'].tolist(), strict=True):
         t_core[pos[int(s)]] = t
-    th_list = theta_h.tolist()
+    th_list: list[float] = theta_h.tolist()
     tr = drive.t_ramp
 
     def g(idx: IntArray, t: FloatArray) -> FloatArray:
@@ -475,7 +475,8 @@ def leaf_landing_case(span: float = SPAN_LAYUP, drag: float = DRAG) -> EventCase
         return mp.mpf(y_floor) - y
 
     def exact(idx: IntArray) -> FloatArray:
-        return t_x[idx] + leaf_flight.landing_time(params, y0[idx], vy[idx], y_floor)
+        landing: FloatArray = t_x[idx] + leaf_flight.landing_time(params, y0[idx], vy[idx], y_floor)
+        return landing
 
     def closed_form_mp(j: int) -> mp.mpf:
         H = mp.mpf(lists[2][j]) - mp.mpf(y_floor)
@@ -645,9 +646,11 @@ def detect_root(case: EventCase, xtol: float, coarse_rate: float = COARSE_RATE) 
         grid = np.concatenate(p.grids[k])
         if grid.size < 2:
             continue
-        sc = roots.find_sign_changes(
-            lambda x, k=k: case.g_scalar(k, x), grid, values=np.concatenate(p.values[k]), xtol=xtol
-        )
+
+        def g_k(x: float, k: int = k) -> float:
+            return case.g_scalar(k, x)
+
+        sc = roots.find_sign_changes(g_k, grid, values=np.concatenate(p.values[k]), xtol=xtol)
         evaluations += sc.function_calls
         count[k] = len(sc)
         up = sc.x[sc.direction > 0]

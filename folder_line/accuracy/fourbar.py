@@ -230,7 +230,8 @@ def solve_ode(params: LayupParams, method: str, rtol: float, t: np.ndarray, psi0
     )
     if not sol.success:  # pragma: no cover - a smooth 1-D ODE
         raise RuntimeError(f'solve_ivp {method} rtol={rtol:g}: {sol.message}')
-    return sol.sol(t)[0]
+    psi: np.ndarray = sol.sol(t)[0]  # scipy has no type information
+    return psi
 
 
 def _error(psi: np.ndarray, ref: ReferenceArrays) -> float:
@@ -306,7 +307,11 @@ def run(quick: bool = False) -> list[Row]:
     knob, batches = knob_settings(CLOSED_FORM, quick)
     for batch in batches:
         nb = int(min(batch, t.size))
-        cpu = cpu_per_call(lambda k=nb: _closed_form_batched(params, t, k), min_s=min_s, repeats=repeats)
+
+        def batch_call(k: int = nb) -> object:
+            return _closed_form_batched(params, t, k)
+
+        cpu = cpu_per_call(batch_call, min_s=min_s, repeats=repeats)
         row(CLOSED_FORM, knob, nb, _error(_closed_form_batched(params, t, nb), ref), cpu)
 
     psi0 = float(ref.theta3[0])
@@ -314,7 +319,11 @@ def run(quick: bool = False) -> list[Row]:
         name = f'solve_ivp {method}'
         knob, rtols = knob_settings(name, quick)
         for rtol in rtols:
-            cpu = cpu_per_call(lambda m=method, r=rtol: solve_ode(params, m, r, t, psi0), min_s=min_s, repeats=repeats)
+
+            def ode_call(m: str = method, r: float = rtol) -> object:
+                return solve_ode(params, m, r, t, psi0)
+
+            cpu = cpu_per_call(ode_call, min_s=min_s, repeats=repeats)
             row(name, knob, rtol, _error(solve_ode(params, method, rtol, t, psi0), ref), cpu)
     return rows
 

@@ -421,7 +421,11 @@ def run(quick: bool = False) -> list[Row]:
     for batch in batches:
         nb = int(batch)
         chunk = np.resize(phi_turn, nb)
-        cpu = cpu_per_call(lambda c=chunk: model.arrays(c, accelerations=False), min_s=min_s, repeats=repeats)
+
+        def batch_call(c: np.ndarray = chunk) -> object:
+            return model.arrays(c, accelerations=False)
+
+        cpu = cpu_per_call(batch_call, min_s=min_s, repeats=repeats)
         err = closed_form_errors(model, ref, nb)
         row('closed form', nb, err.position, cpu / nb * RATE, POSITION)
         row('closed form velocity', nb, err.velocity, cpu / nb * RATE, VELOCITY)
@@ -440,12 +444,20 @@ def run(quick: bool = False) -> list[Row]:
         row('closed form, scalar', nb, scalar_err.position, cpu / nb * RATE, POSITION)
 
     for tol in knob_settings('Newton loop closure', quick)[1]:
-        cpu = cpu_per_call(lambda x=tol: newton_turn(params, x, phi_turn), min_s=min_s, repeats=repeats)
+
+        def newton_call(x: float = tol) -> object:
+            return newton_turn(params, x, phi_turn)
+
+        cpu = cpu_per_call(newton_call, min_s=min_s, repeats=repeats)
         row('Newton loop closure', tol, newton_error(params, tol), cpu / period, POSITION)
 
     fd_phi = np.resize(phi_turn, FD_BATCH)
     for h in knob_settings('finite difference velocity', quick)[1]:
-        cpu = cpu_per_call(lambda x=h: fd_velocities(model, fd_phi, x), min_s=min_s, repeats=repeats)
+
+        def fd_call(x: float = h) -> object:
+            return fd_velocities(model, fd_phi, x)
+
+        cpu = cpu_per_call(fd_call, min_s=min_s, repeats=repeats)
         row('finite difference velocity', h, fd_error(model, ref, h), cpu / FD_BATCH * RATE, VELOCITY)
     return rows
 

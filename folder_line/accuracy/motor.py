@@ -276,7 +276,8 @@ class ChainReference:
 
     def theta(self, t: npt.ArrayLike) -> FloatArray:
         """Θ(t), nominal s."""
-        return self(t)[0]
+        theta: FloatArray = self(t)[0]  # row 0 of the (2, ...) array
+        return theta
 
 
 def chain_reference(
@@ -335,6 +336,7 @@ def chain_reference(
         def hit(_t: float, yy: FloatArray, hi: float = hi) -> float:
             return float(yy[0] - hi)
 
+        # solve_ivp reads these attributes of an event function; mypy allows none on a function
         hit.terminal = True  # type: ignore[attr-defined]
         hit.direction = 1.0  # type: ignore[attr-defined]
         res = solve_ivp(

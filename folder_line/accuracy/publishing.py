@@ -457,7 +457,12 @@ def live_cost(
                         time.monotonic(),
                         {n: node.published_joint_states for n, node in joint_nodes.items()},
                     )
-                elif start is not None and clock.done.done() and sim >= clock.done.result() / 1e9:
+                elif (
+                    start is not None
+                    and clock.done.done()
+                    and (stop_ns := clock.done.result()) is not None
+                    and sim >= stop_ns / 1e9
+                ):
                     end = (
                         sim,
                         time.process_time(),

@@ -24,7 +24,7 @@ rates rad/s. The float crank angles given are taken exactly (``mpf(float)``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import mpmath as mp
@@ -103,7 +103,13 @@ def _triangle_start(cx: float, cy: float, r_near: float, r_far: float, px: float
     return math.atan2(py - cy, px - cx) + math.acos(max(-1.0, min(1.0, cos_g)))
 
 
-def _newton2(f, x: mp.mpf, y: mp.mpf, what: str, phi: float | mp.mpf) -> tuple[mp.mpf, mp.mpf]:
+def _newton2(
+    f: Callable[[mp.mpf, mp.mpf], tuple[mp.mpf, mp.mpf, mp.mpf, mp.mpf, mp.mpf, mp.mpf]],
+    x: mp.mpf,
+    y: mp.mpf,
+    what: str,
+    phi: float | mp.mpf,
+) -> tuple[mp.mpf, mp.mpf]:
     """Newton on a 2×2 system ``f(x, y) -> (F1, F2, J11, J12, J21, J22)`` to 10^-(dps-5)."""
     step_tol = mp.mpf(10) ** (-(mp.mp.dps - 5))
     for _ in range(_MAX_ITER):

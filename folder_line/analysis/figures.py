@@ -39,7 +39,7 @@ from __future__ import annotations
 import io
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -167,7 +167,7 @@ def stroke_curves(
     ax_eta: Any,
     ax_kv: Any | None,
     params: Any,
-    modes: Sequence[str] = ('paper_mirror', 'geometric'),
+    modes: Sequence[delivery.ReturnSection] = ('paper_mirror', 'geometric'),
     *,
     n: int = 2001,
     pairs: bool = True,
@@ -600,13 +600,14 @@ def draw_figures(rec: Recording, ev: Evaluation, out: Path, gantt_cycles: int = 
         Figure file name -> the file written, in the order of :data:`FIGURES`.
     """
     figures: dict[str, Path] = {}
-    for name, draw in (
+    drawers: tuple[tuple[str, Callable[[], Path | None]], ...] = (
         ('exit_speeds.png', lambda: _plot_exit_speeds(rec, ev, out)),
         ('efficiency.png', lambda: _plot_efficiency(rec, ev, out)),
         ('cyclogram.png', lambda: _plot_cyclogram(rec, ev, out, gantt_cycles)),
         ('margins.png', lambda: _plot_margins(ev, out)),
         ('landing.png', lambda: _plot_landing(rec, out)),
-    ):
+    )
+    for name, draw in drawers:
         written = draw()
         if written is not None:
             figures[name] = written

@@ -82,7 +82,8 @@ class RecordedJoints:
         if data is None:
             msg = f'{self.node} published no {quantity}'
             raise KeyError(msg)
-        return data[:, self.names.index(joint)]
+        column: np.ndarray = data[:, self.names.index(joint)]  # ``data`` comes from getattr: Any
+        return column
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +154,8 @@ class Recording:
 
     def events_of(self, kind: str) -> np.ndarray:
         """Rows of one event kind."""
-        return self.events[self.events['kind'] == event_kind(kind)]
+        rows: np.ndarray = self.events[self.events['kind'] == event_kind(kind)]  # a field is typed Any
+        return rows
 
 
 def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
@@ -179,6 +181,7 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
             else f'{describe_path(p)}, not a run directory or a bag directory'
         )
         raise ParameterError('RUN_DIR|BAG', str(path), what)
+    run_dir: Path | None
     if (p / bag_dir).is_dir():
         bag, run_dir = p / bag_dir, p
     elif os.path.lexists(p / 'metadata.yaml') or any(p.glob('*.mcap')):  # read_bag says what is wrong with it

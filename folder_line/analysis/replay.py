@@ -96,7 +96,7 @@ def evaluate(rec: Recording) -> Evaluation:
     constraints: list[ConstraintSeries] = []
     signatures = np.zeros(0, dtype=np.int64)
     if scene.has_folder:
-        timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+        timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
         plan = delivery_plan(scene, timing)
         fe = folder_evaluation(rec.events, timing, scene, drive, plan=plan)
         constraints += fe.constraints
@@ -257,7 +257,7 @@ def transitions_agree(
         if i == len(full):
             return False
         i += 1
-    shown = {}
+    shown: dict[str, float] = {}
     for t in recorded:
         shown.setdefault(str(t['to']), float(t['t']))
     return all(float(t['t']) <= shown.get(str(t['to']), math.inf) for t in replayed)

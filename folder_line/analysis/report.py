@@ -148,7 +148,7 @@ def _report_lines(
         lines.append('No constraint was violated.')
     lines += ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
     recorded = summary.get('recorded_transitions', [])
-    shown = {}
+    shown: dict[str, float] = {}
     for tr in recorded:
         shown.setdefault(tr['to'], tr['t'])
     if summary['transitions']:
@@ -166,8 +166,8 @@ def _report_lines(
         '',
         'Recorded states: ' + (' -> '.join(f'{tr["to"]} ({tr["t"]:.3f} s)' for tr in recorded) or 'none') + '.',
     ]
-    decided = summary.get('replay_violations')
-    if decided:
+    replayed = summary.get('replay_violations')
+    if replayed:
         lines += [
             '',
             '### Violations as the supervisor decided them (replay, causal)',
@@ -178,7 +178,7 @@ def _report_lines(
         lines += [
             f'| {v["t"]:.9g} | {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
             f'{v["action"]} | {v["state"]} |'
-            for v in decided
+            for v in replayed
         ]
     lines += ['', '## Messages', '']
     published = rec.bag.published

@@ -17,8 +17,8 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.base import Nodetype
 
 from folder_line.errors import BagError
 

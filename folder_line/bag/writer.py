@@ -94,7 +94,7 @@ class _Segment:
         self.writer = start_mcap(self.stream, chunk_size=chunk_size)
         # python mcap's Writer ends a chunk only by size or at finish(); its chunk-ending method is
         # private (name-mangled). Checked here, so that a changed library fails at once, not at a crash.
-        self._end_chunk: Callable[[], None] = self.writer._Writer__finalize_chunk
+        self._end_chunk: Callable[[], None] = self.writer._Writer__finalize_chunk  # type: ignore[attr-defined]
         self.flush_ns = flush_ns
         self._next_flush_ns: int | None = None
         self.writer.add_metadata(MCAP_METADATA_NAME, dict(custom))
@@ -130,7 +130,7 @@ class _Segment:
         self.stream.flush()
 
     def finish(self) -> FileSummary:
-        self.writer.finish()
+        self.writer.finish()  # type: ignore[no-untyped-call]  # mcap leaves Writer.finish unannotated (-> None)
         self.stream.close()
         return FileSummary(self.path.name, self.start_ns, self.end_ns, self.count)
 
@@ -191,9 +191,9 @@ class BagWriter:
         flush_s: float = 0.1,
     ) -> None:
         self.path = Path(directory)
-        for name, value in (('segment_s', segment_s), ('flush_s', flush_s)):
-            if not (isinstance(value, (int, float)) and 1e-6 <= value <= 1e6):
-                msg = f'{self.path}: {name}={value!r} must be in [1e-6, 1e6] s'
+        for name, seconds in (('segment_s', segment_s), ('flush_s', flush_s)):
+            if not (isinstance(seconds, (int, float)) and 1e-6 <= seconds <= 1e6):
+                msg = f'{self.path}: {name}={seconds!r} must be in [1e-6, 1e6] s'
                 raise BagError(msg)
         if not (isinstance(chunk_size, int) and chunk_size > 0):
             msg = f'{self.path}: chunk_size={chunk_size!r} must be a positive whole number of bytes'
@@ -288,7 +288,8 @@ class BagWriter:
             (the bag's timestamps are line time).
         """
         self._check_open()
-        self.add_topic(topic, msgtype_of(type(msg)))  # declares a new topic, refuses another type
+        # a class is hashable; mypy checks type[...] against lru_cache's Hashable wrongly (python/typeshed#4638)
+        self.add_topic(topic, msgtype_of(type(msg)))  # type: ignore[arg-type]  # declares a new topic, refuses another type
         if topic == self.clock_topic:
             self._t_ns = max(self._t_ns, _time_ns(msg.clock))
         header = getattr(msg, 'header', None)

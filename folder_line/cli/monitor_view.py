@@ -236,7 +236,9 @@ class ConstraintView:
 
 def _stamp_s(stamp: Any) -> float:
     # folder_line.ros.time_msg.time_msg_to_ns, on any object with sec and nanosec
-    return (stamp.sec * NS_PER_S + stamp.nanosec) / NS_PER_S
+    sec: int = stamp.sec
+    nanosec: int = stamp.nanosec
+    return (sec * NS_PER_S + nanosec) / NS_PER_S
 
 
 def _float(text: str | None) -> float | None:
@@ -362,7 +364,7 @@ class MonitorState:
             return f'{t:.3f} s'
         m = _JOINT_STATES.match(topic)
         if m is not None:
-            view = JointView(
+            joint = JointView(
                 m['node'],
                 _stamp_s(msg.header.stamp),
                 tuple(msg.name),
@@ -370,12 +372,12 @@ class MonitorState:
                 tuple(float(x) for x in msg.velocity),
                 tuple(float(x) for x in msg.effort),
             )
-            self.joints[view.node] = view
-            return f'{len(view.names)} joint{"" if len(view.names) == 1 else "s"} at {view.stamp:.3f} s'
+            self.joints[joint.node] = joint
+            return f'{len(joint.names)} joint{"" if len(joint.names) == 1 else "s"} at {joint.stamp:.3f} s'
         if topic == EVENTS_TOPIC:
             kind, sheet, cycle, value = _parse_event(msg.source)
             previous = self.events.get(kind)
-            view = EventView(
+            event = EventView(
                 kind,
                 1 if previous is None else previous.count + 1,
                 _stamp_s(msg.time_ref),
@@ -384,15 +386,16 @@ class MonitorState:
                 value,
                 msg.header.frame_id,
             )
-            self.events[kind] = view
-            return f'{kind} at {view.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
+            self.events[kind] = event
+            return f'{kind} at {event.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
         if topic == DIAGNOSTICS_TOPIC:
             return self._take_diagnostics(msg)
         if topic == SUPERVISOR_STATE_TOPIC:
-            if msg.data != self.state:  # a change seen, not the state found on joining: since then
+            state: str = msg.data
+            if state != self.state:  # a change seen, not the state found on joining: since then
                 self.state_since = self.sim_time if self.state else None
-                self.state = msg.data
-            return msg.data
+                self.state = state
+            return state
         if topic == SHEET_COUNT_TOPIC:
             self.sheet_count = int(msg.data)
             return str(self.sheet_count)
@@ -487,8 +490,8 @@ class MonitorState:
         if width < MIN_WIDTH or (height is not None and height < MIN_HEIGHT):
             size = f'{width} columns' if height is None else f'{width}x{height}'
             text = f'terminal too small ({size}): need {MIN_WIDTH}x{MIN_HEIGHT}; q quits'
-            lines = [text[i : i + width] for i in range(0, len(text), width)] if width > 0 else []
-            return [(line, 'alert') for line in lines[: height if height is not None else None]]
+            rows = [text[i : i + width] for i in range(0, len(text), width)] if width > 0 else []
+            return [(row, 'alert') for row in rows[: height if height is not None else None]]
         now = self._now(now)
         lines = self._header(now) + self._topics(now) + self._constraints() + self._joints() + self._events()
         lines += self._commands()

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, TypedDict
 
 import numpy as np
 
@@ -47,11 +47,25 @@ class Check:
     agrees: bool
 
 
-def _defaults() -> dict[str, object]:
-    return {kind: load_params(kind) for kind in ('layup', 'knife', 'delivery', 'cyclogram')}
+class PaperParams(TypedDict):
+    """The parameters the papers' figures are recomputed from (:func:`published_checks`)."""
+
+    layup: layup.LayupParams
+    knife: knife.KnifeParams
+    delivery: delivery.DeliveryParams
+    cyclogram: cyclogram.CyclogramParams
 
 
-def published_checks(p: dict[str, object] | None = None) -> list[Check]:
+def _defaults() -> PaperParams:
+    return {
+        'layup': load_params('layup'),
+        'knife': load_params('knife'),
+        'delivery': load_params('delivery'),
+        'cyclogram': load_params('cyclogram'),
+    }
+
+
+def published_checks(p: PaperParams | None = None) -> list[Check]:
     """The papers' published results, recomputed from the parameters ``p`` (defaults if None)."""
     p = p or _defaults()
     lay, kn, dl, cy = p['layup'], p['knife'], p['delivery'], p['cyclogram']

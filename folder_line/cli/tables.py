@@ -40,18 +40,23 @@ def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[st
     ParameterError, AssemblyError
         Bad parameters (named key and value) or a geometry that does not assemble.
     """
-    params = load_params(mechanism, params_path)
     if mechanism == 'layup':
         phi = _turn(n)
-        st = layup.LayupModel(params).arrays(phi, accelerations=False)
-        return {name: np.asarray(getattr(st, name)) for name in COLUMNS['layup']}
+        lay = layup.LayupModel(load_params('layup', params_path)).arrays(phi, accelerations=False)
+        return {name: np.asarray(getattr(lay, name)) for name in COLUMNS['layup']}
     if mechanism == 'knife':
         phi = _turn(n)
-        st = knife.state(params, phi)
-        return {'phi': phi, 's': st.s, 'v': st.v, 'a': st.a, 'in_window': st.occupies.astype(np.int8)}
+        kn = knife.state(load_params('knife', params_path), phi)  # array phi: array fields (asarray: no copy)
+        return {
+            'phi': phi,
+            's': np.asarray(kn.s),
+            'v': np.asarray(kn.v),
+            'a': np.asarray(kn.a),
+            'in_window': np.asarray(kn.occupies).astype(np.int8),
+        }
     if mechanism == 'delivery':
         xi = np.linspace(0.0, 1.0, n)
-        ev = delivery.evaluate(params, xi)
+        ev = delivery.evaluate(load_params('delivery', params_path), xi)
         return {
             'xi': xi,
             'alpha': ev.alpha,
@@ -63,6 +68,7 @@ def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[st
             'eta': ev.eta,
             'state': ev.state_names(),
         }
+    load_params(mechanism, params_path)  # an unknown kind or bad parameters: the ParameterError first
     msg = f'mechanism={mechanism!r}: must be one of {", ".join(COLUMNS)}'
     raise ValueError(msg)
 

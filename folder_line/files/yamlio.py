@@ -23,7 +23,7 @@ import errno
 import os
 import stat
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import yaml
 from yaml.constructor import ConstructorError
@@ -81,11 +81,13 @@ class BoundedLoader(yaml.SafeLoader):
         self._aliases = 0
         self._depth = 0
 
-    def _refuse(self, problem: str, event: Any) -> None:
-        raise _Refused(problem=problem, problem_mark=event.start_mark)
+    def _refuse(self, problem: str, event: yaml.Event) -> NoReturn:
+        # a SafeLoader (pure Python) event carries a yaml.error.Mark; the stubs' Event also allows the C parser's
+        raise _Refused(problem=problem, problem_mark=event.start_mark)  # type: ignore[arg-type]
 
-    def compose_node(self, parent: Node | None, index: object) -> Node:  # type: ignore[override]
-        event = self.peek_event()
+    def compose_node(self, parent: Node | None, index: object) -> Node:
+        # types-PyYAML leaves Parser.peek_event unannotated; it returns the next Event
+        event: yaml.Event = self.peek_event()  # type: ignore[no-untyped-call]
         if isinstance(event, yaml.AliasEvent):
             self._aliases += 1
             if self._aliases > MAX_ALIASES:
@@ -98,9 +100,11 @@ class BoundedLoader(yaml.SafeLoader):
         if self._depth > MAX_DEPTH:
             self._refuse(f'nested deeper than {MAX_DEPTH} levels', event)
         try:
-            node = super().compose_node(parent, index)
+            # types-PyYAML says index: int; PyYAML passes None (document, mapping key) or the key node
+            node = super().compose_node(parent, index)  # type: ignore[arg-type]
         finally:
             self._depth -= 1
+        assert node is not None, 'PyYAML composes a node for every node event (types-PyYAML: Node | None)'
         if isinstance(event, yaml.AliasEvent):
             if id(node) not in self._weights:
                 self._refuse('alias to an anchor that contains it (recursive)', event)
@@ -116,7 +120,7 @@ class BoundedLoader(yaml.SafeLoader):
         self._weights[id(node)] = weight
         return node
 
-    def construct_mapping(self, node: MappingNode, deep: bool = False) -> dict[Any, Any]:  # type: ignore[override]
+    def construct_mapping(self, node: MappingNode, deep: bool = False) -> dict[Any, Any]:
         seen: dict[Any, Node] = {}
         for key_node, _ in node.value:
             if key_node.tag == _MERGE_TAG:
@@ -135,7 +139,7 @@ class BoundedLoader(yaml.SafeLoader):
                 )
         return super().construct_mapping(node, deep=deep)
 
-    def construct_yaml_int(self, node: ScalarNode) -> int:  # type: ignore[override]
+    def construct_yaml_int(self, node: ScalarNode) -> int:
         digits = sum(ch.isalnum() for ch in str(node.value))
         if digits > MAX_INT_DIGITS:
             raise ConstructorError(

@@ -253,11 +253,12 @@ class Participant:
             node.create_subscription(ClockMsg, CLOCK_TOPIC, self.on_clock, CLOCK_SUB_QOS)
         # the node's sim clock (use_sim_time) is fed from this subscription: rclpy's TimeSource would take
         # every /clock message a second time through a subscription of its own
-        self._time_source = getattr(node, '_time_source', None)
-        own = getattr(self._time_source, '_clock_sub', None)
-        if own is not None:
+        time_source = getattr(node, '_time_source', None)
+        own = getattr(time_source, '_clock_sub', None)
+        if time_source is not None and own is not None:
             node.destroy_subscription(own)
-            self._time_source._clock_sub = None  # type: ignore[union-attr]
+            time_source._clock_sub = None
+            self._time_source = time_source
         else:
             self._time_source = None
         self._timer = node.create_timer(HEARTBEAT, self._check_lost, clock=_steady(node))

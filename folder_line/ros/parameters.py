@@ -163,17 +163,17 @@ class ParamSpec:
                 hint = f' (write {value}.0)'
             msg = f'must be {_KINDS[kind][0]}{hint}, got {_type_name(value)}'
             raise ParameterError(self.name, value, msg)
-        if kind is float and not math.isfinite(value):  # type: ignore[arg-type]
+        if isinstance(value, float) and not math.isfinite(value):  # type(value) is kind: kind is float
             raise ParameterError(self.name, value, 'must be finite (not NaN or inf)')
-        if self.bounds is not None:
+        if self.bounds is not None and isinstance(value, (int, float)):  # bounds only on numbers (__post_init__)
             lo, hi = self.bounds
-            bad_lo = value <= lo if self.low_open else value < lo  # type: ignore[operator]
-            bad_hi = value >= hi if self.high_open else value > hi  # type: ignore[operator]
+            bad_lo = value <= lo if self.low_open else value < lo
+            bad_hi = value >= hi if self.high_open else value > hi
             if bad_lo or bad_hi:
                 raise ParameterError(self.name, value, f'must be {self.constraint_text()}')
         if self.choices and value not in self.choices:
             raise ParameterError(self.name, value, f'must be one of {", ".join(self.choices)}')
-        return value  # type: ignore[return-value]
+        return value
 
     def descriptor(self) -> ParameterDescriptor:
         """The ``ParameterDescriptor`` to declare the parameter with (a new one each call)."""
@@ -199,7 +199,7 @@ def parameter_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
     return {spec.name: node.get_parameter(spec.name).value for spec in specs}
 
 
-class _Refused(Parameter):
+class _Refused(Parameter[Any]):
     """Stand-in for a proposed value that its spec refuses (see :func:`make_screen`).
 
     It carries the spec's default, so rclpy's own descriptor checks pass, and the
@@ -211,7 +211,7 @@ class _Refused(Parameter):
         self.reason = reason
 
 
-def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter]], list[Parameter]]:
+def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter[Any]]], list[Parameter[Any]]]:
     """The pre-set parameters callback of a node (see :func:`declare_parameters`).
 
     rclpy applies the declared descriptor before any on-set callback and refuses
@@ -225,8 +225,8 @@ def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter]], list[
     """
     by_name = {spec.name: spec for spec in specs}
 
-    def screen(parameters: list[Parameter]) -> list[Parameter]:
-        out: list[Parameter] = []
+    def screen(parameters: list[Parameter[Any]]) -> list[Parameter[Any]]:
+        out: list[Parameter[Any]] = []
         for parameter in parameters:
             spec = by_name.get(parameter.name)
             if spec is not None and not isinstance(parameter, _Refused):
@@ -244,7 +244,7 @@ def make_validator(
     specs: Sequence[ParamSpec],
     current: Callable[[], Mapping[str, Any]],
     cross_check: CrossCheck | None = None,
-) -> Callable[[list[Parameter]], SetParametersResult]:
+) -> Callable[[list[Parameter[Any]]], SetParametersResult]:
     """The on-set parameters callback of a node (see :func:`declare_parameters`).
 
     Each proposed parameter that has a spec is checked with :meth:`ParamSpec.check`
@@ -272,7 +272,7 @@ def make_validator(
     """
     by_name = {spec.name: spec for spec in specs}
 
-    def validate(parameters: list[Parameter]) -> SetParametersResult:
+    def validate(parameters: list[Parameter[Any]]) -> SetParametersResult:
         for parameter in parameters:
             if isinstance(parameter, _Refused):
                 return SetParametersResult(successful=False, reason=parameter.reason)
@@ -345,8 +345,8 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec], cross_check: Cros
 
 
 def sim_time_overrides(
-    parameter_overrides: Iterable[Parameter] | None = None, *, use_sim_time: bool = True
-) -> list[Parameter]:
+    parameter_overrides: Iterable[Parameter[Any]] | None = None, *, use_sim_time: bool = True
+) -> list[Parameter[Any]]:
     """Node ``parameter_overrides`` with ``use_sim_time`` set.
 
     A helper for nodes outside the line (tests): the line's own nodes set

@@ -26,7 +26,7 @@ import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
+from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
@@ -151,12 +151,13 @@ def run_node(
         # and then no Python thread runs: faulthandler's C thread ends the process all the same, with the stacks
         faulthandler.dump_traceback_later(teardown_timeout + 2.0, exit=True)
 
-    previous: dict[int, Any] = {}
+    previous: dict[signal.Signals, Any] = {}
     if in_main_thread:
         for signum in (signal.SIGINT, signal.SIGTERM):
             previous[signum] = signal.signal(signum, on_signal)
     try:
         with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
+            refused: str | None
             try:
                 node = node_factory()
             except (FolderLineError, ParameterException) as err:

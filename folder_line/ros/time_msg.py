@@ -30,4 +30,6 @@ def ns_to_time_msg(ns: int) -> TimeMsg:
 
 def time_msg_to_ns(stamp: TimeMsg) -> int:
     """Integer nanoseconds of a ``builtin_interfaces/msg/Time``."""
-    return stamp.sec * NS_PER_S + stamp.nanosec
+    sec: int = stamp.sec  # builtin_interfaces has no type information
+    nanosec: int = stamp.nanosec
+    return sec * NS_PER_S + nanosec

@@ -87,7 +87,8 @@ RELEASE_KV_TOL = 1e-6
 
 
 def _rows(events: np.ndarray, kind: str) -> np.ndarray:
-    return events[events['kind'] == event_kind(kind)]
+    rows: np.ndarray = events[events['kind'] == event_kind(kind)]  # a field of a structured array is typed Any
+    return rows
 
 
 def _lookup(
@@ -294,7 +295,7 @@ def folder_evaluation(
 
     # rebound
     if bouncing:
-        tol = float(scene.effect('stop_bounce').tolerance)
+        tol = float(scene.effect_params('stop_bounce').tolerance)
         bounce = _rows(ev, 'bounce')
         if causal and bounce.size:  # only the rebounds before the sheet's knife contact
             t_cut, known = _lookup(sheet, t_contact, bounce['sheet'])
@@ -316,6 +317,7 @@ def folder_evaluation(
     if 'delivery' in scene.machines:
         if plan is None:
             plan = delivery_plan(scene, timing)
+        assert plan is not None, 'delivery_plan is None only for a scene without a delivery'
         rel = _rows(ev, 'released_on_pile')
         if rel.size:
             travel = plan.schedule.travel(theta(rel['t']), rel['cycle'])
@@ -363,12 +365,12 @@ def chute_speed_series(
     """
     if not scene.has('chute_belts'):
         return None
-    bp = scene.effect('chute_belts')
+    bp = scene.effect_params('chute_belts')
     speed = np.asarray(speed, dtype=float)
     upper = None
     desc = f'absolute exit speed >= v_min = {bp.v_min:g} m/s'
     if scene.has('leaf_damage'):
-        dp = scene.effect('leaf_damage')
+        dp = scene.effect_params('leaf_damage')
         upper = leaf_damage.upper_margin(dp, speed)
         desc += f' and < v_damage = {dp.v_damage:g} m/s'
     return ConstraintSeries(

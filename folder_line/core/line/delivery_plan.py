@@ -78,8 +78,8 @@ def delivery_plan(scene: Scene, timing: CycleTiming) -> DeliveryPlan | None:
     """
     if 'delivery' not in scene.machines:
         return None
-    params: dlv.DeliveryParams = scene.machines['delivery']
-    chain_p: ChainParams = scene.machines['delivery_chain']
+    params = scene.machine('delivery')
+    chain_p = scene.machine('delivery_chain')
     sch = chain.schedule(scene)
     if sch.T != timing.T or sch.theta_pick0 != timing.T + timing.knife.t_out:
         raise ValueError('delivery_plan: timing is not the cycle timing of this scene')

@@ -86,7 +86,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import numpy as np
 import numpy.typing as npt
@@ -138,7 +138,7 @@ def _indices(first: float, step: float, last: float) -> np.ndarray:
     return k[k * step + first <= last]
 
 
-def _json_float(x: float) -> float:
+def _json_float(x: SupportsFloat) -> float:
     x = float(x)
     if not math.isfinite(x):  # never expected; keep the summary JSON-clean
         raise ValueError(f'non-finite summary figure {x!r}')
@@ -172,9 +172,9 @@ class _Setup:
     V_tr: float
     phase: float  # ``sheets.phase``, nominal s
     plan: DeliveryPlan | None
-    slip: Any  # the listed effects' parameters, or None
-    bounce: Any
-    faults: Any
+    slip: feed_slip.Params | None  # the listed effects' parameters, or None
+    bounce: stop_bounce.Params | None
+    faults: faults.Params | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,7 +216,7 @@ class _Fates:
 
 
 def _setup(scene: Scene, drive: Drive, duration: float) -> _Setup:
-    timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+    timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
     duration = float(duration)
     return _Setup(
         scene=scene,
@@ -224,12 +224,12 @@ def _setup(scene: Scene, drive: Drive, duration: float) -> _Setup:
         duration=duration,
         theta_end=float(np.asarray(drive.theta(duration))),
         timing=timing,
-        V_tr=float(scene.machines['feed_transporter'].V_tr),
+        V_tr=float(scene.machine('feed_transporter').V_tr),
         phase=float(scene.sheets.phase),
         plan=delivery_plan(scene, timing),
-        slip=scene.effect('feed_slip'),
-        bounce=scene.effect('stop_bounce'),
-        faults=scene.effect('faults'),
+        slip=scene.effect_params('feed_slip') if scene.has('feed_slip') else None,
+        bounce=scene.effect_params('stop_bounce') if scene.has('stop_bounce') else None,
+        faults=scene.effect_params('faults') if scene.has('faults') else None,
     )
 
 
@@ -424,7 +424,7 @@ def _summary(
     }
     if s.slip is not None:
         cost = float(feed_slip.slip_cost(s.slip, V_d, V_tr, L))
-        summary['feed_slip'] = _slip_info(s, cost)
+        summary['feed_slip'] = _slip_info(s, s.slip, cost)
         summary['slack']['slip_cost'] = _json_float(cost)
         t_feed += cost
     summary['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
@@ -453,16 +453,16 @@ def _summary(
     return summary
 
 
-def _slip_info(s: _Setup, cost: float) -> dict[str, Any]:
-    """The summary's ``feed_slip`` figures."""
+def _slip_info(s: _Setup, slip: feed_slip.Params, cost: float) -> dict[str, Any]:
+    """The summary's ``feed_slip`` figures (``slip``: the scene's, ``s.slip``)."""
     timing, L = s.timing, s.timing.L_feed
     info: dict[str, Any] = {
-        'accel': _json_float(s.slip.accel),
+        'accel': _json_float(slip.accel),
         'slip_cost': _json_float(cost),
         'feed_margin_with_slip': _json_float(timing.t_allowed - L / s.V_tr - cost),
     }
     try:
-        info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(s.slip, timing.V_d, L, timing.t_allowed))
+        info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(slip, timing.V_d, L, timing.t_allowed))
     except ParameterError:
         info['V_tr_min_with_slip'] = None
     return info
@@ -526,9 +526,9 @@ class FolderLine(LinePart):
         self.events = events
         self.constraints = evaluate_folder_constraints(events, s.timing, scene, drive, plan=s.plan)
         self.summary = _summary(s, st, sheets, knife, fates, events, bounce_info)
-        self.knife: knf.KnifeParams = scene.machines['knife']
+        self.knife: knf.KnifeParams = scene.machine('knife')
         self.with_torque = scene.has('chain_friction') and s.plan is not None
-        self.torque_params = scene.effect('chain_friction') if self.with_torque else None
+        self.torque_params = scene.effect_params('chain_friction') if self.with_torque else None
         self.units: dict[str, tuple[str, ...]] = {
             'drive': ('knife_crank', 'knife'),
             'belts': ('first_transporter',),

@@ -81,7 +81,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.effects import effect_module
+from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
 from folder_line.core.line.constraints import chute_speed_series
 from folder_line.core.line.events import (
     ConstraintSeries,
@@ -161,7 +161,8 @@ class LayupKinematics:
 
     def cycle(self, t: np.ndarray) -> np.ndarray:
         """Crank cycle index ``floor(n_kr/60 · Θ(t))``."""
-        return np.floor(self.turns(np.asarray(t, dtype=float))).astype(np.int64)
+        cycles: np.ndarray = np.floor(self.turns(np.asarray(t, dtype=float))).astype(np.int64)
+        return cycles
 
     @staticmethod
     def wrap(turns: np.ndarray) -> np.ndarray:
@@ -245,9 +246,9 @@ class LayupKinematics:
         return (wx / p.l5, -wy / p.l5, w5 * lam, e5 * lam * lam + w5 * lamd)
 
 
-def _empty_slowdowns(faults_mod: Any) -> Any:
+def _empty_slowdowns() -> faults.Slowdowns:
     z = np.zeros(0)
-    return faults_mod.Slowdowns(z, z, z)
+    return faults.Slowdowns(z, z, z)
 
 
 def _stats(x: np.ndarray) -> dict[str, float] | None:
@@ -298,11 +299,9 @@ class LayupLine(LinePart):
         slot, t_nom = leaf_stream(scene.sheets, duration, scene.seed)
         in_run = (t_nom >= 0.0) & (t_nom <= duration)
         tables: list[np.ndarray] = []
-        belts = effect_module('chute_belts') if belts_on else None
         slow = None
         if faults_on:
-            faults = effect_module('faults')
-            fp = scene.effect('faults')
+            fp = scene.effect_params('faults')
             sf = faults.draw_sheet_faults(fp, int(slot.size), rng_mod.stream(scene.seed, 'layup.faults'))
             sub = faults.SheetFaults(sf.missing[in_run], sf.double[in_run], sf.delay[in_run])
             if belts_on:
@@ -316,7 +315,7 @@ class LayupLine(LinePart):
                     t_run,
                     ids_run,
                     kin.cycle(t_run),
-                    slow if slow is not None else _empty_slowdowns(faults),
+                    slow if slow is not None else _empty_slowdowns(),
                     duration,
                 )
             )
@@ -340,27 +339,26 @@ class LayupLine(LinePart):
         profile = None
         v_along = np.zeros(n)
         if belts_on:
-            v_tr = belts.check_belt_speed(lp.v_tr)
+            v_tr = chute_belts.check_belt_speed(lp.v_tr)
             if slow is not None:
-                profile = belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
+                profile = chute_belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
             else:
-                profile = belts.belt_profile(v_tr, drive, duration)
-            t_out, exited = belts.exit_times(profile, drive, length, t_in, theta_end)
+                profile = chute_belts.belt_profile(v_tr, drive, duration)
+            t_out, exited = chute_belts.exit_times(profile, drive, length, t_in, theta_end)
             if exited.any():
-                v_along[exited] = belts.belt_speed(profile, drive, t_out[exited])
+                v_along[exited] = chute_belts.belt_speed(profile, drive, t_out[exited])
         elif friction_on:
-            gf = effect_module('guide_friction')
-            gp = scene.effect('guide_friction')
-            gf.check_geometry(gp, min(lp.l3, lp.l5), min(-sw.yC[1] / lp.l3, -sw.yE[1] / lp.l5))
+            gp = scene.effect_params('guide_friction')
+            guide_friction.check_geometry(gp, min(lp.l3, lp.l5), min(-sw.yC[1] / lp.l3, -sw.yE[1] / lp.l5))
 
-            def kin_vec(t: np.ndarray, ch: np.ndarray) -> Any:
+            def kin_vec(t: np.ndarray, ch: np.ndarray) -> guide_friction.ChuteState[npt.NDArray[np.float64]]:
                 q = kin.chute(t, ch)
-                return gf.ChuteState(q['sin'], q['cos'], q['omega'], q['eps'])
+                return guide_friction.ChuteState(q['sin'], q['cos'], q['omega'], q['eps'])
 
-            def kin_one(t: float, ch: int) -> Any:
-                return gf.ChuteState(*kin.chute_scalar(t, ch))
+            def kin_one(t: float, ch: int) -> guide_friction.ChuteState[float]:
+                return guide_friction.ChuteState(*kin.chute_scalar(t, ch))
 
-            res = gf.slide(gp, kin_vec, kin_one, t_in, chute, length, duration)
+            res = guide_friction.slide(gp, kin_vec, kin_one, t_in, chute, length, duration)
             t_out, exited = res.t_exit, res.exited
             v_along = np.where(exited, res.v_exit, 0.0)
             if res.stick_t.size:
@@ -379,7 +377,7 @@ class LayupLine(LinePart):
         q = kin.chute(t_x, ch_x)
         u = v_along[xi]
         vp = q['v_perp']
-        speed = belts.absolute_speed(vp, u) if belts_on else np.sqrt(vp * vp + u * u)
+        speed = chute_belts.absolute_speed(vp, u) if belts_on else np.sqrt(vp * vp + u * u)
         # t̂ = (sin, −cos), n̂ = (cos, sin)
         vx = u * q['sin'] + vp * q['cos']
         vy = -u * q['cos'] + vp * q['sin']
@@ -390,9 +388,7 @@ class LayupLine(LinePart):
         constraints: list[ConstraintSeries] = []
         n_damaged = 0
         if damage_on:
-            dmg_mod = effect_module('leaf_damage')
-            dp = scene.effect('leaf_damage')
-            bad = dmg_mod.damaged(dp, speed)
+            bad = leaf_damage.damaged(scene.effect_params('leaf_damage'), speed)
             n_damaged = int(bad.sum())
             if n_damaged:
                 tables.append(
@@ -407,15 +403,14 @@ class LayupLine(LinePart):
         summary_flight: dict[str, Any] = {}
         n_landed = n_spilled = 0
         if flight_on:
-            lf = effect_module('leaf_flight')
-            fpar = scene.effect('leaf_flight')
+            fpar = scene.effect_params('leaf_flight')
             cont = scene.machine('container')
             lowest = min(sw.yC[0], sw.yE[0])
             if not cont.y_floor < lowest:
                 raise ParameterError(
                     'container.y_floor', cont.y_floor, f'must be below the lowest chute exit (y = {lowest!r} m)'
                 )
-            t_f, x_land = lf.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
+            t_f, x_land = leaf_flight.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
             t_land = t_x + t_f
             down = t_land <= duration
             inside = (x_land >= cont.x_left) & (x_land <= cont.x_right)
@@ -433,7 +428,7 @@ class LayupLine(LinePart):
                         'leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]), value=x_land[si]
                     )
                 )
-            hist = lf.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
+            hist = leaf_flight.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
             summary_flight = {
                 'landing_histogram': {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]},
                 'landing_cv': hist.cv,

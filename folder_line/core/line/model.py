@@ -124,7 +124,8 @@ class LineResult:
 
     def events_of(self, kind: str) -> np.ndarray:
         """Rows of one event kind."""
-        return self.events[self.events['kind'] == EVENT_KINDS.index(kind)]
+        rows: np.ndarray = self.events[self.events['kind'] == EVENT_KINDS.index(kind)]  # a field is typed Any
+        return rows
 
     def constraint(self, name: str) -> ConstraintSeries:
         """A constraint by name (KeyError listing the names)."""
@@ -254,7 +255,7 @@ def check_size(scene: Scene, span: float, theta_end: float, key: str = 'horizon'
     """
     parts: list[tuple[float, str, int]] = []
     if scene.has_folder:
-        parts.append((theta_end / float(scene.machines['knife'].period), 'knife cycles', BYTES_PER_CYCLE))
+        parts.append((theta_end / float(scene.machine('knife').period), 'knife cycles', BYTES_PER_CYCLE))
     if scene.has_layup:
         parts.append((span / float(scene.sheets.interval), 'leaves', BYTES_PER_LEAF))
     need = sum(n * b for n, _, b in parts)

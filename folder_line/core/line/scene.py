@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Literal, TypeAlias, overload
+from typing import TYPE_CHECKING, Any, Literal, TypeAlias, overload
 
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.limits import SAMPLE_RATE
@@ -25,6 +25,19 @@ from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.validate import build, check_keys
 from folder_line.errors import ParameterError
+
+if TYPE_CHECKING:  # only for the overloads of Scene.effect_params (faults imports core.line)
+    from folder_line.core.effects import (
+        chain_friction,
+        chute_belts,
+        faults,
+        feed_slip,
+        guide_friction,
+        leaf_damage,
+        leaf_flight,
+        motor_dynamics,
+        stop_bounce,
+    )
 
 __all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'machine_class', 'parse_scene']
 
@@ -124,8 +137,40 @@ class Scene:
         return effect in self.effects
 
     def effect(self, name: str) -> Any:
-        """Params of a listed effect, or None."""
+        """Params of a listed effect, or None (untyped; :meth:`effect_params` gives them typed)."""
         return self.effects.get(name)
+
+    @overload
+    def effect_params(self, name: Literal['chain_friction']) -> chain_friction.Params: ...
+    @overload
+    def effect_params(self, name: Literal['chute_belts']) -> chute_belts.Params: ...
+    @overload
+    def effect_params(self, name: Literal['faults']) -> faults.Params: ...
+    @overload
+    def effect_params(self, name: Literal['feed_slip']) -> feed_slip.Params: ...
+    @overload
+    def effect_params(self, name: Literal['guide_friction']) -> guide_friction.Params: ...
+    @overload
+    def effect_params(self, name: Literal['leaf_damage']) -> leaf_damage.Params: ...
+    @overload
+    def effect_params(self, name: Literal['leaf_flight']) -> leaf_flight.Params: ...
+    @overload
+    def effect_params(self, name: Literal['motor_dynamics']) -> motor_dynamics.Params: ...
+    @overload
+    def effect_params(self, name: Literal['stop_bounce']) -> stop_bounce.Params: ...
+    @overload
+    def effect_params(self, name: str) -> Any: ...
+
+    def effect_params(self, name: str) -> Any:
+        """Params of a listed effect, typed by name (ParameterError if the scene does not list it)."""
+        try:
+            return self.effects[name]
+        except KeyError:
+            raise ParameterError(
+                'effects',
+                name,
+                f'scene {self.name!r} does not list this effect; it lists {", ".join(self.effects) or "none"}',
+            ) from None
 
     @overload
     def machine(self, section: Literal['layup']) -> LayupParams: ...

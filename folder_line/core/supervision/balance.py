@@ -107,7 +107,8 @@ class SheetBalance:
         kind = rows['kind']
 
         def of(name: str) -> np.ndarray:
-            return rows[kind == event_kind(name)]
+            sel: np.ndarray = rows[kind == event_kind(name)]  # a field of a structured array is typed Any
+            return sel
 
         fed = delivered = in_machine = 0
         detail: dict[str, int] = {}

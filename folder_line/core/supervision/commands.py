@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -79,7 +78,7 @@ _NS = 1_000_000_000
 _CAUSES = {'speed': 'drive at speed', 'standstill': 'drive at standstill', 'next': 'done'}
 
 #: commands -> the line model under them (a :class:`~folder_line.core.line.model.LineModel`)
-ModelFactory = Callable[[tuple[Command, ...]], Any]
+ModelFactory = Callable[[tuple[Command, ...]], LineModel]
 
 
 def _ns_round(t: float) -> float:
@@ -125,18 +124,18 @@ class DriveSchedule:
         self.lead = lead
         self.commands: tuple[Command, ...] = ()
         self.issued: list[tuple[float, Command]] = []
-        self._model: Any = None
+        self._model: LineModel | None = None
         self._model_commands: tuple[Command, ...] = ()
 
     @property
-    def model(self) -> Any:
+    def model(self) -> LineModel:
         """The line model under the commands issued so far (built on first use after a command)."""
         if self._model is None or self._model_commands != self.commands:
             self._model = self._factory(self.commands)
             self._model_commands = self.commands
         return self._model
 
-    def model_before(self, t: float) -> Any:
+    def model_before(self, t: float) -> LineModel:
         """A line model that is right at times before ``t``: the one in use if no command issued since it
         was built is effective before ``t`` (a command changes nothing before its time), else :attr:`model`."""
         if self._model is not None:

@@ -72,7 +72,7 @@ class CycleEvaluation:
         self.timing: CycleTiming | None = None
         self.plan: DeliveryPlan | None = None
         if scene.has_folder:
-            self.timing = cycle_timing(scene.machines['cyclogram'], scene.machines['knife'])
+            self.timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
             self.plan = delivery_plan(scene, self.timing)
         self._folder = np.zeros(0, dtype=EVENT_DTYPE)
         self._releases = np.zeros(0, dtype=EVENT_DTYPE)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
@@ -123,7 +124,7 @@ def run_closed_loop(
     silent: Mapping[str, float] | None = None,
     bad_values: Iterable[tuple[float, str, int]] = (),
     **params: Any,
-) -> tuple[Supervisor, Any, dict]:
+) -> tuple[Supervisor, LineModel, dict[str, Any]]:
     """The live loop offline: the line model's events fed step by step, the supervisor's commands fed back.
 
     Every ``step`` s of line time: the events of the current model (built with the

@@ -86,6 +86,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command, Drive
 from folder_line.core.numerics.validate import as_float
@@ -246,7 +247,7 @@ class Supervisor:
         return self._drive.commands
 
     @property
-    def model(self) -> Any:
+    def model(self) -> LineModel:
         """The line model under the commands issued so far (built on first use after a command)."""
         return self._drive.model
 

@@ -180,7 +180,7 @@ class LineClock(Node):
 
     NODE_NAME = NODE_NAME
 
-    def __init__(self, *, parameter_overrides: Iterable[Parameter] | None = None, **kwargs: Any) -> None:
+    def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
         # use_sim_time is off by default; on, from the constructor or --ros-args, it is refused
         super().__init__(NODE_NAME, parameter_overrides=list(parameter_overrides or []), **kwargs)
         if self.get_parameter('use_sim_time').value:
@@ -191,7 +191,7 @@ class LineClock(Node):
         self.participants = parse_participants(v['participants'])
         self._start = seconds_to_ns(v['start_time'])
         self._end = self._start + seconds_to_ns(v['duration']) if v['duration'] > 0.0 else None
-        self._step = round(NS_PER_S / v['rate'])
+        self._step: int = round(NS_PER_S / v['rate'])
         self._rtf: float = v['rtf']
         self.current: int | None = None  # the latest tick published, ns
         self._origin: tuple[int, float] | None = None  # (sim ns, wall s) the rtf ceiling counts from
@@ -201,7 +201,7 @@ class LineClock(Node):
         self.lost: dict[str, float] = {}
         self.late: dict[str, int] = dict.fromkeys(self.participants, 0)
         self.rejected = 0
-        self.done: Future = Future()
+        self.done: Future[int] = Future()
         self.first_done_wall: float | None = None
         self._finished_wall: float | None = None
         self._ledger = TickLedger(self.participants)
@@ -243,7 +243,7 @@ class LineClock(Node):
 
     # ------------------------------------------------------------------ internals
 
-    def _apply(self, parameters: list[Parameter]) -> None:
+    def _apply(self, parameters: list[Parameter[Any]]) -> None:
         for p in parameters:
             if p.name == 'rtf':
                 self._rtf = p.value
@@ -291,9 +291,10 @@ class LineClock(Node):
 
     def _advance(self) -> None:
         """Every participant answered the current tick (lockstep): publish the next, or finish."""
+        assert self.current is not None, 'an answer (or a lost participant) is to a tick already published'
         if self.first_done_wall is None:
             self.first_done_wall = time.monotonic()
-            self._origin = (self.current, self.first_done_wall)  # type: ignore[assignment]
+            self._origin = (self.current, self.first_done_wall)
             self._ledger_first_done()
         if self.mode == 'wall':
             return
@@ -392,6 +393,7 @@ class LineClock(Node):
                     'waited_wall_s': f'{waited:.3f}',
                     'limit_s': repr(limit),
                 },
+                stamp=self.current,
             )
         if silent and self._all_answered():
             self._advance()
@@ -402,11 +404,9 @@ class LineClock(Node):
         text = ', '.join(f'{p} {n}' for p, n in self.late.items() if n) or 'none'
         self._status('lateness', level, f'late ticks: {text}', {p: str(n) for p, n in self.late.items()}, stamp=stamp)
 
-    def _status(
-        self, what: str, level: bytes, message: str, values: Mapping[str, str], stamp: int | None = None
-    ) -> None:
+    def _status(self, what: str, level: bytes, message: str, values: Mapping[str, str], stamp: int) -> None:
         arr = DiagnosticArray()
-        arr.header.stamp = ns_to_time_msg(self.current if stamp is None else stamp)
+        arr.header.stamp = ns_to_time_msg(stamp)
         arr.header.frame_id = NODE_NAME
         st = DiagnosticStatus(
             name=f'folder_line/line_clock/{what}', hardware_id=NODE_NAME, level=level, message=message

@@ -171,7 +171,7 @@ class MachineNode(Node):
     NODE_NAME = 'machine'
     EXTRA_SPECS: tuple[ParamSpec, ...] = ()
 
-    def __init__(self, *, parameter_overrides: Iterable[Parameter] | None = None, **kwargs: Any) -> None:
+    def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
         overrides = list(parameter_overrides or [])
         super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
         # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
@@ -205,7 +205,7 @@ class MachineNode(Node):
         self.rejected: dict[str, int] = {}
         self.published_joint_states = 0
         self.published_events = 0
-        self.done: Future = Future()
+        self.done: Future[int] = Future()
         self._joint_pub = (
             self.create_publisher(JointState, joint_states_topic(self.NODE_NAME), LINE_QOS) if self.joints else None
         )
@@ -277,7 +277,7 @@ class MachineNode(Node):
 
     # ------------------------------------------------------------------ internals
 
-    def _apply(self, parameters: list[Parameter]) -> None:
+    def _apply(self, parameters: list[Parameter[Any]]) -> None:
         for parameter in parameters:
             if parameter.name == 'rate':
                 self._period_ns = round(NS_PER_S / parameter.value)

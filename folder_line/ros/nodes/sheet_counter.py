@@ -74,7 +74,7 @@ class SheetCounter(MachineNode):
 
     def rate_at(self, t: float) -> float:
         """Sheets per second over ``(t - window, t]`` (the elapsed time if shorter), 0 at t = 0."""
-        window = min(self.values['rate_window'], t)
+        window: float = min(self.values['rate_window'], t)
         if window <= 0.0:
             return 0.0
         return (self.count_at(t) - self.count_at(t - window)) / window
