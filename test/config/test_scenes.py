@@ -17,7 +17,7 @@ from folder_line.config.scenes import (
     shared_scene,
     write_scene,
 )
-from folder_line.core.effects import EFFECTS
+from folder_line.core.effects import EFFECTS, chain_friction, motor_dynamics
 from folder_line.core.line.scene import Scene
 from folder_line.errors import ParameterError
 
@@ -190,3 +190,14 @@ def test_unknown_keys_are_judged_once_by_the_builder(tmp_path: Path) -> None:
         load_scene(_write(tmp_path, MINIMAL + 'sheets: {bogus: 2}\n'))
     with pytest.raises(ParameterError, match=r'^effects\.faults=5: must be a mapping of key: value'):
         load_scene(_write(tmp_path, MINIMAL + 'effects: {faults: 5}\n'))
+
+
+def test_effect_params_are_typed_and_name_an_unlisted_effect() -> None:
+    line = load_scene('line')
+    assert 'motor_dynamics' in line.effects
+    assert isinstance(line.effect_params('motor_dynamics'), motor_dynamics.Params)
+    assert line.effect_params('motor_dynamics') is line.effect('motor_dynamics')
+    folder = load_scene('folder')
+    assert isinstance(folder.effect_params('chain_friction'), chain_friction.Params)
+    with pytest.raises(ParameterError, match=r"effects='motor_dynamics'.*does not list this effect; it lists"):
+        folder.effect_params('motor_dynamics')
