@@ -17,7 +17,7 @@ import numpy as np
 
 from folder_line.analysis.recording import Recording
 from folder_line.analysis.replay import Evaluation
-from folder_line.core.effects import effect_module
+from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.mechanisms import delivery
 from folder_line.interfaces import NS_PER_S
@@ -202,7 +202,7 @@ def landing_data(rec: Recording) -> dict[str, Any] | None:
         return None
     cont = scene.machine('container')
     x = rec.events_of('leaf_landed')['value']
-    hist = effect_module('leaf_flight').histogram(x, cont.x_left, cont.x_right, cont.bins)
+    hist = leaf_flight.histogram(x, cont.x_left, cont.x_right, cont.bins)
     return {
         'x': x,
         'spilled': rec.events_of('leaf_spilled')['value'],

@@ -22,15 +22,26 @@ the one builder of validated parameters, :func:`folder_line.core.numerics.valida
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
+from folder_line.core.effects import (
+    chain_friction,
+    chute_belts,
+    faults,
+    feed_slip,
+    guide_friction,
+    leaf_damage,
+    leaf_flight,
+    motor_dynamics,
+    stop_bounce,
+)
 from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 
-__all__ = ['EFFECTS', 'EffectSpec', 'effect_module', 'parse_effect_params']
+__all__ = ['EFFECTS', 'EffectSpec', 'effect_module', 'effect_spec', 'parse_effect_params']
 
 
 @dataclass(frozen=True)
@@ -39,40 +50,57 @@ class EffectSpec:
 
     Attributes
     ----------
-    name : str
-        The name a scene lists.
+    module : module
+        The module implementing it (its frozen dataclass ``Params`` and the functions the
+        simulators call).
     machines : tuple of str
         Machine sections the scene must have (empty: works with any).
     summary : str
         One line for error messages and docs.
     """
 
-    name: str
+    module: ModuleType
     machines: tuple[str, ...]
     summary: str
+
+    @property
+    def name(self) -> str:
+        """The name a scene lists: the module's own name."""
+        return self.module.__name__.rpartition('.')[2]
+
+    @property
+    def params(self) -> type[Any]:
+        """The effect's frozen parameter dataclass."""
+        cls: type[Any] = self.module.Params
+        return cls
 
 
 EFFECTS: dict[str, EffectSpec] = {
     spec.name: spec
     for spec in (
-        EffectSpec('chute_belts', ('layup',), 'belts along the chutes at v_tr (paper 000 eq. 25)'),
-        EffectSpec('leaf_flight', ('layup', 'container'), 'leaf flight from the chute exit to the container floor'),
-        EffectSpec('guide_friction', ('layup',), 'leaf braked by Coulomb friction on the guide (no belts)'),
-        EffectSpec('leaf_damage', ('layup',), 'leaves leaving at or above the damage speed are damaged'),
-        EffectSpec('motor_dynamics', (), 'master drive from a motor torque-speed curve and inertia (ODE)'),
-        EffectSpec('chain_friction', ('delivery',), 'delivery efficiency, forces and sprocket torque (paper 002)'),
-        EffectSpec('feed_slip', ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
-        EffectSpec('stop_bounce', ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
-        EffectSpec('faults', (), 'seeded missing, double and late sheets and belt slow-downs'),
+        EffectSpec(chute_belts, ('layup',), 'belts along the chutes at v_tr (paper 000 eq. 25)'),
+        EffectSpec(leaf_flight, ('layup', 'container'), 'leaf flight from the chute exit to the container floor'),
+        EffectSpec(guide_friction, ('layup',), 'leaf braked by Coulomb friction on the guide (no belts)'),
+        EffectSpec(leaf_damage, ('layup',), 'leaves leaving at or above the damage speed are damaged'),
+        EffectSpec(motor_dynamics, (), 'master drive from a motor torque-speed curve and inertia (ODE)'),
+        EffectSpec(chain_friction, ('delivery',), 'delivery efficiency, forces and sprocket torque (paper 002)'),
+        EffectSpec(feed_slip, ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
+        EffectSpec(stop_bounce, ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
+        EffectSpec(faults, (), 'seeded missing, double and late sheets and belt slow-downs'),
     )
 }
 
 
-def effect_module(name: str) -> Any:
-    """The module implementing effect ``name``."""
+def effect_spec(name: str) -> EffectSpec:
+    """The registry's entry of effect ``name`` (ParameterError naming the known ones if there is none)."""
     if name not in EFFECTS:
         raise ParameterError('effects', name, f'unknown effect; known: {", ".join(EFFECTS)}')
-    return importlib.import_module(f'{__name__}.{name}')
+    return EFFECTS[name]
+
+
+def effect_module(name: str) -> ModuleType:
+    """The module implementing effect ``name``."""
+    return effect_spec(name).module
 
 
 def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
@@ -86,5 +114,5 @@ def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
         or a bad value.
     """
     return build(
-        effect_module(name).Params, {} if values is None else values, f'effects.{name}', f'parameter of effect {name}'
+        effect_spec(name).params, {} if values is None else values, f'effects.{name}', f'parameter of effect {name}'
     )
