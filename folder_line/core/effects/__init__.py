@@ -41,7 +41,7 @@ from folder_line.core.effects import (
 from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 
-__all__ = ['EFFECTS', 'EffectSpec', 'effect_module', 'effect_spec', 'parse_effect_params']
+__all__ = ['EFFECTS', 'EffectSpec', 'effect_spec', 'parse_effect_params']
 
 
 @dataclass(frozen=True)
@@ -96,11 +96,6 @@ def effect_spec(name: str) -> EffectSpec:
     if name not in EFFECTS:
         raise ParameterError('effects', name, f'unknown effect; known: {", ".join(EFFECTS)}')
     return EFFECTS[name]
-
-
-def effect_module(name: str) -> ModuleType:
-    """The module implementing effect ``name``."""
-    return effect_spec(name).module
 
 
 def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
