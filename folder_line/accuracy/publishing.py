@@ -90,7 +90,7 @@ from folder_line.core.limits import TICK_RATE
 from folder_line.core.line.model import LineModel, sample_times
 from folder_line.core.line.scene import parse_scene
 from folder_line.errors import MeasurementError, ParameterError
-from folder_line.interfaces import JOINT_NODES, KNOWN_PARTICIPANTS, UNIT_OF_NODE
+from folder_line.interfaces import JOINT_NODES, KNOWN_PARTICIPANTS, NODE_OF_UNIT
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
 from folder_line.ros.run import add_machine_nodes
@@ -122,9 +122,9 @@ __all__ = [
 
 #: the scene whose knife is measured
 SCENE = 'folder'
-#: node and joint measured (the knife position, m)
-JOINT_NODE = 'crank_drive'
-JOINT_UNIT = UNIT_OF_NODE[JOINT_NODE]
+#: unit, node and joint measured (the knife position, m)
+JOINT_UNIT = 'drive'
+JOINT_NODE = NODE_OF_UNIT[JOINT_UNIT]
 JOINT = 'knife'
 #: the two reconstruction methods, in report order
 METHODS = ('linear interpolation', 'cubic Hermite')

@@ -20,7 +20,7 @@ from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.mechanisms import delivery
-from folder_line.interfaces import NS_PER_S
+from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
 __all__ = ['GANTT_CYCLES', 'cycle_rows', 'efficiency_data', 'exit_speed_data', 'landing_data']
 
@@ -40,7 +40,7 @@ def exit_speed_data(rec: Recording) -> dict[str, np.ndarray] | None:
         scene has no layup or nothing of it was recorded.
     """
     scene = rec.scene
-    crank = rec.joints.get('crank_drive')
+    crank = rec.joints.get(NODE_OF_UNIT['drive'])
     if not scene.has_layup or crank is None or 'layup_crank' not in crank.names or crank.t.size == 0:
         return None
     lp = scene.machine('layup')
@@ -49,7 +49,7 @@ def exit_speed_data(rec: Recording) -> dict[str, np.ndarray] | None:
     w3, w5 = crank.column('transporter3', 'velocity'), crank.column('transporter4', 'velocity')
     keep = np.ones(t.size, dtype=bool)
     v_belt = np.zeros(t.size)
-    belts = rec.joints.get('belt_conveyor')
+    belts = rec.joints.get(NODE_OF_UNIT['belts'])
     if scene.has('chute_belts'):
         if belts is None or 'chute_belts' not in belts.names or belts.t.size == 0:
             keep[:] = False
@@ -85,7 +85,7 @@ def efficiency_data(rec: Recording, ev: Evaluation) -> dict[str, np.ndarray] | N
         ``torque`` (recorded sprocket torque, N m; empty without efforts).
     """
     plan = ev.plan
-    ft = rec.joints.get('feed_transporter')
+    ft = rec.joints.get(NODE_OF_UNIT['feed'])
     if plan is None or ft is None or 'carriage' not in ft.names or ft.t.size == 0:
         return None
     x = ft.column('carriage')

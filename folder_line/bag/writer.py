@@ -54,7 +54,7 @@ from folder_line.bag.metadata import (
 from folder_line.bag.types import message_definition, msgtype_of, serialize
 from folder_line.errors import BagError
 from folder_line.files.atomic import write_text_atomic
-from folder_line.interfaces import NS_PER_S
+from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S
 
 __all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'start_mcap']
 
@@ -186,7 +186,7 @@ class BagWriter:
         scene_name: str = '',
         topics: Mapping[str, type | str] | None = None,
         custom: Mapping[str, str] | None = None,
-        clock_topic: str = '/clock',
+        clock_topic: str = CLOCK_TOPIC,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         flush_s: float = 0.1,
     ) -> None:

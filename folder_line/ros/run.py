@@ -319,7 +319,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             if now - last_draw > 0.2:
                 progress.show(recorder.sim_time)
                 last_draw = now
-                if recorder.count_publishers('/clock') > 1:
+                if recorder.count_publishers(CLOCK_TOPIC) > 1:
                     interrupted.append('another /clock publisher appeared on this ROS domain')
             if recorder.write_error is not None:
                 interrupted.append('the bag could not be written')
