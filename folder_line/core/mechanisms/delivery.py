@@ -108,11 +108,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, TypedDict
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import as_float, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
@@ -663,31 +664,10 @@ def _scaled1(c: float, g: float) -> float:
     return c * g  # python floats overflow to inf without raising
 
 
-class _PointCommon(TypedDict):
-    """The :class:`DeliveryPoint` fields every state fills."""
-
-    u: float
-    xi: float
-    section: int
-    psi: float
-    dpsi: float
-    alpha: float
-    beta: float
-    eta_O: float
-
-
-class _PointRatios(TypedDict):
-    """The :class:`DeliveryPoint` efficiencies and force ratios (all 0 unless the state is ok)."""
-
-    eta_A: float
-    eta_B: float
-    eta: float
-    p_AB: float
-    p_ch: float
-    m_1: float
-    p_AB_ideal: float
-    p_ch_ideal: float
-    m_1_ideal: float
+#: a sample's efficiencies and force ratios in :class:`DeliveryPoint`'s order: eta_A, eta_B, eta,
+#: p_AB, p_ch, m_1, p_AB_ideal, p_ch_ideal, m_1_ideal (all 0 unless the state is ok)
+_Ratios = tuple[float, float, float, float, float, float, float, float, float]
+_NO_RATIOS: _Ratios = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) -> DeliveryPoint:
@@ -701,18 +681,17 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     c_a = math.sqrt((1.0 - s_a) * (1.0 + s_a))
     s_b, c_b = math.sin(beta), math.cos(beta)
     eta_O = 1.0 / (1.0 + p.f_O * p.r_O)
-    zeros = _PointRatios(
-        eta_A=0.0, eta_B=0.0, eta=0.0, p_AB=0.0, p_ch=0.0, m_1=0.0, p_AB_ideal=0.0, p_ch_ideal=0.0, m_1_ideal=0.0
-    )
-    common = _PointCommon(u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, eta_O=eta_O)
+
+    def sample(K_v: float, k_BA: float, state: int, ratios: _Ratios = _NO_RATIOS) -> DeliveryPoint:
+        return DeliveryPoint(u, xi, section, psi, dpsi, alpha, beta, K_v, k_BA, eta_O, *ratios, state)
+
     if c_a <= COS_ALPHA_TOL:
-        return DeliveryPoint(**common, K_v=0.0, k_BA=0.0, state=STATE_SELF_LOCKING, **zeros)
+        return sample(0.0, 0.0, STATE_SELF_LOCKING)
     tan_a = s_a / c_a
     K_v = c_b + tan_a * s_b
     k_BA = s_b / c_a
     if abs(K_v) < KV_TOL or K_v <= -KV_TOL:
-        state = STATE_KV_ZERO if abs(K_v) < KV_TOL else STATE_CARRIAGE_REVERSED
-        return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, state=state, **zeros)
+        return sample(K_v, k_BA, STATE_KV_ZERO if abs(K_v) < KV_TOL else STATE_CARRIAGE_REVERSED)
     c_ab = c_a * K_v
     s_ab = abs(s_a * c_b - c_a * s_b)
     abs_s_b = abs(s_b)
@@ -721,24 +700,10 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     eta_A = 1.0 / (1.0 + _scaled1(p.f_Ap, s_ab / c_ab) + _scaled1(fr_A, abs_s_b / (c_a * c_ab)))
     eta = eta_O * eta_A * (eta_B if eta_B > 0.0 else 0.0)
     if eta <= ETA_TOL:
-        return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, state=STATE_SELF_LOCKING, **zeros)
+        return sample(K_v, k_BA, STATE_SELF_LOCKING)
     p_AB = 1.0 / (c_a * eta_B)
     p_ch = p_AB * (c_ab + _scaled1(p.f_Ap, s_ab) + _scaled1(fr_A, abs_s_b / c_a))
-    return DeliveryPoint(
-        **common,
-        K_v=K_v,
-        k_BA=k_BA,
-        eta_A=eta_A,
-        eta_B=eta_B,
-        eta=eta,
-        p_AB=p_AB,
-        p_ch=p_ch,
-        m_1=p_ch * (1.0 + fr_O),
-        p_AB_ideal=1.0 / c_a,
-        p_ch_ideal=K_v,
-        m_1_ideal=K_v,
-        state=STATE_OK,
-    )
+    return sample(K_v, k_BA, STATE_OK, (eta_A, eta_B, eta, p_AB, p_ch, p_ch * (1.0 + fr_O), 1.0 / c_a, K_v, K_v))
 
 
 # --------------------------------------------------------------------------- public entry points
@@ -881,21 +846,9 @@ def stroke_minimum(
             return math.inf
         return float(getattr(pt, quantity))
 
-    a, b = grid[max(i - 1, 0)], grid[min(i + 1, n - 1)]
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    while b - a > 1e-10:
-        if fc <= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
+    last = golden_section(f, grid[max(i - 1, 0)], grid[min(i + 1, n - 1)], xtol=1e-10)
     best_u, best = float(grid[i]), float(vals[i])
-    for x in (a, b, 0.5 * (a + b)):
+    for x in (last.lo, last.hi, 0.5 * (last.lo + last.hi)):
         fx = f(x)
         if fx < best:
             best_u, best = float(x), fx
