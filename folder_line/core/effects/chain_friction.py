@@ -59,7 +59,7 @@ from folder_line.core.mechanisms.delivery import (
     evaluate_stroke_point,
 )
 from folder_line.core.numerics.roots import find_sign_changes
-from folder_line.core.numerics.validate import non_negative, one_of, positive
+from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -102,9 +102,9 @@ class Params:
     return_section: ReturnSection
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'P_k', non_negative('effects.chain_friction.P_k', self.P_k))
-        object.__setattr__(self, 'r', positive('effects.chain_friction.r', self.r))
-        one_of('effects.chain_friction.return_section', self.return_section, RETURN_SECTIONS)
+        check_fields(
+            self, 'effects.chain_friction', P_k=non_negative, r=positive, return_section=among(RETURN_SECTIONS)
+        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -99,7 +99,7 @@ import numpy.typing as npt
 
 from folder_line.core.numerics.constants import G
 from folder_line.core.numerics.roots import brent, brentq
-from folder_line.core.numerics.validate import in_range, non_negative
+from folder_line.core.numerics.validate import check_fields, non_negative, within
 from folder_line.errors import ParameterError
 
 __all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide', 'switching']
@@ -143,10 +143,14 @@ class Params:
     h: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'mu', in_range('effects.guide_friction.mu', self.mu, 0.0, 100.0))
-        object.__setattr__(self, 's0', non_negative('effects.guide_friction.s0', self.s0))
-        object.__setattr__(self, 'v0', in_range('effects.guide_friction.v0', self.v0, 0.0, 1e3))
-        object.__setattr__(self, 'h', in_range('effects.guide_friction.h', self.h, 0.0, 0.05, lo_open=True))
+        check_fields(
+            self,
+            'effects.guide_friction',
+            mu=within(0.0, 100.0),
+            s0=non_negative,
+            v0=within(0.0, 1e3),
+            h=within(0.0, 0.05, lo_open=True),
+        )
 
 
 class ChuteState(NamedTuple, Generic[_F]):

@@ -114,7 +114,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.numerics.roots import golden_section
-from folder_line.core.numerics.validate import as_float, non_negative, one_of, positive
+from folder_line.core.numerics.validate import among, as_float, check_fields, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -271,6 +271,21 @@ def register_law(law: ProfileLaw, *, replace: bool = False) -> None:
 # --------------------------------------------------------------------------- parameters
 
 
+def _pressure_angle(key: str, value: object) -> float:
+    """The check of ``alpha_m_deg``: a number in (0, 90)."""
+    a = as_float(key, value)
+    if a >= 90.0:
+        raise ParameterError(
+            key,
+            value,
+            'must be < 90: at 90 the rod stands across the carriage guide at the end of '
+            'the section and the transporter self-locks by construction',
+        )
+    if a <= 0.0:
+        raise ParameterError(key, value, 'must be in (0, 90)')
+    return a
+
+
 @dataclass(frozen=True)
 class DeliveryParams:
     """Validated parameters of the delivery transporter (``config/delivery.yaml``).
@@ -317,23 +332,14 @@ class DeliveryParams:
     r_O: float
 
     def __post_init__(self) -> None:
-        values: dict[str, object] = {'Lambda': positive('delivery.Lambda', self.Lambda)}
-        a = as_float('delivery.alpha_m_deg', self.alpha_m_deg)
-        if a >= 90.0:
-            raise ParameterError(
-                'delivery.alpha_m_deg',
-                self.alpha_m_deg,
-                'must be < 90: at 90 the rod stands across the carriage guide at the end of '
-                'the section and the transporter self-locks by construction',
-            )
-        if a <= 0.0:
-            raise ParameterError('delivery.alpha_m_deg', self.alpha_m_deg, 'must be in (0, 90)')
-        values['alpha_m_deg'] = a
-        values['law'] = one_of('delivery.law', self.law, law_names())
-        for name in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
-            values[name] = non_negative(f'delivery.{name}', getattr(self, name))
-        for name, value in values.items():
-            object.__setattr__(self, name, value)
+        check_fields(
+            self,
+            'delivery',
+            Lambda=positive,
+            alpha_m_deg=_pressure_angle,
+            law=among(law_names()),
+            **dict.fromkeys(('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'), non_negative),
+        )
 
     @property
     def alpha_m(self) -> float:

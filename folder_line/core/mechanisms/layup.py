@@ -53,7 +53,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, NamedTuple, NoReturn, Protocol, overload
 
 import numpy as np
@@ -62,7 +62,7 @@ import numpy.typing as npt
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
 from folder_line.core.numerics.loop import TOGGLE_TOL
 from folder_line.core.numerics.roots import golden_section
-from folder_line.core.numerics.validate import as_float, non_negative, positive
+from folder_line.core.numerics.validate import as_float, check_fields, non_negative, positive
 from folder_line.errors import AssemblyError, ParameterError
 
 __all__ = [
@@ -196,6 +196,11 @@ def _reduce_chunk(ph: np.ndarray, r: np.ndarray, mask: np.ndarray) -> np.ndarray
     return r
 
 
+def _belt_speed(key: str, value: object) -> float:
+    """The check of ``v_tr``: 0 (chutes without belts) or a linear speed in range."""
+    return 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
+
+
 @dataclass(frozen=True)
 class LayupParams:
     """Validated dimensions and speeds of the layup six-bar (defaults: ``config/layup.yaml``).
@@ -247,18 +252,16 @@ class LayupParams:
     v_tr: float
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            key = f'layup.{f.name}'
-            value = getattr(self, f.name)
-            if f.name in ('a', 'b'):
-                x = as_float(key, value)
-            elif f.name == 'v_tr':  # 0: chutes without belts
-                x = 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
-            elif f.name == 'n_kr':
-                x = CRANK_SPEED.check(key, value)
-            else:
-                x = positive(key, value)
-            object.__setattr__(self, f.name, x)
+        check_fields(
+            self,
+            'layup',
+            R_kr=positive,
+            n_kr=CRANK_SPEED.check,
+            a=as_float,
+            b=as_float,
+            **dict.fromkeys(('l2', 'O2B', 'l3', 'l4', 'l5', 'O2O3'), positive),
+            v_tr=_belt_speed,
+        )
         ground = math.hypot(self.a, self.b)
         kind = classify_fourbar(ground, self.R_kr, self.l2, self.O2B)
         if kind != 'crank-rocker':
