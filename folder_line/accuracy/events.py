@@ -93,7 +93,6 @@ from dataclasses import dataclass
 
 import mpmath as mp
 import numpy as np
-import numpy.typing as npt
 
 from folder_line.accuracy.measure import Row, cpu_per_call
 from folder_line.config.scenes import load_scene
@@ -104,6 +103,7 @@ from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.line.model import make_drive
 from folder_line.core.mechanisms.drive import RampDrive
 from folder_line.core.numerics import roots
+from folder_line.core.numerics.arrays import BoolArray, FloatArray, IntArray
 from folder_line.core.numerics.constants import G
 from folder_line.errors import MeasurementError, ParameterError
 
@@ -142,9 +142,6 @@ __all__ = [
     'run',
 ]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
 
 STUDY = 'events'
 #: decimal digits of the reference

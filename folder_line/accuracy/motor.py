@@ -91,6 +91,7 @@ from folder_line.config.scenes import scene_mapping
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.errors import IntegrationError
 
 __all__ = [
@@ -116,7 +117,6 @@ __all__ = [
     'user_rhs',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 STUDY = 'motor'
 #: simulated span from standstill, s (5.2 time constants of the line scene's motor)

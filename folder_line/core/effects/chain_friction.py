@@ -58,6 +58,7 @@ from folder_line.core.mechanisms.delivery import (
     evaluate_stroke,
     evaluate_stroke_point,
 )
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.roots import find_sign_changes
 from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
@@ -76,7 +77,6 @@ __all__ = [
     'stroke_state',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 

@@ -97,6 +97,7 @@ from typing import Generic, NamedTuple, TypeAlias, TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray, IntArray
 from folder_line.core.numerics.constants import G
 from folder_line.core.numerics.roots import brent, brentq
 from folder_line.core.numerics.validate import check_fields, non_negative, within
@@ -113,8 +114,6 @@ _SCAN_BLOCK = 64
 #: bisection passes of the exit interpolant (step fraction in [0, 1] to 2**-55)
 _EXIT_BISECTIONS = 55
 
-FloatArray: TypeAlias = npt.NDArray[np.float64]
-IntArray: TypeAlias = npt.NDArray[np.int64]
 #: float (one leaf) or float64 array (n leaves): the kinematics and the state share it
 _F = TypeVar('_F', float, FloatArray)
 

@@ -106,6 +106,7 @@ from folder_line.core.effects import chain_friction
 from folder_line.core.limits import HORIZON
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import among, check_fields, in_range, non_negative, positive, within
 from folder_line.errors import ParameterError
@@ -127,7 +128,6 @@ __all__ = [
     'steady_speed',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 METHODS = ('rk4', 'dopri5')
 #: RK4 is stable for h·|λ| up to 2.785 on the negative real axis

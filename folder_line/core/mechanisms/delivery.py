@@ -113,6 +113,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import among, as_float, check_fields, non_negative, one_of, positive
 from folder_line.errors import ParameterError
@@ -148,8 +149,6 @@ __all__ = [
     'stroke_minimum',
 ]
 
-FloatArray = npt.NDArray[np.float64]
-Int8Array = npt.NDArray[np.int8]
 ArrayOrFloat = FloatArray | float
 ReturnSection = Literal['geometric', 'paper_mirror']
 

@@ -48,6 +48,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
 
@@ -69,7 +70,6 @@ __all__ = [
     'theta_rate',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 DRIVE_PROFILES = ('constant', 'ramp')
 #: supervisor command kinds: the first two stop the drive, the last two run it

@@ -80,6 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.errors import IntegrationError  # re-exported: defined with the other errors
 
@@ -94,7 +95,6 @@ __all__ = [
     'rk4',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 Piece = tuple[float, float]
 Fun = Callable[..., npt.ArrayLike]
 
