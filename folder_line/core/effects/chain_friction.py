@@ -55,10 +55,11 @@ from folder_line.core.mechanisms.delivery import (
     STATE_OK,
     DeliveryParams,
     ReturnSection,
+    StateCoded,
     evaluate_stroke,
     evaluate_stroke_point,
 )
-from folder_line.core.numerics.arrays import FloatArray
+from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
 from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
@@ -108,7 +109,7 @@ class Params:
 
 
 @dataclass(frozen=True, eq=False)
-class ChainFrictionState:
+class ChainFrictionState(StateCoded):
     """Efficiency and forces along the stroke (arrays shaped like ``u``).
 
     Attributes
@@ -125,21 +126,17 @@ class ChainFrictionState:
         Rod force and chain pull, N.
     M_1 : ndarray
         Sprocket torque, N m.
+    ok : ndarray of bool
+        The ``'ok'`` samples (a property).
     """
 
     u: FloatArray
     eta: FloatArray
     K_v: FloatArray
-    state: npt.NDArray[np.int8]
+    state: Int8Array
     P_AB: FloatArray
     P_ch: FloatArray
     M_1: FloatArray
-
-    @property
-    def ok(self) -> npt.NDArray[np.bool_]:
-        """Mask of the ``'ok'`` samples."""
-        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
-        return ok
 
 
 def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> ChainFrictionState:

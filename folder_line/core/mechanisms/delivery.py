@@ -113,7 +113,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.numerics.arrays import FloatArray, Int8Array
+from folder_line.core.numerics.arrays import BoolArray, FloatArray, Int8Array
 from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import among, as_float, check_fields, non_negative, one_of, positive
 from folder_line.errors import ParameterError
@@ -139,6 +139,7 @@ __all__ = [
     'register_law',
     'DeliveryParams',
     'DeliveryForces',
+    'StateCoded',
     'DeliverySamples',
     'DeliveryPoint',
     'state_names',
@@ -399,8 +400,20 @@ def _scaled_forces(ratios: tuple[FloatArray, ...], P_k: float, r: float) -> Deli
     return DeliveryForces(*(np.asarray(a, dtype=float) for a in out))
 
 
+class StateCoded:
+    """Base of the sample arrays that hold a state code per sample (:data:`STATE_NAMES` index) in ``state``."""
+
+    state: Int8Array
+
+    @property
+    def ok(self) -> BoolArray:
+        """Boolean mask of the ``'ok'`` samples."""
+        ok: BoolArray = self.state == STATE_OK  # ndarray.__eq__ is typed Any
+        return ok
+
+
 @dataclass(frozen=True, eq=False)
-class DeliverySamples:
+class DeliverySamples(StateCoded):
     """Kinematics, efficiencies, force ratios and states at an array of positions.
 
     Every array has the shape of the positions given. Angles in rad; everything else
@@ -452,12 +465,6 @@ class DeliverySamples:
     p_ch_ideal: FloatArray
     m_1_ideal: FloatArray
     state: Int8Array
-
-    @property
-    def ok(self) -> npt.NDArray[np.bool_]:
-        """Boolean mask of the ``'ok'`` samples."""
-        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
-        return ok
 
     def state_names(self) -> npt.NDArray[np.str_]:
         """State names (``'ok'``, ``'self_locking'``, ...) as a string array."""
