@@ -636,13 +636,8 @@ class LayupModel:
         add(yA, self._b, out=yA)
         # loop 1 about O2: G = S1 = sqrt(((p+l2)² - d²)(d² - (p-l2)²))
         self._dyad(1, xA, yA, xB, yB, mg1, G, T, U, V, W, phi_given)
-        # omega3 = 2 ω R ((yB - yA) cos - (xB - xA) sin) / S1
-        sub(yB, yA, out=U)
-        mul(U, Cc, out=U)
-        sub(xB, xA, out=V)
-        mul(V, S, out=V)
-        sub(U, V, out=w3)
-        div(w3, G, out=w3)
+        # omega3 = 2 ω R ((B - A) · (cos, sin)⊥) / S1
+        _cross_over(w3, xB, yB, xA, yA, Cc, S, G, U, V)
         mul(w3, 2.0 * w * self._R, out=w3)
         np.arctan2(yB, xB, out=th3)
         mul(xB, self._r3, out=xC)
@@ -651,13 +646,8 @@ class LayupModel:
         sub(xC, self._d0, out=U)
         self._dyad(2, U, yC, xE, yE, mg2, V, T, W, T, Z, phi_given)
         np.arctan2(yE, xE, out=th5)
-        # omega5 = 2 ω3 ((E - C) · C⊥) / S2
-        sub(yE, yC, out=W)
-        mul(W, xC, out=W)
-        sub(xE, U, out=Z)
-        mul(Z, yC, out=Z)
-        sub(W, Z, out=w5)
-        div(w5, V, out=w5)
+        # omega5 = 2 ω3 ((E - C) · C⊥) / S2 (x of E and C still relative to O3)
+        _cross_over(w5, xE, yE, U, yC, xC, yC, V, W, Z)
         mul(w5, 2.0, out=w5)
         mul(w5, w3, out=w5)
         add(xE, self._d0, out=xE)
@@ -752,6 +742,28 @@ class LayupModel:
     def _fail_array(self, phi_given: np.ndarray, e: np.ndarray, loop: int) -> None:
         i = int(np.flatnonzero(~(e > 0.0))[0])
         self._fail_scalar(float(phi_given[i]), loop)
+
+
+def _cross_over(
+    out: np.ndarray,
+    xX: np.ndarray,
+    yX: np.ndarray,
+    xP: np.ndarray,
+    yP: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    S: np.ndarray,
+    t1: np.ndarray,
+    t2: np.ndarray,
+) -> None:
+    """``out = ((X - P) · d⊥) / S = ((yX - yP) dx - (xX - xP) dy) / S``, in place (``t1``, ``t2`` scratch):
+    a dyad's output rate per unit input rate, up to the factor 2 and the input link's length."""
+    np.subtract(yX, yP, out=t1)
+    np.multiply(t1, dx, out=t1)
+    np.subtract(xX, xP, out=t2)
+    np.multiply(t2, dy, out=t2)
+    np.subtract(t1, t2, out=out)
+    np.divide(out, S, out=out)
 
 
 def _disc_reason(d: float) -> str:
