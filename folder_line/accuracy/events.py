@@ -94,7 +94,7 @@ from dataclasses import dataclass
 import mpmath as mp
 import numpy as np
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chute_belts, leaf_flight
 from folder_line.core.line.events import event_kind
@@ -804,4 +804,5 @@ def run(quick: bool = False) -> list[Row]:
         ``error`` in s (largest over the span's events), ``cpu_s_per_sim_s`` in CPU s per simulated s.
     """
     cases = (front_stops_case(), leaf_landing_case())
-    return measure_rows(cases, quick, min_s=0.02 if quick else 0.05, repeats=2 if quick else 3)
+    min_s, repeats = cpu_budget(quick)
+    return measure_rows(cases, quick, min_s=min_s, repeats=repeats)

@@ -51,7 +51,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.accuracy.pareto import EqualErrorRatio, equal_error_ratio
 from folder_line.accuracy.reference import ReferenceArrays, sixbar_reference
 from folder_line.config.params import load_params
@@ -297,7 +297,7 @@ def run(quick: bool = False) -> list[Row]:
     t = grid(params)
     ref = reference(params)
     sim = float(t[-1] - t[0])
-    min_s, repeats = (0.02, 2) if quick else (0.05, 3)
+    min_s, repeats = cpu_budget(quick)
     rows: list[Row] = []
 
     def row(method: str, knob: str, value: float, error: float, cpu: float) -> None:
