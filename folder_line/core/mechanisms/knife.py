@@ -47,6 +47,7 @@ plus knife exit from under the table takes 0.03 s".
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, overload
 
@@ -273,6 +274,14 @@ def _dds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
     return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
 
 
+def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+    """``kernel`` at crank angle(s) ``phi``: a float for a Python/NumPy scalar, else an array of its shape."""
+    if isinstance(phi, (bool, float, int)):
+        return float(kernel(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
+    out: NDArray[np.float64] = kernel(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    return out
+
+
 @overload
 def position(params: KnifeParams, phi: float) -> float: ...
 
@@ -296,10 +305,7 @@ def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     float or ndarray
         ``s``, m; a float for a Python/NumPy scalar, else an array of ``phi``'s shape.
     """
-    if isinstance(phi, (bool, float, int)):
-        return float(_s(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    s: NDArray[np.float64] = _s(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return s
+    return _of_angle(_s, params, phi)
 
 
 @overload
@@ -325,11 +331,7 @@ def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     float or ndarray
         ``v``, m/s, positive towards the table (increasing ``s``).
     """
-    w = params.omega_k
-    if isinstance(phi, (bool, float, int)):
-        return w * float(_ds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    ds: NDArray[np.float64] = _ds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return w * ds
+    return params.omega_k * _of_angle(_ds, params, phi)
 
 
 @overload
@@ -355,11 +357,7 @@ def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.floa
     float or ndarray
         ``a``, m/s^2, positive towards the table.
     """
-    w2 = params.omega_k**2
-    if isinstance(phi, (bool, float, int)):
-        return w2 * float(_dds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    dds: NDArray[np.float64] = _dds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return w2 * dds
+    return params.omega_k**2 * _of_angle(_dds, params, phi)
 
 
 @dataclass(frozen=True)
