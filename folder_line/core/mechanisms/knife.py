@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -76,6 +76,8 @@ __all__ = [
 ]
 
 TWO_PI = 2.0 * math.pi
+#: crank angle(s): a float, or a float64 array; the kinematics return the same kind
+Phi = TypeVar('Phi', float, NDArray[np.float64])
 #: root tolerance of the window ends, rad (Brent stops at ~1 ulp of the angle)
 WINDOW_XTOL = 1e-15
 
@@ -274,7 +276,7 @@ def _dds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
     return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
 
 
-def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: Phi) -> Phi:
     """``kernel`` at crank angle(s) ``phi``: a float for a Python/NumPy scalar, else an array of its shape."""
     if isinstance(phi, (bool, float, int)):
         return float(kernel(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
@@ -282,15 +284,7 @@ def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: ArrayLike) -
     return out
 
 
-@overload
-def position(params: KnifeParams, phi: float) -> float: ...
-
-
-@overload
-def position(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def position(params: KnifeParams, phi: Phi) -> Phi:
     """Knife position ``s(phi)`` from the crank centre along the stroke.
 
     Parameters
@@ -308,15 +302,7 @@ def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     return _of_angle(_s, params, phi)
 
 
-@overload
-def velocity(params: KnifeParams, phi: float) -> float: ...
-
-
-@overload
-def velocity(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def velocity(params: KnifeParams, phi: Phi) -> Phi:
     """Knife velocity ``v = omega_k ds/dphi`` at constant crank speed.
 
     Parameters
@@ -334,15 +320,7 @@ def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     return params.omega_k * _of_angle(_ds, params, phi)
 
 
-@overload
-def acceleration(params: KnifeParams, phi: float) -> float: ...
-
-
-@overload
-def acceleration(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def acceleration(params: KnifeParams, phi: Phi) -> Phi:
     """Knife acceleration ``a = omega_k^2 d2s/dphi2`` at constant crank speed.
 
     Parameters
