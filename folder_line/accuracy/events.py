@@ -93,9 +93,8 @@ from dataclasses import dataclass
 
 import mpmath as mp
 import numpy as np
-import numpy.typing as npt
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chute_belts, leaf_flight
 from folder_line.core.line.events import event_kind
@@ -104,6 +103,7 @@ from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.line.model import make_drive
 from folder_line.core.mechanisms.drive import RampDrive
 from folder_line.core.numerics import roots
+from folder_line.core.numerics.arrays import BoolArray, FloatArray, IntArray
 from folder_line.core.numerics.constants import G
 from folder_line.errors import MeasurementError, ParameterError
 
@@ -142,9 +142,6 @@ __all__ = [
     'run',
 ]
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
 
 STUDY = 'events'
 #: decimal digits of the reference
@@ -810,4 +807,5 @@ def run(quick: bool = False) -> list[Row]:
         ``error`` in s (largest over the span's events), ``cpu_s_per_sim_s`` in CPU s per simulated s.
     """
     cases = (front_stops_case(), leaf_landing_case())
-    return measure_rows(cases, quick, min_s=0.02 if quick else 0.05, repeats=2 if quick else 3)
+    min_s, repeats = cpu_budget(quick)
+    return measure_rows(cases, quick, min_s=min_s, repeats=repeats)

@@ -27,7 +27,7 @@ span, divided by ``SPAN``: CPU seconds per simulated second.
 
 Reference and how it is checked
 -------------------------------
-:func:`folder_line.accuracy.reference.fourbar_reference`: Newton's method on the loop
+:func:`folder_line.accuracy.reference.sixbar_reference` with ``loops=1``: Newton's method on the loop
 closure ``O1 + R e(φ) + l2 e(θ2) - O2B e(θ3) = 0`` in mpmath at 50 digits, at the float
 grid angles ``φ_k = fl(ω t_k)``. Its checks are in ``test/accuracy/test_linkage.py``
 (loop residual < 1e-30 m, branch, agreement with the core, rates against an mpmath
@@ -51,9 +51,9 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.accuracy.pareto import EqualErrorRatio, equal_error_ratio
-from folder_line.accuracy.reference import ReferenceArrays, fourbar_reference
+from folder_line.accuracy.reference import ReferenceArrays, sixbar_reference
 from folder_line.config.params import load_params
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.loop import circle_intersection
@@ -145,7 +145,7 @@ def reference(params: LayupParams) -> ReferenceArrays:
     ReferenceArrays
         ``theta3`` = ψ, rad; ``omega3`` = dψ/dt, rad/s.
     """
-    return fourbar_reference(params, params.omega * grid(params))
+    return sixbar_reference(params, params.omega * grid(params), loops=1)
 
 
 def closed_form_psi(params: LayupParams, t: np.ndarray) -> np.ndarray:
@@ -298,7 +298,7 @@ def run(quick: bool = False) -> list[Row]:
     t = grid(params)
     ref = reference(params)
     sim = float(t[-1] - t[0])
-    min_s, repeats = (0.02, 2) if quick else (0.05, 3)
+    min_s, repeats = cpu_budget(quick)
     rows: list[Row] = []
 
     def row(method: str, knob: str, value: float, error: float, cpu: float) -> None:

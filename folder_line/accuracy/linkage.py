@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.accuracy.reference import ReferenceArrays, sixbar_reference
 from folder_line.config.params import load_params
 from folder_line.core.mechanisms.layup import LayupModel, LayupParams
@@ -411,7 +411,7 @@ def run(quick: bool = False) -> list[Row]:
     ref = reference(params)
     phi_turn = step_angles(params)
     period = phi_turn.size / RATE
-    min_s, repeats = (0.02, 2) if quick else (0.05, 3)
+    min_s, repeats = cpu_budget(quick)
     rows: list[Row] = []
 
     def row(method: str, value: float, error: float, cpu: float, kind: tuple[str, str]) -> None:

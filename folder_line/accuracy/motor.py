@@ -86,11 +86,12 @@ import numpy as np
 import numpy.typing as npt
 from scipy.integrate import solve_ivp
 
-from folder_line.accuracy.measure import Row, cpu_per_call
+from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.config.scenes import scene_mapping
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.errors import IntegrationError
 
 __all__ = [
@@ -116,7 +117,6 @@ __all__ = [
     'user_rhs',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 STUDY = 'motor'
 #: simulated span from standstill, s (5.2 time constants of the line scene's motor)
@@ -451,7 +451,7 @@ def run(quick: bool = False) -> list[Row]:
     list of Row
         ``error`` in nominal s of master phase, ``cpu_s_per_sim_s`` in CPU s per simulated s.
     """
-    min_s = 0.02 if quick else 0.05
+    min_s = cpu_budget(quick)[0]  # repeated 3 times even with --quick (see _measure)
     t = np.linspace(0.0, DURATION, GRID_POINTS)
     rows: list[Row] = []
     for case, chain in CASES.items():

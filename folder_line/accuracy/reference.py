@@ -40,7 +40,6 @@ __all__ = [
     'MpSixbar',
     'ReferenceArrays',
     'fourbar_mp',
-    'fourbar_reference',
     'loop_residuals_mp',
     'sixbar_mp',
     'sixbar_reference',
@@ -281,34 +280,8 @@ class ReferenceArrays:
 _CACHE: dict[tuple[object, ...], ReferenceArrays] = {}
 
 
-def _reference(params: LayupParams, phi: npt.ArrayLike, omega: float | None, six: bool) -> ReferenceArrays:
-    ph = np.ascontiguousarray(np.asarray(phi, dtype=float).reshape(-1))
-    w = params.omega if omega is None else float(omega)
-    key = (params, w, six, ph.tobytes())
-    hit = _CACHE.get(key)
-    if hit is not None:
-        return hit
-    n = ph.size
-    out = np.full((4, n), np.nan)
-    with mp.workdps(DPS):
-        P = _mp_params(params)
-        wm = mp.mpf(w)
-        for i, x in enumerate(ph.tolist()):
-            if six:
-                s = _sixbar(x, P, wm)
-                out[:, i] = (_wrap(s.loop1.theta3), _wrap(s.theta5), float(s.loop1.dtheta3), float(s.dtheta5))
-            else:
-                f = _fourbar(x, P, wm)
-                out[0, i], out[2, i] = _wrap(f.theta3), float(f.dtheta3)
-    res = ReferenceArrays(ph, *out)
-    if len(_CACHE) >= 16:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = res
-    return res
-
-
 def sixbar_reference(
-    params: LayupParams, phi: npt.ArrayLike | Sequence[float], omega: float | None = None
+    params: LayupParams, phi: npt.ArrayLike | Sequence[float], omega: float | None = None, *, loops: int = 2
 ) -> ReferenceArrays:
     """θ3, θ5, ω3, ω5 of the six-bar at many crank angles (cached per module).
 
@@ -319,31 +292,37 @@ def sixbar_reference(
         Crank angles, rad (flattened; taken exactly).
     omega : float, optional
         Crank angular velocity, rad/s; default ``params.omega``.
+    loops : {2, 1}, optional
+        2: the six-bar. 1: loop O1-A-B-O2 alone, the four-bar (θ3 of its rocker O2B and
+        ω3); ``theta5`` and ``omega5`` are then NaN.
 
     Returns
     -------
     ReferenceArrays
         Under 1 ms per angle the first time; the same object again from the cache.
     """
-    return _reference(params, phi, omega, True)
-
-
-def fourbar_reference(
-    params: LayupParams, phi: npt.ArrayLike | Sequence[float], omega: float | None = None
-) -> ReferenceArrays:
-    """θ3 (the rocker O2B of loop O1-A-B-O2) and ω3 at many crank angles (cached per module).
-
-    Parameters
-    ----------
-    params : LayupParams
-    phi : array_like
-        Crank angles, rad (flattened; taken exactly).
-    omega : float, optional
-        Crank angular velocity, rad/s; default ``params.omega``.
-
-    Returns
-    -------
-    ReferenceArrays
-        ``theta5`` and ``omega5`` are NaN.
-    """
-    return _reference(params, phi, omega, False)
+    if loops not in (1, 2):
+        raise ValueError(f'loops must be 1 or 2, got {loops!r}')
+    ph = np.ascontiguousarray(np.asarray(phi, dtype=float).reshape(-1))
+    w = params.omega if omega is None else float(omega)
+    key = (params, w, loops, ph.tobytes())
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit
+    n = ph.size
+    out = np.full((4, n), np.nan)
+    with mp.workdps(DPS):
+        P = _mp_params(params)
+        wm = mp.mpf(w)
+        for i, x in enumerate(ph.tolist()):
+            if loops == 2:
+                s = _sixbar(x, P, wm)
+                out[:, i] = (_wrap(s.loop1.theta3), _wrap(s.theta5), float(s.loop1.dtheta3), float(s.dtheta5))
+            else:
+                f = _fourbar(x, P, wm)
+                out[0, i], out[2, i] = _wrap(f.theta3), float(f.dtheta3)
+    res = ReferenceArrays(ph, *out)
+    if len(_CACHE) >= 16:
+        _CACHE.pop(next(iter(_CACHE)))
+    _CACHE[key] = res
+    return res

@@ -106,6 +106,31 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f'{self.prog}: error: {text} (see {self.prog} --help)\n')
 
 
+def _add_limited(
+    parser: argparse.ArgumentParser, option: str, limit: Limit, default: float, metavar: str, help: str
+) -> None:
+    """``option``: a number in ``limit`` (:func:`_limited`); ``help`` gets `` (default ...)`` appended."""
+    parser.add_argument(
+        option, type=_limited(option, limit), default=default, metavar=metavar, help=f'{help} (default {default:g})'
+    )
+
+
+def _add_scene_arguments(parser: argparse.ArgumentParser, scene_help: str, duration: float, set_help: str) -> None:
+    """``--scene``, ``--duration`` (default ``duration``) and the repeatable ``--set`` of a verb that runs a scene."""
+    parser.add_argument('--scene', default='folder', metavar='NAME|FILE', help=scene_help)
+    parser.add_argument(
+        '--duration', type=_duration, default=duration, metavar='S', help=f'line time, s (default {duration:g})'
+    )
+    parser.add_argument(
+        '--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE', help=set_help
+    )
+
+
+def _add_out(parser: argparse.ArgumentParser, default: str) -> None:
+    """``--out DIR``, the verb's output folder."""
+    parser.add_argument('--out', default=default, metavar='DIR', help=f'output directory (default ./{default})')
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``folder-line`` argument parser: every verb and option, with its range checks."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
@@ -118,34 +143,16 @@ def build_parser() -> argparse.ArgumentParser:
     kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
 
     sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
-    sim.add_argument(
-        '--scene',
-        default='folder',
-        metavar='NAME|FILE',
-        help='shipped scene name (folder, layup, line) or a scene YAML file (default folder)',
-    )
-    sim.add_argument('--duration', type=_duration, default=60.0, metavar='S', help='line time, s (default 60)')
-    sim.add_argument(
-        '--set',
-        dest='overrides',
-        action='append',
-        default=[],
-        metavar='MACHINE.KEY=VALUE',
-        help='override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
+    _add_scene_arguments(
+        sim,
+        'shipped scene name (folder, layup, line) or a scene YAML file (default folder)',
+        60.0,
+        'override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
     )
     sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
-    run.add_argument('--scene', default='folder', metavar='NAME|FILE', help='scene (default folder)')
-    run.add_argument('--duration', type=_duration, default=20.0, metavar='S', help='line time, s (default 20)')
-    run.add_argument(
-        '--set',
-        dest='overrides',
-        action='append',
-        default=[],
-        metavar='MACHINE.KEY=VALUE',
-        help='override a scene value (repeatable)',
-    )
+    _add_scene_arguments(run, 'scene (default folder)', 20.0, 'override a scene value (repeatable)')
     run.add_argument(
         '--rtf',
         type=_rtf,
@@ -160,43 +167,26 @@ def build_parser() -> argparse.ArgumentParser:
         help='lockstep: sim time waits for every node, the answer never depends on load (default); '
         'wall: paced by the wall clock for hardware in the loop, late ticks counted',
     )
-    run.add_argument(
+    _add_limited(
+        run,
         '--lost-timeout',
-        type=_limited('--lost-timeout', LOST_TIMEOUT),
-        default=3.0,
-        metavar='S',
-        help='wall time a tick waits for a node before the node is declared lost (default 3)',
+        LOST_TIMEOUT,
+        3.0,
+        'S',
+        'wall time a tick waits for a node before the node is declared lost',
     )
-    run.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+    _add_out(run, 'out')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
-    mon.add_argument(
-        '--rate',
-        type=_limited('--rate', _MONITOR_RATE),
-        default=4.0,
-        metavar='HZ',
-        help='screen refreshes per second (default 4)',
-    )
+    _add_limited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
     mon.add_argument(
         '--once',
         action='store_true',
         help='print one plain-text snapshot after collecting for the rate window, then exit',
     )
-    mon.add_argument(
-        '--window',
-        type=_limited('--window', _MONITOR_WINDOW),
-        default=2.0,
-        metavar='S',
-        help='window of the topic rates, s of wall time (default 2)',
-    )
-    mon.add_argument(
-        '--timeout',
-        type=_limited('--timeout', _MONITOR_TIMEOUT),
-        default=10.0,
-        metavar='S',
-        help='with --once: longest wait for the first message, s (default 10)',
-    )
+    _add_limited(mon, '--window', _MONITOR_WINDOW, 2.0, 'S', 'window of the topic rates, s of wall time')
+    _add_limited(mon, '--timeout', _MONITOR_TIMEOUT, 10.0, 'S', 'with --once: longest wait for the first message, s')
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
@@ -208,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     bag_repair.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
 
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
-    rep.add_argument('--out', default='out', metavar='DIR', help='output directory (default ./out)')
+    _add_out(rep, 'out')
 
     ana = sub.add_parser('analyze', help='replay analysis of a recorded run: report.md and plots (no ROS needed)')
     ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
@@ -221,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
         'accuracy',
         help='error against CPU time per simulated second for every accuracy knob: CSV, markdown, Pareto plot',
     )
-    acc.add_argument('--out', default='out/accuracy', metavar='DIR', help='output directory (default ./out/accuracy)')
+    _add_out(acc, 'out/accuracy')
     acc.add_argument('--quick', action='store_true', help='fewer knob settings, shorter spans (under a minute)')
     acc.add_argument(
         '--only',

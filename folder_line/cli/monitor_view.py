@@ -24,9 +24,9 @@ from __future__ import annotations
 import math
 import re
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -234,6 +234,9 @@ class ConstraintView:
     stamp: float
 
 
+_N = TypeVar('_N', int, float)
+
+
 def _stamp_s(stamp: Any) -> float:
     # folder_line.ros.time_msg.time_msg_to_ns, on any object with sec and nanosec
     sec: int = stamp.sec
@@ -241,20 +244,12 @@ def _stamp_s(stamp: Any) -> float:
     return (sec * NS_PER_S + nanosec) / NS_PER_S
 
 
-def _float(text: str | None) -> float | None:
+def _number(text: str | None, kind: Callable[[str], _N]) -> _N | None:
+    """``kind(text)``, or None for a value that is missing or not a number of that kind."""
     if text is None:
         return None
     try:
-        return float(text)
-    except ValueError:
-        return None
-
-
-def _int(text: str | None) -> int | None:
-    if text is None:
-        return None
-    try:
-        return int(text)
+        return kind(text)
     except ValueError:
         return None
 
@@ -274,12 +269,12 @@ def _parse_event(source: str) -> tuple[str, int | None, int | None, float | None
     words = source.split()
     kind = words[0] if words else '?'
     fields = dict(w.split('=', 1) for w in words[1:] if '=' in w)
-    sheet, cycle = _int(fields.get('sheet')), _int(fields.get('cycle'))
+    sheet, cycle = _number(fields.get('sheet'), int), _number(fields.get('cycle'), int)
     return (
         kind,
         None if sheet is None or sheet < 0 else sheet,
         None if cycle is None or cycle < 0 else cycle,
-        _float(fields.get('value')),
+        _number(fields.get('value'), float),
     )
 
 
@@ -420,8 +415,8 @@ class MonitorState:
         stamp = _stamp_s(msg.header.stamp)
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
-            margin = _float(values.get('margin'))
-            min_margin = _float(values.get('min_margin'))
+            margin = _number(values.get('margin'), float)
+            min_margin = _number(values.get('min_margin'), float)
             previous = self.constraints.get(status.name)
             if min_margin is None and margin is not None:  # no min from the supervisor: ours
                 seen = [m for m in (margin, None if previous is None else previous.min_margin) if m is not None]
@@ -433,9 +428,9 @@ class MonitorState:
                 margin,
                 min_margin,
                 values.get('unit', ''),
-                _int(values.get('cycle')),
-                _int(values.get('violations')),
-                _int(values.get('evaluations')),
+                _number(values.get('cycle'), int),
+                _number(values.get('violations'), int),
+                _number(values.get('evaluations'), int),
                 stamp,
             )
         bad = sum(1 for c in self.constraints.values() if c.level in ('WARN', 'ERROR'))

@@ -55,11 +55,13 @@ from folder_line.core.mechanisms.delivery import (
     STATE_OK,
     DeliveryParams,
     ReturnSection,
+    StateCoded,
     evaluate_stroke,
     evaluate_stroke_point,
 )
+from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
-from folder_line.core.numerics.validate import non_negative, one_of, positive
+from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -76,7 +78,6 @@ __all__ = [
     'stroke_state',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
@@ -102,13 +103,13 @@ class Params:
     return_section: ReturnSection
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'P_k', non_negative('effects.chain_friction.P_k', self.P_k))
-        object.__setattr__(self, 'r', positive('effects.chain_friction.r', self.r))
-        one_of('effects.chain_friction.return_section', self.return_section, RETURN_SECTIONS)
+        check_fields(
+            self, 'effects.chain_friction', P_k=non_negative, r=positive, return_section=among(RETURN_SECTIONS)
+        )
 
 
 @dataclass(frozen=True, eq=False)
-class ChainFrictionState:
+class ChainFrictionState(StateCoded):
     """Efficiency and forces along the stroke (arrays shaped like ``u``).
 
     Attributes
@@ -125,21 +126,17 @@ class ChainFrictionState:
         Rod force and chain pull, N.
     M_1 : ndarray
         Sprocket torque, N m.
+    ok : ndarray of bool
+        The ``'ok'`` samples (a property).
     """
 
     u: FloatArray
     eta: FloatArray
     K_v: FloatArray
-    state: npt.NDArray[np.int8]
+    state: Int8Array
     P_AB: FloatArray
     P_ch: FloatArray
     M_1: FloatArray
-
-    @property
-    def ok(self) -> npt.NDArray[np.bool_]:
-        """Mask of the ``'ok'`` samples."""
-        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
-        return ok
 
 
 def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> ChainFrictionState:

@@ -64,7 +64,7 @@ import numpy.typing as npt
 
 from folder_line.core.mechanisms.belt import BeltPhase
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.numerics.validate import in_range
+from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -94,7 +94,7 @@ class Params:
     v_min: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'v_min', in_range('effects.chute_belts.v_min', self.v_min, 0.0, 1e3))
+        check_fields(self, 'effects.chute_belts', v_min=within(0.0, 1e3))
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.line.events import make_events, merge_events
-from folder_line.core.numerics.validate import in_range, non_negative
+from folder_line.core.numerics.validate import check_fields, non_negative, within
 
 __all__ = ['Params', 'SheetFaults', 'Slowdowns', 'belt_factor', 'draw_sheet_faults', 'draw_slowdowns', 'fault_events']
 
@@ -50,16 +50,13 @@ class Params:
     slowdown_duration: float
 
     def __post_init__(self) -> None:
-        for name in ('p_missing', 'p_double', 'p_late', 'p_slowdown'):
-            object.__setattr__(self, name, in_range(f'effects.faults.{name}', getattr(self, name), 0.0, 1.0))
-        object.__setattr__(self, 'late_delay', non_negative('effects.faults.late_delay', self.late_delay))
-        object.__setattr__(
+        check_fields(
             self,
-            'slowdown_factor',
-            in_range('effects.faults.slowdown_factor', self.slowdown_factor, 0.0, 1.0, lo_open=True),
-        )
-        object.__setattr__(
-            self, 'slowdown_duration', non_negative('effects.faults.slowdown_duration', self.slowdown_duration)
+            'effects.faults',
+            **dict.fromkeys(('p_missing', 'p_double', 'p_late', 'p_slowdown'), within(0.0, 1.0)),
+            late_delay=non_negative,
+            slowdown_factor=within(0.0, 1.0, lo_open=True),
+            slowdown_duration=non_negative,
         )
 
 

@@ -55,7 +55,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.numerics.constants import G
-from folder_line.core.numerics.validate import in_range, non_negative, positive
+from folder_line.core.numerics.validate import check_fields, non_negative, positive, within
 from folder_line.errors import ParameterError
 
 __all__ = ['Params', 'SlipArrival', 'accel', 'arrival', 'min_belt_speed', 'slip_cost']
@@ -80,9 +80,7 @@ class Params:
     m: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'mu', in_range('effects.feed_slip.mu', self.mu, 0.0, 10.0, lo_open=True))
-        object.__setattr__(self, 'p', non_negative('effects.feed_slip.p', self.p))
-        object.__setattr__(self, 'm', positive('effects.feed_slip.m', self.m))
+        check_fields(self, 'effects.feed_slip', mu=within(0.0, 10.0, lo_open=True), p=non_negative, m=positive)
         if not math.isfinite(self.accel) or self.accel > 1e9:
             raise ParameterError(
                 'effects.feed_slip.p',

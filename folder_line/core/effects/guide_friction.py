@@ -97,9 +97,10 @@ from typing import Generic, NamedTuple, TypeAlias, TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray, IntArray
 from folder_line.core.numerics.constants import G
 from folder_line.core.numerics.roots import brent, brentq
-from folder_line.core.numerics.validate import in_range, non_negative
+from folder_line.core.numerics.validate import check_fields, non_negative, within
 from folder_line.errors import ParameterError
 
 __all__ = ['ChuteState', 'Params', 'SlideResult', 'acceleration', 'check_geometry', 'normal', 'slide', 'switching']
@@ -113,8 +114,6 @@ _SCAN_BLOCK = 64
 #: bisection passes of the exit interpolant (step fraction in [0, 1] to 2**-55)
 _EXIT_BISECTIONS = 55
 
-FloatArray: TypeAlias = npt.NDArray[np.float64]
-IntArray: TypeAlias = npt.NDArray[np.int64]
 #: float (one leaf) or float64 array (n leaves): the kinematics and the state share it
 _F = TypeVar('_F', float, FloatArray)
 
@@ -143,10 +142,14 @@ class Params:
     h: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'mu', in_range('effects.guide_friction.mu', self.mu, 0.0, 100.0))
-        object.__setattr__(self, 's0', non_negative('effects.guide_friction.s0', self.s0))
-        object.__setattr__(self, 'v0', in_range('effects.guide_friction.v0', self.v0, 0.0, 1e3))
-        object.__setattr__(self, 'h', in_range('effects.guide_friction.h', self.h, 0.0, 0.05, lo_open=True))
+        check_fields(
+            self,
+            'effects.guide_friction',
+            mu=within(0.0, 100.0),
+            s0=non_negative,
+            v0=within(0.0, 1e3),
+            h=within(0.0, 0.05, lo_open=True),
+        )
 
 
 class ChuteState(NamedTuple, Generic[_F]):
@@ -244,21 +247,8 @@ def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
         )
 
 
-def _hermite(
-    theta: FloatArray, y0: FloatArray, d0: FloatArray, y1: FloatArray, d1: FloatArray, h: FloatArray
-) -> FloatArray:
-    """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1]."""
-    t2 = theta * theta
-    t3 = t2 * theta
-    return (
-        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
-        + (t3 - 2.0 * t2 + theta) * h * d0
-        + (3.0 * t2 - 2.0 * t3) * y1
-        + (t3 - t2) * h * d1
-    )
-
-
-def _hermite1(theta: float, y0: float, d0: float, y1: float, d1: float, h: float) -> float:
+def _hermite(theta: _F, y0: _F, d0: _F, y1: _F, d1: _F, h: _F) -> _F:
+    """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1] (one leaf or many)."""
     t2 = theta * theta
     t3 = t2 * theta
     return (
@@ -527,7 +517,7 @@ def slide(
             y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
 
             def dv(x: float, y0: float = y0, d0: float = d0, y1: float = y1, d1: float = d1, hr: float = hr) -> float:
-                return _hermite1(x, y0, d0, y1, d1, hr)  # speed along the step: zero at the stop
+                return _hermite(x, y0, d0, y1, d1, hr)  # speed along the step: zero at the stop
 
             th_stop = brentq(dv, 0.0, 1.0)
             t0 = float(act.t[row])
@@ -537,12 +527,12 @@ def slide(
                     i = int(act.ids[row])
                     exited[i] = True
                     t_exit[i] = t_x
-                    v_exit[i] = _hermite1(th_exit[row], y0, d0, y1, d1, hr)
+                    v_exit[i] = _hermite(th_exit[row], y0, d0, y1, d1, hr)
                 continue
             t_stop = t0 + th_stop * hr
             if t_stop > t_end:
                 continue
-            s_stop = _hermite1(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
+            s_stop = _hermite(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
             ch = int(act.ch[row])
             if float(switching(params, s_stop, kin1(t_stop, ch))) <= 0.0:
                 sticks.append((int(act.ids[row]), t_stop))

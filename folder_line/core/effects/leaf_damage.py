@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.numerics.validate import in_range
+from folder_line.core.numerics.validate import check_fields, within
 
 __all__ = ['Params', 'damaged', 'upper_margin']
 
@@ -49,9 +49,7 @@ class Params:
     v_damage: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(
-            self, 'v_damage', in_range('effects.leaf_damage.v_damage', self.v_damage, 0.0, 1e3, lo_open=True)
-        )
+        check_fields(self, 'effects.leaf_damage', v_damage=within(0.0, 1e3, lo_open=True))
 
 
 def damaged(params: Params, speed: npt.ArrayLike) -> np.ndarray:

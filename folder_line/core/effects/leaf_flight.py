@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.numerics.constants import G
-from folder_line.core.numerics.validate import in_range
+from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
 
 __all__ = ['Histogram', 'Params', 'histogram', 'landing', 'landing_time', 'phi1', 'phi2', 'state']
@@ -76,7 +76,7 @@ class Params:
     drag: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'drag', in_range('effects.leaf_flight.drag', self.drag, 0.0, 1e3))
+        check_fields(self, 'effects.leaf_flight', drag=within(0.0, 1e3))
 
 
 class Histogram(NamedTuple):

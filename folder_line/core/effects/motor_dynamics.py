@@ -106,8 +106,9 @@ from folder_line.core.effects import chain_friction
 from folder_line.core.limits import HORIZON
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
-from folder_line.core.numerics.validate import in_range, non_negative, one_of, positive
+from folder_line.core.numerics.validate import among, check_fields, in_range, non_negative, positive, within
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -127,7 +128,6 @@ __all__ = [
     'steady_speed',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 METHODS = ('rk4', 'dopri5')
 #: RK4 is stable for h·|λ| up to 2.785 on the negative real axis
@@ -185,16 +185,17 @@ class Params:
     T_brake: float
 
     def __post_init__(self) -> None:
-        k = 'effects.motor_dynamics.'
-        for name in ('J', 'T_0', 'omega_0', 'omega_nom', 'h', 'atol'):
-            object.__setattr__(self, name, positive(k + name, getattr(self, name)))
-        for name in ('b', 't_stop', 'T_brake'):
-            object.__setattr__(self, name, non_negative(k + name, getattr(self, name)))
-        object.__setattr__(self, 'rtol', in_range(k + 'rtol', self.rtol, 100 * EPS, 1.0, hi_open=True))
-        one_of(k + 'method', self.method, METHODS)
+        check_fields(
+            self,
+            'effects.motor_dynamics',
+            **dict.fromkeys(('J', 'T_0', 'omega_0', 'omega_nom', 'h', 'atol'), positive),
+            **dict.fromkeys(('b', 't_stop', 'T_brake'), non_negative),
+            rtol=within(100 * EPS, 1.0, hi_open=True),
+            method=among(METHODS),
+        )
         if not self.omega_nom < self.omega_0:
             raise ParameterError(
-                k + 'omega_nom',
+                'effects.motor_dynamics.omega_nom',
                 self.omega_nom,
                 f'must be < omega_0 = {self.omega_0!r} rad/s: the motor cannot reach its nominal '
                 'speed at or above its no-load speed',

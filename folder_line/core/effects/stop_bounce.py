@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.numerics.validate import in_range, positive
+from folder_line.core.numerics.validate import check_fields, positive, within
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -89,10 +89,14 @@ class Params:
     v_rest: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'e', in_range('effects.stop_bounce.e', self.e, 0.0, 1.0, hi_open=True))
-        object.__setattr__(self, 'a_f', positive('effects.stop_bounce.a_f', self.a_f))
-        object.__setattr__(self, 'tolerance', positive('effects.stop_bounce.tolerance', self.tolerance))
-        object.__setattr__(self, 'v_rest', positive('effects.stop_bounce.v_rest', self.v_rest))
+        check_fields(
+            self,
+            'effects.stop_bounce',
+            e=within(0.0, 1.0, hi_open=True),
+            a_f=positive,
+            tolerance=positive,
+            v_rest=positive,
+        )
 
 
 def _speeds(V: npt.ArrayLike) -> np.ndarray:

@@ -20,10 +20,9 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.numerics.arrays import FloatArray
 
 __all__ = ['BeltPhase']
-
-FloatArray = npt.NDArray[np.float64]
 
 
 class BeltPhase:

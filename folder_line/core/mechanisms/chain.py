@@ -64,6 +64,7 @@ import numpy.typing as npt
 from folder_line.core.line.machines import ChainParams
 from folder_line.core.mechanisms import knife as knife_mod
 from folder_line.core.mechanisms.delivery import LAWS, DeliveryParams
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import positive
 from folder_line.errors import ParameterError
@@ -82,7 +83,6 @@ __all__ = [
     'stroke_to_chain',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 #: :func:`chain_to_stroke` returns this where the carriage is not on the stroke
 OFF_STROKE = -1.0

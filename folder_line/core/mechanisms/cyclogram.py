@@ -68,7 +68,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from folder_line.core.limits import CYLINDER_SPEED
 from folder_line.core.mechanisms.knife import KnifeParams, KnifeWindow, window
-from folder_line.core.numerics.validate import in_range, positive
+from folder_line.core.numerics.validate import check_fields, in_range, positive, within
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -123,16 +123,16 @@ class CyclogramParams:
     dwell_frac: float
 
     def __post_init__(self) -> None:
-        values = {
-            'D_fc': positive('cyclogram.D_fc', self.D_fc),
-            'n_c': CYLINDER_SPEED.check('cyclogram.n_c', self.n_c),
-            'L_feed': positive('cyclogram.L_feed', self.L_feed),
-            'L_a': positive('cyclogram.L_a', self.L_a),
-            'reserve': in_range('cyclogram.reserve', self.reserve, 0.0, 1.0, hi_open=True),
-            'dwell_frac': in_range('cyclogram.dwell_frac', self.dwell_frac, 0.0, 1.0, hi_open=True),
-        }
-        for name, value in values.items():
-            object.__setattr__(self, name, value)
+        check_fields(
+            self,
+            'cyclogram',
+            D_fc=positive,
+            n_c=CYLINDER_SPEED.check,
+            L_feed=positive,
+            L_a=positive,
+            reserve=within(0.0, 1.0, hi_open=True),
+            dwell_frac=within(0.0, 1.0, hi_open=True),
+        )
 
     @property
     def omega_c(self) -> float:

@@ -108,12 +108,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, TypedDict
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.numerics.validate import as_float, non_negative, one_of, positive
+from folder_line.core.numerics.arrays import BoolArray, FloatArray, Int8Array
+from folder_line.core.numerics.roots import golden_section
+from folder_line.core.numerics.validate import among, as_float, check_fields, non_negative, one_of, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -137,6 +139,7 @@ __all__ = [
     'register_law',
     'DeliveryParams',
     'DeliveryForces',
+    'StateCoded',
     'DeliverySamples',
     'DeliveryPoint',
     'state_names',
@@ -147,8 +150,6 @@ __all__ = [
     'stroke_minimum',
 ]
 
-FloatArray = npt.NDArray[np.float64]
-Int8Array = npt.NDArray[np.int8]
 ArrayOrFloat = FloatArray | float
 ReturnSection = Literal['geometric', 'paper_mirror']
 
@@ -270,6 +271,21 @@ def register_law(law: ProfileLaw, *, replace: bool = False) -> None:
 # --------------------------------------------------------------------------- parameters
 
 
+def _pressure_angle(key: str, value: object) -> float:
+    """The check of ``alpha_m_deg``: a number in (0, 90)."""
+    a = as_float(key, value)
+    if a >= 90.0:
+        raise ParameterError(
+            key,
+            value,
+            'must be < 90: at 90 the rod stands across the carriage guide at the end of '
+            'the section and the transporter self-locks by construction',
+        )
+    if a <= 0.0:
+        raise ParameterError(key, value, 'must be in (0, 90)')
+    return a
+
+
 @dataclass(frozen=True)
 class DeliveryParams:
     """Validated parameters of the delivery transporter (``config/delivery.yaml``).
@@ -316,23 +332,14 @@ class DeliveryParams:
     r_O: float
 
     def __post_init__(self) -> None:
-        values: dict[str, object] = {'Lambda': positive('delivery.Lambda', self.Lambda)}
-        a = as_float('delivery.alpha_m_deg', self.alpha_m_deg)
-        if a >= 90.0:
-            raise ParameterError(
-                'delivery.alpha_m_deg',
-                self.alpha_m_deg,
-                'must be < 90: at 90 the rod stands across the carriage guide at the end of '
-                'the section and the transporter self-locks by construction',
-            )
-        if a <= 0.0:
-            raise ParameterError('delivery.alpha_m_deg', self.alpha_m_deg, 'must be in (0, 90)')
-        values['alpha_m_deg'] = a
-        values['law'] = one_of('delivery.law', self.law, law_names())
-        for name in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
-            values[name] = non_negative(f'delivery.{name}', getattr(self, name))
-        for name, value in values.items():
-            object.__setattr__(self, name, value)
+        check_fields(
+            self,
+            'delivery',
+            Lambda=positive,
+            alpha_m_deg=_pressure_angle,
+            law=among(law_names()),
+            **dict.fromkeys(('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'), non_negative),
+        )
 
     @property
     def alpha_m(self) -> float:
@@ -393,8 +400,20 @@ def _scaled_forces(ratios: tuple[FloatArray, ...], P_k: float, r: float) -> Deli
     return DeliveryForces(*(np.asarray(a, dtype=float) for a in out))
 
 
+class StateCoded:
+    """Base of the sample arrays that hold a state code per sample (:data:`STATE_NAMES` index) in ``state``."""
+
+    state: Int8Array
+
+    @property
+    def ok(self) -> BoolArray:
+        """Boolean mask of the ``'ok'`` samples."""
+        ok: BoolArray = self.state == STATE_OK  # ndarray.__eq__ is typed Any
+        return ok
+
+
 @dataclass(frozen=True, eq=False)
-class DeliverySamples:
+class DeliverySamples(StateCoded):
     """Kinematics, efficiencies, force ratios and states at an array of positions.
 
     Every array has the shape of the positions given. Angles in rad; everything else
@@ -446,12 +465,6 @@ class DeliverySamples:
     p_ch_ideal: FloatArray
     m_1_ideal: FloatArray
     state: Int8Array
-
-    @property
-    def ok(self) -> npt.NDArray[np.bool_]:
-        """Boolean mask of the ``'ok'`` samples."""
-        ok: npt.NDArray[np.bool_] = self.state == STATE_OK  # ndarray.__eq__ is typed Any
-        return ok
 
     def state_names(self) -> npt.NDArray[np.str_]:
         """State names (``'ok'``, ``'self_locking'``, ...) as a string array."""
@@ -663,31 +676,10 @@ def _scaled1(c: float, g: float) -> float:
     return c * g  # python floats overflow to inf without raising
 
 
-class _PointCommon(TypedDict):
-    """The :class:`DeliveryPoint` fields every state fills."""
-
-    u: float
-    xi: float
-    section: int
-    psi: float
-    dpsi: float
-    alpha: float
-    beta: float
-    eta_O: float
-
-
-class _PointRatios(TypedDict):
-    """The :class:`DeliveryPoint` efficiencies and force ratios (all 0 unless the state is ok)."""
-
-    eta_A: float
-    eta_B: float
-    eta: float
-    p_AB: float
-    p_ch: float
-    m_1: float
-    p_AB_ideal: float
-    p_ch_ideal: float
-    m_1_ideal: float
+#: a sample's efficiencies and force ratios in :class:`DeliveryPoint`'s order: eta_A, eta_B, eta,
+#: p_AB, p_ch, m_1, p_AB_ideal, p_ch_ideal, m_1_ideal (all 0 unless the state is ok)
+_Ratios = tuple[float, float, float, float, float, float, float, float, float]
+_NO_RATIOS: _Ratios = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) -> DeliveryPoint:
@@ -701,18 +693,17 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     c_a = math.sqrt((1.0 - s_a) * (1.0 + s_a))
     s_b, c_b = math.sin(beta), math.cos(beta)
     eta_O = 1.0 / (1.0 + p.f_O * p.r_O)
-    zeros = _PointRatios(
-        eta_A=0.0, eta_B=0.0, eta=0.0, p_AB=0.0, p_ch=0.0, m_1=0.0, p_AB_ideal=0.0, p_ch_ideal=0.0, m_1_ideal=0.0
-    )
-    common = _PointCommon(u=u, xi=xi, section=section, psi=psi, dpsi=dpsi, alpha=alpha, beta=beta, eta_O=eta_O)
+
+    def sample(K_v: float, k_BA: float, state: int, ratios: _Ratios = _NO_RATIOS) -> DeliveryPoint:
+        return DeliveryPoint(u, xi, section, psi, dpsi, alpha, beta, K_v, k_BA, eta_O, *ratios, state)
+
     if c_a <= COS_ALPHA_TOL:
-        return DeliveryPoint(**common, K_v=0.0, k_BA=0.0, state=STATE_SELF_LOCKING, **zeros)
+        return sample(0.0, 0.0, STATE_SELF_LOCKING)
     tan_a = s_a / c_a
     K_v = c_b + tan_a * s_b
     k_BA = s_b / c_a
     if abs(K_v) < KV_TOL or K_v <= -KV_TOL:
-        state = STATE_KV_ZERO if abs(K_v) < KV_TOL else STATE_CARRIAGE_REVERSED
-        return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, state=state, **zeros)
+        return sample(K_v, k_BA, STATE_KV_ZERO if abs(K_v) < KV_TOL else STATE_CARRIAGE_REVERSED)
     c_ab = c_a * K_v
     s_ab = abs(s_a * c_b - c_a * s_b)
     abs_s_b = abs(s_b)
@@ -721,24 +712,10 @@ def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) ->
     eta_A = 1.0 / (1.0 + _scaled1(p.f_Ap, s_ab / c_ab) + _scaled1(fr_A, abs_s_b / (c_a * c_ab)))
     eta = eta_O * eta_A * (eta_B if eta_B > 0.0 else 0.0)
     if eta <= ETA_TOL:
-        return DeliveryPoint(**common, K_v=K_v, k_BA=k_BA, state=STATE_SELF_LOCKING, **zeros)
+        return sample(K_v, k_BA, STATE_SELF_LOCKING)
     p_AB = 1.0 / (c_a * eta_B)
     p_ch = p_AB * (c_ab + _scaled1(p.f_Ap, s_ab) + _scaled1(fr_A, abs_s_b / c_a))
-    return DeliveryPoint(
-        **common,
-        K_v=K_v,
-        k_BA=k_BA,
-        eta_A=eta_A,
-        eta_B=eta_B,
-        eta=eta,
-        p_AB=p_AB,
-        p_ch=p_ch,
-        m_1=p_ch * (1.0 + fr_O),
-        p_AB_ideal=1.0 / c_a,
-        p_ch_ideal=K_v,
-        m_1_ideal=K_v,
-        state=STATE_OK,
-    )
+    return sample(K_v, k_BA, STATE_OK, (eta_A, eta_B, eta, p_AB, p_ch, p_ch * (1.0 + fr_O), 1.0 / c_a, K_v, K_v))
 
 
 # --------------------------------------------------------------------------- public entry points
@@ -881,21 +858,9 @@ def stroke_minimum(
             return math.inf
         return float(getattr(pt, quantity))
 
-    a, b = grid[max(i - 1, 0)], grid[min(i + 1, n - 1)]
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    while b - a > 1e-10:
-        if fc <= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
+    last = golden_section(f, grid[max(i - 1, 0)], grid[min(i + 1, n - 1)], xtol=1e-10)
     best_u, best = float(grid[i]), float(vals[i])
-    for x in (a, b, 0.5 * (a + b)):
+    for x in (last.lo, last.hi, 0.5 * (last.lo + last.hi)):
         fx = f(x)
         if fx < best:
             best_u, best = float(x), fx

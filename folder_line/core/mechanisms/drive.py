@@ -48,7 +48,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.numerics.validate import non_negative, one_of, positive
+from folder_line.core.numerics.arrays import FloatArray
+from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -69,7 +70,6 @@ __all__ = [
     'theta_rate',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 DRIVE_PROFILES = ('constant', 'ramp')
 #: supervisor command kinds: the first two stop the drive, the last two run it
@@ -123,9 +123,7 @@ class DriveSpec:
     t_brake: float = 0.5
 
     def __post_init__(self) -> None:
-        one_of('drive.profile', self.profile, DRIVE_PROFILES)
-        object.__setattr__(self, 't_ramp', non_negative('drive.t_ramp', self.t_ramp))
-        object.__setattr__(self, 't_brake', positive('drive.t_brake', self.t_brake))
+        check_fields(self, 'drive', profile=among(DRIVE_PROFILES), t_ramp=non_negative, t_brake=positive)
         if self.profile == 'ramp' and self.t_ramp <= 0.0:
             raise ParameterError('drive.t_ramp', self.t_ramp, 'must be > 0 for profile ramp')
 
@@ -219,8 +217,7 @@ class Command:
     kind: str
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 't', non_negative('command.t', self.t))
-        one_of('command.kind', self.kind, COMMAND_KINDS)
+        check_fields(self, 'command', t=non_negative, kind=among(COMMAND_KINDS))
 
     @property
     def running(self) -> bool:

@@ -47,8 +47,9 @@ plus knife exit from under the table takes 0.03 s".
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -75,6 +76,8 @@ __all__ = [
 ]
 
 TWO_PI = 2.0 * math.pi
+#: crank angle(s): a float, or a float64 array; the kinematics return the same kind
+Phi = TypeVar('Phi', float, NDArray[np.float64])
 #: root tolerance of the window ends, rad (Brent stops at ~1 ulp of the angle)
 WINDOW_XTOL = 1e-15
 
@@ -273,15 +276,15 @@ def _dds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
     return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
 
 
-@overload
-def position(params: KnifeParams, phi: float) -> float: ...
+def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: Phi) -> Phi:
+    """``kernel`` at crank angle(s) ``phi``: a float for a Python/NumPy scalar, else an array of its shape."""
+    if isinstance(phi, (bool, float, int)):
+        return float(kernel(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
+    out: NDArray[np.float64] = kernel(np, params.r_k, params.L_k, params.e, _phi_array(phi))
+    return out
 
 
-@overload
-def position(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def position(params: KnifeParams, phi: Phi) -> Phi:
     """Knife position ``s(phi)`` from the crank centre along the stroke.
 
     Parameters
@@ -296,21 +299,10 @@ def position(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     float or ndarray
         ``s``, m; a float for a Python/NumPy scalar, else an array of ``phi``'s shape.
     """
-    if isinstance(phi, (bool, float, int)):
-        return float(_s(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    s: NDArray[np.float64] = _s(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return s
+    return _of_angle(_s, params, phi)
 
 
-@overload
-def velocity(params: KnifeParams, phi: float) -> float: ...
-
-
-@overload
-def velocity(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def velocity(params: KnifeParams, phi: Phi) -> Phi:
     """Knife velocity ``v = omega_k ds/dphi`` at constant crank speed.
 
     Parameters
@@ -325,22 +317,10 @@ def velocity(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]
     float or ndarray
         ``v``, m/s, positive towards the table (increasing ``s``).
     """
-    w = params.omega_k
-    if isinstance(phi, (bool, float, int)):
-        return w * float(_ds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    ds: NDArray[np.float64] = _ds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return w * ds
+    return params.omega_k * _of_angle(_ds, params, phi)
 
 
-@overload
-def acceleration(params: KnifeParams, phi: float) -> float: ...
-
-
-@overload
-def acceleration(params: KnifeParams, phi: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.float64]:
+def acceleration(params: KnifeParams, phi: Phi) -> Phi:
     """Knife acceleration ``a = omega_k^2 d2s/dphi2`` at constant crank speed.
 
     Parameters
@@ -355,11 +335,7 @@ def acceleration(params: KnifeParams, phi: ArrayLike) -> float | NDArray[np.floa
     float or ndarray
         ``a``, m/s^2, positive towards the table.
     """
-    w2 = params.omega_k**2
-    if isinstance(phi, (bool, float, int)):
-        return w2 * float(_dds(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))
-    dds: NDArray[np.float64] = _dds(np, params.r_k, params.L_k, params.e, _phi_array(phi))
-    return w2 * dds
+    return params.omega_k**2 * _of_angle(_dds, params, phi)
 
 
 @dataclass(frozen=True)

@@ -53,7 +53,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, NamedTuple, NoReturn, Protocol, overload
 
 import numpy as np
@@ -61,7 +61,8 @@ import numpy.typing as npt
 
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
 from folder_line.core.numerics.loop import TOGGLE_TOL
-from folder_line.core.numerics.validate import as_float, non_negative, positive
+from folder_line.core.numerics.roots import golden_section
+from folder_line.core.numerics.validate import as_float, check_fields, non_negative, positive
 from folder_line.errors import AssemblyError, ParameterError
 
 __all__ = [
@@ -195,6 +196,11 @@ def _reduce_chunk(ph: np.ndarray, r: np.ndarray, mask: np.ndarray) -> np.ndarray
     return r
 
 
+def _belt_speed(key: str, value: object) -> float:
+    """The check of ``v_tr``: 0 (chutes without belts) or a linear speed in range."""
+    return 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
+
+
 @dataclass(frozen=True)
 class LayupParams:
     """Validated dimensions and speeds of the layup six-bar (defaults: ``config/layup.yaml``).
@@ -246,18 +252,16 @@ class LayupParams:
     v_tr: float
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            key = f'layup.{f.name}'
-            value = getattr(self, f.name)
-            if f.name in ('a', 'b'):
-                x = as_float(key, value)
-            elif f.name == 'v_tr':  # 0: chutes without belts
-                x = 0.0 if non_negative(key, value) == 0.0 else LINEAR_SPEED.check(key, value)
-            elif f.name == 'n_kr':
-                x = CRANK_SPEED.check(key, value)
-            else:
-                x = positive(key, value)
-            object.__setattr__(self, f.name, x)
+        check_fields(
+            self,
+            'layup',
+            R_kr=positive,
+            n_kr=CRANK_SPEED.check,
+            a=as_float,
+            b=as_float,
+            **dict.fromkeys(('l2', 'O2B', 'l3', 'l4', 'l5', 'O2O3'), positive),
+            v_tr=_belt_speed,
+        )
         ground = math.hypot(self.a, self.b)
         kind = classify_fourbar(ground, self.R_kr, self.l2, self.O2B)
         if kind != 'crank-rocker':
@@ -439,6 +443,20 @@ class LayupModel:
         Point = LayupPoint
         lo, hi = -_PI, _PI
 
+        def dyad(
+            px: float, py: float, P: float, M: float, g: float, phi: float, loop: int
+        ) -> tuple[float, float, float]:
+            # the joint X = k1 P + k2 P⊥ relative to the loop's pivot, and S (class notes)
+            d2 = px * px + py * py
+            e = (P - d2) * (d2 - M)
+            if not e > 0.0:
+                fail(phi, loop)
+            sq = sqrt(e)
+            q = 1.0 / d2
+            k1 = 0.5 + g * q
+            k2 = 0.5 * sq * q
+            return k1 * px - k2 * py, k1 * py + k2 * px, sq
+
         def point(phi: float, omega: float | None = None) -> LayupPoint:
             """Kinematics at one crank angle, pure ``math`` (a few µs).
 
@@ -465,30 +483,12 @@ class LayupModel:
             s = sin(phi)
             ax = a + R * c
             ay = b + R * s
-            d2 = ax * ax + ay * ay
-            e1 = (P1 - d2) * (d2 - M1)
-            if not e1 > 0.0:
-                fail(phi, 1)
-            s1 = sqrt(e1)
-            q = 1.0 / d2
-            k1 = 0.5 + g1 * q
-            k2 = 0.5 * s1 * q
-            bx = k1 * ax - k2 * ay
-            by = k1 * ay + k2 * ax
+            bx, by, s1 = dyad(ax, ay, P1, M1, g1, phi, 1)
             w3 = 2.0 * w * R * ((by - ay) * c - (bx - ax) * s) / s1
             cx = r3 * bx
             cy = r3 * by
             dx = cx - d0
-            e2 = dx * dx + cy * cy
-            f2 = (P2 - e2) * (e2 - M2)
-            if not f2 > 0.0:
-                fail(phi, 2)
-            s2 = sqrt(f2)
-            q2 = 1.0 / e2
-            m1 = 0.5 + g2 * q2
-            m2 = 0.5 * s2 * q2
-            wx = m1 * dx - m2 * cy
-            wy = m1 * cy + m2 * dx
+            wx, wy, s2 = dyad(dx, cy, P2, M2, g2, phi, 2)
             w5 = 2.0 * w3 * ((wy - cy) * cx - (wx - dx) * cy) / s2
             vc = w3 * l3
             ve = w5 * l5
@@ -523,20 +523,7 @@ class LayupModel:
             Loop O1-A-B-O2 and loop O2-C-E-O3; ``< 0`` where a loop does not close.
             Where loop 1 does not close, D2 is evaluated with B at the tangent point.
         """
-        phi = reduce_angle(phi)
-        ax = self._a + self._R * math.cos(phi)
-        ay = self._b + self._R * math.sin(phi)
-        d2 = ax * ax + ay * ay
-        e1 = (self._P1 - d2) * (d2 - self._M1)
-        q = 1.0 / d2
-        k1 = 0.5 + self._g1 * q
-        k2 = 0.5 * math.sqrt(max(e1, 0.0)) * q
-        cx = self._r3 * (k1 * ax - k2 * ay)
-        cy = self._r3 * (k1 * ay + k2 * ax)
-        dx = cx - self._d0
-        e2 = dx * dx + cy * cy
-        f2 = (self._P2 - e2) * (e2 - self._M2)
-        return e1 * self._n1 * self._n1, f2 * self._n2 * self._n2
+        return self._discriminants(math, max, reduce_angle(phi))
 
     def discriminants(self, phi: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Vectorised :meth:`discriminants_scalar`.
@@ -551,14 +538,18 @@ class LayupModel:
         D1, D2 : ndarray
             Normalised discriminants of loops 1 and 2, shape of ``phi``.
         """
-        ph = reduce_angle(np.asarray(phi, dtype=float))
-        ax = self._a + self._R * np.cos(ph)
-        ay = self._b + self._R * np.sin(ph)
+        return self._discriminants(np, np.maximum, reduce_angle(np.asarray(phi, dtype=float)))
+
+    def _discriminants(self, xp: Any, maximum: Any, phi: Any) -> tuple[Any, Any]:
+        """Both loops' normalised discriminants with the namespace ``xp`` (``math`` for a float,
+        ``numpy`` for an array; ``maximum`` its elementwise max) at reduced crank angle(s)."""
+        ax = self._a + self._R * xp.cos(phi)
+        ay = self._b + self._R * xp.sin(phi)
         d2 = ax * ax + ay * ay
         e1 = (self._P1 - d2) * (d2 - self._M1)
         q = 1.0 / d2
         k1 = 0.5 + self._g1 * q
-        k2 = 0.5 * np.sqrt(np.maximum(e1, 0.0)) * q
+        k2 = 0.5 * xp.sqrt(maximum(e1, 0.0)) * q
         cx = self._r3 * (k1 * ax - k2 * ay)
         cy = self._r3 * (k1 * ay + k2 * ax)
         dx = cx - self._d0
@@ -643,70 +634,20 @@ class LayupModel:
         add(xA, self._a, out=xA)
         mul(S, self._R, out=yA)
         add(yA, self._b, out=yA)
-        # loop 1: T = d², G = S1 = sqrt(((p+l2)² - d²)(d² - (p-l2)²))
-        mul(xA, xA, out=T)
-        mul(yA, yA, out=G)
-        add(T, G, out=T)
-        sub(self._P1, T, out=G)
-        sub(T, self._M1, out=U)
-        mul(G, U, out=G)
-        if not G.min() > 0.0:
-            self._fail_array(phi_given, G, 1)
-        sqrt(G, out=G)
-        mul(G, self._n1, out=mg1)
-        div(1.0, T, out=T)  # q = 1/d²
-        mul(T, self._g1, out=U)
-        add(U, 0.5, out=U)  # k1
-        mul(G, T, out=V)
-        mul(V, 0.5, out=V)  # k2
-        mul(U, xA, out=xB)
-        mul(V, yA, out=W)
-        sub(xB, W, out=xB)
-        mul(U, yA, out=yB)
-        mul(V, xA, out=W)
-        add(yB, W, out=yB)
-        # omega3 = 2 ω R ((yB - yA) cos - (xB - xA) sin) / S1
-        sub(yB, yA, out=U)
-        mul(U, Cc, out=U)
-        sub(xB, xA, out=V)
-        mul(V, S, out=V)
-        sub(U, V, out=w3)
-        div(w3, G, out=w3)
+        # loop 1 about O2: G = S1 = sqrt(((p+l2)² - d²)(d² - (p-l2)²))
+        self._dyad(1, xA, yA, xB, yB, mg1, G, T, U, V, W, phi_given)
+        # omega3 = 2 ω R ((B - A) · (cos, sin)⊥) / S1
+        _cross_over(w3, xB, yB, xA, yA, Cc, S, G, U, V)
         mul(w3, 2.0 * w * self._R, out=w3)
         np.arctan2(yB, xB, out=th3)
         mul(xB, self._r3, out=xC)
         mul(yB, self._r3, out=yC)
-        # loop 2 about O3: U = C - O3 (x), T = e², V = S2
+        # loop 2 about O3: U = C - O3 (x), V = S2; (xE, yE) = E - O3
         sub(xC, self._d0, out=U)
-        mul(U, U, out=T)
-        mul(yC, yC, out=V)
-        add(T, V, out=T)
-        sub(self._P2, T, out=V)
-        sub(T, self._M2, out=W)
-        mul(V, W, out=V)
-        if not V.min() > 0.0:
-            self._fail_array(phi_given, V, 2)
-        sqrt(V, out=V)
-        mul(V, self._n2, out=mg2)
-        div(1.0, T, out=T)  # q2
-        mul(T, self._g2, out=W)
-        add(W, 0.5, out=W)  # m1
-        mul(V, T, out=T)
-        mul(T, 0.5, out=T)  # m2
-        mul(W, U, out=xE)
-        mul(T, yC, out=Z)
-        sub(xE, Z, out=xE)  # E - O3, x
-        mul(W, yC, out=yE)
-        mul(T, U, out=Z)
-        add(yE, Z, out=yE)  # E - O3, y
+        self._dyad(2, U, yC, xE, yE, mg2, V, T, W, T, Z, phi_given)
         np.arctan2(yE, xE, out=th5)
-        # omega5 = 2 ω3 ((E - C) · C⊥) / S2
-        sub(yE, yC, out=W)
-        mul(W, xC, out=W)
-        sub(xE, U, out=Z)
-        mul(Z, yC, out=Z)
-        sub(W, Z, out=w5)
-        div(w5, V, out=w5)
+        # omega5 = 2 ω3 ((E - C) · C⊥) / S2 (x of E and C still relative to O3)
+        _cross_over(w5, xE, yE, U, yC, xC, yC, V, W, Z)
         mul(w5, 2.0, out=w5)
         mul(w5, w3, out=w5)
         add(xE, self._d0, out=xE)
@@ -718,6 +659,55 @@ class LayupModel:
         mul(vE, vE, out=vaE)
         add(vaE, self._vt2, out=vaE)
         sqrt(vaE, out=vaE)
+
+    def _dyad(
+        self,
+        loop: int,
+        px: np.ndarray,
+        py: np.ndarray,
+        ox: np.ndarray,
+        oy: np.ndarray,
+        mg: np.ndarray,
+        S: np.ndarray,
+        D: np.ndarray,
+        K1: np.ndarray,
+        K2: np.ndarray,
+        tmp: np.ndarray,
+        phi_given: np.ndarray,
+    ) -> None:
+        """Joint of loop ``loop`` for one chunk, in place: ``X = k1 P + k2 P⊥`` (class notes).
+
+        ``(px, py)`` is the moving centre P (A, or C - O3) relative to the loop's pivot. On
+        return ``(ox, oy)`` is the joint (B, or E - O3) relative to the pivot, ``S`` the root
+        of Heron's discriminant (S1, S2) and ``mg`` the toggle margin. ``D``, ``K1``, ``K2``
+        and ``tmp`` are scratch; ``K2`` may be ``D``.
+        """
+        if loop == 1:
+            P, M, g, n = self._P1, self._M1, self._g1, self._n1
+        else:
+            P, M, g, n = self._P2, self._M2, self._g2, self._n2
+        mul, add, sub = np.multiply, np.add, np.subtract
+        mul(px, px, out=D)
+        mul(py, py, out=S)
+        add(D, S, out=D)  # d²
+        sub(P, D, out=S)
+        sub(D, M, out=K1)
+        mul(S, K1, out=S)
+        if not S.min() > 0.0:
+            self._fail_array(phi_given, S, loop)
+        np.sqrt(S, out=S)
+        mul(S, n, out=mg)
+        np.divide(1.0, D, out=D)  # q = 1/d²
+        mul(D, g, out=K1)
+        add(K1, 0.5, out=K1)  # k1
+        mul(S, D, out=K2)
+        mul(K2, 0.5, out=K2)  # k2
+        mul(K1, px, out=ox)
+        mul(K2, py, out=tmp)
+        sub(ox, tmp, out=ox)
+        mul(K1, py, out=oy)
+        mul(K2, px, out=tmp)
+        add(oy, tmp, out=oy)
 
     def _accel(self, o: np.ndarray, w: float, alpha: float) -> None:
         """ε3, ε5 for one chunk from the twice-differentiated loop equations."""
@@ -754,6 +744,28 @@ class LayupModel:
         self._fail_scalar(float(phi_given[i]), loop)
 
 
+def _cross_over(
+    out: np.ndarray,
+    xX: np.ndarray,
+    yX: np.ndarray,
+    xP: np.ndarray,
+    yP: np.ndarray,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    S: np.ndarray,
+    t1: np.ndarray,
+    t2: np.ndarray,
+) -> None:
+    """``out = ((X - P) · d⊥) / S = ((yX - yP) dx - (xX - xP) dy) / S``, in place (``t1``, ``t2`` scratch):
+    a dyad's output rate per unit input rate, up to the factor 2 and the input link's length."""
+    np.subtract(yX, yP, out=t1)
+    np.multiply(t1, dx, out=t1)
+    np.subtract(xX, xP, out=t2)
+    np.multiply(t2, dy, out=t2)
+    np.subtract(t1, t2, out=out)
+    np.divide(out, S, out=out)
+
+
 def _disc_reason(d: float) -> str:
     if d < -TOGGLE_TOL:
         return f'the circles do not meet (normalised discriminant {d:.3g} < 0)'
@@ -782,23 +794,6 @@ class AssemblyMargins(NamedTuple):
     phi1: float
     margin2: float
     phi2: float
-
-
-def _golden_min(f: Callable[[float], float], lo: float, hi: float, iters: int = 60) -> tuple[float, float]:
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    x1 = hi - g * (hi - lo)
-    x2 = lo + g * (hi - lo)
-    f1, f2 = f(x1), f(x2)
-    for _ in range(iters):
-        if f1 <= f2:
-            hi, x2, f2 = x2, x1, f1
-            x1 = hi - g * (hi - lo)
-            f1 = f(x1)
-        else:
-            lo, x1, f1 = x1, x2, f2
-            x2 = lo + g * (hi - lo)
-            f2 = f(x2)
-    return (x1, f1) if f1 <= f2 else (x2, f2)
 
 
 def _first_crossing(f: Callable[[float], float], lo: float, hi: float) -> float:
@@ -863,7 +858,7 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
             lows = lows[np.argsort(D[lows])][:4]
             best_i, best_phi, best = int(lows[0]), float(phis[lows[0]]), float(D[lows[0]])
             for low in lows:
-                x, fx = _golden_min(f, float(phis[low]) - TAU / n, float(phis[low]) + TAU / n)
+                x, fx = golden_section(f, float(phis[low]) - TAU / n, float(phis[low]) + TAU / n, maxiter=60).best
                 if fx < best:
                     best_i, best_phi, best = int(low), x, fx
             if best < 0.0:

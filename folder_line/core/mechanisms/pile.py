@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
-from folder_line.core.numerics.validate import positive
+from folder_line.core.numerics.validate import check_fields, positive
 
 __all__ = ['T_LOWER', 'UNIT', 'PileTable', 'counted_event', 'pile_table']
 
@@ -90,8 +90,7 @@ class PileTable:
             raise ValueError('PileTable: times must be sorted ascending')
         times.setflags(write=False)
         object.__setattr__(self, 'times', times)
-        object.__setattr__(self, 'thickness', positive('thickness', self.thickness))
-        object.__setattr__(self, 't_lower', positive('t_lower', self.t_lower))
+        check_fields(self, '', thickness=positive, t_lower=positive)
         ends = times + self.t_lower  # non-decreasing, as the times are
         ends.setflags(write=False)
         object.__setattr__(self, '_ends', ends)

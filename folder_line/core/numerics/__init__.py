@@ -1,1 +1,1 @@
-"""Numerics shared by the mechanisms: loop closure, roots, integrators, time base, checks."""
+"""Numerics shared by the mechanisms: loop closure, roots, integrators, time base, checks, array types."""

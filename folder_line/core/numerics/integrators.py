@@ -80,6 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.errors import IntegrationError  # re-exported: defined with the other errors
 
@@ -94,7 +95,6 @@ __all__ = [
     'rk4',
 ]
 
-FloatArray = npt.NDArray[np.float64]
 Piece = tuple[float, float]
 Fun = Callable[..., npt.ArrayLike]
 
@@ -476,11 +476,21 @@ class _Recorder:
         self.t[self.n] = t_end
         self.y[self.n] = y_end
 
-    def truncate_last(self, x: float, y_end: FloatArray) -> None:
-        """Cut the last step at ``x`` (fraction of its h) with end state ``y_end``."""
+    def stop_at(self, terminal: Terminal | None, coef: FloatArray, y_start: FloatArray, y_end: FloatArray) -> bool:
+        """Cut the last step (from ``y_start`` to ``y_end``, dense output ``coef``) where it meets
+        ``terminal``, its end state then exactly on the value; True if it does."""
+        if terminal is None:
+            return False
+        j = terminal.component
+        x = _terminal_root(coef, j, terminal.value, float(y_start[j]), float(y_end[j]))
+        if x is None:
+            return False
+        y_cut = _horner(coef.reshape(5, 1, -1), np.array([x]))[0]
+        y_cut[j] = terminal.value
         i = self.n - 1
         self.t[self.n] = min(self.t[i] + x * self.h[i], self.t[self.n])
-        self.y[self.n] = y_end
+        self.y[self.n] = y_cut
+        return True
 
     def build(self, method: str, nfev: int, rejected: int, status: str, landing: float) -> DenseSolution:
         if self.n == 0:
@@ -535,11 +545,25 @@ def _setup(
     return t0, t1, y, G, (lo, hi)
 
 
-def _next_piece(method: str, breaks: Breaks, b: float) -> Piece:
+def _switch_piece(
+    method: str,
+    rec: _Recorder,
+    breaks: Breaks,
+    F: Callable[[float, FloatArray, Piece], FloatArray],
+    t: float,
+    y: FloatArray,
+    b: float,
+) -> tuple[Piece, FloatArray, bool]:
+    """Record the landing on break ``b`` at ``(t, y)`` and move on to the next piece: returns the
+    piece, the derivative there (one evaluation of ``F``) and whether ``on_break`` ends the run."""
+    rec.break_t.append(t)
+    rec.break_value.append(b)
     nb = float(breaks.next_after(b))
     if not nb > b:
         raise ValueError(f'{method}: breaks.next_after({b!r}) = {nb!r} is not above its argument')
-    return (b, nb)
+    piece = (b, nb)
+    f = F(t, y, piece)
+    return piece, f, breaks.on_break is not None and bool(breaks.on_break(t, y.copy(), b))
 
 
 def _landing_tol(b: float, yj: float) -> float:
@@ -711,27 +735,16 @@ def rk4(
         coef = _hermite_coef(y, y_new, f, f_new, hh)
         rec.add(hh, t_next, y_new, coef)
         n += 1
-        if terminal is not None:
-            x = _terminal_root(
-                coef, terminal.component, terminal.value, float(y[terminal.component]), float(y_new[terminal.component])
-            )
-            if x is not None:
-                y_end = _horner(coef.reshape(5, 1, -1), np.array([x]))[0]
-                y_end[terminal.component] = terminal.value
-                rec.truncate_last(x, y_end)
-                status = 'terminal'
-                break
+        if rec.stop_at(terminal, coef, y, y_new):
+            status = 'terminal'
+            break
         t, y = t_next, y_new
         if crossed:
             assert breaks is not None
-            b = piece[1]
-            rec.break_t.append(t)
-            rec.break_value.append(b)
-            piece = _next_piece('rk4', breaks, b)
-            t_piece, k_piece = t, 0
-            f = F(t, y, piece)
+            piece, f, stop = _switch_piece('rk4', rec, breaks, F, t, y, piece[1])
             nfev += 1
-            if breaks.on_break is not None and breaks.on_break(t, y.copy(), b):
+            t_piece, k_piece = t, 0
+            if stop:
                 status = 'stopped'
                 break
         else:
@@ -969,27 +982,16 @@ def dopri5(
                 crossed = True
         coef = _dopri_coef(y, K, h)
         rec.add(h, t_new, y_new, coef)
-        if terminal is not None:
-            x = _terminal_root(
-                coef, terminal.component, terminal.value, float(y[terminal.component]), float(y_new[terminal.component])
-            )
-            if x is not None:
-                y_end = _horner(coef.reshape(5, 1, -1), np.array([x]))[0]
-                y_end[terminal.component] = terminal.value
-                rec.truncate_last(x, y_end)
-                status = 'terminal'
-                break
+        if rec.stop_at(terminal, coef, y, y_new):
+            status = 'terminal'
+            break
         t, y = t_new, y_new
         h_abs = h_next
         if crossed:
             assert breaks is not None
-            b = piece[1]
-            rec.break_t.append(t)
-            rec.break_value.append(b)
-            piece = _next_piece('dopri5', breaks, b)
-            f = F(t, y, piece)
+            piece, f, stop = _switch_piece('dopri5', rec, breaks, F, t, y, piece[1])
             nfev += 1
-            if breaks.on_break is not None and breaks.on_break(t, y.copy(), b):
+            if stop:
                 status = 'stopped'
                 break
         else:

@@ -41,6 +41,7 @@ from typing import TypeAlias, overload
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.numerics.arrays import FloatArray, FloatOrArray
 from folder_line.errors import AssemblyError
 
 __all__ = [
@@ -59,10 +60,6 @@ __all__ = [
 TOGGLE_TOL = 1e-10
 
 ArrayLike: TypeAlias = npt.ArrayLike
-#: A float64 array (of any shape).
-FloatArray: TypeAlias = npt.NDArray[np.float64]
-#: A float or a float64 array; arguments of this type broadcast together.
-FloatOrArray: TypeAlias = float | FloatArray
 
 
 @overload

@@ -1,4 +1,4 @@
-"""Bracketing root finding in pure Python: Brent's method and sign-change scanning.
+"""Bracketing searches in pure Python: Brent's method, sign-change scanning, golden section.
 
 The core may not import scipy, so :func:`brentq` is a line-by-line port of
 scipy's ``brentq`` (``scipy/optimize/Zeros/brentq.c``, Brent 1973 with the
@@ -13,6 +13,8 @@ root is therefore within ``xtol + rtol * |x|`` of a sign change of ``f``.
 :func:`find_sign_changes` samples ``f`` on a grid and refines each sign change
 with Brent's method. It is the event detector of the core; its rules for zeros
 that fall exactly on samples and for grazing touches are documented there.
+
+:func:`golden_section` narrows a bracket around a minimum (no derivatives).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,11 +43,13 @@ __all__ = [
     'NotBracketedError',
     'NonFiniteValueError',
     'NoConvergenceError',
+    'GoldenSection',
     'RootResult',
     'SignChanges',
     'brent',
     'brentq',
     'find_sign_changes',
+    'golden_section',
 ]
 
 #: default absolute tolerance on the root (same as scipy.optimize.brentq)
@@ -408,3 +413,66 @@ def find_sign_changes(
     for arr in (xr, dr, sr):
         arr.flags.writeable = False
     return SignChanges(xr, dr, sr, calls)
+
+
+class GoldenSection(NamedTuple):
+    """The last bracket of :func:`golden_section`: ``lo < x1 < x2 < hi`` (up to rounding), with
+    ``f1 = f(x1)`` and ``f2 = f(x2)``; units of ``x`` and of ``f``."""
+
+    lo: float
+    hi: float
+    x1: float
+    f1: float
+    x2: float
+    f2: float
+
+    @property
+    def best(self) -> tuple[float, float]:
+        """``(x, f(x))`` of the better inner point (``x1`` on a tie)."""
+        return (self.x1, self.f1) if self.f1 <= self.f2 else (self.x2, self.f2)
+
+
+def golden_section(
+    f: Callable[[float], float], lo: float, hi: float, *, xtol: float | None = None, maxiter: int | None = None
+) -> GoldenSection:
+    """Golden-section search for a minimum of ``f`` in ``[lo, hi]``.
+
+    Each iteration drops the outer part beyond the worse of the two inner points and
+    evaluates ``f`` once; the bracket shrinks by ``(sqrt(5) - 1) / 2`` per iteration.
+    ``f`` is assumed unimodal in the bracket (else a local minimum is found).
+
+    Parameters
+    ----------
+    f : callable ``f(x) -> float``
+        The function; any units. Called with the bracket's arithmetic type.
+    lo, hi : float
+        Bracket, ``lo < hi``, units of ``x``.
+    xtol : float, optional
+        Stop once ``hi - lo <= xtol`` (units of ``x``).
+    maxiter : int, optional
+        Stop after this many iterations. At least one of ``xtol`` and ``maxiter`` must be
+        given (``maxiter`` alone runs exactly that many).
+
+    Returns
+    -------
+    GoldenSection
+        The last bracket and its two inner points.
+    """
+    if xtol is None and maxiter is None:
+        raise ParameterError('xtol', xtol, 'xtol or maxiter must be given')
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    x1 = hi - g * (hi - lo)
+    x2 = lo + g * (hi - lo)
+    f1, f2 = f(x1), f(x2)
+    k = 0
+    while (maxiter is None or k < maxiter) and (xtol is None or hi - lo > xtol):
+        k += 1
+        if f1 <= f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = f(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = f(x2)
+    return GoldenSection(lo, hi, x1, f1, x2, f2)

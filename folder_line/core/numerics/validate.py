@@ -1,7 +1,9 @@
 """Value checks shared by the core's frozen parameter dataclasses, and the one builder of them.
 
 Each check raises :class:`folder_line.errors.ParameterError` naming the key and
-the value; none returns a modified value except :func:`as_float`. :func:`build` turns
+the value, and returns the value to keep (a number as a finite float). A dataclass's
+``__post_init__`` runs its checks with :func:`check_fields` (:func:`within` and :func:`among`
+make checks of :func:`in_range` and :func:`one_of` with their bounds). :func:`build` turns
 a mapping (from YAML or the command line) into a frozen dataclass, refusing unknown
 and missing keys by name; the dataclass checks its values itself.
 """
@@ -10,12 +12,28 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from folder_line.errors import ParameterError
 
-__all__ = ['Dataclass', 'as_float', 'build', 'check_keys', 'in_range', 'non_negative', 'one_of', 'positive']
+__all__ = [
+    'Check',
+    'Dataclass',
+    'among',
+    'as_float',
+    'build',
+    'check_fields',
+    'check_keys',
+    'in_range',
+    'non_negative',
+    'one_of',
+    'positive',
+    'within',
+]
+
+#: a value check: ``check(key, value)`` returns the value to keep, or raises naming ``key``
+Check = Callable[[str, object], object]
 
 
 def as_float(key: str, value: object) -> float:
@@ -64,6 +82,48 @@ def one_of(key: str, value: object, allowed: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in allowed:
         raise ParameterError(key, value, f'must be one of {", ".join(allowed)}')
     return value
+
+
+def within(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> Callable[[str, object], float]:
+    """The check :func:`in_range` with these bounds."""
+
+    def check(key: str, value: object) -> float:
+        return in_range(key, value, lo, hi, lo_open=lo_open, hi_open=hi_open)
+
+    return check
+
+
+def among(allowed: tuple[str, ...]) -> Callable[[str, object], str]:
+    """The check :func:`one_of` ``allowed``."""
+
+    def check(key: str, value: object) -> str:
+        return one_of(key, value, allowed)
+
+    return check
+
+
+def check_fields(obj: object, prefix: str, **checks: Check) -> None:
+    """Check fields of the frozen dataclass ``obj`` in the order given and keep what the checks return.
+
+    For a dataclass's ``__post_init__``: ``check_fields(self, 'knife', r_k=positive, e=as_float)``.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+        The instance being made (its fields are set with ``object.__setattr__``).
+    prefix : str
+        Dotted name of the dataclass in messages; a field is named ``<prefix>.<field>`` (the bare
+        field name for ``''``).
+    **checks : Check
+        Field name to its check.
+
+    Raises
+    ------
+    ParameterError
+        From the first check that fails.
+    """
+    for name, check in checks.items():
+        object.__setattr__(obj, name, check(_dotted(prefix, name), getattr(obj, name)))
 
 
 # --------------------------------------------------------------------------- mapping -> frozen dataclass

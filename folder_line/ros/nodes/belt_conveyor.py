@@ -10,22 +10,11 @@ from __future__ import annotations
 
 import sys
 
-from folder_line.ros.nodes.machine import MachineNode
-from folder_line.ros.runtime import run_node
+from folder_line.ros.nodes.machine import machine_node
 
 __all__ = ['BeltConveyor', 'main']
 
-
-class BeltConveyor(MachineNode):
-    """The ``belt_conveyor`` node."""
-
-    NODE_NAME = 'belt_conveyor'
-
-
-def main(args: list[str] | None = None) -> int:
-    """Run ``belt_conveyor`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
-    return run_node(BeltConveyor, args)
-
+BeltConveyor, main = machine_node('belt_conveyor', __name__)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -10,22 +10,11 @@ from __future__ import annotations
 
 import sys
 
-from folder_line.ros.nodes.machine import MachineNode
-from folder_line.ros.runtime import run_node
+from folder_line.ros.nodes.machine import machine_node
 
 __all__ = ['CrankDrive', 'main']
 
-
-class CrankDrive(MachineNode):
-    """The ``crank_drive`` node."""
-
-    NODE_NAME = 'crank_drive'
-
-
-def main(args: list[str] | None = None) -> int:
-    """Run ``crank_drive`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
-    return run_node(CrankDrive, args)
-
+CrankDrive, main = machine_node('crank_drive', __name__)
 
 if __name__ == '__main__':
     sys.exit(main())

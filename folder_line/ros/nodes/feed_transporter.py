@@ -11,22 +11,11 @@ from __future__ import annotations
 
 import sys
 
-from folder_line.ros.nodes.machine import MachineNode
-from folder_line.ros.runtime import run_node
+from folder_line.ros.nodes.machine import machine_node
 
 __all__ = ['FeedTransporter', 'main']
 
-
-class FeedTransporter(MachineNode):
-    """The ``feed_transporter`` node."""
-
-    NODE_NAME = 'feed_transporter'
-
-
-def main(args: list[str] | None = None) -> int:
-    """Run ``feed_transporter`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
-    return run_node(FeedTransporter, args)
-
+FeedTransporter, main = machine_node('feed_transporter', __name__)
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -36,7 +36,7 @@ import functools
 import math
 from array import array
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from rclpy.node import Node
@@ -63,6 +63,7 @@ from folder_line.interfaces import (
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.ros.parameters import ParamSpec, declare_parameters
+from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
@@ -70,7 +71,9 @@ __all__ = [
     'MACHINE_SPECS',
     'NODE_NAMES',
     'MachineNode',
+    'NodeMain',
     'line_model',
+    'machine_node',
     'node_scene',
     'parse_overrides',
     'scene_model',
@@ -392,3 +395,36 @@ class MachineNode(Node):
                     self.published_joint_states += 1
                 self.publish_sample(g, g / NS_PER_S)
         self.publish_extra(stamp_ns, t, mine)
+
+
+class NodeMain(Protocol):
+    """A node module's ``main(args=None) -> exit code``."""
+
+    def __call__(self, args: list[str] | None = None) -> int: ...
+
+
+def machine_node(name: str, module: str) -> tuple[type[MachineNode], NodeMain]:
+    """The class and the ``main(args=None)`` of a machine node that needs nothing beyond :class:`MachineNode`.
+
+    Parameters
+    ----------
+    name : str
+        The node's name (``'feed_transporter'``); the class is named after it (``FeedTransporter``).
+    module : str
+        ``__name__`` of the module that starts the node, where the class and ``main`` are defined.
+
+    Returns
+    -------
+    (type, callable)
+        The :class:`MachineNode` subclass and its ``main``: runs the node until Ctrl-C
+        (:func:`~folder_line.ros.runtime.run_node`) and returns the exit code, 0 (2 on a bad parameter).
+    """
+    title = ''.join(word.capitalize() for word in name.split('_'))
+    cls = type(title, (MachineNode,), {'NODE_NAME': name, '__doc__': f'The ``{name}`` node.', '__module__': module})
+
+    def main(args: list[str] | None = None) -> int:
+        return run_node(cls, args)
+
+    main.__doc__ = f'Run ``{name}`` until Ctrl-C; exit code 0 (2 on a bad parameter).'
+    main.__module__ = module
+    return cls, main

@@ -42,7 +42,7 @@ from folder_line.core.numerics.loop import (
     circle_point_velocity,
     tracked_intersection,
 )
-from folder_line.core.numerics.roots import find_sign_changes
+from folder_line.core.numerics.roots import find_sign_changes, golden_section
 from folder_line.errors import AssemblyError, ParameterError
 
 from .._reference import DELTAS, EPS, crank_turns_fully, mp_rate, mp_sixbar
@@ -265,7 +265,7 @@ def test_failure_between_samples_is_found() -> None:
 def _min_d2(l5: float) -> tuple[float, float]:
     m = LayupModel(raw(l5=l5))
     i = int(np.argmin(m.discriminants(DENSE)[1]))
-    return L._golden_min(lambda x: m.discriminants_scalar(x)[1], DENSE[i] - 1e-3, DENSE[i] + 1e-3, iters=80)
+    return golden_section(lambda x: m.discriminants_scalar(x)[1], DENSE[i] - 1e-3, DENSE[i] + 1e-3, maxiter=80).best
 
 
 def test_grazing_a_toggle_is_rejected_as_locking() -> None:

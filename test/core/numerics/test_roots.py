@@ -21,6 +21,7 @@ from folder_line.core.numerics.roots import (
     brent,
     brentq,
     find_sign_changes,
+    golden_section,
 )
 from folder_line.errors import FolderLineError, ParameterError
 
@@ -331,3 +332,27 @@ class TestGrazing:
         left = int(np.sign(f(float(GRID[split - 1]))))
         second = find_sign_changes(f, GRID[split:], left_sign=left)
         assert len(first) + len(second) == 0
+
+
+# --------------------------------------------------------------------------- golden section
+
+
+def test_golden_section_narrows_to_the_minimum() -> None:
+    calls: list[float] = []
+
+    def f(x: float) -> float:
+        calls.append(x)
+        return (x - 0.3) ** 2
+
+    last = golden_section(f, 0.0, 1.0, xtol=1e-10)
+    assert last.lo <= 0.3 <= last.hi and last.hi - last.lo <= 1e-10
+    assert abs(last.best[0] - 0.3) < 1e-10 and last.best[1] == f(last.best[0])
+    assert len(calls) <= 3 + math.ceil(math.log(1e-10) / math.log((math.sqrt(5.0) - 1.0) / 2.0))  # one f per iteration
+
+
+def test_golden_section_maxiter_runs_exactly_that_many() -> None:
+    calls: list[float] = []
+    golden_section(lambda x: calls.append(x) or abs(x), -1.0, 2.0, maxiter=7)
+    assert len(calls) == 2 + 7
+    with pytest.raises(ParameterError):
+        golden_section(abs, -1.0, 1.0)

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from folder_line.core.numerics.validate import build, check_keys, positive
+from folder_line.core.numerics.validate import among, build, check_fields, check_keys, positive, within
 from folder_line.errors import ParameterError
 
 
@@ -54,3 +54,27 @@ def test_a_dotted_key_of_the_dataclass_is_kept_and_the_top_level_has_no_prefix()
         build(Named, {'x': 0}, 'effects.named', 'parameter of effect named')
     with pytest.raises(ParameterError, match=r"^colour='red': unknown scene key; known: name, seed$"):
         check_keys({'name': 'x', 'colour': 'red'}, ('name', 'seed'), '', 'scene key')
+
+
+@dataclass(frozen=True)
+class Belt:
+    speed: float
+    share: float
+    kind: str
+
+    def __post_init__(self) -> None:
+        check_fields(self, 'belt', speed=positive, share=within(0.0, 1.0, hi_open=True), kind=among(('flat', 'round')))
+
+
+def test_check_fields_keeps_what_the_checks_return_and_names_the_field() -> None:
+    belt = Belt(2, 0, 'flat')
+    assert (belt.speed, belt.share, belt.kind) == (2.0, 0.0, 'flat') and type(belt.speed) is float
+    for args, message in (
+        ((0.0, 0.5, 'flat'), 'belt.speed=0.0: must be > 0'),
+        ((1.0, 1.0, 'flat'), 'belt.share=1.0: must be in [0, 1)'),
+        ((1.0, 0.5, 'v'), "belt.kind='v': must be one of flat, round"),
+        ((-1.0, 2.0, 'v'), 'belt.speed=-1.0: must be > 0'),  # in the order given
+    ):
+        with pytest.raises(ParameterError) as exc:
+            Belt(*args)
+        assert str(exc.value) == message
