@@ -9,7 +9,15 @@ from pathlib import Path
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import UNITS
-from folder_line.interfaces import JOINT_NODES, KNOWN_PARTICIPANTS, LINE_CLOCK, NODE_OF_UNIT, UNIT_OF_NODE
+from folder_line.interfaces import (
+    EVENT_KINDS,
+    EVENT_OWNER,
+    JOINT_NODES,
+    KNOWN_PARTICIPANTS,
+    LINE_CLOCK,
+    NODE_OF_UNIT,
+    UNIT_OF_NODE,
+)
 
 CORE = Path(__file__).resolve().parent.parent / 'folder_line' / 'core'
 
@@ -120,6 +128,7 @@ def test_the_section_names_are_sections_and_the_units_map_to_the_nodes() -> None
     assert tuple(NODE_OF_UNIT) == UNITS and tuple(NODE_OF_UNIT.values()) == JOINT_NODES
     assert {node: unit for unit, node in NODE_OF_UNIT.items()} == UNIT_OF_NODE
     assert not set(UNITS) & NODE_NAMES
+    assert set(EVENT_OWNER) == set(EVENT_KINDS) and set(EVENT_OWNER.values()) <= set(JOINT_NODES)
 
 
 # --------------------------------------------------------------------------- imports at module level

@@ -13,8 +13,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, Literal, TypeAlias, overload
+from typing import Any, Literal, TypeAlias, overload
 
+from folder_line.core import effects as fx
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.limits import SAMPLE_RATE
 from folder_line.core.line.machines import ChainParams, ContainerParams, FeedTransporterParams, StreamParams
@@ -25,19 +26,6 @@ from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.validate import build, check_keys
 from folder_line.errors import ParameterError
-
-if TYPE_CHECKING:  # only for the overloads of Scene.effect_params (faults imports core.line)
-    from folder_line.core.effects import (
-        chain_friction,
-        chute_belts,
-        faults,
-        feed_slip,
-        guide_friction,
-        leaf_damage,
-        leaf_flight,
-        motor_dynamics,
-        stop_bounce,
-    )
 
 __all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'machine_class', 'parse_scene']
 
@@ -141,23 +129,23 @@ class Scene:
         return self.effects.get(name)
 
     @overload
-    def effect_params(self, name: Literal['chain_friction']) -> chain_friction.Params: ...
+    def effect_params(self, name: Literal['chain_friction']) -> fx.chain_friction.Params: ...
     @overload
-    def effect_params(self, name: Literal['chute_belts']) -> chute_belts.Params: ...
+    def effect_params(self, name: Literal['chute_belts']) -> fx.chute_belts.Params: ...
     @overload
-    def effect_params(self, name: Literal['faults']) -> faults.Params: ...
+    def effect_params(self, name: Literal['faults']) -> fx.faults.Params: ...
     @overload
-    def effect_params(self, name: Literal['feed_slip']) -> feed_slip.Params: ...
+    def effect_params(self, name: Literal['feed_slip']) -> fx.feed_slip.Params: ...
     @overload
-    def effect_params(self, name: Literal['guide_friction']) -> guide_friction.Params: ...
+    def effect_params(self, name: Literal['guide_friction']) -> fx.guide_friction.Params: ...
     @overload
-    def effect_params(self, name: Literal['leaf_damage']) -> leaf_damage.Params: ...
+    def effect_params(self, name: Literal['leaf_damage']) -> fx.leaf_damage.Params: ...
     @overload
-    def effect_params(self, name: Literal['leaf_flight']) -> leaf_flight.Params: ...
+    def effect_params(self, name: Literal['leaf_flight']) -> fx.leaf_flight.Params: ...
     @overload
-    def effect_params(self, name: Literal['motor_dynamics']) -> motor_dynamics.Params: ...
+    def effect_params(self, name: Literal['motor_dynamics']) -> fx.motor_dynamics.Params: ...
     @overload
-    def effect_params(self, name: Literal['stop_bounce']) -> stop_bounce.Params: ...
+    def effect_params(self, name: Literal['stop_bounce']) -> fx.stop_bounce.Params: ...
     @overload
     def effect_params(self, name: str) -> Any: ...
 

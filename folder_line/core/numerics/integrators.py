@@ -836,12 +836,8 @@ def dopri5(
 
     Parameters
     ----------
-    fun : callable
-        ``fun(t, y) -> dy/dt`` (``fun(t, y, piece)`` with ``breaks``), ``y`` of shape (m,).
-    t_span : (float, float)
-        ``(t0, t_end)``, ``t_end > t0``.
-    y0 : array_like, shape (m,)
-        Initial state.
+    fun, t_span, y0
+        As for :func:`rk4`.
     rtol : float
         Relative tolerance (>= 100 eps).
     atol : float or array_like of shape (m,)
@@ -851,7 +847,7 @@ def dopri5(
     first_step : float, optional
         First step; default chosen as scipy does.
     breaks, terminal : optional
-        See the module docstring.
+        As for :func:`rk4`.
     max_steps : int
         Raise :class:`IntegrationError` after this many attempted steps.
 
