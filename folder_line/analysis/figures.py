@@ -55,7 +55,7 @@ from folder_line.analysis.figure_data import (
 from folder_line.analysis.recording import Recording
 from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import chain_friction
-from folder_line.core.mechanisms import delivery, layup
+from folder_line.core.mechanisms import delivery, layup, layup_reach
 from folder_line.files.atomic import write_bytes_atomic
 
 __all__ = [
@@ -156,7 +156,7 @@ def exit_speed_curves(
     if show_swing_on_abs:
         ax_abs.plot(deg, np.abs(st.vC), color='C2', lw=0.8, label='$|v_C|$ without belts')
     ax_abs.axhline(v_tr, color='k', lw=0.5)
-    for e in layup.swing_extremes(params):
+    for e in layup_reach.swing_extremes(params):
         for ax in (ax_swing, ax_abs):
             ax.axvline(math.degrees(e.phi), color='grey', ls=':', lw=1)
     ax_abs.set_xlim(0, 360)

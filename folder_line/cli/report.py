@@ -16,7 +16,7 @@ import numpy as np
 from folder_line.analysis.figures import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
 from folder_line.config.params import load_params
-from folder_line.core.mechanisms import cyclogram, delivery, knife, layup
+from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
 from folder_line.files.atomic import write_csv_atomic, write_text_atomic
 
 __all__ = ['REPORT_FILES', 'Check', 'published_checks', 'write_report']
@@ -129,7 +129,7 @@ def published_checks(p: PaperParams | None = None) -> list[Check]:
     checks.append(Check('F', 'V_tr / V_d', '~1.6', f'{tm.ratio_min:.3f}', abs(tm.ratio_min - 1.6) < 0.03))
 
     # L: exit speeds (paper 000, Figs. 4-5)
-    ext = layup.swing_extremes(lay)
+    ext = layup_reach.swing_extremes(lay)
     v_ext = max(max(abs(e.point.vC), abs(e.point.vE)) for e in ext)
     checks.append(Check('L', 'v_C, v_E at both swing extremes', '0', f'{v_ext:.2e} m/s', v_ext < 1e-9))
     st = layup.LayupModel(lay).arrays(2.0 * math.pi * np.arange(100_000) / 100_000, accelerations=False)
@@ -148,7 +148,7 @@ def published_checks(p: PaperParams | None = None) -> list[Check]:
 
 def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
     plt = pyplot()
-    ext = layup.swing_extremes(lay)
+    ext = layup_reach.swing_extremes(lay)
 
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     st = exit_speed_curves(ax1, ax2, lay, lay.v_tr)
@@ -257,7 +257,7 @@ def write_report(out: Path, stream: IO[str]) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     checks = published_checks(p)
     tm = cyclogram.cycle_timing(p['cyclogram'], p['knife'])
-    sw = layup.sweep(p['layup'])
+    sw = layup_reach.sweep(p['layup'])
     k_u, k_min = delivery.stroke_minimum(p['delivery'], 'K_v')
 
     lines = [

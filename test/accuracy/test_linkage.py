@@ -12,7 +12,8 @@ import pytest
 from folder_line.accuracy import linkage
 from folder_line.accuracy.measure import Row
 from folder_line.accuracy.reference import DPS, fourbar_mp, loop_residuals_mp, sixbar_mp, sixbar_reference
-from folder_line.core.mechanisms.layup import LayupModel, LayupParams, swing_extremes
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_reach import swing_extremes
 
 PARAMS = linkage.default_params()
 EXTREMES = [e.phi for e in swing_extremes(PARAMS)]

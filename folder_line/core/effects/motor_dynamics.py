@@ -105,6 +105,7 @@ import numpy.typing as npt
 from folder_line.core.effects import chain_friction
 from folder_line.core.limits import HORIZON
 from folder_line.core.mechanisms.drive import Command, check_commands
+from folder_line.core.numerics import dense
 from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
@@ -291,7 +292,7 @@ class MotorSegment:
     t1: float
     on: bool
     theta0: float
-    solution: ig.DenseSolution
+    solution: dense.DenseSolution
     tail: PeriodicTail | None
     t_rest: float
 
@@ -412,7 +413,7 @@ class MotorDrive:
         segments: list[MotorSegment],
         load: chain_friction.MasterLoad | None,
         switches: list[tuple[float, bool]],
-        solution: ig.DenseSolution | None = None,
+        solution: dense.DenseSolution | None = None,
         commanded: bool = False,
     ) -> None:
         self.params = params
@@ -546,7 +547,7 @@ def _integrate(
     y0: FloatArray,
     breaks: ig.Breaks | None,
     terminal: ig.Terminal | None = None,
-) -> ig.DenseSolution:
+) -> dense.DenseSolution:
     if p.method == 'rk4':
         return ig.rk4(fun, span, y0, p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
     return ig.dopri5(
@@ -714,11 +715,11 @@ def build_drive(
             if sol_b.status == 'terminal':
                 t_rest = sol_b.t_end
                 if t_rest < duration:
-                    parts.append(ig.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
-            sol = ig.concatenate(parts) if len(parts) > 1 else sol_b
+                    parts.append(dense.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
+            sol = dense.concatenate(parts) if len(parts) > 1 else sol_b
         else:
             t_rest = t0
-            sol = ig.constant_solution(t0, duration, [y0[0], 0.0])
+            sol = dense.constant_solution(t0, duration, [y0[0], 0.0])
         return MotorSegment(t0, t1, False, float(y0[0]), sol, None, t_rest)
 
     switches = _switches(p.t_stop, duration, commands)
@@ -738,5 +739,5 @@ def build_drive(
     solution = None
     if not commands and segments[0].tail is None:
         # as before commands existed: the whole run as one solution (on, brake, rest)
-        solution = ig.concatenate([s.solution for s in segments]) if len(segments) > 1 else segments[0].solution
+        solution = dense.concatenate([s.solution for s in segments]) if len(segments) > 1 else segments[0].solution
     return MotorDrive(p, duration, segments, load, switches, solution, commanded=bool(commands))

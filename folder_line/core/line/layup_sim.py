@@ -94,7 +94,8 @@ from folder_line.core.line.events import (
 )
 from folder_line.core.line.machines import StreamParams
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams, sweep, swing_extremes
+from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
 from folder_line.core.numerics import rng as rng_mod
 from folder_line.errors import ParameterError
 

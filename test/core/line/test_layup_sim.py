@@ -21,7 +21,8 @@ from folder_line.core.line.layup_sim import LayupKinematics, leaf_stream, simula
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
-from folder_line.core.mechanisms.layup import TAU, LayupModel, swing_extremes
+from folder_line.core.mechanisms.layup import TAU, LayupModel
+from folder_line.core.mechanisms.layup_reach import swing_extremes
 from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS
 

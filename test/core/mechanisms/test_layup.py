@@ -33,9 +33,8 @@ from folder_line.core.mechanisms.layup import (
     layup_kinematics,
     layup_point,
     reduce_angle,
-    sweep,
-    swing_extremes,
 )
+from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
 from folder_line.core.numerics.loop import (
     TOGGLE_TOL,
     circle_point_acceleration,

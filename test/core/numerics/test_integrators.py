@@ -12,8 +12,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from folder_line.core.numerics import integrators
-from folder_line.core.numerics import integrators as ig
+from folder_line.core.numerics import dense, integrators
 from folder_line.core.numerics.integrators import Breaks, Terminal, dopri5, rk4
 from folder_line.errors import FolderLineError, IntegrationError
 
@@ -185,7 +184,7 @@ def test_bad_arguments() -> None:
 # ------------------------------------------------------------------ dense output and inverse
 
 
-def _phase_problem() -> tuple[ig.DenseSolution, ig.DenseSolution]:
+def _phase_problem() -> tuple[dense.DenseSolution, dense.DenseSolution]:
     # theta' = 1 + 0.5 sin t (monotone), theta = t - 0.5 cos t + 0.5
     def f(t: float, y: np.ndarray) -> np.ndarray:
         return np.array([1.0 + 0.5 * math.sin(t)])
@@ -256,7 +255,7 @@ def test_inverse_never_nan_and_clips(values: list[float]) -> None:
 
 def test_inverse_returns_the_start_of_a_plateau_and_rejects_a_falling_component() -> None:
     sol = rk4(lambda t, y: np.array([1.0]), (0.0, 1.0), [0.0], 0.1)
-    joined = ig.concatenate([sol, ig.constant_solution(1.0, 3.0, sol.y[-1])])
+    joined = dense.concatenate([sol, dense.constant_solution(1.0, 3.0, sol.y[-1])])
     assert joined.inverse(np.array([1.0, 0.5]), 0).tolist() == pytest.approx([1.0, 0.5], abs=1e-15)
     np.testing.assert_array_equal(joined.component([2.0, 3.0], 0), [1.0, 1.0])
     falling = rk4(decay, (0.0, 1.0), [1.0], 0.1)
@@ -268,7 +267,7 @@ def test_concatenate_checks_the_joint() -> None:
     a = rk4(decay, (0.0, 1.0), [1.0], 0.1)
     b = rk4(decay, (1.5, 2.0), [1.0], 0.1)
     with pytest.raises(ValueError, match='do not join'):
-        ig.concatenate([a, b])
+        dense.concatenate([a, b])
 
 
 # ------------------------------------------------------------------ breaks and terminal conditions
