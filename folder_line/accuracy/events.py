@@ -375,7 +375,7 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
         return mp.mpf(V_tr) * (theta - mp.mpf(th_list[k])) - mp.mpf(L)
 
     def exact(idx: IntArray) -> FloatArray:
-        # the core's closed form (folder_sim._feed): Θ at the stops, then the drive's inverse
+        # the core's closed form (folder_steps.feed): Θ at the stops, then the drive's inverse
         return np.asarray(drive.time_of(fl.belt.theta_of(theta_h[idx] + L / V_tr)), dtype=float)
 
     def closed_form_mp(k: int) -> mp.mpf:

@@ -36,8 +36,8 @@ import numpy as np
 
 from folder_line.analysis.recording import Recording
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
+from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import ConstraintSeries
-from folder_line.core.line.folder_sim import delivery_plan
 from folder_line.core.line.model import LineModel, LineResult, make_drive
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command, Drive

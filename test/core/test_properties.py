@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from folder_line.config.params import load_params
 from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.chain import ChainPath
 from folder_line.core.mechanisms.layup import (
@@ -235,7 +236,7 @@ def test_sign_changes_match_the_sampled_sign_pattern(coef: list[float], n: int) 
 @given(
     Lambda=st.floats(0.05, 5.0),
     alpha_m=st.floats(1.0, 89.9),
-    law=st.sampled_from(dlv.law_names()),
+    law=st.sampled_from(delivery_laws.law_names()),
     fr=st.lists(st.floats(0.0, 0.5), min_size=8, max_size=8),
     mode=st.sampled_from(dlv.RETURN_SECTIONS),
     u=st.lists(st.floats(0.0, 2.0), min_size=1, max_size=40),
@@ -264,7 +265,7 @@ def test_delivery_ratios_stay_in_their_documented_ranges(
 
 
 @settings(max_examples=25, deadline=None, derandomize=True)
-@given(Lambda=st.floats(0.01, 10.0), law=st.sampled_from(dlv.law_names()), x_max=st.floats(0.01, 3.0))
+@given(Lambda=st.floats(0.01, 10.0), law=st.sampled_from(delivery_laws.law_names()), x_max=st.floats(0.01, 3.0))
 def test_chain_path_is_monotone_bounded_and_inverted(Lambda: float, law: str, x_max: float) -> None:
     """The chain's arc length over the stroke rises monotonically, between the straight length
     x_max u and x_max u sqrt(1 + (Lambda max psi')^2), and position() inverts it."""
@@ -287,7 +288,7 @@ def test_chain_path_is_monotone_bounded_and_inverted(Lambda: float, law: str, x_
     assert s[0] == 0.0 and s[-1] == path.length
     assert np.all(np.diff(s) >= 0.0)
     grid = np.linspace(0.0, 1.0, 10001)
-    steep = math.hypot(1.0, Lambda * float(np.max(dlv.LAWS[law].dpsi(grid))))
+    steep = math.hypot(1.0, Lambda * float(np.max(delivery_laws.LAWS[law].dpsi(grid))))
     tol = 8 * EPS * path.length
     assert np.all(s >= x_max * u - tol) and np.all(s <= x_max * u * steep * (1 + 1e-9) + tol)
     back = path.position(s)

@@ -63,7 +63,8 @@ import numpy.typing as npt
 
 from folder_line.core.line.machines import ChainParams
 from folder_line.core.mechanisms import knife as knife_mod
-from folder_line.core.mechanisms.delivery import LAWS, DeliveryParams
+from folder_line.core.mechanisms.delivery import DeliveryParams
+from folder_line.core.mechanisms.delivery_laws import LAWS
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import positive

@@ -106,13 +106,13 @@ Domain: ``xi`` must lie in [0, 1] and ``u`` in [0, 2]; values outside by at most
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.numerics.arrays import BoolArray, FloatArray, Int8Array
 from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import among, as_float, check_fields, non_negative, one_of, positive
@@ -133,10 +133,6 @@ __all__ = [
     'SECTION_NAMES',
     'RETURN_SECTIONS',
     'ReturnSection',
-    'ProfileLaw',
-    'LAWS',
-    'law_names',
-    'register_law',
     'DeliveryParams',
     'DeliveryForces',
     'StateCoded',
@@ -150,7 +146,6 @@ __all__ = [
     'stroke_minimum',
 ]
 
-ArrayOrFloat = FloatArray | float
 ReturnSection = Literal['geometric', 'paper_mirror']
 
 #: ``cos(alpha)`` at or below this is a self-locking state (rod force > 1e9 P_k, ideal).
@@ -174,98 +169,6 @@ SECTION_ACCELERATION = 1
 #: section code -> the paper's name of the section
 SECTION_NAMES: tuple[str, ...] = ('deceleration', 'acceleration')
 RETURN_SECTIONS: tuple[str, ...] = ('geometric', 'paper_mirror')
-
-
-# --------------------------------------------------------------------------- laws
-
-
-@dataclass(frozen=True)
-class ProfileLaw:
-    """A guide profile law ``y / y_max = psi(xi)``, rising from 0 to 1 on ``xi`` in [0, 1].
-
-    Parameters
-    ----------
-    name : str
-        Key used in ``delivery.law``.
-    psi : callable
-        ``psi(xi)``, dimensionless; must accept a float or a float array (numpy ufuncs).
-    dpsi : callable
-        ``dpsi/dxi``, dimensionless, ``>= 0``; same calling convention.
-    description : str
-        One line for documentation and error messages.
-    """
-
-    name: str
-    psi: Callable[[ArrayOrFloat], ArrayOrFloat]
-    dpsi: Callable[[ArrayOrFloat], ArrayOrFloat]
-    description: str
-
-
-def _cycloidal_psi(xi: ArrayOrFloat) -> ArrayOrFloat:
-    return xi - np.sin(2.0 * np.pi * xi) / (2.0 * np.pi)
-
-
-def _cycloidal_dpsi(xi: ArrayOrFloat) -> ArrayOrFloat:
-    return 1.0 - np.cos(2.0 * np.pi * xi)
-
-
-def _harmonic_psi(xi: ArrayOrFloat) -> ArrayOrFloat:
-    return (1.0 - np.cos(np.pi * xi)) / 2.0
-
-
-def _harmonic_dpsi(xi: ArrayOrFloat) -> ArrayOrFloat:
-    return (np.pi / 2.0) * np.sin(np.pi * xi)
-
-
-#: name -> law; extend with :func:`register_law`
-LAWS: dict[str, ProfileLaw] = {
-    'sinusoidal': ProfileLaw(
-        'sinusoidal', _cycloidal_psi, _cycloidal_dpsi, 'cycloidal: psi = xi - sin(2 pi xi)/(2 pi)'
-    ),
-    'harmonic': ProfileLaw('harmonic', _harmonic_psi, _harmonic_dpsi, 'harmonic: psi = (1 - cos(pi xi))/2'),
-}
-
-
-def law_names() -> tuple[str, ...]:
-    """Names of the registered profile laws, in registration order."""
-    return tuple(LAWS)
-
-
-def register_law(law: ProfileLaw, *, replace: bool = False) -> None:
-    """Add a profile law to :data:`LAWS` after checking it on a grid of 1001 points.
-
-    Parameters
-    ----------
-    law : ProfileLaw
-        The law; ``psi(0) = 0``, ``psi(1) = 1``, ``psi`` in [0, 1] and ``dpsi >= 0``
-        finite (all to 1e-9) are required.
-    replace : bool
-        Allow overwriting a law of the same name.
-
-    Raises
-    ------
-    ParameterError
-        Name taken (without ``replace``) or the law fails a check.
-    """
-    key = 'delivery.law'
-    if not isinstance(law, ProfileLaw):
-        raise ParameterError(key, law, 'must be a ProfileLaw')
-    if not law.name or not isinstance(law.name, str):
-        raise ParameterError(key, law.name, 'law name must be a non-empty string')
-    if law.name in LAWS and not replace:
-        raise ParameterError(key, law.name, 'a law of that name is registered (pass replace=True)')
-    grid = np.linspace(0.0, 1.0, 1001)
-    psi = np.asarray(law.psi(grid), dtype=float)
-    dpsi = np.asarray(law.dpsi(grid), dtype=float)
-    if psi.shape != grid.shape or dpsi.shape != grid.shape:
-        raise ParameterError(key, law.name, 'psi and dpsi must return an array shaped like xi')
-    if not (np.all(np.isfinite(psi)) and np.all(np.isfinite(dpsi))):
-        raise ParameterError(key, law.name, 'psi and dpsi must be finite on [0, 1]')
-    if abs(psi[0]) > 1e-9 or abs(psi[-1] - 1.0) > 1e-9:
-        raise ParameterError(key, law.name, f'needs psi(0) = 0 and psi(1) = 1, got {psi[0]!r}, {psi[-1]!r}')
-    if psi.min() < -1e-9 or psi.max() > 1.0 + 1e-9 or dpsi.min() < -1e-9:
-        raise ParameterError(key, law.name, 'needs 0 <= psi <= 1 and dpsi >= 0 on [0, 1]')
-    LAWS[law.name] = law
 
 
 # --------------------------------------------------------------------------- parameters
@@ -301,7 +204,8 @@ class DeliveryParams:
         construction, not a state passed through. Values just below 90 are accepted;
         the samples near ``psi = 1`` then report ``'self_locking'`` as the model says.
     law : str
-        Guide profile law, a key of :data:`LAWS` (``'sinusoidal'``, ``'harmonic'``, ...).
+        Guide profile law, a key of :data:`~folder_line.core.mechanisms.delivery_laws.LAWS`
+        (``'sinusoidal'``, ``'harmonic'``, ...).
     f_Ap, f_Bp : float
         Sliding friction coefficients of pair A (pin in the chain guide) and of the
         translational pair B (carriage in its guide), >= 0.
@@ -337,7 +241,7 @@ class DeliveryParams:
             'delivery',
             Lambda=positive,
             alpha_m_deg=_pressure_angle,
-            law=among(law_names()),
+            law=among(delivery_laws.law_names()),
             **dict.fromkeys(('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'), non_negative),
         )
 
@@ -596,7 +500,7 @@ def _scaled(c: float, g: FloatArray) -> FloatArray:
 
 
 def _kernel(p: DeliveryParams, u: FloatArray, xi: FloatArray, section: Int8Array, sign: FloatArray) -> DeliverySamples:
-    law = LAWS[p.law]
+    law = delivery_laws.LAWS[p.law]  # through the module: a replaced LAWS is seen too
     psi = np.clip(np.asarray(law.psi(xi), dtype=float), 0.0, 1.0)
     dpsi = np.maximum(np.asarray(law.dpsi(xi), dtype=float), 0.0)
     lam = p.Lambda
@@ -683,7 +587,7 @@ _NO_RATIOS: _Ratios = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def _point(p: DeliveryParams, u: float, xi: float, section: int, sign: float) -> DeliveryPoint:
-    law = LAWS[p.law]
+    law = delivery_laws.LAWS[p.law]  # through the module: a replaced LAWS is seen too
     psi = min(max(float(law.psi(xi)), 0.0), 1.0)
     dpsi = max(float(law.dpsi(xi)), 0.0)
     lam = p.Lambda

@@ -22,6 +22,7 @@ from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.model import MAX_DURATION, UNITS, LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
@@ -621,7 +622,7 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
                 {
                     'Lambda': draw(st.floats(0.05, 3.0)),
                     'alpha_m_deg': draw(st.floats(1.0, 89.999)),
-                    'law': draw(st.sampled_from(dlv.law_names())),
+                    'law': draw(st.sampled_from(delivery_laws.law_names())),
                 }
             )
             for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):

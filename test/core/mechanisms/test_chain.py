@@ -19,7 +19,8 @@ from folder_line.core.mechanisms import chain
 from folder_line.core.mechanisms import knife as knife_mod
 from folder_line.core.mechanisms.chain import ChainPath
 from folder_line.core.mechanisms.cyclogram import cycle_timing
-from folder_line.core.mechanisms.delivery import LAWS, evaluate_stroke
+from folder_line.core.mechanisms.delivery import evaluate_stroke
+from folder_line.core.mechanisms.delivery_laws import LAWS
 from folder_line.errors import ParameterError
 
 from .._scenes import folder_scene

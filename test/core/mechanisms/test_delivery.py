@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from folder_line.config.params import load_params
 from folder_line.core.mechanisms import delivery as dl
+from folder_line.core.mechanisms import delivery_laws as dlaws
 from folder_line.core.mechanisms.delivery import (
     STATE_CARRIAGE_REVERSED,
     STATE_KV_ZERO,
@@ -22,14 +23,13 @@ from folder_line.core.mechanisms.delivery import (
     STATE_OK,
     STATE_SELF_LOCKING,
     DeliveryParams,
-    ProfileLaw,
     evaluate,
     evaluate_point,
     evaluate_stroke,
     evaluate_stroke_point,
-    register_law,
     stroke_minimum,
 )
+from folder_line.core.mechanisms.delivery_laws import ProfileLaw, register_law
 from folder_line.errors import ParameterError
 
 REF: dict[str, Any] = dict(
@@ -231,7 +231,7 @@ def test_eta_O_exact(f_O: float, r_O: float) -> None:
 
 @pytest.mark.parametrize('name', ['sinusoidal', 'harmonic'])
 def test_laws_against_numerical_derivative(name: str) -> None:
-    law = dl.LAWS[name]
+    law = dlaws.LAWS[name]
     xi = np.linspace(0.0, 1.0, 201)
     h = 1e-6
     numeric = (law.psi(xi + h) - law.psi(xi - h)) / (2 * h)
@@ -242,7 +242,7 @@ def test_laws_against_numerical_derivative(name: str) -> None:
 
 
 def test_harmonic_closed_form() -> None:
-    law = dl.LAWS['harmonic']
+    law = dlaws.LAWS['harmonic']
     xi = np.array([0.0, 0.25, 0.5, 1.0])
     np.testing.assert_allclose(law.psi(xi), [0.0, (1 - math.sqrt(0.5)) / 2, 0.5, 1.0], atol=1e-15)
     np.testing.assert_allclose(law.dpsi(xi), [0.0, math.pi / 2 * math.sqrt(0.5), math.pi / 2, 0.0], atol=1e-15)
@@ -337,7 +337,7 @@ def test_velocity_plan_by_finite_differences() -> None:
     rod_len = p.rod_length(x_max)
     y_max = p.Lambda * x_max
     assert rod_len * math.sin(p.alpha_m) == pytest.approx(y_max)
-    law = dl.LAWS[p.law]
+    law = dlaws.LAWS[p.law]
 
     def geometry(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xi = np.where(u <= 1.0, u, 2.0 - u)
@@ -636,10 +636,10 @@ def test_load_params_overrides_are_validated() -> None:
 
 
 def test_register_a_law(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(dl, 'LAWS', dict(dl.LAWS))
+    monkeypatch.setattr(dlaws, 'LAWS', dict(dlaws.LAWS))
     cubic = ProfileLaw('cubic', lambda x: 3 * x**2 - 2 * x**3, lambda x: 6 * x - 6 * x**2, 'smoothstep')
     register_law(cubic)
-    assert dl.law_names() == ('sinusoidal', 'harmonic', 'cubic')
+    assert dlaws.law_names() == ('sinusoidal', 'harmonic', 'cubic')
     s = evaluate(ref(law='cubic'), [0.0, 0.5, 1.0])
     assert np.all(s.ok) and s.eta[2] == pytest.approx(hand(1.0)['eta'], rel=1e-12)  # same end state
     assert float(s.beta[1]) == pytest.approx(math.atan(1.5 * 0.4))
