@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _loaded import ros_modules_loaded
 
 from folder_line.cli.main import main
 from folder_line.cli.tables import COLUMNS
@@ -136,13 +137,10 @@ def test_installed_command_runs_as_a_process(tmp_path: Path) -> None:
 def test_only_the_ros_verbs_load_dds(tmp_path: Path) -> None:
     """``simulate`` runs without rclpy or a message package; ``monitor`` (and ``run``) load them on use."""
     code = (
-        'import sys; from folder_line.cli.main import main; '
-        f"code = main(['simulate', '--duration', '0.5', '--json', {str(tmp_path / 's.json')!r}]); "
-        "print(code, sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'rosidl_runtime_py', 'std_msgs'}))"
+        'from folder_line.cli.main import main\n'
+        f"print(main(['simulate', '--duration', '0.5', '--json', {str(tmp_path / 's.json')!r}]))"
     )
-    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120, check=False)
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.splitlines()[-1] == '0 []'
+    assert ros_modules_loaded(code) == ('0', [])
 
 
 def test_report_writes_every_file_and_reproduces_the_papers(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
