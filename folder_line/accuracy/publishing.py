@@ -103,6 +103,7 @@ __all__ = [
     'JOINT_UNIT',
     'METHODS',
     'MIN_PUBLISHED',
+    'RTF_SLACK',
     'RATES',
     'RATES_QUICK',
     'RTF_MAX',
@@ -349,6 +350,10 @@ def check_published(cost: LiveCost, min_fraction: float = MIN_PUBLISHED) -> None
         raise MeasurementError(msg)
 
 
+#: how much longer than ``span / rtf`` a measured span may take and still count as kept pace
+RTF_SLACK = 0.25
+
+
 def default_rtf(rate: float) -> float:
     """Real-time factor for ``rate``: ``TICKS_PER_WALL_S`` ticks per wall second, at most ``RTF_MAX``.
 
@@ -502,9 +507,12 @@ def measured_cost(rate: float, *, span_ticks: int = 600, warmup_wall: float = 0.
     """:func:`live_cost` at :func:`default_rtf`, measured again at half the rtf while the line did not keep up.
 
     A measurement is taken when every joint node published at least ``MIN_PUBLISHED``
-    of its ticks and the supervisor ended in EXECUTE (it judged every cycle with all
-    its events, as the batch simulation does); otherwise it is repeated at half the
-    real-time factor, up to ``attempts`` measurements in all.
+    of its ticks, the supervisor ended in EXECUTE (it judged every cycle with all
+    its events, as the batch simulation does) and the clock kept its real-time factor
+    (the span took at most ``1 + RTF_SLACK`` times ``span / rtf`` of wall time: on a busy
+    machine the lockstep line slows down instead, and its cost would be that of a line
+    running flat out); otherwise it is repeated at half the real-time factor, up to
+    ``attempts`` measurements in all.
 
     Parameters
     ----------
@@ -531,7 +539,8 @@ def measured_cost(rate: float, *, span_ticks: int = 600, warmup_wall: float = 0.
     rtf = default_rtf(rate)
     for _attempt in range(max(attempts, 1)):
         cost = live_cost(rate, rtf=rtf, span_ticks=span_ticks, warmup_wall=warmup_wall)
-        if cost.published_fraction >= MIN_PUBLISHED and cost.supervisor_state == 'EXECUTE':
+        kept_pace = cost.wall_s <= (1.0 + RTF_SLACK) * cost.span / cost.rtf
+        if cost.published_fraction >= MIN_PUBLISHED and cost.supervisor_state == 'EXECUTE' and kept_pace:
             return cost
         rtf *= 0.5
     check_published(cost)
