@@ -34,8 +34,9 @@ A participant that stops answering (killed, crashed, SIGSTOP) is declared *lost*
 after ``lost_timeout`` s of wall time (``startup_timeout`` for the first tick) by
 whoever waits for it; it is named in the log and in ``/diagnostics``, and the
 others go on without it. A participant that is only slow is waited for. One that
-waits for another repeats its latest acknowledgement every ``HEARTBEAT`` s, so
-that only the silent one is declared lost, not those held up by it.
+waits, for the clock's next tick or for another participant, repeats its latest
+acknowledgement every ``HEARTBEAT`` s, so that only the silent one is declared lost,
+not those held up by it.
 """
 
 from __future__ import annotations
@@ -245,6 +246,7 @@ class Participant:
         self._early: dict[tuple[str, str], int] = {}
         self._heard: dict[str, float] = {}  # producer -> wall time of its latest acknowledgement (a repeat too)
         self._last_ack: TimeReference | None = None
+        self._acked_at = 0.0  # wall time (monotonic) the latest acknowledgement was sent or repeated
         self._ack_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
         # a deep queue (compatible with the depth-1 publisher): a malformed or foreign announcement arriving
         # right after line_clock's must not push it out of the queue before it is taken
@@ -397,17 +399,24 @@ class Participant:
         ack.source = format_counts(self.counts)
         self._ack_pub.publish(ack)
         self._last_ack = ack
+        self._acked_at = time.monotonic()
 
     def _check_lost(self) -> None:
         """While a tick waits: repeat the latest acknowledgement (alive, waiting), and declare lost the producers
         it waits for that acknowledged nothing, not even a repeat, for the limit: a producer that waits for
         a lost one itself is not lost."""
-        if self.ledger is None or not self.pending or self._waiting_since is None:
+        if self.ledger is None or self.ended:
             return
         now = time.monotonic()
-        waited = now - self._waiting_since
-        if self._last_ack is not None and waited >= HEARTBEAT:
+        if self._last_ack is not None and now - self._acked_at >= HEARTBEAT:
+            # waiting, for the clock's next tick or for a producer: say so. This also stands in for an
+            # acknowledgement lost on the way, which a reliable writer sends again only at its next
+            # heartbeat (seconds): those waiting for this participant must not take it for lost.
             self._ack_pub.publish(self._last_ack)
+            self._acked_at = now
+        if not self.pending or self._waiting_since is None:
+            return
+        waited = now - self._waiting_since
         limit = self.startup_timeout if self.last_done is None else self.lost_timeout
         if waited <= limit:
             return
