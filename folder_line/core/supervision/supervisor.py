@@ -136,19 +136,10 @@ class Supervisor:
         node's last stamp: the node missed ``k`` chances to publish, not only ``k``
         periods of sim time (a clock that steps by more than a period, at a high
         real-time factor or in a burst after a stall, does not make every node stale).
-    stale_periods : float
-        ``k``: a node is stale when not heard within ``k`` periods (> 0; default
-        :data:`~folder_line.core.supervision.settings.STALE_PERIODS`).
-    lead : float
-        Earliest effective time of a drive command after its decision, s (>= 0).
-    check_period : float
-        Spacing ``h`` of the check grid, s (> 0).
-    enforce : bool
-        Command holds, suspends and aborts (else only record violations).
-    double : {'hold', 'abort'}
-        What a double sheet leads to.
-    speed_reached : float
-        Speed factor in (0, 1] at which a run command's acting state ends.
+    stale_periods, lead, check_period, enforce, double, speed_reached
+        The supervisor's settings, checked once into :attr:`settings`; each is documented
+        at :class:`~folder_line.core.supervision.settings.Settings` (``stale_periods`` is its
+        ``k``; default :data:`~folder_line.core.supervision.settings.STALE_PERIODS`).
     state : str
         Initial PackML state (default STARTING: the scene's drive starts the line at
         t = 0, which is when the run command is effective).
