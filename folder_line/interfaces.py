@@ -161,12 +161,12 @@ TICK_DONE_PATTERN = '/line/{node}/tick_done'
 #: the drive commands the supervisor publishes on :data:`COMMANDS_TOPIC`
 COMMAND_KINDS: tuple[str, ...] = ('hold', 'unhold', 'stop', 'start')
 
-_NODE_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+_NODE_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')  # ROS 2's rule for a node name (rcl_validate_node_name)
 
 
 def _node_topic(pattern: str, node: str) -> str:
     if not _NODE_NAME.match(node):
-        msg = f'node name {node!r}: must start with a letter and hold only letters, digits and _'
+        msg = f'node name {node!r}: must start with a letter or _ and hold only letters, digits and _'
         raise ValueError(msg)
     return pattern.format(node=node)
 
