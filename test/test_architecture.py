@@ -10,6 +10,7 @@ The parts of ``folder_line`` and what each may import (besides itself)::
     ros         nodes, lockstep, run, recorder (all of the above)
     analysis    a recorded run (all but ros: a bag is analysed without ROS)
     accuracy    what accuracy costs (all but cli)
+    studies     sweeps, solves, optimisation, Monte Carlo on Dask (all but ros, accuracy and cli)
     cli         the command line (everything)
 
 Imports inside functions count too: a dependency hidden in a function is still one.
@@ -39,7 +40,8 @@ MAY_IMPORT['bag'] = {'config', *MAY_IMPORT['config']}
 MAY_IMPORT['ros'] = {'bag', *MAY_IMPORT['bag']}
 MAY_IMPORT['analysis'] = {'bag', *MAY_IMPORT['bag']}
 MAY_IMPORT['accuracy'] = {'ros', 'analysis', *MAY_IMPORT['ros']}
-MAY_IMPORT['cli'] = {'accuracy', *MAY_IMPORT['accuracy']}
+MAY_IMPORT['studies'] = {'analysis', *MAY_IMPORT['analysis']}
+MAY_IMPORT['cli'] = {'accuracy', 'studies', *MAY_IMPORT['accuracy']}
 
 
 def _module_name(path: Path) -> str:
@@ -157,6 +159,7 @@ FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
     ('analysis/figures.py', 'matplotlib.pyplot'): 'imported after matplotlib.use("Agg")',
     ('accuracy/output.py', 'matplotlib'): 'matplotlib loads on use, after pyplot() chose the back end',
     ('config/params.py', 'ament_index_python.packages'): 'present only on a ROS 2 install: tried, not required',
+    ('studies/runner.py', 'dask.distributed'): 'slow to import (~0.5 s): only the verbs that fan out load it',
 }
 
 
