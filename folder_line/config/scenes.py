@@ -37,6 +37,7 @@ from folder_line.files.yamlio import load_yaml
 __all__ = [
     'SET_VALUE_CHARS',
     'InputNames',
+    'apply_overrides',
     'list_scenes',
     'load_scene',
     'parse_set',
@@ -182,6 +183,17 @@ def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -
     for key, value in (overrides or {}).items():
         _apply(data, key, value)
     return data
+
+
+def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of a complete scene mapping (:func:`scene_mapping`) with ``overrides`` applied, as ``--set`` does.
+
+    The design studies vary keys of one merged scene this way, point by point; ``data`` is not changed.
+    """
+    out = copy.deepcopy(dict(data))
+    for key, value in overrides.items():
+        _apply(out, key, value)
+    return out
 
 
 def _apply(data: dict[str, Any], key: str, value: Any) -> None:
