@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -55,6 +56,8 @@ __all__ = ['build_parser', 'main']
 
 EXIT_USAGE = 2
 EXIT_RUN_FAILED = 1
+#: stdout closed under us: as a shell reports a process killed by SIGPIPE (128 + 13)
+EXIT_BROKEN_PIPE = 141
 
 
 def _samples(text: str) -> int:
@@ -385,6 +388,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except FolderLineError as exc:
         _error(str(exc))
         return EXIT_USAGE
+    except BrokenPipeError:  # the reader of stdout went away (`| head`): nothing to say, and no one to say it to
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, 'w')  # noqa: SIM115 - the interpreter flushes it at exit
+        return EXIT_BROKEN_PIPE
     except OSError as exc:  # the OS refused to open, read or write a path deep inside a verb
         _error(_os_error_text(args, exc))
         return EXIT_USAGE

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -174,3 +175,22 @@ def test_published_checks_can_fail() -> None:
     failed = {c.quantity for c in published_checks(p) if not c.agrees}
     assert 'eta at constant carriage speed (xi = 0)' in failed
     assert 'minimum 2nd-transporter speed V_tr' in failed
+
+
+def test_a_closed_stdout_ends_the_verb_quietly_with_141(tmp_path: Path) -> None:
+    """`folder-line simulate ... | head`: the reader is gone; no error line blames an output option."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # every write to stdout now fails with EPIPE, from the first one
+    try:
+        proc = subprocess.run(
+            [sys.executable, '-m', 'folder_line.cli.main', 'simulate', '--duration', '1'],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            check=False,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert proc.returncode == 141
+    assert 'error' not in proc.stderr and 'Traceback' not in proc.stderr
