@@ -18,8 +18,8 @@ the one builder of validated parameters, :func:`folder_line.core.numerics.valida
 | feed_slip | feed_transporter | the signature accelerated from V_d to V_tr by friction |
 | stop_bounce | feed_transporter | restitution at the front stops, settle time and rebound |
 | faults | (any) | seeded missing, double and late sheets, belt slow-downs |
-| arrival_jitter | feed_transporter | per-sheet position error at the hand-over (normal or uniform, σ in mm): travel L_feed + δ |
-| length_scatter | feed_transporter | per-sheet length scatter (σ in mm): the leading edge ΔL further on, travel L_feed - ΔL |
+| arrival_jitter | feed_transporter | per-sheet hand-over position error (normal/uniform, σ mm): travel L_feed + δ |
+| length_scatter | feed_transporter | per-sheet length scatter (σ mm): leading edge ΔL further on, travel L_feed - ΔL |
 | speed_ripple | (any) | master drive speed ripple locked to its phase (relative amplitude, Hz at nominal speed) |
 | property_scatter | feed_transporter | per-sheet scatter of stop_bounce's e and feed_slip's mu (relative σ) |
 

@@ -131,12 +131,14 @@ class RippleDrive:
 
     def theta(self, t: npt.ArrayLike) -> np.ndarray:
         """Θ(t) = g(Θ_b(t)), nominal s."""
-        return phase_map(self.params, self.psi, self.base.theta(t))[0]
+        g: np.ndarray = phase_map(self.params, self.psi, self.base.theta(t))[0]
+        return g
 
     def rate(self, t: npt.ArrayLike) -> np.ndarray:
         """λ(t) = g'(Θ_b) λ_b."""
         th, lam = theta_rate(self.base, t)
-        return phase_map(self.params, self.psi, th)[1] * lam
+        dg: np.ndarray = phase_map(self.params, self.psi, th)[1]
+        return np.asarray(dg * lam, dtype=float)
 
     def theta_rate(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``(Θ(t), λ(t))`` in one pass (the same values as :meth:`theta` and :meth:`rate`)."""
@@ -148,7 +150,7 @@ class RippleDrive:
         """dλ/dt = g''(Θ_b) λ_b² + g'(Θ_b) dλ_b/dt, 1/s."""
         th, lam = theta_rate(self.base, t)
         _, dg, ddg = phase_map(self.params, self.psi, th)
-        return ddg * lam * lam + dg * np.asarray(self.base.rate_dot(t), dtype=float)
+        return np.asarray(ddg * lam * lam + dg * np.asarray(self.base.rate_dot(t), dtype=float), dtype=float)
 
     def time_of(self, theta: npt.ArrayLike) -> np.ndarray:
         """Earliest t with Θ(t) = theta: ``time_of_b(g⁻¹(theta))``, s."""
