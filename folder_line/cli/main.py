@@ -24,7 +24,7 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
-from folder_line.cli import summary, tables
+from folder_line.cli import montecarlo, summary, tables
 from folder_line.cli.report import REPORT_FILES, write_report
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, load_scene, parse_set
@@ -153,6 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
         'override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
     )
     sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+    montecarlo.add_arguments(sim)
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
     _add_scene_arguments(run, 'scene (default folder)', 20.0, 'override a scene value (repeatable)')
@@ -261,6 +262,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, '--json')
     names = _scene_options()
+    if args.samples is not None:
+        return montecarlo.simulate_samples(args, names)
     scene = load_scene(args.scene, parse_set(args.overrides, names), names=names)
     result = simulate(scene, args.duration, sample_rate=0.0)
     result_summary = result.summary()

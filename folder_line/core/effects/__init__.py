@@ -18,6 +18,14 @@ the one builder of validated parameters, :func:`folder_line.core.numerics.valida
 | feed_slip | feed_transporter | the signature accelerated from V_d to V_tr by friction |
 | stop_bounce | feed_transporter | restitution at the front stops, settle time and rebound |
 | faults | (any) | seeded missing, double and late sheets, belt slow-downs |
+| arrival_jitter | feed_transporter | per-sheet hand-over position error (normal/uniform, σ mm): travel L_feed + δ |
+| length_scatter | feed_transporter | per-sheet length scatter (σ mm): leading edge ΔL further on, travel L_feed - ΔL |
+| speed_ripple | (any) | master drive speed ripple locked to its phase (relative amplitude, Hz at nominal speed) |
+| property_scatter | feed_transporter | per-sheet scatter of stop_bounce's e and feed_slip's mu (relative σ) |
+
+The four variation effects (the last rows) draw per sheet, from the scene seed's named
+streams: sheet k's draw depends only on (seed, k), never on the horizon, on other
+effects or on how many runs go on at once.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ from types import ModuleType
 from typing import Any
 
 from folder_line.core.effects import (
+    arrival_jitter,
     chain_friction,
     chute_belts,
     faults,
@@ -35,7 +44,10 @@ from folder_line.core.effects import (
     guide_friction,
     leaf_damage,
     leaf_flight,
+    length_scatter,
     motor_dynamics,
+    property_scatter,
+    speed_ripple,
     stop_bounce,
 )
 from folder_line.core.numerics.validate import build
@@ -87,6 +99,10 @@ EFFECTS: dict[str, EffectSpec] = {
         EffectSpec(feed_slip, ('feed_transporter',), 'signature accelerated from V_d to V_tr by friction'),
         EffectSpec(stop_bounce, ('feed_transporter',), 'restitution at the front stops, damped by the strings'),
         EffectSpec(faults, (), 'seeded missing, double and late sheets and belt slow-downs'),
+        EffectSpec(arrival_jitter, ('feed_transporter',), 'per-sheet position error at the hand-over onto the feed'),
+        EffectSpec(length_scatter, ('feed_transporter',), 'per-sheet scatter of the signature length'),
+        EffectSpec(speed_ripple, (), 'master drive speed ripple locked to its phase'),
+        EffectSpec(property_scatter, ('feed_transporter',), 'per-sheet scatter of restitution and friction'),
     )
 }
 

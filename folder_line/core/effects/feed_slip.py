@@ -123,7 +123,9 @@ class SlipArrival:
     reached: np.ndarray
 
 
-def arrival(params: Params, V0: npt.ArrayLike, V1: npt.ArrayLike, L: npt.ArrayLike) -> SlipArrival:
+def arrival(
+    params: Params, V0: npt.ArrayLike, V1: npt.ArrayLike, L: npt.ArrayLike, mu: npt.ArrayLike | None = None
+) -> SlipArrival:
     """Piecewise-exact time and speed at the stops.
 
     Parameters
@@ -136,6 +138,9 @@ def arrival(params: Params, V0: npt.ArrayLike, V1: npt.ArrayLike, L: npt.ArrayLi
         Feed-belt speed, m/s, > 0.
     L : array_like
         Travel to the stops, m, > 0.
+    mu : array_like, optional
+        A friction coefficient per signature, > 0 (``property_scatter``), broadcast with the
+        speeds; None: ``params.mu`` for all.
 
     Returns
     -------
@@ -154,7 +159,7 @@ def arrival(params: Params, V0: npt.ArrayLike, V1: npt.ArrayLike, L: npt.ArrayLi
         raise ParameterError('V1', V1, 'belt speed must be finite and > 0 (m/s)')
     if not (np.all(np.isfinite(L)) and np.all(L > 0.0)):
         raise ParameterError('L', L, 'travel must be finite and > 0 (m)')
-    a = params.accel
+    a = params.accel if mu is None else np.asarray(mu, dtype=float) * (G + params.p / params.m)
     dv = V1 - V0
     s = np.sign(dv)
     t1 = np.abs(dv) / a

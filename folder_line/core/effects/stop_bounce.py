@@ -183,7 +183,22 @@ class BounceSchedule:
     settle: np.ndarray
 
 
-def bounce_schedule(params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUNCE_EVENTS) -> BounceSchedule:
+def _count_each(e: np.ndarray, v_rest: float, v: np.ndarray) -> np.ndarray:
+    """:func:`bounce_count` with a restitution per impact (``e`` shaped like ``v``, in [0, 1))."""
+    bouncing = (v >= v_rest) & (e > 0.0)
+    if not np.any(bouncing):
+        return np.zeros(v.shape, dtype=np.int64)
+    ee = np.where(bouncing, e, 0.5)
+    ratio = np.where(bouncing, v_rest / np.where(bouncing, v, 1.0), 1.0)
+    k = np.clip(np.floor(np.log(ratio) / np.log(ee)), 0.0, 1e15)
+    k = np.where(ee**k * v < v_rest, k - 1.0, k)
+    k = np.where(ee ** (k + 1.0) * v >= v_rest, k + 1.0, k)
+    return np.where(bouncing, k.astype(np.int64) + 1, 0)
+
+
+def bounce_schedule(
+    params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUNCE_EVENTS, e: npt.ArrayLike | None = None
+) -> BounceSchedule:
     """Every bounce (up to ``max_events`` per impact) of impacts at speeds ``V``, vectorised.
 
     Parameters
@@ -194,11 +209,15 @@ def bounce_schedule(params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUN
         Impact speeds, m/s.
     max_events : int
         Most bounce rows per impact (>= 0).
+    e : array_like, shape (M,), optional
+        A restitution per impact, in [0, 1) (``property_scatter``); None: ``params.e`` for all.
 
     Returns
     -------
     BounceSchedule
     """
+    if e is not None:
+        return _schedule_each(params, _speeds(V).ravel(), np.asarray(e, dtype=float).ravel(), max_events)
     v = _speeds(V).ravel()
     count = bounce_count(params, v)
     e, af = params.e, params.a_f
@@ -211,4 +230,22 @@ def bounce_schedule(params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUN
     nf = n.astype(float)
     dt = (2.0 * vi / af) * e * (1.0 - e ** (nf - 1.0)) / (1.0 - e)
     speed = e**nf * vi
+    return BounceSchedule(index, n, dt, speed * speed / (2.0 * af), count, settle)
+
+
+def _schedule_each(params: Params, v: np.ndarray, e: np.ndarray, max_events: int) -> BounceSchedule:
+    """:func:`bounce_schedule` with a restitution per impact (the same closed forms, element-wise)."""
+    if e.shape != v.shape or not (np.all(e >= 0.0) and np.all(e < 1.0)):
+        raise ParameterError('e', e, 'needs one restitution in [0, 1) per impact speed')
+    count = _count_each(e, params.v_rest, v)
+    af = params.a_f
+    settle = np.where(count > 0, (2.0 * v / af) * e * (1.0 - e ** count.astype(float)) / (1.0 - e), 0.0)
+    emitted = np.minimum(count, max_events)
+    index = np.repeat(np.arange(v.size, dtype=np.int64), emitted)
+    starts = np.cumsum(emitted) - emitted
+    n = np.arange(index.size, dtype=np.int64) - np.repeat(starts, emitted) + 1
+    vi, ei = v[index], e[index]
+    nf = n.astype(float)
+    dt = (2.0 * vi / af) * ei * (1.0 - ei ** (nf - 1.0)) / (1.0 - ei)
+    speed = ei**nf * vi
     return BounceSchedule(index, n, dt, speed * speed / (2.0 * af), count, settle)

@@ -148,7 +148,10 @@ class FolderLine(LinePart):
         s = folder_steps.setup(scene, drive, duration)
         st = folder_steps.hand_overs(s)
         belt = folder_steps.belt_phase(s, st)
-        sheets = folder_steps.feed(drive, s.duration, belt, st, s.timing.V_d, s.V_tr, s.timing.L_feed, s.slip)
+        n = st.ids.size
+        L = folder_steps.travel(s, n)
+        mu = folder_steps.friction(s, n)
+        sheets = folder_steps.feed(drive, s.duration, belt, st, s.timing.V_d, s.V_tr, L, s.slip, mu)
         knife = folder_steps.knife_cycles(s)
         fates = folder_steps.fates(s, sheets, knife)
         bounce_tables, bounce_info = folder_steps.bounces(s, sheets)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import numpy as np
 
-from folder_line.core.effects import faults, feed_slip, stop_bounce
+from folder_line.core.effects import arrival_jitter, faults, feed_slip, length_scatter, property_scatter, stop_bounce
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import event_kind, make_events
 from folder_line.core.mechanisms.belt import BeltPhase
@@ -41,9 +41,12 @@ __all__ = [
     'feed',
     'hand_overs',
     'knife_cycles',
+    'friction',
+    'restitution',
     'setup',
     'sheet_events',
     'summary',
+    'travel',
 ]
 
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
@@ -96,6 +99,9 @@ class Setup:
     slip: feed_slip.Params | None  # the listed effects' parameters, or None
     bounce: stop_bounce.Params | None
     faults: faults.Params | None
+    jitter: arrival_jitter.Params | None
+    length: length_scatter.Params | None
+    scatter: property_scatter.Params | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +157,66 @@ def setup(scene: Scene, drive: Drive, duration: float) -> Setup:
         slip=scene.effect_params('feed_slip') if scene.has('feed_slip') else None,
         bounce=scene.effect_params('stop_bounce') if scene.has('stop_bounce') else None,
         faults=scene.effect_params('faults') if scene.has('faults') else None,
+        jitter=_jitter(scene, timing.L_feed),
+        length=_length(scene, timing.L_feed),
+        scatter=_scatter(scene),
     )
+
+
+def _jitter(scene: Scene, L_feed: float) -> arrival_jitter.Params | None:
+    if not scene.has('arrival_jitter'):
+        return None
+    p: arrival_jitter.Params = scene.effect_params('arrival_jitter')
+    arrival_jitter.check_travel(p, L_feed)
+    return p
+
+
+def _length(scene: Scene, L_feed: float) -> length_scatter.Params | None:
+    if not scene.has('length_scatter'):
+        return None
+    p: length_scatter.Params = scene.effect_params('length_scatter')
+    # with arrival_jitter the shortest travel is L_feed - its largest offset - the largest excess
+    back = (
+        arrival_jitter.half_width(scene.effect_params('arrival_jitter')) * 1e-3 if scene.has('arrival_jitter') else 0.0
+    )
+    length_scatter.check_travel(p, L_feed - back)
+    return p
+
+
+def _scatter(scene: Scene) -> property_scatter.Params | None:
+    if not scene.has('property_scatter'):
+        return None
+    p: property_scatter.Params = scene.effect_params('property_scatter')
+    property_scatter.check_listed(p, scene.effects)
+    return p
+
+
+def travel(s: Setup, n: int) -> float | np.ndarray:
+    """Feed travel of signatures 0 .. n-1 to the stops, m: ``L_feed + δ_k - ΔL_k``
+    (``arrival_jitter``, ``length_scatter``; the scalar ``L_feed`` without either)."""
+    L = s.timing.L_feed
+    if s.jitter is None and s.length is None:
+        return L
+    out = np.full(n, L)
+    if s.jitter is not None:
+        out = out + arrival_jitter.draw_offsets(s.jitter, s.scene.seed, n)
+    if s.length is not None:
+        out = out - length_scatter.draw_excess(s.length, s.scene.seed, n)
+    return out
+
+
+def friction(s: Setup, n: int) -> np.ndarray | None:
+    """``feed_slip``'s mu of signatures 0 .. n-1 with ``property_scatter`` (None: the nominal mu for all)."""
+    if s.scatter is None or s.slip is None or s.scatter.mu_sigma == 0.0:
+        return None
+    return property_scatter.friction(s.scatter, s.slip.mu, s.scene.seed, n)
+
+
+def restitution(s: Setup, n: int) -> np.ndarray | None:
+    """``stop_bounce``'s e of signatures 0 .. n-1 with ``property_scatter`` (None: the nominal e for all)."""
+    if s.scatter is None or s.bounce is None or s.scatter.e_sigma == 0.0:
+        return None
+    return property_scatter.restitution(s.scatter, s.bounce.e, s.scene.seed, n)
 
 
 def hand_overs(s: Setup) -> Stream:
@@ -207,10 +272,15 @@ def feed(
     st: Stream,
     V_d: float,
     V_tr: float,
-    L: float,
+    L: float | np.ndarray,
     slip: Any,
+    mu: np.ndarray | None = None,
 ) -> Sheets:
-    """Arrival at the stops of every signature handed over (exact, vectorised)."""
+    """Arrival at the stops of every signature handed over (exact, vectorised).
+
+    ``L`` is the travel to the stops, m: one for all, or one per signature (:func:`travel`);
+    ``mu`` a friction coefficient per signature with ``feed_slip`` (:func:`friction`), or None.
+    """
     ids, cyc, theta_h, t_h = st.ids, st.cycle, st.theta_h, st.t_h
     n = ids.size
     arrived = np.zeros(n, dtype=bool)
@@ -227,7 +297,7 @@ def feed(
     else:
         lam = np.maximum(np.asarray(drive.rate(t_h), dtype=float), _LAMBDA_FLOOR)
         f_h = belt.factor(t_h)
-        sa = feed_slip.arrival(slip, lam * V_d, lam * f_h * V_tr, L)
+        sa = feed_slip.arrival(slip, lam * V_d, lam * f_h * V_tr, L, mu)
         # slides all the way to the stops: closed form in line time
         slide = ~sa.reached
         t_slide = t_h + sa.t
@@ -239,7 +309,8 @@ def feed(
         t_m = t_h + sa.t_slip
         cand = np.flatnonzero(sa.reached & (t_m <= duration))
         b_a = np.zeros(n)
-        b_a[cand] = belt.at(t_m[cand]) + (L - sa.d_slip[cand]) / V_tr
+        L_c = L[cand] if isinstance(L, np.ndarray) else L
+        b_a[cand] = belt.at(t_m[cand]) + (L_c - sa.d_slip[cand]) / V_tr
         idx = cand[b_a[cand] <= b_end]
     if idx.size:
         th = belt.theta_of(b_a[idx])
@@ -305,7 +376,8 @@ def bounces(s: Setup, sheets: Sheets) -> tuple[list[np.ndarray], dict[str, Any]]
         return [], {}
     ids = sheets.sheet
     arr = np.flatnonzero(sheets.arrived)
-    sched = stop_bounce.bounce_schedule(s.bounce, sheets.v_imp[arr])
+    e = restitution(s, ids.size)
+    sched = stop_bounce.bounce_schedule(s.bounce, sheets.v_imp[arr], e=None if e is None else e[arr])
     t_settled = sheets.t_a.copy()
     t_settled[arr] = sheets.t_a[arr] + sched.settle
     tb = sheets.t_a[arr][sched.index] + sched.dt

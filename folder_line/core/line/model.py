@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.effects import motor_dynamics
+from folder_line.core.effects import motor_dynamics, speed_ripple
 from folder_line.core.limits import DURATION, HORIZON, SAMPLE_RATE
 from folder_line.core.line.events import (
     EVENT_KINDS,
@@ -191,11 +191,18 @@ def make_drive(scene: Scene, duration: float, commands: Iterable[Command] = ()) 
     The motor ODE if the scene lists ``motor_dynamics``
     (:func:`folder_line.core.effects.motor_dynamics.build_drive`), else the drive
     profile with the ramp generator (:func:`folder_line.core.mechanisms.drive.commanded_drive`).
-    Without commands both are exactly the drives of a run without a supervisor.
+    Without commands both are exactly the drives of a run without a supervisor. With
+    ``speed_ripple`` that drive is rippled on top
+    (:class:`folder_line.core.effects.speed_ripple.RippleDrive`, its phase drawn from the seed).
     """
+    base: Drive
     if scene.has('motor_dynamics'):
-        return motor_dynamics.build_drive(scene, duration, commands=commands)
-    return commanded_drive(scene.drive, commands)
+        base = motor_dynamics.build_drive(scene, duration, commands=commands)
+    else:
+        base = commanded_drive(scene.drive, commands)
+    if scene.has('speed_ripple'):
+        return speed_ripple.RippleDrive(base, scene.effect_params('speed_ripple'), speed_ripple.draw_phase(scene.seed))
+    return base
 
 
 def sample_times(duration: float, rate: float) -> np.ndarray:

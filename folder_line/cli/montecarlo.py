@@ -1,0 +1,117 @@
+"""``folder-line simulate --samples N``: Monte Carlo of a scene's variation effects on Dask.
+
+The options (:func:`add_arguments`) and the verb (:func:`simulate_samples`): the output is
+checked and the scene merged and validated before any work, the samples run on a Dask
+cluster (:func:`folder_line.studies.montecarlo.monte_carlo`), a per-constraint table goes
+to stdout (:func:`print_table`) and the aggregate to ``--json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import IO, Any
+
+from folder_line.config.scenes import InputNames, parse_set, scene_mapping
+from folder_line.errors import bounded_repr
+from folder_line.files.atomic import check_output_file, write_json_atomic
+from folder_line.studies.montecarlo import MAX_SAMPLES, monte_carlo
+from folder_line.studies.runner import Cluster
+
+__all__ = ['add_arguments', 'add_cluster_arguments', 'print_table', 'simulate_samples']
+
+#: most local workers or threads per worker on the command line
+_MAX_LOCAL = 512
+
+
+def _whole(option: str, lo: int, hi: int) -> Any:
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
+        if not lo <= n <= hi:
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in [{lo}, {hi}]')
+        return n
+
+    return parse
+
+
+def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--threads`` and ``--scheduler``: where the runs go (:class:`Cluster`)."""
+    parser.add_argument(
+        '--workers',
+        type=_whole('--workers', 1, _MAX_LOCAL),
+        default=None,
+        metavar='K',
+        help='local Dask worker processes (default: one per core)',
+    )
+    parser.add_argument(
+        '--threads',
+        type=_whole('--threads', 1, _MAX_LOCAL),
+        default=1,
+        metavar='T',
+        help='threads per worker (default 1)',
+    )
+    parser.add_argument(
+        '--scheduler', default=None, metavar='ADDRESS', help='run on an existing Dask cluster, e.g. tcp://host:8786'
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--samples N`` and the cluster options, on ``simulate``."""
+    parser.add_argument(
+        '--samples',
+        type=_whole('--samples', 1, MAX_SAMPLES),
+        default=None,
+        metavar='N',
+        help='Monte Carlo: N runs with seeds drawn from the scene seed; prints per constraint the violation '
+        'probability with its 95 %% interval and the margin distribution (--json: the aggregate)',
+    )
+    add_cluster_arguments(parser)
+
+
+def _fmt(value: float, unit: str) -> str:
+    if unit == 's':
+        return f'{value * 1e3:+.4f} ms'
+    if unit == 'm':
+        return f'{value * 1e3:+.4f} mm'
+    if unit in ('1', 'sheets'):
+        return f'{value:+.4g}'
+    return f'{value:+.4g} {unit}'
+
+
+def print_table(result: dict[str, Any], out: IO[str]) -> None:
+    """Per constraint: violation probability per cycle with its interval, runs violated, margin quantiles."""
+    print(
+        f'scene {result["scene"]}: {result["samples"]} samples of {result["duration_s"]:g} s (scene seed '
+        f'{result["seed"]}); intervals: {result["interval"]}',
+        file=out,
+    )
+    head = f'  {"constraint":<22} {"p per cycle":>11} {"95 % interval":>23} {"runs violated":>14}'
+    print(head + f' {"margin 1 %":>15} {"median":>15} {"99 %":>15}', file=out)
+    for name, c in result['constraints'].items():
+        pc, pr, m = c['p_cycle'], c['p_run'], c['margin']
+        p = '-' if pc['p'] is None else f'{pc["p"]:.4g}'
+        lo, hi = pc['ci95']
+        interval = f'[{lo:.4g}, {hi:.4g}]'
+        runs = f'{pr["k"]}/{pr["n"]}'
+        row = f'  {name:<22} {p:>11} {interval:>23} {runs:>14}'
+        if m['count']:
+            q = m['quantiles']
+            row += f' {_fmt(q["0.01"], c["unit"]):>15} {_fmt(q["0.5"], c["unit"]):>15} {_fmt(q["0.99"], c["unit"]):>15}'
+        print(row, file=out)
+
+
+def simulate_samples(args: argparse.Namespace, names: InputNames) -> int:
+    """``simulate --samples N``: check the output, merge the scene, run, print, write."""
+    if args.json:
+        check_output_file(args.json, '--json')
+    cluster = Cluster(workers=args.workers, threads=args.threads, scheduler=args.scheduler)
+    source = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
+    result = monte_carlo(source, args.duration, args.samples, cluster, progress=sys.stderr)
+    print_table(result, sys.stdout)
+    if args.json:
+        dest = write_json_atomic(args.json, result)
+        print(f'wrote {dest}')
+    return 0
