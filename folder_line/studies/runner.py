@@ -22,7 +22,7 @@ from typing import IO, Any, TypeVar
 
 from folder_line.errors import ParameterError
 
-__all__ = ['Cluster', 'run_tasks']
+__all__ = ['LOCAL_DASK_CONFIG', 'Cluster', 'run_tasks']
 
 T = TypeVar('T')
 R = TypeVar('R')
@@ -31,6 +31,14 @@ R = TypeVar('R')
 _MAX_WORKERS = 512
 #: width of the progress bar, characters
 _BAR = 30
+#: Dask settings of a local cluster. Dask's default sets ``MALLOC_TRIM_THRESHOLD_`` in its workers, which
+#: turns off glibc's dynamic mmap threshold: every large numpy array is then mapped and unmapped anew, and a
+#: simulation runs about 2x slower than in this process (``bench/bench_studies.py``). The one-thread BLAS
+#: settings stay (the workers are processes), and the statistical profiler (a 10 ms sampling thread) is off.
+LOCAL_DASK_CONFIG = {
+    'distributed.nanny.pre-spawn-environ': {'OMP_NUM_THREADS': 1, 'MKL_NUM_THREADS': 1, 'OPENBLAS_NUM_THREADS': 1},
+    'distributed.worker.profile.enabled': False,
+}
 
 
 @dataclass(frozen=True)
@@ -129,6 +137,7 @@ def run_tasks(
     Exception
         The first exception a task raised, re-raised here with its own type and message.
     """
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
 
     bar = _Progress(progress, label, len(tasks))
@@ -137,13 +146,14 @@ def run_tasks(
         return []
     local: LocalCluster | None = None
     if cluster.scheduler is None:
-        local = LocalCluster(
-            n_workers=cluster.local_workers,
-            threads_per_worker=cluster.threads,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.CRITICAL,  # a task's exception is raised here, not logged there
-        )
+        with dask.config.set(LOCAL_DASK_CONFIG):
+            local = LocalCluster(
+                n_workers=cluster.local_workers,
+                threads_per_worker=cluster.threads,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.CRITICAL,  # a task's exception is raised here, not logged there
+            )
     try:
         with Client(local if local is not None else cluster.scheduler) as client:
             futures = client.map(fn, list(tasks), pure=False)

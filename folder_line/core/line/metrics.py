@@ -16,6 +16,9 @@ from folder_line.errors import ParameterError
 
 __all__ = ['flatten_metrics', 'resolve_metric']
 
+#: numbers of the summary that are inputs, not results
+_NOT_METRICS = frozenset({'seed'})
+
 
 def flatten_metrics(summary: Mapping[str, Any], prefix: str = '') -> dict[str, float]:
     """Every numeric leaf of ``summary`` by its dotted path, in the summary's order.
@@ -30,11 +33,14 @@ def flatten_metrics(summary: Mapping[str, Any], prefix: str = '') -> dict[str, f
     Returns
     -------
     dict of str to float
-        Path -> value. Bools, strings, lists and None are not metrics; an int is given as a float.
+        Path -> value. Bools, strings, lists and None are not metrics, nor is the top-level ``seed`` (an
+        input, not a result); an int is given as a float.
     """
     out: dict[str, float] = {}
     for key, value in summary.items():
         path = f'{prefix}{key}'
+        if path in _NOT_METRICS:
+            continue
         if isinstance(value, Mapping):
             out.update(flatten_metrics(value, f'{path}.'))
         elif isinstance(value, int | float) and not isinstance(value, bool):
