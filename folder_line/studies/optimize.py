@@ -49,6 +49,7 @@ __all__ = [
     'default_bounds',
     'OptimizeSettings',
     'Candidate',
+    'check_scene',
     'evaluate',
     'OptimizeResult',
     'optimize_layup',
@@ -131,7 +132,9 @@ def parse_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bound, ...
     return tuple(out)
 
 
-def default_bounds(layup: Mapping[str, Any], keys: Sequence[str] = DEFAULT_KEYS, span: float = DEFAULT_SPAN) -> tuple[Bound, ...]:
+def default_bounds(
+    layup: Mapping[str, Any], keys: Sequence[str] = DEFAULT_KEYS, span: float = DEFAULT_SPAN
+) -> tuple[Bound, ...]:
     """Bounds ``value · (1 ± span)`` around the scene's own values of ``keys``.
 
     Parameters
@@ -174,8 +177,8 @@ class OptimizeSettings:
     min_transmission_deg: float = 40.0
     duration: float = 600.0
     seed: int = 1
-    maxiter: int = 30
-    popsize: int = 10
+    maxiter: int = 80
+    popsize: int = 12
     tol: float = 0.01
 
     def __post_init__(self) -> None:
@@ -239,7 +242,9 @@ class Candidate:
     @property
     def feasible(self) -> bool:
         """Every constraint holds (the geometry and the simulation) and leaves landed."""
-        return self.geometry_ok and self.constraints.get('no_spill_or_damage', -1.0) >= 0.0 and self.landing_cv is not None
+        return (
+            self.geometry_ok and self.constraints.get('no_spill_or_damage', -1.0) >= 0.0 and self.landing_cv is not None
+        )
 
     @property
     def objective(self) -> float:
@@ -249,8 +254,10 @@ class Candidate:
         if self.feasible:
             return float(self.landing_cv)  # type: ignore[arg-type]
         lay = self.summary['layup']
-        return PENALTY + (lay['leaves_spilled'] + lay['leaves_damaged']) / max(lay['leaves'], 1) + (
-            1.0 if self.landing_cv is None else 0.0
+        return float(
+            PENALTY
+            + (lay['leaves_spilled'] + lay['leaves_damaged']) / max(lay['leaves'], 1)
+            + (1.0 if self.landing_cv is None else 0.0)
         )
 
 
@@ -260,7 +267,9 @@ def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> d
     return section
 
 
-def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float) -> tuple[dict[str, float], dict[str, float | None], bool]:
+def _geometry(
+    mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float
+) -> tuple[dict[str, float], dict[str, float | None], bool]:
     """The geometric margins of a candidate (cheap, no simulation), its transmission angles, and whether all hold."""
     section = _layup_section(mapping, values)
     try:
@@ -275,9 +284,11 @@ def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: f
     angles = {'loop1': None if mu1 is None else math.degrees(mu1), 'loop2': None if mu2 is None else math.degrees(mu2)}
     # in degrees where both loops close, else continued below 0 by the cosine's excess (monotone, continuous)
     out['transmission_deg'] = (
-        math.degrees(math.acos(worst)) - math.degrees(mu_min) if worst <= 1.0 else -math.degrees(mu_min) - (min(worst, 1e3) - 1.0)
+        math.degrees(math.acos(worst)) - math.degrees(mu_min)
+        if worst <= 1.0
+        else -math.degrees(mu_min) - (min(worst, 1e3) - 1.0)
     )
-    exits = (-1.0, -1.0, -1.0)
+    exits: tuple[float, ...] = (-1.0, -1.0, -1.0)
     if out['crank_rocker'] > 0.0 and out['transmission_deg'] >= 0.0:
         try:
             params = build(LayupParams, section, 'layup', 'layup parameter')
@@ -323,6 +334,8 @@ class OptimizeResult:
 
     Attributes
     ----------
+    scene_name : str
+        The name of the scene optimised.
     bounds : tuple of Bound
     settings : OptimizeSettings
     start, best : Candidate
@@ -342,6 +355,7 @@ class OptimizeResult:
         Wall time of the optimisation, s.
     """
 
+    scene_name: str
     bounds: tuple[Bound, ...]
     settings: OptimizeSettings
     start: Candidate
@@ -361,13 +375,34 @@ class OptimizeResult:
             not self.start.feasible or self.best.objective < self.start.objective
         )
 
+    def at_bounds(self, rel: float = 0.005) -> list[str]:
+        """``layup.KEY=lo`` / ``=hi`` for each design variable of ``best`` within ``rel`` of its bound range
+        from a bound (the bounds, not the constraints, stopped it there)."""
+        out = []
+        for b in self.bounds:
+            v, tol = self.best.values[b.key], rel * (b.hi - b.lo)
+            if v - b.lo <= tol:
+                out.append(f'layup.{b.key}=lo')
+            elif b.hi - v <= tol:
+                out.append(f'layup.{b.key}=hi')
+        return out
+
     def active(self, candidate: Candidate | None = None) -> list[str]:
         """Geometric constraints within :data:`ACTIVE_TOL` of their bound at ``candidate`` (default ``best``)."""
         c = self.best if candidate is None else candidate
         return [k for k, tol in ACTIVE_TOL.items() if k in c.constraints and c.constraints[k] <= tol]
 
 
-def _check_scene(mapping: Mapping[str, Any]) -> None:
+def check_scene(mapping: Mapping[str, Any]) -> Scene:
+    """Validate the scene an optimisation starts from; returns it parsed.
+
+    Raises
+    ------
+    ParameterError
+        The scene has no ``layup`` or ``container`` machine or does not list ``leaf_flight`` (no
+        leaf lands, there is no ``landing_cv``), or any error of
+        :func:`folder_line.core.line.scene.parse_scene`.
+    """
     machines = mapping.get('machines', {})
     if 'layup' not in machines or 'container' not in machines or 'leaf_flight' not in mapping.get('effects', {}):
         raise ParameterError(
@@ -375,6 +410,7 @@ def _check_scene(mapping: Mapping[str, Any]) -> None:
             mapping.get('name'),
             'needs the layup and container machines and the leaf_flight effect (else no leaf lands: no landing_cv)',
         )
+    return parse_scene(mapping)
 
 
 def optimize_layup(
@@ -408,8 +444,7 @@ def optimize_layup(
     ParameterError
         The scene lands no leaves, or a bound is not a link of the layup.
     """
-    _check_scene(mapping)
-    parse_scene(mapping)  # the start must be a valid scene: its own errors first
+    check_scene(mapping)  # the start must be a valid scene: its own errors first
     keys = [b.key for b in bounds]
     if not keys:
         raise ParameterError('--vary', [], 'needs at least one layup.KEY=LO:HI')
@@ -483,6 +518,7 @@ def optimize_layup(
             f'(landing cv {_cv_text(start)} -> {_cv_text(best)}, {settings.duration:g} s)'
         )
     return OptimizeResult(
+        scene_name=str(mapping['name']),
         bounds=tuple(bounds),
         settings=settings,
         start=start,
