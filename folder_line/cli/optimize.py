@@ -146,8 +146,9 @@ def run(args: argparse.Namespace) -> int:
         scene_path = out / 'scene.yaml'
         write_scene(scene_path, result.scene)
         cont = mapping['machines']['container']
-        landing_figure(result, out / 'landing.png', (float(cont['x_left']), float(cont['x_right'])))
-        write_json_atomic(out / 'optimize.json', result_document(result, str(scene_path)))
+        walls = (float(cont['x_left']), float(cont['x_right']))
+        landing_figure(result, out / 'landing.png', walls)
+        write_json_atomic(out / 'optimize.json', result_document(result, str(scene_path), walls))
     print(f'{result.message} ({result.nit} generations, {result.seconds:.1f} s)')
     width = max(len(k) for k in result.best.values)
     for key, value in result.best.values.items():
@@ -156,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'  layup.{key:<{width}} {start:10.5f} -> {value:10.5f} m{change}')
     for line in histogram_lines(result):
         print(line)
-    print(verdict(result))
+    print(verdict(result, walls))
     for name in OUTPUT_FILES:
         print(f'wrote {out / name}')
     return 0

@@ -25,8 +25,22 @@ def _broken(c: Candidate) -> list[str]:
     return [k for k, v in c.constraints.items() if v < 0.0] + ([] if c.summary is not None else ['not simulated'])
 
 
-def verdict(result: OptimizeResult) -> str:
-    """One paragraph: what was found, and, if the start was not beaten, the evidence."""
+def _spill_room(c: Candidate, walls: tuple[float, float] | None) -> str:
+    """How close the leaves of ``c`` land to the walls (how near the no-spill constraint is), as text."""
+    x = c.summary['layup'].get('landing_x') if c.summary is not None else None
+    if walls is None or not x:
+        return ''
+    return (
+        f'; leaves land {1e3 * (x["min"] - walls[0]):.0f} mm from the left wall and '
+        f'{1e3 * (walls[1] - x["max"]):.0f} mm from the right one'
+    )
+
+
+def verdict(result: OptimizeResult, walls: tuple[float, float] | None = None) -> str:
+    """One paragraph: what was found, and, if the start was not beaten, the evidence.
+
+    ``walls``: the container's ``x_left``, ``x_right`` (m), to say how near the leaves land to them.
+    """
     r = result
     ev = r.evaluations
     tried = (
@@ -47,11 +61,12 @@ def verdict(result: OptimizeResult) -> str:
         assert cs is not None and cb is not None
         return (
             f'landing cv {cs:.4f} -> {cb:.4f} ({100.0 * (cb - cs) / cs:+.1f} %) ({tried}); '
-            f'constraints active at the best: {active}.'
+            f'constraints active at the best: {active}{_spill_room(r.best, walls)}.'
         )
     return (
         f'the start geometry could not be beaten under the constraints: no feasible candidate had a landing cv '
-        f'below {_cv(r.start)} ({tried}); constraints active at the start: {", ".join(r.active(r.start)) or "none"}.'
+        f'below {_cv(r.start)} ({tried}); constraints active at the start: '
+        f'{", ".join(r.active(r.start)) or "none of the geometric ones"}{_spill_room(r.start, walls)}.'
     )
 
 
@@ -65,14 +80,17 @@ def _candidate(c: Candidate) -> dict[str, Any]:
         'leaves_landed': lay.get('leaves_landed'),
         'leaves_spilled': lay.get('leaves_spilled'),
         'leaves_damaged': lay.get('leaves_damaged'),
+        'landing_x': lay.get('landing_x'),
         'constraints': c.constraints,
         'transmission_deg': c.transmission_deg,
         'landing_histogram': lay.get('landing_histogram'),
     }
 
 
-def result_document(result: OptimizeResult, scene_file: str | None = None) -> dict[str, Any]:
-    """The JSON-ready record of an optimisation (``optimize.json``)."""
+def result_document(
+    result: OptimizeResult, scene_file: str | None = None, walls: tuple[float, float] | None = None
+) -> dict[str, Any]:
+    """The JSON-ready record of an optimisation (``optimize.json``); ``walls`` as for :func:`verdict`."""
     r, s = result, result.settings
     return {
         'scene': r.scene_name,
@@ -100,7 +118,7 @@ def result_document(result: OptimizeResult, scene_file: str | None = None) -> di
             'seed': s.seed,
             'seconds': r.seconds,
         },
-        'verdict': verdict(r),
+        'verdict': verdict(r, walls),
     }
 
 
