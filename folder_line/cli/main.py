@@ -24,7 +24,7 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
-from folder_line.cli import montecarlo, summary, tables
+from folder_line.cli import montecarlo, optimize, summary, tables
 from folder_line.cli.report import REPORT_FILES, write_report
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, load_scene, parse_set
@@ -48,6 +48,7 @@ _OUTPUT_OPTION = {
     'analyze': '--out',
     'bench': '--out',
     'bag': 'DIR',
+    'optimize': '--out',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -225,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=STUDIES,
         help=f'run only this study (repeatable): {", ".join(STUDIES)}',
     )
+    optimize.add_parser(sub)
     return parser
 
 
@@ -382,6 +384,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'bag': _cmd_bag,
         'analyze': _cmd_analyze,
         'bench': _cmd_bench,
+        'optimize': optimize.run,
     }[args.verb]
     try:
         return handler(args)
