@@ -23,7 +23,9 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
+from folder_line.cli import solve as solve_verb
 from folder_line.cli import summary, tables
+from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.report import REPORT_FILES, write_report
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, load_scene, parse_set
@@ -47,6 +49,8 @@ _OUTPUT_OPTION = {
     'analyze': '--out',
     'bench': '--out',
     'bag': 'DIR',
+    'sweep': '--out',
+    'solve': '--json',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -221,6 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=STUDIES,
         help=f'run only this study (repeatable): {", ".join(STUDIES)}',
     )
+    sweep_verb.add_parser(sub)
+    solve_verb.add_parser(sub)
     return parser
 
 
@@ -376,6 +382,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         'bag': _cmd_bag,
         'analyze': _cmd_analyze,
         'bench': _cmd_bench,
+        'sweep': sweep_verb.run,
+        'solve': solve_verb.run,
     }[args.verb]
     try:
         return handler(args)
