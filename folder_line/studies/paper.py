@@ -16,9 +16,11 @@ A point is the paper's only when every varied key has a paper value.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
-__all__ = ['PAPER_VALUES', 'paper_point']
+import numpy as np
+
+__all__ = ['PAPER_NOTES', 'PAPER_VALUES', 'paper_point', 'paper_rule']
 
 #: the paper's folding cylinder, m, and speed, rev/h
 _D_FC = 0.26738
@@ -49,6 +51,32 @@ PAPER_VALUES: Mapping[str, float] = {
     'layup.v_tr': 2.8,
     'layup.n_kr': 30.0,
 }
+
+
+#: scene key -> where its paper value comes from, for the charts' legends
+PAPER_NOTES: Mapping[str, str] = {
+    'feed_transporter.V_tr': '1.6 V_d, paper F eq. 6',
+    'knife.n_k': '2 n_c, paper F',
+    'cyclogram.n_c': 'paper F',
+    'press.n_c': 'paper F',
+    'layup.v_tr': "paper L's optimum",
+}
+
+#: press-speed keys -> V_d per unit of the key, (m/s) / (rev/h), with the paper's cylinder
+_V_D_PER_SPEED: Mapping[str, float] = {
+    'cyclogram.n_c': math.pi * _D_FC / 3600.0,
+    'press.n_c': math.pi * _D_FC / 3600.0,
+    'knife.n_k': math.pi * _D_FC / 3600.0 / 2.0,  # the knife turns twice per cylinder turn
+}
+
+
+def paper_rule(x_key: str, y_key: str) -> tuple[str, Callable[[np.ndarray], np.ndarray]] | None:
+    """The paper's rule ``V_tr = 1.6 V_d`` as a curve ``x(y)`` when ``x_key`` is the feed speed and ``y_key``
+    a press speed (rev/h): its label and ``V_tr`` (m/s) as a function of the press speed; None otherwise."""
+    if x_key != 'feed_transporter.V_tr' or y_key not in _V_D_PER_SPEED:
+        return None
+    per = _V_D_PER_SPEED[y_key]
+    return ('paper F: V_tr = 1.6 V_d at every press speed', lambda n: 1.6 * per * np.asarray(n, dtype=float))
 
 
 def paper_point(keys: Sequence[str]) -> dict[str, float] | None:

@@ -13,13 +13,14 @@ there is one. Seconds are shown as ms and metres of margin as mm. Three or more 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from folder_line.analysis.figures import pyplot, save_figure
+from folder_line.studies.paper import PAPER_NOTES, paper_rule
 from folder_line.studies.points import OK
 from folder_line.studies.sweep import SweepResult
 
@@ -66,6 +67,14 @@ def _feasible(result: SweepResult) -> np.ndarray | None:
     return ok.astype(float)
 
 
+def _y_label(metric: str, unit: str) -> str:
+    if _is_margin(metric):
+        return f'margin, {unit}' if unit else 'margin (dimensionless)'
+    if metric.endswith('count'):
+        return 'count'
+    return f'value, {unit}' if unit else 'value (dimensionless)'
+
+
 def _mark_text(key: str, value: Any, unit: str) -> str:
     return f'{key} = {value:.6g} {unit}'.rstrip() if isinstance(value, int | float) else f'{key} = {value}'
 
@@ -90,10 +99,13 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
     fig, axes = plt.subplots(n, 1, figsize=(7.0, 1.2 + 2.1 * n), sharex=True, squeeze=False)
     scene_x, paper = plan.scene_point.get(key), plan.paper_point
     key_unit = plan.units[key]
+    legend: dict[str, Any] = {}
     for i, (ax, metric) in enumerate(zip(axes[:, 0], plan.metrics, strict=False)):
         factor, unit = _shown(metric, plan.units[metric])
         y = _values(result, i) * factor
-        ax.plot(x, y, 'o-', ms=3, color='C0', label=metric)
+        step = {'drawstyle': 'steps-mid'} if unit == '' and metric.endswith('count') else {}
+        ax.plot(x, y, 'o-', ms=3, color='C0', label='_nolegend_', **step)
+        ax.set_title(metric, fontsize=9, loc='left')
         if _is_margin(metric):
             ax.axhline(0.0, color='k', lw=0.9, label='margin = 0 (below: violated)')
             with np.errstate(invalid='ignore'):
@@ -107,16 +119,26 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
             ax.axvline(float(scene_x), color='tab:green', ls='--', lw=1.2,
                        label=f'scene: {_mark_text(key, scene_x, key_unit)}')
         if paper is not None:
+            note = PAPER_NOTES.get(key, 'paper')
             ax.axvline(paper[key], color='tab:purple', ls=':', lw=1.5,
-                       label=f'paper: {_mark_text(key, paper[key], key_unit)}')
-        ax.set_ylabel(_label(metric.split('.')[-2] if metric.endswith('.margin') else metric, unit), fontsize=8)
+                       label=f'paper: {_mark_text(key, paper[key], key_unit)} ({note})')
+        ax.set_ylabel(_y_label(metric, unit), fontsize=8)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc='best')
+        for handle, text in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(text, handle)
     axes[-1, 0].set_xlabel(_label(key, key_unit))
     fig.suptitle(f'sweep of scene {plan.scene!r}: {len(plan.points)} points, {plan.duration:g} s of line time each',
                  fontsize=10)
-    fig.tight_layout()
+    top = 1.0 - (0.35 + 0.18 * math.ceil(len(legend) / 2)) / fig.get_figheight()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, top))
+    fig.legend(list(legend.values()), list(legend), loc='upper center', ncol=2, fontsize=7,
+               bbox_to_anchor=(0.5, top + 0.005), bbox_transform=fig.transFigure, frameon=False)
     return save_figure(fig, path)
+
+
+def _pair(result_plan: Any, keys: Sequence[str], values: Mapping[str, Any]) -> str:
+    """``'V_tr 9.3 m/s, n_k 50000 rev/h'``: a point's two values by the keys' short names."""
+    return ', '.join(f'{k.rpartition(".")[2]} {values[k]:.6g} {result_plan.units[k]}'.rstrip() for k in keys)
 
 
 def _edges(values: np.ndarray) -> np.ndarray:
@@ -163,22 +185,27 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
         handles.append(line([], [], color='k', lw=2.0, label=f'{metric} = 0 (feasible side: >= 0)'
                             if _is_margin(metric) else f'{metric} = 0'))
     feasible = _feasible(result)
-    if feasible is not None and len(plan.metrics) > 1:
-        _, _, f = _grid(result, keys, feasible)
-        if np.nanmin(f) < 0.5 < np.nanmax(f):
-            ax.contour(xs, ys, np.nan_to_num(f), levels=[0.5], colors='gold', linewidths=1.5, linestyles='--')
-            handles.append(line([], [], color='gold', lw=1.5, ls='--',
-                                label='edge of the region where every swept constraint holds'))
+    if feasible is not None:
+        bad = [p for p, f, r in zip(plan.points, feasible, result.results, strict=True) if f < 0.5 and r.status == OK]
+        if bad:
+            handles.append(ax.plot([p[keys[0]] for p in bad], [p[keys[1]] for p in bad], 'x', ms=4, color='k',
+                                   alpha=0.6, label='a swept constraint is violated here')[0])
+    rule = paper_rule(keys[0], keys[1])
+    if rule is not None:
+        text, fn = rule
+        y_line = np.linspace(_edges(ys)[0], _edges(ys)[-1], 50)
+        handles.append(ax.plot(fn(y_line), y_line, ':', color='tab:purple', lw=2.0, label=text)[0])
+        ax.set_xlim(_edges(xs)[0], _edges(xs)[-1])
     if np.isnan(z).any():
         handles.append(plt.matplotlib.patches.Patch(color='lightgrey', label='refused by the model'))
     scene = plan.scene_point
     if all(isinstance(scene.get(k), int | float) for k in keys):
         handles.append(ax.plot(scene[keys[0]], scene[keys[1]], '*', ms=16, mfc='tab:green', mec='k',
-                               label=f'scene: ({scene[keys[0]]:.6g}, {scene[keys[1]]:.6g})')[0])
+                               label=f'scene: {_pair(plan, keys, scene)}')[0])
     if plan.paper_point is not None:
         pp = plan.paper_point
-        handles.append(ax.plot(pp[keys[0]], pp[keys[1]], 'D', ms=10, mfc='tab:purple', mec='k',
-                               label=f'paper: ({pp[keys[0]]:.6g}, {pp[keys[1]]:.6g})')[0])
+        handles.append(ax.plot(pp[keys[0]], pp[keys[1]], 'D', ms=9, mfc='tab:purple', mec='k',
+                               label=f'paper: {_pair(plan, keys, pp)}')[0])
     ax.set_xlabel(_label(keys[0], plan.units[keys[0]]))
     ax.set_ylabel(_label(keys[1], plan.units[keys[1]]))
     ax.set_title(f'{metric} over {keys[0]} x {keys[1]}\nscene {plan.scene!r}, {plan.duration:g} s of line time '
