@@ -22,7 +22,9 @@ def _duration(text: str) -> float:
     try:
         return DURATION.check('--duration', float(text))
     except ValueError:
-        raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: must be a number in {DURATION.text()}') from None
+        raise argparse.ArgumentTypeError(
+            f'--duration={bounded_repr(text)}: must be a number in {DURATION.text()}'
+        ) from None
     except ParameterError as exc:
         raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: {exc.reason}') from None
 
@@ -39,7 +41,9 @@ def _whole(option: str) -> Any:
 
 def add_scene_arguments(parser: argparse.ArgumentParser, duration: float) -> None:
     """``--scene``, ``--duration`` (per evaluated point) and the repeatable ``--set``."""
-    parser.add_argument('--scene', default='folder', metavar='NAME|FILE', help='scene name or YAML file (default folder)')
+    parser.add_argument(
+        '--scene', default='folder', metavar='NAME|FILE', help='scene name or YAML file (default folder)'
+    )
     parser.add_argument(
         '--duration',
         type=_duration,

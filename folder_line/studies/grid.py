@@ -53,10 +53,7 @@ class Vary:
     @property
     def values(self) -> tuple[float | int, ...]:
         """The ``n`` values, linearly spaced from ``start`` to ``stop`` (both included), in the key's unit."""
-        if self.n == 1:
-            raw = np.array([self.start])
-        else:
-            raw = np.linspace(self.start, self.stop, self.n)
+        raw = np.array([self.start]) if self.n == 1 else np.linspace(self.start, self.stop, self.n)
         if self.whole:
             return tuple(int(round(v)) for v in raw)
         return tuple(float(v) for v in raw)

@@ -113,26 +113,48 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
             if bad.any():
                 ax.plot(x[bad], y[bad], 'o', ms=4, color='tab:red', label='violated')
         if (~ok).any():
-            ax.plot(x[~ok], np.zeros(int((~ok).sum())), 'x', color='grey', transform=ax.get_xaxis_transform(),
-                    clip_on=False, label='refused by the model')
+            ax.plot(
+                x[~ok],
+                np.zeros(int((~ok).sum())),
+                'x',
+                color='grey',
+                transform=ax.get_xaxis_transform(),
+                clip_on=False,
+                label='refused by the model',
+            )
         if isinstance(scene_x, int | float):
-            ax.axvline(float(scene_x), color='tab:green', ls='--', lw=1.2,
-                       label=f'scene: {_mark_text(key, scene_x, key_unit)}')
+            ax.axvline(
+                float(scene_x), color='tab:green', ls='--', lw=1.2, label=f'scene: {_mark_text(key, scene_x, key_unit)}'
+            )
         if paper is not None:
             note = PAPER_NOTES.get(key, 'paper')
-            ax.axvline(paper[key], color='tab:purple', ls=':', lw=1.5,
-                       label=f'paper: {_mark_text(key, paper[key], key_unit)} ({note})')
+            ax.axvline(
+                paper[key],
+                color='tab:purple',
+                ls=':',
+                lw=1.5,
+                label=f'paper: {_mark_text(key, paper[key], key_unit)} ({note})',
+            )
         ax.set_ylabel(_y_label(metric, unit), fontsize=8)
         ax.grid(True, alpha=0.3)
         for handle, text in zip(*ax.get_legend_handles_labels(), strict=True):
             legend.setdefault(text, handle)
     axes[-1, 0].set_xlabel(_label(key, key_unit))
-    fig.suptitle(f'sweep of scene {plan.scene!r}: {len(plan.points)} points, {plan.duration:g} s of line time each',
-                 fontsize=10)
+    fig.suptitle(
+        f'sweep of scene {plan.scene!r}: {len(plan.points)} points, {plan.duration:g} s of line time each', fontsize=10
+    )
     top = 1.0 - (0.35 + 0.18 * math.ceil(len(legend) / 2)) / fig.get_figheight()
     fig.tight_layout(rect=(0.0, 0.0, 1.0, top))
-    fig.legend(list(legend.values()), list(legend), loc='upper center', ncol=2, fontsize=7,
-               bbox_to_anchor=(0.5, top + 0.005), bbox_transform=fig.transFigure, frameon=False)
+    fig.legend(
+        list(legend.values()),
+        list(legend),
+        loc='upper center',
+        ncol=2,
+        fontsize=7,
+        bbox_to_anchor=(0.5, top + 0.005),
+        bbox_transform=fig.transFigure,
+        frameon=False,
+    )
     return save_figure(fig, path)
 
 
@@ -182,14 +204,30 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     line = plt.matplotlib.lines.Line2D
     if lo < 0.0 < hi and xs.size > 1 and ys.size > 1:
         ax.contour(xs, ys, z, levels=[0.0], colors='k', linewidths=2.0)
-        handles.append(line([], [], color='k', lw=2.0, label=f'{metric} = 0 (feasible side: >= 0)'
-                            if _is_margin(metric) else f'{metric} = 0'))
+        handles.append(
+            line(
+                [],
+                [],
+                color='k',
+                lw=2.0,
+                label=f'{metric} = 0 (feasible side: >= 0)' if _is_margin(metric) else f'{metric} = 0',
+            )
+        )
     feasible = _feasible(result)
     if feasible is not None:
         bad = [p for p, f, r in zip(plan.points, feasible, result.results, strict=True) if f < 0.5 and r.status == OK]
         if bad:
-            handles.append(ax.plot([p[keys[0]] for p in bad], [p[keys[1]] for p in bad], 'x', ms=4, color='k',
-                                   alpha=0.6, label='a swept constraint is violated here')[0])
+            handles.append(
+                ax.plot(
+                    [p[keys[0]] for p in bad],
+                    [p[keys[1]] for p in bad],
+                    'x',
+                    ms=4,
+                    color='k',
+                    alpha=0.6,
+                    label='a swept constraint is violated here',
+                )[0]
+            )
     rule = paper_rule(keys[0], keys[1])
     if rule is not None:
         text, fn = rule
@@ -200,16 +238,30 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
         handles.append(plt.matplotlib.patches.Patch(color='lightgrey', label='refused by the model'))
     scene = plan.scene_point
     if all(isinstance(scene.get(k), int | float) for k in keys):
-        handles.append(ax.plot(scene[keys[0]], scene[keys[1]], '*', ms=16, mfc='tab:green', mec='k',
-                               label=f'scene: {_pair(plan, keys, scene)}')[0])
+        handles.append(
+            ax.plot(
+                scene[keys[0]],
+                scene[keys[1]],
+                '*',
+                ms=16,
+                mfc='tab:green',
+                mec='k',
+                label=f'scene: {_pair(plan, keys, scene)}',
+            )[0]
+        )
     if plan.paper_point is not None:
         pp = plan.paper_point
-        handles.append(ax.plot(pp[keys[0]], pp[keys[1]], 'D', ms=9, mfc='tab:purple', mec='k',
-                               label=f'paper: {_pair(plan, keys, pp)}')[0])
+        handles.append(
+            ax.plot(
+                pp[keys[0]], pp[keys[1]], 'D', ms=9, mfc='tab:purple', mec='k', label=f'paper: {_pair(plan, keys, pp)}'
+            )[0]
+        )
     ax.set_xlabel(_label(keys[0], plan.units[keys[0]]))
     ax.set_ylabel(_label(keys[1], plan.units[keys[1]]))
-    ax.set_title(f'{metric} over {keys[0]} x {keys[1]}\nscene {plan.scene!r}, {plan.duration:g} s of line time '
-                 f'per point', fontsize=10)
+    ax.set_title(
+        f'{metric} over {keys[0]} x {keys[1]}\nscene {plan.scene!r}, {plan.duration:g} s of line time per point',
+        fontsize=10,
+    )
     if handles:
         ax.legend(handles=handles, fontsize=8, loc='best', framealpha=0.9)
     if not math.isfinite(lo):

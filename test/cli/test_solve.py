@@ -7,10 +7,9 @@ import re
 from pathlib import Path
 
 import pytest
+from studies._closed_form import v_tr_min
 
 from folder_line.cli.main import main
-
-from studies._closed_form import v_tr_min
 
 FIND = ['solve', '--scene', 'folder', '--find', 'feed_transporter.V_tr', '--where', 'min_margin_s.feed_window>=0']
 TOL = 1e-6

@@ -93,7 +93,7 @@ def test_one_key_draws_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     args = ['sweep', '--vary', 'feed_transporter.V_tr=9:9.5:3', '--duration', '0.5', '--workers', '1']
     assert main([*args, '--out', str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert 'sweep of scene \'folder\': 3 points over feed_transporter.V_tr' in out
+    assert "sweep of scene 'folder': 3 points over feed_transporter.V_tr" in out
     assert f'wrote {tmp_path / "sweep.png"}' in out
     rows = _rows(tmp_path / 'sweep.csv')
     assert [c for c in rows[0] if c.startswith('min_margin.')] == [  # the default metrics: every margin

@@ -46,8 +46,14 @@ def test_a_refused_point_is_a_row_saying_why(scene: str, key: str, value: float,
 
 
 def test_default_metrics_are_the_margins_and_the_violation_count() -> None:
-    flat = {'cycles': 3.0, 'min_margin.a.margin': 1.0, 'min_margin.a.cycle': 0.0, 'min_margin.b.margin': -1.0,
-            'violations.count': 2.0, 'min_margin_s.a': 1.0}
+    flat = {
+        'cycles': 3.0,
+        'min_margin.a.margin': 1.0,
+        'min_margin.a.cycle': 0.0,
+        'min_margin.b.margin': -1.0,
+        'violations.count': 2.0,
+        'min_margin_s.a': 1.0,
+    }
     assert resolve_metrics([], flat) == ('min_margin.a.margin', 'min_margin.b.margin', 'violations.count')
     assert resolve_metrics(['count', 'min_margin_s.a'], flat) == ('violations.count', 'min_margin_s.a')
     with pytest.raises(ParameterError, match="^--metric='violations.count': is asked for twice"):
@@ -70,7 +76,11 @@ def test_keys_are_checked_against_the_scene(folder: dict) -> None:
 
 def test_keys_units_and_scene_values(folder: dict) -> None:
     assert [key_unit(k) for k in ('feed_transporter.V_tr', 'knife.n_k', 'cyclogram.n_c', 'layup.R_kr')] == [
-        'm/s', 'rev/h', 'rev/h', 'm']
+        'm/s',
+        'rev/h',
+        'rev/h',
+        'm',
+    ]
     assert key_unit('delivery.f_A') == ''  # a friction coefficient
     assert scene_value(folder, 'feed_transporter.V_tr') == 9.3
     assert scene_value(folder, 'knife.n_k') == 50000.0

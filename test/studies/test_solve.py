@@ -49,8 +49,9 @@ def test_between() -> None:
 def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
     """violations.count jumps from 7 to 0 at V_tr,min (closed form): brentq's bisection steps close on the jump."""
     cond = parse_condition('violations.count<1')
-    result = solve_boundary(scene_mapping('folder'), 'feed_transporter.V_tr', cond, 0.5, ONE,
-                            between=(5.0, 13.0), tol=1e-5, scan=5)
+    result = solve_boundary(
+        scene_mapping('folder'), 'feed_transporter.V_tr', cond, 0.5, ONE, between=(5.0, 13.0), tol=1e-5, scan=5
+    )
     assert result.holds == 'above' and result.bracket == (9.0, 11.0)
     assert abs(result.value - v_tr_min(50000.0)) <= 1e-5
     # 0.5 s: 7 knife cycles; too slow, every feed is late (and at 5 m/s the signature is not settled
@@ -61,8 +62,15 @@ def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
 
 def test_no_change_in_the_range_names_the_range_and_the_ends() -> None:
     with pytest.raises(ParameterError) as exc:
-        solve_boundary(scene_mapping('folder'), 'feed_transporter.V_tr', parse_condition('feed_window>=0'), 0.2,
-                       ONE, between=(10.0, 20.0), scan=3)
+        solve_boundary(
+            scene_mapping('folder'),
+            'feed_transporter.V_tr',
+            parse_condition('feed_window>=0'),
+            0.2,
+            ONE,
+            between=(10.0, 20.0),
+            scan=3,
+        )
     text = str(exc.value)
     assert text.startswith("--between='10:20': min_margin_s.feed_window>=0 holds everywhere in the range")
     assert 'at 10 and' in text and 'at 20' in text
