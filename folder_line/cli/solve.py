@@ -6,7 +6,13 @@ import argparse
 import sys
 from typing import Any
 
-from folder_line.cli.study_options import add_cluster_arguments, add_scene_arguments, cluster_from, source_from
+from folder_line.cli.study_options import (
+    add_cluster_arguments,
+    add_scene_arguments,
+    cluster_from,
+    scheduler_reached,
+    source_from,
+)
 from folder_line.errors import bounded_repr
 from folder_line.files.atomic import check_output_file, write_json_atomic
 from folder_line.studies.solve import DEFAULT_SCAN, parse_between, parse_condition, solve_boundary
@@ -78,17 +84,18 @@ def run(args: argparse.Namespace) -> int:
     condition = parse_condition(args.where)
     between = parse_between(args.between) if args.between is not None else None
     cluster = cluster_from(args)
-    result = solve_boundary(
-        source_from(args),
-        args.find,
-        condition,
-        args.duration,
-        cluster,
-        between=between,
-        tol=args.tol,
-        scan=args.scan,
-        progress=sys.stderr,
-    )
+    with scheduler_reached(cluster):
+        result = solve_boundary(
+            source_from(args),
+            args.find,
+            condition,
+            args.duration,
+            cluster,
+            between=between,
+            tol=args.tol,
+            scan=args.scan,
+            progress=sys.stderr,
+        )
     unit = f' {result.unit}' if result.unit else ''
     side = 'above it (fails below)' if result.holds == 'above' else 'below it (fails above)'
     print(

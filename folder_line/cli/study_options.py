@@ -3,16 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shlex
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping
 from folder_line.core.limits import DURATION
-from folder_line.errors import ParameterError, bounded_repr
+from folder_line.errors import OutputError, ParameterError, bounded_repr
 from folder_line.studies.runner import Cluster
 
-__all__ = ['add_cluster_arguments', 'add_scene_arguments', 'cluster_from', 'command_text', 'source_from']
+__all__ = [
+    'add_cluster_arguments',
+    'add_scene_arguments',
+    'cluster_from',
+    'command_text',
+    'scheduler_reached',
+    'source_from',
+]
 
 #: the scene loader's inputs in the command line's words
 NAMES = InputNames(scene='--scene', overrides='--set')
@@ -21,12 +29,12 @@ NAMES = InputNames(scene='--scene', overrides='--set')
 def _duration(text: str) -> float:
     try:
         return DURATION.check('--duration', float(text))
+    except ParameterError as exc:  # a number out of the range (a ValueError too: caught first)
+        raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: {exc.reason}') from None
     except ValueError:
         raise argparse.ArgumentTypeError(
             f'--duration={bounded_repr(text)}: must be a number in {DURATION.text()}'
         ) from None
-    except ParameterError as exc:
-        raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: {exc.reason}') from None
 
 
 def _whole(option: str) -> Any:
@@ -84,6 +92,18 @@ def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
 def cluster_from(args: argparse.Namespace) -> Cluster:
     """The :class:`Cluster` the options name (ParameterError naming a bad one)."""
     return Cluster(workers=args.workers, threads=args.threads, scheduler=args.scheduler)
+
+
+@contextlib.contextmanager
+def scheduler_reached(cluster: Cluster) -> Iterator[None]:
+    """Name ``--scheduler`` when the cluster it gives cannot be reached (an OS error or a time-out while
+    connecting), instead of the verb's output."""
+    try:
+        yield
+    except OSError as exc:
+        if cluster.scheduler is None or isinstance(exc, OutputError):
+            raise
+        raise ParameterError('--scheduler', cluster.scheduler, f'cannot reach it: {exc}') from None
 
 
 def source_from(args: argparse.Namespace) -> dict[str, Any]:

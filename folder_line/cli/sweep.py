@@ -13,6 +13,7 @@ from folder_line.cli.study_options import (
     add_scene_arguments,
     cluster_from,
     command_text,
+    scheduler_reached,
     source_from,
 )
 from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_json_atomic
@@ -82,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
     cluster = cluster_from(args)
     with claim_output_dir(args.out, '--out', FILES) as out:  # before any work: the results need a place
         plan = plan_sweep(source_from(args), varies, args.metric, args.duration)
-        result = run_sweep(plan, cluster, progress=sys.stderr)
+        with scheduler_reached(cluster):
+            result = run_sweep(plan, cluster, progress=sys.stderr)
         command = command_text(
             'sweep',
             args,
