@@ -54,7 +54,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
-def _print_summary(result: SweepResult, seconds: float | None = None) -> None:
+def _print_summary(result: SweepResult) -> None:
     plan = result.plan
     print(
         f'sweep of scene {plan.scene!r}: {len(plan.points)} points over {", ".join(plan.keys)}, '

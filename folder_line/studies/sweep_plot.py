@@ -202,7 +202,7 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     bar.set_label(_label(metric, unit))
     handles: list[Any] = []
     line = plt.matplotlib.lines.Line2D
-    if lo < 0.0 < hi and xs.size > 1 and ys.size > 1:
+    if finite.size and lo < 0.0 < hi:
         ax.contour(xs, ys, z, levels=[0.0], colors='k', linewidths=2.0)
         handles.append(
             line(
@@ -264,7 +264,7 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     )
     if handles:
         ax.legend(handles=handles, fontsize=8, loc='best', framealpha=0.9)
-    if not math.isfinite(lo):
+    if finite.size == 0:
         ax.text(0.5, 0.5, 'every point refused', ha='center', transform=ax.transAxes)
     fig.tight_layout()
     return save_figure(fig, path)
