@@ -25,6 +25,8 @@ from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
 from folder_line.cli import montecarlo, optimize, summary, tables
+from folder_line.cli import solve as solve_verb
+from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.report import REPORT_FILES, write_report
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, load_scene, parse_set
@@ -49,6 +51,8 @@ _OUTPUT_OPTION = {
     'bench': '--out',
     'bag': 'DIR',
     'optimize': '--out',
+    'sweep': '--out',
+    'solve': '--json',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -226,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
         choices=STUDIES,
         help=f'run only this study (repeatable): {", ".join(STUDIES)}',
     )
+    sweep_verb.add_parser(sub)
+    solve_verb.add_parser(sub)
     optimize.add_parser(sub)
     return parser
 
@@ -385,6 +391,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         'analyze': _cmd_analyze,
         'bench': _cmd_bench,
         'optimize': optimize.run,
+        'sweep': sweep_verb.run,
+        'solve': solve_verb.run,
     }[args.verb]
     try:
         return handler(args)

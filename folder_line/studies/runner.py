@@ -151,7 +151,7 @@ def run_tasks(
                 n_workers=cluster.local_workers,
                 threads_per_worker=cluster.threads,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=':0',  # None still binds the web server to 8787 (a warning if taken): any port
                 silence_logs=logging.CRITICAL,  # a task's exception is raised here, not logged there
             )
     try:

@@ -1,0 +1,122 @@
+"""Options the design-study verbs share: the scene, the line time, ``--set`` and where the work runs."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import shlex
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+from folder_line.config.scenes import InputNames, parse_set, scene_mapping
+from folder_line.core.limits import DURATION
+from folder_line.errors import OutputError, ParameterError, bounded_repr
+from folder_line.studies.runner import Cluster
+
+__all__ = [
+    'add_cluster_arguments',
+    'add_scene_arguments',
+    'cluster_from',
+    'command_text',
+    'scheduler_reached',
+    'source_from',
+]
+
+#: the scene loader's inputs in the command line's words
+NAMES = InputNames(scene='--scene', overrides='--set')
+
+
+def _duration(text: str) -> float:
+    try:
+        return DURATION.check('--duration', float(text))
+    except ParameterError as exc:  # a number out of the range (a ValueError too: caught first)
+        raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: {exc.reason}') from None
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'--duration={bounded_repr(text)}: must be a number in {DURATION.text()}'
+        ) from None
+
+
+def _whole(option: str) -> Any:
+    def parse(text: str) -> int:
+        try:
+            return int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
+
+    return parse
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser, duration: float) -> None:
+    """``--scene``, ``--duration`` (per evaluated point) and the repeatable ``--set``."""
+    parser.add_argument(
+        '--scene', default='folder', metavar='NAME|FILE', help='scene name or YAML file (default folder)'
+    )
+    parser.add_argument(
+        '--duration',
+        type=_duration,
+        default=duration,
+        metavar='S',
+        help=f'line time simulated at every point, s (default {duration:g})',
+    )
+    parser.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='SECTION.KEY=VALUE',
+        help='override a scene value at every point (repeatable)',
+    )
+
+
+def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--workers``, ``--threads``, ``--scheduler``: where the simulations run (:class:`Cluster`)."""
+    parser.add_argument(
+        '--workers',
+        type=_whole('--workers'),
+        default=None,
+        metavar='K',
+        help='local Dask worker processes (default: one per core of this machine)',
+    )
+    parser.add_argument(
+        '--threads', type=_whole('--threads'), default=1, metavar='T', help='threads per local worker (default 1)'
+    )
+    parser.add_argument(
+        '--scheduler',
+        default=None,
+        metavar='ADDRESS',
+        help='run on an existing Dask cluster (tcp://HOST:8786) instead of local workers',
+    )
+
+
+def cluster_from(args: argparse.Namespace) -> Cluster:
+    """The :class:`Cluster` the options name (ParameterError naming a bad one)."""
+    return Cluster(workers=args.workers, threads=args.threads, scheduler=args.scheduler)
+
+
+@contextlib.contextmanager
+def scheduler_reached(cluster: Cluster) -> Iterator[None]:
+    """Name ``--scheduler`` when the cluster it gives cannot be reached (an OS error or a time-out while
+    connecting), instead of the verb's output."""
+    try:
+        yield
+    except OSError as exc:
+        if cluster.scheduler is None or isinstance(exc, OutputError):
+            raise
+        raise ParameterError('--scheduler', cluster.scheduler, f'cannot reach it: {exc}') from None
+
+
+def source_from(args: argparse.Namespace) -> dict[str, Any]:
+    """The complete scene mapping of ``--scene`` with ``--set`` applied (not yet validated)."""
+    return scene_mapping(args.scene, parse_set(args.overrides, NAMES), names=NAMES)
+
+
+def command_text(verb: str, args: argparse.Namespace, options: Iterable[tuple[str, str]]) -> str:
+    """The command line that reproduces a study: ``folder-line VERB`` and each ``(option, attribute)`` given."""
+    words = ['folder-line', verb]
+    for option, attr in options:
+        value = getattr(args, attr, None)
+        for item in value if isinstance(value, list) else [value]:
+            if item is not None:
+                words += [option, str(item)]
+    return shlex.join(words)

@@ -1,0 +1,156 @@
+"""One point of a study: a scene with some keys set, simulated, reduced to the metrics asked for.
+
+A :class:`PointTask` carries everything the point depends on -- the complete merged scene
+mapping, the point's overrides, the line time and the metric paths -- so that a Dask worker
+evaluates it alone (:func:`evaluate_point`, a module-level function) and the result never
+depends on which worker ran it or when. A point whose values the model refuses (a
+:class:`~folder_line.errors.ParameterError`, an :class:`~folder_line.errors.AssemblyError`:
+a geometry that does not assemble, ...) is a result with no metric values and a status
+saying why; it does not stop the study.
+
+Monte Carlo (``--samples N``) expands a point into N seeded sample tasks of the same
+mapping (:func:`point_source`), one per sample.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from folder_line.config.scenes import apply_overrides
+from folder_line.core.line.metrics import flatten_metrics, resolve_metric
+from folder_line.core.line.model import simulate
+from folder_line.core.line.scene import parse_scene
+from folder_line.errors import FolderLineError, ParameterError, shorten
+
+__all__ = [
+    'OK',
+    'PointResult',
+    'PointTask',
+    'default_metrics',
+    'evaluate_point',
+    'metric_unit',
+    'point_source',
+    'resolve_metrics',
+    'simulate_summary',
+]
+
+#: status of a point the model evaluated
+OK = 'ok'
+#: longest status text kept in a table, characters
+STATUS_CHARS = 300
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """Everything one point depends on (picklable: plain mappings, tuples and numbers).
+
+    Attributes
+    ----------
+    source : mapping
+        The complete scene mapping (:func:`folder_line.config.scenes.scene_mapping`), not yet validated.
+    overrides : tuple of (str, value)
+        The point's ``--set`` overrides, in the order of the varied keys.
+    duration : float
+        Line time simulated, s.
+    metrics : tuple of str
+        Metric paths into the summary (:func:`folder_line.core.line.metrics.flatten_metrics`).
+    """
+
+    source: Mapping[str, Any]
+    overrides: tuple[tuple[str, Any], ...]
+    duration: float
+    metrics: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class PointResult:
+    """The metrics at one point.
+
+    Attributes
+    ----------
+    values : tuple of float or None
+        One per metric of the task, in the metric's unit; None where the point was refused or the
+        summary lacks the metric.
+    status : str
+        :data:`OK`, ``'refused: <reason>'`` (the model refused the point's values) or
+        ``'missing: <metric>'`` (the summary at this point lacks a metric).
+    """
+
+    values: tuple[float | None, ...]
+    status: str
+
+
+def point_source(task: PointTask) -> dict[str, Any]:
+    """The point's complete scene mapping: the task's mapping with its overrides applied."""
+    return apply_overrides(task.source, dict(task.overrides))
+
+
+def simulate_summary(source: Mapping[str, Any], duration: float) -> dict[str, Any]:
+    """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary."""
+    summary: dict[str, Any] = simulate(parse_scene(source), duration, sample_rate=0.0).summary()
+    return summary
+
+
+def evaluate_point(task: PointTask) -> PointResult:
+    """Simulate one point and pick its metrics (run on a Dask worker; module-level, so it pickles).
+
+    Parameters
+    ----------
+    task : PointTask
+        The scene, the point's overrides, the line time (s) and the metric paths.
+
+    Returns
+    -------
+    PointResult
+        The metric values (each in its own unit), or no values and the model's reason for refusing the point.
+    """
+    try:
+        flat = flatten_metrics(simulate_summary(point_source(task), task.duration))
+    except FolderLineError as exc:  # the model refuses the point's values: a row that says why
+        return PointResult((None,) * len(task.metrics), shorten(f'refused: {" ".join(str(exc).split())}', STATUS_CHARS))
+    values = tuple(flat.get(m) for m in task.metrics)
+    missing = [m for m, v in zip(task.metrics, values, strict=True) if v is None]
+    return PointResult(values, OK if not missing else f'missing: {", ".join(missing)}')
+
+
+def default_metrics(flat: Mapping[str, float]) -> tuple[str, ...]:
+    """The scene's constraint margins (``min_margin.<constraint>.margin``) and ``violations.count``."""
+    margins = [p for p in flat if p.startswith('min_margin.') and p.endswith('.margin')]
+    return (*margins, *(['violations.count'] if 'violations.count' in flat else []))
+
+
+def resolve_metrics(names: Sequence[str], flat: Mapping[str, float], option: str = '--metric') -> tuple[str, ...]:
+    """Each name resolved to its metric path (:func:`resolve_metric`); none given: :func:`default_metrics`.
+
+    Raises
+    ------
+    ParameterError
+        A name that is no metric of the scene, an ambiguous one or one given twice (naming ``option``).
+    """
+    if not names:
+        return default_metrics(flat)
+    paths = tuple(resolve_metric(n, list(flat), option) for n in names)
+    for path in paths:
+        if paths.count(path) > 1:
+            raise ParameterError(option, path, 'is asked for twice')
+    return paths
+
+
+def metric_unit(summary: Mapping[str, Any], path: str) -> str:
+    """Unit of a metric: a constraint margin's own (``min_margin.<c>.unit``), ``s`` for ``min_margin_s.*``
+    and fields named ``*_s``, ``m/s`` for speeds named ``V_*``/``v_*``; '' (a count or a ratio) otherwise."""
+    parts = path.split('.')
+    if len(parts) == 3 and parts[0] == 'min_margin' and parts[2] == 'margin':
+        entry = summary.get('min_margin', {}).get(parts[1], {})
+        unit = entry.get('unit', '') if isinstance(entry, Mapping) else ''
+        return '' if unit == '1' else str(unit)
+    leaf = parts[-1]
+    if parts[0] == 'min_margin_s' or leaf.endswith('_s'):
+        return 's'
+    if parts[0] == 'timing' or (len(parts) > 1 and parts[-2] == 'timing'):
+        return 's'
+    if leaf.startswith(('V_', 'v_')) and 'over' not in leaf:
+        return 'm/s'
+    return ''
