@@ -12,62 +12,17 @@ import argparse
 import sys
 from typing import IO, Any
 
+from folder_line.cli.study_options import add_cluster_arguments, add_samples_argument, cluster_from, scheduler_reached
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping
-from folder_line.errors import bounded_repr
 from folder_line.files.atomic import check_output_file, write_json_atomic
-from folder_line.studies.montecarlo import MAX_SAMPLES, monte_carlo
-from folder_line.studies.runner import Cluster
+from folder_line.studies.montecarlo import monte_carlo
 
-__all__ = ['add_arguments', 'add_cluster_arguments', 'print_table', 'simulate_samples']
-
-#: most local workers or threads per worker on the command line
-_MAX_LOCAL = 512
-
-
-def _whole(option: str, lo: int, hi: int) -> Any:
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
-        if not lo <= n <= hi:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in [{lo}, {hi}]')
-        return n
-
-    return parse
-
-
-def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers``, ``--threads`` and ``--scheduler``: where the runs go (:class:`Cluster`)."""
-    parser.add_argument(
-        '--workers',
-        type=_whole('--workers', 1, _MAX_LOCAL),
-        default=None,
-        metavar='K',
-        help='local Dask worker processes (default: one per core)',
-    )
-    parser.add_argument(
-        '--threads',
-        type=_whole('--threads', 1, _MAX_LOCAL),
-        default=1,
-        metavar='T',
-        help='threads per worker (default 1)',
-    )
-    parser.add_argument(
-        '--scheduler', default=None, metavar='ADDRESS', help='run on an existing Dask cluster, e.g. tcp://host:8786'
-    )
+__all__ = ['add_arguments', 'print_table', 'simulate_samples']
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``--samples N`` and the cluster options, on ``simulate``."""
-    parser.add_argument(
-        '--samples',
-        type=_whole('--samples', 1, MAX_SAMPLES),
-        default=None,
-        metavar='N',
-        help='Monte Carlo: N runs with seeds drawn from the scene seed; prints per constraint the violation '
-        'probability with its 95 %% interval and the margin distribution (--json: the aggregate)',
-    )
+    add_samples_argument(parser, 'of --duration each (--json: the aggregate)')
     add_cluster_arguments(parser)
 
 
@@ -107,9 +62,10 @@ def simulate_samples(args: argparse.Namespace, names: InputNames) -> int:
     """``simulate --samples N``: check the output, merge the scene, run, print, write."""
     if args.json:
         check_output_file(args.json, '--json')
-    cluster = Cluster(workers=args.workers, threads=args.threads, scheduler=args.scheduler)
+    cluster = cluster_from(args)
     source = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
-    result = monte_carlo(source, args.duration, args.samples, cluster, progress=sys.stderr)
+    with scheduler_reached(cluster):
+        result = monte_carlo(source, args.duration, args.samples, cluster, progress=sys.stderr)
     print_table(result, sys.stdout)
     if args.json:
         dest = write_json_atomic(args.json, result)

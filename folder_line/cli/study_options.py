@@ -11,10 +11,13 @@ from typing import Any
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping
 from folder_line.core.limits import DURATION
 from folder_line.errors import OutputError, ParameterError, bounded_repr
+from folder_line.studies.montecarlo import MAX_SAMPLES
 from folder_line.studies.runner import Cluster
 
 __all__ = [
+    'MAX_LOCAL',
     'add_cluster_arguments',
+    'add_samples_argument',
     'add_scene_arguments',
     'cluster_from',
     'command_text',
@@ -22,6 +25,8 @@ __all__ = [
     'source_from',
 ]
 
+#: most local workers or threads per worker on the command line
+MAX_LOCAL = 512
 #: the scene loader's inputs in the command line's words
 NAMES = InputNames(scene='--scene', overrides='--set')
 
@@ -37,12 +42,17 @@ def _duration(text: str) -> float:
         ) from None
 
 
-def _whole(option: str) -> Any:
+def _whole(option: str, lo: int, hi: int) -> Any:
+    """An argparse type: a whole number in [lo, hi] (one line naming ``option`` otherwise)."""
+
     def parse(text: str) -> int:
         try:
-            return int(text)
+            n = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
+        if not lo <= n <= hi:
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in [{lo}, {hi}]')
+        return n
 
     return parse
 
@@ -73,19 +83,35 @@ def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--threads``, ``--scheduler``: where the simulations run (:class:`Cluster`)."""
     parser.add_argument(
         '--workers',
-        type=_whole('--workers'),
+        type=_whole('--workers', 1, MAX_LOCAL),
         default=None,
         metavar='K',
         help='local Dask worker processes (default: one per core of this machine)',
     )
     parser.add_argument(
-        '--threads', type=_whole('--threads'), default=1, metavar='T', help='threads per local worker (default 1)'
+        '--threads',
+        type=_whole('--threads', 1, MAX_LOCAL),
+        default=1,
+        metavar='T',
+        help='threads per local worker (default 1)',
     )
     parser.add_argument(
         '--scheduler',
         default=None,
         metavar='ADDRESS',
         help='run on an existing Dask cluster (tcp://HOST:8786) instead of local workers',
+    )
+
+
+def add_samples_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--samples N``: Monte Carlo over the scene's variation effects (:mod:`folder_line.studies.montecarlo`)."""
+    parser.add_argument(
+        '--samples',
+        type=_whole('--samples', 1, MAX_SAMPLES),
+        default=None,
+        metavar='N',
+        help=f'Monte Carlo: N runs {what} with seeds drawn from the scene seed; per constraint the violation '
+        'probability with its 95 %% interval and the margin distribution',
     )
 
 

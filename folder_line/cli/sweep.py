@@ -10,6 +10,7 @@ import numpy as np
 
 from folder_line.cli.study_options import (
     add_cluster_arguments,
+    add_samples_argument,
     add_scene_arguments,
     cluster_from,
     command_text,
@@ -50,6 +51,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         'default: every constraint margin and violations.count)',
     )
     parser.add_argument('--out', default='out/sweep', metavar='DIR', help='output directory (default ./out/sweep)')
+    add_samples_argument(parser, 'per point (the metrics are then means over them)')
     add_cluster_arguments(parser)
     return parser
 
@@ -82,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     varies = [parse_vary(v) for v in args.vary]
     cluster = cluster_from(args)
     with claim_output_dir(args.out, '--out', FILES) as out:  # before any work: the results need a place
-        plan = plan_sweep(source_from(args), varies, args.metric, args.duration)
+        plan = plan_sweep(source_from(args), varies, args.metric, args.duration, args.samples)
         with scheduler_reached(cluster):
             result = run_sweep(plan, cluster, progress=sys.stderr)
         command = command_text(
@@ -92,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
                 ('--scene', 'scene'),
                 ('--vary', 'vary'),
                 ('--metric', 'metric'),
+                ('--samples', 'samples'),
                 ('--set', 'overrides'),
                 ('--duration', 'duration'),
                 ('--out', 'out'),

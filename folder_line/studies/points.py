@@ -9,7 +9,7 @@ a geometry that does not assemble, ...) is a result with no metric values and a 
 saying why; it does not stop the study.
 
 Monte Carlo (``--samples N``) expands a point into N seeded sample tasks of the same
-mapping (:func:`point_source`), one per sample.
+mapping (:class:`PointSampleTask`, :func:`evaluate_point_sample`), one per sample.
 """
 
 from __future__ import annotations
@@ -23,13 +23,16 @@ from folder_line.core.line.metrics import flatten_metrics, resolve_metric
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import parse_scene
 from folder_line.errors import FolderLineError, ParameterError, shorten
+from folder_line.studies.montecarlo import SampleResult, SampleTask, run_sample
 
 __all__ = [
     'OK',
     'PointResult',
+    'PointSampleTask',
     'PointTask',
     'default_metrics',
     'evaluate_point',
+    'evaluate_point_sample',
     'metric_unit',
     'point_source',
     'resolve_metrics',
@@ -109,10 +112,31 @@ def evaluate_point(task: PointTask) -> PointResult:
     try:
         flat = flatten_metrics(simulate_summary(point_source(task), task.duration))
     except FolderLineError as exc:  # the model refuses the point's values: a row that says why
-        return PointResult((None,) * len(task.metrics), shorten(f'refused: {" ".join(str(exc).split())}', STATUS_CHARS))
+        return _refusal(exc, len(task.metrics))
     values = tuple(flat.get(m) for m in task.metrics)
     missing = [m for m, v in zip(task.metrics, values, strict=True) if v is None]
     return PointResult(values, OK if not missing else f'missing: {", ".join(missing)}')
+
+
+def _refusal(exc: FolderLineError, metrics: int) -> PointResult:
+    return PointResult((None,) * metrics, shorten(f'refused: {" ".join(str(exc).split())}', STATUS_CHARS))
+
+
+@dataclass(frozen=True)
+class PointSampleTask:
+    """Monte Carlo sample ``index`` of a point (``sweep --samples``): the point's scene with the sample's seed."""
+
+    point: PointTask
+    index: int
+
+
+def evaluate_point_sample(task: PointSampleTask) -> SampleResult | PointResult:
+    """One Monte Carlo sample of a point (:func:`folder_line.studies.montecarlo.run_sample` of the point's
+    scene), or the point's refusal as in :func:`evaluate_point` (module-level: it runs on a Dask worker)."""
+    try:
+        return run_sample(SampleTask(point_source(task.point), task.point.duration, task.index))
+    except FolderLineError as exc:
+        return _refusal(exc, len(task.point.metrics))
 
 
 def default_metrics(flat: Mapping[str, float]) -> tuple[str, ...]:

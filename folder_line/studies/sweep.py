@@ -18,19 +18,31 @@ from typing import IO, Any
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.studies.grid import Vary, grid_points
 from folder_line.studies.keys import check_key, key_unit, scene_value
+from folder_line.studies.montecarlo import SampleResult, aggregate
 from folder_line.studies.paper import paper_point
 from folder_line.studies.points import (
     OK,
     PointResult,
+    PointSampleTask,
     PointTask,
     evaluate_point,
+    evaluate_point_sample,
     metric_unit,
     resolve_metrics,
     simulate_summary,
 )
 from folder_line.studies.runner import Cluster, run_tasks
 
-__all__ = ['STATUS', 'SweepPlan', 'SweepResult', 'plan_sweep', 'run_sweep', 'sweep_columns', 'sweep_document']
+__all__ = [
+    'PROBABILITY_COLUMNS',
+    'STATUS',
+    'SweepPlan',
+    'SweepResult',
+    'plan_sweep',
+    'run_sweep',
+    'sweep_columns',
+    'sweep_document',
+]
 
 #: the status column of ``sweep.csv``
 STATUS = 'status'
@@ -62,6 +74,9 @@ class SweepPlan:
         The metrics at the scene's own point.
     paper_point : dict or None
         The papers' values of the varied keys, when every key has one (:mod:`folder_line.studies.paper`).
+    samples : int or None
+        Monte Carlo samples per point (None: one run with the scene's seed). With samples, a point's metric
+        is its mean over the samples, and every constraint gets its violation probability.
     """
 
     scene: str
@@ -74,6 +89,7 @@ class SweepPlan:
     scene_point: dict[str, Any]
     scene_metrics: tuple[float | None, ...]
     paper_point: dict[str, float] | None
+    samples: int | None = None
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -87,10 +103,21 @@ class SweepPlan:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """A sweep and its results, one per point in the order of ``plan.points``."""
+    """A sweep and its results, one per point in the order of ``plan.points``.
+
+    Attributes
+    ----------
+    plan : SweepPlan
+    results : tuple of PointResult
+        The metrics at each point (with samples: their means).
+    monte_carlo : tuple of (dict or None) or None
+        With ``plan.samples``: per point, :func:`folder_line.studies.montecarlo.aggregate`'s ``constraints``
+        (None where the model refused the point).
+    """
 
     plan: SweepPlan
     results: tuple[PointResult, ...]
+    monte_carlo: tuple[dict[str, Any] | None, ...] | None = None
 
     @property
     def refused(self) -> int:
@@ -103,6 +130,7 @@ def plan_sweep(
     varies: Sequence[Vary],
     metric_names: Sequence[str],
     duration: float,
+    samples: int | None = None,
 ) -> SweepPlan:
     """Check a sweep before any work.
 
@@ -116,6 +144,8 @@ def plan_sweep(
         Metric paths or unique suffixes (``--metric``); empty: the constraint margins and ``violations.count``.
     duration : float
         Line time per point, s.
+    samples : int, optional
+        Monte Carlo samples per point (:attr:`SweepPlan.samples`).
 
     Returns
     -------
@@ -147,13 +177,41 @@ def plan_sweep(
         scene_point={k: scene_value(source, k) for k in keys},
         scene_metrics=tuple(flat.get(m) for m in metrics),
         paper_point=paper_point(keys),
+        samples=samples,
     )
 
 
 def run_sweep(plan: SweepPlan, cluster: Cluster, progress: IO[str] | None = None) -> SweepResult:
-    """Evaluate every point of ``plan`` on ``cluster`` (a progress bar on ``progress``)."""
-    results = run_tasks(evaluate_point, plan.tasks(), cluster, label='sweep', progress=progress)
-    return SweepResult(plan, tuple(results))
+    """Evaluate every point of ``plan`` on ``cluster`` (a progress bar on ``progress``).
+
+    With ``plan.samples`` every (point, sample) pair is one task, all in one fan-out; each point's samples
+    are then pooled (:func:`folder_line.studies.montecarlo.aggregate`).
+    """
+    if plan.samples is None:
+        results = run_tasks(evaluate_point, plan.tasks(), cluster, label='sweep', progress=progress)
+        return SweepResult(plan, tuple(results))
+    n = plan.samples
+    tasks = [PointSampleTask(point, i) for point in plan.tasks() for i in range(n)]
+    runs = run_tasks(evaluate_point_sample, tasks, cluster, label='sweep samples', progress=progress)
+    points: list[PointResult] = []
+    pooled: list[dict[str, Any] | None] = []
+    for k in range(len(plan.points)):
+        group = runs[k * n : (k + 1) * n]
+        refused = next((r for r in group if isinstance(r, PointResult)), None)
+        if refused is not None:
+            points.append(refused)
+            pooled.append(None)
+            continue
+        agg = aggregate([r for r in group if isinstance(r, SampleResult)])
+        means = tuple(agg['metrics'][m]['mean'] if m in agg['metrics'] else None for m in plan.metrics)
+        missing = [m for m, v in zip(plan.metrics, means, strict=True) if v is None]
+        points.append(PointResult(means, OK if not missing else f'missing: {", ".join(missing)}'))
+        pooled.append(agg['constraints'])
+    return SweepResult(plan, tuple(points), tuple(pooled))
+
+
+#: columns of a constraint's violation probability per cycle (``sweep --samples``): p and its 95 % interval
+PROBABILITY_COLUMNS = ('p_violation', 'p_violation_lo', 'p_violation_hi')
 
 
 def sweep_columns(result: SweepResult) -> dict[str, list[Any]]:
@@ -162,6 +220,15 @@ def sweep_columns(result: SweepResult) -> dict[str, list[Any]]:
     columns: dict[str, list[Any]] = {k: [p[k] for p in plan.points] for k in plan.keys}
     for i, metric in enumerate(plan.metrics):
         columns[metric] = [r.values[i] for r in result.results]
+    if result.monte_carlo is not None:
+        names: list[str] = []
+        for pooled in result.monte_carlo:
+            names += [c for c in pooled or {} if c not in names]
+        for c in names:
+            cells = [None if p is None or c not in p else p[c]['p_cycle'] for p in result.monte_carlo]
+            columns[f'{PROBABILITY_COLUMNS[0]}.{c}'] = [None if x is None else x['p'] for x in cells]
+            columns[f'{PROBABILITY_COLUMNS[1]}.{c}'] = [None if x is None else x['ci95'][0] for x in cells]
+            columns[f'{PROBABILITY_COLUMNS[2]}.{c}'] = [None if x is None else x['ci95'][1] for x in cells]
     columns[STATUS] = [r.status for r in result.results]
     return columns
 
@@ -174,6 +241,8 @@ def sweep_document(result: SweepResult, command: str, files: Sequence[str]) -> d
         'scene': plan.scene,
         'duration_s': plan.duration,
         'points': len(plan.points),
+        'samples': plan.samples,
+        'statistic': 'value of one run' if plan.samples is None else f'mean over {plan.samples} samples',
         'refused': result.refused,
         'keys': [
             {

@@ -11,6 +11,9 @@ from dask.distributed import LocalCluster
 from studies._closed_form import feed_margin
 
 from folder_line.cli.main import main
+from folder_line.config.scenes import scene_mapping
+from folder_line.studies.montecarlo import monte_carlo
+from folder_line.studies.runner import Cluster
 
 #: a 4 x 2 grid over the feed speed (one value refused: V_tr must be > 0) and the knife speed, 0.2 s per point
 GRID = [
@@ -132,3 +135,23 @@ def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, capsys: pyte
     target.write_text('keep')
     assert main(['sweep', '--vary', 'knife.n_k=1:2:2', '--out', str(target)]) == 2
     assert '--out=' in capsys.readouterr().err and target.read_text() == 'keep'
+
+
+def test_sweep_samples_pool_each_point_as_simulate_samples_does(tmp_path: Path) -> None:
+    """``sweep --samples``: each point's violation probability is the Monte Carlo of that point's scene,
+    and it falls as the feed speed rises past the jitter's reach."""
+    out = tmp_path / 'mc'
+    argv = ['sweep', '--scene', 'folder_jitter', '--vary', 'feed_transporter.V_tr=9.25:9.35:3', '--samples', '12']
+    assert main([*argv, '--metric', 'feed_window', '--duration', '1', '--workers', '2', '--out', str(out)]) == 0
+    rows = _rows(out / 'sweep.csv')
+    p = [float(r['p_violation.feed_window']) for r in rows]
+    # margin 0.1 ms = 0.93 mm at 9.3 m/s (sigma 0.5 mm); 9.35 m/s keeps 0.23 ms = 2.2 mm, 4.3 sigma
+    assert p[0] > p[1] > p[2] == 0.0
+    for r in rows:
+        assert float(r['p_violation_lo.feed_window']) <= float(r['p_violation.feed_window'])
+        assert float(r['p_violation.feed_window']) <= float(r['p_violation_hi.feed_window'])
+    middle = scene_mapping('folder_jitter', {'feed_transporter.V_tr': 9.3})
+    alone = monte_carlo(middle, 1.0, 12, Cluster(workers=1))['constraints']['feed_window']['p_cycle']
+    assert float(rows[1]['p_violation.feed_window']) == alone['p']
+    assert [float(rows[1]['p_violation_lo.feed_window']), float(rows[1]['p_violation_hi.feed_window'])] == alone['ci95']
+    assert json.loads((out / 'sweep.json').read_text())['statistic'] == 'mean over 12 samples'
