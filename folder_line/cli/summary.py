@@ -34,7 +34,8 @@ def _print_folder(folder: dict[str, Any] | None, out: IO[str]) -> None:
         print(
             f'delivery: efficiency minimum {dlv["eta_min"]:.4f} at stroke position u = {dlv["eta_min_u"]:.4f} '
             f'({dlv["eta_min_travel_m"]:.4f} m of chain from the stroke start); '
-            f'sprocket torque peak {dlv["sprocket_torque_peak_Nm"]:.4g} N m, mean {dlv["sprocket_torque_mean_Nm"]:.4g} N m',
+            f'sprocket torque peak {dlv["sprocket_torque_peak_Nm"]:.4g} N m, '
+            f'mean {dlv["sprocket_torque_mean_Nm"]:.4g} N m',
             file=out,
         )
 
