@@ -59,6 +59,7 @@ __all__ = [
     'resolve_scene',
     'scene_mapping',
     'scene_text',
+    'set_press',
     'shared_scene',
     'write_scene',
 ]
@@ -295,20 +296,38 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
     return out
 
 
-def _apply_press(data: dict[str, Any], key: str, field: str, value: Any) -> None:
-    """``press.n_c``: the folding cylinder at ``value`` rev/h and the knife at twice it."""
+def set_press(machines: Mapping[str, Any], key: str, value: Any, where: str) -> None:
+    """Apply ``press.<field>``: ``press.n_c`` puts the folding cylinder at ``value`` rev/h and the knife at
+    :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times it.
+
+    Parameters
+    ----------
+    machines : mapping
+        Machine section -> its (mutable) mapping of values; ``cyclogram`` and ``knife`` are changed.
+    key : str
+        ``press.n_c`` (another field is refused).
+    value : object
+        The cylinder speed, rev/h, in :data:`~folder_line.core.limits.CYLINDER_SPEED`.
+    where : str
+        What holds the machines, for the error if there is no folder (``scene 'layup'``).
+
+    Raises
+    ------
+    ParameterError
+        Naming ``key`` and the value: an unknown field, a speed out of range, no knife and cylinder.
+    """
+    field = key.partition('.')[2]
     if field not in PRESS_KEYS:
         raise ParameterError(key, value, f'unknown press key; known: {", ".join(f"press.{k}" for k in PRESS_KEYS)}')
     n_c = CYLINDER_SPEED.check(key, value)
-    sections = [data['machines'].get(name) for name in ('cyclogram', 'knife')]
-    if not all(isinstance(s, dict) for s in sections):
+    cylinder, knife = machines.get('cyclogram'), machines.get('knife')
+    if not isinstance(cylinder, dict) or not isinstance(knife, dict):
         raise ParameterError(
             key,
             value,
-            f'scene {data["name"]!r} has no folder (knife and cyclogram), whose speeds press.n_c sets; '
-            f'it has {", ".join(map(str, data["machines"]))}',
+            f'{where} has no folder (knife and cyclogram), whose speeds press.n_c sets; '
+            f'it has {", ".join(map(str, machines))}',
         )
-    cylinder, knife = sections
     cylinder['n_c'] = n_c
     knife['n_k'] = KNIFE_PER_CYLINDER * n_c
 
@@ -325,7 +344,7 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
             'must be SECTION.KEY (a machine, a listed effect, sheets, drive or press), seed or sample_rate',
         )
     if head == 'press':
-        _apply_press(data, key, field, value)
+        set_press(data['machines'], key, value, f'scene {data["name"]!r}')
         return
     if head in MACHINES:
         section = data['machines'].get(head)

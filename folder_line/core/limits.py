@@ -123,7 +123,7 @@ LOST_TIMEOUT = Limit(
     'longer than a tick can take on a loaded machine, shorter than an hour',
 )
 KNIFE_SPEED = Limit(
-    'knife crank speed (`knife.n_k`; in a scene twice `cyclogram.n_c`)',
+    'knife crank speed (`knife.n_k`; in a scene twice the folding cylinder speed)',
     2.0,
     200000.0,
     'rev/h',
