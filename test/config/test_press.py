@@ -32,7 +32,8 @@ def test_press_speed_sets_cylinder_and_knife_and_the_cycle_follows() -> None:
     assert scene.machine('cyclogram').n_c == 30000.0
     assert scene.machine('knife').n_k == 60000.0
     tm = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
-    assert tm.T == pytest.approx(3600.0 / 60000.0, rel=1e-15)  # one signature per knife turn
+    cycle = tm.T
+    assert cycle == pytest.approx(3600.0 / 60000.0, rel=1e-15)  # one signature per knife turn
     assert tm.L_c_error == pytest.approx(0.0, abs=1e-4)  # V_d T = pi R = L_a at any press speed
     # V_tr,min = L_feed / ((1 - reserve) t_fw), t_fw = T (1 - dwell) - t_knife: the knife window scales with 1/n_k
     base = cycle_timing(load_scene('folder').machine('cyclogram'), load_scene('folder').machine('knife'))
