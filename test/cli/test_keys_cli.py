@@ -1,4 +1,4 @@
-"""``simulate --list-keys/--list-metrics``, ``folder-line scenes``, the new summary lines and ``report --set/--params``."""
+"""``simulate --list-keys/--list-metrics``, ``scenes``, the new summary lines, ``report --set/--params``."""
 
 from __future__ import annotations
 
