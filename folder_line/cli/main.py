@@ -48,6 +48,7 @@ _OUTPUT_OPTION = {
     'analyze': '--out',
     'bench': '--out',
     'bag': 'DIR',
+    'scenes': 'stdout',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
