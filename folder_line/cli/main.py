@@ -24,14 +24,15 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
-from folder_line.cli import montecarlo, optimize, summary, tables
+from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
-from folder_line.cli.report import REPORT_FILES, write_report
+from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
-from folder_line.config.scenes import InputNames, load_scene, parse_set
+from folder_line.config.scenes import InputNames, parse_set, scene_mapping
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
+from folder_line.core.line.scene import parse_scene
 from folder_line.errors import FolderLineError, OutputError, bounded_repr, path_repr, shorten
 from folder_line.files.atomic import (
     check_output_dir,
@@ -53,6 +54,7 @@ _OUTPUT_OPTION = {
     'optimize': '--out',
     'sweep': '--out',
     'solve': '--json',
+    'scenes': 'stdout',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -157,8 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
         60.0,
         'override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
     )
-    sim.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+    listing = sim.add_mutually_exclusive_group()
+    listing.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+    listing.add_argument(
+        '--list-keys', action='store_true', help='list every --set key of the scene: unit, value, range; then exit'
+    )
+    listing.add_argument(
+        '--list-metrics',
+        action='store_true',
+        help='simulate --duration and list every metric (dotted path into the summary) with its value and unit',
+    )
     montecarlo.add_arguments(sim)
+    sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
     _add_scene_arguments(run, 'scene (default folder)', 20.0, 'override a scene value (repeatable)')
@@ -208,6 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
     _add_out(rep, 'out')
+    add_report_arguments(rep)
 
     ana = sub.add_parser('analyze', help='replay analysis of a recorded run: report.md and plots (no ROS needed)')
     ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
@@ -270,11 +283,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, '--json')
     names = _scene_options()
+    data = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
+    scene = parse_scene(data)
+    if args.list_keys:
+        keys.print_keys(data, sys.stdout)
+        return 0
     if args.samples is not None:
         return montecarlo.simulate_samples(args, names)
-    scene = load_scene(args.scene, parse_set(args.overrides, names), names=names)
     result = simulate(scene, args.duration, sample_rate=0.0)
     result_summary = result.summary()
+    if args.list_metrics:
+        keys.print_metrics(result_summary, sys.stdout)
+        return 0
     summary.print_summary(result_summary, sys.stdout)
     if args.json:
         dest = write_json_atomic(args.json, result_summary)
@@ -334,8 +354,14 @@ def _cmd_bag(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    params = report_params(args.params, parse_set(args.overrides, InputNames(scene='--params', overrides='--set')))
     with claim_output_dir(args.out, '--out', REPORT_FILES) as out:
-        write_report(out, sys.stdout)
+        write_report(out, sys.stdout, params)
+    return 0
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    keys.print_scenes(sys.stdout)
     return 0
 
 
@@ -393,6 +419,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'optimize': optimize.run,
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
+        'scenes': _cmd_scenes,
     }[args.verb]
     try:
         return handler(args)

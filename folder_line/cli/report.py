@@ -1,25 +1,47 @@
 """The report of the default configuration: the papers' published results next to
 what the model computes, the three mechanisms' tables as CSV, and plots.
 
-This is what ``make run`` shows (``folder-line report --out DIR``).
+This is what ``make run`` shows (``folder-line report --out DIR``). ``--params FILE`` (a YAML mapping of
+the sections ``layup``, ``knife``, ``cyclogram``, ``delivery`` and ``press`` to any of their keys) and
+``--set SECTION.KEY=VALUE`` (as for a scene, ``press.n_c=30000`` included) redo it at other values
+(:func:`report_params`); the report then starts with the values it was given.
 """
 
 from __future__ import annotations
 
+import argparse
+import copy
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TypedDict
+from typing import IO, Any, TypedDict
 
 import numpy as np
 
 from folder_line.analysis.figures import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
-from folder_line.config.params import load_params
+from folder_line.config.params import config_dir, read_yaml_mapping
+from folder_line.config.scenes import set_press
+from folder_line.core.line.scene import MachineParams, check_press_speed
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
+from folder_line.core.numerics.validate import build
+from folder_line.errors import ParameterError
 from folder_line.files.atomic import write_csv_atomic, write_text_atomic
 
-__all__ = ['REPORT_FILES', 'Check', 'published_checks', 'write_report']
+__all__ = [
+    'REPORT_FILES',
+    'REPORT_SECTIONS',
+    'Check',
+    'ReportParams',
+    'add_report_arguments',
+    'published_checks',
+    'report_params',
+    'write_report',
+]
+
+#: the machine sections the report is computed from
+REPORT_SECTIONS = ('layup', 'knife', 'cyclogram', 'delivery')
 
 #: the files :func:`write_report` writes into its folder
 REPORT_FILES = (
@@ -56,13 +78,98 @@ class PaperParams(TypedDict):
     cyclogram: cyclogram.CyclogramParams
 
 
-def _defaults() -> PaperParams:
-    return {
-        'layup': load_params('layup'),
-        'knife': load_params('knife'),
-        'delivery': load_params('delivery'),
-        'cyclogram': load_params('cyclogram'),
+@dataclass(frozen=True)
+class ReportParams:
+    """What the report is computed from, and what was given to change the defaults.
+
+    Attributes
+    ----------
+    params : PaperParams
+        The validated parameters of the four mechanisms.
+    given : tuple of str
+        ``KEY=VALUE`` of every value given (``--params`` file first, then ``--set``), in order; empty for
+        the defaults.
+    """
+
+    params: PaperParams
+    given: tuple[str, ...] = field(default=())
+
+
+def _apply(machines: dict[str, dict[str, Any]], key: str, value: Any) -> None:
+    head, sep, name = key.partition('.')
+    if head == 'press':
+        set_press(machines, key, value, 'the report')
+        return
+    if not sep or head not in REPORT_SECTIONS or not name or '.' in name:
+        raise ParameterError(
+            key, value, f'must be SECTION.KEY with a section of the report ({", ".join(REPORT_SECTIONS)}) or press.n_c'
+        )
+    machines[head][name] = value
+
+
+def _file_values(path: str | None) -> list[tuple[str, Any]]:
+    """``--params FILE``: section -> mapping of key: value, flattened to (``section.key``, value) in file order."""
+    if path is None:
+        return []
+    out: list[tuple[str, Any]] = []
+    for section, values in read_yaml_mapping(Path(path), '--params').items():
+        if not isinstance(values, Mapping):
+            raise ParameterError(f'{section}', values, 'must be a mapping of key: value')
+        out += [(f'{section}.{k}', v) for k, v in values.items()]
+    return out
+
+
+def report_params(path: str | None = None, overrides: Mapping[str, Any] | None = None) -> ReportParams:
+    """The report's parameters: the defaults, then a ``--params`` file's values, then the ``--set`` overrides.
+
+    Parameters
+    ----------
+    path : str, optional
+        YAML file mapping report sections (``layup``, ``knife``, ``cyclogram``, ``delivery``, ``press``)
+        to any subset of their keys.
+    overrides : mapping, optional
+        ``{'press.n_c': 30000, 'delivery.f_A': 0.2}`` as from ``--set``.
+
+    Raises
+    ------
+    ParameterError
+        Naming the key and value: an unknown section or key, a value out of range, a knife speed that is
+        not twice the cylinder's.
+    """
+    defaults = {s: read_yaml_mapping(config_dir() / f'{s}.yaml', f'{s} defaults') for s in REPORT_SECTIONS}
+    machines = copy.deepcopy(defaults)
+    given = [*_file_values(path), *(overrides or {}).items()]
+    for key, value in given:
+        _apply(machines, key, value)
+    p: PaperParams = {
+        'layup': build(layup.LayupParams, machines['layup'], 'layup', 'layup parameter'),
+        'knife': build(knife.KnifeParams, machines['knife'], 'knife', 'knife parameter'),
+        'delivery': build(delivery.DeliveryParams, machines['delivery'], 'delivery', 'delivery parameter'),
+        'cyclogram': build(cyclogram.CyclogramParams, machines['cyclogram'], 'cyclogram', 'cyclogram parameter'),
     }
+    check_press_speed(p['knife'].n_k, p['cyclogram'].n_c)
+    return ReportParams(p, tuple(f'{k}={v}' for k, v in given))
+
+
+def add_report_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--params FILE`` and the repeatable ``--set`` of the ``report`` verb."""
+    parser.add_argument(
+        '--params',
+        metavar='FILE.yaml',
+        help='values to report at instead of the defaults: {layup|knife|cyclogram|delivery|press: {key: value}}',
+    )
+    parser.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='SECTION.KEY=VALUE',
+        help='override a value, e.g. press.n_c=30000 (cylinder and knife) or delivery.f_A=0.2 (repeatable)',
+    )
+
+
+def _defaults() -> PaperParams:
+    return report_params().params
 
 
 def published_checks(p: PaperParams | None = None) -> list[Check]:
@@ -251,18 +358,30 @@ def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
     return save_figure(fig, out / 'delivery_efficiency.png')
 
 
-def write_report(out: Path, stream: IO[str]) -> list[Path]:
-    """Print the report of the defaults and write ``report.md``, CSV tables and PNG plots to ``out``."""
-    p = _defaults()
+def write_report(out: Path, stream: IO[str], inputs: ReportParams | None = None) -> list[Path]:
+    """Print the report and write ``report.md``, CSV tables and PNG plots to ``out``.
+
+    ``inputs``: the parameters (:func:`report_params`); default the defaults.
+    """
+    inputs = inputs or report_params()
+    p = inputs.params
     out.mkdir(parents=True, exist_ok=True)
     checks = published_checks(p)
     tm = cyclogram.cycle_timing(p['cyclogram'], p['knife'])
     sw = layup_reach.sweep(p['layup'])
     k_u, k_min = delivery.stroke_minimum(p['delivery'], 'K_v')
 
-    lines = [
-        '# folder_line: the default configuration against the papers',
-        '',
+    lines = ['# folder_line: the default configuration against the papers', '']
+    if inputs.given:
+        lines = [
+            '# folder_line: the papers against the model at other values',
+            '',
+            'Values given (the rest are the defaults; a paper figure at the defaults may then not agree):',
+            '',
+            *(f'- `{g}`' for g in inputs.given),
+            '',
+        ]
+    lines += [
         '| mech. | quantity | paper | model | agrees |',
         '|---|---|---|---|---|',
     ]
@@ -278,13 +397,16 @@ def write_report(out: Path, stream: IO[str]) -> list[Path]:
         f'feed window {tm.t_fw * 1e3:.3f} ms, allowed feed time {tm.t_allowed * 1e3:.3f} ms; '
         f'feed margin at V_tr = V_d: {tm.feed_margin(tm.V_d) * 1e3:.3f} ms, '
         f"at the paper's {PAPER_V_TR:.1f} m/s: {tm.feed_margin(PAPER_V_TR) * 1e3:.3f} ms.",
+        f'- F: minimum feed speed V_tr = {tm.V_tr_min:.4f} m/s = {tm.ratio_min:.4f} V_d '
+        f'(V_d = {tm.V_d:.4f} m/s, cylinder {p["cyclogram"].n_c:g} rev/h, knife {p["knife"].n_k:g} rev/h).',
         f'- D: slowest carriage K_v = {k_min:.4f} at stroke position u = {k_u:.4f} (geometric return section).',
     ]
 
     written = [out / 'report.md']
-    for mech in ('layup', 'knife', 'delivery'):
+    mechanisms: dict[str, MachineParams] = {'layup': p['layup'], 'knife': p['knife'], 'delivery': p['delivery']}
+    for mech, mp in mechanisms.items():
         written.append(
-            write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101))
+            write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101, mp))
         )
     written += _plot_layup(p['layup'], out)
     written.append(_plot_knife(p['knife'], p['cyclogram'], out))

@@ -15,6 +15,31 @@ def _fmt_margin(value: float, unit: str) -> str:
     return f'{value:+.6g} {unit}'
 
 
+def _print_folder(folder: dict[str, Any] | None, out: IO[str]) -> None:
+    """The folder's design figures: the feed speed it needs, the knife window, the delivery's efficiency."""
+    if not folder:
+        return
+    print(
+        f'V_tr min = {folder["V_tr_min"]:.4f} m/s = {folder["V_tr_min_over_V_d"]:.4f} V_d '
+        f'(V_d = {folder["V_d"]:.4f} m/s; V_tr = {folder["V_tr"]:g} m/s)',
+        file=out,
+    )
+    print(
+        f'knife window: {folder["knife_window_s"] * 1e3:.4f} ms, {folder["knife_window_deg"]:.3f} deg of crank '
+        f'({folder["knife_in_deg"]:+.3f}..{folder["knife_out_deg"]:+.3f} deg)',
+        file=out,
+    )
+    dlv = folder.get('delivery')
+    if dlv:
+        print(
+            f'delivery: efficiency minimum {dlv["eta_min"]:.4f} at stroke position u = {dlv["eta_min_u"]:.4f} '
+            f'({dlv["eta_min_travel_m"]:.4f} m of chain from the stroke start); '
+            f'sprocket torque peak {dlv["sprocket_torque_peak_Nm"]:.4g} N m, '
+            f'mean {dlv["sprocket_torque_mean_Nm"]:.4g} N m',
+            file=out,
+        )
+
+
 def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
     """Print the summary dict of :meth:`folder_line.core.line.model.LineResult.summary`."""
     print(
@@ -25,6 +50,14 @@ def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
     print(f'cycles: {summary["cycles"]}   sheets counted: {summary["sheets_counted"]}', file=out)
     if 'v_tr_over_v_d' in summary:
         print(f'V_tr / V_d = {summary["v_tr_over_v_d"]:.4f}', file=out)
+    _print_folder(summary.get('folder'), out)
+    layup = summary.get('layup')
+    if layup:
+        print(
+            f'leaves: {layup["leaves"]} entered, {layup["leaves_landed"]} landed, {layup["leaves_spilled"]} spilled, '
+            f'{layup["leaves_damaged"]} damaged',
+            file=out,
+        )
     v = summary['violations']
     print(f'violations: {v["count"]}', file=out)
     for item in v['first']:

@@ -12,11 +12,12 @@ Columns and units are a contract (other checks read these CSVs):
 from __future__ import annotations
 
 import math
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
 from folder_line.config.params import load_params
+from folder_line.core.line.scene import MachineParams
 from folder_line.core.mechanisms import delivery, knife, layup
 
 __all__ = ['COLUMNS', 'kinematics_table', 'print_summary']
@@ -28,12 +29,21 @@ COLUMNS: dict[str, tuple[str, ...]] = {
 }
 
 
+def _params(mechanism: str, params_path: str | None, params: MachineParams | None) -> Any:
+    return params if params is not None else load_params(mechanism, params_path)
+
+
 def _turn(n: int) -> np.ndarray:
     return 2.0 * math.pi * np.arange(n, dtype=float) / n
 
 
-def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[str, np.ndarray]:
+def kinematics_table(
+    mechanism: str, params_path: str | None, n: int, params: MachineParams | None = None
+) -> dict[str, np.ndarray]:
     """Columns of the table of ``mechanism`` with ``n`` samples (see module doc).
+
+    ``params``, if given, are the mechanism's validated parameters (``params_path`` is then not read);
+    else they are the defaults with ``params_path``'s values.
 
     Raises
     ------
@@ -42,11 +52,11 @@ def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[st
     """
     if mechanism == 'layup':
         phi = _turn(n)
-        lay = layup.LayupModel(load_params('layup', params_path)).arrays(phi, accelerations=False)
+        lay = layup.LayupModel(_params('layup', params_path, params)).arrays(phi, accelerations=False)
         return {name: np.asarray(getattr(lay, name)) for name in COLUMNS['layup']}
     if mechanism == 'knife':
         phi = _turn(n)
-        kn = knife.state(load_params('knife', params_path), phi)  # array phi: array fields (asarray: no copy)
+        kn = knife.state(_params('knife', params_path, params), phi)  # array phi: array fields (asarray: no copy)
         return {
             'phi': phi,
             's': np.asarray(kn.s),
@@ -56,7 +66,7 @@ def kinematics_table(mechanism: str, params_path: str | None, n: int) -> dict[st
         }
     if mechanism == 'delivery':
         xi = np.linspace(0.0, 1.0, n)
-        ev = delivery.evaluate(load_params('delivery', params_path), xi)
+        ev = delivery.evaluate(_params('delivery', params_path, params), xi)
         return {
             'xi': xi,
             'alpha': ev.alpha,

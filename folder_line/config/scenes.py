@@ -4,8 +4,15 @@ A scene file's machine sections may give any subset of a machine's keys; the res
 come from ``config/<section>.yaml``. ``--set KEY=VALUE`` overrides are applied last:
 ``<machine>.<key>`` (``feed_transporter.V_tr=5.833``), ``<effect>.<key>`` for a
 listed effect (``feed_slip.mu=0.2``), ``sheets.<key>``, ``drive.<key>``, ``seed``,
-``sample_rate``. Merging only places values; the merged mapping is validated once, by
-:func:`folder_line.core.line.scene.parse_scene`, which names every unknown key.
+``sample_rate``, and ``press.n_c``: the press speed, the folding cylinder in rev/h, which sets
+``cyclogram.n_c`` and ``knife.n_k`` (twice it, :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER`)
+together; a scene file may say the same as ``press: {n_c: 30000}``. Merging only places values; the
+merged mapping is validated once, by :func:`folder_line.core.line.scene.parse_scene`, which names every
+unknown key and refuses a knife and cylinder speed that do not match.
+
+A value the user gives (in the scene file or an override) that the scene would never read
+is refused too (:func:`folder_line.core.line.inert.inert_reason`: ``sheets.jitter`` on the
+folder, ``drive.*`` with ``motor_dynamics`` ...), unless it is the default anyway.
 
 The loader's two inputs, the scene and its overrides, are named in errors by the caller's
 :class:`InputNames`: the command line says ``--scene``/``--set``, a node ``scene``/``overrides``.
@@ -19,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import dataclasses
 import os
 from collections.abc import Hashable, Iterable, Mapping
 from dataclasses import dataclass
@@ -29,27 +37,43 @@ import yaml
 
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import EFFECTS
+from folder_line.core.limits import CYLINDER_SPEED
+from folder_line.core.line.inert import inert_reason
 from folder_line.core.line.scene import MACHINES, Scene, parse_scene
+from folder_line.core.mechanisms.cyclogram import KNIFE_PER_CYLINDER
+from folder_line.core.mechanisms.drive import DriveSpec
 from folder_line.errors import InputFileError, ParameterError
 from folder_line.files.atomic import write_text_atomic
 from folder_line.files.yamlio import load_yaml
 
 __all__ = [
+    'DRIVE_DEFAULT',
+    'PRESS_KEYS',
     'SET_VALUE_CHARS',
     'InputNames',
     'apply_overrides',
+    'default_value',
     'list_scenes',
     'load_scene',
     'parse_set',
     'resolve_scene',
     'scene_mapping',
     'scene_text',
+    'set_press',
     'shared_scene',
     'write_scene',
 ]
 
 #: longest VALUE of ``--set KEY=VALUE``, characters
 SET_VALUE_CHARS = 100
+#: the keys of the ``press`` section: ``press.n_c``, the folding cylinder's speed, rev/h, sets ``cyclogram.n_c``
+#: and ``knife.n_k`` = :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times it
+PRESS_KEYS = ('n_c',)
+#: the ``drive`` section of a scene that gives none, with every field at its default
+DRIVE_DEFAULT: dict[str, Any] = {
+    'profile': 'constant',
+    **{f.name: f.default for f in dataclasses.fields(DriveSpec) if f.default is not dataclasses.MISSING},
+}
 
 
 @dataclass(frozen=True)
@@ -158,6 +182,8 @@ def scene_mapping(
 def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -> dict[str, Any]:
     data = copy.deepcopy(read_yaml_mapping(path, names.scene))
     data.setdefault('name', path.stem)
+    press = _press_section(data)
+    given = _given_keys(data)
     machines_in = data.get('machines')
     if not isinstance(machines_in, Mapping) or not machines_in:
         raise ParameterError('machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINES)}')
@@ -180,9 +206,82 @@ def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -
     data['sheets'] = sheets
     data['effects'] = _effects_mapping(data.get('effects'))
     data.setdefault('drive', {'profile': 'constant'})
+    for key, value in press.items():
+        _apply(data, f'press.{key}', value)
     for key, value in (overrides or {}).items():
         _apply(data, key, value)
+    _check_read(data, [*given, *(overrides or {})])
     return data
+
+
+def _press_section(data: dict[str, Any]) -> dict[str, Any]:
+    """The scene file's ``press`` section, taken out of ``data`` (it is applied as ``press.<key>`` overrides).
+
+    The file must not give the speeds it sets a second time (``knife.n_k``, ``cyclogram.n_c``).
+    """
+    press = data.pop('press', None)
+    if press is None:
+        return {}
+    if not isinstance(press, Mapping):
+        raise ParameterError('press', press, f'must be a mapping of {", ".join(PRESS_KEYS)}')
+    for key, value in press.items():
+        if key not in PRESS_KEYS:
+            raise ParameterError(f'press.{key}', value, f'unknown press key; known: {", ".join(PRESS_KEYS)}')
+    machines = data.get('machines')
+    for section, field in (('knife', 'n_k'), ('cyclogram', 'n_c')):
+        values = machines.get(section) if isinstance(machines, Mapping) else None
+        if isinstance(values, Mapping) and field in values:
+            raise ParameterError(
+                f'{section}.{field}',
+                values[field],
+                f'the scene gives press.n_c={press.get("n_c")!r} as well: give the press speed once',
+            )
+    return dict(press)
+
+
+def _given_keys(data: Mapping[str, Any]) -> list[str]:
+    """The dotted keys a scene file gives values for itself (machine sections, sheets, drive)."""
+    keys: list[str] = []
+    machines = data.get('machines')
+    if isinstance(machines, Mapping):
+        for section, values in machines.items():
+            if isinstance(values, Mapping):
+                keys += [f'{section}.{field}' for field in values]
+    for section in ('sheets', 'drive'):
+        values = data.get(section)
+        if isinstance(values, Mapping):
+            keys += [f'{section}.{field}' for field in values]
+    return keys
+
+
+def default_value(key: str) -> Any:
+    """The default of a dotted machine, ``sheets`` or ``drive`` key (``config/<section>.yaml``,
+    :data:`DRIVE_DEFAULT`), or None if it has none (an effect's parameters have no defaults)."""
+    section, _, field = key.partition('.')
+    if section == 'drive':
+        return DRIVE_DEFAULT.get(field)
+    if section == 'sheets' or section in MACHINES:
+        return read_yaml_mapping(config_dir() / f'{section}.yaml', f'{section} defaults').get(field)
+    return None
+
+
+def _section_value(data: Mapping[str, Any], key: str) -> Any:
+    section, _, field = key.partition('.')
+    values = data['machines'].get(section) if section in MACHINES else data.get(section)
+    return values.get(field) if isinstance(values, Mapping) else None
+
+
+def _check_read(data: Mapping[str, Any], keys: Iterable[str]) -> None:
+    """Refuse a value the user gave for one of ``keys`` that the scene never reads (unless it is the default)."""
+    machines = [m for m in data['machines'] if isinstance(m, str)]
+    effects = [e for e in data['effects'] if isinstance(e, str)]
+    for key in keys:
+        why = inert_reason(key, machines, effects)
+        if why is None:
+            continue
+        value = _section_value(data, key)
+        if value != default_value(key):
+            raise ParameterError(key, value, f'does nothing in scene {data["name"]!r}: {why}')
 
 
 def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -193,7 +292,44 @@ def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> di
     out = copy.deepcopy(dict(data))
     for key, value in overrides.items():
         _apply(out, key, value)
+    _check_read(out, overrides)
     return out
+
+
+def set_press(machines: Mapping[str, Any], key: str, value: Any, where: str) -> None:
+    """Apply ``press.<field>``: ``press.n_c`` puts the folding cylinder at ``value`` rev/h and the knife at
+    :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times it.
+
+    Parameters
+    ----------
+    machines : mapping
+        Machine section -> its (mutable) mapping of values; ``cyclogram`` and ``knife`` are changed.
+    key : str
+        ``press.n_c`` (another field is refused).
+    value : object
+        The cylinder speed, rev/h, in :data:`~folder_line.core.limits.CYLINDER_SPEED`.
+    where : str
+        What holds the machines, for the error if there is no folder (``scene 'layup'``).
+
+    Raises
+    ------
+    ParameterError
+        Naming ``key`` and the value: an unknown field, a speed out of range, no knife and cylinder.
+    """
+    field = key.partition('.')[2]
+    if field not in PRESS_KEYS:
+        raise ParameterError(key, value, f'unknown press key; known: {", ".join(f"press.{k}" for k in PRESS_KEYS)}')
+    n_c = CYLINDER_SPEED.check(key, value)
+    cylinder, knife = machines.get('cyclogram'), machines.get('knife')
+    if not isinstance(cylinder, dict) or not isinstance(knife, dict):
+        raise ParameterError(
+            key,
+            value,
+            f'{where} has no folder (knife and cyclogram), whose speeds press.n_c sets; '
+            f'it has {", ".join(map(str, machines))}',
+        )
+    cylinder['n_c'] = n_c
+    knife['n_k'] = KNIFE_PER_CYLINDER * n_c
 
 
 def _apply(data: dict[str, Any], key: str, value: Any) -> None:
@@ -203,8 +339,13 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     head, sep, field = key.partition('.')
     if not sep or not field or '.' in field:
         raise ParameterError(
-            key, value, 'must be SECTION.KEY (a machine, a listed effect, sheets or drive), seed or sample_rate'
+            key,
+            value,
+            'must be SECTION.KEY (a machine, a listed effect, sheets, drive or press), seed or sample_rate',
         )
+    if head == 'press':
+        set_press(data['machines'], key, value, f'scene {data["name"]!r}')
+        return
     if head in MACHINES:
         section = data['machines'].get(head)
         if section is None:
@@ -227,7 +368,7 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
             key,
             value,
             f'unknown section; a section is a machine ({", ".join(MACHINES)}), '
-            'sheets, drive, or an effect the scene lists',
+            'sheets, drive, press, or an effect the scene lists',
         )
     if not isinstance(section, dict):  # a section the file gave as something else: parse_scene names it
         return

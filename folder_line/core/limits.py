@@ -123,14 +123,20 @@ LOST_TIMEOUT = Limit(
     'longer than a tick can take on a loaded machine, shorter than an hour',
 )
 KNIFE_SPEED = Limit(
-    'knife crank speed (`knife.n_k`)',
-    1.0,
+    'knife crank speed (`knife.n_k`; in a scene twice the folding cylinder speed)',
+    2.0,
     200000.0,
     'rev/h',
-    "the papers' folders run 25000-60000 rev/h; 1 rev/h (one cut an hour) is slow motion, "
+    "the papers' folders run 25000-60000 rev/h; 2 rev/h (a cut every half hour) is slow motion, "
     '200000 rev/h a cycle of 18 ms',
 )
-CYLINDER_SPEED = Limit('folding cylinder speed (`cyclogram.n_c`)', 1.0, 200000.0, 'rev/h', 'as the knife')
+CYLINDER_SPEED = Limit(
+    'folding cylinder speed, the press speed (`cyclogram.n_c`, `press.n_c`)',
+    1.0,
+    100000.0,
+    'rev/h',
+    'the knife turns twice per cylinder turn (paper 001), so half the knife range',
+)
 CRANK_SPEED = Limit(
     'layup crank speed (`layup.n_kr`)',
     0.01,

@@ -94,17 +94,28 @@ _SCENE_KEYS = [
     ('folder', 'knife.n_k', L.KNIFE_SPEED),
     ('folder', 'cyclogram.n_c', L.CYLINDER_SPEED),
     ('folder', 'feed_transporter.V_tr', L.LINEAR_SPEED),
-    ('folder', 'sheets.interval', L.SHEET_INTERVAL),
+    ('layup', 'sheets.interval', L.SHEET_INTERVAL),  # the folder takes one signature per cycle: inert there
     ('layup', 'layup.n_kr', L.CRANK_SPEED),
     ('layup', 'layup.v_tr', L.LINEAR_SPEED),
     ('folder', 'sample_rate', L.SAMPLE_RATE),
 ]
 
 
+#: the knife turns twice per cylinder turn: a speed loads with its partner at the matching value
+_PARTNER = {
+    'knife.n_k': lambda v: {'cyclogram.n_c': v / 2.0},
+    'cyclogram.n_c': lambda v: {'knife.n_k': 2.0 * v},
+}
+
+
+def _NONE(value: float) -> dict[str, float]:
+    return {}
+
+
 @pytest.mark.parametrize(('scene', 'key', 'limit'), _SCENE_KEYS, ids=[k for _, k, _ in _SCENE_KEYS])
 def test_scene_keys_take_the_range_of_their_limit(scene: str, key: str, limit: L.Limit) -> None:
     for value in (limit.lo, limit.hi):
-        load_scene(scene, {key: value})  # both ends load
+        load_scene(scene, {key: value, **_PARTNER.get(key, _NONE)(value)})  # both ends load
     for value in _beyond(limit):
         if key == 'layup.v_tr' and value == -1.0:
             continue  # negative: refused as 'must be >= 0' (0 is a belt-less chute)
@@ -125,7 +136,7 @@ def test_the_cli_refuses_an_absurd_speed_in_one_line(capsys: pytest.CaptureFixtu
     for value in ('1e-300', '1e308', '5e-324'):
         assert cli.main(['simulate', '--duration', '1', '--set', f'knife.n_k={value}']) == 2
         err = capsys.readouterr().err.strip()
-        assert err == f'folder-line: error: knife.n_k={float(value)!r}: must be in [1, 200000] rev/h', err
+        assert err == f'folder-line: error: knife.n_k={float(value)!r}: must be in [2, 200000] rev/h', err
 
 
 def test_the_batch_model_and_simulate_use_the_same_ranges() -> None:

@@ -103,7 +103,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.effects import chain_friction
-from folder_line.core.limits import HORIZON
+from folder_line.core.limits import HORIZON, MOTOR_SPEED
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import dense
 from folder_line.core.numerics import integrators as ig
@@ -156,7 +156,7 @@ class Params:
     omega_0 : float
         No-load speed, rad/s (> omega_nom).
     omega_nom : float
-        Nominal master-shaft speed (λ = ω/omega_nom), rad/s (> 0).
+        Nominal master-shaft speed (λ = ω/omega_nom), rad/s, in :data:`~folder_line.core.limits.MOTOR_SPEED`.
     b : float
         Viscous load of the line, N m s (>= 0).
     method : {'rk4', 'dopri5'}
@@ -189,7 +189,8 @@ class Params:
         check_fields(
             self,
             'effects.motor_dynamics',
-            **dict.fromkeys(('J', 'T_0', 'omega_0', 'omega_nom', 'h', 'atol'), positive),
+            **dict.fromkeys(('J', 'T_0', 'omega_0', 'h', 'atol'), positive),
+            omega_nom=MOTOR_SPEED.check,
             **dict.fromkeys(('b', 't_stop', 'T_brake'), non_negative),
             rtol=within(100 * EPS, 1.0, hi_open=True),
             method=among(METHODS),

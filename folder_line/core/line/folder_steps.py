@@ -16,11 +16,20 @@ from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import numpy as np
 
-from folder_line.core.effects import arrival_jitter, faults, feed_slip, length_scatter, property_scatter, stop_bounce
+from folder_line.core.effects import (
+    arrival_jitter,
+    chain_friction,
+    faults,
+    feed_slip,
+    length_scatter,
+    property_scatter,
+    stop_bounce,
+)
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import event_kind, make_events
 from folder_line.core.mechanisms.belt import BeltPhase
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
+from folder_line.core.mechanisms.delivery import stroke_minimum
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
 from folder_line.errors import ParameterError
@@ -51,6 +60,10 @@ __all__ = [
 
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
 _LAMBDA_FLOOR = 1e-9
+#: sprocket torque (peak, mean) by what it depends on (the delivery, its chain and friction, the knife and
+#: cylinder); ~20 ms each, so that a study's many points of one delivery compute it once
+_TORQUE: dict[tuple[Any, ...], tuple[float, float]] = {}
+_TORQUE_MAX = 64
 
 
 # --------------------------------------------------------------------------- helpers
@@ -455,6 +468,12 @@ def summary(
         'V_tr': _json_float(V_tr),
         'v_tr_over_v_d': _json_float(V_tr / V_d),
         'V_tr_min': _json_float(timing.V_tr_min),
+        'V_tr_min_over_V_d': _json_float(timing.ratio_min),
+        # the knife's table-occupation window: its duration and its crank angles
+        'knife_window_s': _json_float(timing.t_knife),
+        'knife_window_deg': _json_float(math.degrees(timing.knife.phi_out - timing.knife.phi_in)),
+        'knife_in_deg': _json_float(math.degrees(timing.knife.phi_in)),
+        'knife_out_deg': _json_float(math.degrees(timing.knife.phi_out)),
         'timing': {
             'T': _json_float(T),
             't_in': _json_float(timing.knife.t_in),
@@ -488,6 +507,8 @@ def summary(
             'v_A': _json_float(plan.v_A),
             'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
         }
+    if plan is not None and s.scene.has('chain_friction'):
+        summary['delivery'] = _delivery_info(s, plan)
     if s.faults is not None:
         summary['faults'] = {
             'missing': int(np.count_nonzero(st.missing)),
@@ -496,6 +517,35 @@ def summary(
             'slowdowns': int(np.asarray(st.slowdowns.t_start).size) if st.slowdowns is not None else 0,
         }
     return summary
+
+
+def _delivery_info(s: Setup, plan: DeliveryPlan) -> dict[str, Any]:
+    """The summary's ``delivery`` figures with ``chain_friction``: the stroke's efficiency minimum and
+    where it is, and the sprocket torque over a cycle.
+
+    ``eta_min_u`` is the stroke position u in [0, 2] (0..1 the deceleration section, 1..2 the
+    acceleration section; :mod:`folder_line.core.mechanisms.delivery`), ``eta_min_travel_m`` the chain
+    travel from the start of the stroke to it, m. The torques are the sprocket's M_1 summed over the
+    carriages on the stroke, peak and mean over a cycle, N m
+    (:class:`folder_line.core.effects.chain_friction.MasterLoad` with a unit gear ratio).
+    """
+    cf = s.scene.effect_params('chain_friction')
+    u, eta = stroke_minimum(plan.params, 'eta', return_section=cf.return_section)
+    key = (cf, plan.params, plan.chain, s.scene.machine('knife'), s.scene.machine('cyclogram'))
+    torque = _TORQUE.get(key)
+    if torque is None:
+        load = chain_friction.MasterLoad(s.scene, 1.0)  # omega_nom 1 rad/s: torque x ratio, divided back
+        torque = (load.peak / load.ratio, load.mean / load.ratio)
+        _TORQUE[key] = torque
+        while len(_TORQUE) > _TORQUE_MAX:
+            del _TORQUE[next(iter(_TORQUE))]
+    return {
+        'eta_min': _json_float(eta),
+        'eta_min_u': _json_float(u),
+        'eta_min_travel_m': _json_float(float(plan.path.arc(u))),
+        'sprocket_torque_peak_Nm': _json_float(torque[0]),
+        'sprocket_torque_mean_Nm': _json_float(torque[1]),
+    }
 
 
 def _slip_info(s: Setup, slip: feed_slip.Params, cost: float) -> dict[str, Any]:

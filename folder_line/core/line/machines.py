@@ -22,11 +22,11 @@ class ContainerParams:
     Attributes
     ----------
     x_left, x_right : float
-        Inner walls, m (x_left < x_right).
+        Inner walls, m, in [-1000, 1000] (x_left < x_right).
     y_floor : float
-        Floor height, m (below both chute exits).
+        Floor height, m, in [-1000, 1000] (below both chute exits).
     bins : int
-        Bins of the landing histogram across the width (>= 2).
+        Bins of the landing histogram across the width, a whole number in [2, 10000].
     """
 
     x_left: float
@@ -74,9 +74,9 @@ class ChainParams:
     Attributes
     ----------
     x_max : float
-        Length of one section (deceleration or acceleration) of the stroke, m.
+        Length of one section (deceleration or acceleration) of the stroke, m (> 0).
     pitch : float
-        Chain length between two carriages, m.
+        Chain length between two carriages, m (> 0).
     L_transfer : float
         Chain travel from taking the signature at the folding rollers to the start of
         the stroke, m (>= 0).

@@ -19,7 +19,7 @@ from folder_line.core import effects as fx
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.limits import SAMPLE_RATE
 from folder_line.core.line.machines import ChainParams, ContainerParams, FeedTransporterParams, StreamParams
-from folder_line.core.mechanisms.cyclogram import CyclogramParams
+from folder_line.core.mechanisms.cyclogram import KNIFE_PER_CYLINDER, CyclogramParams
 from folder_line.core.mechanisms.delivery import DeliveryParams
 from folder_line.core.mechanisms.drive import DriveSpec
 from folder_line.core.mechanisms.knife import KnifeParams
@@ -27,7 +27,7 @@ from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.validate import build, check_keys
 from folder_line.errors import ParameterError
 
-__all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'machine_class', 'parse_scene']
+__all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'check_press_speed', 'machine_class', 'parse_scene']
 
 #: the parameters of one machine section
 MachineParams: TypeAlias = (
@@ -56,6 +56,9 @@ _NEEDS: dict[str, tuple[str, ...]] = {
     'delivery_chain': ('delivery',),
     'container': ('layup',),
 }
+
+#: relative difference of ``knife.n_k`` and ``2 cyclogram.n_c`` that is still rounding
+_PRESS_RTOL = 1e-9
 
 SCENE_KEYS = ('name', 'description', 'machines', 'drive', 'sheets', 'effects', 'seed', 'sample_rate')
 
@@ -212,6 +215,31 @@ class Scene:
         return 'delivery' in self.machines
 
 
+def check_press_speed(n_k: float, n_c: float) -> None:
+    """Refuse a knife speed that is not :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times the
+    folding cylinder's (to rounding: a relative 1e-9).
+
+    Parameters
+    ----------
+    n_k : float
+        Knife crank speed, rev/h (``knife.n_k``).
+    n_c : float
+        Folding cylinder speed, rev/h (``cyclogram.n_c``).
+
+    Raises
+    ------
+    ParameterError
+        Naming both keys and values, and ``press.n_c``, which sets both.
+    """
+    if abs(n_k - KNIFE_PER_CYLINDER * n_c) > _PRESS_RTOL * max(abs(n_k), KNIFE_PER_CYLINDER * abs(n_c)):
+        raise ParameterError(
+            'knife.n_k',
+            n_k,
+            f'must be {KNIFE_PER_CYLINDER:g} x cyclogram.n_c={n_c!r} rev/h (the knife turns twice per cylinder '
+            f'turn, paper 001); set both with press.n_c=<cylinder rev/h>',
+        )
+
+
 def parse_scene(data: Mapping[str, Any]) -> Scene:
     """Validate a complete scene mapping.
 
@@ -248,6 +276,9 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
         for need in _NEEDS.get(sec, ()):
             if need not in machines:
                 raise ParameterError('machines', sec, f'needs machine {need!r} in the scene as well')
+    knife, cylinder = machines.get('knife'), machines.get('cyclogram')
+    if isinstance(knife, KnifeParams) and isinstance(cylinder, CyclogramParams):
+        check_press_speed(knife.n_k, cylinder.n_c)
 
     effects_in = data.get('effects') or {}
     if not isinstance(effects_in, Mapping):

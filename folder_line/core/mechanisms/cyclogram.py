@@ -72,6 +72,7 @@ from folder_line.core.numerics.validate import check_fields, in_range, positive,
 from folder_line.errors import ParameterError
 
 __all__ = [
+    'KNIFE_PER_CYLINDER',
     'CyclogramParams',
     'Phase',
     'CycleTiming',
@@ -85,6 +86,11 @@ __all__ = [
 ]
 
 TWO_PI = 2.0 * math.pi
+
+#: knife crank turns per folding-cylinder turn: one signature per half cylinder turn (paper 001), so
+#: ``knife.n_k = 2 cyclogram.n_c``; a scene with another pair is refused
+#: (:func:`folder_line.core.line.scene.parse_scene`), ``press.n_c`` sets both
+KNIFE_PER_CYLINDER = 2.0
 
 
 @dataclass(frozen=True)

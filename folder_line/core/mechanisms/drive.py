@@ -110,7 +110,7 @@ class DriveSpec:
         over ``t_ramp`` s, then stays at 1. Ignored when the scene lists
         ``motor_dynamics`` (the motor's ODE sets λ).
     t_ramp : float
-        Ramp time, s (> 0 for ``ramp``; ignored for ``constant`` except as a lower
+        Ramp time, s (>= 0; > 0 for ``ramp``; ignored for ``constant`` except as a lower
         bound of the restart ramp, :attr:`t_restart`).
     t_brake : float
         Time to ramp the drive down from full speed to standstill on a supervisor

@@ -445,7 +445,7 @@ class TestLongRuns:
         """The folder (a 7 rev/h knife: T = 514 s, 19444 cycles in 1e7 s -- the 50000 rev/h knife
         would need 1.39e8 cycles of event arrays, see the report) at 1e7 s: knife, hand-over and
         at-stops times equal the exact rational kinematics (pi to 50 digits) to a few ns."""
-        scene = load_scene('folder', {'knife.n_k': 7.0})
+        scene = load_scene('folder', {'press.n_c': 3.5})  # the knife at 7 rev/h
         model = LineModel(scene, 1e7 + 600.0)
         ev = model.events
         kp = scene.machine('knife')
@@ -614,6 +614,7 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
         cy = {k: v * draw(FACTOR) for k, v in DEFAULTS['cyclogram'].items() if k not in ('reserve', 'dwell_frac')}
         cy['reserve'] = draw(st.floats(0.0, 0.99))
         cy['dwell_frac'] = draw(st.floats(0.0, 0.99))
+        cy['n_c'] = machines['knife']['n_k'] / 2.0  # the knife turns twice per cylinder turn
         machines['cyclogram'] = cy
         machines['feed_transporter'] = {'V_tr': draw(st.floats(0.5, 40.0))}
         if draw(st.booleans()):

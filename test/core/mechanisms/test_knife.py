@@ -87,9 +87,9 @@ def test_omega_and_period(ref: KnifeParams) -> None:
         ({'L_k': 0.04}, 'knife.L_k', 'cannot be assembled'),  # L = r
         ({'e': 0.12}, 'knife.L_k', 'cannot be assembled'),  # L = r + |e| exactly
         ({'e': -0.13}, 'knife.L_k', 'cannot be assembled'),
-        ({'n_k': 0.0}, 'knife.n_k', 'must be in [1, 200000]'),
-        ({'n_k': 1e-300}, 'knife.n_k', 'must be in [1, 200000]'),
-        ({'n_k': 1e308}, 'knife.n_k', 'must be in [1, 200000]'),
+        ({'n_k': 0.0}, 'knife.n_k', 'must be in [2, 200000]'),
+        ({'n_k': 1e-300}, 'knife.n_k', 'must be in [2, 200000]'),
+        ({'n_k': 1e308}, 'knife.n_k', 'must be in [2, 200000]'),
         ({'n_k': math.inf}, 'knife.n_k', 'finite'),
         ({'e': math.nan}, 'knife.e', 'finite'),
         ({'s_clear': 0.2}, 'knife.s_clear', 'never'),  # = s_max
