@@ -15,7 +15,6 @@ from folder_line.studies.montecarlo import MAX_SAMPLES
 from folder_line.studies.runner import Cluster
 
 __all__ = [
-    'MAX_LOCAL',
     'add_cluster_arguments',
     'add_samples_argument',
     'add_scene_arguments',
@@ -25,8 +24,6 @@ __all__ = [
     'source_from',
 ]
 
-#: most local workers or threads per worker on the command line
-MAX_LOCAL = 512
 #: the scene loader's inputs in the command line's words
 NAMES = InputNames(scene='--scene', overrides='--set')
 
@@ -42,15 +39,16 @@ def _duration(text: str) -> float:
         ) from None
 
 
-def _whole(option: str, lo: int, hi: int) -> Any:
-    """An argparse type: a whole number in [lo, hi] (one line naming ``option`` otherwise)."""
+def _whole(option: str, lo: int | None = None, hi: int | None = None) -> Any:
+    """An argparse type: a whole number, in [lo, hi] if given (one line naming ``option`` otherwise; without a
+    range the value's user, e.g. :class:`Cluster`, judges it)."""
 
     def parse(text: str) -> int:
         try:
             n = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
-        if not lo <= n <= hi:
+        if lo is not None and hi is not None and not lo <= n <= hi:
             raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in [{lo}, {hi}]')
         return n
 
@@ -83,14 +81,14 @@ def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--threads``, ``--scheduler``: where the simulations run (:class:`Cluster`)."""
     parser.add_argument(
         '--workers',
-        type=_whole('--workers', 1, MAX_LOCAL),
+        type=_whole('--workers'),
         default=None,
         metavar='K',
         help='local Dask worker processes (default: one per core of this machine)',
     )
     parser.add_argument(
         '--threads',
-        type=_whole('--threads', 1, MAX_LOCAL),
+        type=_whole('--threads'),
         default=1,
         metavar='T',
         help='threads per local worker (default 1)',

@@ -33,7 +33,6 @@ __all__ = [
     'default_metrics',
     'evaluate_point',
     'evaluate_point_sample',
-    'metric_unit',
     'point_source',
     'resolve_metrics',
     'simulate_summary',
@@ -160,21 +159,3 @@ def resolve_metrics(names: Sequence[str], flat: Mapping[str, float], option: str
         if paths.count(path) > 1:
             raise ParameterError(option, path, 'is asked for twice')
     return paths
-
-
-def metric_unit(summary: Mapping[str, Any], path: str) -> str:
-    """Unit of a metric: a constraint margin's own (``min_margin.<c>.unit``), ``s`` for ``min_margin_s.*``
-    and fields named ``*_s``, ``m/s`` for speeds named ``V_*``/``v_*``; '' (a count or a ratio) otherwise."""
-    parts = path.split('.')
-    if len(parts) == 3 and parts[0] == 'min_margin' and parts[2] == 'margin':
-        entry = summary.get('min_margin', {}).get(parts[1], {})
-        unit = entry.get('unit', '') if isinstance(entry, Mapping) else ''
-        return '' if unit == '1' else str(unit)
-    leaf = parts[-1]
-    if parts[0] == 'min_margin_s' or leaf.endswith('_s'):
-        return 's'
-    if parts[0] == 'timing' or (len(parts) > 1 and parts[-2] == 'timing'):
-        return 's'
-    if leaf.startswith(('V_', 'v_')) and 'over' not in leaf:
-        return 'm/s'
-    return ''

@@ -33,10 +33,11 @@ import numpy as np
 from scipy.optimize import brentq
 
 from folder_line.config.scenes import apply_overrides
+from folder_line.core.line.metric_units import metric_unit
 from folder_line.core.line.metrics import flatten_metrics, resolve_metric
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.studies.keys import check_key, key_unit, scene_value
-from folder_line.studies.points import OK, PointTask, evaluate_point, metric_unit, simulate_summary
+from folder_line.studies.points import OK, PointTask, evaluate_point, simulate_summary
 from folder_line.studies.runner import Cluster, run_tasks
 
 __all__ = ['DEFAULT_SCAN', 'Condition', 'SolveResult', 'parse_between', 'parse_condition', 'solve_boundary']
@@ -289,9 +290,9 @@ def solve_boundary(
     value = float(brentq(signed, bracket[0], bracket[1], xtol=tolerance, maxiter=MAX_ITER))
     return SolveResult(
         key=key,
-        unit=key_unit(key),
+        unit=key_unit(source, key),
         condition=cond,
-        metric_unit=metric_unit(summary, path),
+        metric_unit=metric_unit(path, summary),
         value=value,
         tolerance=tolerance,
         holds=holds,

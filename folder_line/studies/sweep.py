@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any
 
+from folder_line.core.line.metric_units import metric_unit
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.studies.grid import Vary, grid_points
 from folder_line.studies.keys import check_key, key_unit, scene_value
@@ -27,7 +28,6 @@ from folder_line.studies.points import (
     PointTask,
     evaluate_point,
     evaluate_point_sample,
-    metric_unit,
     resolve_metrics,
     simulate_summary,
 )
@@ -165,7 +165,7 @@ def plan_sweep(
     flat = flatten_metrics(summary)
     metrics = resolve_metrics(metric_names, flat)
     keys = tuple(v.key for v in varies)
-    units = {**{k: key_unit(k) for k in keys}, **{m: metric_unit(summary, m) for m in metrics}}
+    units = {**{k: key_unit(source, k) for k in keys}, **{m: metric_unit(m, summary) for m in metrics}}
     return SweepPlan(
         scene=str(source.get('name', '')),
         source=source,

@@ -37,7 +37,7 @@ def test_minimum_feed_speed_equals_the_report_and_the_closed_form(
 def test_minimum_feed_speed_at_60000_rev_h(tmp_path: Path) -> None:
     """The issue's 11.115 m/s: the cycle is 50000/60000 as long, so the allowed feed time is too."""
     out = tmp_path / 'v.json'
-    args = ['--set', 'knife.n_k=60000', '--set', 'cyclogram.n_c=30000', '--duration', '0.5', '--tol', str(TOL)]
+    args = ['--set', 'press.n_c=30000', '--duration', '0.5', '--tol', str(TOL)]  # the knife at 60000 rev/h
     assert main([*FIND, *args, '--workers', '2', '--json', str(out)]) == 0
     value = json.loads(out.read_text())['value']
     assert abs(value - v_tr_min(60000.0)) <= TOL

@@ -23,7 +23,7 @@ GRID = [
     '--vary',
     'feed_transporter.V_tr=-2:13:4',
     '--vary',
-    'knife.n_k=45000:55000:2',
+    'press.n_c=22500:27500:2',
     '--metric',
     'feed_window',
     '--metric',
@@ -49,16 +49,16 @@ def test_the_table_has_a_column_per_key_and_metric_and_a_row_per_point(one_worke
     rows = _rows(one_worker / 'sweep.csv')
     assert list(rows[0]) == [
         'feed_transporter.V_tr',
-        'knife.n_k',
+        'press.n_c',
         'min_margin_s.feed_window',
         'violations.count',
         'status',
     ]
-    assert [(float(r['feed_transporter.V_tr']), float(r['knife.n_k'])) for r in rows] == [
-        (v, n) for v in (-2.0, 3.0, 8.0, 13.0) for n in (45000.0, 55000.0)
+    assert [(float(r['feed_transporter.V_tr']), float(r['press.n_c'])) for r in rows] == [
+        (v, n) for v in (-2.0, 3.0, 8.0, 13.0) for n in (22500.0, 27500.0)
     ]
     for r in rows[2:]:  # each margin is the closed form at its point
-        v, n = float(r['feed_transporter.V_tr']), float(r['knife.n_k'])
+        v, n = float(r['feed_transporter.V_tr']), 2.0 * float(r['press.n_c'])  # the knife at twice the cylinder
         assert r['status'] == 'ok'
         assert float(r['min_margin_s.feed_window']) == pytest.approx(feed_margin(n, v), abs=1e-12)
     for r in rows[:2]:  # V_tr = -2 m/s: refused by the model, the sweep goes on
@@ -71,9 +71,9 @@ def test_the_json_names_the_command_keys_units_and_the_marked_points(one_worker:
     assert doc['command'].startswith('folder-line sweep --scene folder --vary feed_transporter.V_tr=-2:13:4')
     assert doc['points'] == 8 and doc['refused'] == 2
     key = {k['key']: k for k in doc['keys']}
-    assert key['feed_transporter.V_tr']['unit'] == 'm/s' and key['knife.n_k']['unit'] == 'rev/h'
-    assert key['feed_transporter.V_tr']['scene_value'] == 9.3 and key['knife.n_k']['scene_value'] == 50000.0
-    assert key['knife.n_k']['paper_value'] == 50000.0
+    assert key['feed_transporter.V_tr']['unit'] == 'm/s' and key['press.n_c']['unit'] == 'rev/h'
+    assert key['feed_transporter.V_tr']['scene_value'] == 9.3 and key['press.n_c']['scene_value'] == 25000.0
+    assert key['press.n_c']['paper_value'] == 25000.0
     assert key['feed_transporter.V_tr']['paper_value'] == pytest.approx(1.6 * 3.14159265358979 * 0.26738 * 25000 / 3600)
     assert [m['unit'] for m in doc['metrics']] == ['s', '']
     assert doc['files'] == ['sweep.csv', 'sweep.json', 'sweep.png']
@@ -114,10 +114,10 @@ def test_one_key_draws_curves(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     [
         (['--vary', 'feed_transporter.V_tr=1:2'], "--vary='feed_transporter.V_tr=1:2': must be KEY=START:STOP:N"),
         (['--vary', 'layup.R_kr=0.05:0.1:3'], "--vary='layup.R_kr': scene 'folder' has no machine 'layup'"),
-        (['--vary', 'knife.n_k=1:2:2', '--vary', 'knife.n_k=3:4:2'], "--vary='knife.n_k': is varied twice"),
-        (['--vary', 'knife.n_k=1:2:2', '--metric', 'nothing'], "--metric='nothing': is not a metric of this scene"),
-        (['--vary', 'knife.n_k=1:2:2', '--set', 'knife.r_k=-1'], 'knife.r_k=-1'),
-        (['--vary', 'knife.n_k=1:2:2', '--threads', '0'], '--threads=0: must be a whole number in [1, 512]'),
+        (['--vary', 'press.n_c=1:2:2', '--vary', 'press.n_c=3:4:2'], "--vary='press.n_c': is varied twice"),
+        (['--vary', 'press.n_c=1:2:2', '--metric', 'nothing'], "--metric='nothing': is not a metric of this scene"),
+        (['--vary', 'press.n_c=1:2:2', '--set', 'knife.r_k=-1'], 'knife.r_k=-1'),
+        (['--vary', 'press.n_c=1:2:2', '--threads', '0'], '--threads=0: must be a whole number in [1, 512]'),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -133,7 +133,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
 def test_an_output_folder_that_is_a_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     target = tmp_path / 'file'
     target.write_text('keep')
-    assert main(['sweep', '--vary', 'knife.n_k=1:2:2', '--out', str(target)]) == 2
+    assert main(['sweep', '--vary', 'press.n_c=1:2:2', '--out', str(target)]) == 2
     assert '--out=' in capsys.readouterr().err and target.read_text() == 'keep'
 
 

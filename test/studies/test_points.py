@@ -66,22 +66,25 @@ def test_keys_are_checked_against_the_scene(folder: dict) -> None:
     check_key(folder, 'feed_transporter.V_tr', '--vary')
     check_key(folder, 'stop_bounce.e', '--vary')  # a listed effect's parameter
     check_key(folder, 'seed', '--vary')
+    check_key(folder, 'press.n_c', '--vary')  # the cylinder and the knife together
     with pytest.raises(ParameterError, match=r"^--vary='feed_transporter.Vtr': feed_transporter has no parameter"):
         check_key(folder, 'feed_transporter.Vtr', '--vary')
     with pytest.raises(ParameterError, match=r"^--find='layup.R_kr': scene 'folder' has no machine 'layup'"):
         check_key(folder, 'layup.R_kr', '--find')
     with pytest.raises(ParameterError, match=r"^--vary='feed_slip.mu': scene 'folder' does not list effect"):
         check_key(folder, 'feed_slip.mu', '--vary')
+    with pytest.raises(ParameterError, match=r"^--vary='sheets.jitter': .*arrival_jitter"):  # folder never reads it
+        check_key(folder, 'sheets.jitter', '--vary')
 
 
 def test_keys_units_and_scene_values(folder: dict) -> None:
-    assert [key_unit(k) for k in ('feed_transporter.V_tr', 'knife.n_k', 'cyclogram.n_c', 'layup.R_kr')] == [
+    assert [key_unit(folder, k) for k in ('feed_transporter.V_tr', 'knife.n_k', 'press.n_c', 'stop_bounce.e')] == [
         'm/s',
         'rev/h',
         'rev/h',
-        'm',
+        '',  # a ratio
     ]
-    assert key_unit('delivery.f_A') == ''  # a friction coefficient
+    assert key_unit(folder, 'layup.R_kr') == ''  # no layup in this scene
     assert scene_value(folder, 'feed_transporter.V_tr') == 9.3
     assert scene_value(folder, 'knife.n_k') == 50000.0
     assert scene_value(folder, 'seed') == 1
