@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_layup.py
 	$(BIN)/python bench/bench_line.py
 	$(BIN)/python bench/bench_nodes.py
+	$(BIN)/python bench/bench_studies.py
 
 # what accuracy costs in CPU time (about 3 min); docs/accuracy.md quotes this run
 accuracy: $(STAMP)

@@ -5,7 +5,9 @@ Measured side by side in one run:
 1. **Fan-out overhead.** The same tasks (one hour of ``folder_jitter`` each) run as a
    plain in-process loop (the floor: no Dask at all), then through
    :func:`folder_line.studies.runner.run_tasks` on a ``LocalCluster`` of 1 and of 2 worker
-   processes. The cluster's start-up (paid once per verb) is timed apart from the tasks;
+   processes, and once more with Dask's default worker environment (its
+   ``MALLOC_TRIM_THRESHOLD_``, which :data:`folder_line.studies.runner.LOCAL_DASK_CONFIG`
+   leaves out). The cluster's start-up (paid once per verb) is timed apart from the tasks;
    the tasks' ratio to the floor says what Dask costs on one worker and what a second
    core gains.
 2. **Monte Carlo accuracy against time.** ``simulate --samples N`` for growing N: the 95 %
@@ -50,15 +52,16 @@ def main() -> None:
     print('| how | cluster start, s | tasks, s | tasks: ratio to the loop |')
     print('|---|---:|---:|---:|')
     print(f'| plain loop in this process (floor) | - | {t_floor:.2f} | 1.00 |')
-    for workers in (1, 2):
+    runs = [(1, LOCAL_DASK_CONFIG, ''), (2, LOCAL_DASK_CONFIG, ''), (1, {}, ", Dask's default worker environment")]
+    for workers, config, note in runs:
         t0 = time.perf_counter()
         with (
-            dask.config.set(LOCAL_DASK_CONFIG),
+            dask.config.set(config),
             LocalCluster(
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=':0',
                 silence_logs=logging.CRITICAL,
             ) as cluster,
         ):
@@ -68,7 +71,7 @@ def main() -> None:
             wall = time.perf_counter() - t0
         same = aggregate(got) == aggregate(floor)
         print(
-            f'| Dask LocalCluster, {workers} worker process{"es" if workers > 1 else ""} | {t_start:.2f} '
+            f'| Dask LocalCluster, {workers} worker process{"es" if workers > 1 else ""}{note} | {t_start:.2f} '
             f'| {wall:.2f} | {wall / t_floor:.2f}{"" if same else "  RESULTS DIFFER"} |'
         )
 
