@@ -13,8 +13,8 @@ import argparse
 import sys
 from typing import Any
 
+from folder_line.cli.study_options import add_scene_arguments
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping, write_scene
-from folder_line.core.limits import DURATION
 from folder_line.errors import bounded_repr
 from folder_line.files.atomic import claim_output_dir, write_json_atomic
 from folder_line.studies.optimize import (
@@ -65,7 +65,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         'transmission angle in both loops, both chute exits inside the container walls over the whole swing, '
         'and no leaf spilled or damaged (scipy.optimize.differential_evolution, seeded).',
     )
-    opt.add_argument('--scene', default='layup', metavar='NAME|FILE', help='a scene with the layup (default layup)')
+    add_scene_arguments(opt, _DEFAULTS.duration, scene='layup', per='for every candidate')
     opt.add_argument(
         '--vary',
         action='append',
@@ -81,21 +81,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         metavar='DEG',
         help=f'smallest transmission angle allowed in either loop over the turn, deg '
         f'(default {_DEFAULTS.min_transmission_deg:g})',
-    )
-    opt.add_argument(
-        '--duration',
-        type=_number('--duration', DURATION.lo, DURATION.hi),
-        default=_DEFAULTS.duration,
-        metavar='S',
-        help=f'line time simulated per candidate, s (default {_DEFAULTS.duration:g})',
-    )
-    opt.add_argument(
-        '--set',
-        dest='overrides',
-        action='append',
-        default=[],
-        metavar='MACHINE.KEY=VALUE',
-        help='override a scene value before optimising (repeatable)',
     )
     opt.add_argument(
         '--seed',

@@ -55,17 +55,20 @@ def _whole(option: str, lo: int | None = None, hi: int | None = None) -> Any:
     return parse
 
 
-def add_scene_arguments(parser: argparse.ArgumentParser, duration: float) -> None:
-    """``--scene``, ``--duration`` (per evaluated point) and the repeatable ``--set``."""
+def add_scene_arguments(
+    parser: argparse.ArgumentParser, duration: float, scene: str = 'folder', per: str = 'at every point'
+) -> None:
+    """``--scene`` (default ``scene``), ``--duration`` (default ``duration``, simulated ``per`` evaluation)
+    and the repeatable ``--set`` of a study."""
     parser.add_argument(
-        '--scene', default='folder', metavar='NAME|FILE', help='scene name or YAML file (default folder)'
+        '--scene', default=scene, metavar='NAME|FILE', help=f'scene name or YAML file (default {scene})'
     )
     parser.add_argument(
         '--duration',
         type=_duration,
         default=duration,
         metavar='S',
-        help=f'line time simulated at every point, s (default {duration:g})',
+        help=f'line time simulated {per}, s (default {duration:g})',
     )
     parser.add_argument(
         '--set',
@@ -73,7 +76,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser, duration: float) -> Non
         action='append',
         default=[],
         metavar='SECTION.KEY=VALUE',
-        help='override a scene value at every point (repeatable)',
+        help=f'override a scene value {per} (repeatable)',
     )
 
 
