@@ -34,7 +34,6 @@ from types import MappingProxyType
 from typing import IO, Any
 
 import numpy as np
-from scipy.special import betaincinv
 
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.core.line.model import simulate
@@ -61,6 +60,8 @@ CONFIDENCE = 0.95
 QUANTILES = (0.0, 0.001, 0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99, 0.999, 1.0)
 #: bins of the margin histogram
 HIST_BINS = 30
+#: a spread of margins within this many ulps is one value (its histogram is one narrow band)
+_FLAT_ULPS = 1024
 #: most samples of one Monte Carlo
 MAX_SAMPLES = 1_000_000
 _SALT = zlib.crc32(b'folder_line.studies.montecarlo')
@@ -170,6 +171,8 @@ def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[flo
     if n <= 0:
         return 0.0, 1.0
     a = 1.0 - confidence
+    from scipy.special import betaincinv
+
     lo = 0.0 if k == 0 else float(betaincinv(k, n - k + 1, a / 2.0))
     hi = 1.0 if k == n else float(betaincinv(k + 1, n - k, 1.0 - a / 2.0))
     return lo, hi
@@ -184,7 +187,12 @@ def _distribution(margins: np.ndarray) -> dict[str, Any]:
     if margins.size == 0:
         return {'count': 0}
     lo, hi = float(margins.min()), float(margins.max())
-    counts, edges = np.histogram(margins, bins=HIST_BINS, range=(lo, hi) if hi > lo else (lo - 0.5, lo + 0.5))
+    if hi - lo <= _FLAT_ULPS * float(np.spacing(max(abs(lo), abs(hi)))):
+        # one value up to rounding (a constraint no variation reaches): one narrow band around it, as
+        # HIST_BINS bins of a few ulps each cannot be told apart
+        half = 1e-9 * max(abs(lo), 1.0)
+        lo, hi = lo - half, lo + half
+    counts, edges = np.histogram(margins, bins=HIST_BINS, range=(lo, hi))
     return {
         'count': int(margins.size),
         'mean': float(margins.mean()),

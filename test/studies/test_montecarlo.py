@@ -110,3 +110,15 @@ def test_one_or_two_workers_give_identical_aggregates() -> None:
     one = monte_carlo(source, 2.0, 8, Cluster(workers=1))
     two = monte_carlo(source, 2.0, 8, Cluster(workers=2))
     assert json.dumps(one) == json.dumps(two)
+
+
+def test_margins_equal_up_to_rounding_make_one_narrow_band() -> None:
+    """On ``folder`` without variation, settled_before_knife's margins differ only by rounding (1e-17 s):
+    the distribution is one value, not an error."""
+    results = [run_sample(SampleTask(scene_mapping('folder'), 0.5, i)) for i in range(2)]
+    spread = results[0].constraints['settled_before_knife'].margins
+    assert 0.0 < np.ptp(spread) < 1e-12  # the case this guards
+    margin = aggregate(results)['constraints']['settled_before_knife']['margin']
+    counts, edges = margin['histogram']['counts'], margin['histogram']['edges']
+    assert sum(counts) == margin['count'] and np.all(np.diff(edges) > 0)
+    assert edges[0] <= margin['quantiles']['0'] and margin['quantiles']['1'] <= edges[-1]
