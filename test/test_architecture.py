@@ -161,6 +161,8 @@ FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
     ('config/params.py', 'ament_index_python.packages'): 'present only on a ROS 2 install: tried, not required',
     ('studies/runner.py', 'dask.distributed'): 'slow to import (~0.5 s): only the verbs that fan out load it',
     ('studies/runner.py', 'dask'): 'its configuration, with dask.distributed',
+    ('studies/runner.py', 'distributed.comm.addressing'): 'the scheduler address checked as Dask reads it',
+    ('studies/runner.py', 'distributed.comm.registry'): 'the scheduler address checked as Dask reads it',
     ('studies/montecarlo.py', 'scipy.special'): 'scipy is slow to import: `folder-line --help` does not need it',
 }
 

@@ -66,13 +66,28 @@ class Cluster:
                 continue
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= _MAX_WORKERS:
                 raise ParameterError(f'--{name}', value, f'must be a whole number in [1, {_MAX_WORKERS}]')
-        if self.scheduler is not None and not self.scheduler.strip():
-            raise ParameterError('--scheduler', self.scheduler, 'must be a scheduler address, e.g. tcp://host:8786')
+        if self.scheduler is not None:
+            _check_address(self.scheduler)
 
     @property
     def local_workers(self) -> int:
         """Worker processes of the local cluster."""
         return self.workers if self.workers is not None else max(1, os.cpu_count() or 1)
+
+
+def _check_address(address: str) -> None:
+    """Refuse a scheduler address Dask could not connect to by its form alone (ParameterError naming
+    ``--scheduler``): an unknown scheme, or a TCP/TLS address without a port."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, location = parse_address(address.strip())
+        get_backend(scheme)
+        if scheme in ('tcp', 'tls'):
+            parse_host_port(location)
+    except ValueError as exc:
+        raise ParameterError('--scheduler', address, f'not a scheduler address ({exc}); e.g. tcp://host:8786') from None
 
 
 class _Progress:
@@ -148,7 +163,7 @@ def run_tasks(
     if cluster.scheduler is None:
         with dask.config.set(LOCAL_DASK_CONFIG):
             local = LocalCluster(
-                n_workers=cluster.local_workers,
+                n_workers=min(cluster.local_workers, len(tasks)),  # a process per task at most
                 threads_per_worker=cluster.threads,
                 processes=True,
                 dashboard_address=':0',  # None still binds the web server to 8787 (a warning if taken): any port
