@@ -14,7 +14,7 @@ import argparse
 import contextlib
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -27,13 +27,15 @@ from folder_line.bag.repair import repair
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
+from folder_line.cli.arg_types import limited
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
+from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
-from folder_line.config.scenes import InputNames, parse_set, scene_mapping
-from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
+from folder_line.config.scenes import InputNames, parse_set
+from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import parse_scene
-from folder_line.errors import FolderLineError, OutputError, bounded_repr, path_repr, shorten
+from folder_line.errors import FolderLineError, OutputError, ParameterError, bounded_repr, path_repr, shorten
 from folder_line.files.atomic import (
     check_output_dir,
     check_output_file,
@@ -77,34 +79,12 @@ def _samples(text: str) -> int:
     return n
 
 
-def _limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
-    """An option in the physical range ``limit`` (:mod:`folder_line.core.limits`, the same bounds as the scene
-    loader's and the node parameters'); ``also``: one word that is also accepted, as 0.0 (``max``)."""
-    extra = f' or {also}' if also else ''
-
-    def parse(text: str) -> float:
-        if also and text.strip().lower() == also:
-            return 0.0
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f'{option}={bounded_repr(text)}: must be a number in {limit.text()}{extra}'
-            ) from None
-        if not limit.lo <= value <= limit.hi:  # NaN fails too
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
-        return value
-
-    return parse
-
-
-_duration = _limited('--duration', DURATION)
 # the monitor's own knobs (display, not line physics)
 _MONITOR_RATE = Limit('monitor refresh rate', 0.1, 60.0, 'Hz', 'a screen refresh')
 _MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the rates are counted over')
 _MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
 #: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
-_rtf = _limited('--rtf', RTF, also='max')
+_rtf = limited('--rtf', RTF, also='max')
 
 
 class _Parser(argparse.ArgumentParser):
@@ -116,23 +96,12 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f'{self.prog}: error: {text} (see {self.prog} --help)\n')
 
 
-def _add_limited(
+def _addlimited(
     parser: argparse.ArgumentParser, option: str, limit: Limit, default: float, metavar: str, help: str
 ) -> None:
     """``option``: a number in ``limit`` (:func:`_limited`); ``help`` gets `` (default ...)`` appended."""
     parser.add_argument(
-        option, type=_limited(option, limit), default=default, metavar=metavar, help=f'{help} (default {default:g})'
-    )
-
-
-def _add_scene_arguments(parser: argparse.ArgumentParser, scene_help: str, duration: float, set_help: str) -> None:
-    """``--scene``, ``--duration`` (default ``duration``) and the repeatable ``--set`` of a verb that runs a scene."""
-    parser.add_argument('--scene', default='folder', metavar='NAME|FILE', help=scene_help)
-    parser.add_argument(
-        '--duration', type=_duration, default=duration, metavar='S', help=f'line time, s (default {duration:g})'
-    )
-    parser.add_argument(
-        '--set', dest='overrides', action='append', default=[], metavar='MACHINE.KEY=VALUE', help=set_help
+        option, type=limited(option, limit), default=default, metavar=metavar, help=f'{help} (default {default:g})'
     )
 
 
@@ -153,12 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
 
     sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
-    _add_scene_arguments(
-        sim,
-        'shipped scene name (folder, layup, line) or a scene YAML file (default folder)',
-        60.0,
-        'override a scene value, e.g. feed_transporter.V_tr=5.833 (repeatable)',
-    )
+    add_scene_arguments(sim, 60.0)
     listing = sim.add_mutually_exclusive_group()
     listing.add_argument('--json', metavar='PATH', help='write the summary as JSON')
     listing.add_argument(
@@ -173,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
-    _add_scene_arguments(run, 'scene (default folder)', 20.0, 'override a scene value (repeatable)')
+    add_scene_arguments(run, 20.0)
     run.add_argument(
         '--rtf',
         type=_rtf,
@@ -188,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
         help='lockstep: sim time waits for every node, the answer never depends on load (default); '
         'wall: paced by the wall clock for hardware in the loop, late ticks counted',
     )
-    _add_limited(
+    _addlimited(
         run,
         '--lost-timeout',
         LOST_TIMEOUT,
@@ -200,14 +164,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
-    _add_limited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
+    _addlimited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
     mon.add_argument(
         '--once',
         action='store_true',
         help='print one plain-text snapshot after collecting for the rate window, then exit',
     )
-    _add_limited(mon, '--window', _MONITOR_WINDOW, 2.0, 'S', 'window of the topic rates, s of wall time')
-    _add_limited(mon, '--timeout', _MONITOR_TIMEOUT, 10.0, 'S', 'with --once: longest wait for the first message, s')
+    _addlimited(mon, '--window', _MONITOR_WINDOW, 2.0, 'S', 'window of the topic rates, s of wall time')
+    _addlimited(mon, '--timeout', _MONITOR_TIMEOUT, 10.0, 'S', 'with --once: longest wait for the first message, s')
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
@@ -274,22 +238,19 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
     return 0
 
 
-def _scene_options() -> InputNames:
-    """The scene loader's inputs in the command line's words: its options."""
-    return InputNames(scene='--scene', overrides='--set')
-
-
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    if args.samples is not None and (args.list_keys or args.list_metrics):
+        listing = '--list-keys' if args.list_keys else '--list-metrics'
+        raise ParameterError('--samples', args.samples, f'runs a Monte Carlo; {listing} lists and runs nothing')
     if args.json:
         check_output_file(args.json, '--json')
-    names = _scene_options()
-    data = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
+    data = source_from(args)
+    if args.samples is not None:
+        return montecarlo.simulate_samples(args, data)
     scene = parse_scene(data)
     if args.list_keys:
         keys.print_keys(data, sys.stdout)
         return 0
-    if args.samples is not None:
-        return montecarlo.simulate_samples(args, names)
     result = simulate(scene, args.duration, sample_rate=0.0)
     result_summary = result.summary()
     if args.list_metrics:
@@ -321,7 +282,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
 
     with claim_output_dir(cfg.out, '--out', files=('run.json', SCENE_FILE), dirs=(BAG_DIR, 'logs')):
-        result = ros_run.run_line(cfg, sys.stdout, _scene_options())
+        result = ros_run.run_line(cfg, sys.stdout, NAMES)
     ros_run.print_run_summary(result.summary, cfg.out, sys.stdout)
     verdict = result.summary['outcome']
     if not verdict['ok']:

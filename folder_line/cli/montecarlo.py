@@ -13,8 +13,7 @@ import sys
 from typing import IO, Any
 
 from folder_line.cli.study_options import add_cluster_arguments, add_samples_argument, cluster_from, scheduler_reached
-from folder_line.config.scenes import InputNames, parse_set, scene_mapping
-from folder_line.files.atomic import check_output_file, write_json_atomic
+from folder_line.files.atomic import write_json_atomic
 from folder_line.studies.montecarlo import monte_carlo
 
 __all__ = ['add_arguments', 'print_table', 'simulate_samples']
@@ -58,12 +57,9 @@ def print_table(result: dict[str, Any], out: IO[str]) -> None:
         print(row, file=out)
 
 
-def simulate_samples(args: argparse.Namespace, names: InputNames) -> int:
-    """``simulate --samples N``: check the output, merge the scene, run, print, write."""
-    if args.json:
-        check_output_file(args.json, '--json')
+def simulate_samples(args: argparse.Namespace, source: dict[str, Any]) -> int:
+    """``simulate --samples N`` of the merged scene ``source`` (``--json`` already checked): run, print, write."""
     cluster = cluster_from(args)
-    source = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
     with scheduler_reached(cluster):
         result = monte_carlo(source, args.duration, args.samples, cluster, progress=sys.stderr)
     print_table(result, sys.stdout)

@@ -13,9 +13,9 @@ import argparse
 import sys
 from typing import Any
 
+from folder_line.cli.arg_types import number
 from folder_line.cli.study_options import add_scene_arguments
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping, write_scene
-from folder_line.errors import bounded_repr
 from folder_line.files.atomic import claim_output_dir, write_json_atomic
 from folder_line.studies.optimize import (
     DEFAULT_KEYS,
@@ -34,25 +34,6 @@ __all__ = ['OUTPUT_FILES', 'add_parser', 'run']
 #: what the verb writes into ``--out``
 OUTPUT_FILES = ('scene.yaml', 'optimize.json', 'landing.png')
 _DEFAULTS = OptimizeSettings()
-
-
-def _number(option: str, lo: float, hi: float, *, whole: bool = False, open_lo: bool = False) -> Any:
-    """An argparse type: a number in ``[lo, hi]`` (``(lo, hi]`` with ``open_lo``), whole with ``whole``."""
-    left = '(' if open_lo else '['
-    kind = 'a whole number' if whole else 'a number'
-
-    def parse(text: str) -> float | int:
-        try:
-            value: float | int = int(text) if whole else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f'{option}={bounded_repr(text)}: must be {kind} in {left}{lo:g}, {hi:g}]'
-            ) from None
-        if not ((lo < value) if open_lo else (lo <= value)) or not value <= hi:  # NaN fails too
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {left}{lo:g}, {hi:g}]')
-        return value
-
-    return parse
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -76,7 +57,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     opt.add_argument(
         '--min-transmission',
-        type=_number('--min-transmission', 0.0, 89.0, open_lo=True),
+        type=number('--min-transmission', 0.0, 89.0, open_lo=True),
         default=_DEFAULTS.min_transmission_deg,
         metavar='DEG',
         help=f'smallest transmission angle allowed in either loop over the turn, deg '
@@ -84,21 +65,21 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     opt.add_argument(
         '--seed',
-        type=_number('--seed', 0, 2**32 - 1, whole=True),
+        type=number('--seed', 0, 2**32 - 1, whole=True),
         default=_DEFAULTS.seed,
         metavar='N',
         help=f"the optimiser's seed (default {_DEFAULTS.seed})",
     )
     opt.add_argument(
         '--maxiter',
-        type=_number('--maxiter', 0, 100_000, whole=True),
+        type=number('--maxiter', 0, 100_000, whole=True),
         default=_DEFAULTS.maxiter,
         metavar='N',
         help=f'generations of differential evolution (default {_DEFAULTS.maxiter})',
     )
     opt.add_argument(
         '--popsize',
-        type=_number('--popsize', 1, 100_000, whole=True),
+        type=number('--popsize', 1, 100_000, whole=True),
         default=_DEFAULTS.popsize,
         metavar='N',
         help=f'candidates per generation per design variable (default {_DEFAULTS.popsize})',

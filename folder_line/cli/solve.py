@@ -48,7 +48,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'solve', help='the value of a scene key where a condition on a metric starts to hold (scan, then brentq)'
     )
-    add_scene_arguments(parser, 2.0)
+    add_scene_arguments(parser, 2.0, per='at every point')
     parser.add_argument('--find', required=True, metavar='KEY', help='the scene key to solve for')
     parser.add_argument(
         '--where',

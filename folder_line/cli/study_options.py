@@ -8,9 +8,10 @@ import shlex
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from folder_line.cli.arg_types import limited, number
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping
 from folder_line.core.limits import DURATION
-from folder_line.errors import OutputError, ParameterError, bounded_repr
+from folder_line.errors import OutputError, ParameterError
 from folder_line.studies.montecarlo import MAX_SAMPLES
 from folder_line.studies.runner import Cluster
 
@@ -28,47 +29,22 @@ __all__ = [
 NAMES = InputNames(scene='--scene', overrides='--set')
 
 
-def _duration(text: str) -> float:
-    try:
-        return DURATION.check('--duration', float(text))
-    except ParameterError as exc:  # a number out of the range (a ValueError too: caught first)
-        raise argparse.ArgumentTypeError(f'--duration={bounded_repr(text)}: {exc.reason}') from None
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f'--duration={bounded_repr(text)}: must be a number in {DURATION.text()}'
-        ) from None
-
-
-def _whole(option: str, lo: int | None = None, hi: int | None = None) -> Any:
-    """An argparse type: a whole number, in [lo, hi] if given (one line naming ``option`` otherwise; without a
-    range the value's user, e.g. :class:`Cluster`, judges it)."""
-
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be a whole number') from None
-        if lo is not None and hi is not None and not lo <= n <= hi:
-            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in [{lo}, {hi}]')
-        return n
-
-    return parse
-
-
-def add_scene_arguments(
-    parser: argparse.ArgumentParser, duration: float, scene: str = 'folder', per: str = 'at every point'
-) -> None:
-    """``--scene`` (default ``scene``), ``--duration`` (default ``duration``, simulated ``per`` evaluation)
-    and the repeatable ``--set`` of a study."""
+def add_scene_arguments(parser: argparse.ArgumentParser, duration: float, scene: str = 'folder', per: str = '') -> None:
+    """``--scene`` (default ``scene``), ``--duration`` (default ``duration``; simulated ``per`` evaluation,
+    e.g. 'at every point') and the repeatable ``--set``: the options of every verb that runs a scene."""
+    each = f' {per}' if per else ''
     parser.add_argument(
-        '--scene', default=scene, metavar='NAME|FILE', help=f'scene name or YAML file (default {scene})'
+        '--scene',
+        default=scene,
+        metavar='NAME|FILE',
+        help=f'a shipped scene (folder-line scenes lists them) or a scene YAML file (default {scene})',
     )
     parser.add_argument(
         '--duration',
-        type=_duration,
+        type=limited('--duration', DURATION),
         default=duration,
         metavar='S',
-        help=f'line time simulated {per}, s (default {duration:g})',
+        help=f'line time simulated{each}, s (default {duration:g})',
     )
     parser.add_argument(
         '--set',
@@ -76,7 +52,8 @@ def add_scene_arguments(
         action='append',
         default=[],
         metavar='SECTION.KEY=VALUE',
-        help=f'override a scene value {per} (repeatable)',
+        help=f'override a scene value{each}, e.g. feed_transporter.V_tr=9.5 or press.n_c=30000 '
+        '(repeatable; simulate --list-keys lists the keys)',
     )
 
 
@@ -84,14 +61,14 @@ def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
     """``--workers``, ``--threads``, ``--scheduler``: where the simulations run (:class:`Cluster`)."""
     parser.add_argument(
         '--workers',
-        type=_whole('--workers'),
+        type=number('--workers', whole=True),
         default=None,
         metavar='K',
         help='local Dask worker processes (default: one per core of this machine)',
     )
     parser.add_argument(
         '--threads',
-        type=_whole('--threads'),
+        type=number('--threads', whole=True),
         default=1,
         metavar='T',
         help='threads per local worker (default 1)',
@@ -108,7 +85,7 @@ def add_samples_argument(parser: argparse.ArgumentParser, what: str) -> None:
     """``--samples N``: Monte Carlo over the scene's variation effects (:mod:`folder_line.studies.montecarlo`)."""
     parser.add_argument(
         '--samples',
-        type=_whole('--samples', 1, MAX_SAMPLES),
+        type=number('--samples', 1, MAX_SAMPLES, whole=True),
         default=None,
         metavar='N',
         help=f'Monte Carlo: N runs {what} with seeds drawn from the scene seed; per constraint the violation '

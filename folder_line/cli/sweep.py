@@ -34,7 +34,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'sweep', help='metrics of a scene over a grid of key values (curves or a heat map), on Dask'
     )
-    add_scene_arguments(parser, 2.0)
+    add_scene_arguments(parser, 2.0, per='at every point')
     parser.add_argument(
         '--vary',
         action='append',

@@ -1,0 +1,60 @@
+"""Argument types of the command line: numbers in a range, refused in one line naming the option.
+
+Each returns an ``argparse`` type function; a refusal is an ``ArgumentTypeError`` whose text
+is ``OPTION=VALUE: reason`` (the value cut to 80 characters), which the parser prints as one
+line and exits 2 (:class:`folder_line.cli.main._Parser`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from folder_line.core.limits import Limit
+from folder_line.errors import bounded_repr
+
+__all__ = ['limited', 'number']
+
+
+def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
+    """A value in the physical range ``limit`` (:mod:`folder_line.core.limits`: the same bounds as the scene
+    loader's and the node parameters'); ``also``: one word that is also accepted, as 0.0 (``max``)."""
+    extra = f' or {also}' if also else ''
+
+    def parse(text: str) -> float:
+        if also and text.strip().lower() == also:
+            return 0.0
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'{option}={bounded_repr(text)}: must be a number in {limit.text()}{extra}'
+            ) from None
+        if not limit.lo <= value <= limit.hi:  # NaN fails too
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
+        return value
+
+    return parse
+
+
+def number(
+    option: str, lo: float | None = None, hi: float | None = None, *, whole: bool = False, open_lo: bool = False
+) -> Callable[[str], float]:
+    """A number (``whole``: an int) in ``[lo, hi]`` (``(lo, hi]`` with ``open_lo``); without bounds any number,
+    for the value's user to judge (e.g. :class:`folder_line.studies.runner.Cluster`)."""
+    left = '(' if open_lo else '['
+    kind = 'a whole number' if whole else 'a number'
+    bounds = '' if lo is None or hi is None else f' in {left}{lo:g}, {hi:g}]'
+
+    def parse(text: str) -> float:
+        try:
+            value: float = int(text) if whole else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be {kind}{bounds}') from None
+        if lo is not None and hi is not None:
+            inside = (lo < value) if open_lo else (lo <= value)
+            if not inside or not value <= hi:  # NaN fails too
+                raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {left}{lo:g}, {hi:g}]')
+        return value
+
+    return parse
