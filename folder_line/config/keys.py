@@ -24,6 +24,7 @@ from typing import Any
 
 from folder_line.config.scenes import PRESS_KEYS
 from folder_line.core.effects import EFFECTS
+from folder_line.core.effects.arrival_jitter import DISTRIBUTIONS
 from folder_line.core.effects.motor_dynamics import METHODS
 from folder_line.core.limits import CYLINDER_SPEED, LIMITS, SAMPLE_RATE, Limit
 from folder_line.core.line.inert import inert_reason
@@ -51,6 +52,7 @@ _UNITS = (
     'dimensionless',
     'kg',
     'N',
+    'mm',
     'm',
     's',
 )
@@ -64,6 +66,7 @@ _CHOICES: dict[str, tuple[str, ...]] = {
     'delivery.law': law_names(),
     'chain_friction.return_section': RETURN_SECTIONS,
     'motor_dynamics.method': METHODS,
+    'arrival_jitter.distribution': DISTRIBUTIONS,
 }
 #: the seed: what :func:`folder_line.core.line.scene.parse_scene` accepts
 _SEED_HI = 2**63

@@ -37,7 +37,7 @@ import numpy.typing as npt
 
 from folder_line.core.mechanisms.drive import Drive, theta_rate
 from folder_line.core.numerics.rng import stream
-from folder_line.core.numerics.validate import check_fields, positive, within
+from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
 
 __all__ = ['Params', 'RippleDrive', 'draw_phase', 'phase_inverse', 'phase_map']
@@ -57,16 +57,14 @@ class Params:
     amplitude : float
         Relative amplitude A of the speed factor, dimensionless, in [0, 0.5].
     frequency : float
-        Ripple cycles per nominal second of master phase (Hz at nominal speed), > 0 and <= 1e4.
+        Ripple cycles per nominal second of master phase (at nominal speed), Hz, in (0, 10000].
     """
 
     amplitude: float
     frequency: float
 
     def __post_init__(self) -> None:
-        check_fields(self, 'effects.speed_ripple', amplitude=within(0.0, 0.5), frequency=positive)
-        if self.frequency > 1e4:
-            raise ParameterError('effects.speed_ripple.frequency', self.frequency, 'must be <= 1e4 Hz')
+        check_fields(self, 'effects.speed_ripple', amplitude=within(0.0, 0.5), frequency=within(0.0, 1e4, lo_open=True))
 
 
 def draw_phase(seed: int) -> float:
