@@ -60,10 +60,6 @@ __all__ = [
 
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
 _LAMBDA_FLOOR = 1e-9
-#: sprocket torque (peak, mean) by what it depends on (the delivery, its chain and friction, the knife and
-#: cylinder); ~20 ms each, so that a study's many points of one delivery compute it once
-_TORQUE: dict[tuple[Any, ...], tuple[float, float]] = {}
-_TORQUE_MAX = 64
 
 
 # --------------------------------------------------------------------------- helpers
@@ -531,14 +527,8 @@ def _delivery_info(s: Setup, plan: DeliveryPlan) -> dict[str, Any]:
     """
     cf = s.scene.effect_params('chain_friction')
     u, eta = stroke_minimum(plan.params, 'eta', return_section=cf.return_section)
-    key = (cf, plan.params, plan.chain, s.scene.machine('knife'), s.scene.machine('cyclogram'))
-    torque = _TORQUE.get(key)
-    if torque is None:
-        load = chain_friction.MasterLoad(s.scene, 1.0)  # omega_nom 1 rad/s: torque x ratio, divided back
-        torque = (load.peak / load.ratio, load.mean / load.ratio)
-        _TORQUE[key] = torque
-        while len(_TORQUE) > _TORQUE_MAX:
-            del _TORQUE[next(iter(_TORQUE))]
+    load = chain_friction.master_load(s.scene, 1.0)  # omega_nom 1 rad/s: torque x ratio, divided back (cached)
+    torque = (load.peak / load.ratio, load.mean / load.ratio)
     return {
         'eta_min': _json_float(eta),
         'eta_min_u': _json_float(u),
