@@ -21,7 +21,7 @@ from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_j
 from folder_line.studies.grid import parse_vary
 from folder_line.studies.points import OK
 from folder_line.studies.sweep import SweepResult, plan_sweep, run_sweep, sweep_columns, sweep_document
-from folder_line.studies.sweep_plot import plot_sweep
+from folder_line.studies.sweep_plot import plot_sweep, plotted_keys
 
 __all__ = ['FILES', 'add_parser', 'run']
 
@@ -111,4 +111,6 @@ def run(args: argparse.Namespace) -> int:
             print(f'wrote {path}')
         if png is None:
             print('no sweep.png: a curve needs one key with several values, a heat map two')
+        elif len(plotted_keys(result)) == 2 and len(plan.metrics) > 1:
+            print(f'sweep.png maps the first metric, {plan.metrics[0]}; the others are in sweep.csv')
     return 0
