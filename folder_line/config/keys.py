@@ -22,7 +22,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from folder_line.config.scenes import PRESS_KEYS
+from folder_line.config.scenes import DRIVE_DEFAULT, PRESS_KEYS
 from folder_line.core.effects import EFFECTS
 from folder_line.core.effects.arrival_jitter import DISTRIBUTIONS
 from folder_line.core.effects.motor_dynamics import METHODS
@@ -253,7 +253,7 @@ def _all_keys(data: Mapping[str, Any]) -> Iterator[KeyInfo]:
                 note='Press speed: sets cyclogram.n_c to it and knife.n_k to twice it',
             )
     yield from _section_keys('sheets', StreamParams, data.get('sheets') or {})
-    yield from _section_keys('drive', DriveSpec, {**_drive_defaults(), **(data.get('drive') or {})})
+    yield from _section_keys('drive', DriveSpec, {**DRIVE_DEFAULT, **(data.get('drive') or {})})
     for name, values in (data.get('effects') or {}).items():
         if name in EFFECTS and isinstance(values, Mapping):
             yield from _section_keys(name, EFFECTS[name].params, values)
@@ -275,10 +275,6 @@ def _all_keys(data: Mapping[str, Any]) -> Iterator[KeyInfo]:
         hi=SAMPLE_RATE.hi,
         note='Joint-state sample rate (0: events only)',
     )
-
-
-def _drive_defaults() -> dict[str, Any]:
-    return {f.name: f.default for f in dataclasses.fields(DriveSpec) if f.default is not dataclasses.MISSING}
 
 
 def _tied(info: KeyInfo) -> KeyInfo:

@@ -20,6 +20,8 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from folder_line.core.mechanisms.cyclogram import KNIFE_PER_CYLINDER
+
 __all__ = ['PAPER_NOTES', 'PAPER_VALUES', 'paper_point', 'paper_rule']
 
 #: the paper's folding cylinder, m, and speed, rev/h
@@ -32,7 +34,7 @@ _V_D = math.pi * _D_FC * _N_C / 3600.0
 PAPER_VALUES: Mapping[str, float] = {
     'cyclogram.n_c': _N_C,
     'cyclogram.D_fc': _D_FC,
-    'knife.n_k': 2.0 * _N_C,
+    'knife.n_k': KNIFE_PER_CYLINDER * _N_C,
     'press.n_c': _N_C,
     'cyclogram.L_feed': 0.230,
     'cyclogram.L_a': 0.420,
@@ -66,7 +68,7 @@ PAPER_NOTES: Mapping[str, str] = {
 _V_D_PER_SPEED: Mapping[str, float] = {
     'cyclogram.n_c': math.pi * _D_FC / 3600.0,
     'press.n_c': math.pi * _D_FC / 3600.0,
-    'knife.n_k': math.pi * _D_FC / 3600.0 / 2.0,  # the knife turns twice per cylinder turn
+    'knife.n_k': math.pi * _D_FC / 3600.0 / KNIFE_PER_CYLINDER,  # the knife turns twice per cylinder turn
 }
 
 
