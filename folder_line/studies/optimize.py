@@ -38,6 +38,7 @@ from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.mechanisms.layup_design import crank_rocker_margin, exit_clearance, transmission_check
 from folder_line.core.numerics.validate import build
 from folder_line.errors import FolderLineError, ParameterError
+from folder_line.studies.grid import parse_bounds
 
 __all__ = [
     'LINK_KEYS',
@@ -45,7 +46,7 @@ __all__ = [
     'DEFAULT_SPAN',
     'CONSTRAINTS',
     'Bound',
-    'parse_vary',
+    'parse_design_vary',
     'default_bounds',
     'OptimizeSettings',
     'Candidate',
@@ -93,39 +94,31 @@ class Bound:
     hi: float
 
 
-def _number(option: str, item: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ParameterError(option, item, f'{text.strip()!r} is not a number (LAYUP.KEY=LO:HI)') from None
-    if not math.isfinite(value):
-        raise ParameterError(option, item, 'bounds must be finite')
-    return value
+#: what one ``--vary`` of optimize is, for the messages
+_VARY_FORM = 'layup.KEY=LO:HI, e.g. layup.l4=0.55:0.70'
 
 
-def parse_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bound, ...]:
+def parse_design_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bound, ...]:
     """``['layup.l4=0.55:0.7', ...]`` -> bounds, each key once.
 
     Raises
     ------
     ParameterError
         Naming ``option`` and the item: not ``layup.KEY=LO:HI``, a key not in :data:`LINK_KEYS`,
-        a key given twice, ``LO >= HI``, or a non-positive bound of a length (all but ``a``, ``b``).
+        a key given twice, LO:HI refused by :func:`folder_line.studies.grid.parse_bounds`, or a
+        non-positive bound of a length (all but ``a``, ``b``).
     """
     out: list[Bound] = []
     for item in items:
         key, sep, rng = item.partition('=')
-        lo_text, sep2, hi_text = rng.partition(':')
         section, dot, name = key.strip().partition('.')
-        if not (sep and sep2 and dot) or section != 'layup':
-            raise ParameterError(option, item, 'must be layup.KEY=LO:HI, e.g. layup.l4=0.55:0.70')
+        if not (sep and dot) or section != 'layup':
+            raise ParameterError(option, item, f'must be {_VARY_FORM}')
         if name not in LINK_KEYS:
             raise ParameterError(option, item, f'{name!r} is not a link of the layup; one of {", ".join(LINK_KEYS)}')
         if any(b.key == name for b in out):
             raise ParameterError(option, item, f'layup.{name} is given twice')
-        lo, hi = _number(option, item, lo_text), _number(option, item, hi_text)
-        if not lo < hi:
-            raise ParameterError(option, item, f'needs LO < HI (got {lo:g}:{hi:g})')
+        lo, hi = parse_bounds(rng, option, item=item, form=_VARY_FORM)
         if name not in ('a', 'b') and lo <= 0.0:
             raise ParameterError(option, item, f'a length must stay > 0 (LO = {lo:g})')
         out.append(Bound(name, lo, hi))

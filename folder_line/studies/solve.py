@@ -40,7 +40,7 @@ from folder_line.studies.keys import check_key, key_unit, scene_value
 from folder_line.studies.points import OK, PointTask, evaluate_point, simulate_summary
 from folder_line.studies.runner import Cluster, run_tasks
 
-__all__ = ['DEFAULT_SCAN', 'Condition', 'SolveResult', 'parse_between', 'parse_condition', 'solve_boundary']
+__all__ = ['DEFAULT_SCAN', 'Condition', 'SolveResult', 'parse_condition', 'solve_boundary']
 
 #: values of the bracketing scan by default
 DEFAULT_SCAN = 9
@@ -99,20 +99,6 @@ def parse_condition(text: str, option: str = '--where') -> Condition:
     if not math.isfinite(threshold):
         raise ParameterError(option, text, 'the threshold must be a finite number')
     return Condition(match['metric'], match['op'], threshold)
-
-
-def parse_between(text: str, option: str = '--between') -> tuple[float, float]:
-    """``'5:15'`` -> ``(5.0, 15.0)``: two finite numbers, the first below the second."""
-    parts = text.split(':')
-    try:
-        lo, hi = (float(p) for p in parts) if len(parts) == 2 else (math.nan, math.nan)
-    except ValueError:
-        lo = hi = math.nan
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise ParameterError(option, text, 'must be LO:HI, two finite numbers in the unit of the key')
-    if not lo < hi:
-        raise ParameterError(option, text, 'LO must be below HI')
-    return lo, hi
 
 
 @dataclass(frozen=True)

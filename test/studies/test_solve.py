@@ -6,8 +6,9 @@ import pytest
 
 from folder_line.config.scenes import scene_mapping
 from folder_line.errors import ParameterError
+from folder_line.studies.grid import parse_bounds
 from folder_line.studies.runner import Cluster
-from folder_line.studies.solve import Condition, parse_between, parse_condition, solve_boundary
+from folder_line.studies.solve import Condition, parse_condition, solve_boundary
 
 from ._closed_form import v_tr_min
 
@@ -40,10 +41,10 @@ def test_conditions_hold_on_the_right_side_of_the_threshold() -> None:
 
 
 def test_between() -> None:
-    assert parse_between('5:15') == (5.0, 15.0)
+    assert parse_bounds('5:15') == (5.0, 15.0)
     for bad in ('5', '5:x', '15:5', '5:5', '1:2:3', 'nan:1'):
         with pytest.raises(ParameterError, match=r'^--between='):
-            parse_between(bad)
+            parse_bounds(bad)
 
 
 def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
