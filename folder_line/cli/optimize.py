@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         popsize=args.popsize,
     )
     mapping = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
-    check_scene(mapping)
+    scene = check_scene(mapping)  # before the output folder is claimed
     bounds = parse_design_vary(args.vary) if args.vary else default_bounds(mapping['machines']['layup'])
     with claim_output_dir(args.out, '--out', OUTPUT_FILES) as out:
         print(
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
             f'transmission >= {settings.min_transmission_deg:g} deg',
             flush=True,
         )
-        result = optimize_layup(mapping, bounds, settings, progress=sys.stdout)
+        result = optimize_layup(mapping, bounds, settings, scene=scene, progress=sys.stdout)
         scene_path = out / 'scene.yaml'
         write_scene(scene_path, result.scene)
         cont = mapping['machines']['container']

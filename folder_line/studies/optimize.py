@@ -260,9 +260,11 @@ def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> d
     return section
 
 
-def _geometry(
-    mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float
-) -> tuple[dict[str, float], dict[str, float | None], bool]:
+#: what :func:`_geometry` finds: the geometric margins, the transmission angles, whether all margins hold
+_Geometry = tuple[dict[str, float], dict[str, float | None], bool]
+
+
+def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float) -> _Geometry:
     """The geometric margins of a candidate (cheap, no simulation), its transmission angles, and whether all hold."""
     section = _layup_section(mapping, values)
     try:
@@ -294,7 +296,14 @@ def _geometry(
     return out, angles, all(v >= 0.0 for v in out.values())
 
 
-def evaluate(mapping: Mapping[str, Any], values: Mapping[str, float], settings: OptimizeSettings) -> Candidate:
+def evaluate(
+    mapping: Mapping[str, Any],
+    values: Mapping[str, float],
+    settings: OptimizeSettings,
+    *,
+    scene: Scene | None = None,
+    geometry: _Geometry | None = None,
+) -> Candidate:
     """Judge one geometry: the cheap geometric constraints, then, only if they all hold, a simulation.
 
     Parameters
@@ -306,19 +315,27 @@ def evaluate(mapping: Mapping[str, Any], values: Mapping[str, float], settings: 
         ``{key: value}`` of :data:`LINK_KEYS` replacing the scene's, m.
     settings : OptimizeSettings
         The transmission angle required and the line time simulated.
+    scene : Scene, optional
+        ``mapping`` with ``values`` applied, parsed (None: parsed here if simulated).
+    geometry : tuple, optional
+        What the geometric checks found for ``values`` already (None: checked here).
 
     Returns
     -------
     Candidate
     """
-    constraints, angles, ok = _geometry(mapping, values, math.radians(settings.min_transmission_deg))
+    if geometry is None:
+        geometry = _geometry(mapping, values, math.radians(settings.min_transmission_deg))
+    cons, angles, ok = geometry
+    constraints = dict(cons)  # the simulated constraint is added to a copy
     summary = None
     if ok:
-        scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
+        if scene is None:
+            scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
         summary = simulate(scene, settings.duration, sample_rate=0.0).summary()
         lay = summary['layup']
         constraints['no_spill_or_damage'] = -float(lay['leaves_spilled'] + lay['leaves_damaged'])
-    return Candidate(dict(values), constraints, angles, ok, summary)
+    return Candidate(dict(values), constraints, dict(angles), ok, summary)
 
 
 @dataclass(frozen=True)
@@ -411,6 +428,7 @@ def optimize_layup(
     bounds: Sequence[Bound],
     settings: OptimizeSettings = OptimizeSettings(),
     *,
+    scene: Scene | None = None,
     progress: IO[str] | None = None,
     clock: Callable[[], float] = time.monotonic,
 ) -> OptimizeResult:
@@ -423,6 +441,8 @@ def optimize_layup(
     bounds : sequence of Bound
         The design variables, each once.
     settings : OptimizeSettings
+    scene : Scene, optional
+        ``mapping`` as :func:`check_scene` returns it, if the caller checked it already (None: checked here).
     progress : text stream, optional
         Where one line per generation goes (best CV so far).
     clock : callable
@@ -437,16 +457,18 @@ def optimize_layup(
     ParameterError
         The scene lands no leaves, or a bound is not a link of the layup.
     """
-    check_scene(mapping)  # the start must be a valid scene: its own errors first
+    if scene is None:
+        scene = check_scene(mapping)  # the start must be a valid scene: its own errors first
     keys = [b.key for b in bounds]
     if not keys:
         raise ParameterError('--vary', [], 'needs at least one layup.KEY=LO:HI')
     lows, highs = np.array([b.lo for b in bounds]), np.array([b.hi for b in bounds])
     layup = mapping['machines']['layup']
     x_start = np.array([float(layup[k]) for k in keys])
-    start = evaluate(mapping, dict(zip(keys, x_start.tolist(), strict=True)), settings)
+    start = evaluate(mapping, dict(zip(keys, x_start.tolist(), strict=True)), settings, scene=scene)
     mu_min = math.radians(settings.min_transmission_deg)
     seen: dict[tuple[float, ...], Candidate] = {}
+    geometries: dict[tuple[float, ...], _Geometry] = {}  # of the constraint function, reused by the objective
     counts = {'candidates': 0, 'geometry_ok': 0, 'simulated': 0, 'spill_or_damage': 0}
 
     def values_of(x: np.ndarray) -> dict[str, float]:
@@ -454,7 +476,11 @@ def optimize_layup(
 
     def geometry(x: np.ndarray) -> np.ndarray:
         counts['candidates'] += 1
-        cons, _, ok = _geometry(mapping, values_of(x), mu_min)
+        key = tuple(float(v) for v in x)
+        found = geometries.get(key)
+        if found is None:
+            found = geometries[key] = _geometry(mapping, values_of(x), mu_min)
+        cons, _, ok = found
         counts['geometry_ok'] += ok
         return np.array([cons[k] for k in ACTIVE_TOL])
 
@@ -462,7 +488,7 @@ def optimize_layup(
         key = tuple(float(v) for v in x)
         cand = seen.get(key)
         if cand is None:
-            cand = evaluate(mapping, values_of(x), settings)
+            cand = evaluate(mapping, values_of(x), settings, geometry=geometries.get(key))
             seen[key] = cand
             if cand.summary is not None:
                 counts['simulated'] += 1
@@ -516,7 +542,7 @@ def optimize_layup(
         settings=settings,
         start=start,
         best=best,
-        scene=parse_scene(best_mapping),
+        scene=scene if best is start else parse_scene(best_mapping),
         mapping=best_mapping,
         evaluations=counts,
         message=str(res.message),
