@@ -58,7 +58,7 @@ def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
     # 0.5 s: 7 knife cycles; too slow, every feed is late (and at 5 m/s the signature is not settled
     # before the knife either); at 13 m/s it rebounds too far: the first change, 9 -> 11, is the one solved
     assert [m for _, m in result.scan] == [21.0, 7.0, 7.0, 0.0, 7.0]
-    assert 1 + 5 + 2 <= result.evaluations <= 1 + 5 + 2 + 40  # the scene, the scan, brentq (ends and steps)
+    assert 1 + 5 + 1 <= result.evaluations <= 1 + 5 + 40  # the scene, the scan, brentq's steps (its ends: the scan's)
 
 
 def test_no_change_in_the_range_names_the_range_and_the_ends() -> None:
