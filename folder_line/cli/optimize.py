@@ -25,7 +25,7 @@ from folder_line.studies.optimize import (
     check_scene,
     default_bounds,
     optimize_layup,
-    parse_vary,
+    parse_design_vary,
 )
 from folder_line.studies.optimize_output import histogram_lines, landing_figure, result_document, verdict
 
@@ -99,8 +99,8 @@ def run(args: argparse.Namespace) -> int:
         popsize=args.popsize,
     )
     mapping = scene_mapping(args.scene, parse_set(args.overrides, names), names=names)
-    check_scene(mapping)
-    bounds = parse_vary(args.vary) if args.vary else default_bounds(mapping['machines']['layup'])
+    scene = check_scene(mapping)  # before the output folder is claimed
+    bounds = parse_design_vary(args.vary) if args.vary else default_bounds(mapping['machines']['layup'])
     with claim_output_dir(args.out, '--out', OUTPUT_FILES) as out:
         print(
             f'optimising {", ".join(f"layup.{b.key} in [{b.lo:.4g}, {b.hi:.4g}]" for b in bounds)} '
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
             f'transmission >= {settings.min_transmission_deg:g} deg',
             flush=True,
         )
-        result = optimize_layup(mapping, bounds, settings, progress=sys.stdout)
+        result = optimize_layup(mapping, bounds, settings, scene=scene, progress=sys.stdout)
         scene_path = out / 'scene.yaml'
         write_scene(scene_path, result.scene)
         cont = mapping['machines']['container']

@@ -10,7 +10,6 @@ the sections ``layup``, ``knife``, ``cyclogram``, ``delivery`` and ``press`` to 
 from __future__ import annotations
 
 import argparse
-import copy
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -21,17 +20,15 @@ import numpy as np
 
 from folder_line.analysis.figures import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
-from folder_line.config.params import config_dir, read_yaml_mapping
+from folder_line.config.params import KINDS, load_params, read_yaml_mapping
 from folder_line.config.scenes import set_press
 from folder_line.core.line.scene import MachineParams, check_press_speed
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
-from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 from folder_line.files.atomic import write_csv_atomic, write_text_atomic
 
 __all__ = [
     'REPORT_FILES',
-    'REPORT_SECTIONS',
     'Check',
     'ReportParams',
     'add_report_arguments',
@@ -39,9 +36,6 @@ __all__ = [
     'report_params',
     'write_report',
 ]
-
-#: the machine sections the report is computed from
-REPORT_SECTIONS = ('layup', 'knife', 'cyclogram', 'delivery')
 
 #: the files :func:`write_report` writes into its folder
 REPORT_FILES = (
@@ -95,18 +89,6 @@ class ReportParams:
     given: tuple[str, ...] = field(default=())
 
 
-def _apply(machines: dict[str, dict[str, Any]], key: str, value: Any) -> None:
-    head, sep, name = key.partition('.')
-    if head == 'press':
-        set_press(machines, key, value, 'the report')
-        return
-    if not sep or head not in REPORT_SECTIONS or not name or '.' in name:
-        raise ParameterError(
-            key, value, f'must be SECTION.KEY with a section of the report ({", ".join(REPORT_SECTIONS)}) or press.n_c'
-        )
-    machines[head][name] = value
-
-
 def _file_values(path: str | None) -> list[tuple[str, Any]]:
     """``--params FILE``: section -> mapping of key: value, flattened to (``section.key``, value) in file order."""
     if path is None:
@@ -136,16 +118,23 @@ def report_params(path: str | None = None, overrides: Mapping[str, Any] | None =
         Naming the key and value: an unknown section or key, a value out of range, a knife speed that is
         not twice the cylinder's.
     """
-    defaults = {s: read_yaml_mapping(config_dir() / f'{s}.yaml', f'{s} defaults') for s in REPORT_SECTIONS}
-    machines = copy.deepcopy(defaults)
     given = [*_file_values(path), *(overrides or {}).items()]
+    sections: dict[str, dict[str, Any]] = {kind: {} for kind in KINDS}
     for key, value in given:
-        _apply(machines, key, value)
-    p: PaperParams = {
-        'layup': build(layup.LayupParams, machines['layup'], 'layup', 'layup parameter'),
-        'knife': build(knife.KnifeParams, machines['knife'], 'knife', 'knife parameter'),
-        'delivery': build(delivery.DeliveryParams, machines['delivery'], 'delivery', 'delivery parameter'),
-        'cyclogram': build(cyclogram.CyclogramParams, machines['cyclogram'], 'cyclogram', 'cyclogram parameter'),
+        head, sep, name = key.partition('.')
+        if head == 'press':
+            set_press(sections, key, value, 'the report')
+        elif not sep or head not in sections or not name or '.' in name:
+            raise ParameterError(
+                key, value, f'must be SECTION.KEY with a section of the report ({", ".join(KINDS)}) or press.n_c'
+            )
+        else:
+            sections[head][name] = value
+    p: PaperParams = {  # built in the order of KINDS: the first refused value is reported
+        'layup': load_params('layup', overrides=sections['layup']),
+        'knife': load_params('knife', overrides=sections['knife']),
+        'delivery': load_params('delivery', overrides=sections['delivery']),
+        'cyclogram': load_params('cyclogram', overrides=sections['cyclogram']),
     }
     check_press_speed(p['knife'].n_k, p['cyclogram'].n_c)
     return ReportParams(p, tuple(f'{k}={v}' for k, v in given))

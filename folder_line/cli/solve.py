@@ -15,7 +15,8 @@ from folder_line.cli.study_options import (
 )
 from folder_line.errors import bounded_repr
 from folder_line.files.atomic import check_output_file, write_json_atomic
-from folder_line.studies.solve import DEFAULT_SCAN, parse_between, parse_condition, solve_boundary
+from folder_line.studies.grid import parse_bounds
+from folder_line.studies.solve import DEFAULT_SCAN, parse_condition, solve_boundary
 
 __all__ = ['add_parser', 'run']
 
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, '--json')
     condition = parse_condition(args.where)
-    between = parse_between(args.between) if args.between is not None else None
+    between = parse_bounds(args.between, '--between') if args.between is not None else None
     cluster = cluster_from(args)
     with scheduler_reached(cluster):
         result = solve_boundary(

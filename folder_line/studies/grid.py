@@ -1,4 +1,5 @@
-"""The points of a sweep: ``--vary KEY=START:STOP:N`` parsed, and the grid they span.
+"""The points of a sweep: ``--vary KEY=START:STOP:N`` parsed, and the grid they span; and
+``LO:HI`` ranges (:func:`parse_bounds`, for ``solve --between`` and ``optimize --vary``).
 
 Each ``--vary`` gives one scene key and ``N`` linearly spaced values from ``START`` to
 ``STOP`` (both included; ``N = 1`` is the single value ``START``, and then ``STOP`` must
@@ -17,7 +18,7 @@ import numpy as np
 
 from folder_line.errors import ParameterError
 
-__all__ = ['MAX_POINTS', 'MAX_VALUES', 'Vary', 'grid_points', 'parse_vary']
+__all__ = ['MAX_POINTS', 'MAX_VALUES', 'Vary', 'grid_points', 'parse_bounds', 'parse_vary']
 
 #: most values of one ``--vary``
 MAX_VALUES = 10_000
@@ -103,6 +104,51 @@ def parse_vary(text: str, option: str = '--vary') -> Vary:
         step = (stop - start) / (n - 1)
         whole = step == round(step)
     return Vary(key, start, stop, n, whole)
+
+
+def parse_bounds(
+    text: str,
+    option: str = '--between',
+    *,
+    item: str | None = None,
+    form: str = 'LO:HI, two finite numbers in the unit of the key',
+) -> tuple[float, float]:
+    """``'5:15'`` -> ``(5.0, 15.0)``: two finite numbers, the first below the second.
+
+    Parameters
+    ----------
+    text : str
+        ``LO:HI``.
+    option : str
+        The option that gave it, for the message.
+    item : str, optional
+        What the message shows as the option's value (default ``text``), e.g. the whole
+        ``layup.l4=0.55:0.7`` that ``text`` came from.
+    form : str
+        What ``text`` must be, for the message when it is not two numbers split by ``:``.
+
+    Raises
+    ------
+    ParameterError
+        One line naming ``option`` and ``item``: not ``LO:HI``, a bound not a number or not
+        finite, or ``LO >= HI``.
+    """
+    shown = text if item is None else item
+    parts = text.split(':')
+    if len(parts) != 2:
+        raise ParameterError(option, shown, f'must be {form}')
+    bounds = []
+    for part in parts:
+        try:
+            bounds.append(float(part))
+        except ValueError:
+            raise ParameterError(option, shown, f'{part.strip()!r} is not a number (must be {form})') from None
+    lo, hi = bounds
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ParameterError(option, shown, 'LO and HI must be finite numbers')
+    if not lo < hi:
+        raise ParameterError(option, shown, f'LO must be below HI (need LO < HI, got {lo:g}:{hi:g})')
+    return lo, hi
 
 
 def grid_points(varies: tuple[Vary, ...] | list[Vary]) -> list[dict[str, float | int]]:

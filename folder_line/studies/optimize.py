@@ -38,6 +38,7 @@ from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.mechanisms.layup_design import crank_rocker_margin, exit_clearance, transmission_check
 from folder_line.core.numerics.validate import build
 from folder_line.errors import FolderLineError, ParameterError
+from folder_line.studies.grid import parse_bounds
 
 __all__ = [
     'LINK_KEYS',
@@ -45,7 +46,7 @@ __all__ = [
     'DEFAULT_SPAN',
     'CONSTRAINTS',
     'Bound',
-    'parse_vary',
+    'parse_design_vary',
     'default_bounds',
     'OptimizeSettings',
     'Candidate',
@@ -93,39 +94,31 @@ class Bound:
     hi: float
 
 
-def _number(option: str, item: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ParameterError(option, item, f'{text.strip()!r} is not a number (LAYUP.KEY=LO:HI)') from None
-    if not math.isfinite(value):
-        raise ParameterError(option, item, 'bounds must be finite')
-    return value
+#: what one ``--vary`` of optimize is, for the messages
+_VARY_FORM = 'layup.KEY=LO:HI, e.g. layup.l4=0.55:0.70'
 
 
-def parse_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bound, ...]:
+def parse_design_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bound, ...]:
     """``['layup.l4=0.55:0.7', ...]`` -> bounds, each key once.
 
     Raises
     ------
     ParameterError
         Naming ``option`` and the item: not ``layup.KEY=LO:HI``, a key not in :data:`LINK_KEYS`,
-        a key given twice, ``LO >= HI``, or a non-positive bound of a length (all but ``a``, ``b``).
+        a key given twice, LO:HI refused by :func:`folder_line.studies.grid.parse_bounds`, or a
+        non-positive bound of a length (all but ``a``, ``b``).
     """
     out: list[Bound] = []
     for item in items:
         key, sep, rng = item.partition('=')
-        lo_text, sep2, hi_text = rng.partition(':')
         section, dot, name = key.strip().partition('.')
-        if not (sep and sep2 and dot) or section != 'layup':
-            raise ParameterError(option, item, 'must be layup.KEY=LO:HI, e.g. layup.l4=0.55:0.70')
+        if not (sep and dot) or section != 'layup':
+            raise ParameterError(option, item, f'must be {_VARY_FORM}')
         if name not in LINK_KEYS:
             raise ParameterError(option, item, f'{name!r} is not a link of the layup; one of {", ".join(LINK_KEYS)}')
         if any(b.key == name for b in out):
             raise ParameterError(option, item, f'layup.{name} is given twice')
-        lo, hi = _number(option, item, lo_text), _number(option, item, hi_text)
-        if not lo < hi:
-            raise ParameterError(option, item, f'needs LO < HI (got {lo:g}:{hi:g})')
+        lo, hi = parse_bounds(rng, option, item=item, form=_VARY_FORM)
         if name not in ('a', 'b') and lo <= 0.0:
             raise ParameterError(option, item, f'a length must stay > 0 (LO = {lo:g})')
         out.append(Bound(name, lo, hi))
@@ -267,9 +260,11 @@ def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> d
     return section
 
 
-def _geometry(
-    mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float
-) -> tuple[dict[str, float], dict[str, float | None], bool]:
+#: what :func:`_geometry` finds: the geometric margins, the transmission angles, whether all margins hold
+_Geometry = tuple[dict[str, float], dict[str, float | None], bool]
+
+
+def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float) -> _Geometry:
     """The geometric margins of a candidate (cheap, no simulation), its transmission angles, and whether all hold."""
     section = _layup_section(mapping, values)
     try:
@@ -301,7 +296,14 @@ def _geometry(
     return out, angles, all(v >= 0.0 for v in out.values())
 
 
-def evaluate(mapping: Mapping[str, Any], values: Mapping[str, float], settings: OptimizeSettings) -> Candidate:
+def evaluate(
+    mapping: Mapping[str, Any],
+    values: Mapping[str, float],
+    settings: OptimizeSettings,
+    *,
+    scene: Scene | None = None,
+    geometry: _Geometry | None = None,
+) -> Candidate:
     """Judge one geometry: the cheap geometric constraints, then, only if they all hold, a simulation.
 
     Parameters
@@ -313,19 +315,27 @@ def evaluate(mapping: Mapping[str, Any], values: Mapping[str, float], settings: 
         ``{key: value}`` of :data:`LINK_KEYS` replacing the scene's, m.
     settings : OptimizeSettings
         The transmission angle required and the line time simulated.
+    scene : Scene, optional
+        ``mapping`` with ``values`` applied, parsed (None: parsed here if simulated).
+    geometry : tuple, optional
+        What the geometric checks found for ``values`` already (None: checked here).
 
     Returns
     -------
     Candidate
     """
-    constraints, angles, ok = _geometry(mapping, values, math.radians(settings.min_transmission_deg))
+    if geometry is None:
+        geometry = _geometry(mapping, values, math.radians(settings.min_transmission_deg))
+    cons, angles, ok = geometry
+    constraints = dict(cons)  # the simulated constraint is added to a copy
     summary = None
     if ok:
-        scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
+        if scene is None:
+            scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
         summary = simulate(scene, settings.duration, sample_rate=0.0).summary()
         lay = summary['layup']
         constraints['no_spill_or_damage'] = -float(lay['leaves_spilled'] + lay['leaves_damaged'])
-    return Candidate(dict(values), constraints, angles, ok, summary)
+    return Candidate(dict(values), constraints, dict(angles), ok, summary)
 
 
 @dataclass(frozen=True)
@@ -418,6 +428,7 @@ def optimize_layup(
     bounds: Sequence[Bound],
     settings: OptimizeSettings = OptimizeSettings(),
     *,
+    scene: Scene | None = None,
     progress: IO[str] | None = None,
     clock: Callable[[], float] = time.monotonic,
 ) -> OptimizeResult:
@@ -430,6 +441,8 @@ def optimize_layup(
     bounds : sequence of Bound
         The design variables, each once.
     settings : OptimizeSettings
+    scene : Scene, optional
+        ``mapping`` as :func:`check_scene` returns it, if the caller checked it already (None: checked here).
     progress : text stream, optional
         Where one line per generation goes (best CV so far).
     clock : callable
@@ -444,16 +457,18 @@ def optimize_layup(
     ParameterError
         The scene lands no leaves, or a bound is not a link of the layup.
     """
-    check_scene(mapping)  # the start must be a valid scene: its own errors first
+    if scene is None:
+        scene = check_scene(mapping)  # the start must be a valid scene: its own errors first
     keys = [b.key for b in bounds]
     if not keys:
         raise ParameterError('--vary', [], 'needs at least one layup.KEY=LO:HI')
     lows, highs = np.array([b.lo for b in bounds]), np.array([b.hi for b in bounds])
     layup = mapping['machines']['layup']
     x_start = np.array([float(layup[k]) for k in keys])
-    start = evaluate(mapping, dict(zip(keys, x_start.tolist(), strict=True)), settings)
+    start = evaluate(mapping, dict(zip(keys, x_start.tolist(), strict=True)), settings, scene=scene)
     mu_min = math.radians(settings.min_transmission_deg)
     seen: dict[tuple[float, ...], Candidate] = {}
+    geometries: dict[tuple[float, ...], _Geometry] = {}  # of the constraint function, reused by the objective
     counts = {'candidates': 0, 'geometry_ok': 0, 'simulated': 0, 'spill_or_damage': 0}
 
     def values_of(x: np.ndarray) -> dict[str, float]:
@@ -461,7 +476,11 @@ def optimize_layup(
 
     def geometry(x: np.ndarray) -> np.ndarray:
         counts['candidates'] += 1
-        cons, _, ok = _geometry(mapping, values_of(x), mu_min)
+        key = tuple(float(v) for v in x)
+        found = geometries.get(key)
+        if found is None:
+            found = geometries[key] = _geometry(mapping, values_of(x), mu_min)
+        cons, _, ok = found
         counts['geometry_ok'] += ok
         return np.array([cons[k] for k in ACTIVE_TOL])
 
@@ -469,7 +488,7 @@ def optimize_layup(
         key = tuple(float(v) for v in x)
         cand = seen.get(key)
         if cand is None:
-            cand = evaluate(mapping, values_of(x), settings)
+            cand = evaluate(mapping, values_of(x), settings, geometry=geometries.get(key))
             seen[key] = cand
             if cand.summary is not None:
                 counts['simulated'] += 1
@@ -523,7 +542,7 @@ def optimize_layup(
         settings=settings,
         start=start,
         best=best,
-        scene=parse_scene(best_mapping),
+        scene=scene if best is start else parse_scene(best_mapping),
         mapping=best_mapping,
         evaluations=counts,
         message=str(res.message),

@@ -12,9 +12,10 @@ slowest feed transporter that still feeds in time?" in two steps:
    absolute tolerance ``tol`` in the key's unit, on the signed distance to the condition
    (``metric - threshold`` for ``>``/``>=``, ``threshold - metric`` for ``<``/``<=``) whose sign
    is the condition's truth (where the distance is 0 but the condition fails, as for ``> 0``,
-   it counts as a tiny negative). On a continuous metric (a margin) brentq converges
-   super-linearly to the zero; on a step (a count) its bisection steps still close the bracket
-   on the jump. Either way the answer is within ``tol`` of where the condition changes.
+   it counts as a tiny negative). The bracket's ends are the scan's values, not simulated
+   again. On a continuous metric (a margin) brentq converges super-linearly to the zero; on a
+   step (a count) its bisection steps still close the bracket on the jump. Either way the
+   answer is within ``tol`` of where the condition changes.
 
 The default range is ``[x0 / 2, 2 x0]`` around the scene's own value ``x0`` of the key
 (``x0 != 0``); ``--between`` gives any other. The scan stays inside it; values the model
@@ -40,7 +41,7 @@ from folder_line.studies.keys import check_key, key_unit, scene_value
 from folder_line.studies.points import OK, PointTask, evaluate_point, simulate_summary
 from folder_line.studies.runner import Cluster, run_tasks
 
-__all__ = ['DEFAULT_SCAN', 'Condition', 'SolveResult', 'parse_between', 'parse_condition', 'solve_boundary']
+__all__ = ['DEFAULT_SCAN', 'Condition', 'SolveResult', 'parse_condition', 'solve_boundary']
 
 #: values of the bracketing scan by default
 DEFAULT_SCAN = 9
@@ -99,20 +100,6 @@ def parse_condition(text: str, option: str = '--where') -> Condition:
     if not math.isfinite(threshold):
         raise ParameterError(option, text, 'the threshold must be a finite number')
     return Condition(match['metric'], match['op'], threshold)
-
-
-def parse_between(text: str, option: str = '--between') -> tuple[float, float]:
-    """``'5:15'`` -> ``(5.0, 15.0)``: two finite numbers, the first below the second."""
-    parts = text.split(':')
-    try:
-        lo, hi = (float(p) for p in parts) if len(parts) == 2 else (math.nan, math.nan)
-    except ValueError:
-        lo = hi = math.nan
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise ParameterError(option, text, 'must be LO:HI, two finite numbers in the unit of the key')
-    if not lo < hi:
-        raise ParameterError(option, text, 'LO must be below HI')
-    return lo, hi
 
 
 @dataclass(frozen=True)
@@ -272,17 +259,23 @@ def solve_boundary(
             if evaluated
             else f'no boundary of {cond.text} in the range of {key}: {ends}',
         )
+    # the metric by the exact value of the key: the scan's values seed it, so brentq's first two
+    # calls (the bracket's ends) are not simulated again
+    known: dict[float, float] = dict(evaluated)
     count = 0
 
     def signed(x: float) -> float:
         nonlocal count
-        count += 1
-        try:
-            got = flatten_metrics(simulate_summary(apply_overrides(source, {key: x}), duration)).get(path)
-        except FolderLineError as exc:
-            raise ParameterError(key, x, f'refused by the model while refining the boundary: {exc}') from None
+        got = known.get(x)
         if got is None:
-            raise ParameterError(key, x, f'the summary has no {path} here')
+            count += 1
+            try:
+                got = flatten_metrics(simulate_summary(apply_overrides(source, {key: x}), duration)).get(path)
+            except FolderLineError as exc:
+                raise ParameterError(key, x, f'refused by the model while refining the boundary: {exc}') from None
+            if got is None:
+                raise ParameterError(key, x, f'the summary has no {path} here')
+            known[x] = got
         d = cond.distance(got)
         ok = cond.holds(got)
         return d if (d > 0.0) == ok and d != 0.0 else (_TINY if ok else -_TINY)

@@ -17,7 +17,7 @@ from folder_line.studies.optimize import (
     default_bounds,
     evaluate,
     optimize_layup,
-    parse_vary,
+    parse_design_vary,
 )
 from folder_line.studies.optimize_output import histogram_lines, result_document, verdict
 
@@ -29,8 +29,11 @@ def layup() -> dict[str, Any]:
     return scene_mapping('layup')
 
 
-def test_parse_vary_reads_bounds() -> None:
-    assert parse_vary(['layup.l4=0.55:0.7', 'layup.a=-0.7:-0.5']) == (Bound('l4', 0.55, 0.7), Bound('a', -0.7, -0.5))
+def test_parse_design_vary_reads_bounds() -> None:
+    assert parse_design_vary(['layup.l4=0.55:0.7', 'layup.a=-0.7:-0.5']) == (
+        Bound('l4', 0.55, 0.7),
+        Bound('a', -0.7, -0.5),
+    )
 
 
 @pytest.mark.parametrize(
@@ -45,15 +48,15 @@ def test_parse_vary_reads_bounds() -> None:
         ('layup.l4=-0.1:0.5', '> 0'),
     ],
 )
-def test_parse_vary_refuses_naming_the_option(item: str, why: str) -> None:
+def test_parse_design_vary_refuses_naming_the_option(item: str, why: str) -> None:
     with pytest.raises(ParameterError, match=why) as exc:
-        parse_vary([item])
+        parse_design_vary([item])
     assert str(exc.value).startswith('--vary=')
 
 
-def test_parse_vary_refuses_a_key_twice() -> None:
+def test_parse_design_vary_refuses_a_key_twice() -> None:
     with pytest.raises(ParameterError, match='twice'):
-        parse_vary(['layup.l4=0.5:0.7', 'layup.l4=0.6:0.8'])
+        parse_design_vary(['layup.l4=0.5:0.7', 'layup.l4=0.6:0.8'])
 
 
 def test_default_bounds_are_the_scene_values_plus_minus_the_span(layup: dict[str, Any]) -> None:

@@ -6,8 +6,9 @@ import pytest
 
 from folder_line.config.scenes import scene_mapping
 from folder_line.errors import ParameterError
+from folder_line.studies.grid import parse_bounds
 from folder_line.studies.runner import Cluster
-from folder_line.studies.solve import Condition, parse_between, parse_condition, solve_boundary
+from folder_line.studies.solve import Condition, parse_condition, solve_boundary
 
 from ._closed_form import v_tr_min
 
@@ -40,10 +41,10 @@ def test_conditions_hold_on_the_right_side_of_the_threshold() -> None:
 
 
 def test_between() -> None:
-    assert parse_between('5:15') == (5.0, 15.0)
+    assert parse_bounds('5:15') == (5.0, 15.0)
     for bad in ('5', '5:x', '15:5', '5:5', '1:2:3', 'nan:1'):
         with pytest.raises(ParameterError, match=r'^--between='):
-            parse_between(bad)
+            parse_bounds(bad)
 
 
 def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
@@ -57,7 +58,7 @@ def test_a_step_metric_is_bracketed_to_the_tolerance() -> None:
     # 0.5 s: 7 knife cycles; too slow, every feed is late (and at 5 m/s the signature is not settled
     # before the knife either); at 13 m/s it rebounds too far: the first change, 9 -> 11, is the one solved
     assert [m for _, m in result.scan] == [21.0, 7.0, 7.0, 0.0, 7.0]
-    assert 1 + 5 + 2 <= result.evaluations <= 1 + 5 + 2 + 40  # the scene, the scan, brentq (ends and steps)
+    assert 1 + 5 + 1 <= result.evaluations <= 1 + 5 + 40  # the scene, the scan, brentq's steps (its ends: the scan's)
 
 
 def test_no_change_in_the_range_names_the_range_and_the_ends() -> None:

@@ -106,7 +106,41 @@ def _speeds(V: npt.ArrayLike) -> np.ndarray:
     return v
 
 
-def bounce_count(params: Params, V: npt.ArrayLike) -> np.ndarray:
+def _restitution(params: Params, v: np.ndarray, e: npt.ArrayLike | None) -> float | np.ndarray:
+    """``params.e`` (None: one restitution for every impact), else ``e`` checked: one per impact speed, in [0, 1)."""
+    if e is None:
+        return params.e
+    ea = np.asarray(e, dtype=float)
+    if ea.shape != v.shape or not (np.all(ea >= 0.0) and np.all(ea < 1.0)):
+        raise ParameterError('e', e, 'needs one restitution in [0, 1) per impact speed')
+    return ea
+
+
+def _count(e: float | np.ndarray, v_rest: float, v: np.ndarray) -> np.ndarray:
+    """N per impact at speeds ``v`` with restitution ``e`` (a float, or an array shaped like ``v``), checked."""
+    bouncing = (v >= v_rest) & (e > 0.0)
+    if not np.any(bouncing):
+        return np.zeros(v.shape, dtype=np.int64)
+    ratio = np.where(bouncing, v_rest / np.where(bouncing, v, 1.0), 1.0)  # in (0, 1]
+    if isinstance(e, np.ndarray):
+        ee: float | np.ndarray = np.where(bouncing, e, 0.5)  # a placeholder in (0, 1) where e = 0: no log(0)
+        log_e: float | np.ndarray = np.log(ee)
+    else:  # one e > 0 for all: one logarithm
+        ee, log_e = e, math.log(e)
+    k = np.floor(np.log(ratio) / log_e)  # >= 0
+    k = np.clip(k, 0.0, 1e15)  # int64-safe; e -> 1 with v_rest -> 0 is unphysical anyway
+    # fix the rounding of the logarithms: want e^k V >= v_rest > e^(k+1) V
+    k = np.where(ee**k * v < v_rest, k - 1.0, k)
+    k = np.where(ee ** (k + 1.0) * v >= v_rest, k + 1.0, k)
+    return np.where(bouncing, k.astype(np.int64) + 1, 0)
+
+
+def _settle(e: float | np.ndarray, a_f: float, v: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """``(2 V / a_f) e (1 - e^N) / (1 - e)`` per impact (0 where N = 0), s."""
+    return np.where(count > 0, (2.0 * v / a_f) * e * (1.0 - e ** count.astype(float)) / (1.0 - e), 0.0)
+
+
+def bounce_count(params: Params, V: npt.ArrayLike, e: npt.ArrayLike | None = None) -> np.ndarray:
     """Number of bounces N after an impact at ``V`` (closed form via logarithms).
 
     Parameters
@@ -115,6 +149,9 @@ def bounce_count(params: Params, V: npt.ArrayLike) -> np.ndarray:
         Restitution.
     V : array_like
         Impact speed, m/s (>= 0).
+    e : array_like, optional
+        A restitution per impact, shaped like ``V``, in [0, 1) (``property_scatter``); None:
+        ``params.e`` for all.
 
     Returns
     -------
@@ -123,17 +160,7 @@ def bounce_count(params: Params, V: npt.ArrayLike) -> np.ndarray:
         ``e = 0`` or ``V < v_rest``).
     """
     v = _speeds(V)
-    e, vr = params.e, params.v_rest
-    bouncing = v >= vr
-    if e == 0.0 or not np.any(bouncing):
-        return np.zeros(v.shape, dtype=np.int64)
-    ratio = np.where(bouncing, vr / np.where(bouncing, v, 1.0), 1.0)  # in (0, 1]
-    k = np.floor(np.log(ratio) / math.log(e))  # >= 0
-    k = np.clip(k, 0.0, 1e15)  # int64-safe; e -> 1 with v_rest -> 0 is unphysical anyway
-    # fix the rounding of the logarithms: want e^k V >= v_rest > e^(k+1) V
-    k = np.where(e**k * v < vr, k - 1.0, k)
-    k = np.where(e ** (k + 1.0) * v >= vr, k + 1.0, k)
-    return np.where(bouncing, k.astype(np.int64) + 1, 0)
+    return _count(_restitution(params, v, e), params.v_rest, v)
 
 
 def first_rebound(params: Params, V: npt.ArrayLike) -> np.ndarray:
@@ -150,9 +177,7 @@ def settle_time(params: Params, V: npt.ArrayLike) -> np.ndarray:
     ``(2 V / a_f) e (1 - e^N) / (1 - e)`` with N from :func:`bounce_count` (0 if N = 0).
     """
     v = _speeds(V)
-    n = bounce_count(params, v)
-    e = params.e
-    return np.where(n > 0, (2.0 * v / params.a_f) * e * (1.0 - e ** n.astype(float)) / (1.0 - e), 0.0)
+    return _settle(params.e, params.a_f, v, bounce_count(params, v))
 
 
 @dataclass(frozen=True, eq=False)
@@ -183,19 +208,6 @@ class BounceSchedule:
     settle: np.ndarray
 
 
-def _count_each(e: np.ndarray, v_rest: float, v: np.ndarray) -> np.ndarray:
-    """:func:`bounce_count` with a restitution per impact (``e`` shaped like ``v``, in [0, 1))."""
-    bouncing = (v >= v_rest) & (e > 0.0)
-    if not np.any(bouncing):
-        return np.zeros(v.shape, dtype=np.int64)
-    ee = np.where(bouncing, e, 0.5)
-    ratio = np.where(bouncing, v_rest / np.where(bouncing, v, 1.0), 1.0)
-    k = np.clip(np.floor(np.log(ratio) / np.log(ee)), 0.0, 1e15)
-    k = np.where(ee**k * v < v_rest, k - 1.0, k)
-    k = np.where(ee ** (k + 1.0) * v >= v_rest, k + 1.0, k)
-    return np.where(bouncing, k.astype(np.int64) + 1, 0)
-
-
 def bounce_schedule(
     params: Params, V: npt.ArrayLike, max_events: int = MAX_BOUNCE_EVENTS, e: npt.ArrayLike | None = None
 ) -> BounceSchedule:
@@ -216,35 +228,17 @@ def bounce_schedule(
     -------
     BounceSchedule
     """
-    if e is not None:
-        return _schedule_each(params, _speeds(V).ravel(), np.asarray(e, dtype=float).ravel(), max_events)
     v = _speeds(V).ravel()
-    count = bounce_count(params, v)
-    e, af = params.e, params.a_f
-    settle = np.where(count > 0, (2.0 * v / af) * e * (1.0 - e ** count.astype(float)) / (1.0 - e), 0.0)
+    ee = _restitution(params, v, None if e is None else np.asarray(e, dtype=float).ravel())
+    count = _count(ee, params.v_rest, v)
+    af = params.a_f
+    settle = _settle(ee, af, v, count)
     emitted = np.minimum(count, max_events)
     index = np.repeat(np.arange(v.size, dtype=np.int64), emitted)
     starts = np.cumsum(emitted) - emitted
     n = np.arange(index.size, dtype=np.int64) - np.repeat(starts, emitted) + 1
     vi = v[index]
-    nf = n.astype(float)
-    dt = (2.0 * vi / af) * e * (1.0 - e ** (nf - 1.0)) / (1.0 - e)
-    speed = e**nf * vi
-    return BounceSchedule(index, n, dt, speed * speed / (2.0 * af), count, settle)
-
-
-def _schedule_each(params: Params, v: np.ndarray, e: np.ndarray, max_events: int) -> BounceSchedule:
-    """:func:`bounce_schedule` with a restitution per impact (the same closed forms, element-wise)."""
-    if e.shape != v.shape or not (np.all(e >= 0.0) and np.all(e < 1.0)):
-        raise ParameterError('e', e, 'needs one restitution in [0, 1) per impact speed')
-    count = _count_each(e, params.v_rest, v)
-    af = params.a_f
-    settle = np.where(count > 0, (2.0 * v / af) * e * (1.0 - e ** count.astype(float)) / (1.0 - e), 0.0)
-    emitted = np.minimum(count, max_events)
-    index = np.repeat(np.arange(v.size, dtype=np.int64), emitted)
-    starts = np.cumsum(emitted) - emitted
-    n = np.arange(index.size, dtype=np.int64) - np.repeat(starts, emitted) + 1
-    vi, ei = v[index], e[index]
+    ei = ee[index] if isinstance(ee, np.ndarray) else ee
     nf = n.astype(float)
     dt = (2.0 * vi / af) * ei * (1.0 - ei ** (nf - 1.0)) / (1.0 - ei)
     speed = ei**nf * vi
