@@ -164,6 +164,8 @@ FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
     ('studies/runner.py', 'distributed.comm.addressing'): 'the scheduler address checked as Dask reads it',
     ('studies/runner.py', 'distributed.comm.registry'): 'the scheduler address checked as Dask reads it',
     ('studies/montecarlo.py', 'scipy.special'): 'scipy is slow to import: `folder-line --help` does not need it',
+    ('studies/optimize.py', 'scipy.optimize'): 'scipy is slow to import: `folder-line --help` does not need it',
+    ('studies/solve.py', 'scipy.optimize'): 'scipy is slow to import: `folder-line --help` does not need it',
 }
 
 

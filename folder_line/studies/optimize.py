@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 from typing import IO, Any, NamedTuple
 
 import numpy as np
-from scipy.optimize import NonlinearConstraint, differential_evolution
 
 from folder_line.config.scenes import apply_overrides
 from folder_line.core.line.model import simulate
@@ -507,6 +506,8 @@ def optimize_layup(
                 f'({counts["simulated"]} simulated of {counts["candidates"]} candidates)\n'
             )
             progress.flush()
+
+    from scipy.optimize import NonlinearConstraint, differential_evolution
 
     inside = bool(np.all((x_start >= lows) & (x_start <= highs)))
     t0 = clock()

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import IO, Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from folder_line.config.scenes import apply_overrides
 from folder_line.core.line.metric_units import metric_unit
@@ -279,6 +278,8 @@ def solve_boundary(
         d = cond.distance(got)
         ok = cond.holds(got)
         return d if (d > 0.0) == ok and d != 0.0 else (_TINY if ok else -_TINY)
+
+    from scipy.optimize import brentq
 
     value = float(brentq(signed, bracket[0], bracket[1], xtol=tolerance, maxiter=MAX_ITER))
     return SolveResult(
