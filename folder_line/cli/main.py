@@ -83,6 +83,9 @@ def _samples(text: str) -> int:
 _MONITOR_RATE = Limit('monitor refresh rate', 0.1, 60.0, 'Hz', 'a screen refresh')
 _MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the rates are counted over')
 _MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
+# what `bag play` and `analyze --from/--to` take from a bag: line time (a week at most)
+_BAG_TIME = Limit('line time in a bag', 0.0, 604800.0, 's', 'a week of line time')
+_BAG_SPAN = Limit('line time to play', 1e-9, 604800.0, 's', 'a week of line time')
 #: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
 _rtf = limited('--rtf', RTF, also='max')
 
@@ -173,10 +176,25 @@ def build_parser() -> argparse.ArgumentParser:
     _addlimited(mon, '--window', _MONITOR_WINDOW, 2.0, 'S', 'window of the topic rates, s of wall time')
     _addlimited(mon, '--timeout', _MONITOR_TIMEOUT, 10.0, 'S', 'with --once: longest wait for the first message, s')
 
-    bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, repair')
+    bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, play, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
     bag_info = bag_sub.add_parser('info', help='topics, counts, line time and custom data of a bag')
     bag_info.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    play = bag_sub.add_parser(
+        'play', help='republish a bag on its topics with /clock, as the line published it (Ctrl-C stops)'
+    )
+    play.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    play.add_argument(
+        '--rtf', type=_rtf, default=1.0, metavar='X|max', help='line seconds per wall second (default 1); max: no pacing'
+    )
+    play.add_argument(
+        '--start', type=limited('--start', _BAG_TIME), default=0.0, metavar='S', help="begin S s after the bag's start"
+    )
+    play.add_argument(
+        '--duration', type=limited('--duration', _BAG_SPAN), metavar='S', help='play S s of line time (default: all)'
+    )
+    play.add_argument('--topics', nargs='+', default=[], metavar='T', help='only these topics (/clock always)')
+    play.add_argument('--loop', action='store_true', help='play the window again and again until Ctrl-C')
     bag_repair = bag_sub.add_parser(
         'repair', help='rebuild metadata.yaml from the MCAP files present, salvaging an unfinished last file'
     )
@@ -190,6 +208,10 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument('path', metavar='RUN_DIR|BAG', help='a run directory (run.json, bag/) or a bag directory')
     ana.add_argument('--out', metavar='DIR', help='output directory (default RUN_DIR/analysis)')
     ana.add_argument('--csv', action='store_true', help='also write one CSV per topic to DIR/csv/')
+    ana.add_argument(
+        '--from', dest='t_from', type=limited('--from', _BAG_TIME), metavar='S', help='analyse line time from S s on'
+    )
+    ana.add_argument('--to', dest='t_to', type=limited('--to', _BAG_TIME), metavar='S', help='analyse line time up to S s')
 
     bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
@@ -308,6 +330,25 @@ def _cmd_bag(args: argparse.Namespace) -> int:
             result = repair(args.dir)
         print(f'repaired {args.dir}: {result.describe()}')
         print(f'wrote {result.metadata}')
+        return 0
+    if args.bag_verb == 'play':
+        from folder_line.ros import player  # loads rclpy: only the verbs that use DDS need it
+
+        played = player.play_bag(
+            args.dir,
+            rtf=args.rtf,
+            start=args.start,
+            duration=args.duration,
+            topics=args.topics,
+            loop=args.loop,
+            stream=sys.stdout,
+        )
+        total = sum(played.published.values())
+        how = 'stopped by Ctrl-C' if played.interrupted else 'done'
+        print(
+            f'{how}: {total} messages on {len(played.published)} topics, {played.passes} pass(es), '
+            f'line time {played.line_time:.9g} s in {played.wall_time:.3f} s of wall time'
+        )
         return 0
     for line in bag_info_lines(read_bag(args.dir)):
         print(line)
