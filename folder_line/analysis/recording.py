@@ -205,32 +205,59 @@ def _time_ns(stamp: Any) -> int:
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
+class _Grow:
+    """A numpy array appended to row by row, its capacity doubled when full: memory is the data's, with no
+    Python object per message (an hour of a 200 Hz topic is 720 000 rows)."""
+
+    def __init__(self, dtype: Any, width: int = 0) -> None:
+        self.width = width
+        self.data = np.zeros((1024, width) if width else 1024, dtype=dtype)
+        self.n = 0
+
+    def add(self, row: Any) -> None:
+        if self.n == len(self.data):
+            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
+        self.data[self.n] = row
+        self.n += 1
+
+    def done(self) -> np.ndarray:
+        out: np.ndarray = self.data[: self.n].copy()
+        return out
+
+
 class _Joints:
     """Accumulates one node's joint states."""
 
     def __init__(self, node: str, names: Sequence[str]) -> None:
         self.node, self.names = node, tuple(names)
-        self.t: list[int] = []
-        self.pos: list[np.ndarray] = []
-        self.vel: list[np.ndarray] = []
-        self.eff: list[np.ndarray] = []
+        j = max(len(self.names), 1)
+        self.t = _Grow(np.int64)
+        self.pos = _Grow(float, j)
+        self.vel = _Grow(float, j)
+        self.eff = _Grow(float, j)
+        self.has_eff = True
 
     def add(self, msg: Any) -> None:
         if tuple(msg.name) != self.names:  # a model rebuilt with other joints: keep the first layout
             return
-        self.t.append(_time_ns(msg.header.stamp))
-        self.pos.append(np.asarray(msg.position, dtype=float))
-        self.vel.append(np.asarray(msg.velocity, dtype=float))
-        self.eff.append(np.asarray(msg.effort, dtype=float))
+        j = len(self.names)
+        self.t.add(_time_ns(msg.header.stamp))
+        self.pos.add(np.asarray(msg.position, dtype=float).reshape(j) if j else 0.0)
+        self.vel.add(np.asarray(msg.velocity, dtype=float).reshape(j) if j else 0.0)
+        effort = np.asarray(msg.effort, dtype=float)
+        if effort.size == j and j:
+            self.eff.add(effort)
+        else:
+            self.has_eff = False
+            self.eff.add(0.0)
 
     def done(self) -> RecordedJoints:
         j = len(self.names)
-        n = len(self.t)
-        pos = np.array(self.pos).reshape(n, j) if n else np.zeros((0, j))
-        vel = np.array(self.vel).reshape(n, j) if n else np.zeros((0, j))
-        has_eff = n > 0 and all(e.size == j for e in self.eff)
-        eff = np.array(self.eff).reshape(n, j) if has_eff else None
-        t = np.asarray(self.t, dtype=np.int64) / NS_PER_S
+        n = self.t.n
+        pos = self.pos.done()[:, :j]
+        vel = self.vel.done()[:, :j]
+        eff = self.eff.done()[:, :j] if n > 0 and self.has_eff else None
+        t = self.t.done() / NS_PER_S
         order = np.argsort(t, kind='stable')
         return RecordedJoints(
             self.node, self.names, t[order], pos[order], vel[order], None if eff is None else eff[order]
@@ -238,7 +265,10 @@ class _Joints:
 
 
 def read_recording(
-    path: str | os.PathLike[str], on_message: Callable[[str, int, Any], None] | None = None
+    path: str | os.PathLike[str],
+    on_message: Callable[[str, int, Any], None] | None = None,
+    *,
+    t_to: float | None = None,
 ) -> Recording:
     """Decode a run's bag: events, joint states, states, commands, counts (one pass over the bag).
 
@@ -248,6 +278,12 @@ def read_recording(
         A run directory (``run.json`` and ``bag/``) or a bag directory.
     on_message : callable, optional
         Called with ``(topic, log time ns, message)`` for every message (the CSV export).
+    t_to : float, optional
+        Read the messages logged up to this line time only, s (``analyze --to``): the
+        recording is then that of a run that ended there.
+
+    The bag is read once, message by message; what is kept grows with the numbers the
+    analysis needs (numpy arrays), not with Python objects per message.
 
     Raises
     ------
@@ -265,29 +301,33 @@ def read_recording(
         raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
     scene = parse_scene(mapping)
 
-    clock: list[int] = []
-    diag_ns: list[int] = []
+    clock = _Grow(np.int64)
+    diag_ns = _Grow(np.int64)
     status: list[tuple[int, str, dict[str, str]]] = []
     bad_values: list[tuple[float, str, int]] = []
-    ev_rows: list[tuple[int, int, int, int, float]] = []
+    ev_ns = _Grow(np.int64)
+    ev_rows = _Grow(EVENT_DTYPE)
     bad_events = 0
     joints: dict[str, _Joints] = {}
     states: list[tuple[int, str]] = []
     commands: dict[tuple[int, str], None] = {}
     sheet_count: int | None = None
     landing: list[float] = []
-    for topic, t_ns, msg in contents.messages():
+    stop_ns = None if t_to is None else round(t_to * NS_PER_S) + 1
+    for topic, t_ns, msg in contents.messages(stop_ns=stop_ns):
         if on_message is not None:
             on_message(topic, t_ns, msg)
         if topic == CLOCK_TOPIC:
-            clock.append(_time_ns(msg.clock))
+            clock.add(_time_ns(msg.clock))
         elif topic == EVENTS_TOPIC:
             try:
                 kind, sheet, cycle, value = parse_event_source(msg.source)
             except ValueError:
                 bad_events += 1
                 continue
-            ev_rows.append((_time_ns(msg.time_ref), EVENT_KINDS.index(kind), sheet, cycle, value))
+            t_ev = _time_ns(msg.time_ref)
+            ev_ns.add(t_ev)
+            ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set below, from the ns
         elif (node := joint_states_node(topic)) is not None:
             acc = joints.get(node)
             if acc is None:
@@ -301,10 +341,11 @@ def read_recording(
             if bad:
                 bad_values.append((_time_ns(msg.header.stamp) / NS_PER_S, topic, bad))
         elif topic == DIAGNOSTICS_TOPIC:
-            diag_ns.append(_time_ns(msg.header.stamp))
+            stamp_ns = _time_ns(msg.header.stamp)
+            diag_ns.add(stamp_ns)
             for st in msg.status:
                 if str(st.name).startswith(SUPERVISOR_STATUS_PREFIX):
-                    status.append((diag_ns[-1], str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
+                    status.append((stamp_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
         elif topic == SUPERVISOR_STATE_TOPIC:
             states.append((t_ns, str(msg.data)))
         elif topic == COMMANDS_TOPIC:
@@ -314,17 +355,14 @@ def read_recording(
         elif topic == LANDING_TOPIC:
             landing.append(float(msg.data))
 
-    ns = np.array([r[0] for r in ev_rows], dtype=np.int64)
-    events = np.zeros(len(ev_rows), dtype=EVENT_DTYPE)
-    if ev_rows:
-        events['t'] = ns / NS_PER_S
-        events['kind'] = [r[1] for r in ev_rows]
-        events['sheet'] = [r[2] for r in ev_rows]
-        events['cycle'] = [r[3] for r in ev_rows]
-        events['value'] = [r[4] for r in ev_rows]
+    ns = ev_ns.done()
+    events = ev_rows.done()
+    events['t'] = ns / NS_PER_S
     order = np.lexsort((events['sheet'], events['kind'], ns))
     cmds = tuple(sorted((Command(t=t / NS_PER_S, kind=k) for t, k in commands), key=lambda c: c.t))
-    t_end = (max(clock) if clock else contents.end_ns) / NS_PER_S
+    clock_ns = clock.done()
+    end_ns = contents.end_ns if t_to is None else min(contents.end_ns, round(t_to * NS_PER_S))
+    t_end = (int(clock_ns.max()) if clock_ns.size else end_ns) / NS_PER_S
     return Recording(
         bag=contents,
         run=run,
@@ -339,8 +377,8 @@ def read_recording(
         sheet_count=sheet_count,
         landing_x=np.asarray(landing, dtype=float),
         bad_events=bad_events,
-        clock=np.asarray(clock, dtype=np.int64) / NS_PER_S,
-        diagnostics_ns=np.asarray(diag_ns, dtype=np.int64),
+        clock=clock_ns / NS_PER_S,
+        diagnostics_ns=diag_ns.done(),
         supervisor_status=status,
         bad_values=bad_values,
     )

@@ -87,18 +87,22 @@ class BagContents:
         text = self.custom.get(KEY_PUBLISHED)
         return None if text is None else {str(k): int(v) for k, v in json.loads(text).items()}
 
-    def messages(self, topics: Sequence[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+    def messages(
+        self, topics: Sequence[str] | None = None, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[str, int, Any]]:
         """``(topic, log time ns, message)`` in file order and, within a file, log-time order.
 
         Messages are deserialized by the rosbags typestore (ROS 2 kilted): dataclasses
         with the fields of the ROS message, float arrays as numpy arrays; no rclpy needed.
+        One message at a time: memory does not grow with the bag. ``start_ns`` and
+        ``stop_ns`` (log times, ns; ``stop_ns`` excluded) bound the messages read.
         """
         store = typestore()
         with open_reader(self.path) as reader:
             wanted = [c for c in reader.connections if topics is None or c.topic in topics]
             if not wanted:
                 return
-            for conn, t_ns, raw in reader.messages(connections=wanted):
+            for conn, t_ns, raw in reader.messages(connections=wanted, start=start_ns, stop=stop_ns):
                 yield conn.topic, t_ns, store.deserialize_cdr(raw, conn.msgtype)
 
 
