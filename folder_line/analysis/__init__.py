@@ -11,12 +11,13 @@ The modules, in the order the data flows:
     what each figure shows, as arrays, and the figures drawn (with the papers' model
     curves that ``folder-line report`` draws too);
 :mod:`~folder_line.analysis.csv_export`
-    every message of the bag as CSV, one file per topic;
+    every message of the bag as CSV, one file per topic (a ``t`` column in s, events parsed,
+    diagnostics one row per status), streamed;
 :mod:`~folder_line.analysis.report`
     :func:`analyze`: ``report.md``, the figures and the CSVs written; :func:`print_analysis`.
 """
 
-from folder_line.analysis.csv_export import CsvCollector, csv_name, flatten_message
+from folder_line.analysis.csv_export import CsvCollector, csv_name, flatten_message, message_rows
 from folder_line.analysis.figure_data import GANTT_CYCLES, cycle_rows, efficiency_data, exit_speed_data, landing_data
 from folder_line.analysis.figures import FIGURES, draw_figures
 from folder_line.analysis.recording import RecordedJoints, Recording, read_recording
@@ -51,6 +52,7 @@ __all__ = [
     'exit_speed_data',
     'flatten_message',
     'landing_data',
+    'message_rows',
     'print_analysis',
     'read_recording',
     'recorded_transitions',

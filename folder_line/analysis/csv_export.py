@@ -1,25 +1,49 @@
-"""The messages of a bag as CSV: one file per topic, one row per message (``folder-line analyze --csv``).
+"""The messages of a bag as CSV: one file per topic (``folder-line analyze --csv``), streamed.
 
-:func:`flatten_message` turns a message (as rosbags decodes it) into columns;
+Every file begins with ``t``: the message's log time in the bag (its tick), s of line
+time, as a float. Every other column is a field of the message (nested fields joined with
+``.``), with three readings that make the tables usable as they are:
+
+- a time (``builtin_interfaces/Time``: ``header.stamp``, ``time_ref``, ``clock``) is one
+  column in seconds (float), not ``sec`` and ``nanosec``;
+- ``/line/events``: the event's ``source`` is parsed
+  (:func:`folder_line.interfaces.parse_event_source`) into ``kind, sheet, cycle, value``
+  columns (a source that is not an event: ``kind`` empty, the text in ``source``);
+- ``/diagnostics``: one row per status (``t, header.stamp, name, level, message,
+  hardware_id``), its key/values as one column each (``values.<key>``, empty where a
+  status lacks the key) -- not one very wide row per array;
+- joint states: one column per joint and quantity (``position.knife_crank``).
+
 :class:`CsvCollector` is handed every message while the bag is read
-(:func:`folder_line.analysis.recording.read_recording`'s ``on_message``) and writes
-``<topic>.csv`` files (:func:`csv_name`) atomically.
+(:func:`folder_line.analysis.recording.read_recording`'s ``on_message``). It spools the
+rows of each topic to a temporary file (JSON lines) as they come, keeping only the column
+names in memory, and :meth:`CsvCollector.write` then streams each topic's rows into its
+``<topic>.csv`` (:func:`csv_name`) atomically: memory stays bounded however long the bag.
 """
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import functools
-from collections.abc import Sequence
+import io
+import json
+import tempfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
-from folder_line.files.atomic import check_output_file, write_csv_atomic
+from folder_line.files.atomic import check_output_file, write_chunks_atomic
+from folder_line.interfaces import DIAGNOSTICS_TOPIC, EVENTS_TOPIC, NS_PER_S, parse_event_source
 
-__all__ = ['CsvCollector', 'csv_name', 'flatten_message']
+__all__ = ['CsvCollector', 'csv_name', 'flatten_message', 'message_rows']
+
+_TIME = 'builtin_interfaces/msg/Time'
+#: rows written per chunk of a CSV file
+_CHUNK_ROWS = 4096
 
 
 @functools.lru_cache(maxsize=64)
@@ -37,9 +61,16 @@ def _join(prefix: str, name: str) -> str:
     return f'{prefix}.{name}' if prefix else name
 
 
+def _seconds(stamp: Any) -> float:
+    return (int(stamp.sec) * NS_PER_S + int(stamp.nanosec)) / NS_PER_S
+
+
 def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
     if _is_message(value):
         mt = value.__msgtype__
+        if mt == _TIME:
+            out[prefix or 'stamp'] = _seconds(value)
+            return
         if mt == 'sensor_msgs/msg/JointState':
             joints = [str(n) for n in value.name]
             for name in _field_names(mt):
@@ -73,14 +104,48 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
 def flatten_message(msg: Any) -> dict[str, Any]:
     """A bag message (rosbags) as ``{column: scalar}``.
 
-    Nested fields are joined with ``.`` (``header.stamp.sec``), sequences indexed
-    (``status[0].level``); joint states are named by joint (``position.knife_crank``;
-    the ``name`` list itself is dropped) and ``diagnostic_msgs/KeyValue`` lists by key
-    (``status[0].values.margin``).
+    Nested fields are joined with ``.``, a time is seconds (``header.stamp``), sequences
+    indexed (``status[0].level``); joint states are named by joint (``position.knife_crank``;
+    the ``name`` list itself is dropped) and ``diagnostic_msgs/KeyValue`` lists by key.
     """
     out: dict[str, Any] = {}
     _flatten(msg, '', out)
     return out
+
+
+def message_rows(topic: str, t_ns: int, msg: Any) -> list[dict[str, Any]]:
+    """The CSV rows of one message: ``t`` (log time, s) and its columns (see the module's docstring).
+
+    One row per message, but one per status on ``/diagnostics``.
+    """
+    t = t_ns / NS_PER_S
+    if topic == DIAGNOSTICS_TOPIC and _is_message(msg) and hasattr(msg, 'status'):
+        stamp = _seconds(msg.header.stamp)
+        rows = []
+        for st in msg.status:
+            row: dict[str, Any] = {
+                't': t,
+                'header.stamp': stamp,
+                'name': str(st.name),
+                'level': int.from_bytes(st.level, 'little') if isinstance(st.level, bytes) else int(st.level),
+                'message': str(st.message),
+                'hardware_id': str(st.hardware_id),
+            }
+            row.update({f'values.{kv.key}': str(kv.value) for kv in st.values})
+            rows.append(row)
+        return rows
+    row = {'t': t}
+    flat = flatten_message(msg)
+    if topic == EVENTS_TOPIC and 'source' in flat:
+        source = flat.pop('source')
+        try:
+            kind, sheet, cycle, value = parse_event_source(str(source))
+        except ValueError:
+            flat.update({'kind': '', 'sheet': '', 'cycle': '', 'value': '', 'source': source})
+        else:
+            flat.update({'kind': kind, 'sheet': sheet, 'cycle': cycle, 'value': value})
+    row.update(flat)
+    return [row]
 
 
 def csv_name(topic: str) -> str:
@@ -89,18 +154,31 @@ def csv_name(topic: str) -> str:
 
 
 class CsvCollector:
-    """Rows of every topic, flattened (:func:`flatten_message`); written one CSV per topic.
+    """Rows of every topic (:func:`message_rows`), spooled to temporary files; written one CSV per topic.
 
-    Call it with ``(topic, log time ns, message)`` for every message, then :meth:`write`.
+    Call it with ``(topic, log time ns, message)`` for every message, then :meth:`write`
+    (or :meth:`close` to drop the spool).
     """
 
     def __init__(self) -> None:
-        self.rows: dict[str, list[dict[str, Any]]] = {}
+        self._spool: dict[str, IO[str]] = {}
+        self.columns: dict[str, dict[str, None]] = {}
+        self.counts: dict[str, int] = {}
 
     def __call__(self, topic: str, t_ns: int, msg: Any) -> None:
-        row = {'log_time_ns': int(t_ns)}
-        row.update(flatten_message(msg))
-        self.rows.setdefault(topic, []).append(row)
+        fh = self._spool.get(topic)
+        if fh is None:
+            fh = self._spool[topic] = tempfile.TemporaryFile('w+', encoding='utf-8')  # noqa: SIM115 - closed in close()
+            self.columns[topic] = {}
+            self.counts[topic] = 0
+        names = self.columns[topic]
+        for row in message_rows(topic, t_ns, msg):
+            for name in row:
+                if name not in names:
+                    names[name] = None
+            fh.write(json.dumps(row, allow_nan=True))
+            fh.write('\n')
+            self.counts[topic] += 1
 
     @staticmethod
     def check(directory: Path, topics: Sequence[str], option: str) -> None:
@@ -108,15 +186,41 @@ class CsvCollector:
         for topic in topics:
             check_output_file(directory / csv_name(topic), option)
 
+    def _chunks(self, topic: str) -> Iterator[bytes]:
+        names = list(self.columns.get(topic, {})) or ['t']
+        buf = io.StringIO(newline='')
+        writer = csv.writer(buf, lineterminator='\n')
+        writer.writerow(names)
+        fh = self._spool.get(topic)
+        if fh is not None:
+            fh.seek(0)
+            for i, line in enumerate(fh, 1):
+                row = json.loads(line)
+                writer.writerow([_cell(row.get(name, '')) for name in names])
+                if i % _CHUNK_ROWS == 0:
+                    yield buf.getvalue().encode('utf-8')
+                    buf.seek(0)
+                    buf.truncate()
+        yield buf.getvalue().encode('utf-8')
+
     def write(self, directory: Path, topics: Sequence[str]) -> dict[str, Path]:
         """Write ``<directory>/<csv_name(topic)>`` for each of ``topics`` (a header only where none was
-        recorded); topic -> the file written."""
+        recorded); topic -> the file written. The spool is closed afterwards."""
         written: dict[str, Path] = {}
-        for topic in topics:
-            rows = self.rows.get(topic, [])
-            names: dict[str, None] = {'log_time_ns': None}
-            for row in rows:
-                names.update(dict.fromkeys(row))
-            columns = {name: [row.get(name, '') for row in rows] for name in names}
-            written[topic] = write_csv_atomic(directory / csv_name(topic), columns)
+        try:
+            for topic in topics:
+                written[topic] = write_chunks_atomic(directory / csv_name(topic), self._chunks(topic))
+        finally:
+            self.close()
         return written
+
+    def close(self) -> None:
+        """Drop the spooled rows."""
+        for fh in self._spool.values():
+            fh.close()
+        self._spool.clear()
+
+
+def _cell(value: Any) -> Any:
+    """A value as the CSV shows it: floats with ``repr`` precision (round-trip exact)."""
+    return repr(value) if isinstance(value, float) else value

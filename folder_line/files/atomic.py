@@ -39,6 +39,7 @@ __all__ = [
     'describe_path',
     'file_kind',
     'write_bytes_atomic',
+    'write_chunks_atomic',
     'write_csv_atomic',
     'write_json_atomic',
     'write_text_atomic',
@@ -292,6 +293,18 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
         The target must not be replaced (:func:`check_output_file`) or the OS refused the
         write (read-only, full, permission); nothing is left behind.
     """
+    return write_chunks_atomic(path, (data,))
+
+
+def write_chunks_atomic(path: str | os.PathLike[str], chunks: Iterable[bytes]) -> Path:
+    """:func:`write_bytes_atomic` of the concatenated ``chunks``, written one by one as they come (a large
+    file never held in memory whole).
+
+    Raises
+    ------
+    OutputError
+        As :func:`write_bytes_atomic`.
+    """
     dest = check_output_file(path)
     created = _make_dirs(dest.parent, None, str(path))
     tmp = ''
@@ -299,7 +312,8 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
         fd, tmp = tempfile.mkstemp(prefix=f'.{dest.name}.', suffix='.tmp', dir=dest.parent)
         with os.fdopen(fd, 'wb') as fh:
             os.fchmod(fd, _MODE)  # mkstemp makes 0600; an output is as readable as any file the user writes
-            fh.write(data)
+            for chunk in chunks:
+                fh.write(chunk)
         check_output_file(path)  # a FIFO or device put there meanwhile is not replaced either
         os.replace(tmp, dest)
     except BaseException as exc:

@@ -236,25 +236,26 @@ def test_folder_csv_one_file_per_topic(folder_recorded: tuple[Path, AnalysisResu
     for topic, info in rec.bag.topics.items():
         with result.csv[topic].open(newline='') as fh:
             rows = list(csv.reader(fh))
-        assert rows[0][0] == 'log_time_ns'
-        assert len(rows) - 1 == info.count, topic
+        assert rows[0][0] == 't'
+        if topic != DIAGNOSTICS_TOPIC:
+            assert len(rows) - 1 == info.count, topic
         assert all(len(r) == len(rows[0]) for r in rows)
         tables[topic] = rows
     js = tables['/line/feed_transporter/joint_states']
     joints = ('feed_belt', 'chain', 'carriage')
     assert js[0] == [
-        'log_time_ns',
-        'header.stamp.sec',
-        'header.stamp.nanosec',
+        't',
+        'header.stamp',
         'header.frame_id',
         *(f'{q}.{j}' for q in ('position', 'velocity', 'effort') for j in joints),
     ]
     ft = rec.joints['feed_transporter']
     col = js[0].index('velocity.carriage')
     assert [float(r[col]) for r in js[1:]] == ft.column('carriage', 'velocity').tolist()  # repr: exact
+    assert [float(r[1]) for r in js[1:]] == ft.t.tolist()  # the stamp in s, as the analysis reads it
     ev = tables[EVENTS_TOPIC]
-    src = ev[0].index('source')
-    assert sorted(parse_event_source(r[src]) for r in ev[1:]) == sorted(
+    assert ev[0] == ['t', 'header.stamp', 'header.frame_id', 'time_ref', 'kind', 'sheet', 'cycle', 'value']
+    assert sorted((r[4], int(r[5]), int(r[6]), float(r[7])) for r in ev[1:]) == sorted(
         (EVENT_KINDS[k], s, c, v)
         for k, s, c, v in zip(
             rec.events['kind'].tolist(),
@@ -264,11 +265,16 @@ def test_folder_csv_one_file_per_topic(folder_recorded: tuple[Path, AnalysisResu
             strict=True,
         )
     )
+    assert sorted(float(r[3]) for r in ev[1:]) == sorted(rec.events['t'].tolist())
     diag = tables[DIAGNOSTICS_TOPIC]
-    assert 'status[0].name' in diag[0] and 'status[0].values.evaluations' in diag[0]
-    assert tables[CLOCK_TOPIC][0] == ['log_time_ns', 'clock.sec', 'clock.nanosec']
+    assert diag[0][:6] == ['t', 'header.stamp', 'name', 'level', 'message', 'hardware_id']
+    assert 'values.evaluations' in diag[0]
+    statuses = [(str(st.name), int(st.level)) for _, _, m in rec.bag.messages([DIAGNOSTICS_TOPIC]) for st in m.status]
+    assert [(r[2], int(r[3])) for r in diag[1:]] == statuses  # one row per status
+    assert tables[CLOCK_TOPIC][0] == ['t', 'clock']
+    assert [float(r[0]) for r in tables[CLOCK_TOPIC][1:]] == [float(r[1]) for r in tables[CLOCK_TOPIC][1:]]
     states = tables[SUPERVISOR_STATE_TOPIC]
-    assert states[0] == ['log_time_ns', 'data'] and states[-1][1] == 'EXECUTE'
+    assert states[0] == ['t', 'data'] and states[-1][1] == 'EXECUTE'
     assert len(tables[COMMANDS_TOPIC]) == 1 and len(tables[LANDING_TOPIC]) == 1  # header only: no message
     assert int(tables[SHEET_COUNT_TOPIC][-1][1]) == rec.sheet_count
     assert not list(csv_dir.glob('.*.tmp'))
