@@ -26,6 +26,8 @@ they are the ones ``folder-line run`` starts the node with (:data:`SUPERVISOR_DE
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -37,7 +39,7 @@ import numpy as np
 from folder_line.analysis.recording import Recording
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import delivery_plan
-from folder_line.core.line.events import ConstraintSeries
+from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.line.model import LineModel, LineResult, make_drive
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command, Drive
@@ -88,8 +90,18 @@ class Evaluation:
     summary: dict[str, Any]
 
 
-def evaluate(rec: Recording) -> Evaluation:
-    """The recorded events judged by the line's constraint code; the simulate-style summary."""
+def evaluate(rec: Recording, t_from: float = 0.0) -> Evaluation:
+    """The recorded events judged by the line's constraint code; the simulate-style summary.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording (up to its ``t_end``).
+    t_from : float, optional
+        Start of the window reported, s of line time (``analyze --from``): every event
+        recorded is judged (a cycle needs those before it), and the constraints decided,
+        the events, cycles and sheets counted from ``t_from`` on are reported.
+    """
     scene = rec.scene
     drive = make_drive(scene, rec.horizon, rec.commands)
     timing = plan = None
@@ -103,17 +115,37 @@ def evaluate(rec: Recording) -> Evaluation:
         signatures = fe.signatures
     if scene.has_layup:
         constraints += evaluate_layup_constraints(rec.events, scene)
+    events = rec.events
+    if t_from > 0.0:
+        events = events[events['t'] >= t_from]
+        constraints = [
+            dataclasses.replace(c, cycle=c.cycle[m], margin=c.margin[m], t=c.t[m])
+            for c in constraints
+            for m in [c.t >= t_from]
+        ]
+
+    def count(kind: str) -> int:
+        return int(np.count_nonzero(events['kind'] == event_kind(kind)))
+
     if scene.has_folder:
-        cycles = int(rec.events_of('knife_contact').size)
-        sheets = int(rec.events_of('released_on_pile').size if plan is not None else signatures.sum())
+        cycles = count('knife_contact')
+        sheets = count('released_on_pile') if plan is not None else int(signatures.sum())
     else:
         lp = scene.machine('layup')
-        theta_end = float(np.asarray(drive.theta(np.asarray(rec.t_end)), dtype=float))
-        cycles = math.floor(theta_end * (lp.n_kr / 60.0))
-        sheets = int(rec.events_of('leaf_landed').size)
+
+        def turns(t: float) -> int:
+            return math.floor(float(np.asarray(drive.theta(np.asarray(t)), dtype=float)) * (lp.n_kr / 60.0))
+
+        cycles = turns(rec.t_end) - (turns(t_from) if t_from > 0.0 else 0)
+        sheets = count('leaf_landed')
     n_viol = sum(int(np.count_nonzero(c.violated)) for c in constraints)
     summary = LineResult(
-        scene=scene, duration=max(rec.t_end, 1e-9), events=rec.events, samples={}, constraints=constraints, parts={}
+        scene=scene,
+        duration=max(rec.t_end - t_from, 1e-9),
+        events=events,
+        samples={},
+        constraints=constraints,
+        parts={},
     ).summary(max_violations=max(n_viol, 1))
     summary['cycles'] = cycles
     summary['sheets_counted'] = sheets

@@ -45,6 +45,7 @@ from folder_line.analysis.replay import (
 from folder_line.core.line.events import ConstraintSeries
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
+from folder_line.interfaces import NS_PER_S
 
 __all__ = ['AnalysisResult', 'analyze', 'print_analysis']
 
@@ -97,7 +98,9 @@ def _report_lines(
         '',
         f'- bag: `{bag.path}` ({len(bag.files)} files, {bag.message_count} messages)',
         f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
-        f'- line time reached: {rec.t_end:.9g} s; drive commands recorded: '
+        f'- line time reached: {rec.t_end:.9g} s'
+        + (f'; window analysed: {summary["t_from"]:.9g} .. {rec.t_end:.9g} s' if summary.get('t_from') else '')
+        + '; drive commands recorded: '
         + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
         (
             "- numbers: the recorded events judged by the line's constraint code "
@@ -216,6 +219,8 @@ def analyze(
     csv: bool = False,
     *,
     gantt_cycles: int = GANTT_CYCLES,
+    t_from: float | None = None,
+    t_to: float | None = None,
 ) -> AnalysisResult:
     """Analyse a recorded run: figures, ``report.md`` and, with ``csv``, one CSV per topic.
 
@@ -230,6 +235,12 @@ def analyze(
         Also write ``csv/<topic>.csv`` for every topic of the bag.
     gantt_cycles : int
         Cycles in the cyclogram (>= 1).
+    t_from, t_to : float, optional
+        The window of line time analysed, s (``--from``, ``--to``): the bag is read up to
+        ``t_to`` only (the run as if it ended there: its numbers are those of
+        ``simulate(scene, t_to)``), and the report's numbers, the figures and the CSVs
+        cover ``[t_from, t_to]``; every event before ``t_from`` is still judged, since a
+        cycle needs those before it.
 
     Returns
     -------
@@ -242,21 +253,60 @@ def analyze(
     """
     if not (isinstance(gantt_cycles, int) and gantt_cycles >= 1):
         raise ParameterError('gantt_cycles', gantt_cycles, 'must be a whole number >= 1')
+    if t_from is not None and t_to is not None and t_to <= t_from:
+        raise ParameterError('--to', t_to, f'must be after --from ({t_from:g} s)')
+    start = 0.0 if t_from is None else t_from
     collector = CsvCollector() if csv else None
-    rec = read_recording(path, collector)
-    out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
-    with claim_output_dir(out_dir, '--out', files=('report.md', *FIGURES), dirs=('csv',) if csv else ()):
-        return _write_analysis(rec, out_dir, collector, gantt_cycles)
+    start_ns = round(start * NS_PER_S)
+
+    def collect(topic: str, t_ns: int, msg: Any) -> None:
+        if collector is not None and t_ns >= start_ns:
+            collector(topic, t_ns, msg)
+
+    try:
+        rec = read_recording(path, collect if collector is not None else None, t_to=t_to)
+        if start >= rec.t_end and start > 0.0:
+            raise ParameterError('--from', start, f'at or after the line time the bag reaches ({rec.t_end:.9g} s)')
+        out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
+        with claim_output_dir(out_dir, '--out', files=('report.md', *FIGURES), dirs=('csv',) if csv else ()):
+            return _write_analysis(rec, out_dir, collector, gantt_cycles, start)
+    finally:
+        if collector is not None:
+            collector.close()
 
 
-def _write_analysis(rec: Recording, out_dir: Path, collector: CsvCollector | None, gantt_cycles: int) -> AnalysisResult:
+def _window(rec: Recording, t_from: float) -> Recording:
+    """``rec`` with its events, joint states and clock from ``t_from`` on (what the figures show)."""
+    if t_from <= 0.0:
+        return rec
+    keep = rec.events['t'] >= t_from
+    joints = {}
+    for node, j in rec.joints.items():
+        m = j.t >= t_from
+        joints[node] = dataclasses.replace(
+            j, t=j.t[m], position=j.position[m], velocity=j.velocity[m], effort=None if j.effort is None else j.effort[m]
+        )
+    return dataclasses.replace(
+        rec,
+        events=rec.events[keep],
+        event_ns=rec.event_ns[keep],
+        joints=joints,
+        clock=rec.clock[rec.clock >= t_from],
+        landing_x=rec.landing_x,
+    )
+
+
+def _write_analysis(
+    rec: Recording, out_dir: Path, collector: CsvCollector | None, gantt_cycles: int, t_from: float = 0.0
+) -> AnalysisResult:
     """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
     if collector is not None:  # every CSV target is checked before anything is written
         collector.check(out_dir / 'csv', list(rec.bag.topics), '--out')
-    ev = evaluate(rec)
+    ev = evaluate(rec, t_from)
 
     summary = dict(ev.summary)
     summary['t_end'] = rec.t_end
+    summary['t_from'] = t_from
     summary['sheet_counter'] = rec.sheet_count
     summary['messages'] = {t: s.count for t, s in rec.bag.topics.items()}
     summary['lost'] = None if rec.run is None else rec.run.get('lost')
@@ -290,7 +340,7 @@ def _write_analysis(rec: Recording, out_dir: Path, collector: CsvCollector | Non
             )
         )
 
-    figures = draw_figures(rec, ev, out_dir, gantt_cycles)
+    figures = draw_figures(_window(rec, t_from), ev, out_dir, gantt_cycles)
     csv_files = collector.write(out_dir / 'csv', list(rec.bag.topics)) if collector is not None else {}
     report = write_text_atomic(
         out_dir / 'report.md', '\n'.join(_report_lines(rec, ev, summary, figures, csv_files)) + '\n'

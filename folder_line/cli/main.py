@@ -368,7 +368,7 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    print_analysis(analyze(args.path, args.out, csv=args.csv), sys.stdout)
+    print_analysis(analyze(args.path, args.out, csv=args.csv, t_from=args.t_from, t_to=args.t_to), sys.stdout)
     return 0
 
 
