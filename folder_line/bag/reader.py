@@ -15,12 +15,14 @@ from typing import Any
 
 from rosbags.rosbag2 import Reader
 
+from folder_line import __version__
 from folder_line.bag.metadata import (
     KEY_COMPLETE,
     KEY_EFFECTS,
     KEY_PUBLISHED,
     KEY_SCENE,
     KEY_SCENE_NAME,
+    KEY_VERSION,
     METADATA_FILE,
     TopicSummary,
     read_metadata,
@@ -30,7 +32,7 @@ from folder_line.errors import BagError
 from folder_line.files.atomic import describe_path
 from folder_line.interfaces import NS_PER_S
 
-__all__ = ['BagContents', 'bag_info_lines', 'open_reader', 'read_bag']
+__all__ = ['BagContents', 'bag_info_lines', 'check_version', 'open_reader', 'read_bag']
 
 
 @dataclass(frozen=True)
@@ -132,6 +134,36 @@ def _relative_paths(directory: Path) -> list[str]:
     return list(data['rosbag2_bagfile_information'].get('relative_file_paths') or [])
 
 
+def _release(version: str) -> tuple[int, int] | None:
+    """``(major, minor)`` of a version ``'0.1.0'``; None if it is not one."""
+    parts = version.strip().split('.')
+    if len(parts) < 2 or not all(p.isdigit() for p in parts[:2]):
+        return None
+    return int(parts[0]), int(parts[1])
+
+
+def check_version(directory: Path, custom: dict[str, str]) -> None:
+    """Refuse a bag written by a folder_line this one cannot read: a later release (major, minor), or a
+    version that is not one. A bag without the key (another recorder's) is read as it is.
+
+    Raises
+    ------
+    BagError
+        The message names the bag, the version it records and the versions read.
+    """
+    version = custom.get(KEY_VERSION)
+    if version is None:
+        return
+    ours = _release(__version__)
+    theirs = _release(version)
+    if theirs is None or ours is None or theirs > ours:
+        msg = (
+            f'{directory}: written by folder_line {version!r} ({KEY_VERSION}); this folder_line {__version__} '
+            f'reads bags of versions up to {__version__}'
+        )
+        raise BagError(msg)
+
+
 def read_bag(path: str | os.PathLike[str]) -> BagContents:
     """Open a bag directory with rosbags and summarise it.
 
@@ -139,7 +171,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
     ------
     BagError
         Not a directory, no ``metadata.yaml`` (``folder-line bag repair DIR`` rebuilds
-        it), or rosbags cannot open the bag.
+        it), rosbags cannot open the bag, or a later folder_line wrote it (:func:`check_version`).
     """
     directory = Path(path)
     if not directory.is_dir():
@@ -170,6 +202,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
         start, end = (reader.start_time, reader.end_time - 1) if count else (0, 0)
         custom = dict(reader.storage.metadata.custom or {})
         files = tuple(Path(p).name for p in _relative_paths(directory))
+    check_version(directory, custom)
     return BagContents(
         path=directory, topics=topics, custom=custom, files=files, message_count=count, start_ns=start, end_ns=end
     )
@@ -198,9 +231,13 @@ def bag_info_lines(contents: BagContents) -> list[str]:
         'topics:',
     ]
     published = contents.published
+    span_s = contents.duration_ns / NS_PER_S
+    lines.append(f'  {"topic":<40} {"type":<36} {"messages":>9} {"rate, 1/s":>10}')
     for name, t in contents.topics.items():
         extra = '' if published is None else f'  (published {published.get(name, "?")})'
-        lines.append(f'  {name:<40} {t.type:<36} {t.count:>9}{extra}')
+        rate = f'{t.count / span_s:10.4g}' if span_s > 0 else f'{"-":>10}'
+        lines.append(f'  {name:<40} {t.type:<36} {t.count:>9} {rate}{extra}')
+    lines.append('  (rate: messages per second of line time over the bag\'s span)')
     lines.append('custom data:')
     for key, value in contents.custom.items():
         rows = value.splitlines() or ['']
