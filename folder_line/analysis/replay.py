@@ -27,7 +27,6 @@ they are the ones ``folder-line run`` starts the node with (:data:`SUPERVISOR_DE
 from __future__ import annotations
 
 import dataclasses
-
 import json
 import math
 from collections.abc import Mapping, Sequence

@@ -284,7 +284,11 @@ def _window(rec: Recording, t_from: float) -> Recording:
     for node, j in rec.joints.items():
         m = j.t >= t_from
         joints[node] = dataclasses.replace(
-            j, t=j.t[m], position=j.position[m], velocity=j.velocity[m], effort=None if j.effort is None else j.effort[m]
+            j,
+            t=j.t[m],
+            position=j.position[m],
+            velocity=j.velocity[m],
+            effort=None if j.effort is None else j.effort[m],
         )
     return dataclasses.replace(
         rec,

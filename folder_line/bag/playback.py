@@ -136,12 +136,10 @@ def play_plan(path: str, start: float = 0.0, duration: float | None = None, topi
     for topic in topics:
         if topic not in bag.topics:
             raise ParameterError('--topics', topic, f'not a topic of the bag; it has {", ".join(bag.topics)}')
-    chosen = {
-        name: t.type for name, t in bag.topics.items() if not topics or name in topics or name == CLOCK_TOPIC
-    }
+    chosen = {name: t.type for name, t in bag.topics.items() if not topics or name in topics or name == CLOCK_TOPIC}
     start_ns = bag.start_ns + round(start * NS_PER_S)
     if bag.message_count and start_ns > bag.end_ns:
-        raise ParameterError('--start', start, f'past the bag\'s end ({bag.duration_ns / NS_PER_S:.9g} s long)')
+        raise ParameterError('--start', start, f"past the bag's end ({bag.duration_ns / NS_PER_S:.9g} s long)")
     end_ns = bag.end_ns if duration is None else min(bag.end_ns, start_ns + round(duration * NS_PER_S))
     return PlayPlan(bag=bag, topics=chosen, start_ns=start_ns, end_ns=end_ns)
 

@@ -237,7 +237,7 @@ def bag_info_lines(contents: BagContents) -> list[str]:
         extra = '' if published is None else f'  (published {published.get(name, "?")})'
         rate = f'{t.count / span_s:10.4g}' if span_s > 0 else f'{"-":>10}'
         lines.append(f'  {name:<40} {t.type:<36} {t.count:>9} {rate}{extra}')
-    lines.append('  (rate: messages per second of line time over the bag\'s span)')
+    lines.append("  (rate: messages per second of line time over the bag's span)")
     lines.append('custom data:')
     for key, value in contents.custom.items():
         rows = value.splitlines() or ['']

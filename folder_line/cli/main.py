@@ -185,7 +185,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     play.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
     play.add_argument(
-        '--rtf', type=_rtf, default=1.0, metavar='X|max', help='line seconds per wall second (default 1); max: no pacing'
+        '--rtf',
+        type=_rtf,
+        default=1.0,
+        metavar='X|max',
+        help='line seconds per wall second (default 1); max: no pacing',
     )
     play.add_argument(
         '--start', type=limited('--start', _BAG_TIME), default=0.0, metavar='S', help="begin S s after the bag's start"
@@ -211,7 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument(
         '--from', dest='t_from', type=limited('--from', _BAG_TIME), metavar='S', help='analyse line time from S s on'
     )
-    ana.add_argument('--to', dest='t_to', type=limited('--to', _BAG_TIME), metavar='S', help='analyse line time up to S s')
+    ana.add_argument(
+        '--to', dest='t_to', type=limited('--to', _BAG_TIME), metavar='S', help='analyse line time up to S s'
+    )
 
     bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')

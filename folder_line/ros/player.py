@@ -19,8 +19,7 @@ import importlib
 import signal
 import threading
 import time
-from collections.abc import Iterator
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TextIO
 
@@ -238,7 +237,9 @@ def play_bag(
     """
     plan = play_plan(path, start, duration, topics)
     context = Context()
-    rclpy.init(args=None if argv is None else list(argv), context=context, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(
+        args=None if argv is None else list(argv), context=context, signal_handler_options=SignalHandlerOptions.NO
+    )
     wall0 = time.monotonic()
     passes, last, stopped = 0, -1, False
     player: _Player | None = None

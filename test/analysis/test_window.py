@@ -59,7 +59,8 @@ def test_from_and_to_split_the_run(run: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    ('args', 'option'), [(['--from', '1.5', '--to', '1.0'], '--to'), (['--from', '9'], '--from'), (['--to', 'x'], '--to')]
+    ('args', 'option'),
+    [(['--from', '1.5', '--to', '1.0'], '--to'), (['--from', '9'], '--from'), (['--to', 'x'], '--to')],
 )
 def test_a_bad_window_is_one_line(
     run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], option: str
@@ -72,4 +73,3 @@ def test_a_bad_window_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and option in err[0]
     assert not (tmp_path / 'o').exists()
-

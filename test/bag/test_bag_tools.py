@@ -101,7 +101,9 @@ def _later_version(tmp: Path) -> Path:
 
 @pytest.mark.parametrize(('make', 'says'), [(_truncated, 'cannot open'), (_not_a_bag, ''), (_later_version, '99.0.0')])
 @pytest.mark.parametrize('verb', [['bag', 'info'], ['analyze'], ['bag', 'play']])
-def test_a_bad_bag_is_one_line_exit_2_and_left_untouched(tmp_path: Path, make: object, says: str, verb: list[str]) -> None:
+def test_a_bad_bag_is_one_line_exit_2_and_left_untouched(
+    tmp_path: Path, make: object, says: str, verb: list[str]
+) -> None:
     bag = make(tmp_path)  # type: ignore[operator]
     before = _digest(bag)
     extra = ['--out', str(tmp_path / 'out')] if verb == ['analyze'] else ['--rtf', 'max'] if verb[-1] == 'play' else []

@@ -1,4 +1,4 @@
-"""``folder-line bag play`` over real DDS: play a recorded bag, record the playback, compare; Ctrl-C stops it cleanly."""
+"""``folder-line bag play`` over real DDS: play a bag, record the playback, compare; Ctrl-C stops it cleanly."""
 
 from __future__ import annotations
 
@@ -26,7 +26,10 @@ FOLDER_BAG = REPO / 'test' / 'data' / 'folder_run' / 'bag'
 
 #: the recording side: every message kept, matches any reliable publisher
 _RECORD_QOS = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE, history=HistoryPolicy.KEEP_ALL
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_ALL,
 )
 
 
@@ -111,9 +114,7 @@ def test_play_a_window_of_some_topics(ros: Ros, tmp_path: Path) -> None:
     }
     assert want['/line/events'] and want['/clock']
     player.start()
-    assert ros.spin_until(
-        lambda: all(len(got[t]) >= len(v) for t, v in want.items()) and not player.is_alive(), 30.0
-    )
+    assert ros.spin_until(lambda: all(len(got[t]) >= len(v) for t, v in want.items()) and not player.is_alive(), 30.0)
     ros.spin_until(lambda: False, 0.3)
     assert got['/line/events'] == want['/line/events']
     assert got['/clock'] == want['/clock']
