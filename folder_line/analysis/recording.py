@@ -13,6 +13,7 @@ needed: the bag is read with rosbags.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -333,13 +334,12 @@ def read_recording(
             if acc is None:
                 acc = joints[node] = _Joints(node, msg.name)
             acc.add(msg)
-            bad = sum(
-                int(np.count_nonzero(~np.isfinite(np.asarray(a, dtype=float))))
-                for a in (msg.position, msg.velocity, msg.effort)
-                if len(a)
-            )
-            if bad:
-                bad_values.append((_time_ns(msg.header.stamp) / NS_PER_S, topic, bad))
+            arrays = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort) if len(a)]
+            # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
+            if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
+                bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
+                if bad:
+                    bad_values.append((_time_ns(msg.header.stamp) / NS_PER_S, topic, bad))
         elif topic == DIAGNOSTICS_TOPIC:
             stamp_ns = _time_ns(msg.header.stamp)
             diag_ns.add(stamp_ns)
