@@ -325,6 +325,16 @@ class _SupervisorOut:
         return _array_cdr(stamp_ns, statuses)
 
 
+def _heard(model: LineModel) -> tuple[np.ndarray, np.ndarray]:
+    """The machines' events of ``model`` as the supervisor hears them (time rounded to the ns, as
+    ``time_ref`` carries it), and their model times (which decide the tick that publishes each)."""
+    owned = np.isin(model.events['kind'], np.concatenate([_own_kinds(n) for n in JOINT_NODES]))
+    events = model.events[owned]
+    heard = events.astype(EVENT_DTYPE)
+    heard['t'] = np.maximum(0, np.round(events['t'] * NS_PER_S).astype(np.int64)) / NS_PER_S
+    return heard, events['t']
+
+
 def announcement(duration_ns: int) -> str:
     """``line_clock``'s announcement of a lockstep run of ``folder-line run`` (``folder_line.ros.lockstep``)."""
     return f'clock=lockstep end={duration_ns} participants={",".join(KNOWN_PARTICIPANTS)}'
@@ -413,6 +423,7 @@ def write_batch_bag(
     with_joints = [m for m in machines if m.unit in model.units]
     for m in machines:
         m.set_model(model)
+    heard, heard_t = _heard(model)
     landed = EVENT_KINDS.index('leaf_landed')
     counted = EVENT_KINDS.index(counted_event(scene.has_delivery))
     bag = BagWriter(
@@ -422,6 +433,7 @@ def write_batch_bag(
         scene_name=scene.name,
         topics=LINE_TOPIC_TYPES,
         custom={'folder_line.mode': 'batch', 'folder_line.clock': 'lockstep', **(custom or {})},
+        rewrite_metadata=False,
     )
     result = BatchBag(str(bag.path))
     diag_step = round(NS_PER_S / DIAG_RATE)
@@ -436,17 +448,12 @@ def write_batch_bag(
             end = min(k + BLOCK_TICKS, n_ticks)
             stamps = np.arange(k, end, dtype=np.int64) * step_ns
             t = stamps / NS_PER_S
-            lo = {m.node: np.searchsorted(m.event_t, np.concatenate(([prev_t], t[:-1])), side='right') for m in machines}
-            hi = {m.node: np.searchsorted(m.event_t, t, side='right') for m in machines}
+            # the supervisor hears every machine's events of the tick, their time as sent (to the ns)
+            bounds = np.searchsorted(heard_t, np.concatenate(([prev_t], t)), side='right')
             per_tick: list[tuple[str, list[tuple[str, bytes, int]], bool]] = []
             for i in range(end - k):
-                rows = [m.events[lo[m.node][i] : max(lo[m.node][i], hi[m.node][i])] for m in machines]
-                fed = np.concatenate(rows)
-                if fed.size:
-                    t_ns = np.maximum(0, np.round(fed['t'] * NS_PER_S).astype(np.int64))
-                    live = fed.astype(EVENT_DTYPE)  # as the supervisor hears them: time_ref, to the ns
-                    live['t'] = t_ns / NS_PER_S
-                    logic.feed(live)
+                if bounds[i + 1] > bounds[i]:
+                    logic.feed(heard[bounds[i] : bounds[i + 1]])
                 logic.tick(float(t[i]))
                 outs = sup.outputs()
                 diag = bool(stamps[i] >= next_diag)
@@ -463,6 +470,7 @@ def write_batch_bag(
                 model = logic.model
                 for m in machines:
                     m.set_model(model)
+                heard, heard_t = _heard(model)
             if progress is not None:
                 progress((end - 1) * step_ns / NS_PER_S)
         bag.close(published=dict(bag.counts))
@@ -508,31 +516,36 @@ def _write_block(
     prev = -math.inf if k0 == 0 else (k0 - 1) * step_ns / NS_PER_S
     ev_lo = {m.node: int(np.searchsorted(m.event_t, prev, side='right')) for m in machines}
     ev_hi = {m.node: np.searchsorted(m.event_t, t, side='right') for m in machines}
-    write = bag.write_serialized
+    clocks = [clock_cdr(int(x)) for x in stamps]
+    counts = [uint64_cdr(int(c)) for c in count]
+    rates = [float64_cdr(float(r)) for r in rate]
     for i in range(n):
         stamp = int(stamps[i])
-        write(CLOCK_TOPIC, clock_cdr(stamp), stamp, stamp)
+        items: list[tuple[str, bytes, int]] = [(CLOCK_TOPIC, clocks[i], stamp)]
         for m in machines:
             j0, j1 = ev_lo[m.node], int(ev_hi[m.node][i])
-            ev_lo[m.node] = max(j0, j1)
-            mine = m.events[j0 : max(j0, j1)]
-            for row in mine:
-                source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
-                time_ref = max(0, round(float(row['t']) * NS_PER_S))
-                write(EVENTS_TOPIC, time_reference_cdr(stamp, m.node, time_ref, source), stamp, stamp)
+            if j1 > j0:
+                ev_lo[m.node] = j1
+                mine = m.events[j0:j1]
+                for row in mine:
+                    source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
+                    time_ref = max(0, round(float(row['t']) * NS_PER_S))
+                    items.append((EVENTS_TOPIC, time_reference_cdr(stamp, m.node, time_ref, source), stamp))
+            else:
+                mine = m.events[0:0]
             if m.node in joints:
                 blob, size = joints[m.node]
-                write(m.topic, blob[i * size : (i + 1) * size], stamp, stamp)
+                items.append((m.topic, blob[i * size : (i + 1) * size], stamp))
             if m is counter:
-                write(SHEET_COUNT_TOPIC, uint64_cdr(int(count[i])), stamp, stamp)
-                write(SHEET_RATE_TOPIC, float64_cdr(float(rate[i])), stamp, stamp)
+                items.append((SHEET_COUNT_TOPIC, counts[i], stamp))
+                items.append((SHEET_RATE_TOPIC, rates[i], stamp))
                 for row in mine[mine['kind'] == landed]:
-                    write(LANDING_TOPIC, float64_cdr(float(row['value'])), stamp, stamp)
+                    items.append((LANDING_TOPIC, float64_cdr(float(row['value'])), stamp))
         state, outs, diag = per_tick[i]
-        for topic, cdr, publish_ns in outs:
-            write(topic, cdr, stamp, publish_ns)
+        items.extend(outs)
         if state not in states:
             states[state] = string_cdr(state)
-        write(SUPERVISOR_STATE_TOPIC, states[state], stamp, stamp)
+        items.append((SUPERVISOR_STATE_TOPIC, states[state], stamp))
         if diag:
-            write(DIAGNOSTICS_TOPIC, sup.diagnostics(model, stamp), stamp, stamp)
+            items.append((DIAGNOSTICS_TOPIC, sup.diagnostics(model, stamp), stamp))
+        bag.write_many(stamp, items)
