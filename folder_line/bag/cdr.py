@@ -116,7 +116,9 @@ class JointStateLayout:
             body += b'\x00' * (8 * n)
         return cls(bytes(body), (offsets[0], offsets[1], offsets[2]), lengths)
 
-    def many(self, stamps_ns: np.ndarray, position: FloatArray, velocity: FloatArray, effort: FloatArray | None) -> bytes:
+    def many(
+        self, stamps_ns: np.ndarray, position: FloatArray, velocity: FloatArray, effort: FloatArray | None
+    ) -> bytes:
         """The messages of ``len(stamps_ns)`` stamps, concatenated (each ``len(template)`` bytes).
 
         Parameters

@@ -136,9 +136,7 @@ class _Segment:
         self.end_ns = log_ns
         self.count += 1
 
-    def add_many(
-        self, log_ns: int, items: Sequence[tuple[str, bytes, int]], counts: dict[str, int]
-    ) -> None:
+    def add_many(self, log_ns: int, items: Sequence[tuple[str, bytes, int]], counts: dict[str, int]) -> None:
         """Messages ``(topic, data, publish_ns)`` all logged at ``log_ns``; ``counts`` (per topic) gives
         each its sequence and is advanced. The records go straight into the open chunk (what
         ``Writer.add_message`` does, without a ``Message`` object and stream calls per message)."""

@@ -24,8 +24,8 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
-from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import batch as batch_cli
+from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.arg_types import limited
