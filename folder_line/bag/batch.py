@@ -475,7 +475,7 @@ def write_batch_bag(
                 progress((end - 1) * step_ns / NS_PER_S)
         bag.close(published=dict(bag.counts))
     except BaseException:
-        bag.close()  # a failed bag is closed as far as written, marked complete by its counts only
+        bag.abandon()  # what was written stays readable, marked partial (Ctrl-C, a full disk)
         raise
     result.counts = dict(bag.counts)
     result.segments = len(bag.files)

@@ -419,6 +419,15 @@ class BagWriter:
         self.custom[KEY_COMPLETE] = 'true'
         self._write_metadata()
 
+    def abandon(self) -> None:
+        """Finish the open file and write ``metadata.yaml`` listing every file, the bag still marked
+        partial (``folder_line.complete`` stays ``false``): for a writer that failed or was interrupted."""
+        if self._closed:
+            return
+        self._finish_segment()
+        self._closed = True
+        self._write_metadata()
+
     def __enter__(self) -> BagWriter:
         return self
 

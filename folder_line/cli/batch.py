@@ -34,13 +34,16 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
     if bag.is_dir() and any(bag.iterdir()):
         raise OutputError('--bag', str(bag), 'is a folder that is not empty; a bag is written to a new or empty one')
     t0 = time.perf_counter()
-    with claim_output_dir(bag, '--bag'):
-        result = write_batch_bag(
-            bag,
-            scene,
-            args.duration,
-            custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
-        )
+    try:
+        with claim_output_dir(bag, '--bag'):
+            result = write_batch_bag(
+                bag,
+                scene,
+                args.duration,
+                custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
+            )
+    except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
+        raise exc.with_option('--bag') from None
     wall = time.perf_counter() - t0
     total = sum(result.counts.values())
     print(

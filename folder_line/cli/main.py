@@ -348,6 +348,7 @@ _PATH_ARGUMENTS = {
     'json': '--json',
     'csv': '--csv',
     'out': '--out',
+    'bag': '--bag',
     'path': 'RUN_DIR|BAG',
     'dir': 'DIR',
 }

@@ -230,3 +230,25 @@ def test_write_many_is_write_serialized(tmp_path: Path) -> None:
         bags[how] = (records, topic_entries(bag), len(segment_files(bag)))
     assert bags['one'] == bags['many']
     assert len(bags['one'][0]) == sum(len(items) for _, items in ticks) and bags['one'][2] == 4
+
+
+def test_an_interrupted_bag_is_marked_partial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C in the middle: the files written stay readable and the bag says it is partial."""
+    from folder_line.bag import batch
+    from folder_line.config.scenes import load_scene
+
+    calls = []
+    original = batch._write_block
+
+    def interrupted(*args: Any) -> None:
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        original(*args)
+
+    monkeypatch.setattr(batch, '_write_block', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        batch.write_batch_bag(tmp_path / 'bag', load_scene('folder'), 20.0)
+    assert custom_data(tmp_path / 'bag')['folder_line.complete'] == 'false'
+    got = read_independently(tmp_path / 'bag')
+    assert len(got[('/clock', '')]) == batch.BLOCK_TICKS  # the first block, whole
