@@ -59,6 +59,14 @@ from folder_line.bag.cdr import (
     time_reference_cdr,
     uint64_cdr,
 )
+from folder_line.bag.statuses import (
+    Status,
+    balance_status,
+    constraint_statuses,
+    event_status,
+    status_stamp,
+    violation_status,
+)
 from folder_line.bag.types import typestore
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import RATE, SUPERVISOR_DEFAULTS
@@ -69,8 +77,6 @@ from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.mechanisms.pile import counted_event
-from folder_line.core.supervision.balance import Balance
-from folder_line.core.supervision.records import Violation
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.errors import ParameterError
 from folder_line.interfaces import (
@@ -106,8 +112,6 @@ DIAG_RATE = 1.0
 RATE_WINDOW = 5.0
 #: ticks computed and written at a time (bounds the memory of an hour-long bag)
 BLOCK_TICKS = 2000
-
-_OK, _WARN, _ERROR = 0, 1, 2
 
 
 @dataclass
@@ -186,49 +190,45 @@ class _Machine:
         return np.vstack(pos), np.vstack(vel), (np.vstack(eff) if eff else None)
 
 
-def _status(
-    name: str, level: int, message: str, hardware_id: str, values: list[tuple[str, str]]
-) -> Any:  # a typestore diagnostic_msgs/msg/DiagnosticStatus
+def _status_msg(s: Status) -> Any:  # a typestore diagnostic_msgs/msg/DiagnosticStatus
     types = typestore().types
     kv = types['diagnostic_msgs/msg/KeyValue']
     return types['diagnostic_msgs/msg/DiagnosticStatus'](
-        level=level, name=name, message=message, hardware_id=hardware_id, values=[kv(key=k, value=v) for k, v in values]
+        level=s.level,
+        name=s.name,
+        message=s.message,
+        hardware_id=s.hardware_id,
+        values=[kv(key=k, value=v) for k, v in s.values],
     )
 
 
-def _array_cdr(stamp_ns: int, statuses: list[Any]) -> bytes:
+def _array_cdr(stamp: int, statuses: list[Status]) -> bytes:
+    """CDR of the supervisor's ``diagnostic_msgs/msg/DiagnosticArray`` of ``statuses`` stamped ``stamp`` (ns)."""
     types = typestore().types
     header = types['std_msgs/msg/Header'](
-        stamp=types['builtin_interfaces/msg/Time'](sec=stamp_ns // NS_PER_S, nanosec=stamp_ns % NS_PER_S),
+        stamp=types['builtin_interfaces/msg/Time'](sec=stamp // NS_PER_S, nanosec=stamp % NS_PER_S),
         frame_id=SUPERVISOR,
     )
-    msg = types['diagnostic_msgs/msg/DiagnosticArray'](header=header, status=statuses)
+    msg = types['diagnostic_msgs/msg/DiagnosticArray'](header=header, status=[_status_msg(s) for s in statuses])
     return bytes(typestore().serialize_cdr(msg, 'diagnostic_msgs/msg/DiagnosticArray', little_endian=True))
 
 
-def _text(v: Any) -> str:
-    return repr(v) if isinstance(v, float) else str(v)
-
-
 class _SupervisorOut:
-    """What the ``supervisor`` node publishes, from its logic (``folder_line.ros.nodes.supervisor``)."""
+    """What the ``supervisor`` node publishes from its logic besides its state (``ros/nodes/supervisor.py``)."""
 
     def __init__(self, logic: Supervisor, hardware_id: str) -> None:
         self.logic = logic
         self.hardware_id = hardware_id
         self._n_violations = self._n_balances = 0
 
-    def _event_status(self, what: str, ok: bool, message: str, values: dict[str, Any], t: float) -> bytes:
+    def _event(self, what: str, said: tuple[bool, str, dict[str, Any]], t: float) -> tuple[str, bytes, int]:
+        ok, message, values = said
         logic = self.logic
-        extra = {'t_start': logic.t_start, 'watermark': logic.now, 'late': logic.late}
-        status = _status(
-            f'folder_line/supervisor/{what}',
-            _OK if ok else _ERROR,
-            message,
-            self.hardware_id,
-            [(k, _text(v)) for k, v in {**values, **extra}.items()],
+        status = event_status(
+            what, ok, message, values, self.hardware_id, t_start=logic.t_start, watermark=logic.now, late=logic.late
         )
-        return _array_cdr(max(0, round(t * NS_PER_S)) if math.isfinite(t) else 0, [status])
+        stamp = status_stamp(t)
+        return (DIAGNOSTICS_TOPIC, _array_cdr(stamp, [status]), stamp)
 
     def outputs(self) -> list[tuple[str, bytes, int]]:
         """``(topic, cdr, publish ns)`` of the commands, violations and balances issued since the last call."""
@@ -238,91 +238,21 @@ class _SupervisorOut:
             cdr = time_reference_cdr(stamp, SUPERVISOR, round(command.t * NS_PER_S), command.kind)
             out.append((COMMANDS_TOPIC, cdr, stamp))
         violations = self.logic.violations
-        for v in violations[self._n_violations :]:
-            out.append(self._violation(v))
+        out += [self._event('violation', violation_status(v), v.t) for v in violations[self._n_violations :]]
         self._n_violations = len(violations)
         balances = self.logic.balances
-        for b in balances[self._n_balances :]:
-            out.append(self._balance(b))
+        out += [self._event('balance', balance_status(b), b.t) for b in balances[self._n_balances :]]
         self._n_balances = len(balances)
         return out
 
-    def _stamped(self, cdr: bytes, t: float) -> tuple[str, bytes, int]:
-        return (DIAGNOSTICS_TOPIC, cdr, max(0, round(t * NS_PER_S)) if math.isfinite(t) else 0)
+    def diagnostics(self, model: LineModel, stamp: int) -> bytes:
+        """The periodic array at ``stamp`` (ns): the constraints of ``model``, then the inputs (none rejected)."""
+        return _array_cdr(stamp, constraint_statuses(model, stamp / NS_PER_S, self.hardware_id, {}, []))
 
-    def _violation(self, v: Violation) -> tuple[str, bytes, int]:
-        values = {
-            't': v.t,
-            'cycle': v.cycle,
-            'constraint': v.constraint,
-            'margin': v.margin,
-            'unit': v.unit,
-            'action': v.action,
-            'state': v.state,
-        }
-        message = f'{v.constraint} violated in cycle {v.cycle}: {v.action}'
-        return self._stamped(self._event_status('violation', False, message, values, v.t), v.t)
 
-    def _balance(self, b: Balance) -> tuple[str, bytes, int]:
-        if b.missing:
-            values: dict[str, Any] = {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False}
-            cdr = self._event_status('balance', False, f'{b.state}: not judged: {b.missing}', values, b.t)
-            return self._stamped(cdr, b.t)
-        message = f'{b.state}: fed {b.fed} = delivered {b.delivered} + in the machine {b.in_machine}' + (
-            '' if b.ok else ' BROKEN'
-        )
-        values = {
-            't': b.t,
-            'state': b.state,
-            'fed': b.fed,
-            'delivered': b.delivered,
-            'in_machine': b.in_machine,
-            **b.detail,
-            'ok': b.ok,
-        }
-        return self._stamped(self._event_status('balance', b.ok, message, values, b.t), b.t)
-
-    def diagnostics(self, model: LineModel, stamp_ns: int) -> bytes:
-        """The periodic array: one status per constraint of ``model`` at ``stamp_ns``, then the inputs."""
-        t = stamp_ns / NS_PER_S
-        statuses = []
-        for c in model.constraints:
-            decided = c.decided_by(t)
-            n = int(np.count_nonzero(decided))
-            if n == 0:
-                statuses.append(
-                    _status(
-                        f'folder_line/{c.name}',
-                        _OK,
-                        'no cycle evaluated yet',
-                        self.hardware_id,
-                        [('unit', c.unit), ('evaluations', '0')],
-                    )
-                )
-                continue
-            done = c.margin[decided]
-            i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
-            violations = int(np.count_nonzero(done < 0.0))
-            last = float(c.margin[i_last])
-            level = _ERROR if last < 0.0 else _WARN if violations else _OK
-            message = (
-                f'violated in cycle {int(c.cycle[i_last])}'
-                if last < 0.0
-                else f'{violations} violations so far'
-                if violations
-                else 'ok'
-            )
-            values = [
-                ('margin', repr(last)),
-                ('unit', c.unit),
-                ('cycle', str(int(c.cycle[i_last]))),
-                ('min_margin', repr(float(done.min()))),
-                ('violations', str(violations)),
-                ('evaluations', str(n)),
-            ]
-            statuses.append(_status(f'folder_line/{c.name}', level, message, self.hardware_id, values))
-        statuses.append(_status('folder_line/supervisor/inputs', _OK, 'no input rejected', self.hardware_id, []))
-        return _array_cdr(stamp_ns, statuses)
+def announcement(duration_ns: int) -> str:
+    """``line_clock``'s announcement of a lockstep run of ``folder-line run`` (``folder_line.ros.lockstep``)."""
+    return f'clock=lockstep end={duration_ns} participants={",".join(KNOWN_PARTICIPANTS)}'
 
 
 def _heard(model: LineModel) -> tuple[np.ndarray, np.ndarray]:
@@ -333,11 +263,6 @@ def _heard(model: LineModel) -> tuple[np.ndarray, np.ndarray]:
     heard = events.astype(EVENT_DTYPE)
     heard['t'] = np.maximum(0, np.round(events['t'] * NS_PER_S).astype(np.int64)) / NS_PER_S
     return heard, events['t']
-
-
-def announcement(duration_ns: int) -> str:
-    """``line_clock``'s announcement of a lockstep run of ``folder-line run`` (``folder_line.ros.lockstep``)."""
-    return f'clock=lockstep end={duration_ns} participants={",".join(KNOWN_PARTICIPANTS)}'
 
 
 def check_duration(scene: Scene, duration: float) -> None:
