@@ -22,7 +22,7 @@ grid (``rate`` = :data:`folder_line.config.run_config.RATE`, 200 Hz of line time
 
 Same topics, types, ``offered_qos_profiles`` (the recorder stores none), log times (the
 tick), publish times (``header.stamp``, else the tick), header stamps and message contents
-as the live bag (``test/bag/test_batch_live.py`` compares them with the independent
+as the live bag (``test/bag/test_batch.py`` compares them with the independent
 ``mcap`` reader). What differs from a live bag:
 
 * the order of messages *within one tick* across topics and publishers: live, it is the

@@ -6,7 +6,8 @@ give the same messages -- topic, publisher, log time, publish time, header stamp
 field -- read with the independent ``mcap`` + ``mcap-ros2-support`` reader
 (``read_ros2_messages``, decoding from the schema text in each file). ``folder`` runs
 clean; ``folder_faults`` makes the supervisor judge a late sheet, publish a violation and
-command a hold, which changes what every machine publishes from then on.
+command a hold, which changes what every machine publishes from then on; ``line`` adds the
+belts, the layup and its leaves' landings.
 
 The fast-path CDR (:mod:`folder_line.bag.cdr`) is checked byte for byte against the rosbags
 typestore, and ``--bag`` refuses a folder that holds something, before any work.
@@ -79,7 +80,7 @@ def topic_entries(bag: Path) -> list[tuple[str, str, Any, str, int]]:
     )
 
 
-@pytest.mark.parametrize(('scene', 'duration'), [('folder', 2.0), ('folder_faults', 5.0)])
+@pytest.mark.parametrize(('scene', 'duration'), [('folder', 2.0), ('folder_faults', 5.0), ('line', 3.0)])
 def test_simulate_bag_is_the_live_bag(tmp_path: Path, scene: str, duration: float) -> None:
     live = tmp_path / 'live'
     run_line(RunConfig(scene=scene, duration=duration, rtf=0.0, out=live), io.StringIO())
@@ -88,9 +89,9 @@ def test_simulate_bag_is_the_live_bag(tmp_path: Path, scene: str, duration: floa
 
     a, b = read_independently(live / 'bag'), read_independently(batch)
     assert sorted(a) == sorted(b)  # no topic or publisher left out
-    assert {topic for topic, _ in a} == set(LINE_TOPIC_TYPES) - {'/line/sheet_counter/landing_x'} - (
-        set() if scene == 'folder_faults' else {'/line/supervisor/commands'}
-    )
+    unused = {'/line/supervisor/commands'} if scene != 'folder_faults' else set()
+    unused |= {'/line/sheet_counter/landing_x'} if scene != 'line' else set()  # leaves land in the layup only
+    assert {topic for topic, _ in a} == set(LINE_TOPIC_TYPES) - unused
     for key in sorted(a):
         assert len(a[key]) == len(b[key]), key
         for i, (x, y) in enumerate(zip(a[key], b[key], strict=True)):
