@@ -253,3 +253,18 @@ def test_an_interrupted_bag_is_marked_partial(tmp_path: Path, monkeypatch: pytes
     assert custom_data(tmp_path / 'bag')['folder_line.complete'] == 'false'
     got = read_independently(tmp_path / 'bag')
     assert len(got[('/clock', '')]) == batch.BLOCK_TICKS  # the first block, whole
+
+
+def test_packed_message_index_is_mcaps() -> None:
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import MessageIndex
+
+    from folder_line.bag.writer import _PackedMessageIndex
+
+    records = [(5_000_000 * k, 97 * k + 3) for k in range(50)] + [(2**63 + 1, 2**40)]
+    out = []
+    for cls in (MessageIndex, _PackedMessageIndex):
+        builder = RecordBuilder()
+        cls(channel_id=7, records=records).write(builder)
+        out.append(builder.end())
+    assert out[0] == out[1] and len(out[0]) == 1 + 8 + 2 + 4 + 16 * len(records)
