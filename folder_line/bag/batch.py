@@ -39,13 +39,17 @@ as the live bag (``test/bag/test_batch.py`` compares them with the independent
   wall-clock time (the recorder stores line time as log time), so nothing else differs.
   The lockstep acknowledgements (``/line/<node>/tick_done``) are not recorded by the live
   recorder either. Operator commands (services) are not simulated.
+* ``metadata.yaml`` is written when the bag is opened (marked partial) and when it is closed,
+  not after every 1 s file (``BagWriter(rewrite_metadata=False)``: thousands of files in a
+  minute); an interrupted bag keeps its finished files readable and says it is partial
+  (:meth:`~folder_line.bag.writer.BagWriter.abandon`), ``folder-line bag repair`` completes it.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -289,7 +293,6 @@ def write_batch_bag(
     duration: float,
     *,
     custom: Mapping[str, str] | None = None,
-    progress: Callable[[float], None] | None = None,
 ) -> BatchBag:
     """Write the bag of a live lockstep ``folder-line run`` of ``scene`` for ``duration`` s, without DDS.
 
@@ -303,8 +306,6 @@ def write_batch_bag(
         Line time, s: a whole number of ticks (``1 / RATE`` = 5 ms), > 0.
     custom : mapping of str to str, optional
         Extra ``custom_data`` entries (``folder_line.scene_arg``, ``folder_line.overrides``).
-    progress : callable, optional
-        Called with the line time written so far, s, after each block of ticks.
 
     Returns
     -------
@@ -396,8 +397,6 @@ def write_batch_bag(
                 for m in machines:
                     m.set_model(model)
                 heard, heard_t = _heard(model)
-            if progress is not None:
-                progress((end - 1) * step_ns / NS_PER_S)
         bag.close(published=dict(bag.counts))
     except BaseException:
         bag.abandon()  # what was written stays readable, marked partial (Ctrl-C, a full disk)
