@@ -28,11 +28,15 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
 import mcap
+import numpy as np
+from mcap.opcode import Opcode
+from mcap.records import MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from folder_line import __version__
@@ -57,6 +61,9 @@ from folder_line.files.atomic import write_text_atomic
 from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S
 
 __all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'start_mcap']
+
+#: an MCAP Message record's opcode, length, channel id, sequence, log time and publish time
+_MESSAGE_HEAD = struct.Struct('<BQHIQQ')
 
 #: uncompressed bytes per MCAP chunk unless told otherwise (python mcap's default too)
 DEFAULT_CHUNK_SIZE = 1024 * 1024
@@ -85,6 +92,18 @@ def _time_ns(stamp: Any) -> int:
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
+class _PackedMessageIndex(MessageIndex):
+    """A chunk's message index of one channel, written in one piece (the same bytes as ``MessageIndex``,
+    which packs each of its ``(log time, offset)`` pairs with two calls)."""
+
+    def write(self, stream: Any) -> None:
+        stream.start_record(Opcode.MESSAGE_INDEX)
+        stream.write2(self.channel_id)
+        stream.write4(len(self.records) * 16)
+        stream.write(np.asarray(self.records, dtype='<u8').tobytes())
+        stream.finish_record()
+
+
 class _Segment:
     """One open ``.mcap`` file."""
 
@@ -95,6 +114,12 @@ class _Segment:
         # python mcap's Writer ends a chunk only by size or at finish(); its chunk-ending method is
         # private (name-mangled). Checked here, so that a changed library fails at once, not at a crash.
         self._end_chunk: Callable[[], None] = self.writer._Writer__finalize_chunk  # type: ignore[attr-defined]
+        # the same for the batched path (add_many): the open chunk and the file's statistics
+        self._chunk: Any = self.writer._Writer__chunk_builder  # type: ignore[attr-defined]
+        self._stats: Any = self.writer._Writer__statistics  # type: ignore[attr-defined]
+        self._maybe_end_chunk: Callable[[], None] = self.writer._Writer__maybe_finalize_chunk  # type: ignore[attr-defined]
+        self._records: Any = self._chunk.record_writer
+        self._indices: dict[int, MessageIndex] = self._chunk.message_indices
         self.flush_ns = flush_ns
         self._next_flush_ns: int | None = None
         self.writer.add_metadata(MCAP_METADATA_NAME, dict(custom))
@@ -123,6 +148,50 @@ class _Segment:
             self.start_ns = log_ns
         self.end_ns = log_ns
         self.count += 1
+
+    def add_many(self, log_ns: int, items: Sequence[tuple[str, bytes, int]], counts: dict[str, int]) -> None:
+        """Messages ``(topic, data, publish_ns)`` all logged at ``log_ns``; ``counts`` (per topic) gives
+        each its sequence and is advanced. The records go straight into the open chunk (what
+        ``Writer.add_message`` does, without a ``Message`` object and stream calls per message)."""
+        if not items:
+            return
+        if self._next_flush_ns is None:
+            self._next_flush_ns = log_ns + self.flush_ns
+        elif log_ns >= self._next_flush_ns:
+            self.flush()
+            self._next_flush_ns = log_ns + self.flush_ns
+        buffer = self._records._buffer
+        per_channel = self._stats.channel_message_counts
+        chunk = self._chunk
+        for topic, data, publish_ns in items:
+            channel = self.channels[topic]
+            index = self._indices.get(channel)
+            if index is None:
+                index = self._indices[channel] = _PackedMessageIndex(channel_id=channel, records=[])
+            index.records.append((log_ns, buffer.tell()))
+            n = counts[topic]
+            counts[topic] = n + 1
+            buffer.write(_MESSAGE_HEAD.pack(Opcode.MESSAGE, 22 + len(data), channel, n % 2**32, log_ns, publish_ns))
+            buffer.write(data)
+            per_channel[channel] += 1
+        stats = self._stats
+        if stats.message_count == 0:
+            stats.message_start_time = log_ns
+        else:
+            stats.message_start_time = min(stats.message_start_time, log_ns)
+        stats.message_end_time = max(stats.message_end_time, log_ns)
+        stats.message_count += len(items)
+        if chunk.num_messages == 0:
+            chunk.message_start_time = log_ns
+        else:
+            chunk.message_start_time = min(chunk.message_start_time, log_ns)
+        chunk.message_end_time = max(chunk.message_end_time, log_ns)
+        chunk.num_messages += len(items)
+        self._maybe_end_chunk()
+        if self.count == 0:
+            self.start_ns = log_ns
+        self.end_ns = log_ns
+        self.count += len(items)
 
     def flush(self) -> None:
         """End the current chunk and hand the file's bytes to the operating system."""
@@ -169,6 +238,11 @@ class BagWriter:
     chunk_size : int
         Uncompressed bytes per MCAP chunk, > 0 (default 1 MiB); smaller chunks let
         :func:`~folder_line.bag.repair.repair` salvage more of an unfinished file.
+    rewrite_metadata : bool
+        Rewrite ``metadata.yaml`` at every rollover (default) so that a killed writer leaves a bag
+        that opens as it is; False: only at the start (marked partial) and at :meth:`close`, for a
+        writer that makes thousands of files fast (``simulate --bag``); a bag it leaves unfinished
+        opens after :func:`~folder_line.bag.repair.repair`.
 
     Raises
     ------
@@ -189,8 +263,10 @@ class BagWriter:
         clock_topic: str = CLOCK_TOPIC,
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         flush_s: float = 0.1,
+        rewrite_metadata: bool = True,
     ) -> None:
         self.path = Path(directory)
+        self.rewrite_metadata = bool(rewrite_metadata)
         for name, seconds in (('segment_s', segment_s), ('flush_s', flush_s)):
             if not (isinstance(seconds, (int, float)) and 1e-6 <= seconds <= 1e6):
                 msg = f'{self.path}: {name}={seconds!r} must be in [1e-6, 1e6] s'
@@ -320,6 +396,25 @@ class BagWriter:
             raise
         self.counts[topic] += 1
 
+    def write_many(self, log_ns: int, items: Sequence[tuple[str, bytes, int]]) -> None:
+        """Record CDR-serialized messages ``(topic, data, publish_ns)`` of declared topics, all at line
+        time ``log_ns`` (one tick): :meth:`write_serialized` for each, in one call."""
+        self._check_open()
+        for topic, _, _ in items:
+            if topic not in self.types:
+                msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
+                raise BagError(msg)
+        try:
+            if log_ns >= self._boundary_ns:
+                self._roll(log_ns)
+            assert self._segment is not None
+            self._segment.add_many(log_ns, items, self.counts)
+        except OSError as exc:
+            if exc.filename is None:
+                where = self._segment.path if self._segment is not None else self.path
+                raise OSError(exc.errno, exc.strerror, str(where)) from exc
+            raise
+
     def close(self, published: Mapping[str, int] | None = None) -> None:
         """Finish the open file and write the final ``metadata.yaml``.
 
@@ -335,6 +430,15 @@ class BagWriter:
         self._finish_segment()
         self._closed = True
         self.custom[KEY_COMPLETE] = 'true'
+        self._write_metadata()
+
+    def abandon(self) -> None:
+        """Finish the open file and write ``metadata.yaml`` listing every file, the bag still marked
+        partial (``folder_line.complete`` stays ``false``): for a writer that failed or was interrupted."""
+        if self._closed:
+            return
+        self._finish_segment()
+        self._closed = True
         self._write_metadata()
 
     def __enter__(self) -> BagWriter:
@@ -371,7 +475,8 @@ class BagWriter:
     def _roll(self, log_ns: int) -> None:
         index = len(self._meta.files) + 1
         self._finish_segment()
-        self._write_metadata()
+        if self.rewrite_metadata:
+            self._write_metadata()
         self._boundary_ns = (log_ns // self.segment_ns + 1) * self.segment_ns
         self._segment = self._open_segment(index)
 

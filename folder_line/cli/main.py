@@ -24,6 +24,7 @@ from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
+from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
@@ -128,6 +129,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_scene_arguments(sim, 60.0)
     listing = sim.add_mutually_exclusive_group()
     listing.add_argument('--json', metavar='PATH', help='write the summary as JSON')
+    listing.add_argument(
+        '--bag',
+        metavar='DIR',
+        help='write the bag a live lockstep `run` of the scene would record (no DDS; a new or empty folder)',
+    )
     listing.add_argument(
         '--list-keys', action='store_true', help='list every --set key of the scene: unit, value, range; then exit'
     )
@@ -272,10 +278,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise ParameterError('--samples', args.samples, f'runs a Monte Carlo; {listing} lists and runs nothing')
     if args.json:
         check_output_file(args.json, '--json')
+    if args.bag is not None and args.samples is not None:
+        raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --bag writes one run')
     data = source_from(args)
     if args.samples is not None:
         return montecarlo.simulate_samples(args, data)
     scene = parse_scene(data)
+    if args.bag is not None:
+        return batch_cli.write_bag(args, scene)
     if args.list_keys:
         keys.print_keys(data, sys.stdout)
         return 0
@@ -385,6 +395,7 @@ _PATH_ARGUMENTS = {
     'json': '--json',
     'csv': '--csv',
     'out': '--out',
+    'bag': '--bag',
     'path': 'RUN_DIR|BAG',
     'dir': 'DIR',
 }

@@ -83,6 +83,17 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String
 from std_srvs.srv import Trigger
 
+from folder_line.bag.statuses import (
+    ERROR,
+    OK,
+    WARN,
+    Status,
+    balance_status,
+    constraint_statuses,
+    event_status,
+    status_stamp,
+    violation_status,
+)
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.mechanisms.drive import Command
@@ -124,6 +135,21 @@ SERVICES: dict[str, tuple[str, str | None, bool]] = {
 STATE_QOS = QoSProfile(
     depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
+
+
+#: :mod:`folder_line.bag.statuses` levels -> the message's byte constants
+_LEVELS = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN, ERROR: DiagnosticStatus.ERROR}
+
+
+def _status_msg(status: Status) -> DiagnosticStatus:
+    """The rclpy message of a :class:`~folder_line.bag.statuses.Status` (shared with ``simulate --bag``)."""
+    return DiagnosticStatus(
+        level=_LEVELS[status.level],
+        name=status.name,
+        message=status.message,
+        hardware_id=status.hardware_id,
+        values=[KeyValue(key=k, value=v) for k, v in status.values],
+    )
 
 
 def _non_finite(*arrays: Any) -> int:
@@ -365,20 +391,21 @@ class Supervisor(MachineNode):
     def _publish_status(
         self, what: str, ok: bool, message: str, values: dict[str, Any], stamp: float | None = None
     ) -> None:
+        logic = self.logic
+        status = event_status(
+            what,
+            ok,
+            message,
+            values,
+            self.model.scene.name,
+            t_start=logic.t_start,
+            watermark=logic.now,
+            late=logic.late,
+        )
         arr = DiagnosticArray()
-        t = self.logic.now if stamp is None else stamp
-        arr.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)) if math.isfinite(t) else 0)
-        status = DiagnosticStatus()
-        status.name = f'folder_line/supervisor/{what}'
-        status.hardware_id = self.model.scene.name
-        status.level = DiagnosticStatus.OK if ok else DiagnosticStatus.ERROR
-        status.message = message
-        extra = {'t_start': self.logic.t_start, 'watermark': self.logic.now, 'late': self.logic.late}
-        status.values = [
-            KeyValue(key=k, value=repr(v) if isinstance(v, float) else str(v)) for k, v in {**values, **extra}.items()
-        ]
-        arr.status.append(status)
+        arr.header.stamp = ns_to_time_msg(status_stamp(logic.now if stamp is None else stamp))
         arr.header.frame_id = self.NODE_NAME
+        arr.status.append(_status_msg(status))
         self.publish(self._diag_pub, arr)
         self.published_diagnostics += 1
 
@@ -387,54 +414,17 @@ class Supervisor(MachineNode):
             f'{v.constraint} violated in cycle {v.cycle} at {v.t:.6f} s, margin {v.margin:.6g} '
             f'{v.unit}: {v.action} ({v.state})'
         )
-        self._publish_status(
-            'violation',
-            False,
-            f'{v.constraint} violated in cycle {v.cycle}: {v.action}',
-            {
-                't': v.t,
-                'cycle': v.cycle,
-                'constraint': v.constraint,
-                'margin': v.margin,
-                'unit': v.unit,
-                'action': v.action,
-                'state': v.state,
-            },
-            stamp=v.t,
-        )
+        self._publish_status('violation', *violation_status(v), stamp=v.t)
 
     def _publish_balance(self, b: Balance) -> None:
-        if b.missing:  # a participant was lost: no number is judged on what never arrived
+        if b.missing:
             self.get_logger().warning(f'sheet balance at {b.t:.6f} s ({b.state}) not judged: {b.missing}')
-            self._publish_status(
-                'balance',
-                False,
-                f'{b.state}: not judged: {b.missing}',
-                {'t': b.t, 'state': b.state, 'missing': b.missing, 'ok': False},
-                stamp=b.t,
-            )
-            return
-        if not b.ok:
+        elif not b.ok:
             self.get_logger().error(
                 f'sheet balance broken at {b.t:.6f} s ({b.state}): fed {b.fed}, delivered '
                 f'{b.delivered}, in the machine {b.in_machine}'
             )
-        self._publish_status(
-            'balance',
-            b.ok,
-            f'{b.state}: fed {b.fed} = delivered {b.delivered} + in the '
-            f'machine {b.in_machine}' + ('' if b.ok else ' BROKEN'),
-            {
-                't': b.t,
-                'state': b.state,
-                'fed': b.fed,
-                'delivered': b.delivered,
-                'in_machine': b.in_machine,
-                **b.detail,
-                'ok': b.ok,
-            },
-            stamp=b.t,
-        )
+        self._publish_status('balance', *balance_status(b), stamp=b.t)
 
     def published_counts(self) -> dict[str, int]:
         return {
@@ -444,61 +434,13 @@ class Supervisor(MachineNode):
             COMMANDS_TOPIC: self.published_commands,
         }
 
-    def diagnostics(self, stamp_ns: int, t: float) -> DiagnosticArray:
-        """One status per constraint, from the cycles evaluated by time ``t``."""
+    def diagnostics(self, stamp: int, t: float) -> DiagnosticArray:
+        """One status per constraint, from the cycles evaluated by time ``t`` (:func:`constraint_statuses`)."""
         arr = DiagnosticArray()
-        arr.header.stamp = ns_to_time_msg(stamp_ns)
+        arr.header.stamp = ns_to_time_msg(stamp)
         arr.header.frame_id = self.NODE_NAME
-        inputs = DiagnosticStatus(name='folder_line/supervisor/inputs', hardware_id=self.model.scene.name)
-        total = sum(self.rejected.values())
-        inputs.level = DiagnosticStatus.WARN if total else DiagnosticStatus.OK
-        inputs.message = f'{total} inputs rejected' if total else 'no input rejected'
-        inputs.values = [KeyValue(key=k, value=str(n)) for k, n in sorted(self.rejected.items())]
-        lost = self.logic.lost_nodes
-        if lost:
-            inputs.level = DiagnosticStatus.ERROR
-            inputs.message += f'; participants lost: {", ".join(lost)}'
-            inputs.values.append(KeyValue(key='lost', value=','.join(lost)))
-        for c in self.model.constraints:
-            decided = c.decided_by(t)
-            n = int(np.count_nonzero(decided))
-            status = DiagnosticStatus()
-            status.name = f'folder_line/{c.name}'
-            status.hardware_id = self.model.scene.name
-            if n == 0:
-                status.level = DiagnosticStatus.OK
-                status.message = 'no cycle evaluated yet'
-                status.values = [KeyValue(key='unit', value=c.unit), KeyValue(key='evaluations', value='0')]
-            else:
-                done = c.margin[decided]
-                i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
-                violations = int(np.count_nonzero(done < 0.0))
-                last = float(c.margin[i_last])
-                status.level = (
-                    DiagnosticStatus.ERROR
-                    if last < 0.0
-                    else DiagnosticStatus.WARN
-                    if violations
-                    else DiagnosticStatus.OK
-                )
-                status.message = (
-                    f'violated in cycle {int(c.cycle[i_last])}'
-                    if last < 0.0
-                    else f'{violations} violations so far'
-                    if violations
-                    else 'ok'
-                )
-                values: dict[str, Any] = {
-                    'margin': repr(last),
-                    'unit': c.unit,
-                    'cycle': str(int(c.cycle[i_last])),
-                    'min_margin': repr(float(done.min())),
-                    'violations': str(violations),
-                    'evaluations': str(n),
-                }
-                status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
-            arr.status.append(status)
-        arr.status.append(inputs)  # last: the constraints keep their places in the array
+        statuses = constraint_statuses(self.model, t, self.model.scene.name, self.rejected, self.logic.lost_nodes)
+        arr.status = [_status_msg(st) for st in statuses]
         return arr
 
 

@@ -1,0 +1,57 @@
+"""``folder-line simulate --bag DIR``: the bag of a live lockstep run, written from the batch model."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from folder_line.bag.batch import check_duration, write_batch_bag
+from folder_line.core.line.scene import Scene
+from folder_line.errors import OutputError
+from folder_line.files.atomic import claim_output_dir
+
+__all__ = ['write_bag']
+
+
+def write_bag(args: argparse.Namespace, scene: Scene) -> int:
+    """Write ``args.bag`` for ``scene`` and ``args.duration``; print what was written; exit code 0.
+
+    The folder must be missing or empty: a bag is never written over anything (checked, with the
+    duration, before any work).
+
+    Raises
+    ------
+    folder_line.errors.OutputError
+        ``--bag`` is not a folder, is not empty, or is held by another process.
+    folder_line.errors.ParameterError
+        ``--duration`` is not a whole number of ticks.
+    """
+    check_duration(scene, args.duration)
+    bag = Path(args.bag)
+    if bag.is_dir() and any(bag.iterdir()):
+        raise OutputError('--bag', str(bag), 'is a folder that is not empty; a bag is written to a new or empty one')
+    t0 = time.perf_counter()
+    try:
+        with claim_output_dir(bag, '--bag'):
+            result = write_batch_bag(
+                bag,
+                scene,
+                args.duration,
+                custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
+            )
+    except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
+        raise exc.with_option('--bag') from None
+    wall = time.perf_counter() - t0
+    total = sum(result.counts.values())
+    print(
+        f'scene {scene.name}: {args.duration:g} s of line time, {total} messages in {wall:.1f} s '
+        f'(no DDS; supervisor {result.state}, {len(result.commands)} drive commands)',
+        file=sys.stdout,
+    )
+    for topic, n in sorted(result.counts.items()):
+        print(f'  {topic:<40} {n}')
+    print(f'wrote {result.path} ({result.segments} segments)')
+    return 0
