@@ -238,14 +238,14 @@ class _Joints:
         self.eff = _Grow(float, j)
         self.has_eff = True
 
-    def add(self, msg: Any) -> None:
+    def add(self, msg: Any, position: np.ndarray, velocity: np.ndarray, effort: np.ndarray) -> None:
+        """Append ``msg`` (its three arrays already as float arrays)."""
         if tuple(msg.name) != self.names:  # a model rebuilt with other joints: keep the first layout
             return
         j = len(self.names)
         self.t.add(_time_ns(msg.header.stamp))
-        self.pos.add(np.asarray(msg.position, dtype=float).reshape(j) if j else 0.0)
-        self.vel.add(np.asarray(msg.velocity, dtype=float).reshape(j) if j else 0.0)
-        effort = np.asarray(msg.effort, dtype=float)
+        self.pos.add(position.reshape(j) if j else 0.0)
+        self.vel.add(velocity.reshape(j) if j else 0.0)
         if effort.size == j and j:
             self.eff.add(effort)
         else:
@@ -310,6 +310,8 @@ def read_recording(
     ev_rows = _Grow(EVENT_DTYPE)
     bad_events = 0
     joints: dict[str, _Joints] = {}
+    # topic -> the node whose joint states it carries (looked up once per topic, not per message)
+    node_of = {topic: node for topic in contents.topics if (node := joint_states_node(topic)) is not None}
     states: list[tuple[int, str]] = []
     commands: dict[tuple[int, str], None] = {}
     sheet_count: int | None = None
@@ -329,12 +331,13 @@ def read_recording(
             t_ev = _time_ns(msg.time_ref)
             ev_ns.add(t_ev)
             ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set below, from the ns
-        elif (node := joint_states_node(topic)) is not None:
+        elif (node := node_of.get(topic)) is not None:
             acc = joints.get(node)
             if acc is None:
                 acc = joints[node] = _Joints(node, msg.name)
-            acc.add(msg)
-            arrays = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort) if len(a)]
+            three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
+            acc.add(msg, *three)
+            arrays = [a for a in three if a.size]
             # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
             if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
                 bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
