@@ -73,7 +73,7 @@ from folder_line.bag.statuses import (
 )
 from folder_line.bag.types import typestore
 from folder_line.bag.writer import BagWriter
-from folder_line.config.run_config import RATE, SUPERVISOR_DEFAULTS
+from folder_line.config.run_config import RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.events import EVENT_DTYPE
@@ -331,18 +331,7 @@ def write_batch_bag(
             models[commands] = LineModel(scene, horizon, commands)
         return models[commands]
 
-    logic = Supervisor(
-        scene,
-        horizon,
-        periods={},
-        lead=SUPERVISOR_DEFAULTS['command_lead'],
-        check_period=1.0 / SUPERVISOR_DEFAULTS['rate'],
-        enforce=SUPERVISOR_DEFAULTS['enforce'],
-        double=SUPERVISOR_DEFAULTS['double_sheet'],
-        state='STARTING',
-        t_start=None,
-        model_factory=model_of,
-    )
+    logic = supervisor_logic(scene, horizon, SUPERVISOR_DEFAULTS, model_of)
     sup = _SupervisorOut(logic, scene.name)
     model = logic.model
     machines = [_Machine(n, step_ns, horizon_ns) for n in JOINT_NODES]

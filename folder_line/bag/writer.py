@@ -26,10 +26,11 @@ against a crash of the process, not of the operating system.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import struct
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -382,19 +383,25 @@ class BagWriter:
         if topic not in self.types:
             msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
             raise BagError(msg)
-        try:
+        with self._naming_the_file():
             if log_ns >= self._boundary_ns:
                 self._roll(log_ns)
             assert self._segment is not None
             self._segment.add(
                 topic, log_ns, log_ns if publish_ns is None else publish_ns, data, self.counts[topic] % 2**32
             )
+        self.counts[topic] += 1
+
+    @contextlib.contextmanager
+    def _naming_the_file(self) -> Iterator[None]:
+        """An OS error of a write into the open file (which has no file name) names the file."""
+        try:
+            yield
         except OSError as exc:
-            if exc.filename is None:  # a write into the open file: name it
+            if exc.filename is None:
                 where = self._segment.path if self._segment is not None else self.path
                 raise OSError(exc.errno, exc.strerror, str(where)) from exc
             raise
-        self.counts[topic] += 1
 
     def write_many(self, log_ns: int, items: Sequence[tuple[str, bytes, int]]) -> None:
         """Record CDR-serialized messages ``(topic, data, publish_ns)`` of declared topics, all at line
@@ -404,16 +411,11 @@ class BagWriter:
             if topic not in self.types:
                 msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
                 raise BagError(msg)
-        try:
+        with self._naming_the_file():
             if log_ns >= self._boundary_ns:
                 self._roll(log_ns)
             assert self._segment is not None
             self._segment.add_many(log_ns, items, self.counts)
-        except OSError as exc:
-            if exc.filename is None:
-                where = self._segment.path if self._segment is not None else self.path
-                raise OSError(exc.errno, exc.strerror, str(where)) from exc
-            raise
 
     def close(self, published: Mapping[str, int] | None = None) -> None:
         """Finish the open file and write the final ``metadata.yaml``.

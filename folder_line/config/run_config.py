@@ -12,13 +12,17 @@ the run and loaded by every node), :data:`BAG_DIR` (the bag), ``run.json`` and, 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 from folder_line.core.limits import HORIZON_MARGIN
+from folder_line.core.line.model import LineModel
+from folder_line.core.line.scene import Scene
+from folder_line.core.mechanisms.drive import Command
+from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
     'BAG_DIR',
@@ -26,6 +30,7 @@ __all__ = [
     'SCENE_FILE',
     'SUPERVISOR_DEFAULTS',
     'RunConfig',
+    'supervisor_logic',
     'clock_parameters',
     'node_parameters',
 ]
@@ -44,6 +49,29 @@ RATE = 200.0
 SUPERVISOR_DEFAULTS: Mapping[str, Any] = MappingProxyType(
     {'rate': RATE, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
 )
+
+
+def supervisor_logic(
+    scene: Scene,
+    horizon: float,
+    settings: Mapping[str, Any],
+    model_factory: Callable[[tuple[Command, ...]], LineModel],
+) -> Supervisor:
+    """The supervisor's logic as the supervisor node builds it at start-up: ``settings`` has the node's
+    parameters of :data:`SUPERVISOR_DEFAULTS` (``rate``, ``command_lead``, ``enforce``, ``double_sheet``).
+    ``simulate --bag`` builds it the same way, so its bag is the live one."""
+    return Supervisor(
+        scene,
+        horizon,
+        periods={},
+        lead=settings['command_lead'],
+        check_period=1.0 / settings['rate'],
+        enforce=settings['enforce'],
+        double=settings['double_sheet'],
+        state='STARTING',
+        t_start=None,
+        model_factory=model_factory,
+    )
 
 
 @dataclass(frozen=True)

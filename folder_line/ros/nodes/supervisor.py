@@ -94,14 +94,13 @@ from folder_line.bag.statuses import (
     status_stamp,
     violation_status,
 )
-from folder_line.config.run_config import SUPERVISOR_DEFAULTS
+from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
 from folder_line.core.supervision.records import Violation
 from folder_line.core.supervision.settings import SPEED_REACHED
-from folder_line.core.supervision.supervisor import Supervisor as Logic
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -201,17 +200,8 @@ class Supervisor(MachineNode):
         v = self.values
         joint_nodes = [NODE_OF_UNIT[unit] for unit in self.model.units]
         scene, horizon = self.scene, v['horizon']
-        self.logic = Logic(
-            self.model.scene,
-            v['horizon'],
-            periods={},
-            lead=v['command_lead'],
-            check_period=1.0 / v['rate'],
-            enforce=v['enforce'],
-            double=v['double_sheet'],
-            state='STARTING',
-            t_start=None,
-            model_factory=lambda commands: scene_model(scene, horizon, commands),
+        self.logic = supervisor_logic(
+            self.model.scene, v['horizon'], v, lambda commands: scene_model(scene, horizon, commands)
         )
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
