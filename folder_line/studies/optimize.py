@@ -243,8 +243,9 @@ class Candidate:
         """What is minimised: the landing CV if feasible, else more than any CV (inf: not simulated)."""
         if not self.geometry_ok or self.summary is None:
             return math.inf
-        if self.feasible:
-            return float(self.landing_cv)  # type: ignore[arg-type]
+        cv = self.landing_cv
+        if self.feasible and cv is not None:  # feasible includes a landing CV; said again for the type
+            return cv
         lay = self.summary['layup']
         return float(
             PENALTY
