@@ -30,7 +30,7 @@ import contextlib
 import json
 import os
 import struct
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -379,18 +379,27 @@ class BagWriter:
         Reaching the next multiple of ``segment_s`` finishes the open file first; an
         earlier ``log_ns`` goes into the open file. ``publish_ns`` defaults to ``log_ns``.
         """
-        self._check_open()
-        if topic not in self.types:
-            msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
-            raise BagError(msg)
+        self._check_declared((topic,))
         with self._naming_the_file():
-            if log_ns >= self._boundary_ns:
-                self._roll(log_ns)
-            assert self._segment is not None
-            self._segment.add(
+            self._segment_at(log_ns).add(
                 topic, log_ns, log_ns if publish_ns is None else publish_ns, data, self.counts[topic] % 2**32
             )
         self.counts[topic] += 1
+
+    def _check_declared(self, topics: Iterable[str]) -> None:
+        """The bag is open and every topic of a serialized write was declared (BagError otherwise)."""
+        self._check_open()
+        for topic in topics:
+            if topic not in self.types:
+                msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
+                raise BagError(msg)
+
+    def _segment_at(self, log_ns: int) -> _Segment:
+        """The file a record at line time ``log_ns`` goes into: the next one from a segment boundary on."""
+        if log_ns >= self._boundary_ns:
+            self._roll(log_ns)
+        assert self._segment is not None
+        return self._segment
 
     @contextlib.contextmanager
     def _naming_the_file(self) -> Iterator[None]:
@@ -406,16 +415,9 @@ class BagWriter:
     def write_many(self, log_ns: int, items: Sequence[tuple[str, bytes, int]]) -> None:
         """Record CDR-serialized messages ``(topic, data, publish_ns)`` of declared topics, all at line
         time ``log_ns`` (one tick): :meth:`write_serialized` for each, in one call."""
-        self._check_open()
-        for topic, _, _ in items:
-            if topic not in self.types:
-                msg = f'{self.path}: topic {topic} was not declared (add_topic) before a serialized write'
-                raise BagError(msg)
+        self._check_declared(topic for topic, _, _ in items)
         with self._naming_the_file():
-            if log_ns >= self._boundary_ns:
-                self._roll(log_ns)
-            assert self._segment is not None
-            self._segment.add_many(log_ns, items, self.counts)
+            self._segment_at(log_ns).add_many(log_ns, items, self.counts)
 
     def close(self, published: Mapping[str, int] | None = None) -> None:
         """Finish the open file and write the final ``metadata.yaml``.
