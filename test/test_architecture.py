@@ -26,10 +26,11 @@ from _loaded import ros_modules_loaded
 
 PACKAGE = Path(__file__).resolve().parent.parent / 'folder_line'
 
-_BASE = {'errors', '__init__'}
+_BASE = {'errors', 'progress', '__init__'}
 #: part of folder_line -> the parts it may import
 MAY_IMPORT: dict[str, set[str]] = {
     'errors': set(),
+    'progress': set(),
     '__init__': set(),
     'core': {'errors'},
     'interfaces': {'core', *_BASE},

@@ -52,11 +52,12 @@ from folder_line.analysis.figure_data import (
     exit_speed_data,
     landing_data,
 )
-from folder_line.analysis.recording import Recording
+from folder_line.analysis.recording import RecordedJoints, Recording
 from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import chain_friction
 from folder_line.core.mechanisms import delivery, layup, layup_reach
 from folder_line.files.atomic import write_bytes_atomic
+from folder_line.interfaces import NODE_OF_UNIT
 
 __all__ = [
     'DPI',
@@ -214,13 +215,24 @@ def _thin(n: int, cap: int = MAX_POINTS) -> slice:
     return slice(None, None, max(1, math.ceil(n / cap)))
 
 
+def _sampling(joints: RecordedJoints, drawn: int | None = None) -> str:
+    """``N recorded samples`` and, where the reading sampled them, how many are drawn and how."""
+    text = f'{joints.count} recorded samples'
+    shown = joints.t.size if drawn is None else drawn
+    if joints.fraction < 1.0:
+        text += f' ({shown} drawn: the ticks of a pseudo-random 1/{round(1 / joints.fraction)})'
+    elif shown != joints.count:
+        text += f' ({shown} drawn)'
+    return text
+
+
 def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
     data = exit_speed_data(rec)
     if data is None:
         return None
     plt = pyplot()
     scene = rec.scene
-    n_samples = data['t'].size
+    crank = rec.joints[NODE_OF_UNIT['drive']]
     lp = scene.machine('layup')
     v_tr = float(lp.v_tr) if scene.has('chute_belts') else 0.0
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
@@ -258,18 +270,20 @@ def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
     ax1.set_ylabel('swing speed across the chute, m/s')
     ax1.set_title(
-        f'L: exit speeds, {n_samples} recorded samples over {rec.t_end:.3f} s '
-        '(lines: model at nominal speed; paper Fig. 4)',
+        'L: exit speeds (lines: model at nominal speed; paper Fig. 4)\n'
+        f'{_sampling(crank, data["t"].size)} over {rec.t_end:.3f} s',
         fontsize=10,
     )
     ax1.legend(loc='upper right', fontsize=8)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel(r'crank angle $\varphi$, deg')
-    belt = (
-        f'recorded belt speed {data["v_belt"].min():.3f}..{data["v_belt"].max():.3f} m/s'
-        if scene.has('chute_belts') and data['v_belt'].size
-        else 'no belts'
-    )
+    belts = rec.joints.get(NODE_OF_UNIT['belts'])
+    if scene.has('chute_belts') and belts is not None and 'chute_belts' in belts.names and belts.count:
+        lo, hi = belts.extent('chute_belts', 'velocity')  # over every recorded sample, not only those drawn
+        belt = f'recorded belt speed {lo:.3f}..{hi:.3f} m/s'
+    else:
+        belt = 'no belts'
+
     ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
     ax2.legend(loc='lower right', fontsize=8, ncol=2)
     fig.tight_layout()
@@ -295,7 +309,7 @@ def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         ms=3,
         color='k',
         alpha=0.6,
-        label=f'at the recorded carriage positions ({data["u"].size})',
+        label=f'at the recorded carriage positions ({data["u"].size} drawn)',
     )
     m = data['moving'][k]
     ax_kv.plot(
@@ -312,8 +326,9 @@ def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
     ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color='tab:purple', va='bottom', fontsize=8)
     ax_eta.set_ylabel('efficiency $\\eta$')
     ax_eta.set_title(
-        f'D: efficiency along the stroke (paper Fig. 2), recorded over {rec.t_end:.3f} s; '
-        f'min eta at the samples {data["eta"].min():.3f}'
+        f'D: efficiency along the stroke (paper Fig. 2); min eta at the drawn samples {data["eta"].min():.3f}, '
+        f'of the model {delivery.stroke_minimum(plan.params, "eta")[1]:.3f}\n'
+        f'{_sampling(rec.joints[NODE_OF_UNIT["feed"]])} over {rec.t_end:.3f} s'
         if data['eta'].size
         else 'D: efficiency along the stroke (paper Fig. 2)',
         fontsize=10,

@@ -44,27 +44,46 @@ from folder_line.interfaces import (
     parse_event_source,
 )
 
-__all__ = ['SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
+__all__ = ['JOINT_SAMPLES', 'SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
 
+#: joint-state samples kept per node at most (:class:`RecordedJoints`); the figures draw them
+JOINT_SAMPLES = 5000
+#: rows of a block of messages (joint states, events, clock) handled at once
+_CHUNK = 4096
+_QUANTITIES = ('position', 'velocity', 'effort')
 #: the statuses the supervisor publishes on /diagnostics for its decisions
 SUPERVISOR_STATUS_PREFIX = 'folder_line/supervisor/'
 
 
 @dataclass(frozen=True, eq=False)
 class RecordedJoints:
-    """The joint states one node published, as recorded.
+    """The joint states one node published: all of them counted, a bounded sample of them kept.
+
+    An hour of a 200 Hz node is 720 000 messages; the figures draw a few thousand. So
+    :func:`read_recording` keeps a pseudo-random ``fraction`` (1, 1/2, 1/4, ...) of the
+    ticks, chosen by a hash of the stamp: the largest that keeps at most
+    ``joint_samples`` per node. Every node keeps the same ticks, and the choice has no
+    pattern in time, so a sample does not alias with the machines' periods. The count
+    and each column's extremes are those of every message.
 
     Attributes
     ----------
     node : str
-        ``crank_drive``, ``belt_conveyor`` or ``feed_transporter``.
+        ``crank_drive``, ``belt_conveyor``, ``feed_transporter`` or ``sheet_counter``.
     names : tuple of str
         Joint names (the columns).
     t : ndarray, shape (N,)
-        ``header.stamp`` of each message (the node's tick), s.
+        ``header.stamp`` of each kept message (the node's tick), s, sorted.
     position, velocity : ndarray, shape (N, J)
     effort : ndarray, shape (N, J), or None
         None where the node published no efforts.
+    count : int
+        Messages recorded (with the node's joints), kept or not.
+    fraction : float
+        The fraction of the ticks kept (1: every message).
+    low, high : ndarray, shape (3, J)
+        Smallest and largest position, velocity and effort of every message (NaN left
+        out; ``inf``/``-inf`` where there is no finite value).
     """
 
     node: str
@@ -73,6 +92,16 @@ class RecordedJoints:
     position: np.ndarray
     velocity: np.ndarray
     effort: np.ndarray | None
+    count: int = 0
+    fraction: float = 1.0
+    low: np.ndarray = field(default_factory=lambda: np.zeros((3, 0)))
+    high: np.ndarray = field(default_factory=lambda: np.zeros((3, 0)))
+
+    def extent(self, joint: str, quantity: str = 'position') -> tuple[float, float]:
+        """(smallest, largest) ``position``, ``velocity`` or ``effort`` of one joint over every message."""
+        self.column(joint, quantity)  # KeyError as column's
+        row, col = _QUANTITIES.index(quantity), self.names.index(joint)
+        return float(self.low[row, col]), float(self.high[row, col])
 
     def column(self, joint: str, quantity: str = 'position') -> np.ndarray:
         """One joint's ``position``, ``velocity`` or ``effort`` over the recording (KeyError if absent)."""
@@ -112,9 +141,12 @@ class Recording:
     event_ns : ndarray of int64
         The same events' ``time_ref`` in ns (exact).
     joints : dict of str to RecordedJoints
-        Node -> its joint states.
+        Node -> its joint states (counted, their extremes, a bounded sample; from
+        ``read_recording``'s ``t_from`` on).
     states : list of (int, str)
-        ``(log time ns, state)`` of every ``/line/supervisor/state`` message.
+        ``(log time ns, state)`` of the first ``/line/supervisor/state`` message and of
+        every one whose state differs from the message before (the state is published
+        every tick; its changes are what the analysis uses).
     commands : tuple of Command
         The drive commands of ``/line/supervisor/commands`` (effective time, kind),
         sorted by time, duplicates dropped -- what the nodes applied.
@@ -207,61 +239,161 @@ def _time_ns(stamp: Any) -> int:
 
 
 class _Grow:
-    """A numpy array appended to row by row, its capacity doubled when full: memory is the data's, with no
-    Python object per message (an hour of a 200 Hz topic is 720 000 rows)."""
+    """A numpy array appended to row by row, in chunks of :data:`_CHUNK` rows joined once at the
+    end: memory is the data's, with no Python object per message and no copy while growing (an
+    hour of a 200 Hz topic is 720 000 rows)."""
 
-    def __init__(self, dtype: Any, width: int = 0) -> None:
-        self.width = width
-        self.data = np.zeros((1024, width) if width else 1024, dtype=dtype)
-        self.n = 0
+    def __init__(self, dtype: Any) -> None:
+        self.dtype = dtype
+        self.chunks: list[np.ndarray] = []
+        self.chunk = np.zeros(_CHUNK, dtype=dtype)
+        self.i = 0
 
     def add(self, row: Any) -> None:
-        if self.n == len(self.data):
-            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
-        self.data[self.n] = row
-        self.n += 1
+        if self.i == _CHUNK:
+            self.chunks.append(self.chunk)
+            self.chunk = np.zeros(_CHUNK, dtype=self.dtype)
+            self.i = 0
+        self.chunk[self.i] = row
+        self.i += 1
 
     def done(self) -> np.ndarray:
-        out: np.ndarray = self.data[: self.n].copy()
+        out: np.ndarray = np.concatenate([*self.chunks, self.chunk[: self.i]])
         return out
 
 
+def _priority(stamp_ns: np.ndarray) -> np.ndarray:
+    """A stamp's place in the sampling: splitmix64 of the stamp in ns (uniform on uint64, no pattern in time)."""
+    z = stamp_ns.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    out: np.ndarray = z ^ (z >> np.uint64(31))
+    return out
+
+
+class _Sampler:
+    """The sampling of every node's joint states, shared so that the nodes keep the same ticks.
+
+    A sample is kept if the :func:`_priority` of its stamp is below ``2**64 / 2**level``:
+    a pseudo-random ``1 / 2**level`` of the ticks, the same for every node, with no
+    aliasing against the machines' periods (which a sample every k ticks has). ``level``
+    is 0 (every sample kept) until a node keeps more than ``cap``, then raised until
+    every node keeps at most half of ``cap``. The kept sets nest, so sampling what was
+    kept equals sampling every message.
+    """
+
+    def __init__(self, cap: int) -> None:
+        self.cap = cap
+        self.level = 0
+        self.nodes: list[_Joints] = []
+
+    def keep(self, priority: np.ndarray) -> np.ndarray:
+        """Which of these priorities the current level keeps."""
+        if self.level == 0:
+            return np.ones(priority.shape, dtype=bool)
+        out: np.ndarray = (priority >> np.uint64(64 - self.level)) == 0
+        return out
+
+    def raise_level(self) -> None:
+        """Halve the fraction kept, on every node, until each keeps at most half of ``cap``."""
+        while True:
+            self.level += 1
+            for node in self.nodes:
+                node.sample()
+            if all(node.n <= self.cap // 2 for node in self.nodes) or self.level == 63:
+                return
+
+    def finish(self, nodes: Mapping[str, _Joints]) -> dict[str, RecordedJoints]:
+        """Every node's joint states at the final level (each node's last block flushed first)."""
+        for node in nodes.values():
+            node.flush()
+        return {name: node.done() for name, node in nodes.items()}
+
+
 class _Joints:
-    """Accumulates one node's joint states."""
+    """One node's joint states: every sample counted with its extremes, a bounded sampling of them kept.
 
-    def __init__(self, node: str, names: Sequence[str]) -> None:
-        self.node, self.names = node, tuple(names)
-        j = max(len(self.names), 1)
-        self.t = _Grow(np.int64)
-        self.pos = _Grow(float, j)
-        self.vel = _Grow(float, j)
-        self.eff = _Grow(float, j)
-        self.has_eff = True
+    Messages are gathered in a block of :data:`_CHUNK` rows; a full block is counted,
+    its extremes taken and its samples sampled into the kept rows in a few numpy calls.
+    """
 
-    def add(self, msg: Any, position: np.ndarray, velocity: np.ndarray, effort: np.ndarray) -> None:
-        """Append ``msg`` (its three arrays already as float arrays)."""
-        if tuple(msg.name) != self.names:  # a model rebuilt with other joints: keep the first layout
-            return
+    def __init__(self, node: str, names: Sequence[str], sampler: _Sampler) -> None:
+        self.node, self.names, self.sampler = node, tuple(names), sampler
         j = len(self.names)
-        self.t.add(_time_ns(msg.header.stamp))
-        self.pos.add(position.reshape(j) if j else 0.0)
-        self.vel.add(velocity.reshape(j) if j else 0.0)
-        if effort.size == j and j:
-            self.eff.add(effort)
+        self.block_t = np.zeros(_CHUNK, dtype=np.int64)
+        self.block = np.zeros((_CHUNK, 3, j))  # position, velocity, effort
+        self.i = 0
+        self.t = np.zeros(sampler.cap + _CHUNK, dtype=np.int64)
+        self.priority = np.zeros(sampler.cap + _CHUNK, dtype=np.uint64)
+        self.data = np.zeros((sampler.cap + _CHUNK, 3, j))
+        self.n = 0
+        self.count = 0
+        self.low = np.full((3, j), np.inf)
+        self.high = np.full((3, j), -np.inf)
+        self.has_eff = True
+        sampler.nodes.append(self)
+
+    def add(self, msg: Any, stamp_ns: int, position: np.ndarray, velocity: np.ndarray, effort: np.ndarray) -> None:
+        """Append ``msg`` (stamped ``stamp_ns``, its three arrays already as float arrays) to the block."""
+        j = len(self.names)
+        if position.size != j or velocity.size != j or tuple(msg.name) != self.names:
+            return  # a model rebuilt with other joints: keep the first layout
+        if self.i == _CHUNK:
+            self.flush()
+        row = self.block[self.i]
+        row[0], row[1] = position, velocity
+        if effort.size == j:
+            row[2] = effort
         else:
             self.has_eff = False
-            self.eff.add(0.0)
+            row[2] = 0.0
+        self.block_t[self.i] = stamp_ns
+        self.i += 1
+
+    def flush(self) -> None:
+        """Count the block, take its extremes and sample it into the kept rows."""
+        if self.i == 0:
+            return
+        t, rows = self.block_t[: self.i], self.block[: self.i]
+        self.count += self.i
+        if self.names:  # NaN (counted in bad_values) does not hide the extremes
+            np.fmin(self.low, np.fmin.reduce(rows, axis=0), out=self.low)
+            np.fmax(self.high, np.fmax.reduce(rows, axis=0), out=self.high)
+        priority = _priority(t)
+        keep = self.sampler.keep(priority)
+        end = self.n + int(np.count_nonzero(keep))
+        self.t[self.n : end], self.priority[self.n : end], self.data[self.n : end] = t[keep], priority[keep], rows[keep]
+        self.n, self.i = end, 0
+        if self.n > self.sampler.cap:
+            self.sampler.raise_level()
+
+    def sample(self) -> None:
+        """Keep what the sampler's current level keeps of the kept rows."""
+        keep = np.flatnonzero(self.sampler.keep(self.priority[: self.n]))
+        self.n = keep.size
+        self.t[: self.n], self.priority[: self.n], self.data[: self.n] = (
+            self.t[keep],
+            self.priority[keep],
+            self.data[keep],
+        )
 
     def done(self) -> RecordedJoints:
-        j = len(self.names)
-        n = self.t.n
-        pos = self.pos.done()[:, :j]
-        vel = self.vel.done()[:, :j]
-        eff = self.eff.done()[:, :j] if n > 0 and self.has_eff else None
-        t = self.t.done() / NS_PER_S
+        """What was kept (after :meth:`_Sampler.finish` flushed every node)."""
+        t = self.t[: self.n] / NS_PER_S
         order = np.argsort(t, kind='stable')
+        data = self.data[: self.n][order]
+        has_eff = self.has_eff and self.n > 0
         return RecordedJoints(
-            self.node, self.names, t[order], pos[order], vel[order], None if eff is None else eff[order]
+            node=self.node,
+            names=self.names,
+            t=t[order],
+            position=data[:, 0].copy(),
+            velocity=data[:, 1].copy(),
+            effort=data[:, 2].copy() if has_eff else None,
+            count=self.count,
+            fraction=0.5**self.sampler.level,
+            low=self.low.copy(),
+            high=self.high.copy(),
         )
 
 
@@ -270,6 +402,8 @@ def read_recording(
     on_message: Callable[[str, int, Any], None] | None = None,
     *,
     t_to: float | None = None,
+    t_from: float = 0.0,
+    joint_samples: int = JOINT_SAMPLES,
 ) -> Recording:
     """Decode a run's bag: events, joint states, states, commands, counts (one pass over the bag).
 
@@ -282,9 +416,16 @@ def read_recording(
     t_to : float, optional
         Read the messages logged up to this line time only, s (``analyze --to``): the
         recording is then that of a run that ended there.
+    t_from : float, optional
+        Keep the joint states stamped from this line time on, s (``analyze --from``: what
+        the figures draw). Everything else is read from the start: the replay needs it.
+    joint_samples : int, optional
+        Joint-state samples kept per node at most (:class:`RecordedJoints`).
 
-    The bag is read once, message by message; what is kept grows with the numbers the
-    analysis needs (numpy arrays), not with Python objects per message.
+    The bag is read once, message by message. What is kept grows only with the events
+    (34 bytes each), the ``/clock`` ticks (8 bytes each), the supervisor's statuses and
+    state changes, and the samples carrying NaN or inf; the joint states, most of a
+    bag, are kept to ``joint_samples`` per node.
 
     Raises
     ------
@@ -310,12 +451,14 @@ def read_recording(
     ev_rows = _Grow(EVENT_DTYPE)
     bad_events = 0
     joints: dict[str, _Joints] = {}
+    sampler = _Sampler(joint_samples)
+    from_ns = round(t_from * NS_PER_S)
     # topic -> the node whose joint states it carries (looked up once per topic, not per message)
     node_of = {topic: node for topic in contents.topics if (node := joint_states_node(topic)) is not None}
     states: list[tuple[int, str]] = []
     commands: dict[tuple[int, str], None] = {}
     sheet_count: int | None = None
-    landing: list[float] = []
+    landing = _Grow(float)
     stop_ns = None if t_to is None else round(t_to * NS_PER_S) + 1
     for topic, t_ns, msg in contents.messages(stop_ns=stop_ns):
         if on_message is not None:
@@ -332,17 +475,19 @@ def read_recording(
             ev_ns.add(t_ev)
             ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set below, from the ns
         elif (node := node_of.get(topic)) is not None:
-            acc = joints.get(node)
-            if acc is None:
-                acc = joints[node] = _Joints(node, msg.name)
+            stamp_ns = _time_ns(msg.header.stamp)
             three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
-            acc.add(msg, *three)
+            if stamp_ns >= from_ns:
+                acc = joints.get(node)
+                if acc is None:
+                    acc = joints[node] = _Joints(node, msg.name, sampler)
+                acc.add(msg, stamp_ns, *three)
             arrays = [a for a in three if a.size]
             # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
             if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
                 bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
                 if bad:
-                    bad_values.append((_time_ns(msg.header.stamp) / NS_PER_S, topic, bad))
+                    bad_values.append((stamp_ns / NS_PER_S, topic, bad))
         elif topic == DIAGNOSTICS_TOPIC:
             stamp_ns = _time_ns(msg.header.stamp)
             diag_ns.add(stamp_ns)
@@ -350,13 +495,15 @@ def read_recording(
                 if str(st.name).startswith(SUPERVISOR_STATUS_PREFIX):
                     status.append((stamp_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
         elif topic == SUPERVISOR_STATE_TOPIC:
-            states.append((t_ns, str(msg.data)))
+            state = str(msg.data)
+            if not states or states[-1][1] != state:
+                states.append((t_ns, state))
         elif topic == COMMANDS_TOPIC:
             commands[(_time_ns(msg.time_ref), str(msg.source))] = None
         elif topic == SHEET_COUNT_TOPIC:
             sheet_count = int(msg.data)
         elif topic == LANDING_TOPIC:
-            landing.append(float(msg.data))
+            landing.add(float(msg.data))
 
     ns = ev_ns.done()
     events = ev_rows.done()
@@ -374,11 +521,11 @@ def read_recording(
         horizon=_live_horizon(run, t_end),
         events=events[order],
         event_ns=ns[order],
-        joints={node: acc.done() for node, acc in joints.items()},
+        joints=sampler.finish(joints),
         states=states,
         commands=cmds,
         sheet_count=sheet_count,
-        landing_x=np.asarray(landing, dtype=float),
+        landing_x=landing.done(),
         bad_events=bad_events,
         clock=clock_ns / NS_PER_S,
         diagnostics_ns=diag_ns.done(),

@@ -264,7 +264,7 @@ def analyze(
             collector(topic, t_ns, msg)
 
     try:
-        rec = read_recording(path, collect if collector is not None else None, t_to=t_to)
+        rec = read_recording(path, collect if collector is not None else None, t_to=t_to, t_from=start)
         if start >= rec.t_end and start > 0.0:
             raise ParameterError('--from', start, f'at or after the line time the bag reaches ({rec.t_end:.9g} s)')
         out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
@@ -276,25 +276,15 @@ def analyze(
 
 
 def _window(rec: Recording, t_from: float) -> Recording:
-    """``rec`` with its events, joint states and clock from ``t_from`` on (what the figures show)."""
+    """``rec`` with its events and clock from ``t_from`` on (what the figures show; the joint
+    states were read from ``t_from`` on)."""
     if t_from <= 0.0:
         return rec
     keep = rec.events['t'] >= t_from
-    joints = {}
-    for node, j in rec.joints.items():
-        m = j.t >= t_from
-        joints[node] = dataclasses.replace(
-            j,
-            t=j.t[m],
-            position=j.position[m],
-            velocity=j.velocity[m],
-            effort=None if j.effort is None else j.effort[m],
-        )
     return dataclasses.replace(
         rec,
         events=rec.events[keep],
         event_ns=rec.event_ns[keep],
-        joints=joints,
         clock=rec.clock[rec.clock >= t_from],
         landing_x=rec.landing_x,
     )

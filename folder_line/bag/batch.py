@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -293,6 +293,7 @@ def write_batch_bag(
     duration: float,
     *,
     custom: Mapping[str, str] | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> BatchBag:
     """Write the bag of a live lockstep ``folder-line run`` of ``scene`` for ``duration`` s, without DDS.
 
@@ -306,6 +307,8 @@ def write_batch_bag(
         Line time, s: a whole number of ticks (``1 / RATE`` = 5 ms), > 0.
     custom : mapping of str to str, optional
         Extra ``custom_data`` entries (``folder_line.scene_arg``, ``folder_line.overrides``).
+    progress : callable, optional
+        Called with the line time written so far (s), after each block of ticks.
 
     Returns
     -------
@@ -381,6 +384,8 @@ def write_batch_bag(
             _write_block(bag, machines, with_joints, sup, model, k, end, step_ns, per_tick, landed, counted, states)
             prev_t = float((end - 1) * step_ns / NS_PER_S)
             k = end
+            if progress is not None:
+                progress(prev_t)
             if logic.model is not model:
                 model = logic.model
                 for m in machines:

@@ -12,6 +12,7 @@ from folder_line.bag.batch import check_duration, write_batch_bag
 from folder_line.core.line.scene import Scene
 from folder_line.errors import OutputError
 from folder_line.files.atomic import claim_output_dir
+from folder_line.progress import LineTimeProgress
 
 __all__ = ['write_bag']
 
@@ -34,6 +35,7 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
     if bag.is_dir() and any(bag.iterdir()):
         raise OutputError('--bag', str(bag), 'is a folder that is not empty; a bag is written to a new or empty one')
     t0 = time.perf_counter()
+    bar = LineTimeProgress(sys.stderr, args.duration)
     try:
         with claim_output_dir(bag, '--bag'):
             result = write_batch_bag(
@@ -41,9 +43,12 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
                 scene,
                 args.duration,
                 custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
+                progress=bar.show,
             )
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None
+    finally:
+        bar.close()
     wall = time.perf_counter() - t0
     total = sum(result.counts.values())
     print(

@@ -58,6 +58,7 @@ from folder_line.core.line.model import check_size, simulate
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
+from folder_line.progress import LineTimeProgress
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
@@ -88,30 +89,6 @@ class RunResult:
     counts: dict[str, int] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
     exit_codes: dict[str, int] = field(default_factory=dict)
-
-
-class _Progress:
-    """A progress bar on a terminal; on a pipe or file, one line per tenth."""
-
-    def __init__(self, stream: IO[str], total: float, width: int = 40) -> None:
-        self.stream, self.total, self.width = stream, total, width
-        self.tty = hasattr(stream, 'isatty') and stream.isatty()
-        self.tenths = -1
-
-    def show(self, t: float) -> None:
-        fraction = min(max(t / self.total, 0.0), 1.0)
-        done = int(self.width * fraction)
-        line = f'[{"#" * done}{"." * (self.width - done)}] {t:7.2f} / {self.total:g} s of line time'
-        if self.tty:
-            self.stream.write('\r' + line)
-        elif int(10 * fraction) > self.tenths:
-            self.tenths = int(10 * fraction)
-            self.stream.write(line + '\n')
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.tty:
-            self.stream.write('\n')
 
 
 def _clear_previous_bag(path: Path) -> None:
@@ -309,7 +286,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             executor.add_node(clock)
             done = clock.done.done
         last_draw = 0.0
-        progress = _Progress(stream, cfg.duration)
+        progress = LineTimeProgress(stream, cfg.duration)
         while not done() and not interrupted:
             if clock is not None:
                 executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
@@ -332,7 +309,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
         deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
         while time.perf_counter() < deadline:
             executor.spin_once(timeout_sec=0.02)
-        progress.show(recorder.sim_time)
+        progress.show(recorder.sim_time, force=True)
         progress.close()
         recorder.flush()
         if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)

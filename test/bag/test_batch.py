@@ -4,7 +4,7 @@ The proof: the same scene and duration run live (``run_line`` in process, lockst
 max``, on this test process's own ROS domain) and written by ``folder-line simulate --bag``
 give the same messages -- topic, publisher, log time, publish time, header stamps and every
 field -- read with the independent ``mcap`` + ``mcap-ros2-support`` reader
-(``read_ros2_messages``, decoding from the schema text in each file). ``folder`` runs
+(``make_reader`` with ``mcap_ros2``'s ``DecoderFactory``, decoding from the schema text in each file). ``folder`` runs
 clean; ``folder_faults`` makes the supervisor judge a late sheet, publish a violation and
 command a hold, which changes what every machine publishes from then on; ``line`` adds the
 belts, the layup and its leaves' landings.
@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from mcap_ros2.reader import read_ros2_messages
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
 from folder_line.bag import cdr
@@ -54,10 +55,12 @@ def read_independently(bag: Path) -> dict[tuple[str, str], list[tuple[int, int, 
     files = segment_files(bag)
     assert files
     for path in files:
-        for m in read_ros2_messages(str(path), log_time_order=False):
-            header = getattr(m.ros_msg, 'header', None)
-            key = (m.channel.topic, '' if header is None else header.frame_id)
-            out.setdefault(key, []).append((m.log_time_ns, m.publish_time_ns, plain(m.ros_msg)))
+        with path.open('rb') as fh:
+            reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+            for _, channel, message, ros in reader.iter_decoded_messages(log_time_order=False):
+                header = getattr(ros, 'header', None)
+                key = (channel.topic, '' if header is None else header.frame_id)
+                out.setdefault(key, []).append((message.log_time, message.publish_time, plain(ros)))
     return out
 
 
@@ -226,8 +229,10 @@ def test_write_many_is_write_serialized(tmp_path: Path) -> None:
                         writer.write_serialized(topic, data, stamp, publish)
         records = []
         for path in segment_files(bag):
-            for m in read_ros2_messages(str(path), log_time_order=False):
-                records.append((m.channel.topic, m.log_time_ns, m.publish_time_ns, m.sequence_count, plain(m.ros_msg)))
+            with path.open('rb') as fh:
+                reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+                for _, channel, m, ros in reader.iter_decoded_messages(log_time_order=False):
+                    records.append((channel.topic, m.log_time, m.publish_time, m.sequence, plain(ros)))
         bags[how] = (records, topic_entries(bag), len(segment_files(bag)))
     assert bags['one'] == bags['many']
     assert len(bags['one'][0]) == sum(len(items) for _, items in ticks) and bags['one'][2] == 4
