@@ -6,7 +6,10 @@ Measures, in one run and side by side on the same bag:
 * :func:`folder_line.analysis.recording.read_recording`: the one pass ``analyze`` makes,
   and its ratio to the floor;
 * ``folder-line analyze`` whole (figures and report included), in a child process: wall
-  time and peak RSS (``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss``).
+  time and peak RSS (``os.wait4``'s ``ru_maxrss`` of that child);
+* the same with ``--to`` a tenth of the bag's line time: how peak RSS grows with the
+  length of the recording (the joint states are kept to a bounded sample; the events,
+  the replay's line model and the supervisor's statuses grow).
 
 Make the bag with ``folder-line simulate --bag`` or a live ``folder-line run --rtf max``.
 Prints a markdown table.
@@ -15,7 +18,6 @@ Prints a markdown table.
 from __future__ import annotations
 
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -28,6 +30,24 @@ from rosbags.rosbag2 import Reader  # noqa: E402
 
 from folder_line.analysis.recording import _resolve, read_recording  # noqa: E402
 from folder_line.bag.types import typestore  # noqa: E402
+
+
+def _analyze(path: str, extra: list[str]) -> tuple[float, float]:
+    """(wall s, peak RSS MB) of ``folder-line analyze PATH *extra`` in a child process."""
+    with tempfile.TemporaryDirectory() as out:
+        env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(
+            [sys.executable, '-m', 'folder_line.cli.main', 'analyze', path, '--out', out, *extra],
+            stdout=subprocess.DEVNULL,
+            env=env,
+        )
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            raise subprocess.CalledProcessError(proc.returncode, proc.args)
+    return wall, usage.ru_maxrss / 1024
 
 
 def main(path: str) -> None:
@@ -43,17 +63,8 @@ def main(path: str) -> None:
     t0 = time.perf_counter()
     rec = read_recording(path)
     one_pass = time.perf_counter() - t0
-    with tempfile.TemporaryDirectory() as out:
-        env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
-        t0 = time.perf_counter()
-        subprocess.run(
-            [sys.executable, '-m', 'folder_line.cli.main', 'analyze', path, '--out', out],
-            check=True,
-            stdout=subprocess.DEVNULL,
-            env=env,
-        )
-        whole = time.perf_counter() - t0
-    rss_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    whole, rss_mb = _analyze(path, [])
+    tenth, tenth_mb = _analyze(path, ['--to', f'{rec.t_end / 10:.3f}'])
     print(f'bag: {bag}, {n} messages, {rec.t_end:.6g} s of line time')
     print('| step | wall, s | messages/s | x floor |')
     print('|---|---|---|---|')
@@ -61,6 +72,10 @@ def main(path: str) -> None:
     print(f"| read_recording (analyze's one pass) | {one_pass:.2f} | {n / one_pass:.0f} | {one_pass / floor:.2f} |")
     print(f'| folder-line analyze (whole, child process) | {whole:.2f} | {n / whole:.0f} | {whole / floor:.2f} |')
     print(f'peak RSS of folder-line analyze: {rss_mb:.0f} MB')
+    print(
+        f'with --to {rec.t_end / 10:.6g} s (a tenth): {tenth:.2f} s, peak RSS {tenth_mb:.0f} MB; '
+        f'growth {(rss_mb - tenth_mb) / (0.9 * rec.t_end / 3600):.0f} MB per hour of line time'
+    )
 
 
 if __name__ == '__main__':

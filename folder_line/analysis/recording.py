@@ -5,9 +5,10 @@ what ``folder-line run --out RUN_DIR`` wrote: ``run.json`` and ``bag/``), parses
 scene stored in it and decodes, in one pass over the messages, what the analysis
 needs: the events of ``/line/events`` (``time_ref``: the event time to the ns;
 ``source``: :func:`folder_line.interfaces.parse_event_source`), every machine node's
-joint states, the supervisor's states, drive commands and ``/diagnostics`` statuses,
-the sheet counter's count and landing positions, and the ``/clock``. No ROS is
-needed: the bag is read with rosbags.
+joint states (a bounded sample, :class:`RecordedJoints`), the supervisor's state
+changes, drive commands and ``/diagnostics`` statuses, the sheet counter's count and
+landing positions, and the latest ``/clock``. No ROS is needed: the bag is read with
+rosbags.
 """
 
 from __future__ import annotations
@@ -156,8 +157,6 @@ class Recording:
         ``/line/sheet_counter/landing_x`` values, m.
     bad_events : int
         ``/line/events`` messages whose ``source`` is not an event.
-    clock : ndarray
-        The ``/clock`` times, s.
     diagnostics_ns : ndarray of int64
         ``header.stamp`` of every ``/diagnostics`` message, ns.
     supervisor_status : list of (int, str, dict)
@@ -180,7 +179,6 @@ class Recording:
     sheet_count: int | None
     landing_x: np.ndarray
     bad_events: int
-    clock: np.ndarray = field(default_factory=lambda: np.zeros(0))
     diagnostics_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     supervisor_status: list[tuple[int, str, dict[str, str]]] = field(default_factory=list)
     bad_values: list[tuple[float, str, int]] = field(default_factory=list)
@@ -423,7 +421,7 @@ def read_recording(
         Joint-state samples kept per node at most (:class:`RecordedJoints`).
 
     The bag is read once, message by message. What is kept grows only with the events
-    (34 bytes each), the ``/clock`` ticks (8 bytes each), the supervisor's statuses and
+    (34 bytes each), the supervisor's statuses and
     state changes, and the samples carrying NaN or inf; the joint states, most of a
     bag, are kept to ``joint_samples`` per node.
 
@@ -443,7 +441,7 @@ def read_recording(
         raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
     scene = parse_scene(mapping)
 
-    clock = _Grow(np.int64)
+    clock_end = -1  # the latest /clock, ns
     diag_ns = _Grow(np.int64)
     status: list[tuple[int, str, dict[str, str]]] = []
     bad_values: list[tuple[float, str, int]] = []
@@ -464,7 +462,7 @@ def read_recording(
         if on_message is not None:
             on_message(topic, t_ns, msg)
         if topic == CLOCK_TOPIC:
-            clock.add(_time_ns(msg.clock))
+            clock_end = max(clock_end, _time_ns(msg.clock))
         elif topic == EVENTS_TOPIC:
             try:
                 kind, sheet, cycle, value = parse_event_source(msg.source)
@@ -510,9 +508,8 @@ def read_recording(
     events['t'] = ns / NS_PER_S
     order = np.lexsort((events['sheet'], events['kind'], ns))
     cmds = tuple(sorted((Command(t=t / NS_PER_S, kind=k) for t, k in commands), key=lambda c: c.t))
-    clock_ns = clock.done()
     end_ns = contents.end_ns if t_to is None else min(contents.end_ns, round(t_to * NS_PER_S))
-    t_end = (int(clock_ns.max()) if clock_ns.size else end_ns) / NS_PER_S
+    t_end = (clock_end if clock_end >= 0 else end_ns) / NS_PER_S
     return Recording(
         bag=contents,
         run=run,
@@ -527,7 +524,6 @@ def read_recording(
         sheet_count=sheet_count,
         landing_x=landing.done(),
         bad_events=bad_events,
-        clock=clock_ns / NS_PER_S,
         diagnostics_ns=diag_ns.done(),
         supervisor_status=status,
         bad_values=bad_values,

@@ -276,7 +276,7 @@ def analyze(
 
 
 def _window(rec: Recording, t_from: float) -> Recording:
-    """``rec`` with its events and clock from ``t_from`` on (what the figures show; the joint
+    """``rec`` with its events from ``t_from`` on (what the figures show; the joint
     states were read from ``t_from`` on)."""
     if t_from <= 0.0:
         return rec
@@ -285,7 +285,6 @@ def _window(rec: Recording, t_from: float) -> Recording:
         rec,
         events=rec.events[keep],
         event_ns=rec.event_ns[keep],
-        clock=rec.clock[rec.clock >= t_from],
         landing_x=rec.landing_x,
     )
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from folder_line.bag.metadata import read_metadata
-from folder_line.bag.reader import BagContents, open_reader, read_bag
+from folder_line.bag.reader import BagContents, read_bag
 from folder_line.errors import ParameterError
 from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S
 
@@ -152,12 +152,8 @@ def raw_messages(plan: PlayPlan) -> Iterator[tuple[str, int, bytes]]:
     BagError
         The bag cannot be opened.
     """
-    with open_reader(plan.bag.path) as reader:
-        wanted = [c for c in reader.connections if c.topic in plan.topics]
-        if not wanted:
-            return
-        for conn, t_ns, raw in reader.messages(connections=wanted, start=plan.start_ns, stop=plan.end_ns + 1):
-            yield conn.topic, t_ns, bytes(raw)
+    for topic, _, t_ns, raw in plan.bag.raw_messages(list(plan.topics), plan.start_ns, plan.end_ns + 1):
+        yield topic, t_ns, bytes(raw)
 
 
 def wall_offset(t_ns: int, first_ns: int, rtf: float) -> float:

@@ -10,7 +10,7 @@ import json
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 from rosbags.rosbag2 import Reader
@@ -32,7 +32,7 @@ from folder_line.errors import BagError
 from folder_line.files.atomic import describe_path
 from folder_line.interfaces import NS_PER_S
 
-__all__ = ['BagContents', 'bag_info_lines', 'check_version', 'open_reader', 'read_bag']
+__all__ = ['MCAP_MAGIC', 'BagContents', 'bag_info_lines', 'check_version', 'open_each', 'open_reader', 'read_bag']
 
 
 @dataclass(frozen=True)
@@ -48,11 +48,17 @@ class BagContents:
     custom : dict of str to str
         rosbag2 ``custom_data``.
     files : tuple of str
-        The ``.mcap`` files, in order.
+        The storage files (``.mcap``), in order.
     message_count : int
         Messages in the bag.
     start_ns, end_ns : int
         Log times of the first and the last message, ns of line time (0, 0 if empty).
+    spans : tuple of (int, int) or None
+        Per file, the log times of its first and last message from ``metadata.yaml``
+        (None where the metadata does not say): files outside a window are not opened.
+    compressed : bool
+        The bag is zstd-compressed (``compression_mode`` file or message): it is read
+        through rosbags' directory reader, which opens every file at once.
     """
 
     path: Path
@@ -62,6 +68,8 @@ class BagContents:
     message_count: int
     start_ns: int
     end_ns: int
+    spans: tuple[tuple[int, int] | None, ...] = ()
+    compressed: bool = False
 
     @property
     def duration_ns(self) -> int:
@@ -100,17 +108,50 @@ class BagContents:
         ``stop_ns`` (log times, ns; ``stop_ns`` excluded) bound the messages read.
         """
         store = typestore()
-        with open_reader(self.path) as reader:
-            wanted = [c for c in reader.connections if topics is None or c.topic in topics]
-            if not wanted:
-                return
-            for conn, t_ns, raw in reader.messages(connections=wanted, start=start_ns, stop=stop_ns):
-                yield conn.topic, t_ns, store.deserialize_cdr(raw, conn.msgtype)
+        for topic, msgtype, t_ns, raw in self.raw_messages(topics, start_ns, stop_ns):
+            yield topic, t_ns, store.deserialize_cdr(raw, msgtype)
+
+    def raw_messages(
+        self, topics: Sequence[str] | None = None, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[str, str, int, bytes]]:
+        """``(topic, type, log time ns, CDR bytes)``, as :meth:`messages` without deserializing.
+
+        The files are opened one at a time, and a file the metadata places outside
+        ``[start_ns, stop_ns)`` is not opened: an hour's bag is 3600 files, more than the
+        usual limit of 1024 open files, and each open file holds its index in memory.
+
+        Raises
+        ------
+        BagError
+            A file cannot be opened (named, with rosbags' reason).
+        """
+        if self.compressed:
+            yield from _raw_of(self.path, topics, start_ns, stop_ns)
+            return
+        for name, span in zip(self.files, self.spans or (None,) * len(self.files), strict=True):
+            if span is not None and (
+                (stop_ns is not None and span[0] >= stop_ns) or (start_ns is not None and span[1] < start_ns)
+            ):
+                continue
+            yield from _raw_of(self.path / name, topics, start_ns, stop_ns)
+
+
+def _raw_of(
+    path: Path, topics: Sequence[str] | None, start_ns: int | None, stop_ns: int | None
+) -> Iterator[tuple[str, str, int, bytes]]:
+    """The raw messages of one storage file (or of a compressed bag directory)."""
+    with open_reader(path) as reader:
+        wanted = [c for c in reader.connections if topics is None or c.topic in topics]
+        if not wanted:
+            return
+        for conn, t_ns, raw in reader.messages(connections=wanted, start=start_ns, stop=stop_ns):
+            yield conn.topic, conn.msgtype, t_ns, raw
 
 
 @contextlib.contextmanager
 def open_reader(path: Path) -> Iterator[Reader]:
-    """``with open_reader(path) as reader``: a rosbags ``Reader``, opened; rosbags errors become BagError.
+    """``with open_reader(path) as reader``: a rosbags ``Reader`` of one storage file (or of a bag
+    directory: every file opened at once), opened; rosbags errors become BagError.
 
     Raises
     ------
@@ -121,17 +162,12 @@ def open_reader(path: Path) -> Iterator[Reader]:
     try:
         reader.open()
     except Exception as exc:  # rosbags raises ReaderError, FileNotFoundError, KeyError ...
-        msg = f'{reader.path}: cannot open the bag: {exc}'
+        msg = f'{reader.path}: cannot open the bag: {exc}'.replace('\n', ' ')
         raise BagError(msg) from exc
     try:
         yield reader
     finally:
         reader.close()
-
-
-def _relative_paths(directory: Path) -> list[str]:
-    data = read_metadata(directory)
-    return list(data['rosbag2_bagfile_information'].get('relative_file_paths') or [])
 
 
 def _release(version: str) -> tuple[int, int] | None:
@@ -165,13 +201,18 @@ def check_version(directory: Path, custom: dict[str, str]) -> None:
 
 
 def read_bag(path: str | os.PathLike[str]) -> BagContents:
-    """Open a bag directory with rosbags and summarise it.
+    """Summarise a bag directory from its ``metadata.yaml``, and check its files.
+
+    No file is kept open: :meth:`BagContents.messages` opens one file at a time. Each
+    storage file must exist, and an MCAP file must start and end with the MCAP magic (a
+    file cut short by a killed writer does not end with it).
 
     Raises
     ------
     BagError
         Not a directory, no ``metadata.yaml`` (``folder-line bag repair DIR`` rebuilds
-        it), rosbags cannot open the bag, or a later folder_line wrote it (:func:`check_version`).
+        it), metadata rosbags would not read, a missing or cut file, or a later
+        folder_line wrote it (:func:`check_version`).
     """
     directory = Path(path)
     if not directory.is_dir():
@@ -191,21 +232,130 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
             f'rebuild it with: folder-line bag repair {directory}'
         )
         raise BagError(msg)
-    with open_reader(directory) as reader:
-        topics = {
-            name: TopicSummary(
-                info.msgtype or '', info.msgcount, info.connections[0].digest if info.connections else ''
+    contents = _summarise(directory, data['rosbag2_bagfile_information'])
+    check_version(directory, contents.custom)
+    for name in contents.files:
+        _check_file(directory, name)
+    return contents
+
+
+def open_each(directory: Path) -> None:
+    """Open every storage file of the bag ``directory`` with rosbags, one at a time (what
+    :func:`read_bag` does not do, for speed): a check that every file's summary and index read.
+
+    Raises
+    ------
+    BagError
+        Metadata rosbags would not read, or a file rosbags cannot open, named with rosbags' reason.
+    """
+    contents = _summarise(directory, read_metadata(directory)['rosbag2_bagfile_information'])
+    if contents.compressed:
+        with open_reader(contents.path):
+            return
+    for name in contents.files:
+        with open_reader(contents.path / name):
+            pass
+
+
+#: the magic an MCAP file starts and ends with (a file cut short lacks the second)
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+
+def _summarise(directory: Path, info: dict[str, Any]) -> BagContents:
+    """:class:`BagContents` from the ``rosbag2_bagfile_information`` of ``metadata.yaml``.
+
+    The checks are rosbags' own (``DirectoryReader.open``), made here so that no file is
+    opened: a version up to 9, MCAP or SQLite storage, CDR serialization.
+
+    Raises
+    ------
+    BagError
+        A key is missing or malformed, or the bag is of a kind rosbags does not read.
+    """
+    meta = directory / METADATA_FILE
+
+    def refuse(why: str) -> BagError:
+        return BagError(f'{meta}: {why}; rebuild it with: folder-line bag repair {directory}')
+
+    try:
+        version = int(info['version'])
+        storage = str(info['storage_identifier'])
+        mode = str(info.get('compression_mode') or '').lower()
+        names = tuple(PurePath(str(x)).name for x in info['relative_file_paths'] or [])
+        topics: dict[str, TopicSummary] = {}
+        for entry in info['topics_with_message_count'] or []:
+            tm = entry['topic_metadata']
+            if str(tm.get('serialization_format', 'cdr')) != 'cdr':
+                raise refuse(f'topic {tm["name"]}: serialization {tm["serialization_format"]!r}, not cdr')
+            old = topics.get(str(tm['name']))
+            topics[str(tm['name'])] = TopicSummary(
+                old.type if old else str(tm['type']),
+                (old.count if old else 0) + int(entry['message_count']),
+                old.type_hash if old else str(tm.get('type_description_hash', '') or ''),
             )
-            for name, info in reader.topics.items()
-        }
-        count = reader.message_count
-        start, end = (reader.start_time, reader.end_time - 1) if count else (0, 0)
-        custom = dict(reader.storage.metadata.custom or {})
-        files = tuple(Path(p).name for p in _relative_paths(directory))
-    check_version(directory, custom)
+        count = int(info['message_count'])
+        start = int(info['starting_time']['nanoseconds_since_epoch'])
+        duration = int(info['duration']['nanoseconds'])
+        custom = {str(k): str(v) for k, v in (info.get('custom_data') or {}).items()}
+        spans: dict[str, tuple[int, int]] = {}
+        for entry in info.get('files') or []:
+            first = int(entry['starting_time']['nanoseconds_since_epoch'])
+            spans[PurePath(str(entry['path'])).name] = (first, first + int(entry['duration']['nanoseconds']))
+    except BagError:
+        raise
+    except KeyError as exc:
+        raise refuse(f'the key {exc} is missing') from None
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise refuse(f'malformed: {exc}') from None
+    if version > 9:
+        raise refuse(f'rosbag2 metadata version {version}; versions up to 9 are read')
+    if storage not in ('mcap', 'sqlite3'):
+        raise refuse(f'storage {storage!r}; mcap and sqlite3 are read')
+    compressed = mode not in ('', 'none')
+    if compressed and str(info.get('compression_format') or '') != 'zstd':
+        raise refuse(f'compression {info.get("compression_format")!r}; zstd is read')
     return BagContents(
-        path=directory, topics=topics, custom=custom, files=files, message_count=count, start_ns=start, end_ns=end
+        path=directory,
+        topics=topics,
+        custom=custom,
+        files=names,
+        message_count=count,
+        start_ns=start if count else 0,
+        end_ns=start + duration if count else 0,
+        spans=tuple(spans.get(name) for name in names),
+        compressed=compressed,
     )
+
+
+def _check_file(directory: Path, name: str) -> None:
+    """Refuse a storage file that is missing, not a regular file, or an MCAP file cut short.
+
+    Raises
+    ------
+    BagError
+        Naming the file; for a cut file, how to salvage the bag.
+    """
+    path = directory / name
+    if not path.is_file():
+        what = 'missing' if not os.path.lexists(path) else f'{describe_path(path)}, not a regular file'
+        msg = f'{path}: cannot open the bag: the file is {what}'
+        raise BagError(msg)
+    if path.suffix != '.mcap':
+        return
+    size = path.stat().st_size
+    with path.open('rb') as fh:
+        head = fh.read(len(MCAP_MAGIC))
+        fh.seek(max(size - len(MCAP_MAGIC), 0))
+        tail = fh.read(len(MCAP_MAGIC))
+    if head != MCAP_MAGIC:
+        msg = f'{path}: cannot open the bag: not an MCAP file'
+        raise BagError(msg)
+    if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
+        msg = (
+            f'{path}: cannot open the bag: the file is cut short (no closing MCAP magic); '
+            f'salvage what it holds with: folder-line bag repair {directory}'
+        )
+        raise BagError(msg)
 
 
 def bag_info_lines(contents: BagContents) -> list[str]:

@@ -31,7 +31,7 @@ from folder_line.bag.metadata import (
     read_metadata,
     segment_files,
 )
-from folder_line.bag.reader import open_reader
+from folder_line.bag.reader import open_each
 from folder_line.bag.writer import start_mcap
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_text_atomic
@@ -279,8 +279,7 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
         custom[KEY_COMPLETE] = 'repaired'
     custom[KEY_REPAIR] = result.describe()
     write_text_atomic(result.metadata, meta.render(topics, custom))
-    with open_reader(bag):
-        pass
+    open_each(bag)
     return result
 
 

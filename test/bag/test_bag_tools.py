@@ -122,3 +122,29 @@ def test_a_bad_bag_is_one_line_exit_2_and_left_untouched(
     assert proc.stdout == ''
     assert _digest(bag) == before
     assert not (tmp_path / 'out').exists()
+
+
+def test_a_bag_of_more_files_than_the_open_file_limit_is_read(tmp_path: Path) -> None:
+    """An hour's bag is 3601 files; the usual limit is 1024 open files. The files are opened one at a time,
+    so ``bag info`` and ``analyze`` read a bag of 81 files under a limit of 40 open files."""
+    import resource
+
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--scene', 'folder', '--duration', '80', '--bag', str(bag)]) == 0
+    assert len(segment_files(bag)) == 81
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (40, 40))
+
+    for verb in (['bag', 'info', str(bag)], ['analyze', str(bag), '--out', str(tmp_path / 'a'), '--from', '79']):
+        proc = subprocess.run(
+            [sys.executable, '-m', 'folder_line.cli.main', *verb],
+            capture_output=True,
+            text=True,
+            env=node_environment(),
+            cwd=REPO,
+            timeout=120,
+            preexec_fn=limit,
+        )
+        assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / 'a' / 'report.md').is_file()
