@@ -71,6 +71,7 @@ __all__ = [
     'MACHINE_NODES',
     'NODE_OF_UNIT',
     'NS_PER_S',
+    'OPERATOR_COMMANDS',
     'PARTICIPANTS_TOPIC',
     'RECORDER',
     'SHEET_COUNT_TOPIC',
@@ -148,6 +149,19 @@ COMMANDS_TOPIC = '/line/supervisor/commands'
 """The supervisor's drive commands (``sensor_msgs/msg/TimeReference``: ``source`` = hold, unhold,
 stop or start; ``time_ref`` = effective sim time). Reliable, transient-local, keep-all, so
 a node that starts late still learns every command."""
+
+#: the supervisor's operator services, ``/line/supervisor/<command>`` (``std_srvs/Trigger``)
+OPERATOR_COMMANDS: tuple[str, ...] = (
+    'start',
+    'stop',
+    'hold',
+    'unhold',
+    'suspend',
+    'unsuspend',
+    'reset',
+    'clear',
+    'abort',
+)
 
 PARTICIPANTS_TOPIC = '/line/participants'
 """``line_clock``'s announcement of the lockstep participants (``std_msgs/msg/String``)."""

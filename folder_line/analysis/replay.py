@@ -272,23 +272,23 @@ def transitions_agree(
     The supervisor publishes its state once per tick: states it passes through within
     one tick do not appear on the topic. So the recorded sequence of states must be
     the replayed one (``initial`` then each transition's target) with at most such
-    states left out, ending in the same state; and each replayed transition must be
-    decided before the recording first shows its target.
+    states left out, ending in the same state; and each state shown must have been
+    decided no later than it is shown, each showing paired with its own transition (a
+    state the line enters twice, EXECUTE after an unhold, is two transitions).
     """
     full = [initial] + [str(t['to']) for t in replayed]
+    decided = [-math.inf] + [float(t['t']) for t in replayed]
     seen = [str(t['to']) for t in recorded]
     if not seen:
         return not replayed
     if seen[-1] != full[-1]:
         return False
     i = 0
-    for state in seen:  # a subsequence of full
+    for shown in recorded:  # a subsequence of full, each shown no earlier than it was decided
+        state = str(shown['to'])
         while i < len(full) and full[i] != state:
             i += 1
-        if i == len(full):
+        if i == len(full) or decided[i] > float(shown['t']):
             return False
         i += 1
-    shown: dict[str, float] = {}
-    for t in recorded:
-        shown.setdefault(str(t['to']), float(t['t']))
-    return all(float(t['t']) <= shown.get(str(t['to']), math.inf) for t in replayed)
+    return True

@@ -44,6 +44,7 @@ from folder_line.files.atomic import (
     write_csv_atomic,
     write_json_atomic,
 )
+from folder_line.interfaces import OPERATOR_COMMANDS
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -58,6 +59,7 @@ _OUTPUT_OPTION = {
     'sweep': '--out',
     'solve': '--json',
     'scenes': 'stdout',
+    **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -68,6 +70,9 @@ EXIT_USAGE = 2
 EXIT_RUN_FAILED = 1
 #: stdout closed under us: as a shell reports a process killed by SIGPIPE (128 + 13)
 EXIT_BROKEN_PIPE = 141
+#: an operator command the supervisor refused; none answered
+EXIT_REFUSED = 1
+EXIT_NO_ANSWER = 3
 
 
 def _samples(text: str) -> int:
@@ -84,6 +89,7 @@ def _samples(text: str) -> int:
 _MONITOR_RATE = Limit('monitor refresh rate', 0.1, 60.0, 'Hz', 'a screen refresh')
 _MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the rates are counted over')
 _MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
+_OPERATOR_TIMEOUT = Limit('operator wait for the supervisor', 0.1, 3600.0, 's', 'wall time')
 # what `bag play` and `analyze --from/--to` take from a bag: line time (a week at most)
 _BAG_TIME = Limit('line time in a bag', 0.0, 604800.0, 's', 'a week of line time')
 _BAG_SPAN = Limit('line time to play', 1e-9, 604800.0, 's', 'a week of line time')
@@ -181,6 +187,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _addlimited(mon, '--window', _MONITOR_WINDOW, 2.0, 'S', 'window of the topic rates, s of wall time')
     _addlimited(mon, '--timeout', _MONITOR_TIMEOUT, 10.0, 'S', 'with --once: longest wait for the first message, s')
+
+    for command in OPERATOR_COMMANDS:
+        op = sub.add_parser(
+            command,
+            help=f'operator command: {command} the running line (its supervisor, on this ROS domain)',
+            description=(
+                f"Call the supervisor's {command} service (std_srvs/Trigger) on the current ROS domain and print "
+                'its answer. Exit 0: accepted; 1: refused (the reason is printed); 3: no supervisor answered.'
+            ),
+        )
+        _addlimited(op, '--timeout', _OPERATOR_TIMEOUT, 5.0, 'S', 'longest wait for the service, then its answer, s')
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, play, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
@@ -335,6 +352,21 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
 
 
+def _cmd_operator(args: argparse.Namespace) -> int:
+    from folder_line.ros.operator import call_command  # loads rclpy: only the verbs that use DDS need it
+
+    answer = call_command(args.verb, timeout=args.timeout)
+    if answer is None:
+        domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
+        _error(
+            f'{args.verb}: no supervisor answered /line/supervisor/{args.verb} on ROS domain {domain} within '
+            f'{args.timeout:g} s (is the line running, on this domain?)'
+        )
+        return EXIT_NO_ANSWER
+    print(f'{args.verb}: {"accepted" if answer.accepted else "refused"}: {answer.message}')
+    return 0 if answer.accepted else EXIT_REFUSED
+
+
 def _cmd_bag(args: argparse.Namespace) -> int:
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
@@ -439,6 +471,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
+        **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),
     }[args.verb]
     try:
         return handler(args)

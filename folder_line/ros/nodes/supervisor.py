@@ -111,6 +111,7 @@ from folder_line.interfaces import (
     MACHINE_NODES,
     NODE_OF_UNIT,
     NS_PER_S,
+    OPERATOR_COMMANDS,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
     parse_event_source,
@@ -126,10 +127,7 @@ from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, joint_states_top
 __all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
 #: service name -> (PackML command, drive command or None, waits for the next cycle boundary)
-SERVICES: dict[str, tuple[str, str | None, bool]] = {
-    name: (name, *DRIVE_COMMANDS[name])
-    for name in ('start', 'stop', 'hold', 'unhold', 'suspend', 'unsuspend', 'reset', 'clear', 'abort')
-}
+SERVICES: dict[str, tuple[str, str | None, bool]] = {name: (name, *DRIVE_COMMANDS[name]) for name in OPERATOR_COMMANDS}
 
 STATE_QOS = QoSProfile(
     depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
