@@ -5,7 +5,10 @@ Two halves, as in ``ros2bag``'s api/verb split: the view
 the subscriptions that feed it (:func:`folder_line.ros.monitor.monitor_session`). This
 module joins them: :func:`run_monitor` either prints one plain-text snapshot
 (``--once``) or runs a ``curses`` screen redrawn at ``--rate`` Hz until ``q`` or
-Ctrl-C (exit code 0 either way, the terminal restored).
+Ctrl-C (exit code 0 either way, the terminal restored). In the live view the keys of
+:data:`folder_line.cli.monitor_view.OPERATOR_KEYS` send the supervisor's operator
+commands (``x`` stop and ``a`` abort ask ``y`` first); the answer shows on the
+operator row.
 
 The monitor costs about an eighth of a core while following the ~1500 messages/s of
 the ``folder`` line at rtf 1.
@@ -21,7 +24,7 @@ import time
 from collections.abc import Sequence
 from typing import IO, Any
 
-from folder_line.cli.monitor_view import MIN_WIDTH, WINDOW, MonitorState
+from folder_line.cli.monitor_view import MIN_WIDTH, WINDOW, MonitorState, OperatorKeys
 from folder_line.ros.monitor import BATCH, KEY_PERIOD, MonitorSession, monitor_session
 from folder_line.ros.recorder import LINE_TOPICS
 
@@ -83,7 +86,24 @@ def run_monitor(
     return 0
 
 
+def _key(session: MonitorSession, operator: OperatorKeys, key: str) -> None:
+    """An operator key: send its command (after a confirmation for stop and abort), show the answer."""
+    command = operator.press(key)
+    if command is None:
+        return
+
+    def on_answer(accepted: bool, message: str) -> None:
+        operator.answer(command, accepted, message)
+
+    if session.command(command, on_answer):
+        operator.sent(command)
+    else:
+        operator.no_service(command)
+
+
 def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> int:
+    operator = state.operator = OperatorKeys()
+
     def loop(stdscr: Any) -> int:
         with contextlib.suppress(curses.error):  # a terminal that cannot hide the cursor
             curses.curs_set(0)
@@ -104,9 +124,12 @@ def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> i
                     key = stdscr.getch()
                     if key == -1:
                         break
-                    if key in (ord('q'), ord('Q')):
+                    if key in (ord('q'), ord('Q')) and operator.pending is None:
                         return 0
                     if key == curses.KEY_RESIZE:
+                        next_draw = 0.0
+                    elif 0 <= key < 256:
+                        _key(session, operator, chr(key))
                         next_draw = 0.0
             if now >= next_draw:
                 next_draw = now + period

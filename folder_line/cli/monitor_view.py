@@ -44,9 +44,12 @@ from folder_line.interfaces import (
 )
 
 __all__ = [
+    'CONFIRM',
     'LEVELS',
     'MIN_HEIGHT',
     'MIN_WIDTH',
+    'OPERATOR_KEYS',
+    'OperatorKeys',
     'WINDOW',
     'ConstraintView',
     'EventView',
@@ -285,6 +288,74 @@ def _fit(text: str, width: int) -> str:
     return text[: width - 1] + '~' if width > 0 else ''
 
 
+#: the live view's keys for the supervisor's operator commands
+OPERATOR_KEYS: dict[str, str] = {
+    'h': 'hold',
+    'u': 'unhold',
+    's': 'start',
+    'x': 'stop',
+    'r': 'reset',
+    'c': 'clear',
+    'a': 'abort',
+}
+#: commands the operator confirms with ``y`` first (they take the line down)
+CONFIRM = frozenset({'stop', 'abort'})
+
+
+class OperatorKeys:
+    """The operator keys of the live view: a key -> a command to send, ``stop`` and ``abort`` confirmed first.
+
+    Attributes
+    ----------
+    line : str
+        What the view shows of it: the keys, a confirmation question, or the latest answer.
+    pending : str or None
+        A command waiting for its confirmation.
+    """
+
+    def __init__(self) -> None:
+        self.pending: str | None = None
+        self.line = ''
+
+    @staticmethod
+    def keys() -> str:
+        """``h hold  u unhold ...``."""
+        return '  '.join(f'{k} {c}' for k, c in OPERATOR_KEYS.items())
+
+    def press(self, key: str) -> str | None:
+        """The command to send now for ``key``, or None (not a command key, or waiting for / refused a confirmation)."""
+        if self.pending is not None:
+            asked = self.pending
+            self.pending = None
+            if key in ('y', 'Y'):
+                return asked
+            self.line = f'{asked}: cancelled'
+            return None
+        command = OPERATOR_KEYS.get(key)
+        if command is not None and command in CONFIRM:
+            self.pending = command
+            self.line = f'{command} the line? y: yes, any other key: no'
+            return None
+        return command
+
+    def sent(self, command: str) -> None:
+        """``command`` went out."""
+        self.line = f'{command}: sent, waiting for the supervisor'
+
+    def answer(self, command: str, accepted: bool, message: str) -> None:
+        """The supervisor answered ``command``."""
+        self.line = f'{command}: {"accepted" if accepted else "refused"}: {message}'
+
+    def no_service(self, command: str) -> None:
+        """No supervisor offers ``command`` on this domain (yet)."""
+        self.line = f'{command}: no supervisor service on this ROS domain; nothing sent'
+
+    def styled(self) -> tuple[str, str]:
+        """The operator row of the screen, with its style."""
+        text = (f'operator: {self.line} | ' if self.line else 'operator keys: ') + self.keys()
+        return text, 'alert' if self.pending is not None or ': refused:' in self.line else ''
+
+
 class MonitorState:
     """What the monitor knows of the line; fed message by message, rendered as text.
 
@@ -321,6 +392,7 @@ class MonitorState:
         self.commands: list[tuple[str, float]] = []  # (command, effective sim time), oldest first
         self.last_wall: float | None = None  # latest wall time of any message, s
         self._total = 0
+        self.operator: OperatorKeys | None = None  # the live view's keys (no row in a snapshot)
 
     # ------------------------------------------------------------------ ingest
 
@@ -488,8 +560,10 @@ class MonitorState:
             rows = [text[i : i + width] for i in range(0, len(text), width)] if width > 0 else []
             return [(row, 'alert') for row in rows[: height if height is not None else None]]
         now = self._now(now)
-        lines = self._header(now) + self._topics(now) + self._constraints() + self._joints() + self._events()
-        lines += self._commands()
+        lines = self._header(now)
+        if self.operator is not None:
+            lines.append(self.operator.styled())
+        lines += self._topics(now) + self._constraints() + self._joints() + self._events() + self._commands()
         lines = [(_fit(text, width), style) for text, style in lines]
         if height is not None and len(lines) > height:
             hidden = len(lines) - (height - 1)

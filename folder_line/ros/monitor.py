@@ -24,11 +24,13 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import rclpy
+from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import MessageInfo
+from std_srvs.srv import Trigger
 
 from folder_line.interfaces import COMMANDS_TOPIC, NS_PER_S, PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC
 from folder_line.ros.recorder import LINE_TOPICS
@@ -165,6 +167,27 @@ class MonitorSession:
         self.executor = executor
         self.node = node
         self.stop = stop
+        self.clients: dict[str, Client[Trigger.Request, Trigger.Response]] = {}
+
+    def command(self, name: str, on_answer: Callable[[bool, str], None]) -> bool:
+        """Call the supervisor's operator service ``name`` without waiting; False if no supervisor offers it.
+
+        ``on_answer(accepted, message)`` runs in a later :meth:`drain` when the answer
+        arrives (``std_srvs/Trigger``: ``success`` and ``message``).
+        """
+        client = self.clients.get(name)
+        if client is None:
+            client = self.clients[name] = self.node.create_client(Trigger, f'/line/supervisor/{name}')
+        if not client.service_is_ready():
+            return False
+        future = client.call_async(Trigger.Request())
+
+        def done(f: Any) -> None:
+            response = f.result()
+            on_answer(bool(response.success), str(response.message))
+
+        future.add_done_callback(done)
+        return True
 
     @property
     def stopped(self) -> bool:

@@ -261,6 +261,33 @@ def test_curses_view_in_tmux_quits_cleanly(
     assert 'Traceback' not in err.read_text(), err.read_text()
 
 
+def test_curses_view_sends_operator_commands(line: Line, node_env: dict[str, str], tmux_ok: None) -> None:
+    """``h`` holds the line, ``u`` unholds it (answers on the operator row), ``x`` asks before a stop and
+    any key but ``y`` cancels it, ``q`` quits."""
+    tmux = Tmux(node_env, 160, 45, f'{shlex.join(monitor_cmd("--rate", "10"))}; echo "EXIT=$?"; sleep 120')
+    try:
+        tmux.wait_for(lambda text: live_rows(text) and 'operator keys: h hold  u unhold' in text)
+        tmux.run('send-keys', '-t', 'mon', 'h')
+        held = tmux.wait_for(lambda text: 'supervisor HELD' in text, timeout=60.0)
+        assert 'operator: hold: accepted: hold: HOLDING, drive hold effective at ' in held, held
+        tmux.run('send-keys', '-t', 'mon', 'h')  # again: refused while HELD, the reason shown
+        refused = tmux.wait_for(lambda text: 'operator: hold: refused: ' in text)
+        assert 'HELD' in refused.split('operator: hold: refused: ', 1)[1].splitlines()[0]
+        tmux.run('send-keys', '-t', 'mon', 'u')
+        tmux.wait_for(lambda text: 'operator: unhold: accepted: unhold: UNHOLDING' in text, timeout=60.0)
+        tmux.wait_for(live_rows, timeout=60.0)  # EXECUTE again
+        tmux.run('send-keys', '-t', 'mon', 'x')
+        tmux.wait_for(lambda text: 'operator: stop the line? y: yes, any other key: no' in text)
+        tmux.run('send-keys', '-t', 'mon', 'n')
+        tmux.wait_for(lambda text: 'operator: stop: cancelled' in text)
+        tmux.run('send-keys', '-t', 'mon', 'q')
+        after = tmux.wait_for(lambda text: 'EXIT=' in text, timeout=10.0)
+    finally:
+        tmux.kill()
+    assert re.search(r'^EXIT=0$', after, re.MULTILINE), after
+    assert line.supervisor.packml.state == 'EXECUTE'
+
+
 # --------------------------------------------------------------------------- the line itself
 
 
