@@ -21,6 +21,7 @@ from typing import NoReturn
 from folder_line.accuracy.bench import STUDIES, run_benchmark
 from folder_line.accuracy.output import write_outputs
 from folder_line.analysis.report import analyze, print_analysis
+from folder_line.bag.batch import check_duration
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
@@ -147,6 +148,11 @@ def build_parser() -> argparse.ArgumentParser:
         '--list-metrics',
         action='store_true',
         help='simulate --duration and list every metric (dotted path into the summary) with its value and unit',
+    )
+    sim.add_argument(
+        '--plots',
+        metavar='DIR',
+        help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR",
     )
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
@@ -297,12 +303,28 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         check_output_file(args.json, '--json')
     if args.bag is not None and args.samples is not None:
         raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --bag writes one run')
+    draw = None
+    if args.plots is not None:
+        from folder_line.cli.plots import check_plots, write_plots  # the analysis, the bag writer: only --plots
+
+        draw = write_plots
+        if args.samples is not None:
+            raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --plots draws one run')
+        if args.list_keys or args.list_metrics:
+            listing = '--list-keys' if args.list_keys else '--list-metrics'
+            raise ParameterError('--plots', args.plots, f'draws a run; {listing} lists and runs nothing')
+        check_plots(args.plots)
     data = source_from(args)
     if args.samples is not None:
         return montecarlo.simulate_samples(args, data)
     scene = parse_scene(data)
+    if draw is not None:
+        check_duration(scene, args.duration)  # the figures are drawn from the run's bag: whole ticks
     if args.bag is not None:
-        return batch_cli.write_bag(args, scene)
+        code = batch_cli.write_bag(args, scene)
+        if draw is not None:
+            draw(args, scene, bag=args.bag)
+        return code
     if args.list_keys:
         keys.print_keys(data, sys.stdout)
         return 0
@@ -315,6 +337,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         dest = write_json_atomic(args.json, result_summary)
         print(f'wrote {dest}')
+    if draw is not None:
+        draw(args, scene)
     return 0
 
 
