@@ -27,12 +27,13 @@ import rclpy
 from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import MessageInfo
 from std_srvs.srv import Trigger
 
 from folder_line.interfaces import COMMANDS_TOPIC, NS_PER_S, PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC
+from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
 from folder_line.ros.topics import COMMANDS_QOS
 
@@ -64,28 +65,38 @@ KEY_PERIOD = 0.05
 """Longest wall time, s, between two looks at the keyboard (and at a stop request)."""
 
 LATCHED = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC, COMMANDS_TOPIC)
-"""Topics whose last messages a late subscriber gets at once (transient-local): they do not show the line runs."""
+"""Topics whose history (what their publishers held when the monitor joined) is shown: the current state,
+the participants, the commands so far. They do not show that the line runs."""
 
 
 def _subscription_qos(topic: str) -> QoSProfile:
+    """Reliable, :data:`QUEUE_DEPTH` deep, with the durability of the line's publisher of ``topic``.
+
+    Transient-local wherever that publisher is (every topic but ``/clock``), not only on the
+    :data:`LATCHED` topics: a volatile reliable reader that joins a transient-local publisher
+    holding a history gets, with Fast DDS, nothing until that publisher's next heartbeat (up to
+    seconds between processes; between two contexts of one process, nothing at all in our runs), so
+    a topic could show 0 for a whole ``--once`` window while it was being published. The history
+    that comes instead is dropped by :class:`MonitorNode`, except on the latched topics.
+    """
     if topic == COMMANDS_TOPIC:  # every command so far, late joiner too
         return COMMANDS_QOS
-    durability = (
-        DurabilityPolicy.TRANSIENT_LOCAL
-        if topic in (SUPERVISOR_STATE_TOPIC, PARTICIPANTS_TOPIC)
-        else DurabilityPolicy.VOLATILE
-    )
-    return QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=durability)
+    return QoSProfile(depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=line_qos(topic).durability)
 
 
 class MonitorNode(Node):
     """Subscribes to every topic of the line and feeds each message to ``sink``.
 
     Reliable subscriptions keeping the last :data:`QUEUE_DEPTH` messages (a monitor
-    that falls further behind loses old ones, it never holds the line up); the
-    supervisor's state transient-local,
-    so the current state shows at once; the drive commands with the commands' own
-    QoS, so every command so far shows.
+    that falls further behind loses old ones, it never holds the line up),
+    transient-local where the line's publisher is (every topic but ``/clock``; see
+    :func:`_subscription_qos`); the drive commands with the commands' own QoS, so every
+    command so far shows. What a transient-local publisher held from before the monitor
+    started (its source timestamp earlier than :attr:`since_ns`) is dropped, so the
+    counts are those of messages written since the monitor started, except on the
+    :data:`LATCHED` topics, whose history shows at once (the current state, the
+    participants, the commands so far). Source timestamps are the publisher's system
+    clock: on another host, it must agree with this one (as the rates need too).
 
     Parameters
     ----------
@@ -108,6 +119,10 @@ class MonitorNode(Node):
         Messages handed to ``sink`` so far, per topic (every subscribed topic, from 0).
     total : int
         Their sum.
+    since_ns : int
+        System time the subscriptions were made at, ns.
+    history : dict of str to int
+        Messages dropped so far, per topic: written before :attr:`since_ns`.
     """
 
     def __init__(self, sink: MessageSink, topics: dict[str, type] | None = None, **kwargs: Any) -> None:
@@ -116,12 +131,20 @@ class MonitorNode(Node):
         self.total = 0
         topics = LINE_TOPICS if topics is None else topics
         self.received: dict[str, int] = dict.fromkeys(topics, 0)
+        self.history: dict[str, int] = dict.fromkeys(topics, 0)
+        self.since_ns = time.time_ns()
         for topic, cls in topics.items():
             self.create_subscription(cls, topic, self._callback(topic), _subscription_qos(topic))
 
     def _callback(self, topic: str) -> Callable[[Any, MessageInfo], None]:
+        keep_history = topic in LATCHED
+
         def on_message(msg: Any, info: MessageInfo) -> None:
-            stamp = info.get('source_timestamp', 0) or info.get('received_timestamp', 0)
+            written = info.get('source_timestamp', 0)
+            if 0 < written < self.since_ns and not keep_history:
+                self.history[topic] += 1
+                return
+            stamp = written or info.get('received_timestamp', 0)
             self.received[topic] += 1
             self.total += 1
             self.sink(topic, msg, stamp / NS_PER_S if stamp > 0 else time.time())
