@@ -14,7 +14,9 @@ recorded points of a run are drawn against are the same.
     the chutes' exit speeds ``v_C = ω3 l3``, ``v_E = ω5 l5`` and the absolute ones
     ``v_aC``, ``v_aE`` with the recorded belt speed against the recorded crank angle,
     over the model's curves (paper L, figs. 4-5), with the leaves' exit speeds
-    (:func:`~folder_line.analysis.figure_data.exit_speed_data`);
+    (:func:`~folder_line.analysis.figure_data.exit_speed_data`); the samples before the
+    drive reached speed (:func:`~folder_line.analysis.figure_data.at_speed_time`) apart, as
+    the start-up;
 ``efficiency.png`` (scenes with the delivery)
     the efficiency ``η`` and the carriage speed ratio ``K_v`` at the recorded carriage
     positions along the stroke, over the model's curves (paper D, fig. 2), and the
@@ -29,6 +31,9 @@ recorded points of a run are drawn against are the same.
 ``landing.png`` (scenes with ``leaf_flight``)
     where the leaves landed across the container (``leaf_landed`` events), with the
     spilled ones (:func:`~folder_line.analysis.figure_data.landing_data`).
+
+Every quantity has one colour, that of :data:`~folder_line.analysis.colours.QUANTITY_COLOURS`,
+here and in ``folder-line report``.
 
 Figures are written atomically (:func:`save_figure`). matplotlib is imported when the
 first figure is drawn, with the Agg back end (:func:`pyplot`).
