@@ -9,7 +9,8 @@ The modules, in the order the data flows:
     supervisor's logic replayed on the recorded inputs (:func:`replay_transitions`);
 :mod:`~folder_line.analysis.figure_data` and :mod:`~folder_line.analysis.figures`
     what each figure shows, as arrays, and the figures drawn (with the papers' model
-    curves that ``folder-line report`` draws too);
+    curves that ``folder-line report`` draws too, in the colours of
+    :mod:`~folder_line.analysis.colours`);
 :mod:`~folder_line.analysis.csv_export`
     every message of the bag as CSV, one file per topic (a ``t`` column in s, events parsed,
     diagnostics one row per status), streamed;

@@ -20,12 +20,44 @@ from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.mechanisms import delivery
+from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
 from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
-__all__ = ['GANTT_CYCLES', 'cycle_rows', 'efficiency_data', 'exit_speed_data', 'landing_data']
+__all__ = ['GANTT_CYCLES', 'at_speed_time', 'cycle_rows', 'efficiency_data', 'exit_speed_data', 'landing_data']
 
 #: cycles shown in the Gantt chart by default
 GANTT_CYCLES = 8
+
+#: the supervisor's state of a line running at speed
+_AT_SPEED_STATE = 'EXECUTE'
+
+
+def at_speed_time(rec: Recording, ev: Evaluation) -> float:
+    """Line time at which the drive first reached speed, s: the samples before it are the start-up.
+
+    The time of the first ``EXECUTE`` recorded on ``/line/supervisor/state`` (the supervisor
+    leaves STARTING when the drive's speed factor reaches ``speed_reached``); ``inf`` if
+    states were recorded but never ``EXECUTE``. Without recorded states, the first point of
+    the check grid (:data:`~folder_line.core.supervision.settings.CHECK_PERIOD`) where the
+    model drive ``ev.drive`` turns at :data:`~folder_line.core.supervision.settings.SPEED_REACHED`
+    of its nominal speed or more (0 for a drive at speed from the start).
+
+    Parameters
+    ----------
+    rec : Recording
+    ev : Evaluation
+        ``rec`` judged (its ``drive``: the scene's drive under the recorded commands).
+
+    Returns
+    -------
+    float
+        s, in [0, inf].
+    """
+    if rec.states:
+        return next((t_ns / NS_PER_S for t_ns, state in rec.states if state == _AT_SPEED_STATE), math.inf)
+    grid = np.arange(0.0, rec.t_end + CHECK_PERIOD, CHECK_PERIOD)
+    fast = np.flatnonzero(np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED)
+    return float(grid[fast[0]]) if fast.size else math.inf
 
 
 def exit_speed_data(rec: Recording) -> dict[str, np.ndarray] | None:

@@ -14,7 +14,9 @@ recorded points of a run are drawn against are the same.
     the chutes' exit speeds ``v_C = ω3 l3``, ``v_E = ω5 l5`` and the absolute ones
     ``v_aC``, ``v_aE`` with the recorded belt speed against the recorded crank angle,
     over the model's curves (paper L, figs. 4-5), with the leaves' exit speeds
-    (:func:`~folder_line.analysis.figure_data.exit_speed_data`);
+    (:func:`~folder_line.analysis.figure_data.exit_speed_data`); the samples before the
+    drive reached speed (:func:`~folder_line.analysis.figure_data.at_speed_time`) apart, as
+    the start-up;
 ``efficiency.png`` (scenes with the delivery)
     the efficiency ``η`` and the carriage speed ratio ``K_v`` at the recorded carriage
     positions along the stroke, over the model's curves (paper D, fig. 2), and the
@@ -29,6 +31,9 @@ recorded points of a run are drawn against are the same.
 ``landing.png`` (scenes with ``leaf_flight``)
     where the leaves landed across the container (``leaf_landed`` events), with the
     spilled ones (:func:`~folder_line.analysis.figure_data.landing_data`).
+
+Every quantity has one colour, that of :data:`~folder_line.analysis.colours.QUANTITY_COLOURS`,
+here and in ``folder-line report``.
 
 Figures are written atomically (:func:`save_figure`). matplotlib is imported when the
 first figure is drawn, with the Agg back end (:func:`pyplot`).
@@ -45,8 +50,10 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
 from folder_line.analysis.figure_data import (
     GANTT_CYCLES,
+    at_speed_time,
     cycle_rows,
     efficiency_data,
     exit_speed_data,
@@ -60,13 +67,18 @@ from folder_line.files.atomic import write_bytes_atomic
 from folder_line.interfaces import NODE_OF_UNIT
 
 __all__ = [
+    'COINCIDE_FRACTION',
     'DPI',
     'FIGURES',
     'MAX_POINTS',
     'OPERATIONS',
     'PHASE_COLOURS',
+    'QUANTITY_COLOURS',
+    'coincidence',
     'draw_figures',
+    'efficiency_figure',
     'exit_speed_curves',
+    'exit_speeds_figure',
     'pyplot',
     'save_figure',
     'stroke_curves',
@@ -83,9 +95,6 @@ FIGURES: dict[str, str] = {
     'margins.png': 'margins of every constraint over all cycles (violations in red)',
     'landing.png': 'L: where the leaves landed across the container',
 }
-
-#: colours of the cyclogram's phases (knife over the table, feed, dwell at the stops)
-PHASE_COLOURS: dict[str, str] = {'knife': 'tab:red', 'feed': 'tab:green', 'dwell': 'tab:blue'}
 
 #: resolution of the PNGs, dots per inch
 DPI = 110
@@ -117,6 +126,34 @@ def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = DPI) -> Path:
         pyplot().close(fig)
 
 
+#: two curves closer than this fraction of their peak are drawn as coinciding (and said to be)
+COINCIDE_FRACTION = 0.01
+
+
+def coincidence(a: np.ndarray, b: np.ndarray) -> float | None:
+    """The largest ``|a - b|`` if the curves ``a`` and ``b`` coincide at a figure's scale, else None.
+
+    Parameters
+    ----------
+    a, b : ndarray
+        Two curves on the same abscissae, same unit.
+
+    Returns
+    -------
+    float or None
+        ``max |a - b|`` (unit of ``a``) when it is at most :data:`COINCIDE_FRACTION` of the larger
+        peak ``max(|a|, |b|)``: one curve would hide the other.
+    """
+    gap = float(np.max(np.abs(a - b), initial=0.0))
+    peak = float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0)))
+    return gap if gap <= COINCIDE_FRACTION * peak else None
+
+
+def _within(gap: float | None, other: str) -> str:
+    """The legend's note that a curve coincides with ``other`` (empty if it does not)."""
+    return '' if gap is None else f'; coincides with {other} (within {gap * 1e3:.2g} mm/s)'
+
+
 def exit_speed_curves(
     ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n: int = 721, show_swing_on_abs: bool = True
 ) -> Any:
@@ -125,7 +162,9 @@ def exit_speed_curves(
     Draws ``v_C``, ``v_E`` (m/s, signed: the exits' swing speed across the chutes) on
     ``ax_swing`` and the absolute exit speeds ``v_aC``, ``v_aE`` with belts at
     ``v_tr`` on ``ax_abs``; both with the swing extremes (dotted) and the crank angle
-    in degrees on [0, 360].
+    in degrees on [0, 360]. The exit C is a wide pale line with circles, the exit E a
+    dashed line with squares between the circles, so that both stay visible where
+    they coincide; the legend then says so (:func:`coincidence`).
 
     Parameters
     ----------
@@ -149,13 +188,18 @@ def exit_speed_curves(
     deg = np.degrees(phi)
     va_c = np.sqrt(st.vC * st.vC + v_tr * v_tr)
     va_e = np.sqrt(st.vE * st.vE + v_tr * v_tr)
-    ax_swing.plot(deg, st.vC, label='$v_C$ (exit of transporter 3)')
-    ax_swing.plot(deg, st.vE, '--', label='$v_E$ (exit of transporter 4)')
+    every = max(n // 24, 2)  # a marker every 15 deg; E's halfway between C's
+    c_style = {'color': QUANTITY_COLOURS['vC'], 'lw': 3.5, 'alpha': 0.55, 'marker': 'o', 'ms': 6}
+    e_style = {'color': QUANTITY_COLOURS['vE'], 'ls': '--', 'lw': 1.4, 'marker': 's', 'ms': 4}
+    for ax, c, e, c_name, c_label, e_label in (
+        (ax_swing, st.vC, st.vE, '$v_C$', '$v_C$ (exit of transporter 3)', '$v_E$ (exit of transporter 4)'),
+        (ax_abs, va_c, va_e, '$v_{aC}$', r'$v_{aC}=\sqrt{v_C^2+v_{tr}^2}$', r'$v_{aE}=\sqrt{v_E^2+v_{tr}^2}$'),
+    ):
+        ax.plot(deg, c, markevery=(0, every), label=c_label, **c_style)
+        ax.plot(deg, e, markevery=(every // 2, every), label=e_label + _within(coincidence(c, e), c_name), **e_style)
     ax_swing.axhline(0.0, color='k', lw=0.5)
-    ax_abs.plot(deg, va_c, label=r'$v_{aC}=\sqrt{v_C^2+v_{tr}^2}$')
-    ax_abs.plot(deg, va_e, '--', label=r'$v_{aE}$')
     if show_swing_on_abs:
-        ax_abs.plot(deg, np.abs(st.vC), color='C2', lw=0.8, label='$|v_C|$ without belts')
+        ax_abs.plot(deg, np.abs(st.vC), color=QUANTITY_COLOURS['vC_no_belts'], lw=0.8, label='$|v_C|$ without belts')
     ax_abs.axhline(v_tr, color='k', lw=0.5)
     for e in layup_reach.swing_extremes(params):
         for ax in (ax_swing, ax_abs):
@@ -178,6 +222,8 @@ def stroke_curves(
     Draws ``eta(u)`` for each return-section mode on ``ax_eta`` (with ``eta_A``,
     ``eta_B`` of the first mode dotted if ``pairs``) and ``K_v(u)`` on ``ax_kv``;
     ``u`` in [0, 2]: the deceleration section 0..1, the acceleration section 1..2.
+    Each mode, ``eta_A`` and ``eta_B`` has its colour of
+    :data:`~folder_line.analysis.colours.QUANTITY_COLOURS`, whatever the modes drawn.
 
     Returns
     -------
@@ -190,12 +236,13 @@ def stroke_curves(
     for mode, style in zip(modes, styles, strict=False):
         ev = delivery.evaluate_stroke(params, u, return_section=mode)
         first = ev if first is None else first
-        ax_eta.plot(u, ev.eta, style, label=f'eta ({mode} return section)')
+        colour = QUANTITY_COLOURS[mode]
+        ax_eta.plot(u, ev.eta, style, color=colour, label=f'eta ({mode} return section)')
         if ax_kv is not None:
-            ax_kv.plot(u, ev.K_v, style, label=f'K_v ({mode})')
+            ax_kv.plot(u, ev.K_v, style, color=colour, label=f'K_v ({mode})')
     if pairs and first is not None:
-        ax_eta.plot(u, first.eta_A, ':', lw=1, label='eta_A')
-        ax_eta.plot(u, first.eta_B, ':', lw=1, label='eta_B')
+        ax_eta.plot(u, first.eta_A, ':', lw=1, color=QUANTITY_COLOURS['eta_A'], label=f'eta_A ({modes[0]})')
+        ax_eta.plot(u, first.eta_B, ':', lw=1, color=QUANTITY_COLOURS['eta_B'], label=f'eta_B ({modes[0]})')
     for ax in (ax_eta, ax_kv):
         if ax is not None:
             ax.axvline(1.0, color='grey', lw=0.8)
@@ -226,7 +273,52 @@ def _sampling(joints: RecordedJoints, drawn: int | None = None) -> str:
     return text
 
 
-def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+def _recorded_exit_speeds(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, names: tuple[str, str]) -> None:
+    """Recorded exit speeds at speed: E as hollow squares under C's smaller dots (both visible where equal)."""
+    ax.plot(deg, v_c, 'o', ms=2.5, color=QUANTITY_COLOURS['vC'], alpha=0.8, zorder=3, label=f'recorded {names[0]}')
+    ax.plot(deg, v_e, 's', ms=4.5, color=QUANTITY_COLOURS['vE'], mfc='none', alpha=0.8, label=f'recorded {names[1]}')
+
+
+def _start_up_samples(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, t_speed: float) -> None:
+    """Samples before the drive reached speed (t < ``t_speed``): grey crosses, one legend entry."""
+    if deg.size == 0:
+        return
+    colour = QUANTITY_COLOURS['start_up']
+    label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s): {deg.size} ticks'
+    ax.plot(deg, v_c, 'x', ms=3.5, color=colour, alpha=0.8, label=label)
+    ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
+
+
+def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation, lp: Any, t_speed: float) -> None:
+    """The leaves' exit speeds at their crank angles; those of the start-up hollow."""
+    exits = rec.events_of('leaf_exit')
+    if not exits.size:
+        return
+    turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
+    deg = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
+    early = exits['t'] < t_speed
+    for at_e, exit_name, marker in ((False, 'C', 'v'), (True, 'E', '^')):
+        mine = (exits['sheet'] % 2 == 1) == at_e
+        colour = QUANTITY_COLOURS[f'leaf_exit_{exit_name}']
+        n_early = int(np.count_nonzero(mine & early))
+        label = f'leaf exits at {exit_name} ({int(np.count_nonzero(mine))}'
+        label += f'; hollow: {n_early} in the start-up)' if n_early else ')'
+        ax.plot(deg[mine & ~early], exits['value'][mine & ~early], marker, ms=6, color=colour, label=label)
+        if n_early:
+            ax.plot(deg[mine & early], exits['value'][mine & early], marker, ms=6, color=colour, mfc='none')
+
+
+def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
+    """The figure of ``exit_speeds.png``: the recorded exit speeds over the model's, or None without a layup.
+
+    The samples taken before the drive reached speed (:func:`~folder_line.analysis.figure_data.at_speed_time`)
+    are drawn apart, as the start-up: off the model's curves at nominal speed, below ``v_min`` at first.
+
+    Returns
+    -------
+    matplotlib Figure or None
+        Two axes: swing speeds (paper L fig. 4), absolute exit speeds (fig. 5).
+    """
     data = exit_speed_data(rec)
     if data is None:
         return None
@@ -235,36 +327,20 @@ def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
     crank = rec.joints[NODE_OF_UNIT['drive']]
     lp = scene.machine('layup')
     v_tr = float(lp.v_tr) if scene.has('chute_belts') else 0.0
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
     exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
     k = _thin(data['t'].size)
     data = {name: v[k] for name, v in data.items()}
+    t_speed = at_speed_time(rec, ev)
+    early = data['t'] < t_speed
     deg = np.degrees(data['phi'])
-    ax1.plot(deg, data['vC'], 'o', ms=3, color='C0', alpha=0.7, label=r'recorded $\omega_3 l_3$')
-    ax1.plot(deg, data['vE'], 's', ms=3, color='C1', mfc='none', alpha=0.7, label=r'recorded $\omega_5 l_5$')
-    ax2.plot(deg, data['vaC'], 'o', ms=3, color='C0', alpha=0.7, label='recorded $v_{aC}$')
-    ax2.plot(deg, data['vaE'], 's', ms=3, color='C1', mfc='none', alpha=0.7, label='recorded $v_{aE}$')
-    exits = rec.events_of('leaf_exit')
-    if exits.size:
-        turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
-        kin_phi = np.mod(2.0 * math.pi * turns, 2.0 * math.pi)
-        c_e = exits['sheet'] % 2 == 1
-        ax2.plot(
-            np.degrees(kin_phi[~c_e]),
-            exits['value'][~c_e],
-            'v',
-            ms=6,
-            color='C3',
-            label=f'leaf exits at C ({int(np.count_nonzero(~c_e))})',
-        )
-        ax2.plot(
-            np.degrees(kin_phi[c_e]),
-            exits['value'][c_e],
-            '^',
-            ms=6,
-            color='C4',
-            label=f'leaf exits at E ({int(np.count_nonzero(c_e))})',
-        )
+    for ax, c, e, names in (
+        (ax1, 'vC', 'vE', (r'$\omega_3 l_3$', r'$\omega_5 l_5$')),
+        (ax2, 'vaC', 'vaE', ('$v_{aC}$', '$v_{aE}$')),
+    ):
+        _recorded_exit_speeds(ax, deg[~early], data[c][~early], data[e][~early], names)
+        _start_up_samples(ax, deg[early], data[c][early], data[e][early], t_speed)
+    _leaf_exits(ax2, rec, ev, lp, t_speed)
     if scene.has('chute_belts'):
         vmin = float(scene.effect('chute_belts').v_min)
         ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
@@ -274,7 +350,7 @@ def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         f'{_sampling(crank, data["t"].size)} over {rec.t_end:.3f} s',
         fontsize=10,
     )
-    ax1.legend(loc='upper right', fontsize=8)
+    ax1.legend(loc='lower right', fontsize=7.5)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel(r'crank angle $\varphi$, deg')
     belts = rec.joints.get(NODE_OF_UNIT['belts'])
@@ -283,14 +359,26 @@ def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         belt = f'recorded belt speed {lo:.3f}..{hi:.3f} m/s'
     else:
         belt = 'no belts'
-
     ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
-    ax2.legend(loc='lower right', fontsize=8, ncol=2)
+    ax2.legend(loc='lower right', fontsize=7.5, ncol=2)
     fig.tight_layout()
-    return save_figure(fig, out / 'exit_speeds.png')
+    return fig
 
 
-def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+    fig = exit_speeds_figure(rec, ev)
+    return None if fig is None else save_figure(fig, out / 'exit_speeds.png')
+
+
+def efficiency_figure(rec: Recording, ev: Evaluation) -> Any | None:
+    """The figure of ``efficiency.png``: η, ``K_v`` (and the sprocket torque) at the recorded carriage
+    positions over the model's curves, or None without a delivery.
+
+    Returns
+    -------
+    matplotlib Figure or None
+        Axes: efficiency, carriage speed ratio, and the torque with ``chain_friction``.
+    """
     data = efficiency_data(rec, ev)
     if data is None:
         return None
@@ -321,9 +409,10 @@ def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         alpha=0.6,
         label='recorded carriage speed / chain speed',
     )
+    release = QUANTITY_COLOURS['release']
     for ax in axes:
-        ax.axvline(plan.u_rel, color='tab:purple', ls='--', lw=1)
-    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color='tab:purple', va='bottom', fontsize=8)
+        ax.axvline(plan.u_rel, color=release, ls='--', lw=1)
+    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color=release, va='bottom', fontsize=8)
     ax_eta.set_ylabel('efficiency $\\eta$')
     ax_eta.set_title(
         f'D: efficiency along the stroke (paper Fig. 2); min eta at the drawn samples {data["eta"].min():.3f}, '
@@ -345,14 +434,19 @@ def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
         u_m = plan.path.position(np.clip(a0[on], 0.0, sch.S))
         tq = np.asarray(chain_friction.sprocket_torque(rec.scene, theta[on]), dtype=float)
         order = np.argsort(u_m)
-        ax_t.plot(u_m[order], tq[order], color='C2', label='model: all carriages on the stroke')
+        ax_t.plot(u_m[order], tq[order], color=QUANTITY_COLOURS['torque'], label='model: all carriages on the stroke')
         ax_t.plot(data['u'][k], data['torque'][k], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
         ax_t.set_ylabel('sprocket torque $M_1$, N m')
         ax_t.legend(fontsize=8, loc='upper right')
         ax_t.grid(alpha=0.3)
     axes[-1].set_xlabel('stroke position u of the newest carriage (deceleration 0..1, acceleration 1..2)')
     fig.tight_layout()
-    return save_figure(fig, out / 'efficiency.png')
+    return fig
+
+
+def _plot_efficiency(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
+    fig = efficiency_figure(rec, ev)
+    return None if fig is None else save_figure(fig, out / 'efficiency.png')
 
 
 #: the operations of the cyclogram (paper F): letter, label, colour

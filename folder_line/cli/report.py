@@ -18,10 +18,12 @@ from typing import IO, Any, TypedDict
 
 import numpy as np
 
-from folder_line.analysis.figures import PHASE_COLOURS, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
+from folder_line.analysis.figures import exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
-from folder_line.config.params import KINDS, load_params, read_yaml_mapping
+from folder_line.config.params import KINDS, load_container, load_params, read_yaml_mapping
 from folder_line.config.scenes import set_press
+from folder_line.core.line.machines import ContainerParams
 from folder_line.core.line.scene import MachineParams, check_press_speed
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
 from folder_line.errors import ParameterError
@@ -32,6 +34,9 @@ __all__ = [
     'Check',
     'ReportParams',
     'add_report_arguments',
+    'delivery_figure',
+    'layup_geometry_figure',
+    'layup_speeds_figure',
     'published_checks',
     'report_params',
     'write_report',
@@ -242,25 +247,62 @@ def published_checks(p: PaperParams | None = None) -> list[Check]:
     return checks
 
 
-def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
+def layup_speeds_figure(lay: layup.LayupParams) -> Any:
+    """The figure of ``layup_speeds.png``: the exit speeds without and with belts (paper L, figs. 4-5)."""
     plt = pyplot()
-    ext = layup_reach.swing_extremes(lay)
-
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    st = exit_speed_curves(ax1, ax2, lay, lay.v_tr)
+    exit_speed_curves(ax1, ax2, lay, lay.v_tr)
     ax1.set_ylabel('swing speed, m/s')
     ax1.set_title('L: exit speeds without belts (paper Fig. 4): zero at the swing extremes')
-    ax1.legend(loc='upper right')
+    ax1.legend(loc='upper left', fontsize=8)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel('crank angle $\\varphi$, deg')
     ax2.set_title(f'L: with belts at $v_{{tr}}$ = {lay.v_tr:g} m/s (paper Fig. 5): never below $v_{{tr}}$')
-    ax2.legend(loc='center right')
+    ax2.legend(loc='center right', fontsize=8)
     fig.tight_layout()
-    speeds = save_figure(fig, out / 'layup_speeds.png')
+    return fig
 
-    fig, ax = plt.subplots(figsize=(7, 7))
-    ax.plot(st.xC, st.yC, color='C0', lw=2, label='path of exit C')
-    ax.plot(st.xE, st.yE, color='C1', lw=2, label='path of exit E')
+
+def _container(ax: Any, cont: ContainerParams, top: float) -> None:
+    """The container's inner walls (from the floor up to ``top``, m) and floor, labelled with their values."""
+    xs = (cont.x_left, cont.x_left, cont.x_right, cont.x_right)
+    ys = (top, cont.y_floor, cont.y_floor, top)
+    ax.plot(
+        xs,
+        ys,
+        color='tab:brown',
+        lw=3,
+        solid_capstyle='butt',
+        label=f'container: walls x = {cont.x_left:g}, {cont.x_right:g} m; floor y = {cont.y_floor:g} m',
+    )
+    for x, text, dx, ha in ((cont.x_left, 'x_left', 6, 'left'), (cont.x_right, 'x_right', -6, 'right')):
+        ax.annotate(f'{text} = {x:g}', (x, cont.y_floor), textcoords='offset points', xytext=(dx, 5), ha=ha)
+    ax.annotate(
+        f'floor y_floor = {cont.y_floor:g}',
+        (0.5 * (cont.x_left + cont.x_right), cont.y_floor),
+        textcoords='offset points',
+        xytext=(0, 5),
+        ha='center',
+    )
+
+
+def layup_geometry_figure(lay: layup.LayupParams, cont: ContainerParams) -> Any:
+    """The figure of ``layup_geometry.png``: the six-bar at both swing extremes over the container.
+
+    Parameters
+    ----------
+    lay : LayupParams
+        The six-bar, m.
+    cont : ContainerParams
+        The container in the six-bar's frame, m: its walls are drawn from the floor up to
+        the highest point of the exits' paths (the model has no wall height).
+    """
+    plt = pyplot()
+    ext = layup_reach.swing_extremes(lay)
+    st = layup.LayupModel(lay).arrays(np.linspace(0.0, 2.0 * math.pi, 721), accelerations=False)
+    fig, ax = plt.subplots(figsize=(7.5, 8))
+    ax.plot(st.xC, st.yC, color=QUANTITY_COLOURS['vC'], lw=2, label='path of exit C')
+    ax.plot(st.xE, st.yE, color=QUANTITY_COLOURS['vE'], lw=2, label='path of exit E')
     o1 = (lay.a, lay.b)
     for e, style in zip(ext, ('-', '--'), strict=True):
         s1 = layup.LayupModel(lay).arrays(np.array([e.phi]), accelerations=False)
@@ -277,15 +319,23 @@ def _plot_layup(lay: layup.LayupParams, out: Path) -> list[Path]:
         )
     for name, xy in (('O1', o1), ('O2', (0.0, 0.0)), ('O3', (lay.O2O3, 0.0))):
         ax.annotate(name, xy, textcoords='offset points', xytext=(5, 5))
+    _container(ax, cont, float(max(st.yC.max(), st.yE.max())))
     ax.set_aspect('equal')
     ax.set_xlabel('x, m')
     ax.set_ylabel('y, m')
-    ax.set_title('L: six-bar at both swing extremes')
-    ax.set_ylim(-1.15, 0.35)
+    ax.set_title('L: six-bar at both swing extremes, over the container')
+    ax.set_ylim(min(cont.y_floor, float(min(st.yC.min(), st.yE.min()))) - 0.1, 0.45)
     ax.legend(loc='upper right', fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    return [speeds, save_figure(fig, out / 'layup_geometry.png')]
+    return fig
+
+
+def _plot_layup(lay: layup.LayupParams, cont: ContainerParams, out: Path) -> list[Path]:
+    return [
+        save_figure(layup_speeds_figure(lay), out / 'layup_speeds.png'),
+        save_figure(layup_geometry_figure(lay, cont), out / 'layup_geometry.png'),
+    ]
 
 
 def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path) -> Path:
@@ -330,7 +380,8 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
     return save_figure(fig, out / 'knife_cyclogram.png')
 
 
-def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
+def delivery_figure(dl: delivery.DeliveryParams) -> Any:
+    """The figure of ``delivery_efficiency.png``: efficiency and carriage speed along the stroke (paper D, fig. 2)."""
     plt = pyplot()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     stroke_curves(ax1, ax2, dl, ('paper_mirror', 'geometric'))
@@ -344,7 +395,11 @@ def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
     ax2.set_xlabel('stroke position u (deceleration section 0..1, acceleration section 1..2)')
     ax2.legend(fontsize=8)
     fig.tight_layout()
-    return save_figure(fig, out / 'delivery_efficiency.png')
+    return fig
+
+
+def _plot_delivery(dl: delivery.DeliveryParams, out: Path) -> Path:
+    return save_figure(delivery_figure(dl), out / 'delivery_efficiency.png')
 
 
 def write_report(out: Path, stream: IO[str], inputs: ReportParams | None = None) -> list[Path]:
@@ -397,15 +452,15 @@ def write_report(out: Path, stream: IO[str], inputs: ReportParams | None = None)
         written.append(
             write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101, mp))
         )
-    written += _plot_layup(p['layup'], out)
+    written += _plot_layup(p['layup'], load_container(), out)
     written.append(_plot_knife(p['knife'], p['cyclogram'], out))
     written.append(_plot_delivery(p['delivery'], out))
-    lines += ['', '## Plots', ''] + [f'![{w.stem}]({w.name})' for w in written if w.suffix == '.png']
-    write_text_atomic(out / 'report.md', '\n'.join(lines) + '\n')
+    plots = [f'![{w.stem}]({w.name})' for w in written if w.suffix == '.png']
+    # the plots are images of report.md; the console lists the files written instead (no empty heading)
+    write_text_atomic(out / 'report.md', '\n'.join(lines + (['', '## Plots', '', *plots] if plots else [])) + '\n')
 
     for line in lines:
-        if not line.startswith('!['):
-            print(line, file=stream)
+        print(line, file=stream)
     print('', file=stream)
     print(f'{sum(c.agrees for c in checks)} of {len(checks)} published results reproduced.', file=stream)
     print(f'Wrote {len(written)} files to {out.resolve()}:', file=stream)

@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal, overload
 
+from folder_line.core.line.machines import ContainerParams
 from folder_line.core.line.scene import MACHINES, MachineParams
 from folder_line.core.mechanisms.cyclogram import CyclogramParams
 from folder_line.core.mechanisms.delivery import DeliveryParams
@@ -21,7 +22,7 @@ from folder_line.core.numerics.validate import build
 from folder_line.errors import ParameterError
 from folder_line.files.yamlio import load_yaml_file
 
-__all__ = ['KINDS', 'config_dir', 'load_params', 'read_yaml_mapping']
+__all__ = ['KINDS', 'config_dir', 'load_container', 'load_params', 'read_yaml_mapping']
 
 #: the mechanisms ``folder-line kinematics`` samples: machine sections of :data:`folder_line.core.line.scene.MACHINES`
 KINDS: tuple[str, ...] = ('layup', 'knife', 'delivery', 'cyclogram')
@@ -114,3 +115,15 @@ def load_params(
     values.update(read_yaml_mapping(Path(path), '--params') if path is not None else {})
     values.update(overrides or {})
     return build(MACHINES[kind], values, kind, f'{kind} parameter')
+
+
+def load_container() -> ContainerParams:
+    """The default container the layup lays the leaves into (``config/container.yaml``; the layup's frame).
+
+    Raises
+    ------
+    ParameterError
+        A default file with an unknown key or a value out of range.
+    """
+    values = read_yaml_mapping(config_dir() / 'container.yaml', 'container defaults')
+    return build(ContainerParams, values, 'container', 'container parameter')
