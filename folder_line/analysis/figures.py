@@ -62,6 +62,7 @@ from folder_line.analysis.figure_data import (
 from folder_line.analysis.recording import RecordedJoints, Recording
 from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import chain_friction
+from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
 from folder_line.core.mechanisms import delivery, layup, layup_reach
 from folder_line.files.atomic import write_bytes_atomic
 from folder_line.interfaces import NODE_OF_UNIT
@@ -458,23 +459,12 @@ OPERATIONS = (
 )
 
 
-_MARGIN_FORMAT = {
-    'feed_window': ('feed', 1e3, 'ms'),
-    'settled_before_knife': ('settled', 1e3, 'ms'),
-    'one_per_cycle': ('sheets', 1.0, ''),
-    'rebound': ('rebound', 1e3, 'mm'),
-    'release_at_min_speed': ('K_v at release', 1.0, ''),
-}
-
-
 def _margin_text(margins: Mapping[str, float]) -> str:
+    """A cycle's margins, as the text shows them (:mod:`folder_line.core.line.margin_text`)."""
     parts = []
     for name, m in margins.items():
-        label, scale, unit = _MARGIN_FORMAT.get(name, (name, 1.0, ''))
-        if name == 'one_per_cycle':
-            parts.append('1 sheet' if m == 0.0 else f'{round(-m)} sheet(s) off')
-        else:
-            parts.append(f'{label} {m * scale:+.3g}{" " + unit if unit else ""}')
+        value = format_margin(m, CONSTRAINT_UNITS.get(name, ''), name, precision=3, fixed=False, short=True)
+        parts.append(value if name == 'one_per_cycle' else f'{MARGIN_LABELS.get(name, name)} {value}')
     return ' | '.join(parts)
 
 

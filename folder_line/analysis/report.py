@@ -43,6 +43,7 @@ from folder_line.analysis.replay import (
     transitions_agree,
 )
 from folder_line.core.line.events import ConstraintSeries
+from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
 from folder_line.interfaces import NS_PER_S
@@ -84,8 +85,9 @@ class AnalysisResult:
     constraints: list[ConstraintSeries] = field(default_factory=list)
 
 
-def _fmt(x: float) -> str:
-    return f'{x:.6g}'
+def _margin(name: str, value: float, unit: str) -> str:
+    """A margin in report.md: its unit of the text, to the ns or the nm (6 decimals of ms, mm)."""
+    return margin_text(value, unit, name, precision=6)
 
 
 def _report_lines(
@@ -128,22 +130,29 @@ def _report_lines(
         '',
         '## Constraints',
         '',
-        '| constraint | unit | evaluations | min margin | at cycle | violations |',
-        '|---|---|---|---|---|---|',
+        'Margins >= 0 pass; times in ms, lengths in mm, speeds in m/s (the CSV and JSON keep SI units).',
+        '',
+        '| constraint | evaluations | smallest margin | at | violations |',
+        '|---|---|---|---|---|',
     ]
     for name, m in summary['min_margin'].items():
         lines.append(
-            f'| {name} | {m["unit"]} | {m["evaluations"]} | {_fmt(m["margin"])} | {m["cycle"]} | {m["violations"]} |'
+            f'| {name} | {m["evaluations"]} | {_margin(name, m["margin"], m["unit"])} | {margin_at(name, m["cycle"])} '
+            f'| {m["violations"]} |'
         )
     if not summary['min_margin']:
-        lines.append('| (none evaluated) | | | | | |')
+        lines.append('| (none evaluated) | | | | |')
+    else:
+        lines += ['', 'What the margins mean:', '']
+        lines += [f'- `{name}`: {MARGIN_MEANINGS[name]}' for name in summary['min_margin'] if name in MARGIN_MEANINGS]
     lines += ['', '## Violations', '']
     viol = summary['violations']['first']
     if viol:
         decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist(), strict=True)) for c in ev.constraints}
-        lines += ['| cycle | constraint | margin | unit | decided at t, s |', '|---|---|---|---|---|']
+        lines += ['| cycle or leaf | constraint | margin | decided at t, s |', '|---|---|---|---|']
         lines += [
-            f'| {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
+            f'| {margin_at(v["constraint"], v["cycle"])} | {v["constraint"]} | '
+            f'{_margin(v["constraint"], v["margin"], v["unit"])} | '
             f'{decided.get(v["constraint"], {}).get(v["cycle"], float("nan")):.9g} |'
             for v in viol
         ]
@@ -175,12 +184,12 @@ def _report_lines(
             '',
             '### Violations as the supervisor decided them (replay, causal)',
             '',
-            '| t, s | cycle | constraint | margin | unit | action | state |',
-            '|---|---|---|---|---|---|---|',
+            '| t, s | cycle or leaf | constraint | margin | action | state |',
+            '|---|---|---|---|---|---|',
         ]
         lines += [
-            f'| {v["t"]:.9g} | {v["cycle"]} | {v["constraint"]} | {_fmt(v["margin"])} | {v["unit"]} | '
-            f'{v["action"]} | {v["state"]} |'
+            f'| {v["t"]:.9g} | {margin_at(v["constraint"], v["cycle"])} | {v["constraint"]} | '
+            f'{_margin(v["constraint"], v["margin"], v["unit"])} | {v["action"]} | {v["state"]} |'
             for v in replayed
         ]
     lines += ['', '## Messages', '']
@@ -359,7 +368,7 @@ def print_analysis(result: AnalysisResult, stream: Any) -> None:
     )
     for name, m in s['min_margin'].items():
         print(
-            f'  {name:<24} min margin {m["margin"]:.6g} {m["unit"]} (cycle {m["cycle"]}), '
+            f'  {name:<24} min margin {margin_text(m["margin"], m["unit"], name)}, at {margin_at(name, m["cycle"])}, '
             f'{m["violations"]} of {m["evaluations"]} violated',
             file=stream,
         )

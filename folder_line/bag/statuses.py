@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.core.line.margin_text import margin_at
 from folder_line.core.line.model import LineModel
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.records import Violation
@@ -88,7 +89,7 @@ def violation_status(v: Violation) -> tuple[bool, str, dict[str, Any]]:
         'action': v.action,
         'state': v.state,
     }
-    return False, f'{v.constraint} violated in cycle {v.cycle}: {v.action}', values
+    return False, f'{v.constraint} violated in {margin_at(v.constraint, v.cycle)}: {v.action}', values
 
 
 def balance_status(b: Balance) -> tuple[bool, str, dict[str, Any]]:
@@ -135,7 +136,7 @@ def constraint_statuses(
         last = float(c.margin[i_last])
         level = ERROR if last < 0.0 else WARN if violations else OK
         message = (
-            f'violated in cycle {int(c.cycle[i_last])}'
+            f'violated in {margin_at(c.name, int(c.cycle[i_last]))}'
             if last < 0.0
             else f'{violations} violations so far'
             if violations

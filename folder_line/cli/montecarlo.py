@@ -13,6 +13,7 @@ import sys
 from typing import IO, Any
 
 from folder_line.cli.study_options import add_cluster_arguments, add_samples_argument, cluster_from, scheduler_reached
+from folder_line.core.line.margin_text import format_margin, margin_legend
 from folder_line.files.atomic import write_json_atomic
 from folder_line.studies.montecarlo import monte_carlo
 
@@ -25,16 +26,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_cluster_arguments(parser)
 
 
-def _fmt(value: float, unit: str) -> str:
-    if unit == 's':
-        return f'{value * 1e3:+.4f} ms'
-    if unit == 'm':
-        return f'{value * 1e3:+.4f} mm'
-    if unit in ('1', 'sheets'):
-        return f'{value:+.4g}'
-    return f'{value:+.4g} {unit}'
-
-
 def print_table(result: dict[str, Any], out: IO[str]) -> None:
     """Per constraint: violation probability per cycle with its interval, runs violated, margin quantiles."""
     print(
@@ -43,7 +34,7 @@ def print_table(result: dict[str, Any], out: IO[str]) -> None:
         file=out,
     )
     head = f'  {"constraint":<22} {"p per cycle":>11} {"95 % interval":>23} {"runs violated":>14}'
-    print(head + f' {"margin 1 %":>15} {"median":>15} {"99 %":>15}', file=out)
+    print(head + f' {"margin 1 %":>18} {"median":>18} {"99 %":>18}', file=out)
     for name, c in result['constraints'].items():
         pc, pr, m = c['p_cycle'], c['p_run'], c['margin']
         p = '-' if pc['p'] is None else f'{pc["p"]:.4g}'
@@ -53,8 +44,11 @@ def print_table(result: dict[str, Any], out: IO[str]) -> None:
         row = f'  {name:<22} {p:>11} {interval:>23} {runs:>14}'
         if m['count']:
             q = m['quantiles']
-            row += f' {_fmt(q["0.01"], c["unit"]):>15} {_fmt(q["0.5"], c["unit"]):>15} {_fmt(q["0.99"], c["unit"]):>15}'
+            row += ''.join(f' {format_margin(q[k], c["unit"], name):>18}' for k in ('0.01', '0.5', '0.99'))
         print(row, file=out)
+    print('what the margins mean (>= 0 passes):', file=out)
+    for line in margin_legend(result['constraints']):
+        print(line, file=out)
 
 
 def simulate_samples(args: argparse.Namespace, source: dict[str, Any]) -> int:

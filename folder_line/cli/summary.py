@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import IO, Any
 
-__all__ = ['print_summary']
+from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
+
+__all__ = ['print_margins', 'print_summary']
 
 
-def _fmt_margin(value: float, unit: str) -> str:
-    if unit == 's':
-        return f'{value * 1e3:+.4f} ms'
-    if unit == '1':
-        return f'{value:+.6g}'
-    return f'{value:+.6g} {unit}'
+def print_margins(min_margin: Mapping[str, Mapping[str, Any]], out: IO[str]) -> None:
+    """The smallest margin of each constraint (``summary['min_margin']``), where it was judged, and a legend."""
+    if not min_margin:
+        return
+    print('smallest margin per constraint (>= 0 passes):', file=out)
+    for name, m in min_margin.items():
+        best = '; best possible' if best_possible(name, m['margin']) else ''
+        print(
+            f'  {name:<22} {format_margin(m["margin"], m["unit"], name):>17}  at {margin_at(name, m["cycle"]):<10} '
+            f'{m["violations"]} of {m["evaluations"]} violated{best}',
+            file=out,
+        )
+    print('what the margins mean:', file=out)
+    for line in margin_legend(min_margin):
+        print(line, file=out)
 
 
 def _print_folder(folder: dict[str, Any] | None, out: IO[str]) -> None:
@@ -61,18 +73,12 @@ def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
     v = summary['violations']
     print(f'violations: {v["count"]}', file=out)
     for item in v['first']:
+        name = item['constraint']
         print(
-            f'  cycle {item["cycle"]}: {item["constraint"]} margin {_fmt_margin(item["margin"], item["unit"])}',
+            f'  {margin_at(name, item["cycle"])}: {name} margin {format_margin(item["margin"], item["unit"], name)}',
             file=out,
         )
-    if summary['min_margin']:
-        print('smallest margin per constraint:', file=out)
-        for name, m in summary['min_margin'].items():
-            print(
-                f'  {name:<22} {_fmt_margin(m["margin"], m["unit"]):>18}  (cycle {m["cycle"]}, '
-                f'{m["violations"]} of {m["evaluations"]} violated)',
-                file=out,
-            )
+    print_margins(summary['min_margin'], out)
     if 'landing_cv' in summary and summary.get('landing_histogram'):
         hist = summary['landing_histogram']
         counts = hist['counts']

@@ -17,6 +17,7 @@ from folder_line.cli.study_options import (
     scheduler_reached,
     source_from,
 )
+from folder_line.core.line.margin_text import format_margin, margin_constraint
 from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_json_atomic
 from folder_line.studies.grid import parse_vary
 from folder_line.studies.points import OK
@@ -73,10 +74,17 @@ def _print_summary(result: SweepResult) -> None:
         at = {ok[lo]: '', ok[hi]: ''}
         for i in at:
             at[i] = ', '.join(f'{k}={plan.points[i][k]:.6g}' for k in plan.keys)
-        print(
-            f'  {metric}: {values[lo]:.6g} to {values[hi]:.6g} {unit}'.rstrip()
-            + f'  (min at {at[ok[lo]]}; max at {at[ok[hi]]})'
-        )
+        span = _range_text(metric, unit, values[lo], values[hi])
+        print(f'  {metric}: {span}  (min at {at[ok[lo]]}; max at {at[ok[hi]]})')
+
+
+def _range_text(metric: str, unit: str, lo: float, hi: float) -> str:
+    """``lo to hi unit``; a margin in its unit of the text (ms, mm, ...: as on sweep.png)."""
+    name = margin_constraint(metric)
+    if name:
+        low, high = format_margin(lo, unit, name), format_margin(hi, unit, name)
+        return f'{low} at every point' if low == high else f'{low} to {high}'
+    return f'{lo:.6g} to {hi:.6g} {unit}'.rstrip()
 
 
 def run(args: argparse.Namespace) -> int:

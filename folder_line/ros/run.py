@@ -54,11 +54,12 @@ from rclpy.parameter import Parameter
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
+from folder_line.core.line.margin_text import margin_at
 from folder_line.core.line.model import check_size, simulate
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
-from folder_line.progress import LineTimeProgress
+from folder_line.progress import LineTimeProgress, logs_above
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
@@ -287,30 +288,31 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             done = clock.done.done
         last_draw = 0.0
         progress = LineTimeProgress(stream, cfg.duration)
-        while not done() and not interrupted:
-            if clock is not None:
-                executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
-            else:
-                executor.spin_once(timeout_sec=0.05)
-            now = time.perf_counter()
-            if now - last_draw > 0.2:
-                progress.show(recorder.sim_time)
-                last_draw = now
-                if recorder.count_publishers(CLOCK_TOPIC) > 1:
-                    interrupted.append('another /clock publisher appeared on this ROS domain')
-            if recorder.write_error is not None:
-                interrupted.append('the bag could not be written')
-            for name in set(recorder.lost) - ended_lost:  # once each
-                ended_lost.add(name)
-                _end_lost(procs.get(name))
-        if interrupted and clock is not None:
-            executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
-        # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
-        deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
-        while time.perf_counter() < deadline:
-            executor.spin_once(timeout_sec=0.02)
-        progress.show(recorder.sim_time, force=True)
-        progress.close()
+        with logs_above(progress):  # the nodes' log lines (rcutils, fd 2) above the bar, never through it
+            while not done() and not interrupted:
+                if clock is not None:
+                    executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
+                else:
+                    executor.spin_once(timeout_sec=0.05)
+                now = time.perf_counter()
+                if now - last_draw > 0.2:
+                    progress.show(recorder.sim_time)
+                    last_draw = now
+                    if recorder.count_publishers(CLOCK_TOPIC) > 1:
+                        interrupted.append('another /clock publisher appeared on this ROS domain')
+                if recorder.write_error is not None:
+                    interrupted.append('the bag could not be written')
+                for name in set(recorder.lost) - ended_lost:  # once each
+                    ended_lost.add(name)
+                    _end_lost(procs.get(name))
+            if interrupted and clock is not None:
+                executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
+            # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
+            deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
+            while time.perf_counter() < deadline:
+                executor.spin_once(timeout_sec=0.02)
+            progress.show(recorder.sim_time, force=True)
+            progress.close()
         recorder.flush()
         if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
             raise recorder.write_error
@@ -406,6 +408,14 @@ def outcome(summary: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def _where(constraint: str, cycle: str | None) -> str:
+    """``cycle k`` or ``leaf k`` (:func:`folder_line.core.line.margin_text.margin_at`) from a status value."""
+    try:
+        return margin_at(constraint, int(cycle or ''))
+    except ValueError:
+        return f'cycle {cycle}'
+
+
 def _summary(
     cfg: RunConfig,
     scene: Scene,
@@ -422,9 +432,9 @@ def _summary(
         if st.name == 'folder_line/supervisor/violation' and values.get('action') not in (None, 'none'):
             constraint = values.get('constraint', '')
             node = constraint.split(':', 1)[1] if constraint.startswith('lost:') else None
-            cause = (
-                f'{constraint} in cycle {values.get("cycle")} at {float(values.get("t", "nan")):.6f} s '
-                f'-> {values.get("action")}' + (f' (node {node})' if node else '')
+            where = _where(constraint, values.get('cycle'))
+            cause = f'{constraint} in {where} at {float(values.get("t", "nan")):.6f} s -> {values.get("action")}' + (
+                f' (node {node})' if node else ''
             )
             break
     return {

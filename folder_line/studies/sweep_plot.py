@@ -7,7 +7,8 @@
   where all of them hold (margins >= 0, no violation); refused points in grey.
 
 Both mark the scene's own point and the papers' point (:mod:`folder_line.studies.paper`) where
-there is one. Seconds are shown as ms and metres of margin as mm. Three or more keys: no plot.
+there is one. Seconds are shown as ms, and margins in their units of the text
+(:func:`folder_line.core.line.margin_text.shown_unit`: metres as mm). Three or more keys: no plot.
 """
 
 from __future__ import annotations
@@ -20,15 +21,15 @@ from typing import Any
 import numpy as np
 
 from folder_line.analysis.figures import pyplot, save_figure
+from folder_line.core.line.margin_text import MARGIN_AXIS_NOTES, margin_constraint, shown_unit
 from folder_line.studies.paper import PAPER_NOTES, paper_rule
 from folder_line.studies.points import OK
 from folder_line.studies.sweep import SweepResult
 
 __all__ = ['plot_sweep', 'plotted_keys']
 
-#: unit of a value -> (factor, unit shown) on the charts
+#: unit of a value that is not a margin -> (factor, unit shown) on the charts
 _SHOWN = {'s': (1e3, 'ms')}
-_MARGIN_SHOWN = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
 
 
 def plotted_keys(result: SweepResult) -> tuple[str, ...]:
@@ -37,8 +38,7 @@ def plotted_keys(result: SweepResult) -> tuple[str, ...]:
 
 
 def _shown(metric: str, unit: str) -> tuple[float, str]:
-    table = _MARGIN_SHOWN if _is_margin(metric) else _SHOWN
-    return table.get(unit, (1.0, unit))
+    return shown_unit(unit) if _is_margin(metric) else _SHOWN.get(unit, (1.0, unit))
 
 
 def _is_margin(metric: str) -> bool:
@@ -75,6 +75,17 @@ def _y_label(metric: str, unit: str) -> str:
     return f'value, {unit}' if unit else 'value (dimensionless)'
 
 
+def _note(metric: str) -> str | None:
+    """What a margin's value means, where its number alone misleads (a count, a tolerance); else None."""
+    return MARGIN_AXIS_NOTES.get(margin_constraint(metric)) if _is_margin(metric) else None
+
+
+def _title(metric: str) -> str:
+    """A panel's title: the metric, with its :func:`_note`."""
+    note = _note(metric)
+    return f'{metric}  ({note})' if note else metric
+
+
 def _mark_text(key: str, value: Any, unit: str) -> str:
     return f'{key} = {value:.6g} {unit}'.rstrip() if isinstance(value, int | float) else f'{key} = {value}'
 
@@ -105,7 +116,10 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
         y = _values(result, i) * factor
         step = {'drawstyle': 'steps-mid'} if unit == '' and metric.endswith('count') else {}
         ax.plot(x, y, 'o-', ms=3, color='C0', label='_nolegend_', **step)
-        ax.set_title(metric, fontsize=9, loc='left')
+        ax.set_title(_title(metric), fontsize=9, loc='left')
+        if unit == 'sheets':  # whole sheets: 0 is one per cycle, -1 one off
+            ax.yaxis.set_major_locator(plt.matplotlib.ticker.MaxNLocator(integer=True))
+            ax.set_ylim(min(float(np.nanmin(y, initial=0.0)), -1.0) - 0.5, 0.5)
         if _is_margin(metric):
             ax.axhline(0.0, color='k', lw=0.9, label='margin = 0 (below: violated)')
             with np.errstate(invalid='ignore'):
@@ -200,6 +214,9 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     mesh = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(z), cmap=cmap, norm=norm, shading='flat')
     bar = fig.colorbar(mesh, ax=ax)
     bar.set_label(_label(metric, unit))
+    if unit == 'sheets':  # whole sheets
+        bar.locator = plt.matplotlib.ticker.MaxNLocator(integer=True)
+        bar.update_ticks()
     handles: list[Any] = []
     line = plt.matplotlib.lines.Line2D
     if finite.size and lo < 0.0 < hi:
@@ -259,7 +276,8 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     ax.set_xlabel(_label(keys[0], plan.units[keys[0]]))
     ax.set_ylabel(_label(keys[1], plan.units[keys[1]]))
     ax.set_title(
-        f'{metric} over {keys[0]} x {keys[1]}\nscene {plan.scene!r}, {plan.duration:g} s of line time per point',
+        f'{metric} over {keys[0]} x {keys[1]}\n{_note(metric) or ""}{"; " if _note(metric) else ""}'
+        f'scene {plan.scene!r}, {plan.duration:g} s of line time per point',
         fontsize=10,
     )
     if handles:

@@ -44,6 +44,7 @@ from folder_line.analysis import (
     recorded_transitions,
     transitions_agree,
 )
+from folder_line.core.line.margin_text import MARGIN_MEANINGS, shown_unit
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -117,17 +118,35 @@ def _report_table(report: str) -> dict[str, str]:
     return {m[1].strip(): m[2].strip() for m in re.finditer(r'^\| ([^|]+) \| ([^|]+) \|$', section, re.MULTILINE)}
 
 
+def _margin_back(text: str) -> tuple[float, str]:
+    """A margin of report.md read back: (value in the unit shown, unit shown); one_per_cycle as sheets."""
+    text = text.removesuffix(' (best possible)')
+    if text == '1 sheet per cycle':
+        return 0.0, 'sheets'
+    off = re.fullmatch(r'(\S+) sheets? off', text)
+    if off:
+        return -float(off[1]), 'sheets'
+    number, _, unit = text.partition(' ')
+    return float(number), unit
+
+
 def _report_constraints(report: str) -> dict[str, dict[str, Any]]:
     section = report.split('## Constraints', 1)[1].split('##', 1)[0]
     out = {}
-    for m in re.finditer(r'^\| (\w+) \| ([^|]+) \| (\d+) \| ([^|]+) \| (-?\d+) \| (\d+) \|$', section, re.MULTILINE):
+    for m in re.finditer(r'^\| (\w+) \| (\d+) \| ([^|]+) \| (cycle|leaf) (-?\d+) \| (\d+) \|$', section, re.MULTILINE):
+        value, unit = _margin_back(m[3].strip())
         out[m[1]] = {
-            'unit': m[2].strip(),
-            'evaluations': int(m[3]),
-            'margin': float(m[4]),
+            'text': m[3].strip(),
+            'shown_unit': unit,
+            'evaluations': int(m[2]),
+            'margin': value,
+            'at': m[4],
             'cycle': int(m[5]),
             'violations': int(m[6]),
         }
+    assert 'What the margins mean:' in section
+    for name in out:
+        assert f'- `{name}`: {MARGIN_MEANINGS[name]}' in section
     return out
 
 
@@ -151,13 +170,18 @@ def _check_numbers(result: AnalysisResult) -> dict[str, Any]:
     assert set(rows) == set(expected['min_margin']) and rows
     for name, want in expected['min_margin'].items():
         got = rows[name]
-        assert (got['unit'], got['evaluations'], got['violations']) == (
-            want['unit'],
+        factor, unit = shown_unit(want['unit'])
+        unit = 'sheets' if name == 'one_per_cycle' else unit
+        at = 'leaf' if name == 'chute_speed' else 'cycle'
+        assert (got['shown_unit'], got['at'], got['evaluations'], got['violations']) == (
+            unit,
+            at,
             want['evaluations'],
             want['violations'],
         ), name
-        # printed to 6 digits; the recorded event times are the exact ones rounded to the ns
-        assert got['margin'] == pytest.approx(want['margin'], rel=1e-5, abs=3e-9), name
+        assert want['unit'] in ('s', 'm', 'm/s', 'sheets', '1'), name  # so the text shows ms, mm, m/s or a count
+        # printed to 6 decimals of ms and mm; the recorded event times are the exact ones rounded to the ns
+        assert got['margin'] / factor == pytest.approx(want['margin'], rel=1e-5, abs=3e-9), name
     return expected
 
 
@@ -406,7 +430,7 @@ def test_replay_reproduces_the_recorded_states(faults_live: tuple[Path, Analysis
     assert [c.kind for c in result.recording.commands] == ['hold']
     _check_numbers(result)
     report = result.report.read_text(encoding='utf-8')
-    assert '| 13 | feed_window |' in report  # the violations table (batch, as simulate judges)
+    assert '| cycle 13 | feed_window | -4.9' in report  # the violations table (batch, as simulate judges), in ms
 
 
 def test_transitions_agree_allows_states_within_one_tick() -> None:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from folder_line.studies import sweep_plot
 from folder_line.studies.grid import Vary, grid_points
 from folder_line.studies.points import OK, PointResult
 from folder_line.studies.sweep import SweepPlan, SweepResult
@@ -64,3 +67,33 @@ def test_what_is_plotted() -> None:
     assert plotted_keys(_result((Vary('knife.n_k', 5e4, 5e4, 1), V), 1.0)) == ('feed_transporter.V_tr',)
     three = (V, N, Vary('cyclogram.n_c', 1.0, 2.0, 2))
     assert plot_sweep(_result(three, 1.0), Path('/nonexistent/never.png')) is None  # nothing drawn, nothing written
+
+
+def test_margins_are_drawn_in_the_units_of_the_text(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rebound in mm, feed in ms; one_per_cycle on whole sheets with what 0 means in its title."""
+    drawn: list[Any] = []
+
+    def keep(fig: Any, path: Path) -> Path:
+        drawn.append(fig)
+        return path
+
+    monkeypatch.setattr(sweep_plot, 'save_figure', keep)
+    base = _result((V,), 1.0)
+    metrics = ('min_margin_s.feed_window', 'min_margin.rebound.margin', 'min_margin.one_per_cycle.margin')
+    plan = dataclasses.replace(
+        base.plan,
+        metrics=metrics,
+        units={**base.plan.units, 'min_margin.rebound.margin': 'm', 'min_margin.one_per_cycle.margin': 'sheets'},
+        scene_metrics=(1e-4, 9e-4, 0.0),
+    )
+    results = tuple(PointResult((1e-4 * k, 9e-4, -float(k == 2)), OK) for k in range(V.n))
+    plot_sweep(SweepResult(plan, results), tmp_path / 'sweep.png')
+    (fig,) = drawn
+    feed, rebound, sheets = fig.axes[:3]
+    assert feed.get_ylabel() == 'margin, ms' and list(feed.lines[0].get_ydata()) == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    assert rebound.get_ylabel() == 'margin, mm' and list(rebound.lines[0].get_ydata()) == pytest.approx([0.9] * 4)
+    assert sheets.get_ylabel() == 'margin, sheets'
+    assert sheets.get_title(loc='left') == 'min_margin.one_per_cycle.margin  (0: 1 sheet per cycle, the best possible)'
+    ticks = [t for t in sheets.get_yticks() if sheets.get_ylim()[0] <= t <= sheets.get_ylim()[1]]
+    assert ticks == [-1.0, 0.0]  # whole sheets only
+    assert feed.get_title(loc='left') == 'min_margin_s.feed_window'

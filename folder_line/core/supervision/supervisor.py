@@ -86,6 +86,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command, Drive
@@ -502,7 +503,8 @@ class Supervisor:
             action = 'suspend'
         worst = min(bad, key=lambda b: b[2])
         what = 'double sheet' if double and not timing else ('missing sheet' if starving and not timing else worst[0])
-        cause = f'{what}: {worst[0]} violated in cycle {it.cycle} (margin {worst[2]:.6g} {worst[1]})'
+        where, shown = margin_at(worst[0], it.cycle), format_margin(worst[2], worst[1], worst[0])
+        cause = f'{what}: {worst[0]} violated in {where} (margin {shown})'
         state = self.state
         taken = self._automatic(action, t, cause)
         for name, unit, margin in bad:

@@ -96,6 +96,7 @@ from folder_line.bag.statuses import (
 )
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.line.events import EVENT_DTYPE
+from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
@@ -399,8 +400,8 @@ class Supervisor(MachineNode):
 
     def _publish_violation(self, v: Violation) -> None:
         self.get_logger().warning(
-            f'{v.constraint} violated in cycle {v.cycle} at {v.t:.6f} s, margin {v.margin:.6g} '
-            f'{v.unit}: {v.action} ({v.state})'
+            f'{v.constraint} violated in {margin_at(v.constraint, v.cycle)} at {v.t:.6f} s, '
+            f'margin {format_margin(v.margin, v.unit, v.constraint)}: {v.action} ({v.state})'
         )
         self._publish_status('violation', *violation_status(v), stamp=v.t)
 
