@@ -38,6 +38,7 @@ from folder_line.ros.recorder import LINE_TOPICS
 from folder_line.ros.topics import COMMANDS_QOS
 
 __all__ = [
+    'ALWAYS_HELD',
     'BATCH',
     'KEY_PERIOD',
     'LATCHED',
@@ -63,6 +64,10 @@ every single message (the executor rebuilds its wait set on each wake-up)."""
 
 KEY_PERIOD = 0.05
 """Longest wall time, s, between two looks at the keyboard (and at a stop request)."""
+
+ALWAYS_HELD = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC)
+"""Latched topics whose publisher always holds a message (the announcement, the state; the commands may
+hold none): a snapshot waits for them (:meth:`MonitorSession.missing_history`)."""
 
 LATCHED = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC, COMMANDS_TOPIC)
 """Topics whose history (what their publishers held when the monitor joined) is shown: the current state,
@@ -133,8 +138,10 @@ class MonitorNode(Node):
         self.received: dict[str, int] = dict.fromkeys(topics, 0)
         self.history: dict[str, int] = dict.fromkeys(topics, 0)
         self.since_ns = time.time_ns()
-        for topic, cls in topics.items():
-            self.create_subscription(cls, topic, self._callback(topic), _subscription_qos(topic))
+        self.subscription_of = {
+            topic: self.create_subscription(cls, topic, self._callback(topic), _subscription_qos(topic))
+            for topic, cls in topics.items()
+        }
 
     def _callback(self, topic: str) -> Callable[[Any, MessageInfo], None]:
         keep_history = topic in LATCHED
@@ -239,7 +246,9 @@ class MonitorSession:
     def collect(self, timeout: float, window: float) -> None:
         """Wait up to ``timeout`` s of wall time for the line (:meth:`live`), then take its messages for ``window`` s.
 
-        Returns at once on a stop request, and after the wait if nothing at all arrived.
+        Returns at once on a stop request, and after the wait if nothing at all arrived. After the
+        window it waits on (up to ``timeout`` from the start) for the held message of every
+        :data:`ALWAYS_HELD` topic whose publisher is matched (:meth:`missing_history`).
         """
         deadline = time.monotonic() + timeout
         while not self.stopped and not self.live() and time.monotonic() < deadline:
@@ -251,6 +260,26 @@ class MonitorSession:
             self.drain(KEY_PERIOD)
             time.sleep(max(min(BATCH, end - time.monotonic()), 0.0))
         self.drain(KEY_PERIOD)
+        # a held message of a matched publisher comes with its heartbeat, which may be seconds away: wait for it
+        while not self.stopped and self.missing_history() and time.monotonic() < deadline:
+            self.drain(KEY_PERIOD)
+            time.sleep(BATCH)
+
+    def missing_history(self) -> list[str]:
+        """Topics of :data:`ALWAYS_HELD` with a matched publisher whose held message has not arrived yet.
+
+        A reliable transient-local writer sends what it holds to a new reader after an exchange of
+        heartbeat and acknowledgement; when the first heartbeat finds the reader not yet ready, the
+        next one comes a heartbeat period later (3 s with Fast DDS), so a snapshot's window can end
+        before the announcement or the state arrives although their publisher is known.
+        """
+        return [
+            topic
+            for topic in ALWAYS_HELD
+            if topic in self.node.subscription_of
+            and self.node.received[topic] == 0
+            and self.node.subscription_of[topic].get_publisher_count() > 0
+        ]
 
 
 @contextlib.contextmanager

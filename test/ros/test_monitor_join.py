@@ -78,3 +78,52 @@ def test_a_monitor_joining_a_playing_bag_gets_every_topic_at_once_and_no_history
         stop.set()
         player.join(10.0)
     assert not player.is_alive() and result and result[0].interrupted
+
+
+def test_a_snapshot_waits_for_the_held_message_of_a_matched_publisher() -> None:
+    """The announcement's publisher is matched but holds nothing yet (as when its first heartbeat found the
+    monitor not ready): ``collect`` waits past its window, up to its timeout, and gets it."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import String
+
+    from folder_line.ros.lockstep import PARTICIPANTS_QOS
+    from folder_line.ros.topics import CLOCK_QOS
+
+    context = Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('held_announcement', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    announce = node.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
+    clock = node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+    stop = threading.Event()
+    started = time.monotonic()
+
+    def line() -> None:  # /clock at 100 Hz from the start; the announcement only after 2 s
+        announced = False
+        while not stop.is_set():
+            clock.publish(Clock())
+            if not announced and time.monotonic() - started > 2.0:
+                announce.publish(String(data='lockstep clock, 5 participants'))
+                announced = True
+            executor.spin_once(timeout_sec=0.01)
+
+    thread = threading.Thread(target=line, daemon=True)
+    thread.start()
+    try:
+        with monitor_session(lambda topic, msg, wall: None) as session:
+            t0 = time.monotonic()
+            session.collect(timeout=20.0, window=0.2)
+            waited = time.monotonic() - t0
+            received = dict(session.node.received)
+        assert received[CLOCK_TOPIC] > 0
+        assert received[PARTICIPANTS_TOPIC] == 1, received
+        assert time.monotonic() - started > 2.0 and waited < 20.0  # it came, and ended the wait
+    finally:
+        stop.set()
+        thread.join(5.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
