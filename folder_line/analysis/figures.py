@@ -71,7 +71,6 @@ __all__ = [
     'COINCIDE_FRACTION',
     'DPI',
     'FIGURES',
-    'MAX_POINTS',
     'OPERATIONS',
     'PHASE_COLOURS',
     'QUANTITY_COLOURS',
@@ -254,15 +253,6 @@ def stroke_curves(
 # --------------------------------------------------------------------------- figures of a recorded run
 
 
-#: most points drawn per recorded series (an hour of samples is thinned evenly for the figure)
-MAX_POINTS = 5000
-
-
-def _thin(n: int, cap: int = MAX_POINTS) -> slice:
-    """Every k-th sample so that at most ``cap`` of ``n`` are drawn."""
-    return slice(None, None, max(1, math.ceil(n / cap)))
-
-
 def _sampling(joints: RecordedJoints, drawn: int | None = None) -> str:
     """``N recorded samples`` and, where the reading sampled them, how many are drawn and how."""
     text = f'{joints.count} recorded samples'
@@ -330,8 +320,6 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
     v_tr = float(lp.v_tr) if scene.has('chute_belts') else 0.0
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
     exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
-    k = _thin(data['t'].size)
-    data = {name: v[k] for name, v in data.items()}
     t_speed = at_speed_time(rec, ev)
     early = data['t'] < t_speed
     deg = np.degrees(data['phi'])
@@ -390,20 +378,19 @@ def efficiency_figure(rec: Recording, ev: Evaluation) -> Any | None:
     fig, axes = plt.subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
     ax_eta, ax_kv = axes[0], axes[1]
     stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
-    k = _thin(data['u'].size)
     ax_eta.plot(
-        data['u'][k],
-        data['eta'][k],
+        data['u'],
+        data['eta'],
         'o',
         ms=3,
         color='k',
         alpha=0.6,
         label=f'at the recorded carriage positions ({data["u"].size} drawn)',
     )
-    m = data['moving'][k]
+    m = data['moving']
     ax_kv.plot(
-        data['u'][k][m],
-        data['K_v'][k][m],
+        data['u'][m],
+        data['K_v'][m],
         'o',
         ms=3,
         color='k',
@@ -436,7 +423,7 @@ def efficiency_figure(rec: Recording, ev: Evaluation) -> Any | None:
         tq = np.asarray(chain_friction.sprocket_torque(rec.scene, theta[on]), dtype=float)
         order = np.argsort(u_m)
         ax_t.plot(u_m[order], tq[order], color=QUANTITY_COLOURS['torque'], label='model: all carriages on the stroke')
-        ax_t.plot(data['u'][k], data['torque'][k], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
+        ax_t.plot(data['u'], data['torque'], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
         ax_t.set_ylabel('sprocket torque $M_1$, N m')
         ax_t.legend(fontsize=8, loc='upper right')
         ax_t.grid(alpha=0.3)

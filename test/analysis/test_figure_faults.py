@@ -22,13 +22,12 @@ from folder_line.analysis import colours, figures, read_recording
 from folder_line.analysis.colours import QUANTITY_COLOURS
 from folder_line.analysis.figure_data import at_speed_time, exit_speed_data
 from folder_line.analysis.figures import (
-    MAX_POINTS,
     coincidence,
     efficiency_figure,
     exit_speeds_figure,
     pyplot,
 )
-from folder_line.analysis.recording import Recording
+from folder_line.analysis.recording import JOINT_SAMPLES, Recording
 from folder_line.analysis.replay import Evaluation, evaluate
 from folder_line.cli import report
 from folder_line.cli.main import main
@@ -80,7 +79,7 @@ def test_at_speed_time_from_the_drive_without_recorded_states(line_run: tuple[Re
 def test_exit_speeds_marks_the_start_up_samples(line_run: tuple[Recording, Evaluation]) -> None:
     rec, ev = line_run
     data = exit_speed_data(rec)
-    assert data is not None and data['t'].size <= MAX_POINTS  # drawn unthinned: the lines hold every sample
+    assert data is not None and data['t'].size <= JOINT_SAMPLES  # every sample the reading kept is drawn
     t_speed = at_speed_time(rec, ev)
     early = data['t'] < t_speed
     assert 0 < np.count_nonzero(early) < early.size
