@@ -32,7 +32,14 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import MessageInfo
 from std_srvs.srv import Trigger
 
-from folder_line.interfaces import COMMANDS_TOPIC, NS_PER_S, PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC
+from folder_line.interfaces import (
+    COMMANDS_TOPIC,
+    EVENTS_TOPIC,
+    LANDING_TOPIC,
+    NS_PER_S,
+    PARTICIPANTS_TOPIC,
+    SUPERVISOR_STATE_TOPIC,
+)
 from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
 from folder_line.ros.topics import COMMANDS_QOS
@@ -40,6 +47,7 @@ from folder_line.ros.topics import COMMANDS_QOS
 __all__ = [
     'ALWAYS_HELD',
     'BATCH',
+    'INTERMITTENT',
     'KEY_PERIOD',
     'LATCHED',
     'QUEUE_DEPTH',
@@ -68,6 +76,10 @@ KEY_PERIOD = 0.05
 ALWAYS_HELD = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC)
 """Latched topics whose publisher always holds a message (the announcement, the state; the commands may
 hold none): a snapshot waits for them (:meth:`MonitorSession.missing_history`)."""
+
+INTERMITTENT = (PARTICIPANTS_TOPIC, COMMANDS_TOPIC, EVENTS_TOPIC, LANDING_TOPIC)
+"""Topics that may be silent for long while the line runs (no command, a held line's events, no leaves):
+a snapshot does not wait for them to flow (:meth:`MonitorSession.not_flowing`)."""
 
 LATCHED = (PARTICIPANTS_TOPIC, SUPERVISOR_STATE_TOPIC, COMMANDS_TOPIC)
 """Topics whose history (what their publishers held when the monitor joined) is shown: the current state,
@@ -246,7 +258,8 @@ class MonitorSession:
     def collect(self, timeout: float, window: float) -> None:
         """Wait up to ``timeout`` s of wall time for the line (:meth:`live`), then take its messages for ``window`` s.
 
-        Returns at once on a stop request, and after the wait if nothing at all arrived. After the
+        Returns at once on a stop request, and after the wait if nothing at all arrived. The window
+        starts once every topic that flows steadily has delivered (:meth:`not_flowing`). After the
         window it waits on (up to ``timeout`` from the start) for the held message of every
         :data:`ALWAYS_HELD` topic whose publisher is matched (:meth:`missing_history`).
         """
@@ -255,6 +268,11 @@ class MonitorSession:
             self.executor.spin_once(timeout_sec=0.05)
         if self.node.total == 0:
             return
+        # the window starts once every steady topic with a matched publisher flows: under load a process
+        # discovers, or gets the first data of, some of a line's publishers seconds after the others
+        while not self.stopped and self.not_flowing() and time.monotonic() < deadline:
+            self.drain(KEY_PERIOD)
+            time.sleep(BATCH)
         end = time.monotonic() + window
         while not self.stopped and time.monotonic() < end:
             self.drain(KEY_PERIOD)
@@ -264,6 +282,14 @@ class MonitorSession:
         while not self.stopped and self.missing_history() and time.monotonic() < deadline:
             self.drain(KEY_PERIOD)
             time.sleep(BATCH)
+
+    def not_flowing(self) -> list[str]:
+        """Topics not in :data:`INTERMITTENT` with a matched publisher and no message received yet."""
+        return [
+            topic
+            for topic, sub in self.node.subscription_of.items()
+            if topic not in INTERMITTENT and self.node.received[topic] == 0 and sub.get_publisher_count() > 0
+        ]
 
     def missing_history(self) -> list[str]:
         """Topics of :data:`ALWAYS_HELD` with a matched publisher whose held message has not arrived yet.

@@ -82,14 +82,17 @@ def test_a_monitor_joining_a_playing_bag_gets_every_topic_at_once_and_no_history
 
 def test_a_snapshot_waits_for_the_held_message_of_a_matched_publisher() -> None:
     """The announcement's publisher is matched but holds nothing yet (as when its first heartbeat found the
-    monitor not ready): ``collect`` waits past its window, up to its timeout, and gets it."""
+    monitor not ready): ``collect`` waits past its window, up to its timeout, and gets it. A steady topic
+    whose publisher is matched but whose data comes only later (under load, seconds after the others'):
+    the window starts once it flows."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
-    from std_msgs.msg import String
+    from std_msgs.msg import String, UInt64
 
-    from folder_line.ros.lockstep import PARTICIPANTS_QOS
+    from folder_line.interfaces import SHEET_COUNT_TOPIC
+    from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS
     from folder_line.ros.topics import CLOCK_QOS
 
     context = Context()
@@ -99,13 +102,16 @@ def test_a_snapshot_waits_for_the_held_message_of_a_matched_publisher() -> None:
     executor.add_node(node)
     announce = node.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
     clock = node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
+    count = node.create_publisher(UInt64, SHEET_COUNT_TOPIC, LINE_QOS)
     stop = threading.Event()
     started = time.monotonic()
 
-    def line() -> None:  # /clock at 100 Hz from the start; the announcement only after 2 s
+    def line() -> None:  # /clock at 100 Hz from the start; the announcement after 2 s; the count from 3 s on
         announced = False
         while not stop.is_set():
             clock.publish(Clock())
+            if time.monotonic() - started > 3.0:
+                count.publish(UInt64(data=1))
             if not announced and time.monotonic() - started > 2.0:
                 announce.publish(String(data='lockstep clock, 5 participants'))
                 announced = True
@@ -121,6 +127,7 @@ def test_a_snapshot_waits_for_the_held_message_of_a_matched_publisher() -> None:
             received = dict(session.node.received)
         assert received[CLOCK_TOPIC] > 0
         assert received[PARTICIPANTS_TOPIC] == 1, received
+        assert received[SHEET_COUNT_TOPIC] > 0, received  # the window began once it flowed
         assert time.monotonic() - started > 2.0 and waited < 20.0  # it came, and ended the wait
     finally:
         stop.set()
