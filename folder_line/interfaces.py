@@ -79,6 +79,8 @@ __all__ = [
     'SOURCE_PATTERN',
     'SUPERVISOR',
     'SUPERVISOR_STATE_TOPIC',
+    'TUNABLE_PARAMETERS',
+    'TUNE_TOPIC',
     'TICK_DONE_PATTERN',
     'TIME_MSG_MAX_NS',
     'TOPICS',
@@ -162,6 +164,19 @@ OPERATOR_COMMANDS: tuple[str, ...] = (
     'clear',
     'abort',
 )
+
+TUNE_TOPIC = '/line/supervisor/tune'
+"""Operators' tunings asked of the supervisor (``std_msgs/msg/String``, ``'<node> <key>=<value>'``): a
+machine node whose tunable parameter was set forwards it here; the supervisor times it (the next
+cycle boundary) and publishes it on :data:`COMMANDS_TOPIC` as ``source = 'set <key>=<value>'``."""
+
+#: the tunable parameters of the machine nodes: node -> parameter -> the tunable it sets
+#: (:data:`folder_line.core.line.tuning.TUNABLES`); declared only where the scene has what it acts on
+TUNABLE_PARAMETERS: dict[str, dict[str, str]] = {
+    'feed_transporter': {'V_tr': 'feed_transporter.V_tr'},
+    'belt_conveyor': {'chute_belt_speed': 'layup.v_tr'},
+    'sheet_counter': {'pile_lowering_time': 'pile.t_lower'},
+}
 
 PARTICIPANTS_TOPIC = '/line/participants'
 """``line_clock``'s announcement of the lockstep participants (``std_msgs/msg/String``)."""
@@ -255,7 +270,8 @@ TOPICS: tuple[TopicInfo, ...] = (
     TopicInfo(
         COMMANDS_TOPIC,
         'sensor_msgs/msg/TimeReference',
-        'supervisor drive commands: source = hold/unhold/stop/start, time_ref = effective sim time',
+        'supervisor drive commands and tunings: source = hold/unhold/stop/start or "set KEY=VALUE", '
+        'time_ref = effective sim time',
     ),
     TopicInfo(
         PARTICIPANTS_TOPIC,

@@ -27,7 +27,7 @@ from folder_line.bag.reader import read_bag
 from folder_line.config.run_config import BAG_DIR, RunConfig
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
-from folder_line.core.mechanisms.drive import Command
+from folder_line.core.line.tuning import LineCommand, command_of
 from folder_line.errors import ParameterError
 from folder_line.files.atomic import describe_path
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
@@ -148,8 +148,8 @@ class Recording:
         ``(log time ns, state)`` of the first ``/line/supervisor/state`` message and of
         every one whose state differs from the message before (the state is published
         every tick; its changes are what the analysis uses).
-    commands : tuple of Command
-        The drive commands of ``/line/supervisor/commands`` (effective time, kind),
+    commands : tuple of Command or Tuning
+        The drive commands and tunings of ``/line/supervisor/commands`` (effective time, kind),
         sorted by time, duplicates dropped -- what the nodes applied.
     sheet_count : int or None
         The last ``/line/sheet_counter/count``.
@@ -175,7 +175,7 @@ class Recording:
     event_ns: np.ndarray
     joints: dict[str, RecordedJoints]
     states: list[tuple[int, str]]
-    commands: tuple[Command, ...]
+    commands: tuple[LineCommand, ...]
     sheet_count: int | None
     landing_x: np.ndarray
     bad_events: int
@@ -507,7 +507,7 @@ def read_recording(
     events = ev_rows.done()
     events['t'] = ns / NS_PER_S
     order = np.lexsort((events['sheet'], events['kind'], ns))
-    cmds = tuple(sorted((Command(t=t / NS_PER_S, kind=k) for t, k in commands), key=lambda c: c.t))
+    cmds = tuple(sorted((command_of(t / NS_PER_S, k) for t, k in commands), key=lambda c: c.t))
     end_ns = contents.end_ns if t_to is None else min(contents.end_ns, round(t_to * NS_PER_S))
     t_end = (clock_end if clock_end >= 0 else end_ns) / NS_PER_S
     return Recording(

@@ -40,8 +40,9 @@ from folder_line.core.line.constraints import evaluate_layup_constraints, folder
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.line.model import LineModel, LineResult, make_drive
+from folder_line.core.line.tuning import LineCommand
 from folder_line.core.mechanisms.cyclogram import cycle_timing
-from folder_line.core.mechanisms.drive import Command, Drive
+from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.supervision.offline import replay
 from folder_line.interfaces import NS_PER_S
 
@@ -213,9 +214,9 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
     horizon = rec.horizon
     period = 1.0 / float(p['rate'])
     base = LineModel(scene, horizon)
-    cache: dict[tuple[Command, ...], Any] = {(): base}
+    cache: dict[tuple[LineCommand, ...], Any] = {(): base}
 
-    def model_factory(commands: tuple[Command, ...]) -> Any:
+    def model_factory(commands: tuple[LineCommand, ...]) -> Any:
         if commands not in cache:
             cache[commands] = LineModel(scene, horizon, commands)
         return cache[commands]
@@ -231,6 +232,11 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         (float(v['t']), v['command'])
         for _, name, v in rec.supervisor_status
         if name.endswith('/operator') and 't' in v and 'command' in v
+    ]
+    tunings = [
+        (float(v['t']), v['key'], float(v['value']), float(v['effective']))
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/tuning') and v.get('accepted') == 'True'
     ]
     lost = [
         (float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
@@ -254,6 +260,7 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         bad_values=rec.bad_values,
         operator=operator,
         lost=lost,
+        tunings=tunings,
         until=max(rec.t_end, t_start),
         **kwargs,
     )

@@ -102,7 +102,7 @@ def _report_lines(
         f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
         f'- line time reached: {rec.t_end:.9g} s'
         + (f'; window analysed: {summary["t_from"]:.9g} .. {rec.t_end:.9g} s' if summary.get('t_from') else '')
-        + '; drive commands recorded: '
+        + '; drive commands and tunings recorded: '
         + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
         (
             "- numbers: the recorded events judged by the line's constraint code "

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -69,6 +69,7 @@ from folder_line.bag.statuses import (
     constraint_statuses,
     event_status,
     status_stamp,
+    tuning_status,
     violation_status,
 )
 from folder_line.bag.types import typestore
@@ -79,7 +80,7 @@ from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
-from folder_line.core.mechanisms.drive import Command
+from folder_line.core.line.tuning import LineCommand, Tuning
 from folder_line.core.mechanisms.pile import counted_event
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.errors import ParameterError
@@ -224,6 +225,7 @@ class _SupervisorOut:
         self.logic = logic
         self.hardware_id = hardware_id
         self._n_violations = self._n_balances = 0
+        self._tunings: list[tuple[str, bytes, int]] = []
 
     def _event(self, what: str, said: tuple[bool, str, dict[str, Any]], t: float) -> tuple[str, bytes, int]:
         ok, message, values = said
@@ -234,9 +236,20 @@ class _SupervisorOut:
         stamp = status_stamp(t)
         return (DIAGNOSTICS_TOPIC, _array_cdr(stamp, [status]), stamp)
 
+    def tune(self, t: float, tuning: Tuning) -> None:
+        """Ask the logic for ``tuning`` at ``t`` (effective at its own time); its status is written with the outputs."""
+        out = self.logic.tune(tuning.key, tuning.value, t, effective=tuning.t)
+        if not out.ok:
+            raise ParameterError(tuning.key, tuning.value, out.message)
+        self._tunings.append(
+            self._event('tuning', tuning_status(t, tuning.key, tuning.value, tuning.t, out.message), t)
+        )
+
     def outputs(self) -> list[tuple[str, bytes, int]]:
         """``(topic, cdr, publish ns)`` of the commands, violations and balances issued since the last call."""
         out: list[tuple[str, bytes, int]] = []
+        out += self._tunings
+        self._tunings = []
         for t, command in self.logic.take_commands():
             stamp = max(0, round(t * NS_PER_S))
             cdr = time_reference_cdr(stamp, SUPERVISOR, round(command.t * NS_PER_S), command.kind)
@@ -294,6 +307,7 @@ def write_batch_bag(
     *,
     custom: Mapping[str, str] | None = None,
     progress: Callable[[float], None] | None = None,
+    tunings: Sequence[Tuning] = (),
 ) -> BatchBag:
     """Write the bag of a live lockstep ``folder-line run`` of ``scene`` for ``duration`` s, without DDS.
 
@@ -309,6 +323,11 @@ def write_batch_bag(
         Extra ``custom_data`` entries (``folder_line.scene_arg``, ``folder_line.overrides``).
     progress : callable, optional
         Called with the line time written so far (s), after each block of ticks.
+    tunings : sequence of Tuning
+        Operator's tunings, each effective at its ``t`` (> 0): the supervisor is asked at
+        the last tick before it (:meth:`~folder_line.core.supervision.supervisor.Supervisor.tune`
+        with that effective time), as the live one would be by a machine node, and the
+        bag holds the tuning and its status as a live run's does.
 
     Returns
     -------
@@ -327,9 +346,9 @@ def write_batch_bag(
     horizon = duration + HORIZON_MARGIN
     horizon_ns = round(horizon * NS_PER_S)
     n_ticks = duration_ns // step_ns + 1
-    models: dict[tuple[Command, ...], LineModel] = {}
+    models: dict[tuple[LineCommand, ...], LineModel] = {}
 
-    def model_of(commands: tuple[Command, ...]) -> LineModel:
+    def model_of(commands: tuple[LineCommand, ...]) -> LineModel:
         if commands not in models:
             models[commands] = LineModel(scene, horizon, commands)
         return models[commands]
@@ -357,6 +376,10 @@ def write_batch_bag(
     diag_step = round(NS_PER_S / DIAG_RATE)
     next_diag = 0
     states: dict[str, bytes] = {}
+    # each tuning is asked at the last tick before its effective time
+    pending = sorted(((-(-seconds_to_ns(tu.t) // step_ns) - 1, tu) for tu in tunings), key=lambda x: x[1].t)
+    if pending and pending[0][0] < 0:
+        raise ParameterError('tunings', pending[0][1].t, 'a tuning takes effect after the start of the line (t > 0)')
     try:
         bag.write_serialized(PARTICIPANTS_TOPIC, string_cdr(announcement(duration_ns)), 0, 0)
         k = 0
@@ -373,6 +396,9 @@ def write_batch_bag(
                 if bounds[i + 1] > bounds[i]:
                     logic.feed(heard[bounds[i] : bounds[i + 1]])
                 logic.tick(float(t[i]))
+                while pending and pending[0][0] == k + i:
+                    tu = pending.pop(0)[1]
+                    sup.tune(float(t[i]), tu)
                 outs = sup.outputs()
                 diag = bool(stamps[i] >= next_diag)
                 if diag:

@@ -28,6 +28,7 @@ __all__ = [
     'constraint_statuses',
     'event_status',
     'status_stamp',
+    'tuning_status',
     'violation_status',
 ]
 
@@ -90,6 +91,16 @@ def violation_status(v: Violation) -> tuple[bool, str, dict[str, Any]]:
         'state': v.state,
     }
     return False, f'{v.constraint} violated in {margin_at(v.constraint, v.cycle)}: {v.action}', values
+
+
+def tuning_status(
+    t: float, key: str, value: object, effective: float, message: str
+) -> tuple[bool, str, dict[str, Any]]:
+    """``(ok, message, values)`` of the ``tuning`` status of an operator's tuning asked for at ``t``
+    (stamped with ``t``; ``effective`` NaN if refused, ``message`` then the reason)."""
+    ok = math.isfinite(effective)
+    values = {'t': t, 'key': key, 'value': value, 'effective': effective, 'accepted': ok}
+    return ok, message, values
 
 
 def balance_status(b: Balance) -> tuple[bool, str, dict[str, Any]]:

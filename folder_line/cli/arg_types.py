@@ -11,9 +11,10 @@ import argparse
 from collections.abc import Callable
 
 from folder_line.core.limits import Limit
-from folder_line.errors import bounded_repr
+from folder_line.core.line.tuning import TUNABLES, Tuning
+from folder_line.errors import FolderLineError, bounded_repr
 
-__all__ = ['limited', 'number']
+__all__ = ['limited', 'number', 'tuning']
 
 
 def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
@@ -58,3 +59,25 @@ def number(
         return value
 
     return parse
+
+
+def tuning(text: str) -> Tuning:
+    """``--tune T:KEY=VALUE``: a :class:`~folder_line.core.line.tuning.Tuning` of ``KEY`` to ``VALUE`` effective
+    at ``T`` s (> 0); whether the scene can take it is checked once the scene is known."""
+    when, colon, change = text.partition(':')
+    key, eq, value = change.partition('=')
+    shown = f'--tune={bounded_repr(text)}'
+    if not colon or not eq:
+        raise argparse.ArgumentTypeError(f'{shown}: must read T:KEY=VALUE, e.g. 5.0:feed_transporter.V_tr=9.0')
+    try:
+        t = float(when)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{shown}: T must be a number of seconds, the effective time') from None
+    if not t > 0.0 or t == float('inf'):
+        raise argparse.ArgumentTypeError(f'{shown}: T must be > 0 s (a start value is set with --set {key}=...)')
+    if key not in TUNABLES:
+        raise argparse.ArgumentTypeError(f'{shown}: {key!r} is not tunable; tunable: {", ".join(TUNABLES)}')
+    try:
+        return Tuning(t, key, float(value))
+    except (ValueError, FolderLineError) as err:
+        raise argparse.ArgumentTypeError(f'{shown}: {err}') from None

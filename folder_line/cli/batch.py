@@ -6,10 +6,12 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 from folder_line.bag.batch import check_duration, write_batch_bag
 from folder_line.core.line.scene import Scene
+from folder_line.core.line.tuning import Tuning
 from folder_line.errors import OutputError
 from folder_line.files.atomic import claim_output_dir
 from folder_line.progress import LineTimeProgress
@@ -17,7 +19,7 @@ from folder_line.progress import LineTimeProgress
 __all__ = ['write_bag']
 
 
-def write_bag(args: argparse.Namespace, scene: Scene) -> int:
+def write_bag(args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning] = ()) -> int:
     """Write ``args.bag`` for ``scene`` and ``args.duration``; print what was written; exit code 0.
 
     The folder must be missing or empty: a bag is never written over anything (checked, with the
@@ -44,6 +46,7 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
                 args.duration,
                 custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
                 progress=bar.show,
+                tunings=tunings,
             )
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None
@@ -53,7 +56,7 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
     total = sum(result.counts.values())
     print(
         f'scene {scene.name}: {args.duration:g} s of line time, {total} messages in {wall:.1f} s '
-        f'(no DDS; supervisor {result.state}, {len(result.commands)} drive commands)',
+        f'(no DDS; supervisor {result.state}, {len(result.commands)} drive commands and tunings)',
         file=sys.stdout,
     )
     for topic, n in sorted(result.counts.items()):

@@ -29,14 +29,15 @@ from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
-from folder_line.cli.arg_types import limited
+from folder_line.cli.arg_types import limited, tuning
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, parse_set
 from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
-from folder_line.core.line.scene import parse_scene
+from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.line.tuning import TUNABLES, Tuning, check_tuning
 from folder_line.errors import FolderLineError, OutputError, ParameterError, bounded_repr, path_repr, shorten
 from folder_line.files.atomic import (
     check_output_dir,
@@ -153,6 +154,15 @@ def build_parser() -> argparse.ArgumentParser:
         '--plots',
         metavar='DIR',
         help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR",
+    )
+    sim.add_argument(
+        '--tune',
+        action='append',
+        default=[],
+        type=tuning,
+        metavar='T:KEY=VALUE',
+        help='an operator change effective at T s, as on the running line (repeatable; '
+        f'KEY one of {", ".join(TUNABLES)}), e.g. 5.0:feed_transporter.V_tr=9.0',
     )
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
@@ -295,6 +305,17 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_tunings(scene: Scene, given: list[Tuning], duration: float) -> tuple[Tuning, ...]:
+    """``--tune``s sorted by time, each one the scene can take and inside the run (ParameterError naming it)."""
+    for tu in given:
+        check_tuning(scene, tu.key, tu.value)
+        if tu.t >= duration:
+            raise ParameterError(
+                '--tune', f'{tu.t!r}:{tu.key}={tu.value!r}', f'T must be before --duration {duration:g} s'
+            )
+    return tuple(sorted(given, key=lambda tu: tu.t))
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.samples is not None and (args.list_keys or args.list_metrics):
         listing = '--list-keys' if args.list_keys else '--list-metrics'
@@ -314,22 +335,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             listing = '--list-keys' if args.list_keys else '--list-metrics'
             raise ParameterError('--plots', args.plots, f'draws a run; {listing} lists and runs nothing')
         check_plots(args.plots)
+    if args.tune and args.samples is not None:
+        raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --tune changes one run')
     data = source_from(args)
     if args.samples is not None:
         return montecarlo.simulate_samples(args, data)
     scene = parse_scene(data)
+    tunings = check_tunings(scene, args.tune, args.duration)
     if draw is not None:
         check_duration(scene, args.duration)  # the figures are drawn from the run's bag: whole ticks
     if args.bag is not None:
-        code = batch_cli.write_bag(args, scene)
+        code = batch_cli.write_bag(args, scene, tunings)
         if draw is not None:
             draw(args, scene, bag=args.bag)
         return code
     if args.list_keys:
         keys.print_keys(data, sys.stdout)
         return 0
-    result = simulate(scene, args.duration, sample_rate=0.0)
+    result = simulate(scene, args.duration, sample_rate=0.0, commands=tunings)
     result_summary = result.summary()
+    if tunings:
+        result_summary['tunings'] = [
+            {'t': tu.t, 'key': tu.key, 'value': tu.value, 'unit': TUNABLES[tu.key].unit} for tu in tunings
+        ]
     if args.list_metrics:
         keys.print_metrics(result_summary, sys.stdout)
         return 0
@@ -338,7 +366,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         dest = write_json_atomic(args.json, result_summary)
         print(f'wrote {dest}')
     if draw is not None:
-        draw(args, scene)
+        draw(args, scene, tunings=tunings)
     return 0
 
 

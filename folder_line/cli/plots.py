@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from folder_line.analysis.figure_data import GANTT_CYCLES
@@ -22,6 +23,7 @@ from folder_line.analysis.recording import read_recording
 from folder_line.analysis.replay import evaluate
 from folder_line.bag.batch import write_batch_bag
 from folder_line.core.line.scene import Scene
+from folder_line.core.line.tuning import Tuning
 from folder_line.files.atomic import check_output_dir, claim_output_dir
 
 __all__ = ['OPTION', 'check_plots', 'write_plots']
@@ -35,7 +37,9 @@ def check_plots(path: str) -> None:
     check_output_dir(path, OPTION, files=tuple(FIGURES))
 
 
-def write_plots(args: argparse.Namespace, scene: Scene, bag: str | None = None) -> dict[str, Path]:
+def write_plots(
+    args: argparse.Namespace, scene: Scene, bag: str | None = None, tunings: Sequence[Tuning] = ()
+) -> dict[str, Path]:
     """Draw ``analyze``'s figures of ``scene`` over ``args.duration`` into ``args.plots``; print each file.
 
     Parameters
@@ -47,6 +51,8 @@ def write_plots(args: argparse.Namespace, scene: Scene, bag: str | None = None) 
     bag : str, optional
         A bag of this run already written (``simulate --bag``); else one is written to a
         temporary folder and removed.
+    tunings : sequence of Tuning
+        The run's ``--tune`` changes.
 
     Returns
     -------
@@ -63,7 +69,7 @@ def write_plots(args: argparse.Namespace, scene: Scene, bag: str | None = None) 
     with tempfile.TemporaryDirectory(prefix='folder-line-plots-') as tmp:
         if bag is None:
             bag = str(Path(tmp) / 'bag')
-            write_batch_bag(bag, scene, args.duration)
+            write_batch_bag(bag, scene, args.duration, tunings=tunings)
         rec = read_recording(bag)
         ev = evaluate(rec)
         with claim_output_dir(args.plots, OPTION, files=tuple(FIGURES)) as out:

@@ -59,6 +59,8 @@ def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
         f'effects: {", ".join(summary["effects"]) or "none"}',
         file=out,
     )
+    for tu in summary.get('tunings', []):
+        print(f'tuned: {tu["key"]} = {tu["value"]:g} {tu["unit"]} from {tu["t"]:.9g} s (--tune)', file=out)
     print(f'cycles: {summary["cycles"]}   sheets counted: {summary["sheets_counted"]}', file=out)
     if 'v_tr_over_v_d' in summary:
         print(f'V_tr / V_d = {summary["v_tr_over_v_d"]:.4f}', file=out)

@@ -21,7 +21,7 @@ from typing import Any
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
-from folder_line.core.mechanisms.drive import Command
+from folder_line.core.line.tuning import LineCommand
 from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
@@ -55,7 +55,7 @@ def supervisor_logic(
     scene: Scene,
     horizon: float,
     settings: Mapping[str, Any],
-    model_factory: Callable[[tuple[Command, ...]], LineModel],
+    model_factory: Callable[[tuple[LineCommand, ...]], LineModel],
 ) -> Supervisor:
     """The supervisor's logic as the supervisor node builds it at start-up: ``settings`` has the node's
     parameters of :data:`SUPERVISOR_DEFAULTS` (``rate``, ``command_lead``, ``enforce``, ``double_sheet``).

@@ -27,6 +27,7 @@ __all__ = [
     'LINEAR_SPEED',
     'LOST_TIMEOUT',
     'MOTOR_SPEED',
+    'PILE_LOWERING',
     'RTF',
     'SAMPLE_RATE',
     'SHEET_INTERVAL',
@@ -152,6 +153,13 @@ LINEAR_SPEED = Limit(
     'from a millimetre per second to ten times the fastest web press',
 )
 MOTOR_SPEED = Limit('motor shaft speed (`effects.motor_dynamics.omega_nom`)', 1e-3, 1e5, 'rad/s', 'up to ~1e6 rev/min')
+PILE_LOWERING = Limit(
+    'time the pile lift takes to lower one sheet (`pile.t_lower`, tunable live)',
+    1e-3,
+    10.0,
+    's',
+    'from a millisecond (a step) to a lift slower than any folder cycle',
+)
 SHEET_INTERVAL = Limit(
     'time between two sheets or leaves (`sheets.interval`)',
     1e-4,
@@ -173,5 +181,6 @@ LIMITS: dict[str, Limit] = {
     'crank_speed': CRANK_SPEED,
     'linear_speed': LINEAR_SPEED,
     'motor_speed': MOTOR_SPEED,
+    'pile_lowering': PILE_LOWERING,
     'sheet_interval': SHEET_INTERVAL,
 }

@@ -17,6 +17,7 @@ __all__ = [
     'CLOCK_QOS',
     'COMMANDS_QOS',
     'PUBLISH_DEPTH',
+    'TUNE_QOS',
     'joint_states_topic',
 ]
 
@@ -53,3 +54,7 @@ behind by up to this many messages still gets them all."""
 CLOCK_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 """QoS of the ``/clock`` publisher: reliable, so that it also matches the best-effort
 subscription every node's ``TimeSource`` makes, and recorders that want every tick."""
+
+#: operators' tunings forwarded to the supervisor (``folder_line.interfaces.TUNE_TOPIC``): reliable but
+#: volatile, so a supervisor that starts later is not handed old requests
+TUNE_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)

@@ -85,6 +85,7 @@ Joint samples per unit (on ``t_samples``; λ = ``drive.rate``, f the belt slow-d
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -94,6 +95,7 @@ from folder_line.core.effects import chain_friction
 from folder_line.core.line import folder_steps
 from folder_line.core.line.constraints import evaluate_folder_constraints
 from folder_line.core.line.events import JointSamples, LinePart, SubResult, merge_events, stack_samples
+from folder_line.core.line.tuning import Tuning, belt_steps
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.drive import Drive
@@ -127,6 +129,9 @@ class FolderLine(LinePart):
         Master drive (Θ(t), λ(t), and the exact inverse ``time_of``).
     duration : float
         Line time, s (> 0).
+    tunings : iterable of Tuning
+        The operator's changes (:mod:`folder_line.core.line.tuning`): here the feed
+        transporter's speed ``feed_transporter.V_tr`` from each one's time on.
 
     Attributes
     ----------
@@ -144,10 +149,10 @@ class FolderLine(LinePart):
         Unit (``drive``, ``belts``, ``feed``) -> its joint names.
     """
 
-    def __init__(self, scene: Scene, drive: Drive, duration: float) -> None:
+    def __init__(self, scene: Scene, drive: Drive, duration: float, tunings: Iterable[Tuning] = ()) -> None:
         s = folder_steps.setup(scene, drive, duration)
         st = folder_steps.hand_overs(s)
-        belt = folder_steps.belt_phase(s, st)
+        belt = folder_steps.belt_phase(s, st, belt_steps(tunings, 'feed_transporter.V_tr', s.V_tr))
         n = st.ids.size
         L = folder_steps.travel(s, n)
         mu = folder_steps.friction(s, n)

@@ -76,6 +76,7 @@ drive and duration and samples the joint states at any times;
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -93,6 +94,8 @@ from folder_line.core.line.events import (
     stack_samples,
 )
 from folder_line.core.line.machines import StreamParams
+from folder_line.core.line.tuning import Tuning, belt_steps
+from folder_line.core.mechanisms.belt import combine_factors
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
@@ -272,6 +275,9 @@ class LayupLine(LinePart):
         The master drive.
     duration : float
         Line time, s (> 0).
+    tunings : iterable of Tuning
+        The operator's changes (:mod:`folder_line.core.line.tuning`): here the chute belt
+        speed ``layup.v_tr`` from each one's time on.
 
     Attributes
     ----------
@@ -284,7 +290,7 @@ class LayupLine(LinePart):
     kinematics : LayupKinematics
     """
 
-    def __init__(self, scene: Scene, drive: Drive, duration: float) -> None:
+    def __init__(self, scene: Scene, drive: Drive, duration: float, tunings: Iterable[Tuning] = ()) -> None:
         lp: LayupParams = scene.machine('layup')
         kin = LayupKinematics(lp, drive)
         duration = float(duration)
@@ -341,7 +347,16 @@ class LayupLine(LinePart):
         v_along = np.zeros(n)
         if belts_on:
             v_tr = chute_belts.check_belt_speed(lp.v_tr)
-            if slow is not None:
+            steps = belt_steps(tunings, 'layup.v_tr', v_tr)
+            if steps:
+                ts, te, f = combine_factors(
+                    None if slow is None else slow.t_start,
+                    None if slow is None else slow.t_end,
+                    None if slow is None else slow.factor,
+                    steps,
+                )
+                profile = chute_belts.belt_profile(v_tr, drive, duration, ts, te, f)
+            elif slow is not None:
                 profile = chute_belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
             else:
                 profile = chute_belts.belt_profile(v_tr, drive, duration)

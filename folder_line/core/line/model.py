@@ -45,8 +45,9 @@ from folder_line.core.line.events import (
 from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.line.scene import Scene
-from folder_line.core.mechanisms.drive import Command, Drive, check_commands, commanded_drive, theta_rate
-from folder_line.core.mechanisms.pile import pile_table
+from folder_line.core.line.tuning import LineCommand, Tuning, check_tuning, tunings_of, values_from
+from folder_line.core.mechanisms.drive import Command, Drive, commanded_drive, theta_rate
+from folder_line.core.mechanisms.pile import T_LOWER, pile_table
 from folder_line.core.numerics.validate import as_float
 from folder_line.errors import ParameterError
 
@@ -58,6 +59,7 @@ __all__ = [
     'UNITS',
     'LineModel',
     'LineResult',
+    'check_line_commands',
     'check_size',
     'make_drive',
     'memory_budget',
@@ -185,7 +187,29 @@ class LineResult:
         return out
 
 
-def make_drive(scene: Scene, duration: float, commands: Iterable[Command] = ()) -> Drive:
+def check_line_commands(commands: Iterable[LineCommand]) -> tuple[LineCommand, ...]:
+    """The supervisor's drive commands and the operator's tunings as one tuple, checked: each a
+    :class:`Command` or a :class:`~folder_line.core.line.tuning.Tuning`, sorted by effective time.
+
+    Raises
+    ------
+    ParameterError
+        Anything else, or one earlier than the one before it.
+    """
+    out = tuple(commands)
+    for i, c in enumerate(out):
+        if not isinstance(c, Command | Tuning):
+            raise ParameterError(f'commands[{i}]', c, 'must be a drive Command or a Tuning')
+        if i and c.t < out[i - 1].t:
+            raise ParameterError(
+                f'commands[{i}].t',
+                c.t,
+                f'commands must be sorted by effective time; the one before is at {out[i - 1].t!r} s',
+            )
+    return out
+
+
+def make_drive(scene: Scene, duration: float, commands: Iterable[LineCommand] = ()) -> Drive:
     """The master drive of a scene under the supervisor's commands.
 
     The motor ODE if the scene lists ``motor_dynamics``
@@ -195,11 +219,12 @@ def make_drive(scene: Scene, duration: float, commands: Iterable[Command] = ()) 
     ``speed_ripple`` that drive is rippled on top
     (:class:`folder_line.core.effects.speed_ripple.RippleDrive`, its phase drawn from the seed).
     """
+    drive_commands = [c for c in commands if isinstance(c, Command)]  # tunings do not change the drive
     base: Drive
     if scene.has('motor_dynamics'):
-        base = motor_dynamics.build_drive(scene, duration, commands=commands)
+        base = motor_dynamics.build_drive(scene, duration, commands=drive_commands)
     else:
-        base = commanded_drive(scene.drive, commands)
+        base = commanded_drive(scene.drive, drive_commands)
     if scene.has('speed_ripple'):
         return speed_ripple.RippleDrive(base, scene.effect_params('speed_ripple'), speed_ripple.draw_phase(scene.seed))
     return base
@@ -297,16 +322,19 @@ class LineModel:
         Validated scene.
     horizon : float
         Line time the model covers, s (> 0).
-    commands : iterable of Command
-        The supervisor's commands, sorted by effective time (ParameterError
-        otherwise; :mod:`folder_line.core.mechanisms.drive`). Events before the earliest
-        command's time are the same, bit for bit, with and without it.
+    commands : iterable of Command or Tuning
+        The supervisor's drive commands (:mod:`folder_line.core.mechanisms.drive`) and
+        the operator's tunings (:mod:`folder_line.core.line.tuning`), sorted by effective
+        time (ParameterError otherwise). Events before the earliest one's time are the
+        same, bit for bit, with and without it.
 
     Attributes
     ----------
     scene : Scene
     horizon : float
-    commands : tuple of Command
+    commands : tuple of Command or Tuning
+    tunings : tuple of Tuning
+        The tunings among the commands.
     drive : Drive
     events : ndarray of EVENT_DTYPE
         All events in ``[0, horizon]``, sorted by time (then kind, then sheet).
@@ -315,23 +343,27 @@ class LineModel:
         Per part (``'folder'``, ``'layup'``) its summary figures.
     """
 
-    def __init__(self, scene: Scene, horizon: float, commands: Iterable[Command] = ()) -> None:
+    def __init__(self, scene: Scene, horizon: float, commands: Iterable[LineCommand] = ()) -> None:
         self.scene = scene
         self.horizon = HORIZON.check('horizon', horizon)
-        self.commands = check_commands(commands)
+        self.commands = check_line_commands(commands)
+        self.tunings = tunings_of(self.commands)
+        for tu in self.tunings:
+            check_tuning(scene, tu.key, tu.value)
         self.drive = make_drive(scene, self.horizon, self.commands)
         check_size(scene, self.horizon, float(np.asarray(self.drive.theta(np.array(self.horizon)))))
         self._parts: dict[str, Any] = {}
         if scene.has_folder:
-            self._parts['folder'] = FolderLine(scene, self.drive, self.horizon)
+            self._parts['folder'] = FolderLine(scene, self.drive, self.horizon, self.tunings)
         if scene.has_layup:
-            self._parts['layup'] = LayupLine(scene, self.drive, self.horizon)
+            self._parts['layup'] = LayupLine(scene, self.drive, self.horizon, self.tunings)
         parts = list(self._parts.values())
         self.events = merge_events(p.events for p in parts)
         self._event_t = np.ascontiguousarray(self.events['t'])
         self.constraints: list[ConstraintSeries] = [c for p in parts for c in p.constraints]
         self.parts: dict[str, dict[str, Any]] = {name: p.summary for name, p in self._parts.items()}
-        table = pile_table(scene.has_delivery, self.events, scene.sheets.thickness)
+        lowering = values_from(self.tunings, 'pile.t_lower', T_LOWER)
+        table = pile_table(scene.has_delivery, self.events, scene.sheets.thickness, steps=lowering)
         units: dict[str, list[Any]] = {}
         for p in [*parts, table]:
             for unit in p.units:
@@ -480,7 +512,7 @@ class LineModel:
 
 
 def simulate(
-    scene: Scene, duration: float, *, sample_rate: float | None = None, commands: Iterable[Command] = ()
+    scene: Scene, duration: float, *, sample_rate: float | None = None, commands: Iterable[LineCommand] = ()
 ) -> LineResult:
     """Simulate ``duration`` seconds of line time.
 

@@ -12,6 +12,10 @@ piecewise linear in Θ, so it is evaluated and inverted exactly (``theta_of``, t
 ``drive.time_of``): no quadrature, no sampling. Used for the feed belt of the folder
 (:mod:`folder_line.core.line.folder_sim`) and the chute belts of the layup device
 (:mod:`folder_line.core.effects.chute_belts`).
+
+An operator's change of a belt's speed (:mod:`folder_line.core.line.tuning`) is a factor
+from its time on, ``f > 1`` when it speeds the belt up; :func:`combine_factors` merges
+those steps with the slow-downs into one list of intervals for :class:`BeltPhase`.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import numpy.typing as npt
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.arrays import FloatArray
 
-__all__ = ['BeltPhase']
+__all__ = ['BeltPhase', 'combine_factors']
 
 
 class BeltPhase:
@@ -36,8 +40,8 @@ class BeltPhase:
         Simulated line time, s: ``B`` is never needed beyond it, and slow-downs are
         clipped to ``[0, duration]``.
     t_start, t_end, factor : array_like, optional
-        Slow-downs ``[t_start, t_end)`` (s, sorted, non-overlapping) and their speed
-        factors (in (0, 1]); none if omitted or empty.
+        Slow-downs ``[t_start, t_end)`` (s, sorted, non-overlapping; ``t_end`` may be
+        ``inf``) and their speed factors (> 0; above 1 a speed-up); none if omitted or empty.
     """
 
     def __init__(
@@ -101,3 +105,50 @@ class BeltPhase:
         return np.where(
             j < 0, b, np.where(inside, self.th_s[jc] + (b - self.B_s[jc]) / self.f[jc], b + self.C[jc] + self.loss[jc])
         )
+
+
+def combine_factors(
+    t_start: npt.ArrayLike | None,
+    t_end: npt.ArrayLike | None,
+    factor: npt.ArrayLike | None,
+    steps: list[tuple[float, float]],
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Slow-downs and speed steps as one list of intervals for :class:`BeltPhase`.
+
+    Parameters
+    ----------
+    t_start, t_end, factor : array_like or None
+        Slow-downs ``[t_start, t_end)`` with their factors (None: none).
+    steps : list of (float, float)
+        ``(t, g)``, sorted by ``t``: from ``t`` on (until the next step) the belt runs at
+        ``g`` times its nominal speed (an operator's tuning).
+
+    Returns
+    -------
+    (t_start, t_end, factor) : ndarrays
+        Sorted, non-overlapping intervals, each with the product of the factors that
+        hold in it; intervals at factor 1 are left out, and the last may end at ``inf``.
+    """
+    ts = np.zeros(0) if t_start is None else np.asarray(t_start, dtype=float).reshape(-1)
+    te = np.zeros(0) if t_end is None else np.asarray(t_end, dtype=float).reshape(-1)
+    fs = np.zeros(0) if factor is None else np.asarray(factor, dtype=float).reshape(-1)
+    edges = sorted({*ts.tolist(), *te[np.isfinite(te)].tolist(), *(float(t) for t, _ in steps)})
+    out_s: list[float] = []
+    out_e: list[float] = []
+    out_f: list[float] = []
+    step_t = [float(t) for t, _ in steps]
+    for i, a in enumerate(edges):
+        b = edges[i + 1] if i + 1 < len(edges) else np.inf
+        k = int(np.searchsorted(step_t, a, side='right')) - 1
+        g = float(steps[k][1]) if k >= 0 else 1.0
+        inside = (ts <= a) & (a < te)
+        f = g * float(np.prod(fs[inside]))
+        if f == 1.0:
+            continue
+        if out_e and out_e[-1] == a and out_f[-1] == f:
+            out_e[-1] = b
+        else:
+            out_s.append(a)
+            out_e.append(b)
+            out_f.append(f)
+    return np.array(out_s), np.array(out_e), np.array(out_f)

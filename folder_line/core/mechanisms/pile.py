@@ -39,7 +39,7 @@ import numpy.typing as npt
 from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
 from folder_line.core.numerics.validate import check_fields, positive
 
-__all__ = ['T_LOWER', 'UNIT', 'PileTable', 'counted_event', 'pile_table']
+__all__ = ['T_LOWER', 'UNIT', 'PileTable', 'SteppedPile', 'counted_event', 'pile_table']
 
 #: the unit that owns the table (:data:`folder_line.core.line.model.UNITS`)
 UNIT = 'counter'
@@ -142,7 +142,49 @@ class PileTable:
         return stack_samples(UNIT, (self.joint,), tt, [z], [zdot])
 
 
-def pile_table(has_delivery: bool, events: np.ndarray, thickness: float, t_lower: float = T_LOWER) -> PileTable:
+@dataclass(frozen=True, eq=False)
+class SteppedPile:
+    """A table whose lowering time changed during the run (an operator's tuning of ``pile.t_lower``).
+
+    Each sheet is lowered over the time in force at its event: the sheets of each span
+    between two changes form a :class:`PileTable` of their own, and the table's height
+    and speed are the sums over the spans (each span's lowering is linear in its sheets).
+
+    Parameters
+    ----------
+    tables : tuple of PileTable
+        One per span, in time order, all of the same joint and thickness.
+    """
+
+    tables: tuple[PileTable, ...]
+    units: dict[str, tuple[str, ...]] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'units', dict(self.tables[0].units))
+
+    def state(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Table height z and velocity ż at line times ``t`` (:meth:`PileTable.state`)."""
+        parts = [table.state(t) for table in self.tables]
+        return sum((z for z, _ in parts[1:]), parts[0][0]), sum((v for _, v in parts[1:]), parts[0][1])
+
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
+        """Joint states of ``counter`` at ``t`` (:meth:`PileTable.sample_unit`)."""
+        if unit != UNIT:
+            raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        z, zdot = self.state(tt)
+        return stack_samples(UNIT, self.units[UNIT], tt, [z], [zdot])
+
+
+def pile_table(
+    has_delivery: bool,
+    events: np.ndarray,
+    thickness: float,
+    t_lower: float = T_LOWER,
+    steps: list[tuple[float, float]] | None = None,
+) -> PileTable | SteppedPile:
     """The sheet counter's table for a line's sorted event table.
 
     Parameters
@@ -156,7 +198,19 @@ def pile_table(has_delivery: bool, events: np.ndarray, thickness: float, t_lower
         Sheet thickness, m (``scene.sheets.thickness``).
     t_lower : float
         Settle time of one lowering, s.
+    steps : list of (float, float), optional
+        ``(t, τ)`` from ``t`` on, sorted, the first at 0 (an operator's tunings of
+        ``pile.t_lower``, :func:`folder_line.core.line.tuning.values_from`): a
+        :class:`SteppedPile` then, each sheet lowered over the τ in force at its event.
     """
     kind = EVENT_KINDS.index(counted_event(has_delivery))
     times = events['t'][events['kind'] == kind]
-    return PileTable('pile_table' if has_delivery else 'container_floor', times, thickness, t_lower)
+    joint = 'pile_table' if has_delivery else 'container_floor'
+    if not steps or len(steps) == 1 and steps[0][1] == t_lower:
+        return PileTable(joint, times, thickness, t_lower if not steps else steps[0][1])
+    starts = [t for t, _ in steps]
+    cuts = np.searchsorted(times, starts[1:], side='left')  # a sheet at a change's time takes the new τ
+    spans = np.split(times, cuts)
+    return SteppedPile(
+        tuple(PileTable(joint, span, thickness, tau) for span, (_, tau) in zip(spans, steps, strict=True))
+    )

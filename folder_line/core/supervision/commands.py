@@ -29,7 +29,8 @@ import numpy as np
 
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
-from folder_line.core.mechanisms.drive import Command, Drive
+from folder_line.core.line.tuning import LineCommand
+from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.supervision.grid import CheckGrid
 from folder_line.core.supervision.packml import ACTING, PackML, Transition
 
@@ -78,7 +79,7 @@ _NS = 1_000_000_000
 _CAUSES = {'speed': 'drive at speed', 'standstill': 'drive at standstill', 'next': 'done'}
 
 #: commands -> the line model under them (a :class:`~folder_line.core.line.model.LineModel`)
-ModelFactory = Callable[[tuple[Command, ...]], LineModel]
+ModelFactory = Callable[[tuple[LineCommand, ...]], LineModel]
 
 
 def _ns_round(t: float) -> float:
@@ -88,9 +89,9 @@ def _ns_round(t: float) -> float:
 
 def line_models(scene: Scene, horizon: float) -> ModelFactory:
     """``commands -> LineModel(scene, horizon, commands)``, the last five kept."""
-    cache: dict[tuple[Command, ...], LineModel] = {}
+    cache: dict[tuple[LineCommand, ...], LineModel] = {}
 
-    def model_factory(commands: tuple[Command, ...]) -> LineModel:
+    def model_factory(commands: tuple[LineCommand, ...]) -> LineModel:
         if commands not in cache:
             if len(cache) > 4:
                 cache.pop(next(iter(cache)))
@@ -122,10 +123,10 @@ class DriveSchedule:
     def __init__(self, factory: ModelFactory, lead: float) -> None:
         self._factory = factory
         self.lead = lead
-        self.commands: tuple[Command, ...] = ()
-        self.issued: list[tuple[float, Command]] = []
+        self.commands: tuple[LineCommand, ...] = ()
+        self.issued: list[tuple[float, LineCommand]] = []
         self._model: LineModel | None = None
-        self._model_commands: tuple[Command, ...] = ()
+        self._model_commands: tuple[LineCommand, ...] = ()
 
     @property
     def model(self) -> LineModel:
@@ -156,12 +157,12 @@ class DriveSchedule:
                 earliest = b
         return _ns_round(earliest)
 
-    def issue(self, t: float, cmd: Command) -> None:
+    def issue(self, t: float, cmd: LineCommand) -> None:
         """Command ``cmd``, decided at ``t``, is issued (the model under it is built when first needed)."""
         self.commands = tuple(sorted(self.commands + (cmd,), key=lambda c: c.t))
         self.issued.append((t, cmd))
 
-    def take(self) -> list[tuple[float, Command]]:
+    def take(self) -> list[tuple[float, LineCommand]]:
         """``(decision time, drive command)`` issued since the last call, in issue order."""
         out, self.issued = self.issued, []
         return out

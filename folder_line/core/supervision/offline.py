@@ -34,6 +34,7 @@ def replay(
     bad_values: Iterable[tuple[float, str, int]] = (),
     operator: Iterable[tuple[float, str]] = (),
     lost: Iterable[tuple[float, str, float]] = (),
+    tunings: Iterable[tuple[float, str, float, float]] = (),
     until: float | None = None,
     **params: Any,
 ) -> Supervisor:
@@ -57,6 +58,8 @@ def replay(
         are refused again).
     lost : iterable of (float, str, float)
         Participants lost ``(t, node, waited wall s)`` (the live ``lost:<node>`` violations).
+    tunings : iterable of (float, str, float, float)
+        Tunings accepted ``(t, key, value, effective time)`` (the live ``tuning_log``).
     until : float, optional
         The live run's last watermark, s (default: the latest input time).
     **params
@@ -73,7 +76,11 @@ def replay(
     hd = {n: np.sort(np.asarray(list(ts), dtype=float)) for n, ts in (heard or {}).items()}
     clk = np.sort(np.asarray(list(clock), dtype=float))
     bad = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
-    ops = sorted(((float(t), str(name)) for t, name in operator), key=lambda x: x[0])
+    ops: list[tuple[float, str, tuple[str, float, float] | None]] = sorted(
+        [(float(t), str(name), None) for t, name in operator]
+        + [(float(t), 'tune', (str(k), float(v), float(e))) for t, k, v, e in tunings],
+        key=lambda x: x[0],
+    )
     gone = sorted((float(t), str(n), float(w)) for t, n, w in lost)
     times = [ev['t'][-1]] if ev.size else []
     times += [float(a[-1]) for a in hd.values() if a.size] + [b[0] for b in bad] + [o[0] for o in ops]
@@ -105,10 +112,13 @@ def replay(
 
     if sup.t_start is None:
         raise ParameterError('t_start', None, "replay needs the live run's t_start")
-    for t_op, name in ops:
+    for t_op, name, tuning in ops:
         feed_to(t_op)
         sup.tick(t_op)
-        sup.command(name, t_op)
+        if tuning is None:
+            sup.command(name, t_op)
+        else:
+            sup.tune(tuning[0], tuning[1], t_op, effective=tuning[2])
     feed_to(end)
     sup.tick(end)
     return sup

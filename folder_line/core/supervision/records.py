@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from folder_line.core.mechanisms.drive import Command
+from folder_line.core.line.tuning import LineCommand
 
 __all__ = ['ConstraintStats', 'Outcome', 'Violation']
 
@@ -56,7 +56,7 @@ class Outcome:
 
     ok: bool
     message: str
-    command: Command | None = None
+    command: LineCommand | None = None
 
 
 @dataclass

@@ -89,6 +89,7 @@ from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
+from folder_line.core.line.tuning import TUNABLES, LineCommand, Tuning, check_tuning
 from folder_line.core.mechanisms.drive import Command, Drive
 from folder_line.core.numerics.validate import as_float
 from folder_line.core.supervision.balance import Balance, SheetBalance
@@ -170,6 +171,8 @@ class Supervisor:
     stats : dict of str to ConstraintStats
     operator_log : list of (float, str, bool)
         Operator commands ``(t, command, accepted)``.
+    tuning_log : list of (float, str, object, float)
+        Tunings asked for ``(t, key, value, effective time)`` (NaN if refused).
     now : float
         The watermark: decisions up to it are taken (``-inf`` before the first tick).
     late : int
@@ -213,6 +216,7 @@ class Supervisor:
         self.balances: list[Balance] = []
         self.stats: dict[str, ConstraintStats] = {}
         self.operator_log: list[tuple[float, str, bool]] = []
+        self.tuning_log: list[tuple[float, str, object, float]] = []
         self.now = -math.inf
         self.late = 0
         self._bad: list[tuple[float, str, int]] = []
@@ -234,8 +238,8 @@ class Supervisor:
         return self.packml.history
 
     @property
-    def commands(self) -> tuple[Command, ...]:
-        """Drive commands issued, sorted by effective time."""
+    def commands(self) -> tuple[LineCommand, ...]:
+        """Drive commands and tunings issued, sorted by effective time."""
         return self._drive.commands
 
     @property
@@ -347,14 +351,48 @@ class Supervisor:
             return Outcome(True, f'{name}: {self.state}')
         return Outcome(True, f'{name}: {self.state}, drive {cmd.kind} effective at {cmd.t:.9f} s', cmd)
 
-    def take_commands(self) -> list[tuple[float, Command]]:
-        """``(decision time, drive command)`` issued since the last call (by ticks and operator
-        commands), in issue order."""
+    def tune(self, key: str, value: object, t: float | None = None, effective: float | None = None) -> Outcome:
+        """An operator's change of a tunable setting at time ``t`` (default: the watermark).
+
+        Checked against the scene (:func:`folder_line.core.line.tuning.check_tuning`); if
+        accepted, it takes effect at the next machine cycle boundary at least ``lead``
+        after ``t``, as a hold does (or at ``effective``, if given, which must be after
+        ``t``: a batch run's change at a time the user chose, or a replay of a recorded
+        one), and is issued with the drive commands (:meth:`take_commands`): the cycles
+        after it are judged on the events of the line under it. A refusal changes
+        nothing and carries the reason.
+        """
+        if t is None:
+            t = self.now if math.isfinite(self.now) else (self.t_start or 0.0)
+        t = as_float('t', t)
+        if t < self.now:
+            raise ParameterError('t', t, f'a tuning cannot be earlier than the watermark {self.now!r} s')
+        if t > self.now:
+            self.tick(t)
+        try:
+            x = check_tuning(self.scene, key, value)
+        except ParameterError as err:
+            self.tuning_log.append((t, key, value, math.nan))
+            return Outcome(False, str(err))
+        if effective is None:
+            when = self._drive.effective(t, True)
+        else:
+            when = as_float('effective', effective)
+            if not when > t:
+                raise ParameterError('effective', effective, f'a tuning must take effect after its decision at {t!r} s')
+        tu = Tuning(when, key, x)
+        self._drive.issue(t, tu)
+        self.tuning_log.append((t, key, x, tu.t))
+        return Outcome(True, f'{key} = {x!r} {TUNABLES[key].unit} effective at {tu.t:.9f} s', tu)
+
+    def take_commands(self) -> list[tuple[float, LineCommand]]:
+        """``(decision time, drive command or tuning)`` issued since the last call (by ticks, operator
+        commands and tunings), in issue order."""
         return self._drive.take()
 
     # ------------------------------------------------------------------ tick
 
-    def tick(self, t: float) -> list[Command]:
+    def tick(self, t: float) -> list[LineCommand]:
         """Advance the watermark to ``t`` (s): every input at or before ``t`` is in.
 
         Takes every decision due by ``t`` in time order and returns the drive

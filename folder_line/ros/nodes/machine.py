@@ -39,18 +39,28 @@ from collections.abc import Iterable, Mapping
 from typing import Any, Protocol
 
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from sensor_msgs.msg import JointState, TimeReference
+from std_msgs.msg import String
 
 from folder_line.config.run_config import RATE
 from folder_line.config.scenes import InputNames, parse_set, shared_scene
 from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
-from folder_line.core.mechanisms.drive import Command
-from folder_line.errors import ParameterError
+from folder_line.core.line.tuning import (
+    SET_PREFIX,
+    TUNABLES,
+    LineCommand,
+    Tuning,
+    check_tuning,
+    command_of,
+    scene_value,
+)
+from folder_line.errors import FolderLineError, ParameterError
 from folder_line.interfaces import (
     COMMAND_KINDS,
     COMMANDS_TOPIC,
@@ -58,6 +68,8 @@ from folder_line.interfaces import (
     EVENT_OWNER,
     EVENTS_TOPIC,
     NS_PER_S,
+    TUNABLE_PARAMETERS,
+    TUNE_TOPIC,
     UNIT_OF_NODE,
     event_source,
 )
@@ -65,7 +77,7 @@ from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.ros.parameters import ParamSpec, declare_parameters
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
-from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
+from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS, joint_states_topic
 
 __all__ = [
     'MACHINE_SPECS',
@@ -135,12 +147,12 @@ def node_scene(scene: str, overrides: str = '') -> Scene:
 
 
 @functools.lru_cache(maxsize=8)
-def scene_model(scene: Scene, horizon: float, commands: tuple[Command, ...]) -> LineModel:
+def scene_model(scene: Scene, horizon: float, commands: tuple[LineCommand, ...]) -> LineModel:
     """The line model of a scene, shared by every node of a process that asks for the same one."""
     return LineModel(scene, horizon, commands)
 
 
-def line_model(scene: str, overrides: str, horizon: float, commands: tuple[Command, ...]) -> LineModel:
+def line_model(scene: str, overrides: str, horizon: float, commands: tuple[LineCommand, ...]) -> LineModel:
     """:func:`scene_model` of the scene named by a node's ``scene`` and ``overrides`` parameters."""
     return scene_model(node_scene(scene, overrides), horizon, commands)
 
@@ -185,9 +197,13 @@ class MachineNode(Node):
                 'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
             )
         self.set_parameters([Parameter('use_sim_time', value=True)])
-        self.values = declare_parameters(self, MACHINE_SPECS + self.EXTRA_SPECS, cross_check=_check_sim_time)
+        self.tunables = self._tunable_specs()
+        self.values = declare_parameters(
+            self, MACHINE_SPECS + self.EXTRA_SPECS + self.tunables, cross_check=_check_sim_time
+        )
         self.scene: Scene = node_scene(self.values['scene'], self.values['overrides'])
-        self.commands: tuple[Command, ...] = ()
+        self._check_tunables_at_start()
+        self.commands: tuple[LineCommand, ...] = ()
         self.kinds = np.array(
             [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
         )
@@ -214,6 +230,9 @@ class MachineNode(Node):
         )
         self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
+        self._tune_pub = self.create_publisher(String, TUNE_TOPIC, TUNE_QOS) if self.tunables else None
+        if self.tunables:
+            self.add_on_set_parameters_callback(self._screen_tunings)
         self.lockstep = Participant(
             self,
             self.depends,
@@ -278,12 +297,84 @@ class MachineNode(Node):
         """Publish and count (the tick's acknowledgement carries the counts)."""
         self.lockstep.publish(publisher, msg, stream)
 
+    # ------------------------------------------------------------------ tuning
+
+    def _tunable_specs(self) -> tuple[ParamSpec, ...]:
+        """The parameters of this node's tunables the scene can take, each starting at the scene's value.
+
+        The scene is read here from the starting ``scene`` and ``overrides`` (the values
+        ``declare_parameters`` then checks): if they do not load, no tunable is declared
+        and the declaration below names the fault.
+        """
+        names = TUNABLE_PARAMETERS.get(self.NODE_NAME, {})
+        if not names:
+            return ()
+        given = self._parameter_overrides
+        start = {spec.name: given[spec.name].value if spec.name in given else spec.default for spec in MACHINE_SPECS}
+        try:
+            scene = node_scene(str(start['scene']), str(start['overrides']))
+        except FolderLineError:
+            return ()
+        specs = []
+        for param, key in names.items():
+            tunable = TUNABLES[key]
+            if tunable.needs(scene):
+                continue
+            specs.append(
+                ParamSpec(
+                    param,
+                    scene_value(scene, key),
+                    f'{tunable.what[0].upper()}{tunable.what[1:]} ({key}), tunable on the running line: a new '
+                    'value takes effect at the next machine cycle boundary the supervisor picks',
+                    unit=tunable.unit,
+                    bounds=tunable.limit.bounds,
+                )
+            )
+        return tuple(specs)
+
+    def _check_tunables_at_start(self) -> None:
+        """A tunable starts at the scene's value: another start value belongs in the scene (``overrides``)."""
+        for spec in self.tunables:
+            key = TUNABLE_PARAMETERS[self.NODE_NAME][spec.name]
+            if self.values[spec.name] != scene_value(self.scene, key):
+                raise ParameterError(
+                    spec.name,
+                    self.values[spec.name],
+                    f'is changed on the running line; to start at another value set "{key}=..." in the '
+                    f'overrides parameter (the scene says {scene_value(self.scene, key)!r} {spec.unit})',
+                )
+
+    def _screen_tunings(self, parameters: list[Parameter[Any]]) -> SetParametersResult:
+        """Refuse a tuning when no supervisor listens: nobody would time it, so it would never take effect."""
+        names = TUNABLE_PARAMETERS.get(self.NODE_NAME, {})
+        for parameter in parameters:
+            if parameter.name in names and self._tune_pub is not None and self._tune_pub.get_subscription_count() == 0:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f'{parameter.name}={parameter.value!r}: no supervisor on this domain to time the change '
+                    '(a tuning takes effect at the machine cycle boundary the supervisor picks)',
+                )
+        return SetParametersResult(successful=True)
+
+    def _forward_tuning(self, name: str, value: float) -> None:
+        key = TUNABLE_PARAMETERS[self.NODE_NAME][name]
+        if self._tune_pub is None:
+            return
+        self._tune_pub.publish(String(data=f'{self.NODE_NAME} {key}={float(value)!r}'))
+        self.get_logger().info(
+            f'{name} = {value!r} {TUNABLES[key].unit} asked of the supervisor: it takes effect at the next '
+            'machine cycle boundary (see /line/supervisor/commands)'
+        )
+
     # ------------------------------------------------------------------ internals
 
     def _apply(self, parameters: list[Parameter[Any]]) -> None:
+        names = TUNABLE_PARAMETERS.get(self.NODE_NAME, {})
         for parameter in parameters:
             if parameter.name == 'rate':
                 self._period_ns = round(NS_PER_S / parameter.value)
+            elif parameter.name in names:
+                self._forward_tuning(parameter.name, parameter.value)
 
     def _on_command(self, msg: TimeReference) -> None:
         if msg.header.frame_id != 'supervisor':
@@ -291,10 +382,19 @@ class MachineNode(Node):
                 'command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the supervisor only'
             )
             return
-        if msg.source not in COMMAND_KINDS:
-            self.reject('command', f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)})')
+        if msg.source not in COMMAND_KINDS and not msg.source.startswith(SET_PREFIX):
+            self.reject(
+                'command',
+                f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)}, or "set KEY=VALUE")',
+            )
             return
-        command = Command(t=time_msg_to_ns(msg.time_ref) / NS_PER_S, kind=msg.source)
+        try:
+            command = command_of(time_msg_to_ns(msg.time_ref) / NS_PER_S, msg.source)
+            if isinstance(command, Tuning):
+                check_tuning(self.scene, command.key, command.value)
+        except (ValueError, FolderLineError) as err:
+            self.reject('command', f'{msg.source[:60]!r}: {err}')
+            return
         if command in self.commands:
             self.reject('command', f'{command.kind} at {command.t:.9f} s repeated')
             return

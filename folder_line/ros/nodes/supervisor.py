@@ -92,15 +92,16 @@ from folder_line.bag.statuses import (
     constraint_statuses,
     event_status,
     status_stamp,
+    tuning_status,
     violation_status,
 )
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
-from folder_line.core.mechanisms.drive import Command
+from folder_line.core.line.tuning import LineCommand
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
-from folder_line.core.supervision.records import Violation
+from folder_line.core.supervision.records import Outcome, Violation
 from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
@@ -115,6 +116,8 @@ from folder_line.interfaces import (
     OPERATOR_COMMANDS,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
+    TUNABLE_PARAMETERS,
+    TUNE_TOPIC,
     parse_event_source,
     seconds_to_ns,
 )
@@ -123,7 +126,7 @@ from folder_line.ros.nodes.machine import MachineNode, scene_model
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
-from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, joint_states_topic
+from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, TUNE_QOS, joint_states_topic
 
 __all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
@@ -219,6 +222,7 @@ class Supervisor(MachineNode):
             self.create_subscription(Float64, topic, self._on_float(topic), LINE_QOS)
         for name in SERVICES:
             self.create_service(Trigger, f'/line/supervisor/{name}', self._service(name))
+        self.create_subscription(String, TUNE_TOPIC, self._on_tune, TUNE_QOS)
 
     def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
         """Every machine participant, with its events."""
@@ -302,16 +306,47 @@ class Supervisor(MachineNode):
 
         return handle
 
-    def request(self, name: str) -> tuple[bool, str]:
-        """Apply service ``name`` at the latest tick completed; returns (success, message)."""
-        at_boundary = SERVICES[name][2]
+    def _untimeable(self, name: str) -> str:
+        """Why a command or tuning ``name`` cannot be timed now ('' if it can)."""
         lead_ns = seconds_to_ns(self.values['command_lead'])
-        if SERVICES[name][1] is not None and self._clock_step is not None and self._clock_step >= lead_ns:
-            return False, (
+        if self._clock_step is not None and self._clock_step >= lead_ns:
+            return (
                 f'{name}: refused: the clock steps {self._clock_step / NS_PER_S:g} s per tick, not less '
                 f'than command_lead = {self.values["command_lead"]:g} s, so the command could take effect '
                 'in a tick the machines already published'
             )
+        return ''
+
+    def _on_tune(self, msg: String) -> None:
+        """An operator's tuning forwarded by the machine node whose parameter was set (``'<node> <key>=<value>'``)."""
+        node, _, rest = msg.data.partition(' ')
+        key, _, text = rest.partition('=')
+        if key not in TUNABLE_PARAMETERS.get(node, {}).values():
+            self.reject('tuning', f'{msg.data[:60]!r}: not a tunable of node {node[:40]!r}')
+            return
+        try:
+            value = float(text)
+        except ValueError:
+            self.reject('tuning', f'{msg.data[:60]!r}: the value is not a number')
+            return
+        logic = self.logic
+        t = logic.now if math.isfinite(logic.now) else (logic.t_start or 0.0)
+        why = self._untimeable(f'{key}={value!r}')
+        out = Outcome(False, why) if why else logic.tune(key, value, t)
+        self._publish_outputs()
+        effective = out.command.t if out.ok and out.command is not None else math.nan
+        self._publish_status('tuning', *tuning_status(t, key, value, effective, out.message))
+        if out.ok:
+            self.get_logger().info(f'tuning from {node}: {out.message}')
+        else:
+            self.get_logger().warning(f'tuning from {node} refused: {out.message}')
+
+    def request(self, name: str) -> tuple[bool, str]:
+        """Apply service ``name`` at the latest tick completed; returns (success, message)."""
+        at_boundary = SERVICES[name][2]
+        why = self._untimeable(name) if SERVICES[name][1] is not None else ''
+        if why:
+            return False, why
         out = self.logic.command(name)
         self._publish_outputs()
         self._publish_status(
@@ -368,7 +403,7 @@ class Supervisor(MachineNode):
             self._publish_balance(b)
         self._n_balances = len(balances)
 
-    def _publish_command(self, t: float, command: Command) -> None:
+    def _publish_command(self, t: float, command: LineCommand) -> None:
         msg = TimeReference()
         msg.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)))
         msg.header.frame_id = self.NODE_NAME
