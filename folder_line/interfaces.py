@@ -52,6 +52,7 @@ import re
 from dataclasses import dataclass
 
 from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.line.tuning import SET_PREFIX
 from folder_line.core.numerics.timebase import NS_PER_S, seconds_to_ns
 
 __all__ = [
@@ -87,6 +88,7 @@ __all__ = [
     'TopicInfo',
     'UNIT_OF_NODE',
     'event_source',
+    'is_command_source',
     'joint_states_node',
     'joint_states_topic',
     'parse_event_source',
@@ -191,6 +193,12 @@ TICK_DONE_PATTERN = '/line/{node}/tick_done'
 COMMAND_KINDS: tuple[str, ...] = ('hold', 'unhold', 'stop', 'start')
 
 _NODE_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')  # ROS 2's rule for a node name (rcl_validate_node_name)
+
+
+def is_command_source(source: str) -> bool:
+    """Whether ``source`` of a :data:`COMMANDS_TOPIC` message is a drive command kind or a tuning
+    (``'set KEY=VALUE'``, :func:`folder_line.core.line.tuning.tuning_text`): what the supervisor publishes."""
+    return source in COMMAND_KINDS or source.startswith(SET_PREFIX)
 
 
 def _node_topic(pattern: str, node: str) -> str:

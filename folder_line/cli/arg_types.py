@@ -14,7 +14,7 @@ from folder_line.core.limits import Limit
 from folder_line.core.line.tuning import TUNABLES, Tuning
 from folder_line.errors import FolderLineError, bounded_repr
 
-__all__ = ['limited', 'number', 'tuning']
+__all__ = ['limited', 'number', 'tuning', 'tuning_change']
 
 
 def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
@@ -61,23 +61,37 @@ def number(
     return parse
 
 
+def tuning_change(text: str, shown: str = '') -> tuple[str, float]:
+    """``KEY=VALUE`` of ``folder-line tune``: a tunable key and a value in its range (``shown``: how the
+    refusal names the argument, default ``KEY=VALUE`` itself)."""
+    key, eq, value = text.partition('=')
+    shown = shown or bounded_repr(text)
+    if not eq:
+        raise argparse.ArgumentTypeError(f'{shown}: must read KEY=VALUE, e.g. feed_transporter.V_tr=9.0')
+    if key not in TUNABLES:
+        raise argparse.ArgumentTypeError(f'{shown}: {key!r} is not tunable; tunable: {", ".join(TUNABLES)}')
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{shown}: {key}={bounded_repr(value)} must be a number') from None
+    try:
+        return key, TUNABLES[key].limit.check(key, number)
+    except FolderLineError as err:
+        raise argparse.ArgumentTypeError(f'{shown}: {err}') from None
+
+
 def tuning(text: str) -> Tuning:
     """``--tune T:KEY=VALUE``: a :class:`~folder_line.core.line.tuning.Tuning` of ``KEY`` to ``VALUE`` effective
     at ``T`` s (> 0); whether the scene can take it is checked once the scene is known."""
     when, colon, change = text.partition(':')
-    key, eq, value = change.partition('=')
     shown = f'--tune={bounded_repr(text)}'
-    if not colon or not eq:
+    if not colon:
         raise argparse.ArgumentTypeError(f'{shown}: must read T:KEY=VALUE, e.g. 5.0:feed_transporter.V_tr=9.0')
     try:
         t = float(when)
     except ValueError:
         raise argparse.ArgumentTypeError(f'{shown}: T must be a number of seconds, the effective time') from None
-    if not t > 0.0 or t == float('inf'):
+    key, value = tuning_change(change, shown)
+    if not 0.0 < t < float('inf'):
         raise argparse.ArgumentTypeError(f'{shown}: T must be > 0 s (a start value is set with --set {key}=...)')
-    if key not in TUNABLES:
-        raise argparse.ArgumentTypeError(f'{shown}: {key!r} is not tunable; tunable: {", ".join(TUNABLES)}')
-    try:
-        return Tuning(t, key, float(value))
-    except (ValueError, FolderLineError) as err:
-        raise argparse.ArgumentTypeError(f'{shown}: {err}') from None
+    return Tuning(t, key, value)

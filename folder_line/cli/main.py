@@ -29,7 +29,7 @@ from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
-from folder_line.cli.arg_types import limited, tuning
+from folder_line.cli.arg_types import limited, tuning, tuning_change
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
@@ -46,7 +46,7 @@ from folder_line.files.atomic import (
     write_csv_atomic,
     write_json_atomic,
 )
-from folder_line.interfaces import OPERATOR_COMMANDS
+from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -62,6 +62,7 @@ _OUTPUT_OPTION = {
     'solve': '--json',
     'scenes': 'stdout',
     **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
+    'tune': 'stdout',
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
@@ -214,6 +215,20 @@ def build_parser() -> argparse.ArgumentParser:
             ),
         )
         _addlimited(op, '--timeout', _OPERATOR_TIMEOUT, 5.0, 'S', 'longest wait for the service, then its answer, s')
+
+    tune = sub.add_parser(
+        'tune',
+        help='operator tuning: change a setting of the running line at its next machine cycle boundary',
+        description=(
+            'Set the node parameter that tunes KEY on the current ROS domain, as `ros2 param set` would '
+            f'({", ".join(f"/{n} {p}" for n, ps in TUNABLE_PARAMETERS.items() for p in ps)}); the supervisor '
+            'times the change at the next machine cycle boundary and records it. Exit 0: accepted; 1: refused '
+            '(the reason is printed); 3: the node did not answer. `simulate --tune T:KEY=VALUE` runs the same '
+            'change in the batch model.'
+        ),
+    )
+    tune.add_argument('change', type=tuning_change, metavar='KEY=VALUE', help=f'KEY one of {", ".join(TUNABLES)}')
+    _addlimited(tune, '--timeout', _OPERATOR_TIMEOUT, 5.0, 'S', 'longest wait for the node, then its answer, s')
 
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, play, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
@@ -419,6 +434,23 @@ def _cmd_operator(args: argparse.Namespace) -> int:
     return 0 if answer.accepted else EXIT_REFUSED
 
 
+def _cmd_tune(args: argparse.Namespace) -> int:
+    from folder_line.ros.operator import call_tune, tunable_parameter  # loads rclpy: only the verbs that use DDS
+
+    key, value = args.change
+    answer = call_tune(key, value, timeout=args.timeout)
+    if answer is None:
+        domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
+        node, _ = tunable_parameter(key)
+        _error(
+            f'tune: node /{node} did not answer on ROS domain {domain} within {args.timeout:g} s '
+            '(is the line running, on this domain?)'
+        )
+        return EXIT_NO_ANSWER
+    print(f'tune: {"accepted" if answer.accepted else "refused"}: {answer.message}')
+    return 0 if answer.accepted else EXIT_REFUSED
+
+
 def _cmd_bag(args: argparse.Namespace) -> int:
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
@@ -524,6 +556,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
         **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),
+        'tune': _cmd_tune,
     }[args.verb]
     try:
         return handler(args)

@@ -6,25 +6,33 @@
 /line/supervisor/hold std_srvs/srv/Trigger`` would, and returns the supervisor's answer:
 accepted or refused, with its message (the state, and for a drive command when it takes
 effect; or why the command is illegal now).
+
+``folder-line tune KEY=VALUE`` sets the node parameter that tunes ``KEY``
+(:data:`folder_line.interfaces.TUNABLE_PARAMETERS`), as ``ros2 param set`` would.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import rclpy
 from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
+from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import ParameterError
-from folder_line.interfaces import OPERATOR_COMMANDS
+from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
 
-__all__ = ['COMMANDS', 'Answer', 'call_command', 'service_name']
+__all__ = ['COMMANDS', 'Answer', 'call_command', 'call_tune', 'service_name', 'tunable_parameter']
 
 #: the operator commands (:data:`folder_line.interfaces.OPERATOR_COMMANDS`)
 COMMANDS: tuple[str, ...] = OPERATOR_COMMANDS
@@ -52,13 +60,45 @@ class Answer:
     message: str
 
 
+@contextlib.contextmanager
+def _session() -> Iterator[tuple[Node, SingleThreadedExecutor]]:
+    """A node of its own (``folder_line_operator_<pid>``) in a context of its own, spun by its executor;
+    rclpy's signal handlers are not installed, so Ctrl-C raises ``KeyboardInterrupt`` in the caller."""
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = Node(f'folder_line_operator_{os.getpid()}', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        try:
+            executor.add_node(node)
+            yield node, executor
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _until(executor: SingleThreadedExecutor, ready: Callable[[], bool], timeout: float) -> bool:
+    """Spin until ``ready()`` (discovery runs while the executor spins); False after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not ready():
+        if time.monotonic() >= deadline:
+            return False
+        executor.spin_once(timeout_sec=0.05)
+    return True
+
+
+def _check_timeout(timeout: float) -> None:
+    if not timeout > 0.0:
+        raise ParameterError('--timeout', timeout, 'must be > 0 s')
+
+
 def call_command(command: str, timeout: float = 5.0) -> Answer | None:
     """Call the supervisor's service ``command`` once; None if no supervisor answered within ``timeout``.
 
-    A node of its own (``folder_line_operator_<pid>``) in a context of its own: it waits
-    for the service to be discovered, sends one request, waits for the answer, and is
-    destroyed. rclpy's signal handlers are not installed, so Ctrl-C raises
-    ``KeyboardInterrupt`` in the caller as usual.
+    A node of its own in a context of its own (:func:`_session`): it waits for the service
+    to be discovered, sends one request, waits for the answer, and is destroyed.
 
     Parameters
     ----------
@@ -74,30 +114,60 @@ def call_command(command: str, timeout: float = 5.0) -> Answer | None:
     """
     if command not in COMMANDS:
         raise ParameterError('command', command, f'must be one of {", ".join(COMMANDS)}')
-    if not timeout > 0.0:
-        raise ParameterError('--timeout', timeout, 'must be > 0 s')
-    context = rclpy.Context()
-    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = Node(f'folder_line_operator_{os.getpid()}', context=context)
-        executor = SingleThreadedExecutor(context=context)
-        try:
-            executor.add_node(node)
-            client: Client[Trigger.Request, Trigger.Response] = node.create_client(Trigger, service_name(command))
-            deadline = time.monotonic() + timeout
-            while not client.service_is_ready():  # discovery runs while the executor spins
-                if time.monotonic() >= deadline:
-                    return None
-                executor.spin_once(timeout_sec=0.05)
-            future = client.call_async(Trigger.Request())
-            executor.spin_until_future_complete(future, timeout_sec=timeout)
-            if not future.done():
-                return None
-            response = future.result()
-            assert response is not None
-            return Answer(bool(response.success), str(response.message))
-        finally:
-            executor.shutdown()
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=context)
+    _check_timeout(timeout)
+    with _session() as (node, executor):
+        client: Client[Trigger.Request, Trigger.Response] = node.create_client(Trigger, service_name(command))
+        if not _until(executor, client.service_is_ready, timeout):
+            return None
+        future = client.call_async(Trigger.Request())
+        executor.spin_until_future_complete(future, timeout_sec=timeout)
+        if not future.done():
+            return None
+        response = future.result()
+        assert response is not None
+        return Answer(bool(response.success), str(response.message))
+
+
+def tunable_parameter(key: str) -> tuple[str, str]:
+    """``(node, parameter)`` that tunes ``key`` (:data:`folder_line.interfaces.TUNABLE_PARAMETERS`)."""
+    for node, params in TUNABLE_PARAMETERS.items():
+        for param, tuned in params.items():
+            if tuned == key:
+                return node, param
+    raise ParameterError('KEY', key, f'is not tunable; tunable: {", ".join(TUNABLES)}')
+
+
+def call_tune(key: str, value: float, timeout: float = 5.0) -> Answer | None:
+    """Set the node parameter that tunes ``key`` to ``value``, as ``ros2 param set /<node> <param> <value>``
+    would; None if the node did not answer within ``timeout``.
+
+    The node checks the value as any parameter (range, the scene) and forwards it to the
+    supervisor, which times it at the next machine cycle boundary and publishes it on
+    ``/line/supervisor/commands`` with its effective time.
+
+    Raises
+    ------
+    ParameterError
+        ``key`` is not tunable, or ``timeout`` is not > 0.
+    """
+    _check_timeout(timeout)
+    target, param = tunable_parameter(key)
+    with _session() as (node, executor):
+        client = AsyncParameterClient(node, target)
+        if not _until(executor, client.services_are_ready, timeout):
+            return None
+        future = client.set_parameters([Parameter(param, value=float(value))])
+        executor.spin_until_future_complete(future, timeout_sec=timeout)
+        if not future.done():
+            return None
+        response = future.result()
+        assert response is not None
+        (result,) = response.results
+        if not result.successful:
+            return Answer(False, f'/{target} {param}={float(value)!r}: {result.reason}')
+        unit = TUNABLES[key].unit
+        return Answer(
+            True,
+            f'/{target} {param} = {float(value)!r} {unit}: the supervisor times it at the next machine cycle '
+            'boundary (its effective time is on /line/supervisor/commands and in the run log)',
+        )

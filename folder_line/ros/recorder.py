@@ -31,7 +31,6 @@ from std_msgs.msg import Float64, Header, String, UInt64
 
 from folder_line.interfaces import (
     CLOCK_TOPIC,
-    COMMAND_KINDS,
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
     EVENT_OWNER,
@@ -45,6 +44,7 @@ from folder_line.interfaces import (
     SHEET_COUNT_TOPIC,
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
+    is_command_source,
     parse_event_source,
 )
 from folder_line.ros.lockstep import CLOCK_SUB_QOS, LINE_QOS, Announcement, Participant
@@ -104,7 +104,7 @@ def _could_publish(producer: str, topic: str, msg: Any) -> bool:
             return False
         return EVENT_OWNER.get(kind) == producer
     if topic == COMMANDS_TOPIC:
-        return producer == 'supervisor' and msg.source in COMMAND_KINDS
+        return producer == 'supervisor' and is_command_source(msg.source)
     return True
 
 

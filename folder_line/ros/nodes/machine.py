@@ -52,7 +52,6 @@ from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import (
-    SET_PREFIX,
     TUNABLES,
     LineCommand,
     Tuning,
@@ -72,6 +71,7 @@ from folder_line.interfaces import (
     TUNE_TOPIC,
     UNIT_OF_NODE,
     event_source,
+    is_command_source,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.ros.parameters import ParamSpec, declare_parameters
@@ -382,7 +382,7 @@ class MachineNode(Node):
                 'command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the supervisor only'
             )
             return
-        if msg.source not in COMMAND_KINDS and not msg.source.startswith(SET_PREFIX):
+        if not is_command_source(msg.source):
             self.reject(
                 'command',
                 f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)}, or "set KEY=VALUE")',
