@@ -36,7 +36,10 @@ whoever waits for it; it is named in the log and in ``/diagnostics``, and the
 others go on without it. A participant that is only slow is waited for. One that
 waits, for the clock's next tick or for another participant, repeats its latest
 acknowledgement every ``HEARTBEAT`` s, so that only the silent one is declared lost,
-not those held up by it.
+not those held up by it. One that answers but whose counted messages never arrive (a
+consumer that does not count what the producer counts, a broken link) is declared lost
+too, after ``MISSING_FACTOR`` times the limit, naming what is missing: a tick is never
+waited for for ever.
 """
 
 from __future__ import annotations
@@ -84,6 +87,10 @@ __all__ = [
 ]
 
 HEARTBEAT = 0.1  # wall s: a participant that waits repeats its latest acknowledgement this often
+#: a producer that acknowledged a tick whose counted messages have not all arrived after this many times the
+#: lost limit is lost too: a reliable writer repairs a dropped sample at its next heartbeat (Fast DDS: up to
+#: ~3 s), so this is far longer than any repair, yet a consumer never waits for ever on messages that never come
+MISSING_FACTOR = 3.0
 
 #: what ``line_clock`` waits for when started by hand with no ``participants``
 DEFAULT_PARTICIPANTS: tuple[str, ...] = MACHINE_NODES
@@ -424,12 +431,19 @@ class Participant:
         if need is None:
             return
         for producer in self.ledger.waiting_for(need):
+            why = f'limit {limit:g} s'
             if now - self._heard.get(producer, -math.inf) <= limit:
-                continue
+                # it answers: lost only if it acknowledged the tick and its counted messages do not come
+                acked = self.ledger.last_ack(producer)
+                missing = self.ledger.missing(producer)
+                if acked is None or acked < need or not missing or waited <= MISSING_FACTOR * limit:
+                    continue
+                shortfall = ', '.join(f'{n} {stream}' for stream, n in sorted(missing.items()))
+                why = f'acknowledged, but {shortfall} it counted never arrived within {MISSING_FACTOR:g} x {limit:g} s'
             self.ledger.lose(producer)
             self.node.get_logger().error(
                 f'participant {producer} lost: tick {need / NS_PER_S:.9f} s not complete after {waited:.1f} s of '
-                f'wall time (limit {limit:g} s); going on without it'
+                f'wall time ({why}); going on without it'
             )
             if self._on_lost is not None:
                 self._on_lost(producer, waited, need)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -46,6 +47,7 @@ from folder_line.interfaces import (
     parse_event_source,
     tick_done_topic,
 )
+from folder_line.ros.lockstep import MISSING_FACTOR
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
@@ -489,3 +491,23 @@ def test_node_processes_refuse_a_bad_start_with_exit_code_2(node_env: dict[str, 
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+
+
+def test_a_producer_whose_counted_messages_never_come_is_lost_not_waited_for_for_ever(ros: Ros) -> None:
+    """A supervisor that acknowledges a drive command it never sends (as the recorder once missed tunings it did not
+    count) holds crank_drive's next tick: crank_drive declares it lost after MISSING_FACTOR x lost_timeout, naming what
+    is missing, and goes on; before that limit it waits (it is alive: its acknowledgements come)."""
+    crank = ros.add(
+        CLASSES['crank_drive'](context=ros.context, parameter_overrides=params(scene='folder', lost_timeout=0.3))
+    )
+    liar = ros.add(FakeParticipant(ros.context, 'supervisor'))
+    liar.counts['commands'] = 1  # acknowledged, never published
+    # alive and waiting, as a real participant: it repeats its latest acknowledgement (lockstep.HEARTBEAT)
+    liar.create_timer(0.1, lambda: liar.ack(max(liar.acked_ns)) if liar.acked_ns else None)
+    clock = start_clock(ros, 0.05, ['crank_drive', 'supervisor'], lost_timeout=60.0)
+    t0 = time.monotonic()
+    assert ros.spin_until(lambda: crank.lockstep.ledger is not None and crank.lockstep.ledger.live == (), timeout=30.0)
+    waited = time.monotonic() - t0
+    assert waited > MISSING_FACTOR * 0.3  # not before the limit: it was alive all along
+    assert ros.spin_until(clock.done.done, timeout=30.0)
+    assert crank.ticks == grid(0, 50 * MS, STEP)  # it went on without the supervisor: every tick published
