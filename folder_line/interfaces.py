@@ -175,6 +175,7 @@ cycle boundary) and publishes it on :data:`COMMANDS_TOPIC` as ``source = 'set <k
 #: the tunable parameters of the machine nodes: node -> parameter -> the tunable it sets
 #: (:data:`folder_line.core.line.tuning.TUNABLES`); declared only where the scene has what it acts on
 TUNABLE_PARAMETERS: dict[str, dict[str, str]] = {
+    'crank_drive': {'press_speed': 'press.n_c'},
     'feed_transporter': {'V_tr': 'feed_transporter.V_tr'},
     'belt_conveyor': {'chute_belt_speed': 'layup.v_tr'},
     'sheet_counter': {'pile_lowering_time': 'pile.t_lower'},

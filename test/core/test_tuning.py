@@ -10,8 +10,11 @@ from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.tuning import Tuning, belt_steps, check_tuning, command_of, tuning_text
 from folder_line.core.mechanisms.belt import BeltPhase, combine_factors
-from folder_line.core.mechanisms.drive import ConstantDrive
+from folder_line.core.mechanisms.drive import Command, ConstantDrive, target_rate
 from folder_line.core.mechanisms.pile import T_LOWER
+from folder_line.core.supervision.commands import ActingState
+from folder_line.core.supervision.grid import CheckGrid
+from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.errors import ParameterError
 
 T_E = 4.0
@@ -106,3 +109,29 @@ def test_a_tuning_reads_back_from_its_text_and_the_scene_must_have_it() -> None:
         check_tuning(load_scene('folder'), 'knife.n_k', 3.0)
     with pytest.raises(ParameterError, match=r'must be in \[0.001, 1000\] m/s'):
         Tuning(1.0, 'feed_transporter.V_tr', 0.0)
+
+
+def test_the_press_speed_ramps_to_its_setting_and_an_unhold_ends_there() -> None:
+    scene = load_scene('folder')
+    n_c = float(scene.machine('cyclogram').n_c)
+    speed = 0.8
+    commands = [Tuning(2.0, 'press.n_c', speed * n_c), Command(4.0, 'hold'), Command(6.0, 'unhold')]
+    model = LineModel(scene, 10.0, commands)
+    plain = LineModel(scene, 10.0)
+    t = np.linspace(0.0, 2.0, 401)
+    assert np.array_equal(model.drive.theta(t), plain.drive.theta(t))  # nothing before it
+    assert float(model.drive.rate(np.array(3.9))) == pytest.approx(speed, abs=1e-12)  # ramped down by then
+    np.testing.assert_array_equal(target_rate(model.drive, np.array([1.0, 3.0, 5.0, 9.0])), [1.0, speed, 0.0, speed])
+    # the knife cycles at the setting: a cycle lasts 1 / 0.8 of nominal in line time
+    b1 = model.next_cycle_boundary(3.0)
+    b2 = model.next_cycle_boundary(b1)
+    p1 = plain.next_cycle_boundary(3.0)
+    assert b2 - b1 == pytest.approx((plain.next_cycle_boundary(p1) - p1) / speed, rel=1e-9)
+    # UNHOLDING ends when the drive reaches the speed set (to speed_reached), not nominal, which it never reaches
+    grid = CheckGrid(0.005)
+    acting = ActingState(grid, SPEED_REACHED, 6.0)
+    end = acting.completion('UNHOLDING', 9.0, lambda: model.drive)
+    assert end is not None
+    assert float(model.drive.rate(np.array(end))) >= SPEED_REACHED * speed
+    assert float(model.drive.rate(np.array(end - 0.005))) < SPEED_REACHED * speed
+    assert float(np.max(model.drive.rate(np.linspace(6.0, 10.0, 801)))) == pytest.approx(speed, abs=1e-12)

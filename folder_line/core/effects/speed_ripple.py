@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.mechanisms.drive import Drive, theta_rate
+from folder_line.core.mechanisms.drive import Drive, target_rate, theta_rate
 from folder_line.core.numerics.rng import stream
 from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
@@ -149,6 +149,10 @@ class RippleDrive:
         th, lam = theta_rate(self.base, t)
         _, dg, ddg = phase_map(self.params, self.psi, th)
         return np.asarray(ddg * lam * lam + dg * np.asarray(self.base.rate_dot(t), dtype=float), dtype=float)
+
+    def target_rate(self, t: npt.ArrayLike) -> np.ndarray:
+        """The running speed the base drive heads for (the ripple rides on it)."""
+        return target_rate(self.base, t)
 
     def time_of(self, theta: npt.ArrayLike) -> np.ndarray:
         """Earliest t with Θ(t) = theta: ``time_of_b(g⁻¹(theta))``, s."""

@@ -45,7 +45,15 @@ from folder_line.core.line.events import (
 from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import LineCommand, Tuning, check_tuning, tunings_of, values_from
+from folder_line.core.line.tuning import (
+    LineCommand,
+    Tuning,
+    belt_steps,
+    check_tuning,
+    scene_value,
+    tunings_of,
+    values_from,
+)
 from folder_line.core.mechanisms.drive import Command, Drive, commanded_drive, theta_rate
 from folder_line.core.mechanisms.pile import T_LOWER, pile_table
 from folder_line.core.numerics.validate import as_float
@@ -212,19 +220,23 @@ def check_line_commands(commands: Iterable[LineCommand]) -> tuple[LineCommand, .
 def make_drive(scene: Scene, duration: float, commands: Iterable[LineCommand] = ()) -> Drive:
     """The master drive of a scene under the supervisor's commands.
 
-    The motor ODE if the scene lists ``motor_dynamics``
+    The operator's tunings of ``press.n_c`` set the speed the generator heads for (as a
+    factor of the scene's press speed). The motor ODE if the scene lists ``motor_dynamics``
     (:func:`folder_line.core.effects.motor_dynamics.build_drive`), else the drive
     profile with the ramp generator (:func:`folder_line.core.mechanisms.drive.commanded_drive`).
     Without commands both are exactly the drives of a run without a supervisor. With
     ``speed_ripple`` that drive is rippled on top
     (:class:`folder_line.core.effects.speed_ripple.RippleDrive`, its phase drawn from the seed).
     """
-    drive_commands = [c for c in commands if isinstance(c, Command)]  # tunings do not change the drive
+    commands = list(commands)
+    drive_commands = [c for c in commands if isinstance(c, Command)]
     base: Drive
-    if scene.has('motor_dynamics'):
+    if scene.has('motor_dynamics'):  # the press speed is not tunable there (core.line.tuning)
         base = motor_dynamics.build_drive(scene, duration, commands=drive_commands)
     else:
-        base = commanded_drive(scene.drive, drive_commands)
+        tunings = [c for c in commands if isinstance(c, Tuning)]
+        speeds = belt_steps(tunings, 'press.n_c', scene_value(scene, 'press.n_c')) if scene.has_folder else []
+        base = commanded_drive(scene.drive, drive_commands, speeds)
     if scene.has('speed_ripple'):
         return speed_ripple.RippleDrive(base, scene.effect_params('speed_ripple'), speed_ripple.draw_phase(scene.seed))
     return base

@@ -8,6 +8,9 @@ key                        unit   what changes from the effective time on
 =========================  =====  ==================================================
 ``feed_transporter.V_tr``  m/s    the folder's 2nd transporter (feed belt) speed
 ``layup.v_tr``             m/s    the layup chute belts' speed (with ``chute_belts``)
+``press.n_c``              rev/h  the press speed: the master drive ramps to
+                                  ``value / scene value`` of nominal (every machine
+                                  is geared to it), not with ``motor_dynamics``
 ``pile.t_lower``           s      the time the pile lift takes to lower one sheet
 =========================  =====  ==================================================
 
@@ -22,11 +25,11 @@ nothing, bit for bit; after it:
   ``t`` on (:func:`belt_steps`, combined with the ``faults`` effect's slow-downs by
   :func:`folder_line.core.mechanisms.belt.combine_factors`), so a signature or leaf on
   the belt at ``t`` rides the rest of its way at the new speed, exactly;
-* the pile lift lowers each sheet counted at or after ``t`` over the new time.
-
-The press speed is not tunable: it sets the master drive's nominal speed, and the
-supervisor's acting states (``speed reached``) and every cycle in Θ are defined from
-it. Change it with ``press.n_c`` and restart.
+* the pile lift lowers each sheet counted at or after ``t`` over the new time;
+* the master drive ramps from ``t`` to the new press speed at its ramp rates
+  (:func:`folder_line.core.mechanisms.drive.ramp_generator`); the supervisor's acting
+  states end at the speed set, not at nominal. With ``motor_dynamics`` the motor curve
+  sets the speed: not tunable there.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from folder_line.core.limits import LINEAR_SPEED, PILE_LOWERING, Limit
+from folder_line.core.limits import CYLINDER_SPEED, LINEAR_SPEED, PILE_LOWERING, Limit
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.mechanisms.pile import T_LOWER
@@ -101,6 +104,17 @@ def _needs_belts(scene: Scene) -> str:
     return ''
 
 
+def _needs_press(scene: Scene) -> str:
+    if not scene.has_folder:
+        return f'scene {scene.name!r} has no knife folder: its press speed is the layup crank speed layup.n_kr'
+    if scene.has('motor_dynamics'):
+        return (
+            f'scene {scene.name!r} lists motor_dynamics: its motor curve sets the press speed '
+            '(effects.motor_dynamics.omega_nom); change it in the scene and restart'
+        )
+    return ''
+
+
 def _needs_nothing(scene: Scene) -> str:
     return ''
 
@@ -110,6 +124,7 @@ TUNABLES: dict[str, Tunable] = {
     for t in (
         Tunable('feed_transporter.V_tr', LINEAR_SPEED, "the feed transporter's belt speed", _needs_folder),
         Tunable('layup.v_tr', LINEAR_SPEED, 'the chute belt speed', _needs_belts),
+        Tunable('press.n_c', CYLINDER_SPEED, 'the press speed (folding cylinder)', _needs_press),
         Tunable('pile.t_lower', PILE_LOWERING, 'the time the pile lift takes to lower one sheet', _needs_nothing),
     )
 }
@@ -119,6 +134,8 @@ def scene_value(scene: Scene, key: str) -> float:
     """The scene's own value of tunable ``key`` (before any tuning)."""
     if key == 'pile.t_lower':
         return T_LOWER
+    if key == 'press.n_c':
+        return float(scene.machine('cyclogram').n_c)
     machine, _, field = key.partition('.')
     return float(getattr(scene.machine(machine), field))
 

@@ -67,6 +67,7 @@ __all__ = [
     'commanded_drive',
     'ramp_generator',
     'running_switches',
+    'target_rate',
     'theta_rate',
 ]
 
@@ -289,7 +290,9 @@ class PiecewiseLinearDrive:
     ----------
     t, theta, lam, acc : array_like, shape (n,)
         Knots: start time (s, strictly increasing), Θ (nominal s, non-decreasing),
-        λ (>= 0) and the segment's dλ/dt (1/s). The caller keeps the knots
+        λ (>= 0) and the segment's dλ/dt (1/s).
+    target : array_like, shape (n,), optional
+        The speed each segment heads for (:meth:`target_rate`; 1 running, 0 held if omitted). The caller keeps the knots
         consistent (Θ and λ at knot i+1 those of segment i at t_{i+1}); λ must stay
         >= 0 on every segment (it is clipped at 0 against rounding).
 
@@ -299,7 +302,15 @@ class PiecewiseLinearDrive:
     reaches (beyond the last knot with λ = 0 and no acceleration) is ``inf``.
     """
 
-    def __init__(self, t: npt.ArrayLike, theta: npt.ArrayLike, lam: npt.ArrayLike, acc: npt.ArrayLike) -> None:
+    def __init__(
+        self,
+        t: npt.ArrayLike,
+        theta: npt.ArrayLike,
+        lam: npt.ArrayLike,
+        acc: npt.ArrayLike,
+        target: npt.ArrayLike | None = None,
+    ) -> None:
+        self.target = None if target is None else np.array(target, dtype=np.float64).ravel()
         self.t = np.array(t, dtype=np.float64).ravel()
         self.theta0 = np.array(theta, dtype=np.float64).ravel()
         self.lam0 = np.array(lam, dtype=np.float64).ravel()
@@ -336,6 +347,13 @@ class PiecewiseLinearDrive:
         """dλ/dt, 1/s (right-continuous at the knots)."""
         i, _ = self._segment(np.asarray(t, dtype=np.float64))
         return self.acc[i].copy()
+
+    def target_rate(self, t: npt.ArrayLike) -> np.ndarray:
+        """The running speed λ heads for at ``t`` (the press speed setting; 1 unless given), 0 while held."""
+        i, _ = self._segment(np.asarray(t, dtype=np.float64))
+        if self.target is None:
+            return np.ones(np.shape(i))
+        return self.target[i].copy()
 
     def theta_rate(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``(Θ(t), λ(t))`` in one pass (the same values as :meth:`theta` and :meth:`rate`)."""
@@ -397,6 +415,9 @@ class SplicedDrive:
     def rate_dot(self, t: npt.ArrayLike) -> np.ndarray:
         return self._pick(self.head.rate_dot, self.tail.rate_dot, t)
 
+    def target_rate(self, t: npt.ArrayLike) -> np.ndarray:
+        return self._pick(lambda x: target_rate(self.head, x), lambda x: target_rate(self.tail, x), t)
+
     def theta_rate(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """``(Θ(t), λ(t))``, the same values as :meth:`theta` and :meth:`rate`."""
         tt = np.asarray(t, dtype=float)
@@ -421,76 +442,104 @@ def ramp_generator(
     switches: Iterable[tuple[float, bool]],
     t_up: float,
     t_down: float,
+    speeds: Iterable[tuple[float, float]] = (),
 ) -> PiecewiseLinearDrive:
     """Knots of λ moving towards its target at fixed rates, from a state at ``t0``.
 
     Parameters
     ----------
     t0, theta0, lam0 : float
-        Start time (s), Θ there (nominal s) and λ there (in [0, 1]).
+        Start time (s), Θ there (nominal s) and λ there (>= 0).
     running : bool
-        Target at ``t0``: 1 if running, else 0.
+        Target at ``t0``: the speed setting if running, else 0.
     switches : iterable of (float, bool)
         ``(t, running)`` target changes at times >= t0, in order
         (:func:`running_switches`).
     t_up, t_down : float
         Time for a full ramp up (0 -> 1) and down (1 -> 0), s (> 0): the rates are
         ``1/t_up`` and ``1/t_down``.
+    speeds : iterable of (float, float)
+        ``(t, s)``: from ``t`` on (>= t0, in order) the running speed is ``s`` times
+        nominal (an operator's tuning of the press speed); 1 before the first.
 
     Returns
     -------
     PiecewiseLinearDrive
-        Knots at ``t0``, at every switch, and where λ reaches its target.
+        Knots at ``t0``, at every switch, and where λ reaches its target, with each
+        segment's target (:meth:`PiecewiseLinearDrive.target_rate`).
     """
     a_up, a_down = 1.0 / t_up, 1.0 / t_down
-    lam0 = min(max(float(lam0), 0.0), 1.0)
+    changes = sorted(
+        [(float(t), 0, bool(run), 0.0) for t, run in switches] + [(float(t), 1, True, float(v)) for t, v in speeds],
+        key=lambda c: c[0],
+    )  # stable: at equal times a run switch before a speed change, each in its own order
+    speed = 1.0
+    hi = max([1.0] + [c[3] for c in changes if c[1] == 1])
+    lam0 = min(max(float(lam0), 0.0), hi)
     ts, ths, lams, accs = [float(t0)], [float(theta0)], [lam0], [0.0]
+    targets = [speed if running else 0.0]
 
-    def acc_for(lam: float, run: bool) -> float:
-        target = 1.0 if run else 0.0
+    def acc_for(lam: float, target: float) -> float:
         return a_up if lam < target else (-a_down if lam > target else 0.0)
 
-    def knot(t: float, lam: float | None, acc_next: float) -> None:
+    def knot(t: float, lam: float | None, acc_next: float, target: float) -> None:
         """Close the current segment at t (Θ, λ from its own formula, or λ given) and open the next."""
         tau = t - ts[-1]
         theta = ths[-1] + tau * (lams[-1] + 0.5 * accs[-1] * tau)
-        lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), 1.0) if lam is None else lam
+        lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), hi) if lam is None else lam
         ts.append(t)
         ths.append(theta)
         lams.append(lam_t)
         accs.append(acc_next)
+        targets.append(target)
 
     def reach_before(t_limit: float) -> None:
         """Add the knot where λ reaches its target, if that is before t_limit."""
         a = accs[-1]
         if a == 0.0:
             return
-        target = 1.0 if a > 0.0 else 0.0
+        target = targets[-1]
         t_r = ts[-1] + (target - lams[-1]) / a
         if t_r < t_limit and t_r > ts[-1]:
-            knot(t_r, target, 0.0)
+            knot(t_r, target, 0.0, target)
 
-    accs[0] = acc_for(lam0, running)
-    for t, run in switches:
-        t = float(t)
+    accs[0] = acc_for(lam0, targets[0])
+    for t, what, run, value in changes:
         if t < ts[-1]:
             raise ParameterError('commands', t, f'a switch at {t!r} s is before the generator start {ts[-1]!r} s')
         reach_before(t)
-        if run == running:
+        if what == 0:
+            if run == running:
+                continue
+            running = run
+        else:
+            speed = value
+        target = speed if running else 0.0
+        if target == targets[-1]:
             continue
-        running = run
         if t > ts[-1]:
             tau = t - ts[-1]
-            lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), 1.0)
-            knot(t, lam_t, acc_for(lam_t, running))
-        else:  # a switch at the current knot: only the segment's slope changes
-            accs[-1] = acc_for(lams[-1], running)
+            lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), hi)
+            knot(t, lam_t, acc_for(lam_t, target), target)
+        else:  # a switch at the current knot: only the segment's slope (and target) change
+            accs[-1] = acc_for(lams[-1], target)
+            targets[-1] = target
     reach_before(math.inf)
-    return PiecewiseLinearDrive(ts, ths, lams, accs)
+    return PiecewiseLinearDrive(ts, ths, lams, accs, targets)
 
 
-def commanded_drive(spec: DriveSpec, commands: Iterable[Command] = ()) -> Drive:
-    """The drive of a scene without ``motor_dynamics`` under supervisor commands.
+def target_rate(drive: Drive, t: npt.ArrayLike) -> np.ndarray:
+    """The running speed ``drive`` heads for at ``t`` (its ``target_rate``; 1 for a drive without settings)."""
+    f = getattr(drive, 'target_rate', None)
+    if f is None:
+        return np.ones(np.shape(np.asarray(t, dtype=float)))
+    return np.asarray(f(t), dtype=float)
+
+
+def commanded_drive(
+    spec: DriveSpec, commands: Iterable[Command] = (), speeds: Iterable[tuple[float, float]] = ()
+) -> Drive:
+    """The drive of a scene without ``motor_dynamics`` under supervisor commands and press speed settings.
 
     Parameters
     ----------
@@ -498,20 +547,26 @@ def commanded_drive(spec: DriveSpec, commands: Iterable[Command] = ()) -> Drive:
         The scene's profile (``t_ramp``, ``t_brake``).
     commands : iterable of Command
         Sorted by ``t`` (ParameterError otherwise); duplicates are idempotent.
+    speeds : iterable of (float, float)
+        ``(t, s)``, sorted: the running speed is ``s`` times nominal from ``t`` on (an
+        operator's tuning of the press speed, :mod:`folder_line.core.line.tuning`).
 
     Returns
     -------
     Drive
-        :func:`build_drive` of the spec if no command changes anything (identical to
-        it); else a :class:`SplicedDrive`: the profile's drive up to the first
-        effective command, then the ramp generator (:func:`ramp_generator`, module
-        docstring) from its state there.
+        :func:`build_drive` of the spec if no command or setting changes anything
+        (identical to it); else a :class:`SplicedDrive`: the profile's drive up to
+        the first effective command or setting, then the ramp generator
+        (:func:`ramp_generator`, module docstring) from its state there.
     """
     base = build_drive(spec)
     switches = running_switches(commands)
-    if not switches:
+    settings = [(float(t), float(v)) for t, v in speeds]
+    if not switches and not settings:
         return base
-    t1 = switches[0][0]
+    t1 = min(([switches[0][0]] if switches else []) + ([settings[0][0]] if settings else []))
     ta = np.array(t1)
-    tail = ramp_generator(t1, float(base.theta(ta)), float(base.rate(ta)), True, switches, spec.t_restart, spec.t_brake)
+    tail = ramp_generator(
+        t1, float(base.theta(ta)), float(base.rate(ta)), True, switches, spec.t_restart, spec.t_brake, settings
+    )
     return SplicedDrive(base, tail, t1)

@@ -30,7 +30,7 @@ import numpy as np
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand
-from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.mechanisms.drive import Drive, target_rate
 from folder_line.core.supervision.grid import CheckGrid
 from folder_line.core.supervision.packml import ACTING, PackML, Transition
 
@@ -209,8 +209,10 @@ class ActingState:
         if end == 'next':
             return n0 * self.grid.h
         g = np.arange(n0, n1 + 1, dtype=float) * self.grid.h
-        lam = np.asarray(drive_before().rate(g), dtype=float)
-        hit = lam >= self.speed_reached if end == 'speed' else lam <= 0.0
+        drive = drive_before()
+        lam = np.asarray(drive.rate(g), dtype=float)
+        # at speed: the speed the drive heads for (the press speed setting; 1 nominal), to speed_reached
+        hit = lam >= self.speed_reached * target_rate(drive, g) if end == 'speed' else lam <= 0.0
         j = int(np.argmax(hit)) if hit.size else 0
         if hit.size and hit[j]:
             return float(g[j])
