@@ -28,6 +28,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
+from folder_line.core.line.margin_text import format_margin
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
@@ -604,16 +605,19 @@ class MonitorState:
     def _constraints(self) -> list[tuple[str, str]]:
         if not self.constraints:
             return []
-        head = (
-            f'{"CONSTRAINT":<34} {"LEVEL":<5} {"MARGIN":>11} {"MIN MARGIN":>11} {"UNIT":<5} {"VIOL/EVAL":>11}  MESSAGE'
-        )
+        head = f'{"CONSTRAINT":<34} {"LEVEL":<5} {"MARGIN":>18} {"MIN MARGIN":>18} {"VIOL/EVAL":>11}  MESSAGE'
         rows = [(head, 'title')]
         for c in self.constraints.values():
             counts = f'{_g(c.violations, "d")}/{_g(c.evaluations, "d")}'
             style = 'alert' if c.level in ('WARN', 'ERROR') else ''
+            name = c.name.rsplit('/', 1)[-1]  # folder_line/one_per_cycle: the constraint's own name
+
+            def shown(x: float | None, name: str = name, unit: str = c.unit) -> str:
+                # each margin in its own unit (ms, mm, m/s, sheets), as simulate and analyze print it
+                return '-' if x is None else format_margin(x, unit, name, short=True)
+
             text = (
-                f'{c.name:<34} {c.level:<5} {_g(c.margin, "+.4e"):>11} {_g(c.min_margin, "+.4e"):>11} '
-                f'{c.unit:<5} {counts:>11}  {c.message}'
+                f'{c.name:<34} {c.level:<5} {shown(c.margin):>18} {shown(c.min_margin):>18} {counts:>11}  {c.message}'
             )
             rows.append((text, style))
         return rows

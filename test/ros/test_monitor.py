@@ -20,6 +20,7 @@ from std_msgs.msg import Float64, String, UInt64
 from folder_line.cli.main import main
 from folder_line.cli.monitor import run_monitor
 from folder_line.cli.monitor_view import LEVELS, MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats
+from folder_line.core.line.margin_text import format_margin
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
@@ -231,8 +232,10 @@ def test_the_supervisors_own_diagnostics_render_as_one_row_per_constraint() -> N
     for c in model.constraints:
         decided = c.decided_by(5.0)
         words = row(lines, f'folder_line/{c.name}')
-        assert words[1] == 'OK' and float(words[3]) == pytest.approx(float(c.margin[decided].min()), rel=1e-4)
-        assert words[4] == c.unit and words[5] == f'0/{int(decided.sum())}'
+        smallest = format_margin(float(c.margin[decided].min()), c.unit, c.name, short=True)
+        text = next(x for x in lines if x.startswith(f'folder_line/{c.name} '))
+        assert words[1] == 'OK' and f' {smallest} ' in text, (text, smallest)  # in its own unit, as simulate
+        assert f' 0/{int(decided.sum())} ' in text
 
 
 def test_violations_and_smallest_margin() -> None:
@@ -274,11 +277,16 @@ def test_violations_and_smallest_margin() -> None:
     state.ingest(DIAGNOSTICS_TOPIC, second, 2.0)
     styled = dict(state.render_styled(140))
     lines = list(styled)
-    assert row(lines, 'folder_line/feed_window')[1:6] == ['OK', '-', '-', 's', '-/0']
+    assert row(lines, 'folder_line/feed_window')[1:5] == ['OK', '-', '-', '-/0']
     rebound = next(x for x in lines if x.startswith('folder_line/rebound'))
-    assert rebound.split()[1:6] == ['WARN', '+1.0000e-03', '-2.0000e-03', 'm', '1/5']
+    assert rebound.split()[1:7] == ['WARN', '+1.0000', 'mm', '-2.0000', 'mm', '1/5']  # each margin in its unit
     assert styled[rebound] == 'alert'
-    assert row(lines, 'custom/no_min')[2:4] == ['+7.5000e-01', '+5.0000e-01']  # no min_margin sent: the smallest seen
+    assert row(lines, 'custom/no_min')[2:6] == [
+        '+750.0000',
+        'ms',
+        '+500.0000',
+        'ms',
+    ]  # no min_margin: the smallest seen
     assert state.topics[DIAGNOSTICS_TOPIC].latest.endswith('1 WARN or ERROR')
 
 

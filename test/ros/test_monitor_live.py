@@ -149,11 +149,13 @@ def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[s
     assert float(rows['/clock'][1]) > 0.0
     # the announcement, transient-local: received once however late the monitor came
     assert rows['/line/participants'][2:] == ['1', 'lockstep', 'clock,', '5', 'participants']
-    names = [c.name for c in line.supervisor.model.constraints]
-    assert names
-    for name in names:  # one row per constraint: level, margin, smallest margin, unit
-        words = next(x.split() for x in lines if x.startswith(f'folder_line/{name} '))
-        assert words[1] in ('OK', 'WARN', 'ERROR') and re.fullmatch(r'[+-]\d\.\d{4}e[+-]\d\d', words[3]), words
+    constraints = line.supervisor.model.constraints
+    assert constraints
+    shown = {'s': r'[+-]\d+\.\d{4} ms', 'm': r'[+-]\d+\.\d{4} mm', 'sheets': r'1 sheet|\d+ sheets? off'}
+    for c in constraints:  # one row per constraint: level, margin and smallest margin, each in its unit
+        text = next(x for x in lines if x.startswith(f'folder_line/{c.name} '))
+        value = shown.get(c.unit, r'[+-][0-9.e+-]+')
+        assert re.match(rf'folder_line/{c.name} +(OK|WARN|ERROR) +({value}) +({value}) +\d+/\d+', text), text
 
 
 def test_once_without_a_line_says_so_and_exits_0(node_env: dict[str, str]) -> None:
