@@ -23,7 +23,15 @@ from folder_line.core.mechanisms import delivery
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
 from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
-__all__ = ['GANTT_CYCLES', 'at_speed_time', 'cycle_rows', 'efficiency_data', 'exit_speed_data', 'landing_data']
+__all__ = [
+    'GANTT_CYCLES',
+    'at_speed_time',
+    'cycle_rows',
+    'efficiency_data',
+    'exit_speed_data',
+    'landing_data',
+    'off_speed',
+]
 
 #: cycles shown in the Gantt chart by default
 GANTT_CYCLES = 8
@@ -58,6 +66,23 @@ def at_speed_time(rec: Recording, ev: Evaluation) -> float:
     grid = np.arange(0.0, rec.t_end + CHECK_PERIOD, CHECK_PERIOD)
     fast = np.flatnonzero(np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED)
     return float(grid[fast[0]]) if fast.size else math.inf
+
+
+def off_speed(rec: Recording, ev: Evaluation, t: np.ndarray) -> np.ndarray:
+    """Which line times ``t`` fall where the line was not running at speed: the start-up, and the
+    ramps and standstills of holds, stops and suspends after it.
+
+    With recorded states: the times before the first ``EXECUTE`` (:func:`at_speed_time`)
+    and those in any later state but ``EXECUTE``. Without: where the model drive ``ev.drive``
+    turns below :data:`~folder_line.core.supervision.settings.SPEED_REACHED` of its nominal speed.
+    """
+    t = np.asarray(t, dtype=float)
+    if not rec.states:
+        return np.asarray(ev.drive.rate(t), dtype=float) < SPEED_REACHED
+    stamps = np.array([t_ns / NS_PER_S for t_ns, _ in rec.states])
+    running = np.array([state == _AT_SPEED_STATE for _, state in rec.states])
+    i = np.searchsorted(stamps, t, side='right') - 1  # the state shown at t
+    return np.asarray((i < 0) | ~running[np.clip(i, 0, None)], dtype=bool)
 
 
 def exit_speed_data(rec: Recording) -> dict[str, np.ndarray] | None:

@@ -58,6 +58,7 @@ from folder_line.analysis.figure_data import (
     efficiency_data,
     exit_speed_data,
     landing_data,
+    off_speed,
 )
 from folder_line.analysis.recording import RecordedJoints, Recording
 from folder_line.analysis.replay import Evaluation
@@ -270,30 +271,42 @@ def _recorded_exit_speeds(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.nda
     ax.plot(deg, v_e, 's', ms=4.5, color=QUANTITY_COLOURS['vE'], mfc='none', alpha=0.8, label=f'recorded {names[1]}')
 
 
-def _start_up_samples(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, t_speed: float) -> None:
-    """Samples before the drive reached speed (t < ``t_speed``): grey crosses, one legend entry."""
+def _start_up_samples(
+    ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, t_speed: float, later: int = 0
+) -> None:
+    """Samples off speed: before the drive reached speed (t < ``t_speed``) and ``later`` ones of holds and
+    stops after it: grey crosses, one legend entry."""
     if deg.size == 0:
         return
     colour = QUANTITY_COLOURS['start_up']
-    label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s): {deg.size} ticks'
+    first = deg.size - later
+    if first and later:
+        label = (
+            f'start-up (before the drive reached speed, t < {t_speed:.3g} s) and {later} ticks of holds/stops after it'
+        )
+    elif first:
+        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s)'
+    else:
+        label = 'holds/stops (the drive ramping down or standing still)'
+    label += f': {deg.size} ticks'
     ax.plot(deg, v_c, 'x', ms=3.5, color=colour, alpha=0.8, label=label)
     ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
 
 
-def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation, lp: Any, t_speed: float) -> None:
-    """The leaves' exit speeds at their crank angles; those of the start-up hollow."""
+def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation, lp: Any) -> None:
+    """The leaves' exit speeds at their crank angles; those off speed (start-up, holds) hollow."""
     exits = rec.events_of('leaf_exit')
     if not exits.size:
         return
     turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
     deg = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
-    early = exits['t'] < t_speed
+    early = off_speed(rec, ev, exits['t'])
     for at_e, exit_name, marker in ((False, 'C', 'v'), (True, 'E', '^')):
         mine = (exits['sheet'] % 2 == 1) == at_e
         colour = QUANTITY_COLOURS[f'leaf_exit_{exit_name}']
         n_early = int(np.count_nonzero(mine & early))
         label = f'leaf exits at {exit_name} ({int(np.count_nonzero(mine))}'
-        label += f'; hollow: {n_early} in the start-up)' if n_early else ')'
+        label += f'; hollow: {n_early} off speed: start-up, holds)' if n_early else ')'
         ax.plot(deg[mine & ~early], exits['value'][mine & ~early], marker, ms=6, color=colour, label=label)
         if n_early:
             ax.plot(deg[mine & early], exits['value'][mine & early], marker, ms=6, color=colour, mfc='none')
@@ -321,15 +334,16 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
     exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
     t_speed = at_speed_time(rec, ev)
-    early = data['t'] < t_speed
+    early = off_speed(rec, ev, data['t'])
+    later = int(np.count_nonzero(early & (data['t'] >= t_speed)))
     deg = np.degrees(data['phi'])
     for ax, c, e, names in (
         (ax1, 'vC', 'vE', (r'$\omega_3 l_3$', r'$\omega_5 l_5$')),
         (ax2, 'vaC', 'vaE', ('$v_{aC}$', '$v_{aE}$')),
     ):
         _recorded_exit_speeds(ax, deg[~early], data[c][~early], data[e][~early], names)
-        _start_up_samples(ax, deg[early], data[c][early], data[e][early], t_speed)
-    _leaf_exits(ax2, rec, ev, lp, t_speed)
+        _start_up_samples(ax, deg[early], data[c][early], data[e][early], t_speed, later)
+    _leaf_exits(ax2, rec, ev, lp)
     if scene.has('chute_belts'):
         vmin = float(scene.effect('chute_belts').v_min)
         ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
@@ -339,7 +353,7 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
         f'{_sampling(crank, data["t"].size)} over {rec.t_end:.3f} s',
         fontsize=10,
     )
-    ax1.legend(loc='lower right', fontsize=7.5)
+    ax1.legend(loc='best', fontsize=7.5)
     ax2.set_ylabel('absolute exit speed, m/s')
     ax2.set_xlabel(r'crank angle $\varphi$, deg')
     belts = rec.joints.get(NODE_OF_UNIT['belts'])
@@ -349,7 +363,7 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
     else:
         belt = 'no belts'
     ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
-    ax2.legend(loc='lower right', fontsize=7.5, ncol=2)
+    ax2.legend(loc='best', fontsize=7.5, ncol=2)
     fig.tight_layout()
     return fig
 

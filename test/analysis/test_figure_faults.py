@@ -20,7 +20,7 @@ from matplotlib.colors import to_rgba
 
 from folder_line.analysis import colours, figures, read_recording
 from folder_line.analysis.colours import QUANTITY_COLOURS
-from folder_line.analysis.figure_data import at_speed_time, exit_speed_data
+from folder_line.analysis.figure_data import at_speed_time, exit_speed_data, off_speed
 from folder_line.analysis.figures import (
     coincidence,
     efficiency_figure,
@@ -176,3 +176,31 @@ def test_eta_a_and_eta_b_keep_their_colours(line_run: tuple[Recording, Evaluatio
     finally:
         pyplot().close(report_fig)
         pyplot().close(analyze_fig)
+
+
+def test_the_ramps_of_a_hold_after_the_start_are_marked_too(tmp_path: Path) -> None:
+    """A hold after the start-up (here the supervisor's, on a chute belt tuned too slow) ramps the drive down:
+    those samples are off speed as the start-up's are, marked with them, and told apart in the legend."""
+    bag = tmp_path / 'bag'
+    assert (
+        main(['simulate', '--scene', 'layup', '--duration', '8', '--tune', '3:layup.v_tr=0.5', '--bag', str(bag)]) == 0
+    )
+    rec = read_recording(bag)
+    ev = evaluate(rec)
+    assert [s for _, s in rec.states][-2:] == ['HOLDING', 'HELD']
+    data = exit_speed_data(rec)
+    assert data is not None
+    t_hold = next(t_ns for t_ns, s in rec.states if s == 'HOLDING') / 1e9
+    off = off_speed(rec, ev, data['t'])
+    assert np.array_equal(off, (data['t'] < at_speed_time(rec, ev)) | (data['t'] >= t_hold))
+    later = int(np.count_nonzero(data['t'] >= t_hold))
+    assert later > 0
+    fig = exit_speeds_figure(rec, ev)
+    try:
+        # this drive is at speed from t = 0: no start-up, only the hold
+        assert at_speed_time(rec, ev) == 0.0 and later == int(off.sum())
+        assert not _lines(fig.axes[0], START_UP)
+        (marked,) = _lines(fig.axes[0], 'holds/stops (the drive ramping down or standing still)')
+        assert marked.get_label().endswith(f': {later} ticks')
+    finally:
+        pyplot().close(fig)
