@@ -92,6 +92,7 @@ class ReportParams:
 
     params: PaperParams
     given: tuple[str, ...] = field(default=())
+    container: ContainerParams = field(default_factory=load_container)
 
 
 def _file_values(path: str | None) -> list[tuple[str, Any]]:
@@ -112,7 +113,8 @@ def report_params(path: str | None = None, overrides: Mapping[str, Any] | None =
     Parameters
     ----------
     path : str, optional
-        YAML file mapping report sections (``layup``, ``knife``, ``cyclogram``, ``delivery``, ``press``)
+        YAML file mapping report sections (``layup``, ``knife``, ``cyclogram``, ``delivery``, ``container``,
+        ``press``)
         to any subset of their keys.
     overrides : mapping, optional
         ``{'press.n_c': 30000, 'delivery.f_A': 0.2}`` as from ``--set``.
@@ -124,14 +126,16 @@ def report_params(path: str | None = None, overrides: Mapping[str, Any] | None =
         not twice the cylinder's.
     """
     given = [*_file_values(path), *(overrides or {}).items()]
-    sections: dict[str, dict[str, Any]] = {kind: {} for kind in KINDS}
+    sections: dict[str, dict[str, Any]] = {kind: {} for kind in (*KINDS, 'container')}
     for key, value in given:
         head, sep, name = key.partition('.')
         if head == 'press':
             set_press(sections, key, value, 'the report')
         elif not sep or head not in sections or not name or '.' in name:
             raise ParameterError(
-                key, value, f'must be SECTION.KEY with a section of the report ({", ".join(KINDS)}) or press.n_c'
+                key,
+                value,
+                f'must be SECTION.KEY with a section of the report ({", ".join(KINDS)}, container) or press.n_c',
             )
         else:
             sections[head][name] = value
@@ -142,7 +146,8 @@ def report_params(path: str | None = None, overrides: Mapping[str, Any] | None =
         'cyclogram': load_params('cyclogram', overrides=sections['cyclogram']),
     }
     check_press_speed(p['knife'].n_k, p['cyclogram'].n_c)
-    return ReportParams(p, tuple(f'{k}={v}' for k, v in given))
+    container = load_container(sections['container'])  # drawn under the six-bar in layup_geometry.png
+    return ReportParams(p, tuple(f'{k}={v}' for k, v in given), container)
 
 
 def add_report_arguments(parser: argparse.ArgumentParser) -> None:
@@ -150,7 +155,8 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--params',
         metavar='FILE.yaml',
-        help='values to report at instead of the defaults: {layup|knife|cyclogram|delivery|press: {key: value}}',
+        help='values to report at instead of the defaults: '
+        '{layup|knife|cyclogram|delivery|container|press: {key: value}}',
     )
     parser.add_argument(
         '--set',
@@ -452,7 +458,7 @@ def write_report(out: Path, stream: IO[str], inputs: ReportParams | None = None)
         written.append(
             write_csv_atomic(out / f'{mech}.csv', kinematics_table(mech, None, 360 if mech != 'delivery' else 101, mp))
         )
-    written += _plot_layup(p['layup'], load_container(), out)
+    written += _plot_layup(p['layup'], inputs.container, out)
     written.append(_plot_knife(p['knife'], p['cyclogram'], out))
     written.append(_plot_delivery(p['delivery'], out))
     plots = [f'![{w.stem}]({w.name})' for w in written if w.suffix == '.png']

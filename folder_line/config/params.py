@@ -117,13 +117,15 @@ def load_params(
     return build(MACHINES[kind], values, kind, f'{kind} parameter')
 
 
-def load_container() -> ContainerParams:
-    """The default container the layup lays the leaves into (``config/container.yaml``; the layup's frame).
+def load_container(overrides: Mapping[str, Any] | None = None) -> ContainerParams:
+    """The container the layup lays the leaves into (``config/container.yaml``; the layup's frame),
+    with ``overrides`` (``{'x_left': 0.1}``) applied last.
 
     Raises
     ------
     ParameterError
-        A default file with an unknown key or a value out of range.
+        An unknown key or a value out of range (the message names the key and value).
     """
     values = read_yaml_mapping(config_dir() / 'container.yaml', 'container defaults')
+    values.update(overrides or {})
     return build(ContainerParams, values, 'container', 'container parameter')

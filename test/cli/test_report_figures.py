@@ -82,3 +82,15 @@ def test_layup_geometry_draws_the_container(cont: ContainerParams) -> None:
         assert cont.x_left < np.min(path_c.get_xdata()) and np.max(path_e.get_xdata()) < cont.x_right
     finally:
         pyplot().close(fig)
+
+
+def test_report_set_container_is_drawn_and_listed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(['report', '--set', 'container.x_right=0.6', '--out', str(tmp_path / 'r')]) == 0
+    out = capsys.readouterr().out
+    assert '- `container.x_right=0.6`' in out  # the values given, at the top
+    params = report.report_params(None, {'container.x_right': 0.6})
+    assert params.container.x_right == 0.6 and params.container.x_left == load_container().x_left
+    assert main(['report', '--set', 'container.depth=1', '--out', str(tmp_path / 'bad')]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith('folder-line: error: container.depth=1: unknown container parameter; known: ')
+    assert not (tmp_path / 'bad').exists()  # nothing half-written
