@@ -20,13 +20,18 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from _ros_env import node_environment
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from std_msgs.msg import String
+
+from folder_line.interfaces import SUPERVISOR_STATE_TOPIC
+from folder_line.ros.nodes.supervisor import STATE_QOS
 
 REPO = Path(__file__).resolve().parents[2]
 TAG = 'FOLDER_LINE_TEST_TAG'
@@ -371,3 +376,37 @@ def assert_bag_is_model(
         assert all(st.level == 0 or (rejected and st.name == 'folder_line/supervisor/inputs') for st in r.msg.status), [
             (st.name, st.level, st.message) for st in r.msg.status
         ]
+
+
+@contextlib.contextmanager
+def line_with_states(ros: Any, out: Path, duration: float, scene: str = 'folder') -> Iterator[LiveLine]:
+    """A ``folder-line run`` of ``scene`` at rtf 1 into ``out`` (stderr piped), and the supervisor's state
+    as a listener in ``ros`` hears it; the run is killed on the way out if it still runs."""
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'folder_line.cli.main', 'run', '--scene', scene, '--duration', str(duration)]
+        + ['--rtf', '1', '--out', str(out)],
+        env=node_environment(),
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        listener = ros.node(f'line_listener_{uuid.uuid4().hex[:6]}')
+        yield LiveLine(proc, ros.subscribe(listener, String, SUPERVISOR_STATE_TOPIC, STATE_QOS))
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+@dataclass
+class LiveLine:
+    """A run of :func:`line_with_states`: the process and the states heard."""
+
+    proc: subprocess.Popen[str]
+    states: Any
+
+    def state(self) -> str:
+        """The latest state heard ('' before the first)."""
+        return str(self.states.messages[-1].data) if self.states.messages else ''

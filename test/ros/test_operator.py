@@ -10,21 +10,17 @@ domain a command says so in one line and exits 3.
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from _ros_env import DOMAIN_ID, REPO, node_environment
-from std_msgs.msg import String
+from _ros_env import DOMAIN_ID
 
 from folder_line.analysis import analyze
 from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel
-from folder_line.interfaces import SUPERVISOR_STATE_TOPIC
-from folder_line.ros.nodes.supervisor import STATE_QOS
 
+from ._line_runs import line_with_states
 from .conftest import Ros
 
 DURATION = 12.0  # s of line time
@@ -50,22 +46,8 @@ def test_hold_unhold_and_a_refusal_against_a_running_line(
     ros: Ros, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / 'run'
-    proc = subprocess.Popen(
-        [sys.executable, '-m', 'folder_line.cli.main', 'run', '--scene', 'folder', '--duration', str(DURATION)]
-        + ['--rtf', '1', '--out', str(out)],
-        env=node_environment(),
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        listener = ros.node('operator_test')
-        states = ros.subscribe(listener, String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
-
-        def now() -> str:
-            return str(states.messages[-1].data) if states.messages else ''
-
+    with line_with_states(ros, out, DURATION) as line:
+        now = line.state
         assert ros.spin_until(lambda: now() == 'EXECUTE', timeout=120.0), now()
         capsys.readouterr()
 
@@ -89,12 +71,8 @@ def test_hold_unhold_and_a_refusal_against_a_running_line(
         refused = capsys.readouterr().out.strip()
         assert refused.startswith('unhold: refused: ') and 'EXECUTE' in refused, refused
 
-        _, err = proc.communicate(timeout=180)
-        assert proc.returncode == 0, err
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+        _, err = line.proc.communicate(timeout=180)
+        assert line.proc.returncode == 0, err
     result = analyze(out, tmp_path / 'analysis')
     targets = [t['to'] for t in result.summary['transitions']]
     assert targets[-4:] == ['HOLDING', 'HELD', 'UNHOLDING', 'EXECUTE'], targets

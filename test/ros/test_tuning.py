@@ -12,14 +12,10 @@ transitions. A tunable the scene does not have is refused by the node with its r
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from _ros_env import REPO, node_environment
-from std_msgs.msg import String
 
 from folder_line.analysis import analyze
 from folder_line.analysis.recording import read_recording
@@ -27,9 +23,8 @@ from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.core.line.tuning import Tuning
-from folder_line.interfaces import SUPERVISOR_STATE_TOPIC
-from folder_line.ros.nodes.supervisor import STATE_QOS
 
+from ._line_runs import line_with_states
 from .conftest import Ros
 
 DURATION = 10.0  # s of line time
@@ -40,22 +35,8 @@ def test_lowering_v_tr_holds_at_the_cycle_simulate_says(
     ros: Ros, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / 'run'
-    proc = subprocess.Popen(
-        [sys.executable, '-m', 'folder_line.cli.main', 'run', '--scene', 'folder', '--duration', str(DURATION)]
-        + ['--rtf', '1', '--out', str(out)],
-        env=node_environment(),
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        listener = ros.node('tuning_test')
-        states = ros.subscribe(listener, String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
-
-        def now() -> str:
-            return str(states.messages[-1].data) if states.messages else ''
-
+    with line_with_states(ros, out, DURATION) as line:
+        now = line.state
         assert ros.spin_until(lambda: now() == 'EXECUTE', timeout=120.0), now()
         capsys.readouterr()
         # the folder scene has no layup: its belt_conveyor declares no chute belt speed, and says so
@@ -66,13 +47,9 @@ def test_lowering_v_tr_holds_at_the_cycle_simulate_says(
         said = capsys.readouterr().out.strip()
         assert said.startswith(f'tune: accepted: /feed_transporter V_tr = {SLOW!r} m/s'), said
         assert ros.spin_until(lambda: now() == 'HELD', timeout=120.0), now()
-        _, err = proc.communicate(timeout=180)
-        assert proc.returncode != 0, 'a run held on a violation does not exit 0'
+        _, err = line.proc.communicate(timeout=180)
+        assert line.proc.returncode != 0, 'a run held on a violation does not exit 0'
         assert 'feed_window violated' in err, err[-2000:]
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
 
     rec = read_recording(out / 'bag')
     (tuning,) = [c for c in rec.commands if isinstance(c, Tuning)]

@@ -27,7 +27,7 @@ from folder_line.core.effects import (
 )
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.events import event_kind, make_events
-from folder_line.core.mechanisms.belt import BeltPhase, combine_factors
+from folder_line.core.mechanisms.belt import BeltPhase, belt_intervals
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.delivery import stroke_minimum
 from folder_line.core.mechanisms.drive import Drive
@@ -269,18 +269,7 @@ def hand_overs(s: Setup) -> Stream:
 def belt_phase(s: Setup, st: Stream, steps: list[tuple[float, float]] | None = None) -> BeltPhase:
     """The feed belt's travel in master phase, with the faults' slow-downs and the operator's speed
     ``steps`` (``(t, factor)`` from ``t`` on, :func:`folder_line.core.line.tuning.belt_steps`)."""
-    sd = st.slowdowns
-    if steps:
-        ts, te, f = combine_factors(
-            None if sd is None else sd.t_start,
-            None if sd is None else sd.t_end,
-            None if sd is None else sd.factor,
-            steps,
-        )
-        return BeltPhase(s.drive, s.duration, ts, te, f)
-    if sd is None:
-        return BeltPhase(s.drive, s.duration)
-    return BeltPhase(s.drive, s.duration, sd.t_start, sd.t_end, sd.factor)
+    return BeltPhase(s.drive, s.duration, *belt_intervals(st.slowdowns, steps or []))
 
 
 def feed(

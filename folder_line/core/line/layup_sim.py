@@ -95,7 +95,7 @@ from folder_line.core.line.events import (
 )
 from folder_line.core.line.machines import StreamParams
 from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms.belt import combine_factors
+from folder_line.core.mechanisms.belt import belt_intervals
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
@@ -348,18 +348,7 @@ class LayupLine(LinePart):
         if belts_on:
             v_tr = chute_belts.check_belt_speed(lp.v_tr)
             steps = belt_steps(tunings, 'layup.v_tr', v_tr)
-            if steps:
-                ts, te, f = combine_factors(
-                    None if slow is None else slow.t_start,
-                    None if slow is None else slow.t_end,
-                    None if slow is None else slow.factor,
-                    steps,
-                )
-                profile = chute_belts.belt_profile(v_tr, drive, duration, ts, te, f)
-            elif slow is not None:
-                profile = chute_belts.belt_profile(v_tr, drive, duration, slow.t_start, slow.t_end, slow.factor)
-            else:
-                profile = chute_belts.belt_profile(v_tr, drive, duration)
+            profile = chute_belts.belt_profile(v_tr, drive, duration, *belt_intervals(slow, steps))
             t_out, exited = chute_belts.exit_times(profile, drive, length, t_in, theta_end)
             if exited.any():
                 v_along[exited] = chute_belts.belt_speed(profile, drive, t_out[exited])

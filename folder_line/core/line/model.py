@@ -54,7 +54,7 @@ from folder_line.core.line.tuning import (
     tunings_of,
     values_from,
 )
-from folder_line.core.mechanisms.drive import Command, Drive, commanded_drive, theta_rate
+from folder_line.core.mechanisms.drive import Command, Drive, check_commands, commanded_drive, theta_rate
 from folder_line.core.mechanisms.pile import T_LOWER, pile_table
 from folder_line.core.numerics.validate import as_float
 from folder_line.errors import ParameterError
@@ -204,17 +204,7 @@ def check_line_commands(commands: Iterable[LineCommand]) -> tuple[LineCommand, .
     ParameterError
         Anything else, or one earlier than the one before it.
     """
-    out = tuple(commands)
-    for i, c in enumerate(out):
-        if not isinstance(c, Command | Tuning):
-            raise ParameterError(f'commands[{i}]', c, 'must be a drive Command or a Tuning')
-        if i and c.t < out[i - 1].t:
-            raise ParameterError(
-                f'commands[{i}].t',
-                c.t,
-                f'commands must be sorted by effective time; the one before is at {out[i - 1].t!r} s',
-            )
-    return out
+    return check_commands(commands, (Command, Tuning), 'a drive Command or a Tuning')
 
 
 def make_drive(scene: Scene, duration: float, commands: Iterable[LineCommand] = ()) -> Drive:

@@ -20,13 +20,15 @@ those steps with the slow-downs into one list of intervals for :class:`BeltPhase
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.arrays import FloatArray
 
-__all__ = ['BeltPhase', 'combine_factors']
+__all__ = ['BeltPhase', 'Intervals', 'belt_intervals', 'combine_factors']
 
 
 class BeltPhase:
@@ -152,3 +154,29 @@ def combine_factors(
             out_e.append(b)
             out_f.append(f)
     return np.array(out_s), np.array(out_e), np.array(out_f)
+
+
+class Intervals(Protocol):
+    """Slow-downs as the ``faults`` effect gives them (``Slowdowns``)."""
+
+    @property
+    def t_start(self) -> np.ndarray: ...
+
+    @property
+    def t_end(self) -> np.ndarray: ...
+
+    @property
+    def factor(self) -> np.ndarray: ...
+
+
+def belt_intervals(
+    slow: Intervals | None, steps: list[tuple[float, float]]
+) -> tuple[FloatArray | None, FloatArray | None, FloatArray | None]:
+    """``(t_start, t_end, factor)`` for :class:`BeltPhase`: the slow-downs ``slow`` as they are when no
+    operator's ``steps`` change the belt (so the phase is bit for bit the untuned one), else combined with
+    them (:func:`combine_factors`); ``(None, None, None)`` for neither."""
+    if not steps:
+        return (None, None, None) if slow is None else (slow.t_start, slow.t_end, slow.factor)
+    if slow is None:
+        return combine_factors(None, None, None, steps)
+    return combine_factors(slow.t_start, slow.t_end, slow.factor, steps)

@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -226,22 +226,27 @@ class Command:
         return _RUNNING[self.kind]
 
 
-def check_commands(commands: Iterable[Command]) -> tuple[Command, ...]:
-    """Commands as a tuple, checked: each a :class:`Command`, sorted by ``t`` (ties allowed).
+def check_commands(
+    commands: Iterable[Any], kinds: tuple[type, ...] = (), what: str = 'a folder_line.core.mechanisms.drive.Command'
+) -> tuple[Any, ...]:
+    """Commands as a tuple, checked: each a :class:`Command` (or one of ``kinds``, described as ``what``),
+    sorted by ``t`` (ties allowed).
 
     Raises
     ------
     ParameterError
-        Something that is not a Command, or a command earlier than the one before it.
+        Something else, or a command earlier than the one before it.
     """
     out = tuple(commands)
+    allowed = kinds or (Command,)
     for i, c in enumerate(out):
-        if not isinstance(c, Command):
-            raise ParameterError(f'commands[{i}]', c, 'must be a folder_line.core.mechanisms.drive.Command')
-        if i and c.t < out[i - 1].t:
+        if not isinstance(c, allowed):
+            raise ParameterError(f'commands[{i}]', c, f'must be {what}')
+        t: float = out[i].t
+        if i and t < out[i - 1].t:
             raise ParameterError(
                 f'commands[{i}].t',
-                c.t,
+                t,
                 f'commands must be sorted by effective time; the one before is at {out[i - 1].t!r} s',
             )
     return out
