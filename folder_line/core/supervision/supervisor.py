@@ -327,6 +327,17 @@ class Supervisor:
 
     # ------------------------------------------------------------------ operator
 
+    def _operator_time(self, t: float | None, what: str) -> float:
+        """The time of an operator's input: ``t`` (default the watermark), the watermark advanced to it."""
+        if t is None:
+            t = self.now if math.isfinite(self.now) else (self.t_start or 0.0)
+        t = as_float('t', t)
+        if t < self.now:
+            raise ParameterError('t', t, f'{what} cannot be earlier than the watermark {self.now!r} s')
+        if t > self.now:
+            self.tick(t)
+        return t
+
     def command(self, name: str, t: float | None = None) -> Outcome:
         """An operator command at time ``t`` (default: the watermark).
 
@@ -334,13 +345,7 @@ class Supervisor:
         inputs up to ``t`` must be in. Returns the outcome; a command PackML refuses
         changes nothing and carries the reason.
         """
-        if t is None:
-            t = self.now if math.isfinite(self.now) else (self.t_start or 0.0)
-        t = as_float('t', t)
-        if t < self.now:
-            raise ParameterError('t', t, f'an operator command cannot be earlier than the watermark {self.now!r} s')
-        if t > self.now:
-            self.tick(t)
+        t = self._operator_time(t, 'an operator command')
         try:
             cmd = self._apply(name, t, name)
         except TransitionError as err:
@@ -362,13 +367,7 @@ class Supervisor:
         after it are judged on the events of the line under it. A refusal changes
         nothing and carries the reason.
         """
-        if t is None:
-            t = self.now if math.isfinite(self.now) else (self.t_start or 0.0)
-        t = as_float('t', t)
-        if t < self.now:
-            raise ParameterError('t', t, f'a tuning cannot be earlier than the watermark {self.now!r} s')
-        if t > self.now:
-            self.tick(t)
+        t = self._operator_time(t, 'a tuning')
         try:
             x = check_tuning(self.scene, key, value)
         except ParameterError as err:
