@@ -108,6 +108,10 @@ def _could_publish(producer: str, topic: str, msg: Any) -> bool:
     return True
 
 
+#: the supervisor's status of an operator's tuning (the run's summary simulates the line under them)
+_TUNING_STATUS = 'folder_line/supervisor/tuning'
+
+
 class LineRecorder(Node):
     """Subscribes to :data:`LINE_TOPICS` (reliable, deep queues).
 
@@ -131,7 +135,8 @@ class LineRecorder(Node):
         self.lost: dict[str, float] = {}
         #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
         self.write_error: OSError | None = None
-        self.diagnostics: list[Any] = []  # the ERROR statuses seen (lost participants, violations, ...)
+        # the ERROR statuses seen (lost participants, violations, ...) and the operator's tunings
+        self.diagnostics: list[Any] = []
         self._last_clock = -1
         self._held: list[tuple[str, bytes, int]] = []  # (topic, cdr, publish ns) of a tick whose /clock is not in
         self._sim_origin = 0.0
@@ -205,7 +210,9 @@ class LineRecorder(Node):
             elif topic == SHEET_COUNT_TOPIC:
                 self.sheet_count = msg.data
             elif topic == DIAGNOSTICS_TOPIC:
-                self.diagnostics.extend(st for st in msg.status if st.level == DiagnosticStatus.ERROR)
+                self.diagnostics.extend(
+                    st for st in msg.status if st.level == DiagnosticStatus.ERROR or st.name == _TUNING_STATUS
+                )
             self.counts[topic] += 1
             source = (
                 ''

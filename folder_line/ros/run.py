@@ -56,6 +56,7 @@ from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
 from folder_line.core.line.margin_text import margin_at
 from folder_line.core.line.model import check_size, simulate
+from folder_line.core.line.tuning import Tuning
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
@@ -404,8 +405,24 @@ def outcome(summary: dict[str, Any]) -> dict[str, Any]:
         'ok': ok,
         'expected_state': expected,
         'state': state,
-        'message': 'line ended EXECUTE as the scene expects' if ok else '; '.join(problems),
+        'message': (
+            f'line ended {state} as the scene expects'
+            + (" with the operator's tunings" if summary.get('tunings') else '')
+            + (f': {cause}' if ok and cause else '')
+            if ok
+            else '; '.join(problems)
+        ),
     }
+
+
+def _tunings(statuses: Any) -> list[Tuning]:
+    """The tunings the supervisor accepted, from its ``folder_line/supervisor/tuning`` statuses, by effective time."""
+    out = []
+    for st in statuses:
+        values = {kv.key: kv.value for kv in st.values}
+        if st.name == 'folder_line/supervisor/tuning' and values.get('accepted') == 'True':
+            out.append(Tuning(float(values['effective']), values['key'], float(values['value'])))
+    return sorted(out, key=lambda tu: tu.t)
 
 
 def _where(constraint: str, cycle: str | None) -> str:
@@ -425,7 +442,9 @@ def _summary(
     lost: dict[str, float],
     rtf: float | None,
 ) -> dict[str, Any]:
-    expected = simulate(scene, min(recorder.sim_time, cfg.duration) or cfg.duration, sample_rate=0.0).summary()
+    tunings = _tunings(recorder.diagnostics)  # the operator's changes: simulate runs them too
+    span = min(recorder.sim_time, cfg.duration) or cfg.duration
+    expected = simulate(scene, span, sample_rate=0.0, commands=[tu for tu in tunings if tu.t <= span]).summary()
     cause = None
     for st in recorder.diagnostics:  # the first violation that changed the state, with its cycle and node
         values = {kv.key: kv.value for kv in st.values}
@@ -453,6 +472,7 @@ def _summary(
         'events_received': dict(sorted(recorder.event_counts.items())),
         'sheets_counted': recorder.sheet_count,
         'supervisor_state': recorder.state,
+        'tunings': [{'t': tu.t, 'key': tu.key, 'value': tu.value} for tu in tunings],
         'expected_from_simulate': {
             'sheets_counted': expected['sheets_counted'],
             'events': expected['events'],
@@ -484,11 +504,17 @@ def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -
         f'{summary["rtf_achieved"]:.2f}, ceiling {summary["rtf_requested"]})',
         file=stream,
     )
+    tunings = summary.get('tunings') or []
     print(
         f'supervisor: {summary["supervisor_state"]}   sheets counted: {summary["sheets_counted"]} '
-        f'(simulate: {summary["expected_from_simulate"]["sheets_counted"]})',
+        f'(simulate{" with the same tunings" if tunings else ""}: {summary["expected_from_simulate"]["sheets_counted"]})',
         file=stream,
     )
+    for tu in tunings:  # as simulate --tune takes them
+        print(
+            f'tuned: {tu["key"]} = {tu["value"]!r} from {tu["t"]:.9f} s (--tune {tu["t"]!r}:{tu["key"]}={tu["value"]!r})',
+            file=stream,
+        )
     print('messages received per topic:', file=stream)
     for topic, n in summary['messages'].items():
         print(f'  {topic:<40} {n}', file=stream)
