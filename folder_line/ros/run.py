@@ -507,12 +507,14 @@ def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -
     tunings = summary.get('tunings') or []
     print(
         f'supervisor: {summary["supervisor_state"]}   sheets counted: {summary["sheets_counted"]} '
-        f'(simulate{" with the same tunings" if tunings else ""}: {summary["expected_from_simulate"]["sheets_counted"]})',
+        f'(simulate{" with the same tunings" if tunings else ""}: '
+        f'{summary["expected_from_simulate"]["sheets_counted"]})',
         file=stream,
     )
     for tu in tunings:  # as simulate --tune takes them
         print(
-            f'tuned: {tu["key"]} = {tu["value"]!r} from {tu["t"]:.9f} s (--tune {tu["t"]!r}:{tu["key"]}={tu["value"]!r})',
+            f'tuned: {tu["key"]} = {tu["value"]!r} from {tu["t"]:.9f} s '
+            f'(simulate --tune {tu["t"]!r}:{tu["key"]}={tu["value"]!r})',
             file=stream,
         )
     print('messages received per topic:', file=stream)
