@@ -122,6 +122,7 @@ class _Player:
             self.pubs[CLOCK_TOPIC] = self.node.create_publisher(Clock, CLOCK_TOPIC, qos)
         self.counts: dict[str, int] = dict.fromkeys(self.pubs, 0)
         self.clock_ns = -1
+        self.last_ns = -1  # log time of the latest message published (what a Ctrl-C summary reports)
 
     def publish(self, topic: str, data: bytes) -> None:
         self.pubs[topic].publish(data)
@@ -184,7 +185,7 @@ def _play_pass(player: _Player, plan: PlayPlan, rtf: float, should_stop: Callabl
             player.clock(t_ns)
             player.clock_ns = t_ns
         player.publish(topic, data)
-        last = t_ns
+        last = player.last_ns = t_ns
     return last, False
 
 
@@ -263,6 +264,8 @@ def play_bag(
             player.drain()
         except KeyboardInterrupt:
             stopped = True
+            if player is not None:  # stopped inside a pass: the line time played so far
+                last = max(last, player.last_ns)
         finally:
             counts = dict(player.counts) if player is not None else {}
             if player is not None:

@@ -166,3 +166,23 @@ def test_play_refuses_bad_options_in_one_line(args: list[str], option: str) -> N
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and option in lines[0], proc.stderr
+
+
+def test_ctrl_c_inside_a_pass_reports_the_line_time_played_so_far(tmp_path: Path) -> None:
+    """Ctrl-C arrives while a pass publishes (KeyboardInterrupt, here from the stop poll after 500 messages): the
+    result counts what was published and says how far the line time got, not 0."""
+    bag = tmp_path / 'bag'
+    shutil.copytree(FOLDER_BAG, bag)
+    _, _, times = _bag_messages(bag)
+    polls = [0]
+
+    def ctrl_c() -> bool:
+        polls[0] += 1
+        if polls[0] > 500:
+            raise KeyboardInterrupt
+        return False
+
+    result = play_bag(str(bag), rtf=0.0, should_stop=ctrl_c)
+    assert result.interrupted and sum(result.published.values()) >= 500
+    ordered = sorted(t for ts in times.values() for t in ts)
+    assert 0.0 < result.line_time == ordered[499] / 1e9  # the 500th message's log time
