@@ -25,6 +25,7 @@ from folder_line.bag.batch import check_duration
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
+from folder_line.cli import animate as animate_cli
 from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
@@ -60,6 +61,7 @@ _OUTPUT_OPTION = {
     'sweep': '--out',
     'solve': '--json',
     'scenes': 'stdout',
+    'animate': '--out',
     **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
 }
 #: longest error line printed, characters (each value in it is already cut to 80)
@@ -247,6 +249,13 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument(
         '--to', dest='t_to', type=limited('--to', _BAG_TIME), metavar='S', help='analyse line time up to S s'
     )
+    ana.add_argument(
+        '--animate',
+        metavar='FILE.mp4|FILE.gif',
+        help='also write a video of the recorded run over the window --from .. --to (its recorded states and '
+        'violations written on it; see folder-line animate --help for the time scale)',
+    )
+    animate_cli.add_animation_options(ana, defaults=False)
 
     bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
@@ -267,6 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_verb.add_parser(sub)
     solve_verb.add_parser(sub)
     optimize.add_parser(sub)
+    animate_cli.add_parser(sub)
     return parser
 
 
@@ -440,7 +450,18 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    print_analysis(analyze(args.path, args.out, csv=args.csv, t_from=args.t_from, t_to=args.t_to), sys.stdout)
+    animate_cli.check_animation_options(args)  # before any work: the video's target and options
+    result = analyze(
+        args.path,
+        args.out,
+        csv=args.csv,
+        t_from=args.t_from,
+        t_to=args.t_to,
+        before_writing=lambda rec: animate_cli.check_recording_window(args, rec),
+    )
+    print_analysis(result, sys.stdout)
+    if args.animate is not None:
+        animate_cli.animate_recording(args, result.recording)
     return 0
 
 
@@ -453,6 +474,7 @@ _PATH_ARGUMENTS = {
     'out': '--out',
     'bag': '--bag',
     'path': 'RUN_DIR|BAG',
+    'animate': '--animate',
     'dir': 'DIR',
 }
 
@@ -495,6 +517,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
+        'animate': animate_cli.run,
         **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),
     }[args.verb]
     try:

@@ -28,8 +28,8 @@ from folder_line.analysis.animation.timeline import (
     SLOWDOWN,
     Flag,
     OverlayText,
-    TimeScale,
     Timeline,
+    TimeScale,
     frame_count,
 )
 

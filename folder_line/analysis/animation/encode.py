@@ -34,7 +34,16 @@ import numpy as np
 from folder_line.errors import OutputError, ParameterError, bounded_repr, path_repr
 from folder_line.files.atomic import check_output_file, describe_path, written_by_name
 
-__all__ = ['FORMATS', 'PALETTE_FRAMES', 'SIZE_LIMITS', 'VideoWriter', 'check_size', 'check_video_target', 'parse_size', 'video_writer']
+__all__ = [
+    'FORMATS',
+    'PALETTE_FRAMES',
+    'SIZE_LIMITS',
+    'VideoWriter',
+    'check_size',
+    'check_video_target',
+    'parse_size',
+    'video_writer',
+]
 
 #: file extension -> ffmpeg's muxer
 FORMATS = {'.mp4': 'mp4', '.gif': 'gif'}

@@ -239,7 +239,15 @@ class FrameDrawer:
             fig.text(0.63, 0.93, '', fontsize=13, va='top', ha='left', weight='bold', animated=True),
         ]
         self._flags = fig.text(
-            0.01, 0.875, '', fontsize=10, va='top', ha='left', family='monospace', color=_VIOLATION_COLOUR, animated=True
+            0.01,
+            0.875,
+            '',
+            fontsize=10,
+            va='top',
+            ha='left',
+            family='monospace',
+            color=_VIOLATION_COLOUR,
+            animated=True,
         )
         fig.canvas.draw()
         self._background = fig.canvas.copy_from_bbox(fig.bbox)

@@ -12,7 +12,7 @@ import numpy as np
 
 from folder_line.analysis.animation.encode import PALETTE_FRAMES, video_writer
 from folder_line.analysis.animation.frames import FrameDrawer, SceneryLike, extent
-from folder_line.analysis.animation.timeline import TimeScale, Timeline
+from folder_line.analysis.animation.timeline import Timeline, TimeScale
 
 __all__ = ['EXTENT_SAMPLES', 'EXTENT_SPAN', 'Animation', 'render']
 

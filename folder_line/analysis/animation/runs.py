@@ -5,10 +5,11 @@ of the overlays:
 
 :func:`batch_run`
     the scene run as ``folder-line run`` and ``simulate --bag`` run it, without ROS: the line model over
-    ``[0, t_end + 1 s]`` (the horizon ``run`` gives its nodes) and the supervisor's logic with the live
-    node's settings (:data:`folder_line.config.run_config.SUPERVISOR_DEFAULTS`) in the closed loop of
-    :func:`folder_line.core.supervision.offline.run_closed_loop`, ticked every 5 ms as the clock ticks: its
-    transitions give the PackML states, its commands the drive (a hold brakes the machine in the
+    ``[0, t_end + 1 s]`` (the horizon ``run`` gives its nodes) and the supervisor's logic built as the live
+    node builds it (:func:`folder_line.config.run_config.supervisor_logic`), in the closed loop (as
+    :func:`folder_line.core.supervision.offline.run_closed_loop`, but ticked from t = 0 on, as the live
+    line's first tick): the events up to each tick fed, then the tick; its commands rebuild the model.
+    Its transitions give the PackML states, its commands the drive (a hold brakes the machine in the
     picture), and the final model's constraints (``model.constraints``) the violations;
 :func:`recorded_run`
     a recorded bag: the model rebuilt from the bag's scene and its recorded drive commands (as
@@ -24,16 +25,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.analysis.animation.timeline import Flag, TimeScale, Timeline
+from folder_line.analysis.animation.timeline import Flag, Timeline, TimeScale
 from folder_line.analysis.recording import Recording
-from folder_line.config.run_config import RATE, SUPERVISOR_DEFAULTS
+from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
-from folder_line.core.supervision.offline import run_closed_loop
+from folder_line.core.mechanisms.drive import Command
 from folder_line.interfaces import NS_PER_S
 
-__all__ = ['AnimatedRun', 'batch_run', 'recorded_run', 'scale_note']
+__all__ = ['TICK_STEP', 'AnimatedRun', 'batch_run', 'recorded_run', 'scale_note']
+
+#: line time between two ticks of the batch supervisor, s. Its decisions do not depend on it (each has an
+#: exact time that depends on the inputs only: :mod:`folder_line.core.supervision.supervisor`), as long as a
+#: command's lead (0.1 s) is longer; 50 ms ticks cost a tenth of the live 5 ms ones.
+TICK_STEP = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,10 +71,10 @@ def _cycle_word(scene: Scene) -> str:
     return 'knife cycle' if scene.has_folder else 'crank turn'
 
 
-def _timeline(model: LineModel, states: Sequence[tuple[float, str]], flags: Sequence[Flag], slowdown: float) -> Timeline:
-    return Timeline(
-        model.cycle_index, model.next_cycle_boundary, _cycle_word(model.scene), states, flags, slowdown
-    )
+def _timeline(
+    model: LineModel, states: Sequence[tuple[float, str]], flags: Sequence[Flag], slowdown: float
+) -> Timeline:
+    return Timeline(model.cycle_index, model.next_cycle_boundary, _cycle_word(model.scene), states, flags, slowdown)
 
 
 def batch_run(scene: Scene, scale: TimeScale, option: str = '--duration') -> AnimatedRun:
@@ -82,21 +88,21 @@ def batch_run(scene: Scene, scale: TimeScale, option: str = '--duration') -> Ani
     t_end = scale.t_end
     horizon = t_end + HORIZON_MARGIN
     check_size(scene, t_end, horizon, option)
-    step = 1.0 / RATE
-    settings = SUPERVISOR_DEFAULTS
-    sup, model, _ = run_closed_loop(
-        scene,
-        horizon,
-        min(horizon, math.ceil(t_end / step - 1e-9) * step),
-        step=step,
-        periods={},
-        lead=settings['command_lead'],
-        check_period=1.0 / settings['rate'],
-        enforce=settings['enforce'],
-        double=settings['double_sheet'],
-        state='STARTING',
-        t_start=None,
-    )
+    models: dict[tuple[Command, ...], LineModel] = {}
+
+    def model_of(commands: tuple[Command, ...]) -> LineModel:
+        if commands not in models:
+            models[commands] = LineModel(scene, horizon, commands)
+        return models[commands]
+
+    sup = supervisor_logic(scene, horizon, SUPERVISOR_DEFAULTS, model_of)
+    prev, i = -math.inf, 0
+    while prev < t_end:  # ticks 0, step, 2 step, ..., t_end: the events up to each fed first, as the node is fed
+        w = min(i * TICK_STEP, t_end)
+        sup.feed(sup.model.events_between(prev, w))
+        sup.tick(w)
+        prev, i = w, i + 1
+    model = sup.model
     states = [(0.0, 'STARTING')] + [(float(tr.t), str(tr.target)) for tr in sup.transitions]
     flags = [
         Flag(float(c.t[i]), c.name, int(c.cycle[i]), float(c.margin[i]), c.unit)

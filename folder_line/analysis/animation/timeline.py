@@ -267,6 +267,4 @@ class Timeline:
         shown = tuple(self.flags[i].text() for i in on[:FLAGS_SHOWN])
         if len(on) > FLAGS_SHOWN:
             shown += (f'+{len(on) - FLAGS_SHOWN} more',)
-        return OverlayText(
-            time=f't = {t:.3f} s', cycle=cycle, state=self.state_at(t), violations=shown, count=n
-        )
+        return OverlayText(time=f't = {t:.3f} s', cycle=cycle, state=self.state_at(t), violations=shown, count=n)
