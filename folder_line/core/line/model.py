@@ -392,6 +392,16 @@ class LineModel:
             for unit, parts in self._unit_parts.items()
         }
 
+    def part(self, name: str) -> Any:
+        """The line part ``'folder'`` (:class:`FolderLine`) or ``'layup'`` (:class:`LayupLine`) of the
+        scene (KeyError naming the parts), for views of the machine such as
+        :mod:`folder_line.core.line.scenery`."""
+        try:
+            return self._parts[name]
+        except KeyError:
+            msg = f'scene {self.scene.name!r} has no part {name!r}; parts: {", ".join(self._parts)}'
+            raise KeyError(msg) from None
+
     # ------------------------------------------------------------------ events
 
     def events_between(self, t0: float, t1: float) -> np.ndarray:
