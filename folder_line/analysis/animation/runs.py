@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -109,7 +110,7 @@ def batch_run(scene: Scene, scale: TimeScale, option: str = '--duration') -> Ani
         for c in model.constraints
         for i in np.flatnonzero(c.violated & (c.t <= t_end))
     ]
-    title = f'scene {scene.name} ({", ".join(scene.effects) or "no effects"}): the line seen from the side'
+    title = f'scene {scene.name}: the line seen from the side (the batch model, supervisor in the loop)'
     return AnimatedRun(model, _timeline(model, states, flags, scale.slowdown), title, states, flags)
 
 
@@ -125,7 +126,7 @@ def recorded_run(rec: Recording, scale: TimeScale) -> AnimatedRun:
             flags.append(Flag(float(v['t']), v['constraint'], int(v['cycle']), float(v['margin']), v.get('unit', '')))
         except (KeyError, ValueError):  # a status the supervisor did not write: not drawn
             continue
-    title = f'recorded run {rec.bag.path} (scene {rec.scene.name}): the line seen from the side'
+    title = f'recorded run {Path(rec.bag.path).name} (scene {rec.scene.name}): the line seen from the side'
     return AnimatedRun(model, _timeline(model, states, flags, scale.slowdown), title, states, flags)
 
 
