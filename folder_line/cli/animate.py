@@ -110,6 +110,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
             'ffmpeg of imageio-ffmpeg: .mp4 (H.264) or .gif. Each frame shows the line time, the machine cycle, '
             'the PackML state and the constraint violations as they are decided. ' + FRAMES_HELP
         ),
+        epilog=(
+            'Example: folder-line animate --scene line --duration 2 --out line.mp4 (500 frames, 20 s of video). '
+            'A recorded run: folder-line analyze RUN_DIR --animate run.mp4 [--from S] [--to S].'
+        ),
     )
     add_scene_arguments(p, 2.0)
     p.add_argument(

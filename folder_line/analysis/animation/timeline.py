@@ -55,7 +55,7 @@ __all__ = [
 DEFAULT_FPS = 25.0
 #: video seconds per line second, default: a 72 ms knife cycle lasts 0.72 s on screen
 DEFAULT_SLOWDOWN = 10.0
-#: most frames of one animation: 6 min 40 s of video at 25 frames/s (about 7 min to draw and encode at 1280x720)
+#: most frames of one animation: 6 min 40 s of video at 25 frames/s (about 4 min to draw and encode at 1280x720)
 MAX_FRAMES = 10_000
 FPS = Limit('video frame rate (`animate --fps`)', 1.0, 60.0, 'frames/s', 'a slide show to a smooth video')
 SLOWDOWN = Limit(
