@@ -5,9 +5,11 @@ part of every machine at a line time, in the frame ``line``, metres, x along the
 mechanisms move in the x-z plane), and are drawn as seen from the side, x to the right and z up,
 at equal scale: a ``strip`` as a polyline, ``segments`` as separate lines (point pairs), ``points``
 as dots, a ``box`` as the rectangle around its points; each in its colour, its ``width`` (m) drawn
-to scale (at least :data:`MIN_LINE_PT` so that a belt stays visible). The axes are fixed for the
-whole animation (:func:`extent`: every shape over the span), with axes in metres, a scale bar,
-and each machine's name above it.
+to scale (at least :data:`MIN_LINE_PT` so that a belt stays visible); a pale colour (paper) gets a dark
+outline. The axes are fixed for the whole animation (:func:`extent`: every shape over the span), in
+metres, with a scale bar; machines and small parts (:data:`PART_LABELS`) are named on the drawing,
+clear of each other. A line with the layup and the folder gets two panels (:class:`FrameDrawer`):
+the whole line, and the folder with the delivery down to the pile in detail.
 
 Above the drawing, the overlay (:class:`~folder_line.analysis.animation.timeline.OverlayText`): line
 time, machine cycle, PackML state (coloured by what it means: running, stopping, stopped,

@@ -126,7 +126,9 @@ def recorded_run(rec: Recording, scale: TimeScale) -> AnimatedRun:
             flags.append(Flag(float(v['t']), v['constraint'], int(v['cycle']), float(v['margin']), v.get('unit', '')))
         except (KeyError, ValueError):  # a status the supervisor did not write: not drawn
             continue
-    title = f'recorded run {Path(rec.bag.path).name} (scene {rec.scene.name}): the line seen from the side'
+    bag = Path(rec.bag.path)
+    where = f'{bag.parent.name}/{bag.name}' if bag.parent.name else bag.name  # a run's bag is always bag/
+    title = f'recorded run {where} (scene {rec.scene.name}): the line seen from the side'
     return AnimatedRun(model, _timeline(model, states, flags, scale.slowdown), title, states, flags)
 
 
