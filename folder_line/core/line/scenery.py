@@ -441,7 +441,7 @@ class Scenery:
         self._p0 = np.array([ox, 0.0, oz - PICKUP_DROP])
         self._span = 2.0 * plan.chain.x_max
         self._radius, self._loop, self._n_car = chain_loop(sch.L_transfer, sch.S, self._span, sch.pitch)
-        s = np.linspace(0.0, self._loop, 401)
+        s = np.linspace(0.0, self._loop, 161)
         path = self._chain_point(s)
         self._static['chain_path'] = _shape(
             'delivery', 'chain_path', 'strip', np.concatenate([path, path[:1]]), 0.01, _DARK
