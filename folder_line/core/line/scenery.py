@@ -143,7 +143,7 @@ class Shape:
     width : float
         Line width, dot diameter or (box) ignored, m.
     rgba : tuple of 4 floats
-        Colour, each in [0, 1].
+        Colour, each in [0, 1] (values a float32 holds exactly, as ``std_msgs/ColorRGBA``).
     """
 
     machine: str
@@ -157,7 +157,7 @@ class Shape:
 def _shape(machine: str, part: str, kind: str, points: Any, width: float, rgba: tuple[float, ...]) -> Shape:
     p = np.array(points, dtype=np.float64).reshape(-1, 3)
     p.setflags(write=False)
-    r, g, b, a = rgba
+    r, g, b, a = (float(np.float32(c)) for c in rgba)  # as a message carries them (float32)
     return Shape(machine, part, kind, p, float(width), (r, g, b, a))
 
 
