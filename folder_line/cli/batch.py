@@ -44,6 +44,7 @@ def write_bag(args: argparse.Namespace, scene: Scene) -> int:
                 args.duration,
                 custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
                 progress=bar.show,
+                marker_rate=args.marker_rate,
             )
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None

@@ -33,7 +33,7 @@ from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.arg_types import limited
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
-from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
+from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, parse_set
 from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
@@ -123,6 +123,18 @@ def _add_out(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument('--out', default=default, metavar='DIR', help=f'output directory (default ./{default})')
 
 
+def _add_marker_rate(parser: argparse.ArgumentParser, when: str) -> None:
+    """``--marker-rate HZ``: ``/line/markers`` per second of line time (the machine for RViz/Foxglove)."""
+    _addlimited(
+        parser,
+        '--marker-rate',
+        MARKER_RATES,
+        MARKER_RATE,
+        'HZ',
+        f'{when}/line/markers per second of line time, 0: none',
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``folder-line`` argument parser: every verb and option, with its range checks."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
@@ -156,6 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar='DIR',
         help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR",
     )
+    _add_marker_rate(sim, 'with --bag: ')
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
 
@@ -185,6 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_out(run, 'out')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
+    _add_marker_rate(run, '')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
     _addlimited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
@@ -367,6 +381,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         processes=args.processes,
         clock=args.clock,
         lost_timeout=args.lost_timeout,
+        marker_rate=args.marker_rate,
     )
     from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
 

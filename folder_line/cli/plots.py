@@ -63,7 +63,7 @@ def write_plots(args: argparse.Namespace, scene: Scene, bag: str | None = None) 
     with tempfile.TemporaryDirectory(prefix='folder-line-plots-') as tmp:
         if bag is None:
             bag = str(Path(tmp) / 'bag')
-            write_batch_bag(bag, scene, args.duration)
+            write_batch_bag(bag, scene, args.duration, marker_rate=0.0)  # the figures draw no markers
         rec = read_recording(bag)
         ev = evaluate(rec)
         with claim_output_dir(args.plots, OPTION, files=tuple(FIGURES)) as out:

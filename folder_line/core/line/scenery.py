@@ -143,7 +143,7 @@ class Shape:
     width : float
         Line width, dot diameter or (box) ignored, m.
     rgba : tuple of 4 floats
-        Colour, each in [0, 1].
+        Colour, each in [0, 1] (values a float32 holds exactly, as ``std_msgs/ColorRGBA``).
     """
 
     machine: str
@@ -157,7 +157,7 @@ class Shape:
 def _shape(machine: str, part: str, kind: str, points: Any, width: float, rgba: tuple[float, ...]) -> Shape:
     p = np.array(points, dtype=np.float64).reshape(-1, 3)
     p.setflags(write=False)
-    r, g, b, a = rgba
+    r, g, b, a = (float(np.float32(c)) for c in rgba)  # as a message carries them (float32)
     return Shape(machine, part, kind, p, float(width), (r, g, b, a))
 
 
@@ -441,7 +441,7 @@ class Scenery:
         self._p0 = np.array([ox, 0.0, oz - PICKUP_DROP])
         self._span = 2.0 * plan.chain.x_max
         self._radius, self._loop, self._n_car = chain_loop(sch.L_transfer, sch.S, self._span, sch.pitch)
-        s = np.linspace(0.0, self._loop, 401)
+        s = np.linspace(0.0, self._loop, 161)
         path = self._chain_point(s)
         self._static['chain_path'] = _shape(
             'delivery', 'chain_path', 'strip', np.concatenate([path, path[:1]]), 0.01, _DARK
