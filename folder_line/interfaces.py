@@ -28,6 +28,8 @@ topic                               type                               meaning
                                                                        sim time
 ``/line/participants``              ``std_msgs/msg/String``            ``line_clock``'s announcement: clock mode,
                                                                        end and the lockstep participants
+``/line/markers``                   ``visualization_msgs/msg/          the machine drawn in frame ``line`` (RViz,
+                                    MarkerArray``                      Foxglove), by ``sheet_counter``
 ==================================  =================================  ==========================================
 
 The table is also data (:data:`TOPICS`); :data:`LINE_TOPIC_TYPES` lists every topic a
@@ -70,6 +72,7 @@ __all__ = [
     'LINE_CLOCK',
     'LINE_TOPIC_TYPES',
     'MACHINE_NODES',
+    'MARKERS_TOPIC',
     'NODE_OF_UNIT',
     'NS_PER_S',
     'OPERATOR_COMMANDS',
@@ -184,6 +187,10 @@ TUNABLE_PARAMETERS: dict[str, dict[str, str]] = {
 PARTICIPANTS_TOPIC = '/line/participants'
 """``line_clock``'s announcement of the lockstep participants (``std_msgs/msg/String``)."""
 
+MARKERS_TOPIC = '/line/markers'
+"""The machine as RViz/Foxglove markers in frame ``line`` (``visualization_msgs/msg/MarkerArray``),
+published by ``sheet_counter`` at its ``marker_rate`` (:mod:`folder_line.bag.markers`)."""
+
 JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
 """Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
 
@@ -287,6 +294,11 @@ TOPICS: tuple[TopicInfo, ...] = (
         'std_msgs/msg/String',
         "line_clock's announcement: clock mode, end and the lockstep participants",
     ),
+    TopicInfo(
+        MARKERS_TOPIC,
+        'visualization_msgs/msg/MarkerArray',
+        "the machine drawn in frame 'line', one namespace per machine (folder_line.core.line.scenery)",
+    ),
 )
 
 #: every topic a recorder of the line takes -> its type (``package/msg/Name``)
@@ -301,6 +313,7 @@ LINE_TOPIC_TYPES: dict[str, str] = {
     LANDING_TOPIC: 'std_msgs/msg/Float64',
     COMMANDS_TOPIC: 'sensor_msgs/msg/TimeReference',
     PARTICIPANTS_TOPIC: 'std_msgs/msg/String',
+    MARKERS_TOPIC: 'visualization_msgs/msg/MarkerArray',
 }
 
 # --------------------------------------------------------------------------- events

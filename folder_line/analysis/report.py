@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -230,6 +230,7 @@ def analyze(
     gantt_cycles: int = GANTT_CYCLES,
     t_from: float | None = None,
     t_to: float | None = None,
+    before_writing: Callable[[Recording], None] | None = None,
 ) -> AnalysisResult:
     """Analyse a recorded run: figures, ``report.md`` and, with ``csv``, one CSV per topic.
 
@@ -250,6 +251,9 @@ def analyze(
         ``simulate(scene, t_to)``), and the report's numbers, the figures and the CSVs
         cover ``[t_from, t_to]``; every event before ``t_from`` is still judged, since a
         cycle needs those before it.
+    before_writing : callable, optional
+        Called with the recording once it is read, before anything is written (``analyze --animate``
+        checks its window there: a refusal leaves nothing behind).
 
     Returns
     -------
@@ -276,6 +280,8 @@ def analyze(
         rec = read_recording(path, collect if collector is not None else None, t_to=t_to, t_from=start)
         if start >= rec.t_end and start > 0.0:
             raise ParameterError('--from', start, f'at or after the line time the bag reaches ({rec.t_end:.9g} s)')
+        if before_writing is not None:
+            before_writing(rec)
         out_dir = Path(rec.bag.path).parent / 'analysis' if out is None else Path(out)
         with claim_output_dir(out_dir, '--out', files=('report.md', *FIGURES), dirs=('csv',) if csv else ()):
             return _write_analysis(rec, out_dir, collector, gantt_cycles, start)

@@ -14,6 +14,9 @@ grid (``rate`` = :data:`folder_line.config.run_config.RATE`, 200 Hz of line time
   100 grid points at a time as the node samples it (:data:`SAMPLE_BATCH`);
 * ``/line/events``: each machine node's exact events of ``(t_prev, t]`` at tick ``t``;
 * ``/line/sheet_counter/{count,rate,landing_x}`` as the ``sheet_counter`` node computes them;
+* ``/line/markers`` at ``marker_rate`` (the ``sheet_counter`` node's grid, stamps ``i / marker_rate``,
+  each at the first tick at or after it): the scenery of the model of that tick
+  (:mod:`folder_line.bag.markers`);
 * the supervisor's ``/line/supervisor/state`` at every tick, ``/line/supervisor/commands``,
   and ``/diagnostics`` (one array per second of line time, the violations, balances): the
   supervisor's logic (:class:`folder_line.core.supervision.supervisor.Supervisor`) fed the
@@ -63,6 +66,7 @@ from folder_line.bag.cdr import (
     time_reference_cdr,
     uint64_cdr,
 )
+from folder_line.bag.markers import marker_specs, marker_stamps, markers_cdr
 from folder_line.bag.statuses import (
     Status,
     balance_status,
@@ -74,12 +78,13 @@ from folder_line.bag.statuses import (
 )
 from folder_line.bag.types import typestore
 from folder_line.bag.writer import BagWriter
-from folder_line.config.run_config import RATE, SUPERVISOR_DEFAULTS, supervisor_logic
+from folder_line.config.run_config import MARKER_RATE, RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
+from folder_line.core.line.scenery import Scenery
 from folder_line.core.line.tuning import LineCommand, Tuning
 from folder_line.core.mechanisms.pile import counted_event
 from folder_line.core.supervision.supervisor import Supervisor
@@ -95,6 +100,7 @@ from folder_line.interfaces import (
     KNOWN_PARTICIPANTS,
     LANDING_TOPIC,
     LINE_TOPIC_TYPES,
+    MARKERS_TOPIC,
     NODE_OF_UNIT,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
@@ -193,6 +199,25 @@ class _Machine:
                 eff.append(b[3][i0:i1])
             k = b[0] + i1
         return np.vstack(pos), np.vstack(vel), (np.vstack(eff) if eff else None)
+
+
+class _Drawing:
+    """The ``sheet_counter`` node's ``/line/markers``: its grid and the scenery of its current model."""
+
+    def __init__(self, rate: float) -> None:
+        self.rate = rate
+        self.last_ns: int | None = None
+        self.scenery: Scenery | None = None
+
+    def tick(self, model: LineModel, stamp_ns: int) -> list[bytes]:
+        """CDR of the marker arrays the node publishes at the tick ``stamp_ns`` (ns)."""
+        out = []
+        for g in marker_stamps(self.last_ns, stamp_ns, self.rate):
+            if self.scenery is None or self.scenery.model is not model:
+                self.scenery = Scenery(model)
+            out.append(markers_cdr(marker_specs(self.scenery.at(g / NS_PER_S)), g, delete_all=self.last_ns is None))
+            self.last_ns = g
+        return out
 
 
 def _status_msg(s: Status) -> Any:  # a typestore diagnostic_msgs/msg/DiagnosticStatus
@@ -308,6 +333,7 @@ def write_batch_bag(
     custom: Mapping[str, str] | None = None,
     progress: Callable[[float], None] | None = None,
     tunings: Sequence[Tuning] = (),
+    marker_rate: float = MARKER_RATE,
 ) -> BatchBag:
     """Write the bag of a live lockstep ``folder-line run`` of ``scene`` for ``duration`` s, without DDS.
 
@@ -328,6 +354,8 @@ def write_batch_bag(
         the last tick before it (:meth:`~folder_line.core.supervision.supervisor.Supervisor.tune`
         with that effective time), as the live one would be by a machine node, and the
         bag holds the tuning and its status as a live run's does.
+    marker_rate : float, optional
+        ``/line/markers`` per second of line time, as ``run --marker-rate`` (0: none).
 
     Returns
     -------
@@ -380,6 +408,7 @@ def write_batch_bag(
     pending = sorted(((-(-seconds_to_ns(tu.t) // step_ns) - 1, tu) for tu in tunings), key=lambda x: x[1].t)
     if pending and pending[0][0] < 0:
         raise ParameterError('tunings', pending[0][1].t, 'a tuning takes effect after the start of the line (t > 0)')
+    drawing = _Drawing(marker_rate)
     try:
         bag.write_serialized(PARTICIPANTS_TOPIC, string_cdr(announcement(duration_ns)), 0, 0)
         k = 0
@@ -407,7 +436,9 @@ def write_batch_bag(
                 if logic.model is not model:
                     end = k + i + 1
                     break
-            _write_block(bag, machines, with_joints, sup, model, k, end, step_ns, per_tick, landed, counted, states)
+            _write_block(
+                bag, machines, with_joints, sup, model, k, end, step_ns, per_tick, landed, counted, states, drawing
+            )
             prev_t = float((end - 1) * step_ns / NS_PER_S)
             k = end
             if progress is not None:
@@ -441,6 +472,7 @@ def _write_block(
     landed: int,
     counted: int,
     states: dict[str, bytes],
+    drawing: _Drawing,
 ) -> None:
     """Write ticks ``k0 .. k1 - 1``: per tick ``/clock``, then node by node what it publishes."""
     n = k1 - k0
@@ -485,6 +517,7 @@ def _write_block(
                 items.append((SHEET_RATE_TOPIC, rates[i], stamp))
                 for row in mine[mine['kind'] == landed]:
                     items.append((LANDING_TOPIC, float64_cdr(float(row['value'])), stamp))
+                items.extend((MARKERS_TOPIC, cdr, stamp) for cdr in drawing.tick(model, stamp))
         state, outs, diag = per_tick[i]
         items.extend(outs)
         if state not in states:

@@ -47,6 +47,7 @@ def write_bag(args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning] 
                 custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
                 progress=bar.show,
                 tunings=tunings,
+                marker_rate=args.marker_rate,
             )
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None

@@ -25,6 +25,7 @@ from folder_line.bag.batch import check_duration
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
+from folder_line.cli import animate as animate_cli
 from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
@@ -32,7 +33,7 @@ from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.arg_types import limited, tuning, tuning_change
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
-from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
+from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, parse_set
 from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
@@ -61,6 +62,7 @@ _OUTPUT_OPTION = {
     'sweep': '--out',
     'solve': '--json',
     'scenes': 'stdout',
+    'animate': '--out',
     **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
     'tune': 'stdout',
 }
@@ -123,6 +125,18 @@ def _add_out(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument('--out', default=default, metavar='DIR', help=f'output directory (default ./{default})')
 
 
+def _add_marker_rate(parser: argparse.ArgumentParser, when: str) -> None:
+    """``--marker-rate HZ``: ``/line/markers`` per second of line time (the machine for RViz/Foxglove)."""
+    _addlimited(
+        parser,
+        '--marker-rate',
+        MARKER_RATES,
+        MARKER_RATE,
+        'HZ',
+        f'{when}/line/markers per second of line time, 0: none',
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``folder-line`` argument parser: every verb and option, with its range checks."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
@@ -165,6 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
         help='an operator change effective at T s, as on the running line (repeatable; '
         f'KEY one of {", ".join(TUNABLES)}), e.g. 5.0:feed_transporter.V_tr=9.0',
     )
+    _add_marker_rate(sim, 'with --bag: ')
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
 
@@ -194,6 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_out(run, 'out')
     run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
+    _add_marker_rate(run, '')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
     _addlimited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
@@ -272,6 +288,13 @@ def build_parser() -> argparse.ArgumentParser:
     ana.add_argument(
         '--to', dest='t_to', type=limited('--to', _BAG_TIME), metavar='S', help='analyse line time up to S s'
     )
+    ana.add_argument(
+        '--animate',
+        metavar='FILE.mp4|FILE.gif',
+        help='also write a video of the recorded run over the window --from .. --to (its recorded states and '
+        'violations written on it; see folder-line animate --help for the time scale)',
+    )
+    animate_cli.add_animation_options(ana, defaults=False)
 
     bench = sub.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')
@@ -292,6 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep_verb.add_parser(sub)
     solve_verb.add_parser(sub)
     optimize.add_parser(sub)
+    animate_cli.add_parser(sub)
     return parser
 
 
@@ -400,6 +424,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         processes=args.processes,
         clock=args.clock,
         lost_timeout=args.lost_timeout,
+        marker_rate=args.marker_rate,
     )
     from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
 
@@ -500,7 +525,18 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    print_analysis(analyze(args.path, args.out, csv=args.csv, t_from=args.t_from, t_to=args.t_to), sys.stdout)
+    animate_cli.check_animation_options(args)  # before any work: the video's target and options
+    result = analyze(
+        args.path,
+        args.out,
+        csv=args.csv,
+        t_from=args.t_from,
+        t_to=args.t_to,
+        before_writing=lambda rec: animate_cli.check_recording_window(args, rec),
+    )
+    print_analysis(result, sys.stdout)
+    if args.animate is not None:
+        animate_cli.animate_recording(args, result.recording)
     return 0
 
 
@@ -513,6 +549,7 @@ _PATH_ARGUMENTS = {
     'out': '--out',
     'bag': '--bag',
     'path': 'RUN_DIR|BAG',
+    'animate': '--animate',
     'dir': 'DIR',
 }
 
@@ -555,6 +592,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
+        'animate': animate_cli.run,
         **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),
         'tune': _cmd_tune,
     }[args.verb]

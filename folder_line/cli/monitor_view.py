@@ -37,6 +37,7 @@ from folder_line.interfaces import (
     EVENTS_TOPIC,
     JOINT_STATES_TOPIC_PATTERN,
     LANDING_TOPIC,
+    MARKERS_TOPIC,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
     SHEET_COUNT_TOPIC,
@@ -408,8 +409,9 @@ class MonitorState:
         Messages are read by their fields (duck typing): ``rosgraph_msgs/Clock``,
         ``sensor_msgs/JointState`` (on ``/line/<node>/joint_states``),
         ``sensor_msgs/TimeReference`` (events and commands),
-        ``diagnostic_msgs/DiagnosticArray``, ``std_msgs/String``, ``UInt64`` and
-        ``Float64`` on the topics of :data:`folder_line.interfaces.TOPICS`; any
+        ``diagnostic_msgs/DiagnosticArray``, ``std_msgs/String``, ``UInt64``,
+        ``Float64`` and ``visualization_msgs/MarkerArray`` (counted) on the topics of
+        :data:`folder_line.interfaces.TOPICS`; any
         other topic is only counted.
         """
         stats = self.topics.get(topic)
@@ -482,6 +484,10 @@ class MonitorState:
             fields = dict(item.partition('=')[::2] for item in str(msg.data).split())
             names = [n for n in fields.get('participants', '').split(',') if n]
             return f'{fields.get("clock", "?")} clock, {len(names)} participants'
+        if topic == MARKERS_TOPIC:  # the machine drawn: how many markers, of which stamp
+            markers = list(msg.markers)
+            at = f' at {_stamp_s(markers[-1].header.stamp):.3f} s' if markers else ''
+            return f'{len(markers)} marker{"" if len(markers) == 1 else "s"}{at}'
         return type(msg).__name__
 
     def _take_diagnostics(self, msg: Any) -> str:

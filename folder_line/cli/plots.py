@@ -69,7 +69,8 @@ def write_plots(
     with tempfile.TemporaryDirectory(prefix='folder-line-plots-') as tmp:
         if bag is None:
             bag = str(Path(tmp) / 'bag')
-            write_batch_bag(bag, scene, args.duration, tunings=tunings)
+            # the figures draw no markers
+            write_batch_bag(bag, scene, args.duration, tunings=tunings, marker_rate=0.0)
         rec = read_recording(bag)
         ev = evaluate(rec)
         with claim_output_dir(args.plots, OPTION, files=tuple(FIGURES)) as out:

@@ -18,7 +18,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from folder_line.core.limits import HORIZON_MARGIN
+from folder_line.core.limits import HORIZON_MARGIN, Limit
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand
@@ -26,6 +26,8 @@ from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
     'BAG_DIR',
+    'MARKER_RATE',
+    'MARKER_RATES',
     'RATE',
     'SCENE_FILE',
     'SUPERVISOR_DEFAULTS',
@@ -43,6 +45,11 @@ SCENE_FILE = 'scene.yaml'
 #: tick rate of ``line_clock`` and joint-state rate of the machine nodes, Hz of sim time: the nodes'
 #: default and ``run``'s
 RATE = 200.0
+#: rate of ``/line/markers`` (``sheet_counter``'s ``marker_rate``), Hz of sim time: 5 frames per second of
+#: line time (10 per crank turn of the layup) adds about 80 MB per hour of ``line`` to its bag (README)
+MARKER_RATE = 5.0
+#: the range of ``marker_rate`` (``run --marker-rate``, ``simulate --marker-rate``, the node's parameter)
+MARKER_RATES = Limit('marker rate', 0.0, 1000.0, 'Hz', 'marker arrays per second of line time; 0: none')
 
 #: the ``supervisor`` node's parameters as ``folder-line run`` starts it: the node declares these defaults
 #: (with ``rate`` = :data:`RATE`), and the analysis replays a bag that does not record them with them
@@ -98,6 +105,8 @@ class RunConfig:
         Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
     lost_timeout : float
         Wall seconds a tick may wait for a participant before it is declared lost.
+    marker_rate : float
+        Rate of ``/line/markers``, Hz of sim time (0 = off).
     """
 
     scene: str = 'folder'
@@ -109,6 +118,7 @@ class RunConfig:
     processes: bool = False
     clock: str = 'lockstep'
     lost_timeout: float = 3.0
+    marker_rate: float = MARKER_RATE
 
     @property
     def horizon(self) -> float:
@@ -132,12 +142,15 @@ def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str
     Returns
     -------
     dict
-        ``scene`` (and ``overrides``), ``horizon``, ``rate``, ``lost_timeout``.
+        ``scene`` (and ``overrides``), ``horizon``, ``rate``, ``lost_timeout``; ``sheet_counter`` also
+        ``marker_rate``.
     """
     params: dict[str, Any] = {'scene': str(cfg.scene if scene_file is None else scene_file)}
     if scene_file is None and cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
     params.update({'horizon': cfg.horizon, 'rate': cfg.rate, 'lost_timeout': cfg.lost_timeout})
+    if name == 'sheet_counter':  # the node that draws the line
+        params['marker_rate'] = float(cfg.marker_rate)
     return params
 
 

@@ -43,6 +43,7 @@ __all__ = [
     'write_csv_atomic',
     'write_json_atomic',
     'write_text_atomic',
+    'written_by_name',
 ]
 
 _umask = os.umask(0)
@@ -324,6 +325,39 @@ def write_chunks_atomic(path: str | os.PathLike[str], chunks: Iterable[bytes]) -
             raise OutputError(None, str(path), f'cannot write: {_reason(exc)}') from None
         raise
     return Path(path)
+
+
+@contextlib.contextmanager
+def written_by_name(path: str | os.PathLike[str], option: str | None = None, suffix: str = '') -> Iterator[Path]:
+    """Write ``path`` through a tool that writes a file by its name (ffmpeg), never destroying.
+
+    Yields a temporary file's path in the target's directory (``.<name>.<random>.tmp<suffix>``,
+    created empty); the tool writes it. When the block ends normally the target is checked
+    again and the temporary file renamed over it; when the block raises, the temporary
+    file is removed. Unlike :func:`write_chunks_atomic` no folder is created: the target's
+    folder must exist.
+
+    Raises
+    ------
+    OutputError
+        The target must not be replaced (:func:`check_output_file`), or the OS refused the
+        temporary file or the rename (read-only, full, permission); nothing is left behind.
+    """
+    dest = check_output_file(path, option)
+    tmp = ''
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f'.{dest.name}.', suffix=f'.tmp{suffix}', dir=dest.parent)
+        os.fchmod(fd, _MODE)  # mkstemp makes 0600; an output is as readable as any file the user writes
+        os.close(fd)
+        yield Path(tmp)
+        check_output_file(path, option)  # a FIFO or device put there meanwhile is not replaced either
+        os.replace(tmp, dest)
+    except BaseException as exc:
+        if tmp:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            raise OutputError(option, str(path), f'cannot write: {_reason(exc)}') from None
+        raise
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:

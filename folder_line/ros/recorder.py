@@ -28,6 +28,7 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, Header, String, UInt64
+from visualization_msgs.msg import MarkerArray
 
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -38,6 +39,7 @@ from folder_line.interfaces import (
     JOINT_NODES,
     LANDING_TOPIC,
     MACHINE_NODES,
+    MARKERS_TOPIC,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
     RECORDER,
@@ -66,6 +68,7 @@ LINE_TOPICS: dict[str, type] = {
     LANDING_TOPIC: Float64,
     COMMANDS_TOPIC: TimeReference,
     PARTICIPANTS_TOPIC: String,
+    MARKERS_TOPIC: MarkerArray,
 }
 
 #: topic -> the participant that publishes it (None: the ``header.frame_id`` says; absent: not a participant's)
@@ -78,6 +81,7 @@ _PRODUCER: dict[str, str | None] = {
     SHEET_COUNT_TOPIC: 'sheet_counter',
     SHEET_RATE_TOPIC: 'sheet_counter',
     LANDING_TOPIC: 'sheet_counter',
+    MARKERS_TOPIC: 'sheet_counter',
 }
 
 #: ``sink(topic, cdr, log_ns, publish_ns)``: the message as published (CDR bytes), the tick it is

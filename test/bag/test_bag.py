@@ -27,13 +27,18 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
 
 from folder_line import __version__
+from folder_line.bag.markers import marker_specs
 from folder_line.bag.metadata import KEY_PUBLISHED, segment_files
 from folder_line.bag.reader import read_bag
 from folder_line.bag.repair import repair, repair_bag
 from folder_line.bag.types import serialize
 from folder_line.bag.writer import BagWriter
 from folder_line.cli.main import main as cli_main
+from folder_line.config.scenes import load_scene
+from folder_line.core.line.model import LineModel
+from folder_line.core.line.scenery import Scenery
 from folder_line.errors import BagError
+from folder_line.ros.markers import marker_array
 from folder_line.ros.recorder import LINE_TOPICS
 
 JOINTS = '/line/crank_drive/joint_states'
@@ -91,7 +96,14 @@ def sample_messages() -> dict[str, Any]:
             name=['pile_table'], position=[-0.0125], velocity=[0.0], effort=[]
         ),
         '/line/participants': String(data='clock=lockstep end=none participants=crank_drive,line_recorder'),
+        '/line/markers': _markers(),
     }
+
+
+def _markers() -> Any:
+    """The markers of ``line`` at 0.3 s as the node publishes its first array (a DELETEALL first)."""
+    scenery = Scenery(LineModel(load_scene('line', {}), 1.0))
+    return marker_array(marker_specs(scenery.at(0.3)), 300_000_000, delete_all=True)
 
 
 def plain(obj: Any, ref: Any) -> Any:

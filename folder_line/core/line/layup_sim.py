@@ -77,7 +77,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -105,7 +105,15 @@ from folder_line.errors import ParameterError
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
-__all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics', 'LayupLine', 'leaf_stream', 'simulate_layup']
+__all__ = [
+    'EXTREME_WINDOW',
+    'PHASE_BINS',
+    'LayupKinematics',
+    'LayupLine',
+    'LeafFlights',
+    'leaf_stream',
+    'simulate_layup',
+]
 
 #: half-width of the crank-angle window about a swing extreme for the summary, rad (5°)
 EXTREME_WINDOW = math.radians(5.0)
@@ -248,6 +256,24 @@ class LayupKinematics:
         num = w5 * w5 * (ux * wx + uy * wy) + cdd - (rvx * rvx + rvy * rvy)
         e5 = num / ((xC - p.O2O3) * wy - yC * wx)
         return (wx / p.l5, -wy / p.l5, w5 * lam, e5 * lam * lam + w5 * lamd)
+
+
+class LeafFlights(NamedTuple):
+    """The flights of the exited leaves (``leaf_flight``), in exit order; one element per leaf.
+
+    Fields: ``t_exit`` (s), exit point ``x0, y0`` (m) and velocity ``vx, vy`` (m/s) in the
+    project frame, ``t_land`` (s; past the duration for a leaf still in the air at the
+    end) and ``x_land`` (m). :func:`folder_line.core.effects.leaf_flight.state` at
+    ``t - t_exit`` gives a leaf's position in the air.
+    """
+
+    t_exit: np.ndarray
+    x0: np.ndarray
+    y0: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    t_land: np.ndarray
+    x_land: np.ndarray
 
 
 def _empty_slowdowns() -> faults.Slowdowns:
@@ -407,6 +433,7 @@ class LayupLine(LinePart):
         # ------------------------------------------------------------------ flight
         summary_flight: dict[str, Any] = {}
         n_landed = n_spilled = 0
+        flights = None
         if flight_on:
             fpar = scene.effect_params('leaf_flight')
             cont = scene.machine('container')
@@ -417,6 +444,8 @@ class LayupLine(LinePart):
                 )
             t_f, x_land = leaf_flight.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
             t_land = t_x + t_f
+            order = np.argsort(t_x, kind='stable')
+            flights = LeafFlights(*(a[order] for a in (t_x, q['x'], q['y'], vx, vy, t_land, x_land)))
             down = t_land <= duration
             inside = (x_land >= cont.x_left) & (x_land <= cont.x_right)
             li, si = down & inside, down & ~inside
@@ -457,6 +486,8 @@ class LayupLine(LinePart):
         self.duration = duration
         self.kinematics = kin
         self.profile = profile
+        #: the leaves' flights with ``leaf_flight`` (what the scenery draws), else None
+        self.flights = flights
         self.events = merge_events(tables)
         self.constraints = constraints
         self.summary = summary

@@ -337,6 +337,8 @@ class LineModel:
     commands : tuple of Command or Tuning
     tunings : tuple of Tuning
         The tunings among the commands.
+    pile : PileTable or SteppedPile
+        The table under the counted sheets (:mod:`folder_line.core.mechanisms.pile`).
     drive : Drive
     events : ndarray of EVENT_DTYPE
         All events in ``[0, horizon]``, sorted by time (then kind, then sheet).
@@ -366,6 +368,7 @@ class LineModel:
         self.parts: dict[str, dict[str, Any]] = {name: p.summary for name, p in self._parts.items()}
         lowering = values_from(self.tunings, 'pile.t_lower', T_LOWER)
         table = pile_table(scene.has_delivery, self.events, scene.sheets.thickness, steps=lowering)
+        self.pile = table  # the sheet counter's table (with the operator's lowering times)
         units: dict[str, list[Any]] = {}
         for p in [*parts, table]:
             for unit in p.units:
@@ -425,6 +428,16 @@ class LineModel:
             unit: _merge(unit, [p.sample_unit(unit, tt, theta, lam) for p in parts])
             for unit, parts in self._unit_parts.items()
         }
+
+    def part(self, name: str) -> Any:
+        """The line part ``'folder'`` (:class:`FolderLine`) or ``'layup'`` (:class:`LayupLine`) of the
+        scene (KeyError naming the parts), for views of the machine such as
+        :mod:`folder_line.core.line.scenery`."""
+        try:
+            return self._parts[name]
+        except KeyError:
+            msg = f'scene {self.scene.name!r} has no part {name!r}; parts: {", ".join(self._parts)}'
+            raise KeyError(msg) from None
 
     # ------------------------------------------------------------------ events
 

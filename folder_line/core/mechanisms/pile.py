@@ -158,9 +158,11 @@ class SteppedPile:
 
     tables: tuple[PileTable, ...]
     units: dict[str, tuple[str, ...]] = field(init=False)
+    thickness: float = field(init=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'units', dict(self.tables[0].units))
+        object.__setattr__(self, 'thickness', self.tables[0].thickness)
 
     def state(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Table height z and velocity ż at line times ``t`` (:meth:`PileTable.state`)."""

@@ -24,6 +24,13 @@ its grid (``rate`` Hz of sim time):
 
 and, per landed leaf, ``/line/sheet_counter/landing_x`` (``std_msgs/Float64``, m), besides
 its ``released_on_pile``, ``leaf_landed`` and ``leaf_spilled`` events on ``/line/events``.
+
+It also draws the whole line: ``/line/markers`` (``visualization_msgs/MarkerArray``, frame
+``line``) at ``marker_rate`` Hz of sim time on its own grid, stamps ``i / marker_rate``
+(0 = off), the scenery of its model (:class:`folder_line.core.line.scenery.Scenery`, rebuilt
+with the model at each command) as :mod:`folder_line.bag.markers` lays it out. This node has
+the whole model like every machine node and runs in every scene, so no node is added to the
+line for it.
 Other parameters: see :mod:`folder_line.ros.nodes.machine`.
 """
 
@@ -33,10 +40,22 @@ import sys
 
 import numpy as np
 from std_msgs.msg import Float64, UInt64
+from visualization_msgs.msg import MarkerArray
 
+from folder_line.bag.markers import marker_specs, marker_stamps
+from folder_line.config.run_config import MARKER_RATE, MARKER_RATES
+from folder_line.core.line.scenery import Scenery
 from folder_line.core.mechanisms.pile import counted_event
-from folder_line.interfaces import EVENT_KINDS, LANDING_TOPIC, SHEET_COUNT_TOPIC, SHEET_RATE_TOPIC
+from folder_line.interfaces import (
+    EVENT_KINDS,
+    LANDING_TOPIC,
+    MARKERS_TOPIC,
+    NS_PER_S,
+    SHEET_COUNT_TOPIC,
+    SHEET_RATE_TOPIC,
+)
 from folder_line.ros.lockstep import LINE_QOS
+from folder_line.ros.markers import marker_array
 from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
@@ -55,6 +74,13 @@ class SheetCounter(MachineNode):
     NODE_NAME = 'sheet_counter'
     EXTRA_SPECS = (
         ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s', bounds=(0.001, 3600.0)),
+        ParamSpec(
+            'marker_rate',
+            MARKER_RATE,
+            'Rate of /line/markers in sim time, stamps i/marker_rate (0 = off)',
+            unit='Hz',
+            bounds=MARKER_RATES.bounds,
+        ),
     )
 
     def setup(self) -> None:
@@ -62,11 +88,14 @@ class SheetCounter(MachineNode):
         self._rate_pub = self.create_publisher(Float64, SHEET_RATE_TOPIC, LINE_QOS)
         self._landing_pub = self.create_publisher(Float64, LANDING_TOPIC, LINE_QOS)
         self._landed = EVENT_KINDS.index('leaf_landed')
-        self.published_count = self.published_rate = self.published_landing = 0
+        self.published_count = self.published_rate = self.published_landing = self.published_markers = 0
+        self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, LINE_QOS)
+        self._marker_ns: int | None = None  # the latest marker stamp published
 
     def on_model(self) -> None:
         ev = self.model.events
         self._times = ev[ev['kind'] == counted_kind(self.model.scene.has_delivery)]['t']
+        self._scenery = Scenery(self.model)
 
     def count_at(self, t: float) -> int:
         """Sheets counted with event time <= t."""
@@ -89,6 +118,11 @@ class SheetCounter(MachineNode):
         for row in events[events['kind'] == self._landed]:
             self.publish(self._landing_pub, Float64(data=float(row['value'])))
             self.published_landing += 1
+        for g in marker_stamps(self._marker_ns, stamp_ns, self.values['marker_rate']):
+            specs = marker_specs(self._scenery.at(g / NS_PER_S))
+            self.publish(self._marker_pub, marker_array(specs, g, delete_all=self._marker_ns is None))
+            self._marker_ns = g
+            self.published_markers += 1
 
     def published_counts(self) -> dict[str, int]:
         return {
@@ -96,6 +130,7 @@ class SheetCounter(MachineNode):
             SHEET_COUNT_TOPIC: self.published_count,
             SHEET_RATE_TOPIC: self.published_rate,
             LANDING_TOPIC: self.published_landing,
+            MARKERS_TOPIC: self.published_markers,
         }
 
 
