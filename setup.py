@@ -21,7 +21,18 @@ setup(
     ],
     # The ROS 2 stack (rclpy, message packages) comes from the ROS install or, for
     # `make`, from requirements.txt: it is deliberately not listed here.
-    install_requires=['setuptools', 'numpy', 'scipy', 'PyYAML', 'matplotlib', 'imageio-ffmpeg', 'rosbags', 'mcap', 'dask', 'distributed'],
+    install_requires=[
+        'setuptools',
+        'numpy',
+        'scipy',
+        'PyYAML',
+        'matplotlib',
+        'imageio-ffmpeg',
+        'rosbags',
+        'mcap',
+        'dask',
+        'distributed',
+    ],
     zip_safe=True,
     maintainer='folder_line team',
     maintainer_email='folder-line@example.com',
