@@ -2,7 +2,7 @@
 
     ros2 launch folder_line line.launch.py scene:=folder [rtf:=1.0] [duration:=20.0]
         [overrides:="feed_transporter.V_tr=5.833;seed=3"] [rate:=200.0] [horizon:=3600.0]
-        [clock:=lockstep|wall] [lost_timeout:=3.0]
+        [clock:=lockstep|wall] [lost_timeout:=3.0] [marker_rate:=5.0]
 
 Starts the five machine nodes with the same scene and ``line_clock`` with those five
 as its lockstep participants: sim time does not advance until every one of them has
@@ -35,6 +35,7 @@ ARGUMENTS = (
     ('duration', '0.0', 'sim time to run for, s (0: until Ctrl-C)'),
     ('clock', 'lockstep', 'lockstep (sim time waits for every node) or wall (hardware in the loop)'),
     ('lost_timeout', '3.0', 'wall time a tick waits for a node before it is declared lost, s'),
+    ('marker_rate', '5.0', 'sheet_counter: /line/markers per second of sim time, frame line (0: none)'),
 )
 
 
@@ -53,8 +54,15 @@ def generate_launch_description() -> LaunchDescription:
     actions: list = [
         DeclareLaunchArgument(name, default_value=default, description=text) for name, default, text in ARGUMENTS
     ]
+    drawing = {'marker_rate': ParameterValue(arg['marker_rate'], value_type=float)}  # the node that draws
     nodes = [
-        Node(package='folder_line', executable=name, name=name, parameters=[common], output='screen')
+        Node(
+            package='folder_line',
+            executable=name,
+            name=name,
+            parameters=[common, drawing] if name == 'sheet_counter' else [common],
+            output='screen',
+        )
         for name in MACHINE_NODES
     ]
     clock = Node(

@@ -51,3 +51,11 @@ def test_launch_ends_the_whole_line_with_line_clock() -> None:
 
 def test_launch_file_is_installed() -> None:
     assert "glob('launch/*.launch.py')" in (REPO / 'setup.py').read_text()
+
+
+def test_launch_gives_the_drawing_node_its_marker_rate() -> None:
+    from folder_line.ros.nodes.sheet_counter import SheetCounter
+
+    args = {name for name, _, _ in _literal(ast.parse(LAUNCH.read_text()), 'ARGUMENTS')}
+    assert 'marker_rate' in args and 'marker_rate' in {spec.name for spec in SheetCounter.EXTRA_SPECS}
+    assert "if name == 'sheet_counter'" in LAUNCH.read_text()
