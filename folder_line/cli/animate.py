@@ -33,7 +33,7 @@ from folder_line.analysis.animation import (
 )
 from folder_line.analysis.animation import batch_run as batch_animation
 from folder_line.analysis.recording import Recording
-from folder_line.cli.arg_types import limited
+from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited
 from folder_line.cli.study_options import add_scene_arguments, source_from
 from folder_line.core.limits import DURATION, Limit
 from folder_line.core.line.scene import parse_scene
@@ -116,6 +116,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         ),
     )
     add_scene_arguments(p, 2.0)
+    add_tune_argument(p)
     p.add_argument(
         '--from',
         dest='t_from',
@@ -168,7 +169,8 @@ def run(args: argparse.Namespace) -> int:
     scale = TimeScale(args.t_from, args.duration, args.fps, args.slowdown)
     scale.check('--duration', args.duration)
     scene = parse_scene(source_from(args))
-    shown = batch_animation(scene, scale, '--from' if args.t_from > args.duration else '--duration')
+    tunings = check_tunings(scene, args.tune, args.t_from + args.duration)
+    shown = batch_animation(scene, scale, '--from' if args.t_from > args.duration else '--duration', tunings)
     _report(_render(shown, scale, args.out, '--out', args.size), scale, sys.stdout)
     return 0
 

@@ -11,10 +11,11 @@ import argparse
 from collections.abc import Callable
 
 from folder_line.core.limits import Limit
-from folder_line.core.line.tuning import TUNABLES, Tuning
-from folder_line.errors import FolderLineError, bounded_repr
+from folder_line.core.line.scene import Scene
+from folder_line.core.line.tuning import TUNABLES, Tuning, check_tuning
+from folder_line.errors import FolderLineError, ParameterError, bounded_repr
 
-__all__ = ['limited', 'number', 'tuning', 'tuning_change']
+__all__ = ['add_tune_argument', 'check_tunings', 'limited', 'number', 'tuning', 'tuning_change']
 
 
 def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
@@ -95,3 +96,27 @@ def tuning(text: str) -> Tuning:
     if not 0.0 < t < float('inf'):
         raise argparse.ArgumentTypeError(f'{shown}: T must be > 0 s (a start value is set with --set {key}=...)')
     return Tuning(t, key, value)
+
+
+def add_tune_argument(parser: argparse.ArgumentParser) -> None:
+    """The repeatable ``--tune T:KEY=VALUE`` of the batch verbs (``simulate``, ``animate``)."""
+    parser.add_argument(
+        '--tune',
+        action='append',
+        default=[],
+        type=tuning,
+        metavar='T:KEY=VALUE',
+        help='an operator change effective at T s, as on the running line (repeatable; '
+        f'KEY one of {", ".join(TUNABLES)}), e.g. 5.0:feed_transporter.V_tr=9.0',
+    )
+
+
+def check_tunings(scene: Scene, given: list[Tuning], duration: float) -> tuple[Tuning, ...]:
+    """``--tune``s sorted by time, each one the scene can take and inside the run (ParameterError naming it)."""
+    for tu in given:
+        check_tuning(scene, tu.key, tu.value)
+        if tu.t >= duration:
+            raise ParameterError(
+                '--tune', f'{tu.t!r}:{tu.key}={tu.value!r}', f'T must be before --duration {duration:g} s'
+            )
+    return tuple(sorted(given, key=lambda tu: tu.t))

@@ -30,15 +30,15 @@ from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
-from folder_line.cli.arg_types import limited, tuning, tuning_change
+from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited, tuning_change
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, parse_set
 from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.model import simulate
-from folder_line.core.line.scene import Scene, parse_scene
-from folder_line.core.line.tuning import TUNABLES, Tuning, check_tuning
+from folder_line.core.line.scene import parse_scene
+from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import FolderLineError, OutputError, ParameterError, bounded_repr, path_repr, shorten
 from folder_line.files.atomic import (
     check_output_dir,
@@ -170,15 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar='DIR',
         help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR",
     )
-    sim.add_argument(
-        '--tune',
-        action='append',
-        default=[],
-        type=tuning,
-        metavar='T:KEY=VALUE',
-        help='an operator change effective at T s, as on the running line (repeatable; '
-        f'KEY one of {", ".join(TUNABLES)}), e.g. 5.0:feed_transporter.V_tr=9.0',
-    )
+    add_tune_argument(sim)
     _add_marker_rate(sim, 'with --bag: ')
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
@@ -342,17 +334,6 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
         dest = write_csv_atomic(args.csv, table)
         print(f'wrote {dest} ({args.samples} rows, {len(table)} columns)')
     return 0
-
-
-def check_tunings(scene: Scene, given: list[Tuning], duration: float) -> tuple[Tuning, ...]:
-    """``--tune``s sorted by time, each one the scene can take and inside the run (ParameterError naming it)."""
-    for tu in given:
-        check_tuning(scene, tu.key, tu.value)
-        if tu.t >= duration:
-            raise ParameterError(
-                '--tune', f'{tu.t!r}:{tu.key}={tu.value!r}', f'T must be before --duration {duration:g} s'
-            )
-    return tuple(sorted(given, key=lambda tu: tu.t))
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:

@@ -22,7 +22,9 @@ from folder_line.analysis.animation import (
 from folder_line.analysis.recording import read_recording
 from folder_line.cli.main import main
 from folder_line.config.scenes import scene_mapping
+from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import parse_scene
+from folder_line.core.line.tuning import Tuning
 
 #: small and quick: 2 s of line at 10 frames/s, 2 video s per line s -> 40 frames of 160x96
 FAST = ['--fps', '10', '--slowdown', '2', '--size', '160x96']
@@ -90,6 +92,19 @@ def test_the_overlay_says_what_the_supervisor_did() -> None:
     assert held.state == 'HELD' and held.violations == () and held.count == len(shown.flags) > 0
     assert shown.timeline.text(0.0).time == 't = 0.000 s'
     assert shown.timeline.text(0.0).cycle == 'before knife cycle 0'
+
+
+def test_a_tuning_is_animated_as_simulate_runs_it() -> None:
+    """``animate --tune``: the supervisor holds at the first cycle simulate says is violated under the change."""
+    scene = parse_scene(scene_mapping('folder', {}))
+    tuning = Tuning(0.5, 'feed_transporter.V_tr', 6.0)
+    shown = batch_run(scene, TimeScale(0.0, 1.5, 25.0, 10.0), tunings=[tuning])
+    assert [s for _, s in shown.states] == ['STARTING', 'EXECUTE', 'HOLDING', 'HELD']
+    assert tuning in shown.model.commands
+    batch = simulate(scene, 1.5, sample_rate=0.0, commands=[tuning])
+    first = min((int(c.cycle[c.violated][0]), c.name) for c in batch.constraints if c.violated.any())
+    assert (shown.flags[0].index, shown.flags[0].constraint) == first
+    assert not batch_run(scene, TimeScale(0.0, 1.5, 25.0, 10.0)).flags  # without it, nothing is violated
 
 
 def test_a_violation_stays_for_a_second_of_video_or_its_cycle() -> None:

@@ -32,7 +32,7 @@ from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import LineCommand
+from folder_line.core.line.tuning import LineCommand, Tuning
 from folder_line.interfaces import NS_PER_S
 
 __all__ = ['TICK_STEP', 'AnimatedRun', 'batch_run', 'recorded_run', 'scale_note']
@@ -78,7 +78,9 @@ def _timeline(
     return Timeline(model.cycle_index, model.next_cycle_boundary, _cycle_word(model.scene), states, flags, slowdown)
 
 
-def batch_run(scene: Scene, scale: TimeScale, option: str = '--duration') -> AnimatedRun:
+def batch_run(
+    scene: Scene, scale: TimeScale, option: str = '--duration', tunings: Sequence[Tuning] = ()
+) -> AnimatedRun:
     """The scene over ``[0, scale.t_end]`` with the supervisor in the loop (see the module docstring).
 
     Raises
@@ -97,11 +99,15 @@ def batch_run(scene: Scene, scale: TimeScale, option: str = '--duration') -> Ani
         return models[commands]
 
     sup = supervisor_logic(scene, horizon, SUPERVISOR_DEFAULTS, model_of)
+    pending = sorted(tunings, key=lambda tu: tu.t)  # each asked at the last tick before it, as simulate --bag does
     prev, i = -math.inf, 0
     while prev < t_end:  # ticks 0, step, 2 step, ..., t_end: the events up to each fed first, as the node is fed
         w = min(i * TICK_STEP, t_end)
         sup.feed(sup.model.events_between(prev, w))
         sup.tick(w)
+        while pending and w < pending[0].t <= min((i + 1) * TICK_STEP, t_end):
+            tu = pending.pop(0)
+            sup.tune(tu.key, tu.value, w, effective=tu.t)
         prev, i = w, i + 1
     model = sup.model
     states = [(0.0, 'STARTING')] + [(float(tr.t), str(tr.target)) for tr in sup.transitions]
