@@ -371,6 +371,8 @@ class MachineNode(Node):
     def _apply(self, parameters: list[Parameter[Any]]) -> None:
         names = TUNABLE_PARAMETERS.get(self.NODE_NAME, {})
         for parameter in parameters:
+            if parameter.name in self.values:  # what the node reads (rate_window, diag_rate, marker_rate, ...)
+                self.values[parameter.name] = parameter.value
             if parameter.name == 'rate':
                 self._period_ns = round(NS_PER_S / parameter.value)
             elif parameter.name in names:

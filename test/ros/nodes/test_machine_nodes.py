@@ -427,6 +427,11 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
     ok, reason = call('sheet_counter', Parameter('rate_window', value=-1.0))
     assert not ok and reason.startswith('rate_window=-1.0: must be a float in ')
     assert nodes[3].values['rate_window'] == 5.0
+    # a writable parameter set at run time is what the node reads from then on (it once kept its start value)
+    assert call('sheet_counter', Parameter('rate_window', value=1.5)) == (True, '')
+    assert nodes[3].values['rate_window'] == 1.5
+    assert call('sheet_counter', Parameter('marker_rate', value=0.0)) == (True, '')
+    assert nodes[3].values['marker_rate'] == 0.0
     assert {s.name for s in MACHINE_SPECS} == {'scene', 'overrides', 'horizon', 'rate', 'lost_timeout'}
 
 
