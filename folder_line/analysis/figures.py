@@ -301,12 +301,16 @@ def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation, lp: Any) -> None:
     turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
     deg = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
     early = off_speed(rec, ev, exits['t'])
+    start_up = exits['t'] < at_speed_time(rec, ev)
     for at_e, exit_name, marker in ((False, 'C', 'v'), (True, 'E', '^')):
         mine = (exits['sheet'] % 2 == 1) == at_e
         colour = QUANTITY_COLOURS[f'leaf_exit_{exit_name}']
         n_early = int(np.count_nonzero(mine & early))
+        n_start = int(np.count_nonzero(mine & early & start_up))
+        where = [f'{n_start} in the start-up'] if n_start else []
+        where += [f'{n_early - n_start} in holds/stops'] if n_early > n_start else []
         label = f'leaf exits at {exit_name} ({int(np.count_nonzero(mine))}'
-        label += f'; hollow: {n_early} off speed: start-up, holds)' if n_early else ')'
+        label += f'; hollow: {", ".join(where)})' if n_early else ')'
         ax.plot(deg[mine & ~early], exits['value'][mine & ~early], marker, ms=6, color=colour, label=label)
         if n_early:
             ax.plot(deg[mine & early], exits['value'][mine & early], marker, ms=6, color=colour, mfc='none')
