@@ -104,14 +104,20 @@ def _read_all(master: int) -> str:
     return b''.join(chunks).decode().replace('\r\n', '\n')
 
 
+def _bar_at(t: float) -> tuple[_Terminal, LineTimeProgress]:
+    """A bar of 10 s on a fake terminal stream, drawn at ``t``."""
+    out = _Terminal()
+    bar = LineTimeProgress(out, 10.0, width=10, redraw=0.0)
+    bar.show(t)
+    return out, bar
+
+
 def test_logs_above_takes_what_c_code_writes_to_the_descriptor() -> None:
     """A pseudo-terminal stands for the user's: bytes written to its descriptor (as rcutils writes
     a node's WARN) come out on it whole, and the bar (a fake terminal stream) is cleared and redrawn."""
     master, slave = os.openpty()
     try:
-        out = _Terminal()
-        bar = LineTimeProgress(out, 10.0, width=10, redraw=0.0)
-        bar.show(4.0)
+        out, bar = _bar_at(4.0)
         with logs_above(bar, slave):
             os.write(slave, b'[WARN] [feed]: late sheet\n[ERROR] [supervisor]: ')
             os.write(slave, b'hold\n')
@@ -131,9 +137,7 @@ def test_logs_above_takes_what_c_code_writes_to_the_descriptor() -> None:
 def test_logs_above_leaves_a_descriptor_that_is_not_a_terminal_alone(tmp_path: Path) -> None:
     fd = os.open(tmp_path / 'log', os.O_WRONLY | os.O_CREAT)
     try:
-        out = _Terminal()
-        bar = LineTimeProgress(out, 10.0, width=10, redraw=0.0)
-        bar.show(1.0)
+        out, bar = _bar_at(1.0)
         with logs_above(bar, fd):
             os.write(fd, b'WARN to a file\n')
         assert (tmp_path / 'log').read_text() == 'WARN to a file\n'
