@@ -20,6 +20,7 @@ from folder_line.analysis.replay import Evaluation
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.mechanisms import delivery
+from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
 from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
@@ -48,7 +49,7 @@ def at_speed_time(rec: Recording, ev: Evaluation) -> float:
     states were recorded but never ``EXECUTE``. Without recorded states, the first point of
     the check grid (:data:`~folder_line.core.supervision.settings.CHECK_PERIOD`) where the
     model drive ``ev.drive`` turns at :data:`~folder_line.core.supervision.settings.SPEED_REACHED`
-    of its nominal speed or more (0 for a drive at speed from the start).
+    of the speed it heads for (nominal, or the press speed set) or more (0 for a drive at speed from the start).
 
     Parameters
     ----------
@@ -64,7 +65,7 @@ def at_speed_time(rec: Recording, ev: Evaluation) -> float:
     if rec.states:
         return next((t_ns / NS_PER_S for t_ns, state in rec.states if state == _AT_SPEED_STATE), math.inf)
     grid = np.arange(0.0, rec.t_end + CHECK_PERIOD, CHECK_PERIOD)
-    fast = np.flatnonzero(np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED)
+    fast = np.flatnonzero(np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED * target_rate(ev.drive, grid))
     return float(grid[fast[0]]) if fast.size else math.inf
 
 
@@ -77,8 +78,8 @@ def off_speed(rec: Recording, ev: Evaluation, t: np.ndarray) -> np.ndarray:
     turns below :data:`~folder_line.core.supervision.settings.SPEED_REACHED` of its nominal speed.
     """
     t = np.asarray(t, dtype=float)
-    if not rec.states:
-        return np.asarray(ev.drive.rate(t), dtype=float) < SPEED_REACHED
+    if not rec.states:  # below the speed the drive heads for (the press speed set; nominal unless tuned)
+        return np.asarray(ev.drive.rate(t), dtype=float) < SPEED_REACHED * target_rate(ev.drive, t)
     stamps = np.array([t_ns / NS_PER_S for t_ns, _ in rec.states])
     running = np.array([state == _AT_SPEED_STATE for _, state in rec.states])
     i = np.searchsorted(stamps, t, side='right') - 1  # the state shown at t

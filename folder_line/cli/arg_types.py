@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 from folder_line.core.limits import Limit
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import TUNABLES, Tuning, check_tuning
+from folder_line.core.line.tuning import SCENE_KEYS, TUNABLES, Tuning, check_tuning
 from folder_line.errors import FolderLineError, ParameterError, bounded_repr
 
 __all__ = ['add_tune_argument', 'check_tunings', 'limited', 'number', 'tuning', 'tuning_change']
@@ -94,7 +94,8 @@ def tuning(text: str) -> Tuning:
         raise argparse.ArgumentTypeError(f'{shown}: T must be a number of seconds, the effective time') from None
     key, value = tuning_change(change, shown)
     if not 0.0 < t < float('inf'):
-        raise argparse.ArgumentTypeError(f'{shown}: T must be > 0 s (a start value is set with --set {key}=...)')
+        start = f'a start value is set with --set {key}=...' if key in SCENE_KEYS else 'it starts at the model value'
+        raise argparse.ArgumentTypeError(f'{shown}: T must be > 0 s ({start})')
     return Tuning(t, key, value)
 
 

@@ -135,3 +135,14 @@ def test_the_press_speed_ramps_to_its_setting_and_an_unhold_ends_there() -> None
     assert float(model.drive.rate(np.array(end))) >= SPEED_REACHED * speed
     assert float(model.drive.rate(np.array(end - 0.005))) < SPEED_REACHED * speed
     assert float(np.max(model.drive.rate(np.linspace(6.0, 10.0, 801)))) == pytest.approx(speed, abs=1e-12)
+
+
+def test_a_press_speed_change_leaves_a_ramp_profile_bit_for_bit_before_it() -> None:
+    """The drive is the profile's own until the first change of speed (not the ramp generator from t = 0)."""
+    scene = load_scene('folder', {'drive.profile': 'ramp', 'drive.t_ramp': 1.5})
+    n_c = float(scene.machine('cyclogram').n_c)
+    plain = LineModel(scene, 4.0)
+    tuned = LineModel(scene, 4.0, [Tuning(2.0, 'press.n_c', 0.9 * n_c)])
+    assert np.array_equal(tuned.events[tuned.events['t'] < 2.0], plain.events[plain.events['t'] < 2.0])
+    t = np.linspace(0.0, 2.0, 801)
+    assert np.array_equal(tuned.drive.theta(t), plain.drive.theta(t))

@@ -33,6 +33,7 @@ from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand, Tuning
+from folder_line.errors import ParameterError
 from folder_line.interfaces import NS_PER_S
 
 __all__ = ['TICK_STEP', 'AnimatedRun', 'batch_run', 'recorded_run', 'scale_note']
@@ -107,7 +108,9 @@ def batch_run(
         sup.tick(w)
         while pending and w < pending[0].t <= min((i + 1) * TICK_STEP, t_end):
             tu = pending.pop(0)
-            sup.tune(tu.key, tu.value, w, effective=tu.t)
+            out = sup.tune(tu.key, tu.value, w, effective=tu.t)
+            if not out.ok:  # as simulate --bag: a refused change is said, never dropped
+                raise ParameterError(tu.key, tu.value, out.message)
         prev, i = w, i + 1
     model = sup.model
     states = [(0.0, 'STARTING')] + [(float(tr.t), str(tr.target)) for tr in sup.transitions]

@@ -37,15 +37,19 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from folder_line.core.limits import CYLINDER_SPEED, LINEAR_SPEED, PILE_LOWERING, Limit
-from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.mechanisms.pile import T_LOWER
 from folder_line.core.numerics.validate import non_negative
 from folder_line.errors import ParameterError
 
+if TYPE_CHECKING:
+    from folder_line.core.line.scene import Scene
+
 __all__ = [
+    'SCENE_KEYS',
     'SET_PREFIX',
     'LineCommand',
     'TUNABLES',
@@ -130,6 +134,10 @@ TUNABLES: dict[str, Tunable] = {
 }
 
 
+#: the tunables a scene also sets (``--set``, the scene file); ``pile.t_lower`` is the model's constant
+SCENE_KEYS = frozenset(TUNABLES) - {'pile.t_lower'}
+
+
 def scene_value(scene: Scene, key: str) -> float:
     """The scene's own value of tunable ``key`` (before any tuning)."""
     if key == 'pile.t_lower':
@@ -155,7 +163,7 @@ def check_tuning(scene: Scene, key: str, value: object) -> float:
             key,
             value,
             f'is not tunable on a running line; tunable: {", ".join(TUNABLES)} '
-            '(geometry, the press speed and the effects are set in the scene)',
+            '(geometry and the effects are set in the scene)',
         )
     x = tunable.limit.check(key, value)
     why = tunable.needs(scene)

@@ -567,6 +567,8 @@ def commanded_drive(
     base = build_drive(spec)
     switches = running_switches(commands)
     settings = [(float(t), float(v)) for t, v in speeds]
+    while settings and settings[0][1] == 1.0:  # nominal until the first change: the profile's own drive
+        settings.pop(0)
     if not switches and not settings:
         return base
     t1 = min(([switches[0][0]] if switches else []) + ([settings[0][0]] if settings else []))

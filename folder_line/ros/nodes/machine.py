@@ -52,6 +52,7 @@ from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import (
+    SCENE_KEYS,
     TUNABLES,
     LineCommand,
     Tuning,
@@ -337,11 +338,14 @@ class MachineNode(Node):
         for spec in self.tunables:
             key = TUNABLE_PARAMETERS[self.NODE_NAME][spec.name]
             if self.values[spec.name] != scene_value(self.scene, key):
+                where = (
+                    f"the model's {scene_value(self.scene, key)!r} {spec.unit}; it has no scene key"
+                    if key not in SCENE_KEYS
+                    else f"the scene's {scene_value(self.scene, key)!r} {spec.unit}; to start at another value "
+                    f'set "{key}=..." in the overrides parameter'
+                )
                 raise ParameterError(
-                    spec.name,
-                    self.values[spec.name],
-                    f'is changed on the running line; to start at another value set "{key}=..." in the '
-                    f'overrides parameter (the scene says {scene_value(self.scene, key)!r} {spec.unit})',
+                    spec.name, self.values[spec.name], f'is changed on the running line; it starts at {where}'
                 )
 
     def _screen_tunings(self, parameters: list[Parameter[Any]]) -> SetParametersResult:

@@ -91,11 +91,12 @@ class SheetCounter(MachineNode):
         self.published_count = self.published_rate = self.published_landing = self.published_markers = 0
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, LINE_QOS)
         self._marker_ns: int | None = None  # the latest marker stamp published
+        self._marker_rate = self.values['marker_rate']  # the rate of the grid _marker_ns is on
 
     def on_model(self) -> None:
         ev = self.model.events
         self._times = ev[ev['kind'] == counted_kind(self.model.scene.has_delivery)]['t']
-        self._scenery = Scenery(self.model)
+        self._scenery: Scenery | None = None  # built when a marker is first due under this model
 
     def count_at(self, t: float) -> int:
         """Sheets counted with event time <= t."""
@@ -118,9 +119,16 @@ class SheetCounter(MachineNode):
         for row in events[events['kind'] == self._landed]:
             self.publish(self._landing_pub, Float64(data=float(row['value'])))
             self.published_landing += 1
-        for g in marker_stamps(self._marker_ns, stamp_ns, self.values['marker_rate']):
+        rate = self.values['marker_rate']
+        if rate != self._marker_rate:
+            # a new rate (or markers on again after 0): its grid starts at this tick, not at the last stamp drawn
+            self._marker_ns = stamp_ns - 1
+        self._marker_rate = rate
+        for g in marker_stamps(self._marker_ns, stamp_ns, rate):
+            if self._scenery is None:
+                self._scenery = Scenery(self.model)
             specs = marker_specs(self._scenery.at(g / NS_PER_S))
-            self.publish(self._marker_pub, marker_array(specs, g, delete_all=self._marker_ns is None))
+            self.publish(self._marker_pub, marker_array(specs, g, delete_all=self.published_markers == 0))
             self._marker_ns = g
             self.published_markers += 1
 

@@ -516,3 +516,16 @@ def test_a_producer_whose_counted_messages_never_come_is_lost_not_waited_for_for
     assert waited > MISSING_FACTOR * 0.3  # not before the limit: it was alive all along
     assert ros.spin_until(clock.done.done, timeout=30.0)
     assert crank.ticks == grid(0, 50 * MS, STEP)  # it went on without the supervisor: every tick published
+
+
+def test_markers_turned_on_at_run_time_start_at_that_tick(ros: Ros) -> None:
+    """marker_rate 0 at start, 5 Hz from t = 1800 s: one array at 1800 s, not the 9000 of the grid since 0."""
+    counter = ros.add(SheetCounter(context=ros.context, parameter_overrides=params(scene='folder', marker_rate=0.0)))
+    none = np.zeros(0, dtype=counter.model.events.dtype)
+    counter.publish_extra(0, 0.0, none)
+    assert counter.published_markers == 0
+    assert counter.set_parameters([Parameter('marker_rate', value=5.0)])[0].successful
+    counter.publish_extra(1800 * NS_PER_S, 1800.0, none)
+    assert counter.published_markers == 1
+    counter.publish_extra(1800 * NS_PER_S + NS_PER_S // 2, 1800.5, none)  # then on its grid: 1800.2, 1800.4
+    assert counter.published_markers == 3
