@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.analysis.recording import Recording
+from folder_line.bag.statuses import accepted_tunings
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import ConstraintSeries, event_kind
@@ -233,11 +234,7 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         for _, name, v in rec.supervisor_status
         if name.endswith('/operator') and 't' in v and 'command' in v
     ]
-    tunings = [
-        (float(v['t']), v['key'], float(v['value']), float(v['effective']))
-        for _, name, v in rec.supervisor_status
-        if name.endswith('/tuning') and v.get('accepted') == 'True'
-    ]
+    tunings = accepted_tunings((name, v) for _, name, v in rec.supervisor_status)
     lost = [
         (float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
         for _, name, v in rec.supervisor_status

@@ -8,7 +8,7 @@ into the rosbags typestore's. So a live bag and a batch bag say the same, word f
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +28,8 @@ __all__ = [
     'constraint_statuses',
     'event_status',
     'status_stamp',
+    'TUNING_STATUS',
+    'accepted_tunings',
     'tuning_status',
     'violation_status',
 ]
@@ -91,6 +93,20 @@ def violation_status(v: Violation) -> tuple[bool, str, dict[str, Any]]:
         'state': v.state,
     }
     return False, f'{v.constraint} violated in {margin_at(v.constraint, v.cycle)}: {v.action}', values
+
+
+#: the name of the supervisor's status of an operator's tuning (:func:`tuning_status`)
+TUNING_STATUS = 'folder_line/supervisor/tuning'
+
+
+def accepted_tunings(statuses: Iterable[tuple[str, Mapping[str, str]]]) -> list[tuple[float, str, float, float]]:
+    """``(t asked, key, value, effective time)`` of every accepted tuning among ``(status name, key/values)``
+    as recorded (:func:`tuning_status`), in order."""
+    return [
+        (float(v['t']), v['key'], float(v['value']), float(v['effective']))
+        for name, v in statuses
+        if name == TUNING_STATUS and v.get('accepted') == 'True'
+    ]
 
 
 def tuning_status(

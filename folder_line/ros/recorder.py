@@ -30,6 +30,7 @@ from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, Header, String, UInt64
 from visualization_msgs.msg import MarkerArray
 
+from folder_line.bag.statuses import TUNING_STATUS
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
@@ -110,10 +111,6 @@ def _could_publish(producer: str, topic: str, msg: Any) -> bool:
     if topic == COMMANDS_TOPIC:
         return producer == 'supervisor' and is_command_source(msg.source)
     return True
-
-
-#: the supervisor's status of an operator's tuning (the run's summary simulates the line under them)
-_TUNING_STATUS = 'folder_line/supervisor/tuning'
 
 
 class LineRecorder(Node):
@@ -215,7 +212,7 @@ class LineRecorder(Node):
                 self.sheet_count = msg.data
             elif topic == DIAGNOSTICS_TOPIC:
                 self.diagnostics.extend(
-                    st for st in msg.status if st.level == DiagnosticStatus.ERROR or st.name == _TUNING_STATUS
+                    st for st in msg.status if st.level == DiagnosticStatus.ERROR or st.name == TUNING_STATUS
                 )
             self.counts[topic] += 1
             source = (

@@ -51,6 +51,7 @@ from typing import IO, TYPE_CHECKING, Any
 import rclpy
 from rclpy.parameter import Parameter
 
+from folder_line.bag.statuses import accepted_tunings
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
@@ -417,12 +418,8 @@ def outcome(summary: dict[str, Any]) -> dict[str, Any]:
 
 def _tunings(statuses: Any) -> list[Tuning]:
     """The tunings the supervisor accepted, from its ``folder_line/supervisor/tuning`` statuses, by effective time."""
-    out = []
-    for st in statuses:
-        values = {kv.key: kv.value for kv in st.values}
-        if st.name == 'folder_line/supervisor/tuning' and values.get('accepted') == 'True':
-            out.append(Tuning(float(values['effective']), values['key'], float(values['value'])))
-    return sorted(out, key=lambda tu: tu.t)
+    recorded = accepted_tunings((st.name, {kv.key: kv.value for kv in st.values}) for st in statuses)
+    return sorted((Tuning(effective, key, value) for _, key, value, effective in recorded), key=lambda tu: tu.t)
 
 
 def _where(constraint: str, cycle: str | None) -> str:

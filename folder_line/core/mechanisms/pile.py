@@ -135,11 +135,7 @@ class PileTable:
     ) -> JointSamples:
         """Joint states of ``counter`` at ``t`` (``theta`` and ``lam`` unused: the lift is not
         geared to the master drive), as the line's parts give theirs."""
-        if unit != UNIT:
-            raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
-        tt = np.asarray(t, dtype=float).reshape(-1)
-        z, zdot = self.state(tt)
-        return stack_samples(UNIT, (self.joint,), tt, [z], [zdot])
+        return _counter_samples(self, unit, t)
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,11 +169,16 @@ class SteppedPile:
         self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
         """Joint states of ``counter`` at ``t`` (:meth:`PileTable.sample_unit`)."""
-        if unit != UNIT:
-            raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
-        tt = np.asarray(t, dtype=float).reshape(-1)
-        z, zdot = self.state(tt)
-        return stack_samples(UNIT, self.units[UNIT], tt, [z], [zdot])
+        return _counter_samples(self, unit, t)
+
+
+def _counter_samples(table: PileTable | SteppedPile, unit: str, t: npt.ArrayLike) -> JointSamples:
+    """Joint states of ``counter`` at ``t``: the table's height and speed (:meth:`PileTable.state`)."""
+    if unit != UNIT:
+        raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
+    tt = np.asarray(t, dtype=float).reshape(-1)
+    z, zdot = table.state(tt)
+    return stack_samples(UNIT, table.units[UNIT], tt, [z], [zdot])
 
 
 def pile_table(

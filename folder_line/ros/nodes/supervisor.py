@@ -98,7 +98,7 @@ from folder_line.bag.statuses import (
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
-from folder_line.core.line.tuning import LineCommand
+from folder_line.core.line.tuning import SET_PREFIX, LineCommand, parse_tuning_text
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
 from folder_line.core.supervision.records import Outcome, Violation
@@ -319,15 +319,14 @@ class Supervisor(MachineNode):
 
     def _on_tune(self, msg: String) -> None:
         """An operator's tuning forwarded by the machine node whose parameter was set (``'<node> <key>=<value>'``)."""
-        node, _, rest = msg.data.partition(' ')
-        key, _, text = rest.partition('=')
+        node, _, change = msg.data.partition(' ')
+        try:
+            key, value = parse_tuning_text(SET_PREFIX + change)
+        except ValueError as err:
+            self.reject('tuning', f'{msg.data[:60]!r}: {err}')
+            return
         if key not in TUNABLE_PARAMETERS.get(node, {}).values():
             self.reject('tuning', f'{msg.data[:60]!r}: not a tunable of node {node[:40]!r}')
-            return
-        try:
-            value = float(text)
-        except ValueError:
-            self.reject('tuning', f'{msg.data[:60]!r}: the value is not a number')
             return
         logic = self.logic
         t = logic.now if math.isfinite(logic.now) else (logic.t_start or 0.0)
