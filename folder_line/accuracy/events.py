@@ -100,7 +100,7 @@ from folder_line.core.effects import chute_belts, leaf_flight
 from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.layup_sim import LayupLine
-from folder_line.core.line.model import make_drive
+from folder_line.core.line.drives import make_drive
 from folder_line.core.mechanisms.drive import RampDrive
 from folder_line.core.numerics import roots
 from folder_line.core.numerics.arrays import BoolArray, FloatArray, IntArray
@@ -341,7 +341,7 @@ def front_stops_case(span: float = SPAN_FOLDER, t_ramp: float = T_RAMP) -> Event
     EventCase
     """
     scene = load_scene('folder', {'drive.profile': 'ramp', 'drive.t_ramp': float(t_ramp)})
-    drive = make_drive(scene, span)
+    drive = make_drive(scene)
     if not isinstance(drive, RampDrive):
         raise MeasurementError(f'events: the folder scene with a ramp profile gave a {type(drive).__name__}')
     fl = FolderLine(scene, drive, span)
@@ -436,7 +436,7 @@ def leaf_landing_case(span: float = SPAN_LAYUP, drag: float = DRAG) -> EventCase
     EventCase
     """
     scene = load_scene('layup', {'leaf_flight.drag': float(drag)})
-    drive = make_drive(scene, span)
+    drive = make_drive(scene)
     line = LayupLine(scene, drive, span)
     params: leaf_flight.Params = scene.effect('leaf_flight')
     y_floor = float(scene.machine('container').y_floor)

@@ -40,7 +40,8 @@ from folder_line.bag.statuses import accepted_tunings
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import ConstraintSeries, event_kind
-from folder_line.core.line.model import LineModel, LineResult, make_drive
+from folder_line.core.line.drives import make_drive
+from folder_line.core.line.model import LineModel, LineResult
 from folder_line.core.line.tuning import LineCommand
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Drive
@@ -104,7 +105,7 @@ def evaluate(rec: Recording, t_from: float = 0.0) -> Evaluation:
         the events, cycles and sheets counted from ``t_from`` on are reported.
     """
     scene = rec.scene
-    drive = make_drive(scene, rec.horizon, rec.commands)
+    drive = make_drive(scene, rec.commands)
     timing = plan = None
     constraints: list[ConstraintSeries] = []
     signatures = np.zeros(0, dtype=np.int64)

@@ -2,20 +2,21 @@
 
 ``folder-line run`` records what the nodes publish in lockstep; every message depends only
 on the scene, its tick and the supervisor's commands (:mod:`folder_line.ros.nodes.machine`).
-So this module computes them with the same core the nodes use, tick by tick on the run's
-grid (``rate`` = :data:`folder_line.config.run_config.RATE`, 200 Hz of line time; model horizon
-``duration + 1 s`` as ``run`` gives its nodes), and writes them with
-:class:`folder_line.bag.writer.BagWriter`, the recorder's writer:
+So this module computes them with the same core the nodes use, the streamed line
+(:class:`folder_line.core.line.stream.LineStream`), tick by tick on the run's grid (``rate`` =
+:data:`folder_line.config.run_config.RATE`, 200 Hz of line time), one window per second of
+line time (the supervisor's diagnostics period), and writes them with
+:class:`folder_line.bag.writer.BagWriter`, the recorder's writer. Its memory does not grow
+with the duration:
 
 * ``/clock``: every tick ``k / rate``, 0 to ``duration``;
 * ``/line/participants``: the clock's announcement (``clock=lockstep end=<ns> participants=...``),
   logged at 0;
-* ``/line/<node>/joint_states`` of each machine node at every tick: the node's model sampled
-  100 grid points at a time as the node samples it (:data:`SAMPLE_BATCH`);
+* ``/line/<node>/joint_states`` of each machine node at every tick: the line sampled there;
 * ``/line/events``: each machine node's exact events of ``(t_prev, t]`` at tick ``t``;
 * ``/line/sheet_counter/{count,rate,landing_x}`` as the ``sheet_counter`` node computes them;
 * ``/line/markers`` at ``marker_rate`` (the ``sheet_counter`` node's grid, stamps ``i / marker_rate``,
-  each at the first tick at or after it): the scenery of the model of that tick
+  each at the first tick at or after it): the scenery of the line at that stamp
   (:mod:`folder_line.bag.markers`);
 * the supervisor's ``/line/supervisor/state`` at every tick, ``/line/supervisor/commands``,
   and ``/diagnostics`` (one array per second of line time, the violations, balances): the
@@ -80,12 +81,11 @@ from folder_line.bag.types import typestore
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import MARKER_RATE, RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
-from folder_line.core.limits import HORIZON_MARGIN
 from folder_line.core.line.events import EVENT_DTYPE
-from folder_line.core.line.model import LineModel, check_size
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.scenery import Scenery
-from folder_line.core.line.tuning import LineCommand, Tuning
+from folder_line.core.line.stream import LineStream
+from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.pile import counted_event
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.errors import ParameterError
@@ -113,16 +113,12 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 
-__all__ = ['DIAG_RATE', 'RATE_WINDOW', 'SAMPLE_BATCH', 'BatchBag', 'announcement', 'check_duration', 'write_batch_bag']
+__all__ = ['DIAG_RATE', 'RATE_WINDOW', 'BatchBag', 'SheetRate', 'announcement', 'check_duration', 'write_batch_bag']
 
-#: grid points a machine node samples from its model in one call (``folder_line.ros.nodes.machine``)
-SAMPLE_BATCH = 100
 #: the supervisor's ``diag_rate`` default, Hz of line time
 DIAG_RATE = 1.0
 #: the sheet counter's ``rate_window`` default, s
 RATE_WINDOW = 5.0
-#: ticks computed and written at a time (bounds the memory of an hour-long bag)
-BLOCK_TICKS = 2000
 
 
 @dataclass
@@ -154,70 +150,42 @@ def _own_kinds(node: str) -> np.ndarray:
     return np.array([EVENT_KINDS.index(k) for k, n in EVENT_OWNER.items() if n == node], dtype=np.int16)
 
 
-class _Machine:
-    """One machine node's view of a model: its events and its joints, sampled as the node samples them."""
+class SheetRate:
+    """The sheet counter's count and rate from the counted sheets' times, in memory bounded by the window.
 
-    def __init__(self, node: str, step_ns: int, horizon_ns: int) -> None:
-        self.node = node
-        self.unit = {n: u for u, n in NODE_OF_UNIT.items()}.get(node, '')
-        self.kinds = _own_kinds(node)
-        self.step_ns = step_ns
-        self.horizon_ns = horizon_ns
-        self.topic = joint_states_topic(node)
-        self.layout: JointStateLayout | None = None
-        self._batch: tuple[int, np.ndarray, np.ndarray, np.ndarray | None] | None = None  # first k, pos, vel, eff
-        self.model: LineModel | None = None
+    Parameters
+    ----------
+    window : float
+        ``rate_window``, s: the rate is the sheets counted in ``(t - window, t]`` over ``window``
+        (over the elapsed time while ``t`` is shorter).
+    """
 
-    def set_model(self, model: LineModel) -> None:
-        self.model = model
-        ev = model.events
-        self.events = ev[np.isin(ev['kind'], self.kinds)] if ev.size else ev
-        self.event_t = self.events['t']
-        self._batch = None  # the node drops its sampled batch when its model changes
+    def __init__(self, window: float) -> None:
+        self.window = window
+        self.before = 0  # sheets counted and forgotten
+        self.times = np.zeros(0)  # the counted sheets' times still in a window, s
 
-    def joints(self, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Position, velocity, effort rows of ticks ``k0 .. k1 - 1``, batched as the node batches them."""
-        assert self.model is not None
-        pos, vel, eff = [], [], []
-        k = k0
-        while k < k1:
-            b = self._batch
-            if b is None or not (b[0] <= k < b[0] + len(b[1])):
-                g = k * self.step_ns
-                n = max(1, min(SAMPLE_BATCH, (self.horizon_ns - g) // self.step_ns + 1))
-                times = np.array([g + i * self.step_ns for i in range(n)], dtype=float) / NS_PER_S
-                js = self.model.sample(self.unit, times)
-                if self.layout is None:
-                    effort = 0 if js.effort is None else js.effort.shape[1]
-                    width = js.position.shape[1]
-                    self.layout = JointStateLayout.of(self.node, list(js.names), (width, width, effort))
-                b = self._batch = (k, js.position, js.velocity, js.effort)
-            i0, i1 = k - b[0], min(k1, b[0] + len(b[1])) - b[0]
-            pos.append(b[1][i0:i1])
-            vel.append(b[2][i0:i1])
-            if b[3] is not None:
-                eff.append(b[3][i0:i1])
-            k = b[0] + i1
-        return np.vstack(pos), np.vstack(vel), (np.vstack(eff) if eff else None)
+    def add(self, times: np.ndarray) -> None:
+        """Sheets counted at ``times`` (s, ascending, after those added before)."""
+        self.times = np.concatenate((self.times, np.asarray(times, dtype=float)))
 
+    def count(self, t: np.ndarray) -> np.ndarray:
+        """Sheets counted at or before each ``t``."""
+        return self.before + np.searchsorted(self.times, t, side='right')
 
-class _Drawing:
-    """The ``sheet_counter`` node's ``/line/markers``: its grid and the scenery of its current model."""
+    def rate(self, t: np.ndarray) -> np.ndarray:
+        """Sheets per second over the window before each ``t`` (0 at t = 0)."""
+        window = np.minimum(self.window, t)
+        n = self.count(t) - self.count(t - window)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            return np.where(window <= 0.0, 0.0, n / np.where(window <= 0.0, 1.0, window))
 
-    def __init__(self, rate: float) -> None:
-        self.rate = rate
-        self.last_ns: int | None = None
-        self.scenery: Scenery | None = None
-
-    def tick(self, model: LineModel, stamp_ns: int) -> list[bytes]:
-        """CDR of the marker arrays the node publishes at the tick ``stamp_ns`` (ns)."""
-        out = []
-        for g in marker_stamps(self.last_ns, stamp_ns, self.rate):
-            if self.scenery is None or self.scenery.model is not model:
-                self.scenery = Scenery(model)
-            out.append(markers_cdr(marker_specs(self.scenery.at(g / NS_PER_S)), g, delete_all=self.last_ns is None))
-            self.last_ns = g
-        return out
+    def forget(self, t: float, window: float | None = None) -> None:
+        """Forget the sheets no rate after ``t`` (s) reads (``window``: the longest window still to come)."""
+        w = self.window if window is None else max(self.window, window)
+        n = int(np.searchsorted(self.times, t - w, side='right'))
+        self.before += n
+        self.times = self.times[n:]
 
 
 def _status_msg(s: Status) -> Any:  # a typestore diagnostic_msgs/msg/DiagnosticStatus
@@ -287,9 +255,10 @@ class _SupervisorOut:
         self._n_balances = len(balances)
         return out
 
-    def diagnostics(self, model: LineModel, stamp: int) -> bytes:
-        """The periodic array at ``stamp`` (ns): the constraints of ``model``, then the inputs (none rejected)."""
-        return _array_cdr(stamp, constraint_statuses(model, stamp / NS_PER_S, self.hardware_id, {}, []))
+    def diagnostics(self, line: LineStream, stamp: int) -> bytes:
+        """The periodic array at ``stamp`` (ns, the time ``line`` was advanced to): the constraints, then the
+        inputs (none rejected)."""
+        return _array_cdr(stamp, constraint_statuses(line.tallies.constraints.values(), self.hardware_id, {}, []))
 
 
 def announcement(duration_ns: int) -> str:
@@ -297,18 +266,8 @@ def announcement(duration_ns: int) -> str:
     return f'clock=lockstep end={duration_ns} participants={",".join(KNOWN_PARTICIPANTS)}'
 
 
-def _heard(model: LineModel) -> tuple[np.ndarray, np.ndarray]:
-    """The machines' events of ``model`` as the supervisor hears them (time rounded to the ns, as
-    ``time_ref`` carries it), and their model times (which decide the tick that publishes each)."""
-    owned = np.isin(model.events['kind'], np.concatenate([_own_kinds(n) for n in JOINT_NODES]))
-    events = model.events[owned]
-    heard = events.astype(EVENT_DTYPE)
-    heard['t'] = np.maximum(0, np.round(events['t'] * NS_PER_S).astype(np.int64)) / NS_PER_S
-    return heard, events['t']
-
-
 def check_duration(scene: Scene, duration: float) -> None:
-    """Refuse a ``duration`` (s) that is not a positive whole number of ticks, or whose model would not fit.
+    """Refuse a ``duration`` (s) that is not a positive whole number of ticks.
 
     Raises
     ------
@@ -322,7 +281,103 @@ def check_duration(scene: Scene, duration: float) -> None:
         raise ParameterError(
             '--duration', duration, f'must be a whole number of ticks of {step_ns / 1e6:g} ms ({RATE:g} Hz)'
         )
-    check_size(scene, duration, duration + HORIZON_MARGIN, '--duration')
+
+
+@dataclass
+class _Tick:
+    """What the supervisor said at one tick: its state, its outputs, whether the diagnostics are due."""
+
+    state: str
+    outs: list[tuple[str, bytes, int]]
+    diag: bool
+
+
+class _Writer:
+    """One window of ticks at a time: the machines' messages from the stream, the supervisor's from its logic."""
+
+    def __init__(self, bag: BagWriter, scene: Scene, line: LineStream, sup: _SupervisorOut, marker_rate: float) -> None:
+        self.bag = bag
+        self.line = line
+        self.sup = sup
+        self.units = {node: {n: u for u, n in NODE_OF_UNIT.items()}.get(node, '') for node in JOINT_NODES}
+        self.kinds = {node: _own_kinds(node) for node in JOINT_NODES}
+        self.layouts: dict[str, JointStateLayout] = {}
+        self.landed = EVENT_KINDS.index('leaf_landed')
+        self.counted = EVENT_KINDS.index(counted_event(scene.has_delivery))
+        self.rates = SheetRate(RATE_WINDOW)
+        self.marker_rate = marker_rate
+        self.marker_ns: int | None = None
+        self.scenery: Scenery | None = None
+        self.states: dict[str, bytes] = {}
+
+    def write(self, stamps: np.ndarray, events: np.ndarray, ticks: list[_Tick]) -> None:
+        """Write the ticks ``stamps`` (ns): per tick ``/clock``, then node by node what it publishes."""
+        line = self.line
+        t = stamps / NS_PER_S
+        joints: dict[str, tuple[bytes, int]] = {}
+        for node, unit in self.units.items():
+            if unit not in line.units:
+                continue
+            js = line.sample(unit, t)
+            layout = self.layouts.get(node)
+            if layout is None:
+                effort = 0 if js.effort is None else js.effort.shape[1]
+                width = js.position.shape[1]
+                layout = self.layouts[node] = JointStateLayout.of(node, list(js.names), (width, width, effort))
+            joints[node] = (layout.many(stamps, js.position, js.velocity, js.effort), len(layout.template))
+        self.rates.add(events['t'][events['kind'] == self.counted])
+        count = self.rates.count(t)
+        rate = self.rates.rate(t)
+        self.rates.forget(float(t[-1]))
+        bounds = np.searchsorted(events['t'], np.concatenate(([-math.inf], t)), side='right')  # the window's
+        own = {node: np.isin(events['kind'], kinds) for node, kinds in self.kinds.items()}
+        for i in range(t.size):
+            stamp = int(stamps[i])
+            tick = events[bounds[i] : bounds[i + 1]]
+            mask_lo, mask_hi = bounds[i], bounds[i + 1]
+            items: list[tuple[str, bytes, int]] = [(CLOCK_TOPIC, clock_cdr(stamp), stamp)]
+            for node in JOINT_NODES:
+                mine = tick[own[node][mask_lo:mask_hi]]
+                for row in mine:
+                    source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
+                    time_ref = max(0, round(float(row['t']) * NS_PER_S))
+                    items.append((EVENTS_TOPIC, time_reference_cdr(stamp, node, time_ref, source), stamp))
+                if node in joints:
+                    blob, size = joints[node]
+                    items.append((joint_states_topic(node), blob[i * size : (i + 1) * size], stamp))
+                if node == 'sheet_counter':
+                    items.append((SHEET_COUNT_TOPIC, uint64_cdr(int(count[i])), stamp))
+                    items.append((SHEET_RATE_TOPIC, float64_cdr(float(rate[i])), stamp))
+                    for row in mine[mine['kind'] == self.landed]:
+                        items.append((LANDING_TOPIC, float64_cdr(float(row['value'])), stamp))
+                    items.extend(self._markers(stamp))
+            tk = ticks[i]
+            items.extend(tk.outs)
+            if tk.state not in self.states:
+                self.states[tk.state] = string_cdr(tk.state)
+            items.append((SUPERVISOR_STATE_TOPIC, self.states[tk.state], stamp))
+            if tk.diag:
+                items.append((DIAGNOSTICS_TOPIC, self.sup.diagnostics(line, stamp), stamp))
+            self.bag.write_many(stamp, items)
+
+    def _markers(self, stamp: int) -> list[tuple[str, bytes, int]]:
+        out = []
+        for g in marker_stamps(self.marker_ns, stamp, self.marker_rate):
+            if self.scenery is None:
+                self.scenery = Scenery(self.line)
+            cdr = markers_cdr(marker_specs(self.scenery.at(g / NS_PER_S)), g, delete_all=self.marker_ns is None)
+            out.append((MARKERS_TOPIC, cdr, stamp))
+            self.marker_ns = g
+        return out
+
+
+def _heard(events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The machines' events as the supervisor hears them (time rounded to the ns, as ``time_ref`` carries it),
+    and their line times (which decide the tick that publishes each)."""
+    owned = np.isin(events['kind'], np.concatenate([_own_kinds(n) for n in JOINT_NODES]))
+    heard = events[owned].astype(EVENT_DTYPE)
+    heard['t'] = np.maximum(0, np.round(events['t'][owned] * NS_PER_S).astype(np.int64)) / NS_PER_S
+    return heard, events['t'][owned]
 
 
 def write_batch_bag(
@@ -348,7 +403,7 @@ def write_batch_bag(
     custom : mapping of str to str, optional
         Extra ``custom_data`` entries (``folder_line.scene_arg``, ``folder_line.overrides``).
     progress : callable, optional
-        Called with the line time written so far (s), after each block of ticks.
+        Called with the line time written so far (s), after each window.
     tunings : sequence of Tuning
         Operator's tunings, each effective at its ``t`` (> 0): the supervisor is asked at
         the last tick before it (:meth:`~folder_line.core.supervision.supervisor.Supervisor.tune`
@@ -364,33 +419,22 @@ def write_batch_bag(
     Raises
     ------
     ParameterError
-        ``duration`` not a positive whole number of ticks, or too long for memory.
+        ``duration`` not a positive whole number of ticks.
     folder_line.errors.BagError
         The directory is not missing or empty.
     """
     check_duration(scene, duration)
     step_ns = round(NS_PER_S / RATE)
     duration_ns = seconds_to_ns(duration)
-    horizon = duration + HORIZON_MARGIN
-    horizon_ns = round(horizon * NS_PER_S)
     n_ticks = duration_ns // step_ns + 1
-    models: dict[tuple[LineCommand, ...], LineModel] = {}
-
-    def model_of(commands: tuple[LineCommand, ...]) -> LineModel:
-        if commands not in models:
-            models[commands] = LineModel(scene, horizon, commands)
-        return models[commands]
-
-    logic = supervisor_logic(scene, horizon, SUPERVISOR_DEFAULTS, model_of)
+    diag_step = round(NS_PER_S / DIAG_RATE)
+    logic = supervisor_logic(scene, SUPERVISOR_DEFAULTS)
     sup = _SupervisorOut(logic, scene.name)
-    model = logic.model
-    machines = [_Machine(n, step_ns, horizon_ns) for n in JOINT_NODES]
-    with_joints = [m for m in machines if m.unit in model.units]
-    for m in machines:
-        m.set_model(model)
-    heard, heard_t = _heard(model)
-    landed = EVENT_KINDS.index('leaf_landed')
-    counted = EVENT_KINDS.index(counted_event(scene.has_delivery))
+    line = LineStream(scene)
+    # each tuning is asked at the last tick before its effective time
+    pending = sorted(((-(-seconds_to_ns(tu.t) // step_ns) - 1, tu) for tu in tunings), key=lambda x: x[1].t)
+    if pending and pending[0][0] < 0:
+        raise ParameterError('tunings', pending[0][1].t, 'a tuning takes effect after the start of the line (t > 0)')
     bag = BagWriter(
         directory,
         scene_source=scene_text(scene),
@@ -401,53 +445,38 @@ def write_batch_bag(
         rewrite_metadata=False,
     )
     result = BatchBag(str(bag.path))
-    diag_step = round(NS_PER_S / DIAG_RATE)
-    next_diag = 0
-    states: dict[str, bytes] = {}
-    # each tuning is asked at the last tick before its effective time
-    pending = sorted(((-(-seconds_to_ns(tu.t) // step_ns) - 1, tu) for tu in tunings), key=lambda x: x[1].t)
-    if pending and pending[0][0] < 0:
-        raise ParameterError('tunings', pending[0][1].t, 'a tuning takes effect after the start of the line (t > 0)')
-    drawing = _Drawing(marker_rate)
+    writer = _Writer(bag, scene, line, sup, marker_rate)
     try:
         bag.write_serialized(PARTICIPANTS_TOPIC, string_cdr(announcement(duration_ns)), 0, 0)
         k = 0
-        prev_t = -math.inf
         while k < n_ticks:
-            # ticks k .. end - 1 run on one model: a drive command ends the block at the tick it is decided
-            end = min(k + BLOCK_TICKS, n_ticks)
+            # a window ends at a diagnostics stamp (the tallies are read there), or at the last tick
+            next_diag = -(-(k * step_ns) // diag_step) * diag_step
+            end = min(n_ticks, next_diag // step_ns + 1)
+            start = line.checkpoint()
+            window = line.advance((end - 1) * step_ns / NS_PER_S)
+            heard, heard_t = _heard(window.events)
             stamps = np.arange(k, end, dtype=np.int64) * step_ns
             t = stamps / NS_PER_S
-            # the supervisor hears every machine's events of the tick, their time as sent (to the ns)
-            bounds = np.searchsorted(heard_t, np.concatenate(([prev_t], t)), side='right')
-            per_tick: list[tuple[str, list[tuple[str, bytes, int]], bool]] = []
+            bounds = np.searchsorted(heard_t, np.concatenate(([window.t0], t)), side='right')
+            ticks: list[_Tick] = []
+            n_commands = len(logic.commands)
             for i in range(end - k):
                 if bounds[i + 1] > bounds[i]:
                     logic.feed(heard[bounds[i] : bounds[i + 1]])
                 logic.tick(float(t[i]))
                 while pending and pending[0][0] == k + i:
-                    tu = pending.pop(0)[1]
-                    sup.tune(float(t[i]), tu)
-                outs = sup.outputs()
-                diag = bool(stamps[i] >= next_diag)
-                if diag:
-                    next_diag = int(stamps[i]) + diag_step
-                per_tick.append((logic.state, outs, diag))
-                if logic.model is not model:
-                    end = k + i + 1
+                    sup.tune(float(t[i]), pending.pop(0)[1])
+                ticks.append(_Tick(logic.state, sup.outputs(), bool(stamps[i] % diag_step == 0)))
+                if len(logic.commands) != n_commands:  # the line runs under it from the next tick on
+                    line.restore(start, logic.commands)
+                    window = line.advance(float(t[i]))
+                    stamps, end = stamps[: i + 1], k + i + 1
                     break
-            _write_block(
-                bag, machines, with_joints, sup, model, k, end, step_ns, per_tick, landed, counted, states, drawing
-            )
-            prev_t = float((end - 1) * step_ns / NS_PER_S)
+            writer.write(stamps, window.events, ticks)
             k = end
             if progress is not None:
-                progress(prev_t)
-            if logic.model is not model:
-                model = logic.model
-                for m in machines:
-                    m.set_model(model)
-                heard, heard_t = _heard(model)
+                progress(float(stamps[-1]) / NS_PER_S)
         bag.close(published=dict(bag.counts))
     except BaseException:
         bag.abandon()  # what was written stays readable, marked partial (Ctrl-C, a full disk)
@@ -457,72 +486,3 @@ def write_batch_bag(
     result.state = logic.state
     result.commands = [(c.t, c.kind) for c in logic.commands]
     return result
-
-
-def _write_block(
-    bag: BagWriter,
-    machines: list[_Machine],
-    with_joints: list[_Machine],
-    sup: _SupervisorOut,
-    model: LineModel,
-    k0: int,
-    k1: int,
-    step_ns: int,
-    per_tick: list[tuple[str, list[tuple[str, bytes, int]], bool]],
-    landed: int,
-    counted: int,
-    states: dict[str, bytes],
-    drawing: _Drawing,
-) -> None:
-    """Write ticks ``k0 .. k1 - 1``: per tick ``/clock``, then node by node what it publishes."""
-    n = k1 - k0
-    stamps = np.arange(k0, k1, dtype=np.int64) * step_ns
-    t = stamps / NS_PER_S
-    joints: dict[str, tuple[bytes, int]] = {}
-    for m in with_joints:
-        pos, vel, eff = m.joints(k0, k1)
-        assert m.layout is not None
-        joints[m.node] = (m.layout.many(stamps, pos, vel, eff), len(m.layout.template))
-    counter = machines[JOINT_NODES.index('sheet_counter')]
-    counted_t = model.events['t'][model.events['kind'] == counted]
-    count = np.searchsorted(counted_t, t, side='right')
-    window = np.minimum(RATE_WINDOW, t)
-    with np.errstate(invalid='ignore', divide='ignore'):
-        rate = np.where(window <= 0.0, 0.0, (count - np.searchsorted(counted_t, t - window, side='right')) / window)
-    prev = -math.inf if k0 == 0 else (k0 - 1) * step_ns / NS_PER_S
-    ev_lo = {m.node: int(np.searchsorted(m.event_t, prev, side='right')) for m in machines}
-    ev_hi = {m.node: np.searchsorted(m.event_t, t, side='right') for m in machines}
-    clocks = [clock_cdr(int(x)) for x in stamps]
-    counts = [uint64_cdr(int(c)) for c in count]
-    rates = [float64_cdr(float(r)) for r in rate]
-    for i in range(n):
-        stamp = int(stamps[i])
-        items: list[tuple[str, bytes, int]] = [(CLOCK_TOPIC, clocks[i], stamp)]
-        for m in machines:
-            j0, j1 = ev_lo[m.node], int(ev_hi[m.node][i])
-            if j1 > j0:
-                ev_lo[m.node] = j1
-                mine = m.events[j0:j1]
-                for row in mine:
-                    source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
-                    time_ref = max(0, round(float(row['t']) * NS_PER_S))
-                    items.append((EVENTS_TOPIC, time_reference_cdr(stamp, m.node, time_ref, source), stamp))
-            else:
-                mine = m.events[0:0]
-            if m.node in joints:
-                blob, size = joints[m.node]
-                items.append((m.topic, blob[i * size : (i + 1) * size], stamp))
-            if m is counter:
-                items.append((SHEET_COUNT_TOPIC, counts[i], stamp))
-                items.append((SHEET_RATE_TOPIC, rates[i], stamp))
-                for row in mine[mine['kind'] == landed]:
-                    items.append((LANDING_TOPIC, float64_cdr(float(row['value'])), stamp))
-                items.extend((MARKERS_TOPIC, cdr, stamp) for cdr in drawing.tick(model, stamp))
-        state, outs, diag = per_tick[i]
-        items.extend(outs)
-        if state not in states:
-            states[state] = string_cdr(state)
-        items.append((SUPERVISOR_STATE_TOPIC, states[state], stamp))
-        if diag:
-            items.append((DIAGNOSTICS_TOPIC, sup.diagnostics(model, stamp), stamp))
-        bag.write_many(stamp, items)

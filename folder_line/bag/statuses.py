@@ -12,10 +12,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from folder_line.core.line.margin_text import margin_at
-from folder_line.core.line.model import LineModel
+from folder_line.core.line.stream import ConstraintTally
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.records import Violation
 
@@ -143,27 +141,25 @@ def balance_status(b: Balance) -> tuple[bool, str, dict[str, Any]]:
 
 
 def constraint_statuses(
-    model: LineModel, t: float, hardware_id: str, rejected: Mapping[str, int], lost: Sequence[str]
+    tallies: Iterable[ConstraintTally], hardware_id: str, rejected: Mapping[str, int], lost: Sequence[str]
 ) -> list[Status]:
-    """The periodic array: one status per constraint of ``model`` from the cycles decided by ``t`` (s),
-    then ``folder_line/supervisor/inputs`` (``rejected`` inputs per kind, ``lost`` participants)."""
+    """The periodic array: one status per constraint from its tally (the rows the streamed line judged by
+    the time it was advanced to, :attr:`folder_line.core.line.stream.LineStream.tallies`), then
+    ``folder_line/supervisor/inputs`` (``rejected`` inputs per kind, ``lost`` participants)."""
     out = []
-    for c in model.constraints:
-        decided = c.decided_by(t)
-        n = int(np.count_nonzero(decided))
+    for c in tallies:
         name = f'folder_line/{c.name}'
+        n = c.evaluations
         if n == 0:
             out.append(
                 Status(OK, name, 'no cycle evaluated yet', hardware_id, (('unit', c.unit), ('evaluations', '0')))
             )
             continue
-        done = c.margin[decided]
-        i_last = int(np.flatnonzero(decided)[np.argmax(c.t[decided])])
-        violations = int(np.count_nonzero(done < 0.0))
-        last = float(c.margin[i_last])
+        violations = c.violations
+        last = c.last_margin
         level = ERROR if last < 0.0 else WARN if violations else OK
         message = (
-            f'violated in {margin_at(c.name, int(c.cycle[i_last]))}'
+            f'violated in {margin_at(c.name, c.last_cycle)}'
             if last < 0.0
             else f'{violations} violations so far'
             if violations
@@ -172,8 +168,8 @@ def constraint_statuses(
         values: tuple[tuple[str, str], ...] = (
             ('margin', repr(last)),
             ('unit', c.unit),
-            ('cycle', str(int(c.cycle[i_last]))),
-            ('min_margin', repr(float(done.min()))),
+            ('cycle', str(c.last_cycle)),
+            ('min_margin', repr(c.min_margin)),
             ('violations', str(violations)),
             ('evaluations', str(n)),
         )

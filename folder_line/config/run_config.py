@@ -12,16 +12,14 @@ the run and loaded by every node), :data:`BAG_DIR` (the bag), ``run.json`` and, 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from folder_line.core.limits import HORIZON_MARGIN, Limit
-from folder_line.core.line.model import LineModel
+from folder_line.core.limits import Limit
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import LineCommand
 from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
@@ -58,18 +56,12 @@ SUPERVISOR_DEFAULTS: Mapping[str, Any] = MappingProxyType(
 )
 
 
-def supervisor_logic(
-    scene: Scene,
-    horizon: float,
-    settings: Mapping[str, Any],
-    model_factory: Callable[[tuple[LineCommand, ...]], LineModel],
-) -> Supervisor:
+def supervisor_logic(scene: Scene, settings: Mapping[str, Any]) -> Supervisor:
     """The supervisor's logic as the supervisor node builds it at start-up: ``settings`` has the node's
     parameters of :data:`SUPERVISOR_DEFAULTS` (``rate``, ``command_lead``, ``enforce``, ``double_sheet``).
     ``simulate --bag`` builds it the same way, so its bag is the live one."""
     return Supervisor(
         scene,
-        horizon,
         periods={},
         lead=settings['command_lead'],
         check_period=1.0 / settings['rate'],
@@ -77,7 +69,6 @@ def supervisor_logic(
         double=settings['double_sheet'],
         state='STARTING',
         t_start=None,
-        model_factory=model_factory,
     )
 
 
@@ -120,11 +111,6 @@ class RunConfig:
     lost_timeout: float = 3.0
     marker_rate: float = MARKER_RATE
 
-    @property
-    def horizon(self) -> float:
-        """Line time the nodes build their model for, s: the duration and a margin."""
-        return self.duration + HORIZON_MARGIN
-
 
 def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """The parameters ``run`` gives machine node ``name`` (every machine node gets the same).
@@ -148,7 +134,7 @@ def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str
     params: dict[str, Any] = {'scene': str(cfg.scene if scene_file is None else scene_file)}
     if scene_file is None and cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
-    params.update({'horizon': cfg.horizon, 'rate': cfg.rate, 'lost_timeout': cfg.lost_timeout})
+    params.update({'rate': cfg.rate, 'lost_timeout': cfg.lost_timeout})
     if name == 'sheet_counter':  # the node that draws the line
         params['marker_rate'] = float(cfg.marker_rate)
     return params

@@ -14,7 +14,7 @@ from folder_line.config.scenes import load_scene
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.events import event_kind
 from folder_line.core.line.layup_sim import LayupLine
-from folder_line.core.line.model import make_drive
+from folder_line.core.line.drives import make_drive
 from folder_line.errors import MeasurementError
 
 EPS = float(np.finfo(float).eps)
@@ -95,7 +95,7 @@ def test_front_stops_g_starts_at_minus_the_feed_length(cases: dict[str, E.EventC
 
 def test_leaf_exit_states_reproduce_the_core() -> None:
     scene = load_scene('layup', {'leaf_flight.drag': E.DRAG})
-    drive = make_drive(scene, E.SPAN_LAYUP)
+    drive = make_drive(scene)
     line = LayupLine(scene, drive, E.SPAN_LAYUP)
     ids, fl = E.exit_states(line)
     lp = scene.machine('layup')

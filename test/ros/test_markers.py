@@ -22,7 +22,8 @@ import pytest
 from folder_line.cli.main import main
 from folder_line.config.run_config import RunConfig
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.model import LineModel, make_drive
+from folder_line.core.line.drives import make_drive
+from folder_line.core.line.model import LineModel
 from folder_line.core.line.scenery import FOLDER_ORIGIN, LAYUP_ORIGIN, LINE_FRAME, PICKUP_DROP, Scenery
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.chain import chain_path, schedule
@@ -144,7 +145,7 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 def test_recorded_markers_are_the_closed_forms_over_a_crank_turn(bags: tuple[Path, Path], which: str) -> None:
     scene = load_scene('line', {})
     # the drive of the nodes' model (the motor ODE over the run's horizon), not the scenery's
-    drive = make_drive(scene, RunConfig(scene='line', duration=DURATION).horizon)
+    drive = make_drive(scene)
 
     def theta_of(t: float) -> float:
         return float(np.asarray(drive.theta(np.array([t]))).reshape(-1)[0])

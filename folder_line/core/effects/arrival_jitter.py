@@ -40,7 +40,18 @@ from folder_line.core.numerics.rng import stream
 from folder_line.core.numerics.validate import among, check_fields, non_negative
 from folder_line.errors import ParameterError
 
-__all__ = ['DISTRIBUTIONS', 'TRUNCATE', 'Params', 'check_travel', 'draw_offsets', 'half_width']
+__all__ = [
+    'DISTRIBUTIONS',
+    'STREAM',
+    'TRUNCATE',
+    'Params',
+    'check_travel',
+    'draw_offsets',
+    'draws_from',
+    'half_width',
+    'offsets_from',
+    'standard_draws',
+]
 
 #: the distributions of δ
 DISTRIBUTIONS = ('normal', 'uniform')
@@ -91,10 +102,19 @@ def standard_draws(distribution: str, seed: int, name: str, n: int) -> np.ndarra
     so the first m of n draws are the m draws. Normal: clipped at ±:data:`TRUNCATE`;
     uniform: on ``[-√3, √3)``.
     """
-    rng = stream(seed, name)
+    return draws_from(distribution, stream(seed, name), n)
+
+
+def draws_from(distribution: str, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` unit-σ variates of ``distribution`` from ``rng`` (:func:`standard_draws`, streamed)."""
     if distribution == 'normal':
         return np.clip(rng.standard_normal(n), -TRUNCATE, TRUNCATE)
     return (2.0 * rng.random(n) - 1.0) * math.sqrt(3.0)
+
+
+def offsets_from(params: Params, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` offsets of :func:`draw_offsets` from the stream ``rng``, m."""
+    return draws_from(params.distribution, rng, n) * (params.sigma * 1e-3)
 
 
 def draw_offsets(params: Params, seed: int, n: int) -> np.ndarray:

@@ -12,7 +12,8 @@ faults, and listing or removing another effect does not change them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -20,7 +21,16 @@ import numpy.typing as npt
 from folder_line.core.line.events import make_events, merge_events
 from folder_line.core.numerics.validate import check_fields, non_negative, within
 
-__all__ = ['Params', 'SheetFaults', 'Slowdowns', 'belt_factor', 'draw_sheet_faults', 'draw_slowdowns', 'fault_events']
+__all__ = [
+    'Params',
+    'SheetFaults',
+    'SlowdownStream',
+    'Slowdowns',
+    'belt_factor',
+    'draw_sheet_faults',
+    'draw_slowdowns',
+    'fault_events',
+]
 
 
 @dataclass(frozen=True)
@@ -105,6 +115,95 @@ def draw_slowdowns(params: Params, duration: float, period: float, rng: np.rando
     first = np.flatnonzero(new)
     last = np.append(first[1:], starts.size) - 1
     return Slowdowns(starts[first], run_end[last], np.full(first.size, params.slowdown_factor))
+
+
+@dataclass
+class SlowdownStream:
+    """The belt slow-downs of :func:`draw_slowdowns`, drawn as the line runs (the same draws, in order).
+
+    :meth:`advance` draws the machine cycles that start by a line time; a slow-down is
+    known from its start on, and its end once no later draw can extend it (every cycle
+    that starts before that end is drawn). Overlapping slow-downs merge as in
+    :func:`draw_slowdowns`.
+
+    Parameters
+    ----------
+    params : Params
+        Fault rates and sizes.
+    period : float
+        Machine cycle, s (> 0).
+    rng : numpy.random.Generator
+        The seed's stream (taken over: it is advanced here).
+
+    Attributes
+    ----------
+    t : float
+        Line time drawn to, s.
+    running : bool
+        A slow-down is on whose end is not known yet (``run_end`` its end so far, s).
+    started : int
+        Slow-downs started so far (merged ones count once).
+    """
+
+    params: Params
+    period: float
+    rng: np.random.Generator
+    t: float = -math.inf
+    next_cycle: int = 0
+    running: bool = False
+    run_end: float = 0.0
+    started: int = 0
+    _breaks: list[tuple[float, float]] = field(default_factory=list)
+    _events: list[tuple[float, bool]] = field(default_factory=list)
+
+    @property
+    def enabled(self) -> bool:
+        """Whether any slow-down can happen (a zero length or a factor of 1 changes nothing)."""
+        p = self.params
+        return p.p_slowdown > 0.0 and p.slowdown_duration > 0.0 and p.slowdown_factor != 1.0
+
+    def advance(self, t: float) -> None:
+        """Draw every cycle that starts at or before ``t`` (s)."""
+        if t <= self.t:
+            return
+        self.t = t
+        if not self.enabled:
+            return
+        p, period = self.params, self.period
+        last = int(math.floor(t / period)) if t >= 0.0 else -1
+        n = last + 1 - self.next_cycle
+        if n > 0:
+            u = self.rng.random((n, 2)).T  # cycle by cycle, as draw_slowdowns draws them
+            starts = (np.arange(self.next_cycle, last + 1) + u[1]) * period
+            self.next_cycle = last + 1
+            for s in starts[u[0] < p.p_slowdown].tolist():
+                if self.running and s <= self.run_end:  # overlaps the running one: merged
+                    self.run_end = max(self.run_end, s + p.slowdown_duration)
+                    continue
+                self._close()
+                self.running, self.run_end = True, s + p.slowdown_duration
+                self._breaks.append((s, p.slowdown_factor))
+                self._events.append((s, True))
+                self.started += 1
+        if self.running and self.run_end <= t:  # no later cycle starts before its end: it ends there
+            self._close()
+
+    def _close(self) -> None:
+        if self.running:
+            self._breaks.append((self.run_end, 1.0))
+            self._events.append((self.run_end, False))
+            self.running = False
+
+    def breaks(self, t0: float, t1: float) -> list[tuple[float, float]]:
+        """``(t, factor from t on)`` of the changes in ``(t0, t1]`` (``t1`` at most the time drawn to)."""
+        out = [b for b in self._breaks if t0 < b[0] <= t1]
+        self._breaks = [b for b in self._breaks if b[0] > t1]
+        return out
+
+    def take_events(self) -> list[tuple[float, bool]]:
+        """``(t, True)`` for each start and ``(t, False)`` for each end learnt since the last call."""
+        out, self._events = self._events, []
+        return out
 
 
 def belt_factor(slowdowns: Slowdowns, t: npt.ArrayLike) -> np.ndarray:

@@ -90,6 +90,7 @@ the pivot, as with the belts), ``v0 = 1.0`` m/s (entry speed from the feeding be
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Generic, NamedTuple, TypeAlias, TypeVar
@@ -421,6 +422,9 @@ def slide(
 ) -> SlideResult:
     """Integrate every leaf from its entry to the exit (or to ``t_end``), with stick–slip.
 
+    :class:`GuideSlider` run once to ``t_end`` (plus one step, so that a slip before
+    ``t_end`` is confirmed), keeping what happens by ``t_end``.
+
     Parameters
     ----------
     params : Params
@@ -444,75 +448,180 @@ def slide(
     SlideResult
     """
     t_enter = np.asarray(t_enter, dtype=float)
-    chute = np.asarray(chute, dtype=np.int64)
-    length = np.broadcast_to(np.asarray(length, dtype=float), t_enter.shape).copy()
     n = t_enter.size
-    h = params.h
+    slider = GuideSlider(params, kin, kin1)
+    slider.add(np.arange(n, dtype=np.int64), t_enter, np.asarray(chute, dtype=np.int64), length)
+    found = slider.advance(t_end + params.h)
     exited = np.zeros(n, dtype=bool)
     t_exit = t_enter.copy()
     v_exit = np.zeros(n)
-    sticks: list[tuple[int, float]] = []
-    slips: list[tuple[int, float]] = []
-    # stuck leaves: (id, s, chute, length, scan from)
-    stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+    ok = found.exit_t <= t_end
+    exited[found.exit_id[ok]] = True
+    t_exit[found.exit_id[ok]] = found.exit_t[ok]
+    v_exit[found.exit_id[ok]] = found.exit_v[ok]
+    kst, ksl = found.stick_t <= t_end, found.slip_t <= t_end
+    return SlideResult(
+        exited,
+        t_exit,
+        v_exit,
+        found.stick_t[kst],
+        found.stick_id[kst],
+        found.slip_t[ksl],
+        found.slip_id[ksl],
+        slider.steps,
+    )
 
-    ids = np.arange(n, dtype=np.int64)
-    s = np.full(n, params.s0)
-    v = np.full(n, params.v0)
-    if n:
-        k0 = kin(t_enter, chute)
-        a, nrm = acceleration(params, s, v, k0), normal(s, v, k0)
-    else:
-        a, nrm = np.zeros(0), np.zeros(0)
-    fresh = np.full(n, params.v0 == 0.0)
-    if params.v0 == 0.0 and n:
-        at_rest = a <= 0.0  # σ(t_enter) <= 0: stuck from the entry
-        for i, t in zip(ids[at_rest].tolist(), t_enter[at_rest].tolist(), strict=True):
-            sticks.append((i, t))
-        stuck.append((ids[at_rest], s[at_rest], chute[at_rest], length[at_rest], t_enter[at_rest]))
-        keep = ~at_rest
-    else:
+
+@dataclass(frozen=True, eq=False)
+class Found:
+    """What :meth:`GuideSlider.advance` found: exits (id, time s, speed along the chute m/s), sticks and
+    slips (id, time s), each in the order found."""
+
+    exit_id: IntArray
+    exit_t: FloatArray
+    exit_v: FloatArray
+    stick_id: IntArray
+    stick_t: FloatArray
+    slip_id: IntArray
+    slip_t: FloatArray
+
+
+class GuideSlider:
+    """The leaves on the guides, advanced window by window (the integrator of :func:`slide`, streamed).
+
+    A piece of work is done only when it ends at or before the time advanced to: an RK4
+    step of a sliding leaf from ``t`` when ``t + h`` is reached, a stuck leaf's switching
+    function at its scan times ``t_stick + k h`` up to it. A leaf's steps are the same
+    whatever the windows, so the events are too. A slip is reported once the leaf's
+    first step after it moves (a grazing slip whose first step does not move is dropped
+    and the leaf scanned on); advanced one step ``h`` past a time, every event up to that
+    time is found.
+
+    Parameters
+    ----------
+    params : Params
+    kin, kin1 : callable
+        The chute kinematics, vectorised and scalar (:func:`slide`).
+
+    Attributes
+    ----------
+    steps : int
+        RK4 steps taken, summed over the leaves.
+    """
+
+    def __init__(self, params: Params, kin: KinFn, kin1: Kin1Fn) -> None:
+        self.params = params
+        self.kin = kin
+        self.kin1 = kin1
+        self.steps = 0
+        z, zi = np.zeros(0), np.zeros(0, dtype=np.int64)
+        self.act = _Active(zi, z, z, z, z, z, zi, z, np.zeros(0, dtype=bool), z)
+        # stuck leaves: id, s, chute, length, scan origin t0, next scan index k (samples at t0 + k h)
+        self.stuck = (zi, z, zi, z, z, zi)
+        self._found: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = []
+
+    @property
+    def leaves(self) -> int:
+        """Leaves on the guides (sliding or stuck)."""
+        return self.act.size + int(self.stuck[0].size)
+
+    def earliest(self) -> float:
+        """The earliest time at which work is pending (a step's start, a scan time), s (inf if none)."""
+        t = [float(self.act.t.min())] if self.act.size else []
+        if self.stuck[0].size:
+            t.append(float((self.stuck[4] + self.stuck[5] * self.params.h).min()))
+        return min(t, default=math.inf)
+
+    def add(self, ids: npt.ArrayLike, t_enter: npt.ArrayLike, chute: npt.ArrayLike, length: npt.ArrayLike) -> None:
+        """Leaves entering their chutes at ``t_enter`` (s; at most the time advanced to next)."""
+        p = self.params
+        ids = np.asarray(ids, dtype=np.int64)
+        t_enter = np.asarray(t_enter, dtype=float)
+        chute = np.asarray(chute, dtype=np.int64)
+        length = np.broadcast_to(np.asarray(length, dtype=float), t_enter.shape).copy()
+        n = t_enter.size
+        if n == 0:
+            return
+        s = np.full(n, p.s0)
+        v = np.full(n, p.v0)
+        k0 = self.kin(t_enter, chute)
+        a, nrm = acceleration(p, s, v, k0), normal(s, v, k0)
         keep = np.ones(n, dtype=bool)
-    act = _Active(ids, t_enter.copy(), s, v, a, nrm, chute, length, fresh, np.full(n, -1.0)).take(keep)
-    steps = 0
+        if p.v0 == 0.0:
+            at_rest = a <= 0.0  # σ(t_enter) <= 0: stuck from the entry
+            self._found.append(('stick', ids[at_rest], t_enter[at_rest], np.zeros(int(at_rest.sum()))))
+            self._stick(ids[at_rest], s[at_rest], chute[at_rest], length[at_rest], t_enter[at_rest])
+            keep = ~at_rest
+        fresh = np.full(n, p.v0 == 0.0)
+        new = _Active(ids, t_enter.copy(), s, v, a, nrm, chute, length, fresh, np.full(n, -1.0)).take(keep)
+        self.act = _Active.concat([self.act, new]) if self.act.size else new
 
-    while act.size or stuck:
-        if stuck:
-            resumed = _resolve_stuck(params, kin, kin1, stuck, t_end)
-            stuck = []
-            if resumed is not None:
-                act = _Active.concat([act, resumed]) if act.size else resumed
-            continue
-        steps += 1
-        hh = np.full(act.size, h)
-        s1, v1, a1, n1 = _rk4(params, kin, act.t, act.s, act.v, act.a, act.ch, hh)
+    def _stick(self, ids: np.ndarray, s: np.ndarray, ch: np.ndarray, length: np.ndarray, t0: np.ndarray) -> None:
+        """Leaves stuck at ``t0``: scanned from there on (sample 0 included: the vectorised kinematics may
+        see σ > 0 where the scalar ones decided on a stick)."""
+        if ids.size == 0:
+            return
+        add = (ids, s, ch, length, t0, np.zeros(ids.size, dtype=np.int64))
+        self.stuck = tuple(np.concatenate((a, b)) for a, b in zip(self.stuck, add, strict=True))  # type: ignore[assignment]
+
+    def advance(self, c: float) -> Found:
+        """Do every step and scan that ends at or before ``c`` (s); what was found on the way."""
+        while True:
+            moved = self._scan(c)
+            rows = np.flatnonzero(self.act.t + self.params.h <= c)
+            if rows.size:
+                self._step(rows)
+            elif not moved:
+                break
+        return self._take()
+
+    def _take(self) -> Found:
+        def pick(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            parts = [x for x in self._found if x[0] == kind]
+            if not parts:
+                return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+            return (
+                np.concatenate([x[1] for x in parts]).astype(np.int64),
+                np.concatenate([x[2] for x in parts]).astype(float),
+                np.concatenate([x[3] for x in parts]).astype(float),
+            )
+
+        ex, st, sl = pick('exit'), pick('stick'), pick('slip')
+        self._found = []
+        return Found(ex[0], ex[1], ex[2], st[0], st[1], sl[0], sl[1])
+
+    def _step(self, rows: np.ndarray) -> None:
+        """One lockstep RK4 step of the sliding leaves ``rows`` (module docstring)."""
+        p, kin, kin1 = self.params, self.kin, self.kin1
+        whole = self.act
+        act = whole.take(rows)
+        rest = np.ones(whole.size, dtype=bool)
+        rest[rows] = False
+        waiting = whole.take(rest)
+        self.steps += act.size
+        hh = np.full(act.size, p.h)
+        s1, v1, a1, n1 = _rk4(p, kin, act.t, act.s, act.v, act.a, act.ch, hh)
         # split steps across a sign change of N (kink of |N|)
         cross = (act.n * n1 < 0.0) & (np.abs(act.n) > _KINK_NTOL) & (np.abs(n1) > _KINK_NTOL)
         if cross.any():
-            _split_at_kink(params, kin, act, cross, hh, s1, v1, a1, n1)
+            _split_at_kink(p, kin, act, cross, hh, s1, v1, a1, n1)
         t1 = act.t + hh
-
         halted = v1 <= 0.0
         failed = halted & act.fresh  # did not get moving after a slip / from rest
         stop = halted & ~act.fresh
         out_exit = (s1 >= act.length) & ~failed
-        done = out_exit | halted | (t1 > t_end)
+        done = out_exit | halted
         new_stuck: list[tuple[int, float, float]] = []  # (row, s, scan from)
         restart: list[tuple[int, float, float]] = []  # (row, t, s): grazing stop, slide on from rest
-
+        th_exit: dict[int, float] = {}
         if out_exit.any():
-            rows = np.flatnonzero(out_exit)
-            th = _exit_fraction(act.s[rows], act.v[rows], s1[rows], v1[rows], hh[rows], act.length[rows])
-            tx = act.t[rows] + th * hh[rows]
-            vx = _hermite(th, act.v[rows], act.a[rows], v1[rows], a1[rows], hh[rows])
-            ok = (tx <= t_end) & ~stop[rows]
-            ids_ok = act.ids[rows[ok]]
-            exited[ids_ok] = True
-            t_exit[ids_ok] = tx[ok]
-            v_exit[ids_ok] = vx[ok]
-            th_exit = dict(zip(rows[stop[rows]].tolist(), th[stop[rows]].tolist(), strict=True))
-        else:
-            th_exit = {}
+            er = np.flatnonzero(out_exit)
+            th = _exit_fraction(act.s[er], act.v[er], s1[er], v1[er], hh[er], act.length[er])
+            tx = act.t[er] + th * hh[er]
+            vx = _hermite(th, act.v[er], act.a[er], v1[er], a1[er], hh[er])
+            ok = ~stop[er]
+            self._found.append(('exit', act.ids[er[ok]], tx[ok], vx[ok]))
+            th_exit = dict(zip(er[stop[er]].tolist(), th[stop[er]].tolist(), strict=True))
         for row in np.flatnonzero(stop).tolist():
             y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
 
@@ -521,48 +630,42 @@ def slide(
 
             th_stop = brentq(dv, 0.0, 1.0)
             t0 = float(act.t[row])
+            leaf = np.array([act.ids[row]], dtype=np.int64)
             if row in th_exit and th_exit[row] <= th_stop:
-                t_x = t0 + th_exit[row] * hr
-                if t_x <= t_end:
-                    i = int(act.ids[row])
-                    exited[i] = True
-                    t_exit[i] = t_x
-                    v_exit[i] = _hermite(th_exit[row], y0, d0, y1, d1, hr)
+                self._found.append(
+                    (
+                        'exit',
+                        leaf,
+                        np.array([t0 + th_exit[row] * hr]),
+                        np.array([_hermite(th_exit[row], y0, d0, y1, d1, hr)]),
+                    )
+                )
                 continue
             t_stop = t0 + th_stop * hr
-            if t_stop > t_end:
-                continue
             s_stop = _hermite(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
             ch = int(act.ch[row])
-            if float(switching(params, s_stop, kin1(t_stop, ch))) <= 0.0:
-                sticks.append((int(act.ids[row]), t_stop))
+            if float(switching(p, s_stop, kin1(t_stop, ch))) <= 0.0:
+                self._found.append(('stick', leaf, np.array([t_stop]), np.zeros(1)))
                 new_stuck.append((row, s_stop, t_stop))
             else:
                 restart.append((row, t_stop, s_stop))
         for row in np.flatnonzero(failed).tolist():
             if act.pending[row] < 0.0:  # stuck from its entry / after a grazing stop
-                sticks.append((int(act.ids[row]), float(act.t[row])))
+                self._found.append(('stick', act.ids[row : row + 1], act.t[row : row + 1], np.zeros(1)))
             new_stuck.append((row, float(act.s[row]), float(t1[row])))
         # confirmed slips: leaves that got moving after their pending slip
         conf = act.fresh & ~failed & (act.pending >= 0.0)
         if conf.any():
-            slips.extend(zip(act.ids[conf].tolist(), act.pending[conf].tolist(), strict=True))
-
+            self._found.append(('slip', act.ids[conf], act.pending[conf], np.zeros(int(conf.sum()))))
         if new_stuck:
             rr = np.array([x[0] for x in new_stuck], dtype=np.int64)
-            stuck.append(
-                (
-                    act.ids[rr],
-                    np.array([x[1] for x in new_stuck]),
-                    act.ch[rr],
-                    act.length[rr],
-                    np.array([x[2] for x in new_stuck]),
-                )
-            )
+            sv = np.array([x[1] for x in new_stuck])
+            tv = np.array([x[2] for x in new_stuck])
+            self._stick(act.ids[rr], sv, act.ch[rr], act.length[rr], tv)
         nxt = _Active(
             act.ids, t1, s1, v1, a1, n1, act.ch, act.length, np.zeros(act.size, dtype=bool), np.full(act.size, -1.0)
         )
-        parts = [nxt.take(~done)]
+        parts = [waiting, nxt.take(~done)]
         if restart:
             rr = np.array([x[0] for x in restart], dtype=np.int64)
             tr = np.array([x[1] for x in restart])
@@ -575,7 +678,7 @@ def slide(
                     tr,
                     sr,
                     zr,
-                    acceleration(params, sr, zr, kr),
+                    acceleration(p, sr, zr, kr),
                     normal(sr, zr, kr),
                     act.ch[rr],
                     act.length[rr],
@@ -583,88 +686,63 @@ def slide(
                     np.full(rr.size, -1.0),
                 )
             )
-        act = _Active.concat(parts)
+        self.act = _Active.concat(parts)
 
-    st = np.array([x[1] for x in sticks], dtype=float)
-    si = np.array([x[0] for x in sticks], dtype=np.int64)
-    keep_st = st <= t_end
-    sl = np.array([x[1] for x in slips], dtype=float)
-    sli = np.array([x[0] for x in slips], dtype=np.int64)
-    return SlideResult(exited, t_exit, v_exit, st[keep_st], si[keep_st], sl, sli, steps)
-
-
-def _resolve_stuck(
-    params: Params,
-    kin: KinFn,
-    kin1: Kin1Fn,
-    stuck: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
-    t_end: float,
-) -> _Active | None:
-    """Find when each stuck leaf slips (σ > 0), scanning σ on a grid of step h.
-
-    Returns the leaves that slip by ``t_end`` as fresh sliding leaves with a pending
-    slip event at the slip time (confirmed when their first step moves them).
-    """
-    ids = np.concatenate([x[0] for x in stuck])
-    s = np.concatenate([x[1] for x in stuck])
-    ch = np.concatenate([x[2] for x in stuck])
-    length = np.concatenate([x[3] for x in stuck])
-    t0 = np.concatenate([x[4] for x in stuck])
-    if ids.size == 0:
-        return None
-    h = params.h
-    slip = np.full(ids.size, -1.0)
-    open_ = np.ones(ids.size, dtype=bool)
-    offsets = np.arange(_SCAN_BLOCK + 1, dtype=float) * h
-    base = t0.copy()
-    first = True
-    while open_.any():
-        rows = np.flatnonzero(open_)
-        grid = base[rows, None] + offsets[None, :]
-        ks = kin(grid.ravel(), np.repeat(ch[rows], offsets.size))
-        sig = switching(params, np.repeat(s[rows], offsets.size), ks).reshape(grid.shape)
-        pos = sig > 0.0
-        if first:
-            # a leaf whose scan starts where σ > 0 already slips there (a re-scan after a failed start)
-            at0 = pos[:, 0] & (base[rows] <= t_end)
-            if at0.any():
-                r0 = rows[at0]
-                slip[r0] = base[r0]
-                open_[r0] = False
-        hit = pos[:, 1:].any(axis=1) & open_[rows]
-        for j in np.flatnonzero(hit).tolist():
+    def _scan(self, c: float) -> bool:
+        """Scan the stuck leaves' switching function at their scan times up to ``c``, in blocks of
+        :data:`_SCAN_BLOCK`; the leaves that slip become fresh sliding leaves with a pending slip.
+        True if any sample was taken."""
+        p, kin = self.params, self.kin
+        ids, s, ch, length, t0, k_next = self.stuck
+        if ids.size == 0:
+            return False
+        h = p.h
+        # samples k_next .. k_last with t0 + k h <= c
+        k_last = np.floor((c - t0) / h).astype(np.int64)
+        k_last = np.where(t0 + k_last * h > c, k_last - 1, k_last)
+        k_last = np.minimum(k_last, k_next + _SCAN_BLOCK - 1)
+        rows = np.flatnonzero(k_last >= k_next)
+        if rows.size == 0:
+            return False
+        width = int((k_last[rows] - k_next[rows]).max()) + 1
+        kk = np.minimum(k_next[rows, None] + np.arange(width)[None, :], k_last[rows, None])  # past c: repeated
+        valid = (k_next[rows, None] + np.arange(width)[None, :]) <= k_last[rows, None]
+        grid = t0[rows, None] + kk * h
+        ks = kin(grid.ravel(), np.repeat(ch[rows], width))
+        sig = switching(p, np.repeat(s[rows], width), ks).reshape(grid.shape)
+        pos = (sig > 0.0) & valid
+        slip = np.full(ids.size, -1.0)
+        for j in np.flatnonzero(pos.any(axis=1)).tolist():
             r = int(rows[j])
-            k = int(np.argmax(pos[j, 1:])) + 1
-            lo, hi = float(grid[j, k - 1]), float(grid[j, k])
-            if lo > t_end:
-                open_[r] = False
+            i = int(np.argmax(pos[j]))
+            if kk[j, i] == 0:  # slips where its scan starts (after a failed start)
+                slip[r] = float(grid[j, i])
                 continue
-            t_s = _slip_time(params, kin1, float(s[r]), int(ch[r]), lo, hi)
-            open_[r] = False
-            if t_s <= t_end:
-                slip[r] = t_s
-        miss = open_[rows] & ~hit
-        last = grid[:, -1]
-        over = miss & (last > t_end)
-        open_[rows[over]] = False
-        base[rows] = last
-        first = False
-    ok = slip >= 0.0
-    if not ok.any():
-        return None
-    rs = np.flatnonzero(ok)
-    tr = slip[rs]
-    kr = kin(tr, ch[rs])
-    zr = np.zeros(rs.size)
-    return _Active(
-        ids[rs],
-        tr,
-        s[rs],
-        zr,
-        acceleration(params, s[rs], zr, kr),
-        normal(s[rs], zr, kr),
-        ch[rs],
-        length[rs],
-        np.ones(rs.size, dtype=bool),
-        tr.copy(),
-    )
+            if i == 0:
+                lo = float(t0[r] + (kk[j, 0] - 1) * h)
+            else:
+                lo = float(grid[j, i - 1])
+            slip[r] = _slip_time(p, self.kin1, float(s[r]), int(ch[r]), lo, float(grid[j, i]))
+        k_next = k_next.copy()
+        k_next[rows] = k_last[rows] + 1
+        ok = slip >= 0.0
+        self.stuck = tuple(a[~ok] for a in (ids, s, ch, length, t0, k_next))  # type: ignore[assignment]
+        if ok.any():
+            rs = np.flatnonzero(ok)
+            tr = slip[rs]
+            kr = kin(tr, ch[rs])
+            zr = np.zeros(rs.size)
+            resumed = _Active(
+                ids[rs],
+                tr,
+                s[rs],
+                zr,
+                acceleration(p, s[rs], zr, kr),
+                normal(s[rs], zr, kr),
+                ch[rs],
+                length[rs],
+                np.ones(rs.size, dtype=bool),
+                tr.copy(),
+            )
+            self.act = _Active.concat([self.act, resumed]) if self.act.size else resumed
+        return True

@@ -54,7 +54,17 @@ from folder_line.core.numerics.constants import G
 from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
 
-__all__ = ['Histogram', 'Params', 'histogram', 'landing', 'landing_time', 'phi1', 'phi2', 'state']
+__all__ = [
+    'Histogram',
+    'Params',
+    'histogram',
+    'histogram_of_counts',
+    'landing',
+    'landing_time',
+    'phi1',
+    'phi2',
+    'state',
+]
 
 #: below this k·t, φ2 is summed from its Taylor series
 _SERIES_BELOW = 0.5
@@ -229,6 +239,15 @@ def landing(
     t = landing_time(params, y0, vy, y_floor)
     x = np.asarray(x0, dtype=float) + np.asarray(vx, dtype=float) * t * phi1(params.drag * t)
     return t, x
+
+
+def histogram_of_counts(counts: npt.ArrayLike, x_left: float, x_right: float) -> Histogram:
+    """The :class:`Histogram` of bin counts over ``[x_left, x_right]`` (counts added up window by window)."""
+    c = np.asarray(counts, dtype=np.int64).reshape(-1)
+    edges = np.linspace(x_left, x_right, c.size + 1)
+    total = int(c.sum())
+    cv = None if total == 0 else float(np.std(c) / np.mean(c))
+    return Histogram(edges, c, cv)
 
 
 def histogram(x_landed: npt.ArrayLike, x_left: float, x_right: float, bins: int) -> Histogram:

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.core.effects.arrival_jitter import TRUNCATE, standard_draws
+from folder_line.core.effects.arrival_jitter import TRUNCATE, draws_from, standard_draws
 from folder_line.core.numerics.validate import check_fields, non_negative
 from folder_line.errors import ParameterError
 
-__all__ = ['Params', 'check_travel', 'draw_excess']
+__all__ = ['STREAM', 'Params', 'check_travel', 'draw_excess', 'excess_from']
 
 #: name of the seeded stream
 STREAM = 'folder.length_scatter'
@@ -64,3 +64,8 @@ def check_travel(params: Params, L_feed: float) -> None:
 def draw_excess(params: Params, seed: int, n: int) -> np.ndarray:
     """Length excess ``ΔL_k`` over nominal of signatures k = 0 .. n-1, m (positive: longer)."""
     return standard_draws('normal', seed, STREAM, n) * (params.sigma * 1e-3)
+
+
+def excess_from(params: Params, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` excesses of :func:`draw_excess` from the stream ``rng``, m."""
+    return draws_from('normal', rng, n) * (params.sigma * 1e-3)

@@ -94,8 +94,9 @@ The step loop is sequential Python (an ODE); the right-hand side is scalar
 from __future__ import annotations
 
 import bisect
+import copy
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -103,7 +104,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.effects import chain_friction
-from folder_line.core.limits import HORIZON, MOTOR_SPEED
+from folder_line.core.limits import DURATION, MOTOR_SPEED
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import dense
 from folder_line.core.numerics import integrators as ig
@@ -137,8 +138,8 @@ RK4_STABILITY = 2.785
 RK4_STEP_LIMIT = 2.21
 #: relative agreement of ω (and of the period) at three marks that counts as periodic
 PERIODIC_TOL = 1e-12
-#: longest run accepted, s (as core.line.MAX_DURATION: :data:`folder_line.core.limits.HORIZON`)
-MAX_DURATION = HORIZON.hi
+#: longest span :func:`build_drive` integrates, s (:data:`folder_line.core.limits.DURATION`, and an hour)
+MAX_DURATION = DURATION.hi + 3600.0
 #: step attempts allowed per integration
 MAX_STEPS = 20_000_000
 
@@ -266,63 +267,142 @@ class PeriodicTail:
         return self.theta_b - self.theta_a
 
 
-@dataclass(frozen=True, eq=False)
 class MotorSegment:
-    """A stretch of constant motor state: motor on, or off with the brake applied.
+    """A stretch of constant motor state: motor on, or off with the brake applied, integrated as far as asked.
+
+    Parameters
+    ----------
+    t0 : float
+        Start, s.
+    t1 : float
+        The next switch, s (``inf`` if none is known): the segment holds for ``t0 <= t < t1``.
+    on : bool
+        Motor on (else off, braking, then at rest).
+    y0 : ndarray, shape (2,)
+        ``(Θ, ω)`` at ``t0``.
+    stepper : RK4Stepper or Dopri5Stepper or None
+        The integration from ``t0`` (None: off and already at rest).
+    period : PeriodMarks or None
+        Motor on with the periodic shortcut: the ``on_break`` of the stepper's breaks.
+    t_bound : float
+        Where the integration ends (motor on: the scene's ``t_stop`` if later, else ``inf``), s.
 
     Attributes
     ----------
-    t0, t1 : float
-        The segment holds for ``t0 <= t < t1`` (``t1``: the next switch, or the end
-        of the run), s.
-    on : bool
-        Motor on (else off, braking, then at rest).
-    theta0 : float
-        Θ(t0), nominal s.
-    solution : DenseSolution
-        Motor on: the integration from ``t0`` (up to the base period if ``tail``);
-        off: the brake integration from ``t0`` and the rest after it, up to the end of
-        the run.
     tail : PeriodicTail or None
-        Motor on: the repeated period, if the shortcut was taken.
+        Motor on: the repeated period, once found.
     t_rest : float
-        Off: standstill reached, s (``inf`` if not within the run); on: ``inf``.
+        Off: standstill reached, s (``inf`` until then); on: ``inf``.
     """
 
-    t0: float
-    t1: float
-    on: bool
-    theta0: float
-    solution: dense.DenseSolution
-    tail: PeriodicTail | None
-    t_rest: float
+    def __init__(
+        self,
+        t0: float,
+        t1: float,
+        on: bool,
+        y0: FloatArray,
+        stepper: ig.RK4Stepper | ig.Dopri5Stepper | None,
+        period: PeriodMarks | None = None,
+        t_bound: float = math.inf,
+    ) -> None:
+        self.t0, self.t1, self.on = float(t0), float(t1), on
+        self.t_bound = float(t_bound)
+        self.theta0 = float(y0[0])
+        self.stepper = stepper
+        self.period = period
+        self.tail: PeriodicTail | None = None
+        self.t_rest = math.inf if stepper is not None or on else self.t0
+        self.theta_rest = self.theta0
+        self._sol: dense.DenseSolution | None = None
+        self._lists: tuple[list[float], list[float], list[list[list[float]]]] | None = None
 
+    # integration -------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        """Nothing more to integrate: the period repeats, the shaft rests, or the integration ended."""
+        st = self.stepper
+        return self.tail is not None or not math.isinf(self.t_rest) or st is None or st.status != 'running'
+
+    @property
+    def covered(self) -> float:
+        """The time up to which the state is known, s."""
+        if self.tail is not None or not math.isinf(self.t_rest) or self.stepper is None:
+            return math.inf
+        return self.stepper.t
+
+    def advance(self, t: float) -> None:
+        """Integrate until the state at ``t`` is known (or nothing is left to integrate)."""
+        st = self.stepper
+        if st is None or self.done or (st.t >= t and st.t > self.t0):
+            return
+        st.advance(max(t, math.nextafter(st.t, math.inf)))  # at least one step: the segment evaluates at t0
+        self._sol = None
+        self._lists = None
+        if st.status == 'terminal':  # the brake's standstill
+            sol = self.solution
+            self.t_rest = float(sol.t[-1])
+            self.theta_rest = float(sol.y[-1, 0])
+        elif st.status == 'stopped' and self.period is not None:  # three period marks agree
+            (ta, _), (tb, _) = self.period.marks[-2], self.period.marks[-1]
+            th = self.solution.component(np.array([ta, tb]), 0)
+            self.tail = PeriodicTail(t_a=ta, t_b=tb, theta_a=float(th[0]), theta_b=float(th[1]), t_end=self.t_bound)
+
+    def prune(self, t_keep: float) -> None:
+        """Forget the steps that end before ``t_keep`` (s): never those of the repeated period, nor those
+        from the second-last period mark on while the period is being looked for."""
+        st = self.stepper
+        if st is None or self.tail is not None:
+            return
+        marks = [] if self.period is None else self.period.marks
+        st.prune(t_keep if len(marks) < 2 else min(t_keep, marks[-2][0]))
+        self._sol = None
+        self._lists = None
+
+    @property
+    def solution(self) -> dense.DenseSolution:
+        """The steps kept (the dense output)."""
+        if self._sol is None:
+            assert self.stepper is not None
+            self._sol = self.stepper.solution()
+        return self._sol
+
+    # evaluation --------------------------------------------------------------------------
     def component(self, tt: FloatArray, j: int) -> FloatArray:
-        """Θ (j = 0) or ω (j = 1) at times ``tt`` of this segment."""
-        tl = self.tail
-        if tl is None:
-            return self.solution.component(tt, j)
+        """Θ (j = 0) or ω (j = 1) at times ``tt`` of this segment (integrated there)."""
+        if self.stepper is None:
+            return np.full(tt.shape, self.theta_rest if j == 0 else 0.0)
         out = np.empty(tt.shape)
-        head = tt <= tl.t_b
-        in_tail = ~head
+        rest = tt >= self.t_rest
+        if rest.any():
+            out[rest] = self.theta_rest if j == 0 else 0.0
+        live = ~rest
+        if not live.any():
+            return out
+        tl, sol = self.tail, self.solution
+        if tl is None:
+            out[live] = sol.component(tt[live], j)
+            return out
+        head = live & (tt <= tl.t_b)
+        in_tail = live & ~head
         if head.any():
-            out[head] = self.solution.component(tt[head], j)
+            out[head] = sol.component(tt[head], j)
         if in_tail.any():
             x = tt[in_tail] - tl.t_a
             n = np.floor(x / tl.period)
             tb = tl.t_a + np.clip(x - n * tl.period, 0.0, tl.period)
-            out[in_tail] = self.solution.component(tb, j) + (n * tl.dtheta if j == 0 else 0.0)
+            out[in_tail] = sol.component(tb, j) + (n * tl.dtheta if j == 0 else 0.0)
         return out
 
     def state1(self, t: float) -> tuple[float, float]:
-        """``(Θ, ω)`` at one time of the segment in plain Python: the same operations as
-        :meth:`component` (dense-output lookup, Horner's rule, the tail's shift), so the
-        same values bit for bit, at a few µs (a node's tick)."""
-        lists = self.__dict__.get('_lists')
+        """``(Θ, ω)`` at one time in plain Python: the same operations as :meth:`component` (dense-output
+        lookup, Horner's rule, the tail's shift), so the same values bit for bit, at a few µs (a node's tick)."""
+        if self.stepper is None or t >= self.t_rest:
+            return self.theta_rest, 0.0
+        lists = self._lists
         sol = self.solution
         if lists is None:  # built on first use
             lists = (sol.t.tolist(), sol.h.tolist(), [sol.coef[:, i, :].T.tolist() for i in range(sol.steps)])
-            object.__setattr__(self, '_lists', lists)
+            self._lists = lists
         tl = self.tail
         advance = None  # Θ gained over the whole periods skipped on the tail
         if tl is not None and t > tl.t_b:
@@ -344,8 +424,10 @@ class MotorSegment:
         return y[0] + advance, y[1] + 0.0
 
     def state(self, t: float) -> FloatArray:
-        """``(Θ, ω)`` at time ``t`` of the segment (its end included): where the
-        integration ended exactly there, its end state."""
+        """``(Θ, ω)`` at time ``t`` of the segment (its end included): where the integration ended exactly
+        there, its end state."""
+        if self.stepper is None or t >= self.t_rest:
+            return np.array([self.theta_rest, 0.0])
         tl = self.tail
         sol = self.solution
         if tl is not None and t > tl.t_b:
@@ -357,99 +439,237 @@ class MotorSegment:
             return sol.y[-1, :].copy()
         return np.array([float(sol.component(t, 0)), float(sol.component(t, 1))])
 
+    def theta_known(self) -> float:
+        """Θ at the end of what is integrated (``inf`` on a repeated period)."""
+        if self.tail is not None:
+            return math.inf
+        if self.stepper is None or not math.isinf(self.t_rest):
+            return self.theta_rest
+        return float(self.stepper.y[0])
+
     def inverse(self, th: FloatArray) -> FloatArray:
-        """Earliest times of this segment with Θ = ``th`` (``th`` within the segment's Θ range)."""
+        """Earliest times of this segment with Θ = ``th`` (``th`` within what is integrated)."""
+        if self.stepper is None:
+            return np.full(th.shape, self.t0)
         tl = self.tail
+        sol = self.solution
         if tl is None:
-            return np.minimum(self.solution.inverse(th, 0), self.t1)
+            return np.minimum(sol.inverse(th, 0), self.t1)
         out = np.empty(th.shape)
         head = th <= tl.theta_b
         in_tail = ~head
         if head.any():
-            out[head] = self.solution.inverse(th[head], 0)
+            out[head] = sol.inverse(th[head], 0)
         if in_tail.any():
             n = np.floor((th[in_tail] - tl.theta_a) / tl.dtheta)
             r = np.clip(th[in_tail] - n * tl.dtheta, tl.theta_a, tl.theta_b)
-            out[in_tail] = np.minimum(self.solution.inverse(r, 0) + n * tl.period, tl.t_end)
+            out[in_tail] = sol.inverse(r, 0) + n * tl.period
         return np.minimum(out, self.t1)
+
+
+class PeriodMarks:
+    """The ``on_break`` of a motor-on integration: the last three period marks ``(t, ω)``; True (stop) once
+    ω at three consecutive marks agrees to ``PERIODIC_TOL ω_nom`` and the two periods to ``PERIODIC_TOL``.
+
+    Parameters
+    ----------
+    is_mark : callable
+        Whether a break value is a period mark.
+    omega_nom : float
+        Nominal shaft speed, rad/s.
+    """
+
+    def __init__(self, is_mark: Callable[[float], bool], omega_nom: float) -> None:
+        self.is_mark = is_mark
+        self.omega_nom = omega_nom
+        self.marks: list[tuple[float, float]] = []
+
+    def __call__(self, t: float, y: FloatArray, b: float) -> bool:
+        if not self.is_mark(b):
+            return False
+        self.marks.append((t, float(y[1])))
+        del self.marks[:-3]
+        if len(self.marks) < 3:
+            return False
+        (ta, wa), (tb, wb), (tc, wc) = self.marks
+        tol = PERIODIC_TOL * self.omega_nom
+        return abs(wc - wb) <= tol and abs(wb - wa) <= tol and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb)
+
+
+#: line time past what is integrated that :meth:`MotorDrive.time_of` integrates to find a phase, s: beyond
+#: it a phase counts as never reached (a shaft coasting to rest without a brake never gets there)
+REACH = 3600.0
 
 
 class MotorDrive:
     """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.mechanisms.drive`).
 
-    Built by :func:`build_drive`: a list of :class:`MotorSegment` (motor on / off),
-    switched at the scene's ``t_stop`` and at the supervisor's commands.
+    A list of :class:`MotorSegment` (motor on / off), switched at the scene's ``t_stop`` and at
+    the supervisor's commands, integrated as far as the line is asked for: a time beyond
+    what is integrated integrates on (:meth:`extend`), so the steps never depend on where
+    the line was asked (a step straddles every window end). :meth:`prune` forgets the steps
+    before a time; a motor-on segment stops integrating once its period repeats.
 
     Attributes
     ----------
     params : Params
     duration : float
-        Run length, s.
+        Times are clipped to ``[0, duration]`` (``inf`` for a stream: no clip).
     segments : list of MotorSegment
-        In time order; segment i holds on ``[t0_i, t0_{i+1})``.
+        In time order (those before the last :meth:`prune` gone).
     switches : list of (float, bool)
-        Effective switches ``(t, motor on after t)`` within the run.
-    solution : DenseSolution
-        The first motor-on integration (with the periodic shortcut: up to the end of its
-        base period); without the shortcut and without commands, the whole run
-        including brake and rest (as before commands existed).
-    brake_solution : DenseSolution or None
-        The second segment's solution when the first one has a periodic tail, else None.
-    tail : PeriodicTail or None
-        The first segment's repeated period, if the shortcut was taken.
+        Effective switches ``(t, motor on after t)``.
     load : MasterLoad or None
         The chain load.
-    t_stop : float
-        First motor-off switch, s (``inf`` if none within the run).
-    t_rest : float
-        First standstill after a motor-off, s (``inf`` if none within the run).
-    nfev, steps, rejected : int
-        Cost of all integrations.
     """
 
     def __init__(
         self,
         params: Params,
-        duration: float,
-        segments: list[MotorSegment],
         load: chain_friction.MasterLoad | None,
         switches: list[tuple[float, bool]],
-        solution: dense.DenseSolution | None = None,
+        *,
+        periodic: bool = True,
         commanded: bool = False,
+        duration: float = math.inf,
     ) -> None:
         self.params = params
-        self.duration = duration
-        self.segments = segments
+        self.load = load
+        self.switches = switches
+        self.periodic = periodic
+        self.commanded = commanded
+        self.duration = float(duration)
+        p = params
+        J, T0, w0, b, Tb, wn = p.J, p.T_0, p.omega_0, p.b, p.T_brake, p.omega_nom
+        if load is not None:
+            self._load_torque = load.torque_piece
+            self._next_break = load.next_break
+            self._is_mark = load.is_entry
+        else:
+            # period marks: the Θ advance over one time constant (or one largest step, if longer) at the free speed
+            self._mark = max(p.tau, p.h) * p.omega_free / wn
+            self._load_torque = _no_load
+            self._next_break = self._mark_after
+            self._is_mark = _every
+        load_torque = self._load_torque
+
+        def rhs_on(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
+            w = y[1]
+            return np.array([w / wn, (T0 * (1.0 - w / w0) - b * w - load_torque(y[0], piece)) / J])
+
+        def rhs_brake(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
+            w = y[1]
+            return np.array([w / wn, (-b * w - load_torque(y[0], piece) - Tb) / J])
+
+        self._rhs_on, self._rhs_brake = rhs_on, rhs_brake
+        on0 = True  # the line starts running, unless switched off at t = 0
+        for ts, on in switches:
+            if ts <= 0.0:
+                on0 = on
+        self.segments: list[MotorSegment] = [self._segment(0.0, on0, np.zeros(2))]
+        self.nfev_dropped = self.steps_dropped = self.rejected_dropped = 0
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> MotorDrive:
+        """A copy that integrates on independently (the parameters and the chain load shared)."""
+        memo[id(self.params)] = self.params
+        if self.load is not None:
+            memo[id(self.load)] = self.load
+        new = MotorDrive.__new__(MotorDrive)
+        memo[id(self)] = new
+        for key, value in self.__dict__.items():
+            setattr(new, key, copy.deepcopy(value, memo))
+        return new
+
+    # building ----------------------------------------------------------------------------
+    def _mark_after(self, v: float) -> float:
+        k = math.floor(v / self._mark) + 1
+        bk = k * self._mark
+        return bk if bk > v else (k + 1) * self._mark
+
+    def _next_switch(self, t0: float) -> float:
+        return next((t for t, _ in self.switches if t > t0), math.inf)
+
+    def _segment(self, t0: float, on: bool, y0: FloatArray) -> MotorSegment:
+        """The segment from ``t0`` with state ``y0``: motor on, integrated up to the scene's ``t_stop`` (if
+        later; never to a command's time), or the brake until standstill."""
+        p = self.params
+        t1 = self._next_switch(t0)
+        if on:
+            t_bound = p.t_stop if t0 < p.t_stop else math.inf
+            period = PeriodMarks(self._is_mark, p.omega_nom) if self.periodic else None
+            use_breaks = self.load is not None or self.periodic
+            breaks = ig.Breaks(0, self._next_break, period) if use_breaks else None
+            stepper = _stepper(p, self._rhs_on, t0, y0, t_bound, breaks, None)
+            return MotorSegment(t0, t1, True, y0, stepper, period, t_bound)
+        if y0[1] > 0.0:
+            brk = ig.Breaks(0, self._next_break) if self.load is not None else None
+            stepper = _stepper(p, self._rhs_brake, t0, y0, math.inf, brk, ig.Terminal(1, 0.0))
+            return MotorSegment(t0, t1, False, y0, stepper)
+        return MotorSegment(t0, t1, False, y0, None)
+
+    def set_switches(self, switches: list[tuple[float, bool]], commanded: bool) -> None:
+        """New effective switches: the segments before the first one that changed are kept (cut there)."""
+        old = self.switches
+        n = 0
+        while n < min(len(old), len(switches)) and old[n] == switches[n]:
+            n += 1
+        firsts = [x[0] for x in (old[n : n + 1] + switches[n : n + 1])]
+        te = min(firsts) if firsts else None
         self.switches = switches
         self.commanded = commanded
-        self.load = load
-        first = segments[0]
-        self.tail = first.tail
-        self.solution = solution if solution is not None else first.solution
-        self.brake_solution = segments[1].solution if first.tail is not None and len(segments) > 1 else None
-        off = [s for s in segments if not s.on]
-        self.t_stop = off[0].t0 if off else math.inf
-        self.t_rest = next((s.t_rest for s in off if math.isfinite(s.t_rest)), math.inf)
-        self.nfev = sum(s.solution.nfev for s in segments)
-        self.steps = sum(s.solution.steps for s in segments)
-        self.rejected = sum(s.solution.rejected for s in segments)
-        self._t0 = np.array([s.t0 for s in segments])
-        self._t0_list = self._t0.tolist()
-        self._theta0 = np.array([s.theta0 for s in segments])
-        self._on = np.array([s.on for s in segments])
-        self._rest = np.array([s.t_rest for s in segments])
-        self.theta_end = float(self._component(duration, 0))
+        if te is None:
+            return
+        keep = [s for s in self.segments if s.t0 < te]
+        if not keep:
+            raise ValueError(
+                f'MotorDrive: a switch at {te!r} s is before what is kept (from {self.segments[0].t0!r} s)'
+            )
+        self.segments = keep
+        keep[-1].t1 = self._next_switch(keep[-1].t0)
+
+    def extend(self, t: float) -> None:
+        """Integrate until the drive at ``t`` (s) is known, opening the segments of the switches on the way."""
+        t = min(float(t), self.duration)
+        while True:
+            seg = self.segments[-1]
+            if seg.t1 <= t:
+                seg.advance(seg.t1)
+                y = seg.state(seg.t1)
+                y[1] = max(y[1], 0.0)  # a dense output a hair below 0 at the brake's end is standstill
+                on = next(on for ts, on in self.switches if ts == seg.t1)
+                self.segments.append(self._segment(seg.t1, on, y))
+                continue
+            seg.advance(t)
+            return
+
+    def prune(self, t_keep: float) -> None:
+        """Forget the segments and steps that end before ``t_keep`` (s)."""
+        while len(self.segments) > 1 and self.segments[1].t0 <= t_keep:
+            gone = self.segments.pop(0)
+            if gone.stepper is not None:
+                sol = gone.solution
+                self.nfev_dropped += sol.nfev
+                self.steps_dropped += sol.steps
+                self.rejected_dropped += sol.rejected
+        self.segments[0].prune(t_keep)
 
     # evaluation -------------------------------------------------------------------------
-    def _segment_index(self, tt: FloatArray) -> npt.NDArray[np.intp]:
-        return np.maximum(np.searchsorted(self._t0, tt, side='right') - 1, 0)
+    @property
+    def _t0(self) -> list[float]:
+        return [s.t0 for s in self.segments]
+
+    def _clip(self, t: npt.ArrayLike) -> FloatArray:
+        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if tt.size:
+            self.extend(float(tt.max()))
+        return tt
 
     def _component(self, t: npt.ArrayLike, j: int) -> FloatArray:
         """Θ (j = 0, nominal s) or ω (j = 1, rad/s) at times clipped to [0, duration]."""
-        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tt = self._clip(t)
         if len(self.segments) == 1:
             return self.segments[0].component(tt, j)
-        idx = self._segment_index(tt)
+        idx = np.maximum(np.searchsorted(self._t0, tt, side='right') - 1, 0)
         if tt.size == 1:
             return self.segments[int(idx.reshape(-1)[0])].component(tt, j)
         out = np.empty(tt.shape)
@@ -459,59 +679,128 @@ class MotorDrive:
         return out
 
     def theta(self, t: npt.ArrayLike) -> FloatArray:
-        """Master phase Θ(t), nominal s (t clipped to [0, duration])."""
+        """Master phase Θ(t), nominal s."""
         return self._component(t, 0)
 
     def rate(self, t: npt.ArrayLike) -> FloatArray:
-        """Speed factor λ = ω/ω_nom (t clipped to [0, duration])."""
+        """Speed factor λ = ω/ω_nom."""
         return self._component(t, 1) / self.params.omega_nom
 
     def theta_rate(self, t: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """``(Θ(t), λ(t))`` at once: the same values as :meth:`theta` and :meth:`rate`, bit for bit;
         one element (a node's tick) goes through :meth:`MotorSegment.state1` (a few µs)."""
-        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tt = self._clip(t)
         if tt.size != 1:
             return self._component(tt, 0), self._component(tt, 1) / self.params.omega_nom
         tv = float(tt.reshape(-1)[0])
-        k = 0 if len(self.segments) == 1 else max(bisect.bisect_right(self._t0_list, tv) - 1, 0)
+        k = 0 if len(self.segments) == 1 else max(bisect.bisect_right(self._t0, tv) - 1, 0)
         th, w = self.segments[k].state1(tv)
         return np.full(tt.shape, th), np.full(tt.shape, w) / self.params.omega_nom
 
     def omega(self, t: npt.ArrayLike) -> FloatArray:
-        """Master-shaft speed ω(t), rad/s (t clipped to [0, duration])."""
+        """Master-shaft speed ω(t), rad/s."""
         return self._component(t, 1)
 
     def rate_dot(self, t: npt.ArrayLike) -> FloatArray:
         """dλ/dt, 1/s: the right-hand side at the dense state, divided by ω_nom."""
-        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tt = self._clip(t)
         theta, omega = self._component(tt, 0), self._component(tt, 1)
         p = self.params
         load = self.load.torque(theta) if self.load is not None else np.zeros(tt.shape)
-        idx = self._segment_index(tt)
-        on = self._on[idx]
-        rest = tt >= self._rest[idx]
+        idx = np.maximum(np.searchsorted(self._t0, tt, side='right') - 1, 0)
+        on = np.array([s.on for s in self.segments])[idx]
+        rest = tt >= np.array([s.t_rest for s in self.segments])[idx]
         drive = np.where(on, p.T_0 * (1.0 - omega / p.omega_0), -p.T_brake)
         acc = (drive - p.b * omega - load) / p.J
         return np.where(rest & ~on, 0.0, acc) / p.omega_nom
 
+    def _reach(self, theta: float) -> None:
+        """Integrate until Θ passes ``theta`` (or the shaft rests for good, or :data:`REACH` s on)."""
+        limit = self.segments[-1].covered + REACH
+        while True:
+            seg = self.segments[-1]
+            cov = seg.covered
+            if math.isinf(cov):
+                if seg.t1 == math.inf or seg.t1 > self.duration:
+                    return
+                self.extend(seg.t1)
+                continue
+            if seg.theta_known() >= theta or cov >= min(limit, self.duration):
+                return
+            self.extend(min(cov + max(1.0, 0.01 * (cov - seg.t0)), limit, self.duration))
+
     def time_of(self, theta: npt.ArrayLike) -> FloatArray:
-        """Earliest t with Θ(t) = theta, s; theta clipped to [0, Θ(duration)] (never NaN)."""
+        """Earliest t with Θ(t) = theta, s (``inf`` for a phase the drive does not reach)."""
         th = np.asarray(theta, dtype=float)
         if not np.all(np.isfinite(th)):
             raise ParameterError('theta', theta, 'must be finite')
-        th = np.clip(th, 0.0, self.theta_end)
+        if math.isfinite(self.duration):  # a drive over [0, duration]: phases clipped to its range
+            th = np.clip(th, 0.0, self.theta_end)
+        if th.size:
+            self._reach(float(th.max()))
+        top = self.segments[-1].theta_known()
+        th0 = np.array([s.theta0 for s in self.segments])
         # the last segment starting below th (on a plateau: the earliest time)
-        idx = np.maximum(np.searchsorted(self._theta0, th, side='left') - 1, 0)
-        if len(self.segments) == 1 or th.size == 1:
-            out = self.segments[int(idx.reshape(-1)[0]) if th.size else 0].inverse(th)
-        else:
-            out = np.empty(th.shape)
-            for k in np.unique(idx):
-                m = idx == k
-                out[m] = self.segments[k].inverse(th[m])
-        return np.minimum(out, self.duration)
+        idx = np.maximum(np.searchsorted(th0, th, side='left') - 1, 0)
+        out = np.empty(th.shape)
+        flat_th, flat_idx, flat_out = th.reshape(-1), idx.reshape(-1), out.reshape(-1)
+        for k in np.unique(flat_idx):
+            m = flat_idx == k
+            flat_out[m] = self.segments[int(k)].inverse(np.minimum(flat_th[m], top))
+        out = np.where(th > top, math.inf, out)
+        if math.isfinite(self.duration):
+            out = np.minimum(out, self.duration)
+        return out
 
-    # summaries --------------------------------------------------------------------------
+    # figures ----------------------------------------------------------------------------
+    @property
+    def theta_end(self) -> float:
+        """Θ at :attr:`duration` (a stream: at what is integrated), nominal s."""
+        t = self.duration if math.isfinite(self.duration) else self.segments[-1].covered
+        return float(self.theta(np.array([t]))[0]) if math.isfinite(t) else self.segments[-1].theta_known()
+
+    @property
+    def tail(self) -> PeriodicTail | None:
+        """The first motor-on segment's repeated period, if found."""
+        return self.segments[0].tail
+
+    @property
+    def solution(self) -> dense.DenseSolution:
+        """The first segment's integration (its kept steps)."""
+        return self.segments[0].solution
+
+    @property
+    def t_stop(self) -> float:
+        """First motor-off switch, s (``inf`` if none)."""
+        return next((t for t, on in self.switches if not on), math.inf)
+
+    @property
+    def t_rest(self) -> float:
+        """First standstill after a motor-off, s (``inf`` if none so far)."""
+        return next((s.t_rest for s in self.segments if not s.on and math.isfinite(s.t_rest)), math.inf)
+
+    def _count(self, what: str) -> int:
+        total = {'nfev': self.nfev_dropped, 'steps': self.steps_dropped, 'rejected': self.rejected_dropped}[what]
+        for s in self.segments:
+            if s.stepper is not None:
+                total += getattr(s.solution, what)
+        return total
+
+    @property
+    def nfev(self) -> int:
+        """Right-hand-side evaluations so far (those of forgotten segments included)."""
+        return self._count('nfev')
+
+    @property
+    def steps(self) -> int:
+        """Accepted steps kept, and of forgotten segments."""
+        return self._count('steps')
+
+    @property
+    def rejected(self) -> int:
+        """Rejected trial steps so far."""
+        return self._count('rejected')
+
     def mean_rate(self, t0: float, t1: float) -> float:
         """Mean λ over [t0, t1]: ``(Θ(t1) - Θ(t0)) / (t1 - t0)``."""
         th = self.theta(np.array([t0, t1]))
@@ -541,18 +830,36 @@ class MotorDrive:
         return out
 
 
-def _integrate(
+def _no_load(theta: float, piece: tuple[float, float]) -> float:
+    return 0.0
+
+
+def _every(b: float) -> bool:
+    return True
+
+
+def _stepper(
     p: Params,
-    fun: Any,
-    span: tuple[float, float],
+    fun: Callable[..., FloatArray],
+    t0: float,
     y0: FloatArray,
+    t_bound: float,
     breaks: ig.Breaks | None,
-    terminal: ig.Terminal | None = None,
-) -> dense.DenseSolution:
+    terminal: ig.Terminal | None,
+) -> ig.RK4Stepper | ig.Dopri5Stepper:
     if p.method == 'rk4':
-        return ig.rk4(fun, span, y0, p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
-    return ig.dopri5(
-        fun, span, y0, rtol=p.rtol, atol=p.atol, max_step=p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS
+        return ig.RK4Stepper(fun, t0, y0, t_bound=t_bound, h=p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
+    return ig.Dopri5Stepper(
+        fun,
+        t0,
+        y0,
+        t_bound=t_bound,
+        rtol=p.rtol,
+        atol=p.atol,
+        max_step=p.h,
+        breaks=breaks,
+        terminal=terminal,
+        max_steps=MAX_STEPS,
     )
 
 
@@ -575,10 +882,10 @@ def _check_load(p: Params, load: chain_friction.MasterLoad) -> None:
         )
 
 
-def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> list[tuple[float, bool]]:
-    """Effective motor switches ``(t, on after t)`` before ``duration``: the scene's ``t_stop`` (motor off)
-    and the commands (``hold``/``stop`` off, ``unhold``/``start`` on), in time order, the scene's
-    switch first among equal times; switches that change nothing dropped."""
+def _switches(t_stop: float, commands: Iterable[Command], duration: float = math.inf) -> list[tuple[float, bool]]:
+    """Effective motor switches ``(t, on after t)``: the scene's ``t_stop`` (motor off) and the commands
+    (``hold``/``stop`` off, ``unhold``/``start`` on), in time order, the scene's switch first among equal
+    times; switches that change nothing dropped."""
     raw: list[tuple[float, int, bool]] = [(float(t_stop), 0, False)]
     raw += [(c.t, 1, c.running) for c in check_commands(commands)]
     raw.sort(key=lambda r: (r[0], r[1]))  # stable: commands keep their order
@@ -591,52 +898,10 @@ def _switches(t_stop: float, duration: float, commands: Iterable[Command]) -> li
     return out
 
 
-def build_drive(
-    scene: Scene, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()
-) -> MotorDrive:
-    """Integrate the motor over ``[0, duration]``, segment by segment, and return the drive.
-
-    Parameters
-    ----------
-    scene : Scene
-        Lists ``motor_dynamics`` (and possibly ``chain_friction``).
-    duration : float
-        Run length, s (> 0).
-    periodic : bool
-        Take the periodic-steady-state shortcut (module docstring).
-    commands : iterable of Command
-        Supervisor commands (:class:`folder_line.core.mechanisms.drive.Command`, sorted by time):
-        ``hold``/``stop`` switch the motor off and apply the brake from their time,
-        ``unhold``/``start`` switch it on again from the state there. The scene's
-        ``t_stop`` is one more motor-off switch.
-
-    Returns
-    -------
-    MotorDrive
-
-    Raises
-    ------
-    ParameterError
-        The scene does not list ``motor_dynamics``; RK4 step beyond its stability limit;
-        stall torque not above the peak chain load; a self-locking delivery; commands
-        not sorted by time.
-    IntegrationError
-        The integration failed (too many steps, non-finite state).
-
-    Notes
-    -----
-    Segments (module docstring, "Supervisor commands"): a motor-on segment starting at
-    ``t_0`` is integrated up to the scene's ``t_stop`` if that is later, else to
-    ``duration`` -- never to a command's time -- and only *evaluated* up to the next
-    switch; a brake segment is integrated from its start until standstill (or
-    ``duration``). So the drive before a command's time does not depend on that
-    command: adding a command leaves Θ(t) for earlier t unchanged bit for bit.
-    """
+def _params(scene: Scene) -> Params:
     p: Params | None = scene.effect('motor_dynamics')
     if p is None:
         raise ParameterError('effects', 'motor_dynamics', f'scene {scene.name!r} does not list motor_dynamics')
-    duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
-    commands = check_commands(commands)
     if p.method == 'rk4' and p.h * p.damping / p.J > RK4_STEP_LIMIT:
         z = p.h * p.damping / p.J
         what = 'unstable' if z > RK4_STABILITY else 'stalls and overshoots between steps (not yet unstable)'
@@ -646,99 +911,67 @@ def build_drive(
             f'RK4 {what} here: h (T_0/omega_0 + b)/J = {z:.4g} > {RK4_STEP_LIMIT}; '
             f'use h < {RK4_STEP_LIMIT * p.J / p.damping:.4g} s or method dopri5',
         )
+    return p
+
+
+def stream_drive(
+    scene: Scene,
+    commands: Iterable[Command] = (),
+    previous: MotorDrive | None = None,
+    *,
+    periodic: bool = True,
+    duration: float = math.inf,
+) -> MotorDrive:
+    """The motor drive of ``scene`` under the supervisor's ``commands``, integrated as far as it is asked.
+
+    Parameters
+    ----------
+    scene : Scene
+        Lists ``motor_dynamics`` (and possibly ``chain_friction``).
+    commands : iterable of Command
+        Sorted by time: ``hold``/``stop`` switch the motor off and apply the brake from their
+        time, ``unhold``/``start`` switch it on again from the state there. The scene's
+        ``t_stop`` is one more motor-off switch.
+    previous : MotorDrive, optional
+        The drive under the commands before: its integration is kept up to the first switch
+        that changed (it is taken over, not copied).
+    periodic : bool
+        Take the periodic-steady-state shortcut (module docstring).
+    duration : float
+        Times are clipped to ``[0, duration]`` (default: none; :func:`build_drive`).
+
+    Raises
+    ------
+    ParameterError
+        The scene does not list ``motor_dynamics``; RK4 step beyond its stability limit; stall
+        torque not above the peak chain load; a self-locking delivery; commands not sorted.
+    """
+    commands = check_commands(commands)
+    switches = _switches(_params(scene).t_stop, commands, duration)
+    if previous is not None and previous.periodic == periodic and math.isinf(previous.duration):
+        previous.set_switches(switches, bool(commands))
+        return previous
+    p = _params(scene)
     load = chain_friction.master_load(scene, p.omega_nom) if scene.has('chain_friction') else None
     if load is not None:
         _check_load(p, load)
-    J, T0, w0, b, Tb, wn = p.J, p.T_0, p.omega_0, p.b, p.T_brake, p.omega_nom
-    if load is not None:
-        load_torque = load.torque_piece
-        next_break = load.next_break
-        is_mark = load.is_entry
-    else:
-        # period marks: the Θ advance over one time constant (or one largest step, if longer) at the free speed
-        mark = max(p.tau, p.h) * p.omega_free / wn
+    return MotorDrive(p, load, switches, periodic=periodic, commanded=bool(commands), duration=duration)
 
-        def load_torque(theta: float, piece: tuple[float, float]) -> float:
-            return 0.0
 
-        def next_break(v: float) -> float:
-            k = math.floor(v / mark) + 1
-            bk = k * mark
-            return bk if bk > v else (k + 1) * mark
+def build_drive(
+    scene: Scene, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()
+) -> MotorDrive:
+    """The motor drive over ``[0, duration]``: :func:`stream_drive` integrated to ``duration``, its times
+    clipped there (``theta_end`` is Θ at ``duration``; a phase beyond it maps to ``duration``).
 
-        def is_mark(b: float) -> bool:
-            return True
-
-    # with breaks the integrator passes the current piece; without (no load, no periodic marks) it does not
-    def rhs_on(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
-        w = y[1]
-        return np.array([w / wn, (T0 * (1.0 - w / w0) - b * w - load_torque(y[0], piece)) / J])
-
-    def rhs_brake(t: float, y: FloatArray, piece: tuple[float, float] = (0.0, math.inf)) -> FloatArray:
-        w = y[1]
-        return np.array([w / wn, (-b * w - load_torque(y[0], piece) - Tb) / J])
-
-    def motor_on(t0: float, t1: float, y0: FloatArray) -> MotorSegment:
-        """Motor on from state y0 at t0, evaluated up to t1 (integrated further: see Notes)."""
-        t_int = p.t_stop if t0 < p.t_stop < duration else duration
-        marks: list[tuple[float, float]] = []
-
-        def on_break(t: float, y: FloatArray, brk: float) -> bool:
-            if not is_mark(brk):
-                return False
-            marks.append((t, float(y[1])))
-            del marks[:-3]
-            if len(marks) < 3:
-                return False
-            (ta, wa), (tb, wb), (tc, wc) = marks
-            tol = PERIODIC_TOL * wn
-            return (
-                abs(wc - wb) <= tol and abs(wb - wa) <= tol and abs((tc - tb) - (tb - ta)) <= PERIODIC_TOL * (tc - tb)
-            )
-
-        use_breaks = load is not None or periodic
-        breaks = ig.Breaks(0, next_break, on_break if periodic else None) if use_breaks else None
-        sol = _integrate(p, rhs_on, (t0, t_int), y0, breaks)
-        tail: PeriodicTail | None = None
-        if sol.status == 'stopped' and sol.t_end < t_int:
-            (ta, _), (tb, _) = marks[-2], marks[-1]
-            th = sol.component(np.array([ta, tb]), 0)
-            tail = PeriodicTail(t_a=ta, t_b=tb, theta_a=float(th[0]), theta_b=float(th[1]), t_end=t_int)
-        return MotorSegment(t0, t1, True, float(y0[0]), sol, tail, math.inf)
-
-    def motor_off(t0: float, t1: float, y0: FloatArray) -> MotorSegment:
-        """Brake from state y0 at t0 until standstill (or the end of the run), then rest."""
-        t_rest = math.inf
-        if y0[1] > 0.0:
-            brk = ig.Breaks(0, next_break) if load is not None else None
-            sol_b = _integrate(p, rhs_brake, (t0, duration), y0, brk, ig.Terminal(1, 0.0))
-            parts = [sol_b]
-            if sol_b.status == 'terminal':
-                t_rest = sol_b.t_end
-                if t_rest < duration:
-                    parts.append(dense.constant_solution(t_rest, duration, [sol_b.y[-1, 0], 0.0]))
-            sol = dense.concatenate(parts) if len(parts) > 1 else sol_b
-        else:
-            t_rest = t0
-            sol = dense.constant_solution(t0, duration, [y0[0], 0.0])
-        return MotorSegment(t0, t1, False, float(y0[0]), sol, None, t_rest)
-
-    switches = _switches(p.t_stop, duration, commands)
-    bounds = [t for t, _ in switches] + [duration]
-    segments: list[MotorSegment] = []
-    y = np.zeros(2)
-    t0, on = 0.0, True
-    for i, t1 in enumerate(bounds):
-        if t1 > t0:
-            seg = motor_on(t0, t1, y) if on else motor_off(t0, t1, y)
-            segments.append(seg)
-            if i < len(switches):
-                y = seg.state(t1)
-                y[1] = max(y[1], 0.0)  # a dense output a hair below 0 at the brake's end is standstill
-        if i < len(switches):
-            t0, on = t1, switches[i][1]
-    solution = None
-    if not commands and segments[0].tail is None:
-        # as before commands existed: the whole run as one solution (on, brake, rest)
-        solution = dense.concatenate([s.solution for s in segments]) if len(segments) > 1 else segments[0].solution
-    return MotorDrive(p, duration, segments, load, switches, solution, commanded=bool(commands))
+    Raises
+    ------
+    ParameterError
+        As :func:`stream_drive`; ``duration`` not in ``(0, MAX_DURATION]``.
+    IntegrationError
+        The integration failed (too many steps, non-finite state).
+    """
+    duration = in_range('duration', duration, 0.0, MAX_DURATION, lo_open=True)
+    drive = stream_drive(scene, commands, periodic=periodic, duration=duration)
+    drive.extend(duration)
+    return drive

@@ -36,7 +36,18 @@ from folder_line.core.numerics.rng import stream
 from folder_line.core.numerics.validate import check_fields, within
 from folder_line.errors import ParameterError
 
-__all__ = ['E_MAX', 'MU_MAX', 'Params', 'check_listed', 'factors', 'friction', 'restitution']
+__all__ = [
+    'E_MAX',
+    'MU_MAX',
+    'Params',
+    'check_listed',
+    'factors',
+    'factors_from',
+    'friction',
+    'friction_from',
+    'restitution',
+    'restitution_from',
+]
 
 #: largest restitution a draw may take
 E_MAX = 0.999
@@ -81,6 +92,21 @@ def factors(sigma: float, seed: int, quantity: str, n: int) -> np.ndarray:
     """Factors ``1 + σ z_k`` of signatures k = 0 .. n-1 (z clipped at ±3) for ``quantity`` ('e' or 'mu')."""
     z = stream(seed, f'folder.property_scatter.{quantity}').standard_normal(n)
     return 1.0 + sigma * np.clip(z, -TRUNCATE, TRUNCATE)
+
+
+def factors_from(sigma: float, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` factors of :func:`factors` from the stream ``rng``."""
+    return 1.0 + sigma * np.clip(rng.standard_normal(n), -TRUNCATE, TRUNCATE)
+
+
+def restitution_from(params: Params, e: float, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` restitutions of :func:`restitution` from the stream ``rng``."""
+    return np.clip(e * factors_from(params.e_sigma, rng, n), 0.0, E_MAX)
+
+
+def friction_from(params: Params, mu: float, rng: np.random.Generator, n: int) -> np.ndarray:
+    """The next ``n`` friction coefficients of :func:`friction` from the stream ``rng``."""
+    return np.clip(mu * factors_from(params.mu_sigma, rng, n), 0.0, MU_MAX)
 
 
 def restitution(params: Params, e: float, seed: int, n: int) -> np.ndarray:

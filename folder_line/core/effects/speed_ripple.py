@@ -84,7 +84,8 @@ def phase_inverse(params: Params, psi: float, theta: npt.ArrayLike) -> np.ndarra
     """``g⁻¹(θ)``: the base phase that the ripple maps to ``θ``, nominal s (to the last bit).
 
     Newton's method from ``θ``, each step kept inside the shrinking bracket
-    ``[θ - 2A/ω, θ + 2A/ω]`` (a step that leaves it bisects instead).
+    ``[θ - 2A/ω, θ + 2A/ω]`` (a step that leaves it bisects instead). Each element stops on
+    its own convergence, so its value does not depend on the other elements.
     """
     th = np.asarray(theta, dtype=float)
     if not np.all(np.isfinite(th)):
@@ -93,20 +94,28 @@ def phase_inverse(params: Params, psi: float, theta: npt.ArrayLike) -> np.ndarra
     if A == 0.0:
         return th.copy()
     reach = 2.0 * A / w
-    lo, hi = th - reach, th + reach
-    phi = th.copy()
+    flat = th.reshape(-1)
+    out = flat.copy()
+    active = np.arange(flat.size)
+    target = flat
+    lo, hi = flat - reach, flat + reach
+    phi = flat.copy()
     for _ in range(_MAX_STEPS):
         g, dg, _ = phase_map(params, psi, phi)
-        f = g - th
+        f = g - target
         lo = np.where(f < 0.0, phi, lo)
         hi = np.where(f > 0.0, phi, hi)
         new = phi - f / dg
         new = np.where((new > lo) & (new < hi), new, 0.5 * (lo + hi))
         new = np.where(f == 0.0, phi, new)
-        if np.all(np.abs(new - phi) <= 2.0 * np.spacing(np.abs(phi) + reach)):
-            return new
-        phi = new
-    return phi  # pragma: no cover - Newton converges quadratically in a handful of steps
+        done = np.abs(new - phi) <= 2.0 * np.spacing(np.abs(phi) + reach)
+        out[active[done]] = new[done]
+        keep = ~done
+        if not keep.any():
+            return out.reshape(th.shape)
+        active, target, lo, hi, phi = active[keep], target[keep], lo[keep], hi[keep], new[keep]
+    out[active] = phi  # pragma: no cover - Newton converges quadratically in a handful of steps
+    return out.reshape(th.shape)
 
 
 class RippleDrive:

@@ -173,6 +173,7 @@ def folder_evaluation(
     *,
     plan: DeliveryPlan | None = None,
     causal: bool = False,
+    t_end: float | None = None,
 ) -> FolderEvaluation:
     """Per-cycle margins of the folder's (and delivery's) constraints, with the signature counts.
 
@@ -193,6 +194,9 @@ def folder_evaluation(
     causal : bool, optional
         Judge each cycle on the rows up to its knife contact only (module docstring);
         default False: on the whole table (the batch simulator's view).
+    t_end : float, optional
+        The time the table ends, s: a signature not at the stops by then arrives after it
+        (default: the table's last time; the streamed line gives the last time it handed out).
 
     Returns
     -------
@@ -202,7 +206,7 @@ def folder_evaluation(
         ascending order; margins finite.
     """
     ev = np.asarray(events)
-    t_last = float(ev['t'].max()) if ev.size else 0.0
+    t_last = (float(ev['t'].max()) if ev.size else 0.0) if t_end is None else float(t_end)
 
     def theta(t: np.ndarray) -> np.ndarray:
         return np.asarray(t, dtype=float) if drive is None else np.asarray(drive.theta(t), dtype=float)
@@ -232,8 +236,8 @@ def folder_evaluation(
     if causal:  # what is known at each cycle's knife contact
         at_stops &= t_stop <= t_contact
     # a sheet not yet at the stops when the table ends arrives after t_last (>= its knife contact)
-    t_end = t_contact if causal else t_last
-    late_bound = np.minimum(t_contact - t_end, -np.spacing(np.abs(t_contact) + 1.0))
+    t_known = t_contact if causal else t_last
+    late_bound = np.minimum(t_contact - t_known, -np.spacing(np.abs(t_contact) + 1.0))
     out: list[ConstraintSeries] = []
 
     # feed_window

@@ -1,13 +1,12 @@
-"""F with D: the folder and its delivery over many cycles — exact events, samples, constraints.
+"""F with D over a span in one window: :class:`FolderLine` and :func:`simulate_folder`.
 
-:class:`FolderLine` (built once per scene, drive and duration; sampled at any times)
-and its thin wrapper :func:`simulate_folder` turn a scene's folder (``knife``, ``cyclogram``,
-``feed_transporter``) and, if present, its delivery (``delivery``,
-``delivery_chain``) into the line's events, joint samples, per-cycle constraint
-margins (:mod:`folder_line.core.line.constraints`) and summary figures. Every event time
-is a closed form in the master phase Θ mapped through ``drive.time_of`` (or, with
-``feed_slip``, a closed form in line time); nothing is read off the sample grid. All
-cycles are handled at once with numpy (no per-cycle Python loop).
+:class:`FolderLine` runs the streamed folder
+(:class:`folder_line.core.line.folder_stream.FolderStream`) over ``[0, duration]`` in one
+window and keeps what it handed out: the events, the per-cycle constraint margins
+(:mod:`folder_line.core.line.constraints`), the summary, and the joint states at any time
+of the span. Every event time is a closed form in the master phase Θ mapped through
+``drive.time_of`` (or, with ``feed_slip``, a closed form in line time); nothing is read off
+the sample grid.
 
 Timeline (one cycle, master phase Θ in nominal seconds)
 -------------------------------------------------------
@@ -61,9 +60,8 @@ approximation while λ ramps.
 
 Only events at ``t <= duration`` are returned; sheets handed over but not yet
 counted are *in the machine* (``sheets_fed = sheets_counted + sheets_in_machine``,
-checked in the summary). Sheets are numbered 0, 1, ... in cycle order over the
-signatures actually fed (a double fault feeds two with consecutive ids; a missing
-one takes no id).
+checked in the summary). Sheets are numbered 0, 1, ... in slot order as their slots
+are drawn (a double fault feeds two with consecutive ids; a missing one takes no id).
 
 Joint samples per unit (on ``t_samples``; λ = ``drive.rate``, f the belt slow-down factor)
 ----------------------------------------------------------------------------------------
@@ -84,223 +82,109 @@ Joint samples per unit (on ``t_samples``; λ = ``drive.rate``, f the belt slow-d
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.effects import chain_friction
-from folder_line.core.line import folder_steps
-from folder_line.core.line.constraints import evaluate_folder_constraints
-from folder_line.core.line.events import JointSamples, LinePart, SubResult, merge_events, stack_samples
-from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms import delivery as dlv
-from folder_line.core.mechanisms import knife as knf
+from folder_line.core.line.events import ConstraintSeries, JointSamples, LinePart, SubResult
+from folder_line.core.line.folder_stream import FolderStream
+from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
-__all__ = ['FolderLine', 'simulate_folder']
-
-TWO_PI = 2.0 * math.pi
+__all__ = ['FolderLine', 'simulate_folder', 'join_rows']
 
 
-# --------------------------------------------------------------------------- simulation
+def join_rows(
+    rows: Iterable[ConstraintSeries], names: Iterable[str], empty: dict[str, ConstraintSeries]
+) -> list[ConstraintSeries]:
+    """The rows of several windows as one series per constraint, in the order of ``names``."""
+    by: dict[str, list[ConstraintSeries]] = {}
+    for r in rows:
+        by.setdefault(r.name, []).append(r)
+    out = []
+    for name in names:
+        parts = by.get(name) or [empty[name]]
+        first = parts[0]
+        out.append(
+            ConstraintSeries(
+                name,
+                first.unit,
+                np.concatenate([p.cycle for p in parts]).astype(np.int64),
+                np.concatenate([p.margin for p in parts]),
+                first.description,
+                t=np.concatenate([p.t for p in parts]),
+            )
+        )
+    return out
 
 
 class FolderLine(LinePart):
-    """The folder (and its delivery) on a drive over ``[0, duration]``: built once, sampled anywhere.
-
-    Construction computes everything that depends only on the scene, the drive and
-    the duration -- the exact events, the per-cycle constraints and the summary (see
-    the module docstring); :meth:`sample` then gives the joint states at any times
-    cheaply (a node's tick calls it with one time).
+    """The folder (and its delivery) on a drive over ``[0, duration]``, in one window, kept.
 
     Parameters
     ----------
     scene : Scene
         Must have ``knife``, ``cyclogram`` and ``feed_transporter``; ``delivery`` and
-        ``delivery_chain`` optional; effects ``feed_slip``, ``stop_bounce``,
-        ``faults``, ``chain_friction`` run only if listed.
+        ``delivery_chain`` optional; the listed effects run.
     drive : Drive
-        Master drive (Θ(t), λ(t), and the exact inverse ``time_of``).
+        Master drive.
     duration : float
         Line time, s (> 0).
     tunings : iterable of Tuning
-        The operator's changes (:mod:`folder_line.core.line.tuning`): here the feed
-        transporter's speed ``feed_transporter.V_tr`` from each one's time on.
+        The operator's changes: here the feed transporter's speed ``feed_transporter.V_tr``.
 
     Attributes
     ----------
     events : ndarray of EVENT_DTYPE
-        Sorted by time (:func:`folder_line.core.line.events.merge_events`).
+        Sorted by time, kind, sheet.
     constraints : list of ConstraintSeries
-        :func:`folder_line.core.line.constraints.evaluate_folder_constraints`.
     summary : dict
         JSON-ready figures.
     timing : CycleTiming
-        The cycle.
     plan : DeliveryPlan or None
-        The delivery's derived figures.
+    stream : FolderStream
+        The stream that computed it (its belt, its signatures).
     units : dict of str to tuple of str
-        Unit (``drive``, ``belts``, ``feed``) -> its joint names.
     """
 
     def __init__(self, scene: Scene, drive: Drive, duration: float, tunings: Iterable[Tuning] = ()) -> None:
-        s = folder_steps.setup(scene, drive, duration)
-        st = folder_steps.hand_overs(s)
-        belt = folder_steps.belt_phase(s, st, belt_steps(tunings, 'feed_transporter.V_tr', s.V_tr))
-        n = st.ids.size
-        L = folder_steps.travel(s, n)
-        mu = folder_steps.friction(s, n)
-        sheets = folder_steps.feed(drive, s.duration, belt, st, s.timing.V_d, s.V_tr, L, s.slip, mu)
-        knife = folder_steps.knife_cycles(s)
-        fates = folder_steps.fates(s, sheets, knife)
-        bounce_tables, bounce_info = folder_steps.bounces(s, sheets)
-        events = merge_events(
-            [*folder_steps.fault_events(s, st), *bounce_tables, *folder_steps.sheet_events(s, sheets, knife, fates)]
-        )
-
+        fs = FolderStream(scene, drive, tunings)
+        duration = float(duration)
+        fs.compute(duration)
+        events, rows = fs.emit(duration)
+        rows += fs.finish()
         self.scene = scene
         self.drive = drive
-        self.duration = s.duration
-        self.timing = s.timing
-        self.V_tr = s.V_tr
-        self.belt = belt
-        self.plan = s.plan
+        self.duration = duration
+        self.stream = fs
+        self.timing = fs.timing
+        self.V_tr = fs.V_tr
+        self.plan = fs.plan
+        self.knife = fs.knife
+        self.belt = fs.belt
         self.events = events
-        self.constraints = evaluate_folder_constraints(events, s.timing, scene, drive, plan=s.plan)
-        self.summary = folder_steps.summary(s, st, sheets, knife, fates, events, bounce_info)
-        self.knife: knf.KnifeParams = scene.machine('knife')
-        self.with_torque = scene.has('chain_friction') and s.plan is not None
-        self.torque_params = scene.effect_params('chain_friction') if self.with_torque else None
-        self.units: dict[str, tuple[str, ...]] = {
-            'drive': ('knife_crank', 'knife'),
-            'belts': ('first_transporter',),
-            'feed': ('feed_belt', 'chain', 'carriage') if s.plan is not None else ('feed_belt',),
-        }
-
-    # ------------------------------------------------------------------ joint states
+        self.constraints = join_rows(rows, fs.constraint_names, fs.empty_rows)
+        self.summary = fs.summary()
+        self.units = fs.units
 
     def sample_unit(
         self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of one unit (``drive``, ``belts``, ``feed``) at ``t``."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        theta, lam = self._drive_state(t, theta, lam)
-        timing = self.timing
-        wt = self.with_torque
-        if unit == 'drive':
-            kp = self.knife
-            phi = np.mod(timing.omega_k * theta, TWO_PI)
-            s = knf.position(kp, phi)
-            v = knf.velocity(kp, phi) * lam
-            zeros = np.zeros(t.size)
-            return stack_samples(
-                'drive',
-                ('knife_crank', 'knife'),
-                t,
-                [phi, s],
-                [timing.omega_k * lam, v],
-                [zeros, zeros] if wt else None,
-            )
-        if unit == 'belts':
-            return stack_samples(
-                'belts',
-                ('first_transporter',),
-                t,
-                [timing.V_d * theta],
-                [timing.V_d * lam],
-                [np.zeros(t.size)] if wt else None,
-            )
-        if unit == 'feed':
-            return self._feed_unit(t, theta, lam)
-        raise KeyError(f'unit {unit!r} has no folder joints; units: {", ".join(self.units)}')
-
-    def _feed_unit(self, t: np.ndarray, theta: np.ndarray, lam: np.ndarray) -> JointSamples:
-        V_tr, belt, plan = self.V_tr, self.belt, self.plan
-        zeros = np.zeros(t.size)
-        b = belt.at(t, theta)
-        names = ['feed_belt']
-        pos = [V_tr * b]
-        vel = [V_tr * lam * belt.factor(t)]
-        eff: list[np.ndarray] | None = [zeros] if self.with_torque else None
-        if plan is not None:
-            chain_pos = plan.v_A * theta
-            sch = plan.schedule
-            a0, slack = sch.stroke_travel(theta)  # the carriage that entered the stroke last
-            on = a0 <= sch.S + slack
-            car_x = np.zeros(t.size)
-            car_v = np.zeros(t.size)
-            st = None
-            u = None
-            if on.any():
-                u = plan.path.position(np.clip(a0[on], 0.0, sch.S))
-                st = dlv.evaluate_stroke(plan.params, u, return_section='geometric')
-                car_x[on] = u * plan.chain.x_max + plan.rod * (1.0 - np.cos(st.alpha))
-                car_v[on] = st.K_v * plan.v_A * lam[on]
-            names += ['chain', 'carriage']
-            pos += [chain_pos, car_x]
-            vel += [plan.v_A * lam, car_v]
-            if eff is not None:
-                if t.size == 1:  # a node's tick: reuse the carriage's stroke evaluation
-                    torque = self._sprocket_torque(a0, slack, on, u, st)
-                else:
-                    torque = np.asarray(chain_friction.sprocket_torque(self.scene, theta), dtype=float)
-                if torque.shape != t.shape or not np.all(np.isfinite(torque)):
-                    raise ValueError('chain_friction.sprocket_torque must return finite values shaped like Θ')
-                eff += [torque, zeros]
-        return stack_samples('feed', tuple(names), t, pos, vel, eff)
-
-    def _sprocket_torque(
-        self, a0: np.ndarray, slack: np.ndarray, on0: np.ndarray, u0: np.ndarray | None, st0: Any
-    ) -> np.ndarray:
-        """:func:`folder_line.core.effects.chain_friction.sprocket_torque` at the same Θ, bit for bit.
-
-        The fast path of a node's tick: the same operations in the same order as
-        ``chain_friction._stroke_torque`` (a test compares the two bit for bit), but the
-        newest carriage's stroke evaluation is the carriage joint's own where it is the
-        same (geometric return section), which halves the cost of the tick."""
-        p = self.torque_params
-        plan = self.plan
-        assert p is not None and plan is not None
-        sch = plan.schedule
-        total = np.zeros(a0.shape)
-        for m in range(sch.max_on_stroke):  # carriages on the stroke at once
-            a = a0 + m * sch.pitch
-            on = (a >= -slack) & (a <= sch.S + slack)
-            if np.any(on):
-                if m == 0 and st0 is not None and p.return_section == 'geometric' and np.array_equal(on, on0):
-                    total[on] += st0.forces(p.P_k, p.r).M_1
-                else:
-                    u = plan.path.position(np.clip(a[on], 0.0, sch.S))
-                    total[on] += chain_friction.stroke_state(p, plan.params, u).M_1
-        return total
+        """Joint states of one unit (``drive``, ``belts``, ``feed``) at ``t`` (s, in ``[0, duration]``)."""
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(tt, theta, lam)
+        return self.stream.sample_unit(unit, tt, theta, lam)
 
 
 def simulate_folder(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
     """Simulate the folder (and its delivery) for ``duration`` seconds of line time.
 
-    A thin wrapper: ``FolderLine(scene, drive, duration).result(t_samples)``.
-
-    Parameters
-    ----------
-    scene : Scene
-        As for :class:`FolderLine`.
-    drive : Drive
-        Master drive.
-    duration : float
-        Line time, s (> 0).
-    t_samples : ndarray, shape (N,)
-        Sample times in [0, duration], s (may be empty: events only).
-
-    Returns
-    -------
-    SubResult
-        Events (see the module docstring), samples per unit, constraints
-        (:func:`folder_line.core.line.constraints.evaluate_folder_constraints`), summary.
+    ``FolderLine(scene, drive, duration).result(t_samples)``: events, samples per unit on
+    ``t_samples`` (s in ``[0, duration]``; may be empty), constraints, summary.
     """
     return FolderLine(scene, drive, duration).result(t_samples)

@@ -158,7 +158,7 @@ def setup(scene: Scene, drive: Drive, duration: float) -> Setup:
         scene=scene,
         drive=drive,
         duration=duration,
-        theta_end=float(np.asarray(drive.theta(duration))),
+        theta_end=float(np.asarray(drive.theta(duration))) if math.isfinite(duration) else math.inf,
         timing=timing,
         V_tr=float(scene.machine('feed_transporter').V_tr),
         phase=float(scene.sheets.phase),
@@ -511,6 +511,82 @@ def summary(
             'slowdowns': int(np.asarray(st.slowdowns.t_start).size) if st.slowdowns is not None else 0,
         }
     return summary
+
+
+def static_summary(s: Setup) -> dict[str, Any]:
+    """The folder's summary figures that do not depend on the run (the counts left at 0 for the caller),
+    in the order of :func:`summary`."""
+    timing, V_tr, phase, plan = s.timing, s.V_tr, s.phase, s.plan
+    V_d, T, L = timing.V_d, timing.T, timing.L_feed
+    out: dict[str, Any] = dict.fromkeys(
+        (
+            'cycles',
+            'cycles_started',
+            'sheets_fed',
+            'sheets_at_stops',
+            'sheets_folded',
+            'sheets_jammed',
+            'sheets_counted',
+            'sheets_in_machine',
+        ),
+        0,
+    )
+    out['sheets_balance_ok'] = True
+    t_feed = L / V_tr
+    out.update(
+        {
+            'V_d': _json_float(V_d),
+            'V_tr': _json_float(V_tr),
+            'v_tr_over_v_d': _json_float(V_tr / V_d),
+            'V_tr_min': _json_float(timing.V_tr_min),
+            'V_tr_min_over_V_d': _json_float(timing.ratio_min),
+            'knife_window_s': _json_float(timing.t_knife),
+            'knife_window_deg': _json_float(math.degrees(timing.knife.phi_out - timing.knife.phi_in)),
+            'knife_in_deg': _json_float(math.degrees(timing.knife.phi_in)),
+            'knife_out_deg': _json_float(math.degrees(timing.knife.phi_out)),
+            'timing': {
+                'T': _json_float(T),
+                't_in': _json_float(timing.knife.t_in),
+                't_out': _json_float(timing.knife.t_out),
+                't_knife': _json_float(timing.t_knife),
+                't_dwell': _json_float(timing.t_dwell),
+                't_fw': _json_float(timing.t_fw),
+                't_allowed': _json_float(timing.t_allowed),
+            },
+            'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
+        }
+    )
+    if s.slip is not None:
+        cost = float(feed_slip.slip_cost(s.slip, V_d, V_tr, L))
+        out['feed_slip'] = _slip_info(s, s.slip, cost)
+        out['slack']['slip_cost'] = _json_float(cost)
+        t_feed += cost
+    out['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
+    rest = (T - timing.t_knife) - phase - t_feed
+    out['slack']['rest_at_stops'] = _json_float(rest)
+    if s.bounce is not None:
+        nominal = float(V_tr)
+        settle = _json_float(stop_bounce.settle_time(s.bounce, nominal))
+        out['slack']['settle_time'] = settle
+        out['slack']['settled_margin'] = _json_float(rest - settle)
+        out['stop_bounce'] = {
+            'bounces_at_V_tr': int(stop_bounce.bounce_count(s.bounce, nominal)),
+            'settle_time_at_V_tr': settle,
+            'first_rebound_at_V_tr': _json_float(stop_bounce.first_rebound(s.bounce, nominal)),
+            'bounces_max': 0,
+            'settle_time_max': 0.0,
+        }
+    if plan is not None:
+        out['release'] = {
+            'u_rel': _json_float(plan.u_rel),
+            'K_v': _json_float(plan.K_v_rel),
+            'chain_travel': _json_float(plan.travel_rel),
+            'v_A': _json_float(plan.v_A),
+            'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
+        }
+    if plan is not None and s.scene.has('chain_friction'):
+        out['delivery'] = _delivery_info(s, plan)
+    return out
 
 
 def _delivery_info(s: Setup, plan: DeliveryPlan) -> dict[str, Any]:

@@ -1,4 +1,7 @@
-"""L — the leaf layup part of the line: ``simulate_layup(scene, drive, duration, t_samples)``.
+"""L over a span in one window: :class:`LayupLine` and ``simulate_layup(scene, drive, duration, t_samples)``.
+
+:class:`LayupLine` runs the streamed layup (:class:`folder_line.core.line.layup_stream.LayupStream`)
+over ``[0, duration]`` in one window and keeps what it handed out.
 
 Leaves stream into the two chutes (transporter 3 with exit C, transporter 4 with
 exit E, alternating), leave the chute exits and, with ``leaf_flight``, fly to the
@@ -68,39 +71,26 @@ leaf entering a standing chute waits on the standing belt and leaves when it run
 again; without belts (the paper's picture) it drops at the exit with the chute's
 swing velocity, 0 while held. The crank and the belts stand still.
 
-:class:`LayupLine` computes the events, constraints and summary once per scene,
-drive and duration and samples the joint states at any times;
-:func:`simulate_layup` is its thin wrapper.
+The crank kinematics are :class:`folder_line.core.line.layup_kinematics.LayupKinematics`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
-from folder_line.core.line.constraints import chute_speed_series
-from folder_line.core.line.events import (
-    ConstraintSeries,
-    JointSamples,
-    LinePart,
-    SubResult,
-    make_events,
-    merge_events,
-    stack_samples,
-)
+from folder_line.core.line.events import JointSamples, LinePart, SubResult
+from folder_line.core.line.folder_sim import join_rows
+from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
+from folder_line.core.line.layup_stream import LayupStream
 from folder_line.core.line.machines import StreamParams
-from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms.belt import belt_intervals
+from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
-from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
 from folder_line.core.numerics import rng as rng_mod
-from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
@@ -114,11 +104,6 @@ __all__ = [
     'leaf_stream',
     'simulate_layup',
 ]
-
-#: half-width of the crank-angle window about a swing extreme for the summary, rad (5°)
-EXTREME_WINDOW = math.radians(5.0)
-#: crank-angle bins of the summary's exit speed by phase
-PHASE_BINS = 36
 
 
 def leaf_stream(stream: StreamParams, duration: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -148,116 +133,6 @@ def leaf_stream(stream: StreamParams, duration: float, seed: int) -> tuple[np.nd
     return j, t
 
 
-class LayupKinematics:
-    """Crank angle and chute kinematics at line times, geared to the master drive.
-
-    Parameters
-    ----------
-    params : LayupParams
-        The six-bar.
-    drive : Drive
-        The master drive.
-    """
-
-    def __init__(self, params: LayupParams, drive: Drive) -> None:
-        self.params = params
-        self.model = LayupModel(params)
-        self.drive = drive
-        self.turns_rate = params.n_kr / 60.0  # crank turns per nominal second
-        self.omega = params.omega  # nominal crank speed, rad/s
-        self._r = params.O2B / params.l3
-
-    def turns(self, t: np.ndarray) -> np.ndarray:
-        """Crank turns ``n_kr/60 · Θ(t)``."""
-        return np.asarray(self.drive.theta(t), dtype=float) * self.turns_rate
-
-    def cycle(self, t: np.ndarray) -> np.ndarray:
-        """Crank cycle index ``floor(n_kr/60 · Θ(t))``."""
-        cycles: np.ndarray = np.floor(self.turns(np.asarray(t, dtype=float))).astype(np.int64)
-        return cycles
-
-    @staticmethod
-    def wrap(turns: np.ndarray) -> np.ndarray:
-        """Crank angle in [0, 2π) of a number of turns."""
-        phi = TAU * (turns - np.floor(turns))
-        return np.where(phi >= TAU, 0.0, phi)
-
-    def state(self, t: np.ndarray) -> tuple[np.ndarray, Any, np.ndarray, np.ndarray]:
-        """(φ in [0, 2π), nominal LayupState with accelerations, λ, λ') at times t."""
-        t = np.asarray(t, dtype=float)
-        phi = self.wrap(self.turns(t))
-        st = self.model.arrays(phi)
-        return phi, st, np.asarray(self.drive.rate(t), dtype=float), np.asarray(self.drive.rate_dot(t), dtype=float)
-
-    def chute(self, t: np.ndarray, chute: np.ndarray) -> dict[str, np.ndarray]:
-        """Per-leaf chute quantities at times t (chute 0: transporter 3, exit C; 1: transporter 4, exit E).
-
-        Returns
-        -------
-        dict
-            ``phi`` (rad), ``x``, ``y`` (exit point, m), ``sin``, ``cos`` (of the chute
-            angle θ' from the downward vertical; t̂ = (sin, −cos)), ``omega``, ``eps``
-            (rad/s, rad/s², at the drive's speed), ``v_perp`` (exit speed across the
-            chute, m/s, signed), ``lam`` (λ).
-        """
-        p = self.params
-        phi, st, lam, lamd = self.state(t)
-        c4 = np.asarray(chute) == 1
-        x = np.where(c4, st.xE, st.xC)
-        y = np.where(c4, st.yE, st.yC)
-        sin = np.where(c4, (st.xE - p.O2O3) / p.l5, st.xC / p.l3)
-        cos = np.where(c4, -st.yE / p.l5, -st.yC / p.l3)
-        w0 = np.where(c4, st.omega5, st.omega3)
-        e0 = np.where(c4, st.eps5, st.eps3)
-        omega = w0 * lam
-        eps = e0 * lam * lam + w0 * lamd
-        length = np.where(c4, p.l5, p.l3)
-        return {
-            'phi': phi,
-            'x': x,
-            'y': y,
-            'sin': sin,
-            'cos': cos,
-            'omega': omega,
-            'eps': eps,
-            'v_perp': omega * length,
-            'lam': lam,
-        }
-
-    def chute_scalar(self, t: float, chute: int) -> tuple[float, float, float, float]:
-        """(sin θ', cos θ', ω, ε) of one chute at one time (pure ``math``, a few µs)."""
-        p = self.params
-        d = self.drive
-        ta = np.asarray(float(t))
-        turns = float(d.theta(ta)) * self.turns_rate
-        phi = TAU * (turns - math.floor(turns))
-        lam = float(d.rate(ta))
-        lamd = float(d.rate_dot(ta))
-        pt = self.model.point(phi)
-        w = self.omega
-        c, s = math.cos(phi), math.sin(phi)
-        R = p.R_kr
-        rc, rs = R * c, R * s
-        xA, yA = p.a + rc, p.b + rs
-        xB, yB = pt.xC * self._r, pt.yC * self._r
-        w3 = pt.omega3
-        ux, uy = xB - xA, yB - yA
-        rvx, rvy = -w3 * yB + w * rs, w3 * xB - w * rc
-        num = w3 * w3 * (xB * ux + yB * uy) - w * w * (ux * rc + uy * rs) - (rvx * rvx + rvy * rvy)
-        e3 = num / (xA * yB - yA * xB)
-        if chute == 0:
-            return (pt.xC / p.l3, -pt.yC / p.l3, w3 * lam, e3 * lam * lam + w3 * lamd)
-        xC, yC = pt.xC, pt.yC
-        wx, wy = pt.xE - p.O2O3, pt.yE
-        w5 = pt.omega5
-        ux, uy = pt.xE - xC, pt.yE - yC
-        cdd = e3 * (uy * xC - ux * yC) - w3 * w3 * (ux * xC + uy * yC)
-        rvx, rvy = -w5 * wy + w3 * yC, w5 * wx - w3 * xC
-        num = w5 * w5 * (ux * wx + uy * wy) + cdd - (rvx * rvx + rvy * rvy)
-        e5 = num / ((xC - p.O2O3) * wy - yC * wx)
-        return (wx / p.l5, -wy / p.l5, w5 * lam, e5 * lam * lam + w5 * lamd)
-
-
 class LeafFlights(NamedTuple):
     """The flights of the exited leaves (``leaf_flight``), in exit order; one element per leaf.
 
@@ -276,22 +151,8 @@ class LeafFlights(NamedTuple):
     x_land: np.ndarray
 
 
-def _empty_slowdowns() -> faults.Slowdowns:
-    z = np.zeros(0)
-    return faults.Slowdowns(z, z, z)
-
-
-def _stats(x: np.ndarray) -> dict[str, float] | None:
-    if x.size == 0:
-        return None
-    return {'leaves': int(x.size), 'mean': float(np.mean(x)), 'min': float(np.min(x)), 'max': float(np.max(x))}
-
-
 class LayupLine(LinePart):
-    """The layup part of the line on a drive over ``[0, duration]``: built once, sampled anywhere.
-
-    Construction computes the events, constraints and summary (:func:`simulate_layup`
-    documents them); :meth:`sample` gives the joint states at any times.
+    """The layup part of the line on a drive over ``[0, duration]``, in one window, kept.
 
     Parameters
     ----------
@@ -302,241 +163,54 @@ class LayupLine(LinePart):
     duration : float
         Line time, s (> 0).
     tunings : iterable of Tuning
-        The operator's changes (:mod:`folder_line.core.line.tuning`): here the chute belt
-        speed ``layup.v_tr`` from each one's time on.
+        The operator's changes: here the chute belt speed ``layup.v_tr``.
 
     Attributes
     ----------
     events : ndarray of EVENT_DTYPE
-        Sorted by time.
+        Sorted by time, kind, sheet.
     constraints : list of ConstraintSeries
     summary : dict
-    nodes : dict of str to tuple of str
-        Node -> joint names of this part.
     kinematics : LayupKinematics
+    flights : LeafFlights or None
+        Every exited leaf's flight with ``leaf_flight``, in exit order.
+    stream : LayupStream
     """
 
     def __init__(self, scene: Scene, drive: Drive, duration: float, tunings: Iterable[Tuning] = ()) -> None:
-        lp: LayupParams = scene.machine('layup')
-        kin = LayupKinematics(lp, drive)
+        ls = LayupStream(scene, drive, tunings)
         duration = float(duration)
-        theta_end = float(np.asarray(drive.theta(np.asarray(duration)), dtype=float))
-        belts_on = scene.has('chute_belts')
-        friction_on = scene.has('guide_friction') and not belts_on
-        flight_on = scene.has('leaf_flight')
-        damage_on = scene.has('leaf_damage')
-        faults_on = scene.has('faults')
-        sw = sweep(lp)
-
-        # ------------------------------------------------------------------ stream
-        slot, t_nom = leaf_stream(scene.sheets, duration, scene.seed)
-        in_run = (t_nom >= 0.0) & (t_nom <= duration)
-        tables: list[np.ndarray] = []
-        slow = None
-        if faults_on:
-            fp = scene.effect_params('faults')
-            sf = faults.draw_sheet_faults(fp, int(slot.size), rng_mod.stream(scene.seed, 'layup.faults'))
-            sub = faults.SheetFaults(sf.missing[in_run], sf.double[in_run], sf.delay[in_run])
-            if belts_on:
-                slow = faults.draw_slowdowns(
-                    fp, duration, 60.0 / lp.n_kr, rng_mod.stream(scene.seed, 'layup.belt_slowdowns')
-                )
-            ids_run, t_run = slot[in_run], t_nom[in_run]
-            tables.append(
-                faults.fault_events(
-                    sub,
-                    t_run,
-                    ids_run,
-                    kin.cycle(t_run),
-                    slow if slow is not None else _empty_slowdowns(),
-                    duration,
-                )
-            )
-            present = ~sub.missing
-            dbl = present & sub.double
-            ids = np.concatenate([ids_run[present], ids_run[dbl]])
-            t_in = np.concatenate([(t_run + sub.delay)[present], (t_run + sub.delay)[dbl]])
-            order = np.lexsort((ids, t_in))
-            ids, t_in = ids[order], t_in[order]
-        else:
-            ids, t_in = slot[in_run], t_nom[in_run]
-        entered = t_in <= duration
-        ids, t_in = ids[entered], t_in[entered]
-        chute = (ids % 2).astype(np.int64)
-        length = np.where(chute == 1, lp.l5, lp.l3)
-        n = int(ids.size)
-        if n:
-            tables.append(make_events('leaf_enter', t_in, sheet=ids, cycle=kin.cycle(t_in)))
-
-        # ------------------------------------------------------------------ exit
-        profile = None
-        v_along = np.zeros(n)
-        if belts_on:
-            v_tr = chute_belts.check_belt_speed(lp.v_tr)
-            steps = belt_steps(tunings, 'layup.v_tr', v_tr)
-            profile = chute_belts.belt_profile(v_tr, drive, duration, *belt_intervals(slow, steps))
-            t_out, exited = chute_belts.exit_times(profile, drive, length, t_in, theta_end)
-            if exited.any():
-                v_along[exited] = chute_belts.belt_speed(profile, drive, t_out[exited])
-        elif friction_on:
-            gp = scene.effect_params('guide_friction')
-            guide_friction.check_geometry(gp, min(lp.l3, lp.l5), min(-sw.yC[1] / lp.l3, -sw.yE[1] / lp.l5))
-
-            def kin_vec(t: np.ndarray, ch: np.ndarray) -> guide_friction.ChuteState[npt.NDArray[np.float64]]:
-                q = kin.chute(t, ch)
-                return guide_friction.ChuteState(q['sin'], q['cos'], q['omega'], q['eps'])
-
-            def kin_one(t: float, ch: int) -> guide_friction.ChuteState[float]:
-                return guide_friction.ChuteState(*kin.chute_scalar(t, ch))
-
-            res = guide_friction.slide(gp, kin_vec, kin_one, t_in, chute, length, duration)
-            t_out, exited = res.t_exit, res.exited
-            v_along = np.where(exited, res.v_exit, 0.0)
-            if res.stick_t.size:
-                tables.append(
-                    make_events('leaf_stick', res.stick_t, sheet=ids[res.stick_leaf], cycle=kin.cycle(res.stick_t))
-                )
-            if res.slip_t.size:
-                tables.append(
-                    make_events('leaf_slip', res.slip_t, sheet=ids[res.slip_leaf], cycle=kin.cycle(res.slip_t))
-                )
-        else:
-            t_out, exited = t_in.copy(), np.ones(n, dtype=bool)
-
-        xi = np.flatnonzero(exited)
-        t_x, id_x, ch_x = t_out[xi], ids[xi], chute[xi]
-        q = kin.chute(t_x, ch_x)
-        u = v_along[xi]
-        vp = q['v_perp']
-        speed = chute_belts.absolute_speed(vp, u) if belts_on else np.sqrt(vp * vp + u * u)
-        # t̂ = (sin, −cos), n̂ = (cos, sin)
-        vx = u * q['sin'] + vp * q['cos']
-        vy = -u * q['cos'] + vp * q['sin']
-        cyc_x = kin.cycle(t_x)
-        if xi.size:
-            tables.append(make_events('leaf_exit', t_x, sheet=id_x, cycle=cyc_x, value=speed))
-
-        constraints: list[ConstraintSeries] = []
-        n_damaged = 0
-        if damage_on:
-            bad = leaf_damage.damaged(scene.effect_params('leaf_damage'), speed)
-            n_damaged = int(bad.sum())
-            if n_damaged:
-                tables.append(
-                    make_events('leaf_damaged', t_x[bad], sheet=id_x[bad], cycle=cyc_x[bad], value=speed[bad])
-                )
-        # the same code as the supervisor's (constraints.evaluate_layup_constraints on the leaf_exit rows)
-        chute_series = chute_speed_series(scene, id_x, t_x, speed)
-        if chute_series is not None:
-            constraints.append(chute_series)
-
-        # ------------------------------------------------------------------ flight
-        summary_flight: dict[str, Any] = {}
-        n_landed = n_spilled = 0
-        flights = None
-        if flight_on:
-            fpar = scene.effect_params('leaf_flight')
-            cont = scene.machine('container')
-            lowest = min(sw.yC[0], sw.yE[0])
-            if not cont.y_floor < lowest:
-                raise ParameterError(
-                    'container.y_floor', cont.y_floor, f'must be below the lowest chute exit (y = {lowest!r} m)'
-                )
-            t_f, x_land = leaf_flight.landing(fpar, q['x'], q['y'], vx, vy, cont.y_floor)
-            t_land = t_x + t_f
-            order = np.argsort(t_x, kind='stable')
-            flights = LeafFlights(*(a[order] for a in (t_x, q['x'], q['y'], vx, vy, t_land, x_land)))
-            down = t_land <= duration
-            inside = (x_land >= cont.x_left) & (x_land <= cont.x_right)
-            li, si = down & inside, down & ~inside
-            n_landed, n_spilled = int(li.sum()), int(si.sum())
-            if n_landed:
-                tables.append(
-                    make_events(
-                        'leaf_landed', t_land[li], sheet=id_x[li], cycle=kin.cycle(t_land[li]), value=x_land[li]
-                    )
-                )
-            if n_spilled:
-                tables.append(
-                    make_events(
-                        'leaf_spilled', t_land[si], sheet=id_x[si], cycle=kin.cycle(t_land[si]), value=x_land[si]
-                    )
-                )
-            hist = leaf_flight.histogram(x_land[li], cont.x_left, cont.x_right, cont.bins)
-            summary_flight = {
-                'landing_histogram': {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]},
-                'landing_cv': hist.cv,
-                'landing_x': _stats(x_land[li]),
-                'spilled_left': int((si & (x_land < cont.x_left)).sum()),
-                'spilled_right': int((si & (x_land > cont.x_right)).sum()),
-            }
-
-        # ------------------------------------------------------------------ summary
-        summary = _summary(kin, lp, theta_end, n, t_x, speed, u, q['phi'], n_landed, n_spilled, n_damaged)
-        summary.update(summary_flight)
-        if friction_on:
-            summary['guide_friction'] = {
-                'steps': int(res.steps),
-                'sticks': int(res.stick_t.size),
-                'slips': int(res.slip_t.size),
-                'exit_speed_along': _stats(u),
-            }
+        ls.compute(duration + ls.lookahead)
+        events, rows = ls.emit(duration)
         self.scene = scene
         self.drive = drive
         self.duration = duration
-        self.kinematics = kin
-        self.profile = profile
-        #: the leaves' flights with ``leaf_flight`` (what the scenery draws), else None
-        self.flights = flights
-        self.events = merge_events(tables)
-        self.constraints = constraints
-        self.summary = summary
-        self.units: dict[str, tuple[str, ...]] = {'drive': ('layup_crank', 'transporter3', 'transporter4')}
-        if belts_on:
-            self.units['belts'] = ('chute_belts',)
+        self.stream = ls
+        self.kinematics = ls.kinematics
+        self.profile = ls.profile
+        self.events = events
+        names = ['chute_speed'] if scene.has('chute_belts') else []
+        self.constraints = join_rows(rows, names, {}) if rows else []
+        theta_end = float(np.asarray(drive.theta(np.array([duration])), dtype=float)[0])
+        self.summary = ls.summary(theta_end)
+        self.units = ls.units
+        self.flights: LeafFlights | None = None
+        if ls.flight_on:
+            fv = ls.flights_view()
+            fv = fv[fv['t_exit'] <= duration]
+            self.flights = LeafFlights(*(fv[k] for k in ('t_exit', 'x0', 'y0', 'vx', 'vy', 't_land', 'x_land')))
 
     def sample_unit(
         self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
     ) -> JointSamples:
-        """Joint states of one unit (``drive``; ``belts`` with belts) at ``t``."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        theta, lam = self._drive_state(t, theta, lam)
-        kin = self.kinematics
-        if unit == 'drive':
-            phi = kin.wrap(theta * kin.turns_rate)
-            st = kin.model.arrays(phi, accelerations=False)  # θ, ω do not depend on the accelerations
-            return stack_samples(
-                'drive',
-                ['layup_crank', 'transporter3', 'transporter4'],
-                t,
-                [phi, st.theta3, st.theta5],
-                [kin.omega * lam, st.omega3 * lam, st.omega5 * lam],
-            )
-        if unit == 'belts' and self.profile is not None:
-            pr = self.profile
-            return stack_samples(
-                'belts',
-                ['chute_belts'],
-                t,
-                [pr.v_tr * pr.phase.at(t, theta)],
-                [pr.v_tr * lam * pr.phase.factor(t)],
-            )
-        raise KeyError(f'unit {unit!r} has no layup joints; units: {", ".join(self.units)}')
+        """Joint states of one unit (``drive``; ``belts`` with belts) at ``t`` (s, in ``[0, duration]``)."""
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        theta, lam = self._drive_state(tt, theta, lam)
+        return self.stream.sample_unit(unit, tt, theta, lam)
 
 
 def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
-    """Simulate the layup part of the line.
-
-    Parameters
-    ----------
-    scene : Scene
-        Validated scene with a ``layup`` machine (and ``container`` for ``leaf_flight``).
-    drive : Drive
-        The master drive.
-    duration : float
-        Line time, s (> 0).
-    t_samples : ndarray
-        Joint-state sample times, s (may be empty).
+    """Simulate the layup part of the line: ``LayupLine(scene, drive, duration).result(t_samples)``.
 
     Returns
     -------
@@ -551,20 +225,15 @@ def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.nd
           ``transporter4`` (θ5, ω5), rad and rad/s; with belts, unit
           ``belts``, joint ``chute_belts``: belt travel since t = 0, m (v_tr Θ,
           less the travel lost in slow-downs), and belt speed v_tr λ f, m/s.
-        * constraints: ``chute_speed`` per exited leaf (``cycle`` = leaf id), m/s, with
-          belts (:mod:`folder_line.core.effects.chute_belts`).
+        * constraints: ``chute_speed`` per exited leaf (``cycle`` = leaf id), m/s, with belts.
         * summary (JSON-ready; None where there is nothing to report): ``crank_cycles``,
-          ``leaves`` (entered), ``leaves_exited``, ``leaves_landed``,
-          ``leaves_spilled``, ``leaves_damaged``, ``min_exit_speed``,
-          ``max_exit_speed``, ``mean_exit_speed`` (m/s), ``exit_speed_at_extremes``
-          (per dead centre ``extended``/``folded``: its crank angle ``phi`` and the
-          exit-speed statistics of the leaves leaving within ±5° of it),
-          ``exit_speed_by_phase`` (mean exit speed in 36 bins of exit crank angle),
-          ``swing_speed`` (min/max of |v_C|, |v_E| over a turn at nominal speed, for
-          reference); with ``leaf_flight``: ``landing_histogram`` {``edges``,
-          ``counts``}, ``landing_cv``, ``landing_x`` statistics, ``spilled_left``,
-          ``spilled_right``; with ``guide_friction``: ``guide_friction`` {``steps``,
-          ``sticks``, ``slips``, ``exit_speed_along``}.
+          ``leaves`` (entered), ``leaves_exited``, ``leaves_landed``, ``leaves_spilled``,
+          ``leaves_damaged``, ``min_exit_speed``, ``max_exit_speed``, ``mean_exit_speed``
+          (m/s), ``exit_speed_at_extremes``, ``exit_speed_by_phase`` (mean exit speed in 36
+          bins of exit crank angle), ``swing_speed``; with ``leaf_flight``:
+          ``landing_histogram`` {``edges``, ``counts``}, ``landing_cv``, ``landing_x``,
+          ``spilled_left``, ``spilled_right``; with ``guide_friction``: ``guide_friction``
+          {``steps`` (RK4 steps summed over the leaves), ``sticks``, ``slips``, ``exit_speed_along``}.
 
     Raises
     ------
@@ -574,46 +243,3 @@ def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.nd
         pointing upward, with ``guide_friction``.
     """
     return LayupLine(scene, drive, duration).result(t_samples)
-
-
-def _summary(
-    kin: LayupKinematics,
-    lp: LayupParams,
-    theta_end: float,
-    n: int,
-    t_x: np.ndarray,
-    speed: np.ndarray,
-    v_along: np.ndarray,
-    phi_x: np.ndarray,
-    n_landed: int,
-    n_spilled: int,
-    n_damaged: int,
-) -> dict[str, Any]:
-    ext = swing_extremes(lp)
-    at_ext: dict[str, Any] = {}
-    for e in ext:
-        d = np.abs(np.remainder(phi_x - e.phi + math.pi, TAU) - math.pi)
-        near = d <= EXTREME_WINDOW
-        entry = _stats(speed[near])
-        at_ext[e.kind] = {'phi': e.phi, 'window_deg': math.degrees(EXTREME_WINDOW), 'exit_speed': entry}
-    edges = np.linspace(0.0, TAU, PHASE_BINS + 1)
-    b = np.clip(np.searchsorted(edges, phi_x, side='right') - 1, 0, PHASE_BINS - 1)
-    cnt = np.bincount(b, minlength=PHASE_BINS)
-    tot = np.bincount(b, weights=speed, minlength=PHASE_BINS)
-    by_phase = [float(tot[i] / cnt[i]) if cnt[i] else None for i in range(PHASE_BINS)]
-    grid = kin.model.arrays(np.concatenate([np.arange(4096) * (TAU / 4096), [e.phi for e in ext]]), accelerations=False)
-    swing = np.abs(np.concatenate([grid.vC, grid.vE]))
-    return {
-        'crank_cycles': int(math.floor(theta_end * kin.turns_rate)),
-        'leaves': n,
-        'leaves_exited': int(t_x.size),
-        'leaves_landed': n_landed,
-        'leaves_spilled': n_spilled,
-        'leaves_damaged': n_damaged,
-        'min_exit_speed': float(speed.min()) if speed.size else None,
-        'max_exit_speed': float(speed.max()) if speed.size else None,
-        'mean_exit_speed': float(speed.mean()) if speed.size else None,
-        'exit_speed_at_extremes': at_ext,
-        'exit_speed_by_phase': {'edges_deg': [float(math.degrees(x)) for x in edges], 'mean': by_phase},
-        'swing_speed': {'min': float(swing.min()), 'max': float(swing.max())},
-    }

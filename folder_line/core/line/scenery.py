@@ -4,14 +4,16 @@ What a viewer needs to *see* the line (the ROS markers, an animation): the layup
 six-bar with its chutes and belts, the leaves in the air and on the container floor,
 the container, the folding cylinder, the knife, the front stops and the signatures,
 the delivery chain with its carriages, and the pile. Every moving position is the
-core's closed form at the drive phase of the model at ``t`` (``model.drive.theta``):
+core's closed form at the drive phase of the line at ``t`` (``line.drive.theta``):
 the six-bar from :class:`folder_line.core.mechanisms.layup.LayupModel`, the knife from
 :func:`folder_line.core.mechanisms.knife.position`, the carriages from the chain
-schedule and path (:mod:`folder_line.core.mechanisms.chain`), the leaves from
+schedule and path (:mod:`folder_line.core.mechanisms.chain`), the signatures on the feed
+belt from the belt's travel since their hand-over, the leaves from
 :func:`folder_line.core.effects.leaf_flight.state` on the flights the layup computed,
-the pile from :class:`folder_line.core.mechanisms.pile.PileTable`. Nothing here is
+the pile from :class:`folder_line.core.mechanisms.pile.PileStream`. Nothing here is
 integrated or guessed from a sample grid, so a shape at ``t`` is the same live and in
-a batch run.
+a batch run. The line is a :class:`folder_line.core.line.stream.LineStream`: a shape can
+be asked for at any time of its last window (the signatures and leaves it still holds).
 
 Frame ``line`` (:data:`LINE_FRAME`)
 -----------------------------------
@@ -73,12 +75,12 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.effects import leaf_flight
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.model import LineModel
+from folder_line.core.line.stream import LineStream
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.delivery_laws import LAWS
 from folder_line.core.mechanisms.layup import TAU, LayupParams
-from folder_line.core.mechanisms.pile import PileTable, SteppedPile, counted_event
+from folder_line.core.mechanisms.pile import PileStream
 
 __all__ = [
     'BELT_GAP',
@@ -168,8 +170,8 @@ def _xz(x: Any, z: Any, origin: tuple[float, float, float]) -> np.ndarray:
     return np.stack([xx + origin[0], np.full(xx.shape, origin[1]), zz + origin[2]], axis=1)
 
 
-def _theta(model: LineModel, t: float) -> float:
-    return float(np.asarray(model.drive.theta(np.array([t])), dtype=float).reshape(-1)[0])
+def _theta(line: LineStream, t: float) -> float:
+    return float(np.asarray(line.drive.theta(np.array([t])), dtype=float).reshape(-1)[0])
 
 
 def _marks(a: np.ndarray, b: np.ndarray, travel: float) -> np.ndarray:
@@ -198,24 +200,21 @@ def chain_loop(transfer: float, stroke: float, span: float, pitch: float) -> tup
 
 
 class Scenery:
-    """The shapes of a line model's machines at any line time (see the module docstring).
+    """The shapes of a line's machines at any time of its last window (see the module docstring).
 
     Parameters
     ----------
-    model : LineModel
-        The line; the static geometry is built once here.
+    line : LineStream or LineModel
+        The line (a stream may advance between calls: the shapes are those of its state then;
+        a model's stream keeps its whole span); the static geometry is built once here.
     """
 
-    def __init__(self, model: LineModel) -> None:
-        self.model = model
-        scene = model.scene
+    def __init__(self, line: LineStream | LineModel) -> None:
+        self.line: LineStream = line.stream if isinstance(line, LineModel) else line
+        scene = self.line.scene
         self._static: dict[str, Shape] = {}
-        self._layup: Any = model.part('layup') if scene.has_layup else None
-        self._folder: Any = model.part('folder') if scene.has_folder else None
-        self._pile: PileTable | SteppedPile = model.pile  # with the operator's lowering times
-        self._counted = np.ascontiguousarray(
-            model.events['t'][model.events['kind'] == event_kind(counted_event(scene.has_delivery))]
-        )
+        self._layup: Any = self.line.part('layup') if scene.has_layup else None
+        self._folder: Any = self.line.part('folder') if scene.has_folder else None
         if self._layup is not None:
             self._init_layup()
         if self._folder is not None:
@@ -225,8 +224,12 @@ class Scenery:
 
     # ------------------------------------------------------------------ layup
 
+    @property
+    def _pile(self) -> PileStream:
+        return self.line.pile  # with the operator's lowering times
+
     def _init_layup(self) -> None:
-        scene = self.model.scene
+        scene = self.line.scene
         lp: LayupParams = scene.machine('layup')
         self._lp = lp
         o = LAYUP_ORIGIN
@@ -237,9 +240,7 @@ class Scenery:
             'layup', 'pivot', 'points', _xz([lp.a, 0.0, lp.O2O3], [lp.b, 0.0, 0.0], o), 0.05, _DARK
         )
         self._belts = scene.has('chute_belts')
-        flights = self._layup.flights
-        self._flights = flights
-        self._container = flights is not None and 'container' in scene.machines
+        self._container = self._layup.flight_on and 'container' in scene.machines
         if self._container:
             c = scene.machine('container')
             top = 0.6 * c.y_floor
@@ -256,10 +257,6 @@ class Scenery:
             )
             self._y_floor = float(c.y_floor)
             self._drag: leaf_flight.Params = scene.effect_params('leaf_flight')
-            landed = self.model.events[self.model.events['kind'] == event_kind('leaf_landed')]
-            self._landed_t = np.ascontiguousarray(landed['t'])
-            self._landed_x = np.ascontiguousarray(landed['value'])
-            self._max_flight = float(np.max(flights.t_land - flights.t_exit)) if flights.t_exit.size else 0.0
 
     def _layup_joints(self, theta: float) -> dict[str, np.ndarray]:
         kin = self._layup.kinematics
@@ -305,15 +302,14 @@ class Scenery:
         return out
 
     def _leaves(self, t: float) -> list[Shape]:
-        f = self._flights
-        i0, i1 = np.searchsorted(f.t_exit, [t - self._max_flight, t], side='right')
-        sl = slice(int(i0), int(max(i0, i1)))
-        air = f.t_land[sl] > t
+        f = self._layup.flights_view()
+        air = (f['t_exit'] <= t) & (f['t_land'] > t)
         x, y, _, _ = leaf_flight.state(
-            self._drag, f.x0[sl][air], f.y0[sl][air], f.vx[sl][air], f.vy[sl][air], t - f.t_exit[sl][air]
+            self._drag, f['x0'][air], f['y0'][air], f['vx'][air], f['vy'][air], t - f['t_exit'][air]
         )
-        n = int(np.searchsorted(self._landed_t, t, side='right'))
-        xl = self._landed_x[max(0, n - LANDED_SHOWN) : n]
+        down = f[(f['t_land'] <= t) & f['inside']]
+        down = down[np.argsort(down['t_land'], kind='stable')]
+        xl = down['x_land'][-LANDED_SHOWN:]
         return [
             _shape('layup', 'leaf', 'points', _xz(x, y, LAYUP_ORIGIN), 0.05, _LEAF),
             _shape(
@@ -324,7 +320,7 @@ class Scenery:
     # ------------------------------------------------------------------ folder
 
     def _init_folder(self) -> None:
-        scene = self.model.scene
+        scene = self.line.scene
         fl = self._folder
         kp: knf.KnifeParams = fl.knife
         cg = scene.machine('cyclogram')
@@ -358,15 +354,6 @@ class Scenery:
             0.008,
             _DARK,
         )
-        ev = self.model.events
-        h = ev[ev['kind'] == event_kind('sheet_handover')]
-        self._sheet_id = np.ascontiguousarray(h['sheet'])
-        self._sheet_t_h = np.ascontiguousarray(h['t'])
-        self._sheet_cycle = np.ascontiguousarray(h['cycle'])
-        self._sheet_t_a = _lookup(ev, 'at_stops', 'sheet', self._sheet_id)
-        self._sheet_t_c = _lookup(ev, 'knife_contact', 'cycle', self._sheet_cycle)
-        self._sheet_t_x = _lookup(ev, 'knife_exit', 'cycle', self._sheet_cycle)
-        self._sheet_t_r = _lookup(ev, 'released_on_pile', 'sheet', self._sheet_id)
 
     def _knife(self, theta: float) -> dict[str, np.ndarray]:
         kp = self._kp
@@ -377,12 +364,13 @@ class Scenery:
         tip = o + np.array([kp.e, 0.0, -s])
         return {'knife_centre': o, 'knife_pin': pin, 'knife_tip': tip}
 
-    def _folder_shapes(self, t: float, theta: float) -> list[Shape]:
+    def _folder_shapes(self, t: float, theta: float, sheets: np.ndarray) -> list[Shape]:
         fl = self._folder
         _, _, oz = FOLDER_ORIGIN
         a = fl.timing.omega_c * theta
         spoke = self._cyl_c + self._R_c * np.array([math.cos(-a), 0.0, math.sin(-a)])
-        travel = float(fl.V_tr * np.asarray(fl.belt.at(np.array([t]), np.array([theta]))).reshape(-1)[0])
+        b_t = float(np.asarray(fl.belt.at(np.array([t]), np.array([theta]))).reshape(-1)[0])
+        travel = fl.V_tr * b_t
         k = self._knife(theta)
         blade_top = k['knife_tip'] + np.array([0.0, 0.0, 0.08])
         knife = np.stack([k['knife_centre'], k['knife_pin'], k['knife_pin'], k['knife_tip'], k['knife_tip'], blade_top])
@@ -405,22 +393,28 @@ class Scenery:
             self._static['stop'],
             _shape('folder', 'knife', 'segments', knife, 0.012, _BLUE),
             _shape('folder', 'knife_pivot', 'points', np.stack(list(k.values())), 0.025, _DARK),
-            _shape('folder', 'signature', 'segments', self._folder_sheets(t, k['knife_tip']), 0.006, _PAPER),
+            _shape(
+                'folder', 'signature', 'segments', self._folder_sheets(t, k['knife_tip'], sheets, b_t), 0.006, _PAPER
+            ),
         ]
 
     def _sheets_live(self, t: float) -> np.ndarray:
-        n = int(np.searchsorted(self._sheet_t_h, t, side='right'))
-        return np.arange(max(0, n - _SHEETS_SHOWN), n)
+        """The last :data:`_SHEETS_SHOWN` signatures handed over by ``t``, each time not yet come ``inf``."""
+        sh = self._folder.sheets_view()
+        sh = sh[~np.isnan(sh['t_h']) & (sh['t_h'] <= t)][-_SHEETS_SHOWN:].copy()
+        for name in ('t_a', 't_c', 't_x', 't_r'):
+            sh[name] = np.where(np.isnan(sh[name]) | (sh[name] > t), math.inf, sh[name])
+        return sh
 
-    def _folder_sheets(self, t: float, tip: np.ndarray) -> np.ndarray:
+    def _folder_sheets(self, t: float, tip: np.ndarray, sheets: np.ndarray, b_t: float) -> np.ndarray:
         _, _, oz = FOLDER_ORIGIN
         z = oz + 0.004
         out: list[list[float]] = []
-        for i in self._sheets_live(t):
-            t_h, t_a, t_c, t_x = self._sheet_t_h[i], self._sheet_t_a[i], self._sheet_t_c[i], self._sheet_t_x[i]
-            if t < t_a:  # on the feed belt: drawn moving evenly from the hand-over to the stops
-                done = (t - t_h) / (t_a - t_h) if math.isfinite(t_a) else 0.0
-                lead = self._stops_x - self._L_feed * (1.0 - done)
+        for row in sheets:
+            t_a, t_c, t_x = float(row['t_a']), float(row['t_c']), float(row['t_x'])
+            if t < t_a:  # on the feed belt: where the belt has carried it since the hand-over
+                done = min(max(self._folder.V_tr * (b_t - float(row['b_h'])), 0.0), float(row['L']))
+                lead = self._stops_x - float(row['L']) + done
                 out += [[lead - self._L_a, 0.0, z], [lead, 0.0, z]]
             elif t < t_c or t_a > t_c:  # at the stops (a jammed one stays there)
                 out += [[self._stops_x - self._L_a, 0.0, z], [self._stops_x, 0.0, z]]
@@ -508,7 +502,7 @@ class Scenery:
         travel: np.ndarray = np.mod(base - sch.pitch * np.arange(self._n_car), self._loop)
         return travel
 
-    def _delivery_shapes(self, t: float, theta: float) -> list[Shape]:
+    def _delivery_shapes(self, t: float, theta: float, live: np.ndarray) -> list[Shape]:
         sch = self._plan.schedule
         d = self._carriage_travel(theta)
         pins = self._chain_point(d)
@@ -517,13 +511,13 @@ class Scenery:
         grip = self._gripper(u) if u.size else np.zeros((0, 3))
         rods = np.stack([pins[on], grip], axis=1).reshape(-1, 3)
         sheets: list[np.ndarray] = []
-        for i in self._sheets_live(t):
-            if self._sheet_t_x[i] <= t < self._sheet_t_r[i]:
-                j = int(self._sheet_cycle[i]) % self._n_car
+        for row in live:
+            if row['fate'] == 1 and row['t_x'] <= t < row['t_r']:
+                j = int(row['cycle']) % self._n_car
                 p = pins[j]
                 sheets += [p, p - np.array([0.5 * self._L_a, 0.0, 0.0])]
         z_table, _ = self._pile.state(np.array([t]))
-        n = int(np.searchsorted(self._counted, t, side='right'))
+        n = int(self._pile.count(np.array([t]))[0])
         height = n * self._pile.thickness + float(z_table[0])  # the stack above the table's start, m
         top = self._pile_top + height
         stack = min(n * self._pile.thickness, PILE_SHOWN)
@@ -557,16 +551,17 @@ class Scenery:
     # ------------------------------------------------------------------ public
 
     def at(self, t: float) -> tuple[Shape, ...]:
-        """The machine at line time ``t`` (s, in [0, horizon]), in a stable order (module docstring)."""
+        """The machine at line time ``t`` (s, in the line's last window), in a stable order (module docstring)."""
         t = float(t)
-        theta = _theta(self.model, t)
+        theta = _theta(self.line, t)
         out: list[Shape] = []
         if self._layup is not None:
             out += self._layup_shapes(t, theta)
         if self._folder is not None:
-            out += self._folder_shapes(t, theta)
+            live = self._sheets_live(t)
+            out += self._folder_shapes(t, theta, live)
             if self._folder.plan is not None:
-                out += self._delivery_shapes(t, theta)
+                out += self._delivery_shapes(t, theta, live)
         return tuple(out)
 
     def vertices(self, t: float) -> dict[str, np.ndarray]:
@@ -578,7 +573,7 @@ class Scenery:
         k is in slot ``k mod n``) -- each where the scene has the machine.
         """
         t = float(t)
-        theta = _theta(self.model, t)
+        theta = _theta(self.line, t)
         out: dict[str, np.ndarray] = {}
         if self._layup is not None:
             out.update({f'layup/{k}': v for k, v in self._layup_joints(theta).items()})
@@ -588,15 +583,3 @@ class Scenery:
                 pins = self._chain_point(self._carriage_travel(theta))
                 out.update({f'delivery/carriage_{j}': p for j, p in enumerate(pins)})
         return out
-
-
-def _lookup(events: np.ndarray, kind: str, key: str, values: np.ndarray) -> np.ndarray:
-    """Times of the ``kind`` events whose ``key`` field equals each of ``values`` (inf where none; the first)."""
-    rows = events[events['kind'] == event_kind(kind)]
-    keys = rows[key]
-    order = np.argsort(keys, kind='stable')
-    ks, ts = keys[order], rows['t'][order]
-    i = np.searchsorted(ks, values)
-    ic = np.minimum(i, max(ks.size - 1, 0))
-    found = (i < ks.size) & (ks[ic] == values) if ks.size else np.zeros(values.shape, dtype=bool)
-    return np.where(found, ts[ic] if ks.size else 0.0, math.inf)

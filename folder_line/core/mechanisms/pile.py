@@ -39,7 +39,7 @@ import numpy.typing as npt
 from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
 from folder_line.core.numerics.validate import check_fields, positive
 
-__all__ = ['T_LOWER', 'UNIT', 'PileTable', 'SteppedPile', 'counted_event', 'pile_table']
+__all__ = ['T_LOWER', 'UNIT', 'PileStream', 'PileTable', 'SteppedPile', 'counted_event', 'pile_table']
 
 #: the unit that owns the table (:data:`folder_line.core.line.model.UNITS`)
 UNIT = 'counter'
@@ -217,3 +217,100 @@ def pile_table(
     return SteppedPile(
         tuple(PileTable(joint, span, thickness, tau) for span, (_, tau) in zip(spans, steps, strict=True))
     )
+
+
+class PileStream:
+    """The table of :class:`PileTable`, fed the counted sheets as the line runs, in bounded memory.
+
+    Each sheet is lowered over the lowering time in force at its count (an operator may
+    change it, :mod:`folder_line.core.line.tuning`). The sheets whose lowering has ended
+    before the earliest time still asked for are only counted.
+
+    Parameters
+    ----------
+    has_delivery : bool
+        ``pile_table`` (delivery) or ``container_floor`` (layup).
+    thickness : float
+        Sheet thickness h, m (> 0).
+    steps : list of (float, float)
+        ``(t, τ)`` from ``t`` on, sorted, the first at 0
+        (:func:`folder_line.core.line.tuning.values_from`).
+
+    Attributes
+    ----------
+    units : dict of str to tuple of str
+        ``{'counter': (joint,)}``.
+    """
+
+    def __init__(self, has_delivery: bool, thickness: float, steps: list[tuple[float, float]]) -> None:
+        self.joint = 'pile_table' if has_delivery else 'container_floor'
+        self.thickness = positive('sheets.thickness', thickness)
+        self.units: dict[str, tuple[str, ...]] = {UNIT: (self.joint,)}
+        self.steps = list(steps)
+        self.counted = 0  # sheets counted, in all
+        self.lowered = 0  # sheets whose lowering ended before the kept ones
+        self._t = np.zeros(0)  # the kept sheets' count times, s (ascending)
+        self._tau = np.zeros(0)  # and their lowering times, s
+
+    def set_steps(self, steps: list[tuple[float, float]]) -> None:
+        """New lowering times (an operator's tuning; those already in force unchanged)."""
+        self.steps = list(steps)
+
+    def add(self, times: npt.ArrayLike) -> None:
+        """Sheets counted at ``times`` (s, ascending, after those added before)."""
+        t = np.asarray(times, dtype=float).reshape(-1)
+        if t.size == 0:
+            return
+        starts = np.array([s for s, _ in self.steps])
+        taus = np.array([v for _, v in self.steps])
+        tau = taus[np.clip(np.searchsorted(starts, t, side='right') - 1, 0, None)]
+        self._t = np.concatenate((self._t, t))
+        self._tau = np.concatenate((self._tau, tau))
+        self.counted += t.size
+
+    def prune(self, t_keep: float) -> None:
+        """Forget the sheets whose lowering ended at or before ``t_keep`` (s): the state at later times is
+        unchanged."""
+        ended = self._t + self._tau <= t_keep
+        n = int(np.argmin(ended)) if not ended.all() else ended.size  # a prefix, as the ends are nearly ordered
+        if n:
+            self.lowered += n
+            self._t, self._tau = self._t[n:], self._tau[n:]
+
+    def count(self, t: npt.ArrayLike) -> np.ndarray:
+        """Sheets counted at or before line times ``t``."""
+        tt = np.asarray(t, dtype=float)
+        return (self.counted - self._t.size) + np.searchsorted(self._t, tt, side='right')
+
+    def state(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Table height z and velocity ż at line times ``t`` (m, m/s; see :class:`PileTable`), for times
+        not before the last :meth:`prune`. The sheets still lowering are added in the order counted, so the
+        values do not depend on which sheets are kept."""
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(tt)):
+            raise ValueError('PileStream.state: t must be finite')
+        ti, tau = self._t, self._tau
+        ends = ti + tau
+        done = self.lowered + np.searchsorted(np.sort(ends), tt, side='right')
+        lowered = done.astype(float)
+        speed = np.zeros(tt.shape)
+        if ti.size:
+            started = np.searchsorted(ti, tt, side='right')
+            lo = np.searchsorted(ti, tt - float(tau.max()), side='left')
+            for j in range(int((started - lo).max()) if tt.size else 0):
+                i = lo + j
+                ic = np.minimum(i, ti.size - 1)
+                on = (i < started) & (ends[ic] > tt)
+                lowered = np.where(on, lowered + np.clip((tt - ti[ic]) / tau[ic], 0.0, 1.0), lowered)
+                speed = np.where(on, speed + self.thickness / tau[ic], speed)
+        return -self.thickness * lowered + 0.0, -speed + 0.0
+
+    def sample_unit(
+        self, unit: str, t: npt.ArrayLike, theta: np.ndarray | None = None, lam: np.ndarray | None = None
+    ) -> JointSamples:
+        """Joint states of ``counter`` at ``t`` (the lift is not geared to the master drive)."""
+        if unit != UNIT:
+            raise KeyError(f'unit {unit!r} has no table joint; units: {UNIT}')
+        tt = np.asarray(t, dtype=float).reshape(-1)
+        z, zdot = self.state(tt)
+        return stack_samples(UNIT, self.units[UNIT], tt, [z], [zdot])

@@ -2,16 +2,17 @@
 
 Drive commands (:mod:`folder_line.core.mechanisms.drive`): ``hold``, ``suspend`` and ``stop``
 take the drive down from the next machine cycle boundary at least ``lead`` s after
-the decision (:meth:`folder_line.core.line.model.LineModel.next_cycle_boundary`; the line
+the decision (:meth:`folder_line.core.line.cycles.MachineCycles.next_boundary`; the line
 stops between two sheets), ``abort`` from ``lead`` s after it (``stop`` kind),
 ``start``, ``unhold`` and ``unsuspend`` bring it back ``lead`` s after the command.
 ``lead`` is the time the command needs to reach every node before it is due;
 effective times are rounded to the nanosecond (the resolution of the command
 topic), so that the supervisor and the nodes build the same drive.
 
-The line model under a new command is built only when a decision needs the drive after
-that command's effective time (:meth:`DriveSchedule.model_before`): before its time a
-command changes nothing, bit for bit, so a node can publish the command first.
+The drive under the commands (:func:`folder_line.core.line.drives.make_drive`) is updated
+in place when a command is issued: before its time a command changes nothing, bit for
+bit, and with ``motor_dynamics`` the integration done so far is kept, so a command costs
+the same at any line time.
 
 An acting state ends at the first check-grid point at or after its drive command's
 effective time where the drive is at speed (λ >= ``speed_reached``: STARTING,
@@ -27,7 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from folder_line.core.line.model import LineModel
+from folder_line.core.line.cycles import MachineCycles
+from folder_line.core.line.drives import make_drive
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand
 from folder_line.core.mechanisms.drive import Drive, target_rate
@@ -39,9 +41,9 @@ __all__ = [
     'DRIVE_COMMANDS',
     'STOP_STATES',
     'ActingState',
+    'DriveFactory',
     'DriveSchedule',
-    'ModelFactory',
-    'line_models',
+    'line_drives',
 ]
 
 #: PackML command -> (drive command kind or None, waits for the next machine cycle boundary)
@@ -78,8 +80,8 @@ STOP_STATES = ('HELD', 'SUSPENDED', 'STOPPED', 'ABORTED', 'COMPLETE')
 _NS = 1_000_000_000
 _CAUSES = {'speed': 'drive at speed', 'standstill': 'drive at standstill', 'next': 'done'}
 
-#: commands -> the line model under them (a :class:`~folder_line.core.line.model.LineModel`)
-ModelFactory = Callable[[tuple[LineCommand, ...]], LineModel]
+#: ``(commands, the drive under the commands before) -> the drive under them``
+DriveFactory = Callable[[tuple[LineCommand, ...], Drive | None], Drive]
 
 
 def _ns_round(t: float) -> float:
@@ -87,28 +89,24 @@ def _ns_round(t: float) -> float:
     return round(t * _NS) / _NS
 
 
-def line_models(scene: Scene, horizon: float) -> ModelFactory:
-    """``commands -> LineModel(scene, horizon, commands)``, the last five kept."""
-    cache: dict[tuple[LineCommand, ...], LineModel] = {}
+def line_drives(scene: Scene) -> DriveFactory:
+    """``(commands, previous) -> make_drive(scene, commands, previous)``."""
 
-    def model_factory(commands: tuple[LineCommand, ...]) -> LineModel:
-        if commands not in cache:
-            if len(cache) > 4:
-                cache.pop(next(iter(cache)))
-            cache[commands] = LineModel(scene, horizon, commands)
-        return cache[commands]
+    def drive_factory(commands: tuple[LineCommand, ...], previous: Drive | None) -> Drive:
+        return make_drive(scene, commands, previous)
 
-    return model_factory
+    return drive_factory
 
 
 class DriveSchedule:
-    """The drive commands issued so far and the line model under them.
+    """The drive commands issued so far and the drive under them.
 
     Parameters
     ----------
+    scene : Scene
+        For the machine cycles (:class:`folder_line.core.line.cycles.MachineCycles`).
     factory : callable
-        ``commands -> LineModel``: the drive, the machine cycles and the cycle boundaries
-        under the issued commands.
+        ``(commands, previous drive) -> Drive`` (:func:`line_drives`).
     lead : float
         Earliest effective time of a drive command after its decision, s (>= 0).
 
@@ -118,47 +116,39 @@ class DriveSchedule:
         Issued, sorted by effective time.
     issued : list of (float, Command)
         ``(decision time, command)`` not yet taken (:meth:`take`), in issue order.
+    cycles : MachineCycles
     """
 
-    def __init__(self, factory: ModelFactory, lead: float) -> None:
+    def __init__(self, scene: Scene, factory: DriveFactory, lead: float) -> None:
         self._factory = factory
         self.lead = lead
+        self.cycles = MachineCycles(scene)
         self.commands: tuple[LineCommand, ...] = ()
         self.issued: list[tuple[float, LineCommand]] = []
-        self._model: LineModel | None = None
-        self._model_commands: tuple[LineCommand, ...] = ()
+        self._drive: Drive | None = None
+        self._drive_commands: tuple[LineCommand, ...] = ()
 
     @property
-    def model(self) -> LineModel:
-        """The line model under the commands issued so far (built on first use after a command)."""
-        if self._model is None or self._model_commands != self.commands:
-            self._model = self._factory(self.commands)
-            self._model_commands = self.commands
-        return self._model
-
-    def model_before(self, t: float) -> LineModel:
-        """A line model that is right at times before ``t``: the one in use if no command issued since it
-        was built is effective before ``t`` (a command changes nothing before its time), else :attr:`model`."""
-        if self._model is not None:
-            unbuilt = [c.t for c in self.commands if c not in self._model_commands]
-            if not unbuilt or t < min(unbuilt):
-                return self._model
-        return self.model
+    def drive(self) -> Drive:
+        """The drive under the commands issued so far (right at every time: a command changes nothing before
+        its effective time)."""
+        if self._drive is None or self._drive_commands != self.commands:
+            self._drive = self._factory(self.commands, self._drive)
+            self._drive_commands = self.commands
+        return self._drive
 
     def effective(self, t: float, at_boundary: bool) -> float:
         """Effective time of a drive command decided at ``t``: ``lead`` later, then (``at_boundary``) at the
         next machine cycle boundary, rounded to the nanosecond."""
         earliest = t + self.lead
         if at_boundary:
-            b = float(self.model_before(earliest).next_cycle_boundary(earliest))
-            if math.isfinite(b) and self.model_before(b) is not self.model_before(earliest):
-                b = float(self.model.next_cycle_boundary(earliest))
-            if math.isfinite(b):  # else no further cycle (the line stands, or the horizon): at once
+            b = self.cycles.next_boundary(self.drive, earliest)
+            if math.isfinite(b):  # else no further cycle (the line stands): at once
                 earliest = b
         return _ns_round(earliest)
 
     def issue(self, t: float, cmd: LineCommand) -> None:
-        """Command ``cmd``, decided at ``t``, is issued (the model under it is built when first needed)."""
+        """Command ``cmd``, decided at ``t``, is issued."""
         self.commands = tuple(sorted(self.commands + (cmd,), key=lambda c: c.t))
         self.issued.append((t, cmd))
 

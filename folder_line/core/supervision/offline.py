@@ -2,7 +2,7 @@
 
 :func:`replay` runs a :class:`~folder_line.core.supervision.supervisor.Supervisor` over what a
 live supervisor was fed and reproduces its transitions exactly; :func:`run_closed_loop`
-runs the live loop without ROS (the line model's events fed step by step, the supervisor's
+runs the live loop without ROS (the streamed line's events fed step by step, the supervisor's
 commands fed back) and returns what it fed, the input of :func:`replay`.
 """
 
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
-from folder_line.core.line.model import LineModel
+from folder_line.core.line.stream import LineStream
 from folder_line.core.line.scene import Scene
 from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
@@ -26,7 +26,6 @@ __all__ = ['replay', 'run_closed_loop']
 
 def replay(
     scene: Scene,
-    horizon: float,
     events: np.ndarray,
     *,
     heard: Mapping[str, Iterable[float]] | None = None,
@@ -43,8 +42,6 @@ def replay(
     Parameters
     ----------
     scene : Scene
-    horizon : float
-        The live run's model horizon, s.
     events : ndarray of EVENT_DTYPE
         The events the live supervisor was fed (any order).
     heard : mapping of str to iterable of float, optional
@@ -71,7 +68,7 @@ def replay(
         After the replay: its ``transitions``, ``commands``, ``violations`` and
         ``balances`` are the live run's.
     """
-    sup = Supervisor(scene, horizon, **params)
+    sup = Supervisor(scene, **params)
     ev = np.sort(np.asarray(events).reshape(-1), order='t', kind='stable')
     hd = {n: np.sort(np.asarray(list(ts), dtype=float)) for n, ts in (heard or {}).items()}
     clk = np.sort(np.asarray(list(clock), dtype=float))
@@ -126,7 +123,6 @@ def replay(
 
 def run_closed_loop(
     scene: Scene,
-    horizon: float,
     duration: float,
     *,
     step: float = CHECK_PERIOD,
@@ -134,11 +130,11 @@ def run_closed_loop(
     silent: Mapping[str, float] | None = None,
     bad_values: Iterable[tuple[float, str, int]] = (),
     **params: Any,
-) -> tuple[Supervisor, LineModel, dict[str, Any]]:
-    """The live loop offline: the line model's events fed step by step, the supervisor's commands fed back.
+) -> tuple[Supervisor, LineStream, dict[str, Any]]:
+    """The live loop offline: the streamed line's events fed step by step, the supervisor's commands fed back.
 
-    Every ``step`` s of line time: the events of the current model (built with the
-    commands issued so far) up to the step, every watched node heard at its own
+    Every ``step`` s of line time: the events of the stream (under the commands issued
+    so far) up to the step, every watched node heard at its own
     ticks (``n P``) unless ``silent`` from some time, a clock message (with
     ``clock_ticks``), the bad values due; then a tick;
     an operator command due is given at its step. A command whose effective time is
@@ -147,10 +143,10 @@ def run_closed_loop(
 
     Parameters
     ----------
-    scene, horizon
+    scene : Scene
         As for :class:`Supervisor`.
     duration : float
-        Line time to run, s (<= horizon).
+        Line time to run, s.
     step : float
         Feed and tick spacing, s.
     operator : iterable of (float, str)
@@ -164,12 +160,13 @@ def run_closed_loop(
 
     Returns
     -------
-    (Supervisor, LineModel, dict)
-        The supervisor, the final model, and what was fed (``events``, ``heard``,
+    (Supervisor, LineStream, dict)
+        The supervisor, the stream (under every command issued), and what was fed (``events``, ``heard``,
         ``clock``, ``bad_values``, ``operator`` as given to the supervisor, ``until``): the input
         of :func:`replay`.
     """
-    sup = Supervisor(scene, horizon, **params)
+    sup = Supervisor(scene, **params)
+    stream = LineStream(scene)
     silent = dict(silent or {})
     ops = sorted(((float(t), str(n)) for t, n in operator), key=lambda x: x[0])
     bads = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
@@ -182,8 +179,7 @@ def run_closed_loop(
     prev = -math.inf
     for i in range(1, n_steps + 1):
         W = i * step
-        model = sup.model
-        rows = model.events_between(prev, W)
+        rows = stream.advance(W).events
         sup.feed(rows)
         fed.append(rows)
         for node, period in sup.watched.items():
@@ -214,6 +210,8 @@ def run_closed_loop(
                     f'command {c.kind} effective at {c.t!r} s, not after the '
                     f'events already fed up to {W!r} s: use lead >= step',
                 )
+        if new:
+            stream.set_commands(sup.commands)
         prev = W
     inputs = {
         'events': np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
@@ -223,4 +221,4 @@ def run_closed_loop(
         'operator': given,
         'until': prev,
     }
-    return sup, sup.model, inputs
+    return sup, stream, inputs

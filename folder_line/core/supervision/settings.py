@@ -30,8 +30,6 @@ class Settings:
 
     Attributes
     ----------
-    horizon : float
-        Line time the line model covers, s (> 0).
     stale_periods : float
         ``k``: a node is stale when not heard within ``k`` periods (> 0).
     lead : float
@@ -51,7 +49,6 @@ class Settings:
         On construction, naming the first bad parameter (in the order above).
     """
 
-    horizon: float
     stale_periods: float = STALE_PERIODS
     lead: float = 0.0
     check_period: float = CHECK_PERIOD
@@ -60,7 +57,6 @@ class Settings:
     speed_reached: float = SPEED_REACHED
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'horizon', positive('horizon', self.horizon))
         object.__setattr__(self, 'stale_periods', positive('stale_periods', self.stale_periods))
         lead = as_float('lead', self.lead)
         if not (math.isfinite(lead) and lead >= 0.0):

@@ -35,10 +35,8 @@ depends on the inputs only, never on when the call came:
 
 Given the same inputs, any sequence of calls that respects the watermark contract
 (no input at or before a watermark already passed) therefore takes the same
-decisions at the same times. (The line model under a new command is built only
-when a decision needs the drive after that command's effective time — never in the
-tick that issued it while the watermark is before that time — so that a node can
-publish the command first; before its time a command changes nothing, bit for bit.)
+decisions at the same times. (Before its effective time a command changes nothing,
+bit for bit: the drive under the commands is the same as before up to there.)
 An input that breaks the contract (it came too late, e.g. a node's message delayed
 past the watermark) is still used where possible and counted in
 :attr:`Supervisor.late`: the live node keeps its watermark ``event_latency`` s
@@ -87,7 +85,6 @@ import numpy as np
 
 from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
-from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import TUNABLES, LineCommand, Tuning, check_tuning
 from folder_line.core.mechanisms.drive import Command, Drive
@@ -97,9 +94,9 @@ from folder_line.core.supervision.commands import (
     DRIVE_COMMANDS,
     STOP_STATES,
     ActingState,
+    DriveFactory,
     DriveSchedule,
-    ModelFactory,
-    line_models,
+    line_drives,
 )
 from folder_line.core.supervision.evaluation import CycleEvaluation, Due
 from folder_line.core.supervision.grid import CheckGrid
@@ -125,8 +122,6 @@ class Supervisor:
     ----------
     scene : Scene
         The line's scene.
-    horizon : float
-        Line time the line model covers, s (the nodes' ``horizon``).
     periods : mapping of str to float, optional
         Known node -> its publishing period, s of line time. A known node is watched
         from its first stamp on (or from ``t_start`` if ``expected``). Default: none.
@@ -149,10 +144,11 @@ class Supervisor:
         Time the supervisor starts watching, s: nodes are expected from then on.
         None: the first :meth:`tick`'s watermark (recorded in :attr:`t_start`;
         :func:`~folder_line.core.supervision.offline.replay` needs it).
-    model_factory : callable, optional
-        ``commands -> LineModel`` (default: ``LineModel(scene, horizon, commands)``,
-        cached): the drive, the machine cycles and the cycle boundaries under the
-        issued commands.
+    drive_factory : callable, optional
+        ``(commands, previous drive) -> Drive`` (default
+        :func:`~folder_line.core.supervision.commands.line_drives`): the drive under the
+        issued commands, whose speed ends the acting states and whose phase times the
+        machine cycles.
     sheet_source : str, optional
         The watched participant that publishes the sheets' events (the one that runs
         the unit :data:`SHEET_UNIT`): a folder cycle is judged only once it has been
@@ -182,7 +178,6 @@ class Supervisor:
     def __init__(
         self,
         scene: Scene,
-        horizon: float,
         *,
         periods: Mapping[str, float] | None = None,
         expected: Iterable[str] = (),
@@ -195,18 +190,18 @@ class Supervisor:
         speed_reached: float = SPEED_REACHED,
         state: str = 'STARTING',
         t_start: float | None = 0.0,
-        model_factory: ModelFactory | None = None,
+        drive_factory: DriveFactory | None = None,
         sheet_source: str | None = None,
     ) -> None:
         self.scene = scene
-        self.settings = Settings(horizon, stale_periods, lead, check_period, enforce, double, speed_reached)
+        self.settings = Settings(stale_periods, lead, check_period, enforce, double, speed_reached)
         self.packml = PackML(state)
         self.t_start = None if t_start is None else as_float('t_start', t_start)
         grid = CheckGrid(self.settings.check_period)
         self.liveness = Liveness(periods, expected, self.t_start, self.settings.stale_periods, grid, clock_ticks)
         self.sheet_source = sheet_source
-        factory = line_models(scene, self.settings.horizon) if model_factory is None else model_factory
-        self._drive = DriveSchedule(factory, self.settings.lead)
+        factory = line_drives(scene) if drive_factory is None else drive_factory
+        self._drive = DriveSchedule(scene, factory, self.settings.lead)
         # acting state: from the time its drive command is effective (or the command's time)
         since = 0.0 if self.t_start is None else max(self.t_start, 0.0)
         self._acting = ActingState(grid, self.settings.speed_reached, since)
@@ -243,9 +238,9 @@ class Supervisor:
         return self._drive.commands
 
     @property
-    def model(self) -> LineModel:
-        """The line model under the commands issued so far (built on first use after a command)."""
-        return self._drive.model
+    def drive(self) -> Drive:
+        """The drive under the commands issued so far."""
+        return self._drive.drive
 
     @property
     def watched(self) -> dict[str, float]:
@@ -262,8 +257,8 @@ class Supervisor:
         return self.liveness.stale_nodes()
 
     def _drive_before(self, t: float) -> Callable[[], Drive]:
-        """The drive that is right at times before ``t``, when asked for (a model may have to be built)."""
-        return lambda: self._drive.model_before(t).drive
+        """The drive that is right at times before ``t``, when asked for."""
+        return lambda: self._drive.drive
 
     # ------------------------------------------------------------------ inputs
 
@@ -495,7 +490,7 @@ class Supervisor:
         cmd = None if drive_kind is None else Command(self._drive.effective(t, at_boundary), drive_kind)
         self.packml.command(name, t, cause)
         self._acting.begin(t if cmd is None else cmd.t)
-        if cmd is not None:  # the model under it is built when first needed (after the node published it)
+        if cmd is not None:
             self._drive.issue(t, cmd)
         return cmd
 
@@ -549,7 +544,7 @@ class Supervisor:
 
     def _interlock(self, t: float, name: str, margin: float, unit: str, cause: str) -> None:
         state = self.state
-        cycle = int(self._drive.model_before(t + 1e-9).cycle_index(t))
+        cycle = int(self._drive.cycles.index(self._drive.drive, t))
         taken = self._automatic('abort', t, cause)
         self._record(t, cycle, name, margin, unit, taken, state)
         self._stats(name, unit).add(t, cycle, margin)

@@ -14,7 +14,8 @@ from scipy.integrate import solve_ivp
 from folder_line.config.params import load_params
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.line.model import make_drive, simulate
+from folder_line.core.line.drives import make_drive
+from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.errors import IntegrationError, ParameterError
@@ -219,7 +220,9 @@ def test_brake_without_chain_friction_through_the_line(
     assert d.t_rest == pytest.approx(2.5 + dt, abs=1e-9)
     assert float(d.theta(6.0)) == pytest.approx(th_r, rel=1e-10)
     # the same drive from the line orchestrator, and a folder run on it that ends with the shaft
-    assert make_drive(scene, 6.0).t_rest == pytest.approx(d.t_rest, abs=1e-9)
+    streamed = make_drive(scene)
+    streamed.extend(6.0)
+    assert streamed.t_rest == pytest.approx(d.t_rest, abs=1e-9)
     res = simulate(scene, 6.0, sample_rate=100.0)
     exits = res.events[res.events['kind'] == EVENT_KINDS.index('knife_exit')]
     assert exits.size > 0 and exits['t'].max() <= d.t_rest
@@ -353,9 +356,8 @@ def drive() -> md.MotorDrive:
 
 def test_is_a_drive(drive: md.MotorDrive) -> None:
     assert isinstance(drive, Drive)
-    from folder_line.core.line.model import make_drive
 
-    assert isinstance(make_drive(make_scene(), 1.0), md.MotorDrive)
+    assert isinstance(make_drive(make_scene()), md.MotorDrive)
 
 
 def test_time_of_inverts_theta(drive: md.MotorDrive) -> None:

@@ -19,7 +19,8 @@ from numpy.testing import assert_allclose
 
 from folder_line.config.scenes import scene_mapping
 from folder_line.core.effects import arrival_jitter, feed_slip, length_scatter, property_scatter, speed_ripple
-from folder_line.core.line.model import LineResult, make_drive, simulate
+from folder_line.core.line.drives import make_drive
+from folder_line.core.line.model import LineResult, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
@@ -116,7 +117,7 @@ def test_draws_are_per_sheet_a_longer_run_agrees_on_the_shared_sheets() -> None:
 def test_ripple_phase_is_a_closed_form_and_time_of_its_exact_inverse() -> None:
     p = speed_ripple.Params(amplitude=0.05, frequency=7.0)
     scene = _scene({'speed_ripple': {'amplitude': 0.05, 'frequency': 7.0}}, seed=4)
-    drive = make_drive(scene, 10.0)
+    drive = make_drive(scene)
     psi = speed_ripple.draw_phase(4)
     w = 2.0 * math.pi * 7.0
     t = np.linspace(0.0, 10.0, 10_001)
@@ -132,7 +133,7 @@ def test_ripple_moves_the_knife_to_its_phase() -> None:
     result = simulate(scene, 5.0)
     timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
     contact = result.events_of('knife_contact')
-    drive = make_drive(scene, 5.0)
+    drive = make_drive(scene)
     expected = (contact['cycle'] + 1) * timing.T + timing.knife.t_in
     assert_allclose(drive.theta(contact['t']), expected, rtol=0, atol=1e-13)
     nominal = expected  # on the constant drive Θ = t: the ripple moves the events
@@ -141,8 +142,8 @@ def test_ripple_moves_the_knife_to_its_phase() -> None:
 
 def test_ripple_composes_with_the_supervisors_commands() -> None:
     scene = _scene({'speed_ripple': {'amplitude': 0.1, 'frequency': 3.0}}, seed=2)
-    plain = make_drive(scene, 10.0)
-    held = make_drive(scene, 10.0, [Command(2.0, 'hold'), Command(5.0, 'unhold')])
+    plain = make_drive(scene)
+    held = make_drive(scene, [Command(2.0, 'hold'), Command(5.0, 'unhold')])
     before = np.linspace(0.0, 2.0, 401)
     assert held.theta(before).tobytes() == plain.theta(before).tobytes()  # causal: nothing changes before
     stand = np.linspace(2.6, 5.0, 50)  # t_brake 0.5 s: standing from 2.5 s until the unhold

@@ -18,8 +18,10 @@ from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.line.events import event_kind
-from folder_line.core.line.folder_sim import FolderLine
-from folder_line.core.line.model import MAX_DURATION, UNITS, LineModel, LineResult, sample_times, simulate
+from folder_line.core.limits import DURATION as LINE_TIME
+from folder_line.core.line.folder_stream import FolderStream
+from folder_line.core.line.model import UNITS, LineModel, LineResult, sample_times, simulate
+from folder_line.core.line.stream import LineStream
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import delivery_laws
@@ -118,11 +120,12 @@ def test_a_longer_horizon_agrees_on_the_shorter_one(name: str, short: float, lon
 def test_fast_torque_is_chain_frictions_bit_for_bit() -> None:
     """The one-tick path of the feed unit reuses the carriage's stroke evaluation for the torque."""
     scene = load_scene('folder')
-    line = LineModel(scene, 5.0)._parts['folder']
-    assert isinstance(line, FolderLine)
+    model = LineModel(scene, 5.0)
+    line = model.part('folder')
+    assert isinstance(line, FolderStream)
     t = np.random.default_rng(5).uniform(0.0, 5.0, 3000)
-    ref = chain_friction.sprocket_torque(scene, line.drive.theta(t))
-    got = np.array([line.sample_unit('feed', np.array([x])).effort[0, 1] for x in t])
+    ref = chain_friction.sprocket_torque(scene, model.drive.theta(t))
+    got = np.array([model.sample('feed', np.array([x])).effort[0, 1] for x in t])
     assert got.tobytes() == ref.tobytes()
     assert np.count_nonzero(got) > 1000 and np.count_nonzero(got == 0.0) > 500
 
@@ -169,7 +172,7 @@ def test_next_cycle_boundary_is_the_next_knife_exit(runs: dict[str, Any], t: flo
             continue
         assert b > t
         if model.cycle_index(t) == -1:  # cycle 0 starts where the first feed window opens, not at an exit
-            assert b == float(model.drive.time_of(model._parts['folder'].timing.knife.t_out))
+            assert b == float(model.drive.time_of(model.part('folder').timing.knife.t_out))
             continue
         k = np.flatnonzero(exits['t'] > t)[0]
         assert exits['t'][k] == b  # bit for bit: the supervisor can put a hold exactly on the event
@@ -181,7 +184,7 @@ def test_next_cycle_boundary_is_the_next_knife_exit(runs: dict[str, Any], t: flo
 def test_first_cycle_and_layup_crank_turns(runs: dict[str, Any]) -> None:
     folder, _ = runs['folder']
     assert folder.cycle_index(0.0) == -1  # the first feed window opens at the knife exit phase t_out
-    t_out = folder._parts['folder'].timing.knife.t_out
+    t_out = folder.part('folder').timing.knife.t_out
     assert folder.next_cycle_boundary(0.0) == pytest.approx(t_out, abs=1e-15)
     assert folder.cycle_index(t_out) == 0
     layup, _ = runs['layup']
@@ -293,7 +296,7 @@ def test_unhold_resumes_and_every_held_sheet_is_delivered(hold_run: dict[str, An
     assert float(m.drive.rate(t_u + up)) == 1.0
     exits = _of(m.events, 'knife_exit')
     after = exits[exits['t'] > t_u + up]
-    T = m._parts['folder'].timing.T
+    T = m.part('folder').timing.T
     np.testing.assert_allclose(np.diff(after['t']), T, rtol=0, atol=1e-12)
     assert np.all(np.diff(exits['cycle']) == 1)  # no cycle skipped or repeated across the hold
     s = m.parts['folder']
@@ -335,66 +338,26 @@ def test_commands_reach_simulate(hold_run: dict[str, Any]) -> None:
     assert set(EVENT_KINDS) >= {'knife_exit', 'released_on_pile'}
 
 
-@pytest.mark.parametrize(
-    'name, what, period, per',
-    [('folder', 'knife cycles', 3600.0 / 50000.0, 'BYTES_PER_CYCLE'), ('layup', 'leaves', None, 'BYTES_PER_LEAF')],
-)
-def test_a_span_too_long_for_memory_is_refused_before_any_work(
-    name: str, what: str, period: float | None, per: str
-) -> None:
-    """Every event up to the horizon is held in memory: 1e7 s of the folder is 1.4e8 knife cycles
-    (~270 GB at the measured peak per cycle). The model refuses it at once, naming the span and the
-    memory it would need, instead of exhausting the machine."""
-    import time
-
-    from folder_line.core.line import model as line_mod
-    from folder_line.errors import ParameterError
-
-    scene = load_scene(name, {})
-    period = scene.sheets.interval if period is None else period
-    per_event = getattr(line_mod, per)
-    # the longest span: the machine's budget over the measured bytes per event, or MAX_CYCLES events
-    limit = min(line_mod.MAX_CYCLES, line_mod.memory_budget() / per_event) * period
-    t0 = time.process_time()
-    with pytest.raises(ParameterError, match=f'horizon=.*{what}') as info:
-        LineModel(scene, 1e7)
-    assert info.value.key == 'horizon' and info.value.value == 1e7
-    with pytest.raises(ParameterError) as info:
-        simulate(scene, 1.01 * limit, sample_rate=0.0)
-    assert info.value.key == 'duration' and info.value.value == 1.01 * limit
-    assert f'at most {limit:.4g} s of this scene' in info.value.reason
-    assert time.process_time() - t0 < 1.0  # refused up front, not after building events
-    # just below the limit the check lets it through (checked without building: it is the same test)
-    line_mod.check_size(scene, 0.99 * limit, 0.99 * limit)
-    with pytest.raises(ParameterError, match=r'span=.*this machine allows .* GB \(75% of its memory\): at most'):
-        line_mod.check_size(scene, 1.01 * limit, 1.01 * limit, 'span')
-
-
-def test_the_refusal_states_the_memory_the_model_would_need(monkeypatch: pytest.MonkeyPatch) -> None:
-    from folder_line.core.line import model as line_mod
-    from folder_line.errors import ParameterError
-
-    monkeypatch.setattr(line_mod, 'memory_budget', lambda: 10**9)  # a machine that allows 1 GB
-    scene = load_scene('line', {})
-    span = 36000.0
-    cycles = span / float(scene.machines['knife'].period)
-    leaves = span / float(scene.sheets.interval)
-    need = cycles * line_mod.BYTES_PER_CYCLE + leaves * line_mod.BYTES_PER_LEAF
-    with pytest.raises(ParameterError) as info:
-        line_mod.check_size(scene, span, span, 'duration')
-    reason = info.value.reason
-    assert f'about {need / 1e9:.3g} GB of memory' in reason, reason
-    assert f'{cycles:.3g} knife cycles x {line_mod.BYTES_PER_CYCLE} B' in reason
-    assert f'{leaves:.3g} leaves x {line_mod.BYTES_PER_LEAF} B' in reason
-    assert f'at most {span * 1e9 / need:.4g} s of this scene' in reason
-    line_mod.check_size(scene, span * 0.99e9 / need, span * 0.99e9 / need)  # what it says fits, fits
-
-
 # ----------------------------------------------------------------------- long runs, a touch of the stops, random scenes
 
 
+def _stream_to(
+    scene: Scene, t_end: float, commands: list[Command] | None = None, window: float = 1e6, last: float = 200.0
+) -> tuple[LineStream, np.ndarray]:
+    """The stream of ``scene`` advanced to ``t_end`` in windows of ``window`` s, the last ``last`` s long
+    (what :meth:`LineStream.sample` can still be asked for), and every event handed out."""
+    stream = LineStream(scene, commands or [], keep=0.0)
+    events = []
+    t = 0.0
+    while t < t_end - last:
+        t = min(t + window, t_end - last)
+        events.append(stream.advance(t).events)
+    events.append(stream.advance(t_end).events)
+    return stream, np.concatenate(events)
+
+
 class TestLongRuns:
-    """Line times of 1e7 s without drift (exact rational references of :mod:`_reference`)."""
+    """Line times of 1e7 s without drift (exact rational references of :mod:`_reference`), streamed."""
 
     def test_layup_line_at_ten_million_seconds(self) -> None:
         """LineModel to 1e7 + 100 s (leaves every 99991 s, crank at 31 rev/min so no exact cycle):
@@ -403,9 +366,7 @@ class TestLongRuns:
         at the equivalent time of the first crank turn."""
         over = {'sheets.interval': 99991.0, 'sheets.jitter': 0.0, 'sheets.phase': 0.123456789, 'layup.n_kr': 31.0}
         scene = load_scene('layup', over)
-        horizon = 1e7 + 100.0
-        model = LineModel(scene, horizon)
-        ev = model.events
+        model, ev = _stream_to(scene, 1e7 + 100.0)
         rate = Fraction(31, 60)  # crank turns per s
         ent = ev[ev['kind'] == event_kind('leaf_enter')]
         ext = ev[ev['kind'] == event_kind('leaf_exit')]
@@ -430,7 +391,7 @@ class TestLongRuns:
         period = 1 / rate
         t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) * rate) * period) for t in t_big])
         assert np.all(t_small < float(period))
-        big, small = model.sample('drive', t_big), model.sample('drive', t_small)
+        big, small = model.sample('drive', t_big), LineModel(scene, 3.0).sample('drive', t_small)
         w_max = np.abs(big.velocity).max()
         for k in range(t_big.size):
             frac = exact_frac_turns(float(t_big[k]), rate)
@@ -438,16 +399,15 @@ class TestLongRuns:
             for jnt in range(big.position.shape[1]):
                 assert angle_diff(float(big.position[k, jnt]), float(small.position[k, jnt])) <= 1e-8 * w_max
                 assert abs(big.velocity[k, jnt] - small.velocity[k, jnt]) <= 1e-7 * w_max
-        with pytest.raises(ParameterError, match='horizon'):
-            LineModel(scene, MAX_DURATION * 1.5)
+        with pytest.raises(ParameterError, match='horizon'):  # a kept model: the time resolution's range
+            LineModel(scene, LINE_TIME.hi * 1.5)
 
     def test_folder_line_at_ten_million_seconds(self) -> None:
         """The folder (a 7 rev/h knife: T = 514 s, 19444 cycles in 1e7 s -- the 50000 rev/h knife
         would need 1.39e8 cycles of event arrays, see the report) at 1e7 s: knife, hand-over and
         at-stops times equal the exact rational kinematics (pi to 50 digits) to a few ns."""
         scene = load_scene('folder', {'press.n_c': 3.5})  # the knife at 7 rev/h
-        model = LineModel(scene, 1e7 + 600.0)
-        ev = model.events
+        model, ev = _stream_to(scene, 1e7 + 600.0, last=600.0)
         kp = scene.machine('knife')
         tm = cycle_timing(scene.machine('cyclogram'), kp)
         kw = knf.window(kp)
@@ -469,7 +429,7 @@ class TestLongRuns:
                 assert err <= 8e-9 and err <= 1e-9 * row['t'], (kind, float(err))
         t_big = np.array([1e7 + 0.5, 1e7 + 123.456])
         t_small = np.array([float(Fraction(t) - math.floor(Fraction(t) / T) * T) for t in t_big])
-        big, small = model.sample('drive', t_big), model.sample('drive', t_small)
+        big, small = model.sample('drive', t_big), LineModel(scene, float(T)).sample('drive', t_small)
         for k in range(t_big.size):
             frac = exact_frac_turns(float(t_big[k]), 1 / T)
             assert angle_diff(float(big.position[k, 0]), float(2 * PI_50 * frac)) <= 1e-9
@@ -482,7 +442,7 @@ class TestLongRuns:
         restart sit where the exact piecewise-linear drive puts them, to a few ulp(1e7 s)."""
         scene = load_scene('folder')
         t_u = 1e7 - 5.0
-        model = LineModel(scene, 1e7 + 10.0, [Command(1.0, 'hold'), Command(t_u, 'unhold')])
+        _, events = _stream_to(scene, 1e7 + 10.0, [Command(1.0, 'hold'), Command(t_u, 'unhold')])
         kp = scene.machine('knife')
         kw = knf.window(kp)
         T = Fraction(3600) / Fraction(kp.n_k)
@@ -495,7 +455,7 @@ class TestLongRuns:
             assert d > tu / 2  # past the ramp: lambda = 1
             return Fraction(t_u) + tu + (d - tu / 2)
 
-        rows = model.events[model.events['kind'] == event_kind('knife_contact')]
+        rows = events[events['kind'] == event_kind('knife_contact')]
         late = rows[rows['t'] > t_u]
         assert late.size > 100
         for row in late[-20:]:

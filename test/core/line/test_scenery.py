@@ -40,7 +40,7 @@ def _shape(shapes: tuple[Shape, ...], machine: str, part: str) -> Shape:
 
 
 def _theta(sc: Scenery, t: float) -> float:
-    return float(np.asarray(sc.model.drive.theta(np.array([t]))).reshape(-1)[0])
+    return float(np.asarray(sc.line.drive.theta(np.array([t]))).reshape(-1)[0])
 
 
 def test_shapes_are_well_formed_and_in_a_stable_order(line: Scenery) -> None:
@@ -73,7 +73,7 @@ def test_only_the_machines_of_the_scene(layup_no_belts: Scenery) -> None:
 
 
 def test_layup_vertices_and_links_are_the_closed_form_over_a_crank_turn(line: Scenery) -> None:
-    lp = line.model.scene.machine('layup')
+    lp = line.line.scene.machine('layup')
     ox, oy, oz = LAYUP_ORIGIN
     # a whole crank turn (2 s at 30 rev/min) once the motor has run up, at 97 stamps
     for t in np.linspace(4.0, 6.0, 97):
@@ -103,7 +103,7 @@ def test_layup_vertices_and_links_are_the_closed_form_over_a_crank_turn(line: Sc
 
 
 def test_knife_is_the_closed_form(line: Scenery) -> None:
-    kp = line.model.scene.machine('knife')
+    kp = line.line.scene.machine('knife')
     omega_k = 2.0 * math.pi * kp.n_k / 3600.0
     for t in np.linspace(5.0, 5.072, 41):  # one knife cycle
         phi = float(np.mod(omega_k * _theta(line, float(t)), 2.0 * math.pi))
@@ -116,7 +116,7 @@ def test_knife_is_the_closed_form(line: Scenery) -> None:
 
 
 def test_carriages_lie_on_the_chain_path(line: Scenery) -> None:
-    scene = line.model.scene
+    scene = line.line.scene
     sch, path = schedule(scene), chain_path(scene)
     chain = scene.machine('delivery_chain')
     dp = scene.machine('delivery')
@@ -149,23 +149,23 @@ def test_carriages_lie_on_the_chain_path(line: Scenery) -> None:
 
 
 def test_carriages_are_a_pitch_apart_along_the_loop(line: Scenery) -> None:
-    sch = schedule(line.model.scene)
+    sch = schedule(line.line.scene)
     travel = line._carriage_travel(_theta(line, 5.0))
     gaps = np.mod(np.diff(np.sort(travel)), line._loop)
     assert_allclose(gaps, sch.pitch, rtol=1e-12)
 
 
 def test_leaves_in_the_air_lie_on_their_flight_paths(line: Scenery) -> None:
-    f = line._layup.flights
-    lp_floor = line.model.scene.machine('container').y_floor
+    f = line._layup.flights_view()
+    lp_floor = line.line.scene.machine('container').y_floor
     ox, _, oz = LAYUP_ORIGIN
     seen = 0
     for t in np.linspace(3.0, 6.0, 31):
         leaves = _shape(line.at(float(t)), 'layup', 'leaf').points
-        air = (f.t_exit <= t) & (f.t_land > t)
-        tau = t - f.t_exit[air]
-        x = f.x0[air] + f.vx[air] * tau  # drag 0: the parabola
-        y = f.y0[air] + f.vy[air] * tau - 0.5 * G * tau * tau
+        air = (f['t_exit'] <= t) & (f['t_land'] > t)
+        tau = t - f['t_exit'][air]
+        x = f['x0'][air] + f['vx'][air] * tau  # drag 0: the parabola
+        y = f['y0'][air] + f['vy'][air] * tau - 0.5 * G * tau * tau
         want = np.stack([x + ox, np.zeros_like(x), y + oz], axis=1)
         assert leaves.shape == want.shape
         assert_allclose(leaves, want, rtol=0, atol=1e-9)

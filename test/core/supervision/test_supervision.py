@@ -83,7 +83,7 @@ def free() -> LineModel:
 
 @pytest.fixture(scope='module')
 def hold_run() -> tuple[Supervisor, LineModel, dict[str, Any]]:
-    return run_closed_loop(SCENE, H, 3.0, **KW)
+    return run_closed_loop(SCENE, 3.0, **KW)
 
 
 # --------------------------------------------------------------------------- timing fault -> HELD
@@ -125,7 +125,7 @@ def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free
     before = free.events_between(-math.inf, t_hold)
     assert stream[stream['t'] < t_hold].tobytes() == before[before['t'] < t_hold].tobytes()
     # replaying the rebuilt model's events gives the same transitions, commands and balances
-    again = replay(SCENE, H, stream, heard=fed['heard'], until=3.0, **KW)
+    again = replay(SCENE, stream, heard=fed['heard'], until=3.0, **KW)
     assert again.transitions == sup.transitions and again.commands == sup.commands
     assert again.balances == sup.balances and again.violations == sup.violations
     # the drive stands still from HELD on: no rate, no phase, no machine event
@@ -159,7 +159,7 @@ def test_a_missing_sheet_suspends_within_its_cycle() -> None:
     assert (cycle, name, margin) == (45, 'one_per_cycle', -1.0)
     missing = _rows(free, 'fault_missing')
     assert missing['cycle'][0] == cycle  # the scene's missing sheet, not a late one
-    sup, model, _ = run_closed_loop(scene, H, 4.5, **KW)
+    sup, model, _ = run_closed_loop(scene, 4.5, **KW)
     assert _path(sup) == [('STARTING', 'EXECUTE'), ('EXECUTE', 'SUSPENDING'), ('SUSPENDING', 'SUSPENDED')]
     susp = sup.transitions[1]
     assert susp.t == t0 and susp.cause.startswith('missing sheet')
@@ -173,7 +173,7 @@ def test_a_missing_sheet_suspends_within_its_cycle() -> None:
 
 
 def test_unhold_then_the_missing_sheet_suspends() -> None:
-    sup, _, _ = run_closed_loop(SCENE, H, 5.5, operator=[(2.0, 'unhold')], **KW)
+    sup, _, _ = run_closed_loop(SCENE, 5.5, operator=[(2.0, 'unhold')], **KW)
     assert _path(sup) == [
         ('STARTING', 'EXECUTE'),
         ('EXECUTE', 'HOLDING'),
@@ -200,7 +200,7 @@ def test_a_double_sheet_is_a_fault_of_the_process_by_default(policy: str, path: 
     assert double.size
     t0, cycle, name, margin = _first_violation(free)
     assert (cycle, name, margin) == (int(double['cycle'][0]), 'one_per_cycle', -1.0)
-    sup, _, _ = run_closed_loop(scene, 4.0, min(t0 + 1.0, 4.0), double=policy, **KW)
+    sup, _, _ = run_closed_loop(scene, min(t0 + 1.0, 4.0), double=policy, **KW)
     assert [tr.target for tr in sup.transitions[1:]] == path
     assert sup.transitions[1].t == t0 and sup.transitions[1].cause.startswith('double sheet')
     assert sup.balances[0].ok
@@ -219,7 +219,7 @@ def test_a_stale_node_aborts_within_one_cycle_and_only_clear_leaves_aborted() ->
         (1.4, 'clear'),
         (1.6, 'reset'),
     ]
-    sup, model, _ = run_closed_loop(SCENE, H, 2.0, silent={'belt_conveyor': 0.5}, operator=ops, **KW)
+    sup, model, _ = run_closed_loop(SCENE, 2.0, silent={'belt_conveyor': 0.5}, operator=ops, **KW)
     assert [tr.target for tr in sup.transitions] == [
         'EXECUTE',
         'ABORTING',
@@ -259,7 +259,7 @@ def test_a_stale_node_aborts_within_one_cycle_and_only_clear_leaves_aborted() ->
 
 
 def test_a_node_heard_again_can_go_stale_again() -> None:
-    sup = Supervisor(SCENE, H, **KW)
+    sup = Supervisor(SCENE, **KW)
     for node in NODES:
         sup.heard(node, np.arange(0, 61) * P)  # up to 0.3 s
     sup.feed(LineModel(SCENE, H).events_between(-math.inf, 0.3))
@@ -276,7 +276,7 @@ def test_a_node_heard_again_can_go_stale_again() -> None:
 
 
 def test_nan_in_a_message_or_in_an_event_aborts_at_its_stamp(free: LineModel) -> None:
-    sup, _, _ = run_closed_loop(SCENE, H, 0.9, bad_values=[(0.3, '/line/crank_drive/joint_states', 2)], **KW)
+    sup, _, _ = run_closed_loop(SCENE, 0.9, bad_values=[(0.3, '/line/crank_drive/joint_states', 2)], **KW)
     assert [tr.target for tr in sup.transitions] == ['EXECUTE', 'ABORTING', 'ABORTED']
     assert sup.transitions[1].t == 0.3 and 'non-finite' in sup.transitions[1].cause
     v = sup.violations[0]
@@ -287,7 +287,7 @@ def test_nan_in_a_message_or_in_an_event_aborts_at_its_stamp(free: LineModel) ->
         'abort',
     )
     # a NaN value in the event stream
-    sup = Supervisor(SCENE, H, **KW)
+    sup = Supervisor(SCENE, **KW)
     ev = free.events_between(-math.inf, 0.5).copy()
     i = int(np.flatnonzero(ev['kind'] == event_kind('at_stops'))[3])
     ev['value'][i] = np.nan
@@ -306,7 +306,6 @@ def rich_run() -> tuple[Supervisor, dict[str, Any]]:
     ops = [(2.0, 'unhold'), (5.8, 'clear'), (5.85, 'start'), (5.9, 'reset')]
     sup, _, fed = run_closed_loop(
         SCENE,
-        H,
         6.5,
         operator=ops,
         silent={'feed_transporter': 5.5},
@@ -346,7 +345,6 @@ def test_replay_reproduces_the_live_run(rich_run: Any) -> None:
     sup, fed = rich_run
     again = replay(
         SCENE,
-        H,
         fed['events'],
         heard=fed['heard'],
         bad_values=fed['bad_values'],
@@ -372,7 +370,7 @@ def test_any_batching_gives_the_same_decisions(rich_run: Any, seed: int, n_ticks
     bad = list(fed['bad_values'])
     done_ev = np.zeros(ev.size, dtype=bool)
     done_h = {n: np.zeros(v.size, dtype=bool) for n, v in heard.items()}
-    other = Supervisor(SCENE, H, **KW)
+    other = Supervisor(SCENE, **KW)
     for w in ticks:
         reach = w + float(rng.uniform(0.0, ahead))
         take = ~done_ev & (ev['t'] <= reach)
@@ -396,7 +394,7 @@ def test_any_batching_gives_the_same_decisions(rich_run: Any, seed: int, n_ticks
 
 
 def test_a_late_input_is_counted() -> None:
-    sup = Supervisor(SCENE, H, **KW)
+    sup = Supervisor(SCENE, **KW)
     sup.tick(0.2)
     sup.heard('crank_drive', 0.1)
     ev = np.zeros(1, dtype=EVENT_DTYPE)
@@ -413,7 +411,7 @@ def test_a_late_input_is_counted() -> None:
 def test_report_only_records_every_batch_violation_within_its_cycle(free: LineModel) -> None:
     """enforce=False: the line runs on; the violations decided live are the batch ones, at their cycles."""
     duration = 30.0
-    sup, model, _ = run_closed_loop(SCENE, duration + 1.0, duration, enforce=False, **KW)
+    sup, model, _ = run_closed_loop(SCENE, duration, enforce=False, **KW)
     assert _path(sup) == [('STARTING', 'EXECUTE')] and sup.commands == () == model.commands
     batch = LineModel(SCENE, duration + 1.0)
     expect = sorted(
@@ -490,7 +488,7 @@ def test_a_chute_speed_violation_holds_the_layup_at_its_next_crank_turn() -> Non
     t0, leaf, name, margin = _first_violation(free)
     assert name == 'chute_speed' and margin < 0.0
     turn = 60.0 / scene.machine('layup').n_kr
-    sup, model, _ = run_closed_loop(scene, 6.0, turn + 1.0, lead=0.01, check_period=P)
+    sup, model, _ = run_closed_loop(scene, turn + 1.0, lead=0.01, check_period=P)
     assert t0 < turn - 0.01
     assert _path(sup)[:3] == [('STARTING', 'EXECUTE'), ('EXECUTE', 'HOLDING'), ('HOLDING', 'HELD')]
     t_held = sup.transitions[2].t
@@ -506,7 +504,7 @@ def test_a_chute_speed_violation_holds_the_layup_at_its_next_crank_turn() -> Non
 
 def test_with_motor_dynamics_held_when_the_motor_has_braked_to_rest() -> None:
     scene = load_scene('line')
-    sup, model, _ = run_closed_loop(scene, 10.0, 8.0, operator=[(3.0, 'hold')], lead=0.01, check_period=P)
+    sup, model, _ = run_closed_loop(scene, 8.0, operator=[(3.0, 'hold')], lead=0.01, check_period=P)
     assert [tr.target for tr in sup.transitions] == ['EXECUTE', 'HOLDING', 'HELD']
     assert sup.transitions[0].t > 1.0  # the motor spins up along its curve first
     t_rest = model.drive.t_rest
@@ -524,7 +522,7 @@ def test_with_motor_dynamics_held_when_the_motor_has_braked_to_rest() -> None:
 def test_operator_command_sequences_follow_the_packml_table(seq: list[tuple[int, str]]) -> None:
     scene = load_scene('folder')
     ops = sorted(((n * P, c) for n, c in seq), key=lambda x: x[0])
-    sup, model, _ = run_closed_loop(scene, 2.0, 1.6, operator=ops, lead=0.01, check_period=P)
+    sup, model, _ = run_closed_loop(scene, 1.6, operator=ops, lead=0.01, check_period=P)
     log = list(sup.operator_log)
     assert [(t, c) for t, c, _ in log] == [(t, c) for t, c in ops if t <= 1.6]
     hist = sup.transitions
@@ -579,9 +577,9 @@ def test_constants_and_parameters() -> None:
         {'expected': ['nobody']},
     ):
         with pytest.raises(ParameterError):
-            Supervisor(SCENE, H, **{**KW, **bad})
+            Supervisor(SCENE, **{**KW, **bad})
     with pytest.raises(ParameterError, match='t_start'):
-        replay(SCENE, H, np.zeros(0, dtype=EVENT_DTYPE), t_start=None)
+        replay(SCENE, np.zeros(0, dtype=EVENT_DTYPE), t_start=None)
 
 
 def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
@@ -590,7 +588,7 @@ def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
     ticks = np.delete(clock, [10])  # the nodes miss the clock tick at 0.2 s
     out = {}
     for with_clock in (False, True):
-        sup = Supervisor(SCENE, H, **{**KW, 'clock_ticks': with_clock})
+        sup = Supervisor(SCENE, **{**KW, 'clock_ticks': with_clock})
         sup.clock(clock)
         for node in NODES:
             sup.heard(node, ticks if node != 'crank_drive' else ticks[ticks < 0.5])  # the crank dies at 0.5 s
@@ -604,10 +602,9 @@ def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
         else:  # the 40 ms gap at 0.2 s is more than 5 periods: a false alarm
             assert sup.transitions[1].t == pytest.approx(0.18 + 5 * P + P, abs=1e-12)
     # replay needs the clock stamps
-    sup, _, fed = run_closed_loop(SCENE, H, 1.0, silent={'feed_transporter': 0.5}, **{**KW, 'clock_ticks': True})
+    sup, _, fed = run_closed_loop(SCENE, 1.0, silent={'feed_transporter': 0.5}, **{**KW, 'clock_ticks': True})
     again = replay(
         SCENE,
-        H,
         fed['events'],
         heard=fed['heard'],
         clock=fed['clock'],
@@ -618,25 +615,20 @@ def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
     assert sup.transitions[1].target == 'ABORTING'
 
 
-def test_the_tick_that_issues_a_command_does_not_build_the_model_under_it() -> None:
-    """The node publishes a command when the tick returns: a rebuild (long for a long horizon) comes after."""
-    built: list[tuple[Command, ...]] = []
-
-    def factory(commands: tuple[Command, ...]) -> LineModel:
-        built.append(commands)
-        return LineModel(SCENE, H, commands)
-
+def test_a_command_leaves_the_supervisors_drive_unchanged_before_its_time() -> None:
+    """The supervisor's drive is updated when it issues a command: before the command's effective
+    time it is the free drive, bit for bit (the nodes may learn of the command late)."""
     free = LineModel(SCENE, H)
-    for silent in (False, True):
-        built.clear()
-        sup = Supervisor(SCENE, H, **{**KW, 'lead': 0.05}, model_factory=factory)
-        sup.feed(free.events_between(-math.inf, 1.0))
-        for node in NODES:
-            sup.heard(node, np.arange(0, 401 if not silent else 100) * P)  # to 2 s, or dead at 0.5 s
-        new = sup.tick(1.0 if not silent else 0.53)
-        assert len(new) == 1 and built == [()]  # decided with the model in use, nothing built under the new one
-        sup.tick(new[0].t + 0.2)
-        assert built == [(), (new[0],)]
+    sup = Supervisor(SCENE, **{**KW, 'lead': 0.05})
+    sup.feed(free.events_between(-math.inf, 1.0))
+    for node in NODES:
+        sup.heard(node, np.arange(0, 401) * P)
+    new = sup.tick(1.0)
+    assert len(new) == 1 and new[0].kind == 'hold'
+    t = np.linspace(0.0, new[0].t, 2001)
+    assert sup.drive.theta(t).tobytes() == free.drive.theta(t).tobytes()
+    after = np.linspace(new[0].t + 0.6, H, 50)  # a brake ramp of 0.5 s: at rest after
+    assert np.all(sup.drive.rate(after) == 0.0) and np.all(free.drive.rate(after) == 1.0)
 
 
 # --------------------------------------------------------------------------- lost participants (lockstep)
@@ -645,7 +637,7 @@ def test_the_tick_that_issues_a_command_does_not_build_the_model_under_it() -> N
 def _lockstep_supervisor() -> tuple[Any, LineModel, Supervisor]:
     """The fault scene, its free model, and a supervisor as the lockstep node builds it (no staleness)."""
     scene = load_scene('folder_faults')
-    return scene, LineModel(scene, H), Supervisor(scene, H, periods={}, lead=0.01, check_period=P, t_start=0.0)
+    return scene, LineModel(scene, H), Supervisor(scene, periods={}, lead=0.01, check_period=P, t_start=0.0)
 
 
 def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> None:
@@ -666,7 +658,6 @@ def test_a_lost_participant_aborts_naming_it_and_nothing_is_judged_after() -> No
     assert all(st.last_t < 0.4 for st in sup.stats.values() if st.name != 'lost:feed_transporter')
     again = replay(
         scene,
-        H,
         free.events_between(-math.inf, 3.0),
         lost=[(0.4, 'feed_transporter', 3.25)],
         until=3.0,
