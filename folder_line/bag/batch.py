@@ -217,7 +217,6 @@ class _SupervisorOut:
     def __init__(self, logic: Supervisor, hardware_id: str) -> None:
         self.logic = logic
         self.hardware_id = hardware_id
-        self._n_violations = self._n_balances = 0
         self._tunings: list[tuple[str, bytes, int]] = []
 
     def _event(self, what: str, said: tuple[bool, str, dict[str, Any]], t: float) -> tuple[str, bytes, int]:
@@ -247,12 +246,10 @@ class _SupervisorOut:
             stamp = max(0, round(t * NS_PER_S))
             cdr = time_reference_cdr(stamp, SUPERVISOR, round(command.t * NS_PER_S), command.kind)
             out.append((COMMANDS_TOPIC, cdr, stamp))
-        violations = self.logic.violations
-        out += [self._event('violation', violation_status(v), v.t) for v in violations[self._n_violations :]]
-        self._n_violations = len(violations)
-        balances = self.logic.balances
-        out += [self._event('balance', balance_status(b), b.t) for b in balances[self._n_balances :]]
-        self._n_balances = len(balances)
+        out += [self._event('violation', violation_status(v), v.t) for v in self.logic.violations]
+        self.logic.violations.clear()  # written: kept nowhere (the memory does not grow), as the node does
+        out += [self._event('balance', balance_status(b), b.t) for b in self.logic.balances]
+        self.logic.balances.clear()
         return out
 
     def diagnostics(self, line: LineStream, stamp: int) -> bytes:

@@ -1,13 +1,223 @@
-"""Human-readable summary of a batch simulation (the ``simulate`` verb)."""
+"""The summary of the ``simulate`` verb: computed streamed (:func:`line_summary`), printed (:func:`print_summary`).
+
+A run is streamed window by window (:class:`folder_line.core.line.stream.LineStream`), in memory
+that does not grow with its line time. Without ``--from`` the summary is
+:func:`folder_line.core.line.model.run_summary`'s: ``simulate(...).summary()`` bit for bit.
+
+``--from S`` (:func:`window_summary`): the line still starts at line time 0 (from standstill,
+its start-up first, as every run) and is fast-forwarded to ``S`` in windows of
+:data:`FAST_FORWARD` s, nothing kept; the summary is then that of the window ``(S, S + D]``:
+what the stream hands out from ``S`` on is collected afresh -- the events, the constraint rows
+(a cycle counts where it is judged: one started before ``S`` and judged after it is in; the
+cycles still waiting at ``S + D`` are judged as a run ending there judges them), the cycles
+and sheets counted, the landing histogram. The parts' cumulative figures (the ``folder`` and
+``layup`` blocks: design figures, exit-speed statistics, sheets in the machine) are a run's
+from 0 and are left out; ``simulate`` without ``--from`` gives them.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Iterable, Mapping
 from typing import IO, Any
 
-from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
+import numpy as np
 
-__all__ = ['print_margins', 'print_summary']
+from folder_line.core.limits import DURATION
+from folder_line.core.line import model
+from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
+from folder_line.core.line.scene import Scene
+from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream
+from folder_line.core.line.tuning import LineCommand
+from folder_line.core.effects import leaf_flight
+from folder_line.errors import ParameterError
+
+__all__ = [
+    'FAST_FORWARD',
+    'WINDOW',
+    'fast_forward',
+    'line_summary',
+    'print_margins',
+    'print_summary',
+    'tally_figures',
+    'window_summary',
+]
+
+#: line time per window of the streamed summary, s (the core's :data:`folder_line.core.line.model.WINDOW`)
+WINDOW = model.WINDOW
+#: line time per window of a fast-forward to ``--from``, s: nothing is kept, so as long as a window's arrays allow
+FAST_FORWARD = model.WINDOW
+
+
+def fast_forward(
+    stream: LineStream, start: float, *, window: float = FAST_FORWARD, progress: Callable[[float], None] | None = None
+) -> None:
+    """Advance ``stream`` to line time ``start`` (s) in windows of ``window`` s, keeping nothing of them.
+
+    ``progress`` is called with the line time reached after each window, s.
+    """
+    while stream.t < start:
+        stream.advance(min(start, max(stream.t, 0.0) + window))
+        if progress is not None:
+            progress(stream.t)
+
+
+def tally_figures(
+    tallies: Iterable[ConstraintTally], kinds: np.ndarray, max_violations: int = MAX_VIOLATIONS
+) -> dict[str, Any]:
+    """The summary's ``violations``, ``min_margin_s``, ``min_margin`` and ``events`` of some constraint rows
+    and event counts, as :meth:`folder_line.core.line.stream.LineStream.summary` makes them of its own.
+
+    Parameters
+    ----------
+    tallies : iterable of ConstraintTally
+        The rows, per constraint (margins in each constraint's unit).
+    kinds : ndarray of int
+        Events per kind, indexed as :data:`folder_line.core.line.events.EVENT_KINDS`.
+    max_violations : int
+        Violations listed per constraint, and in all.
+    """
+    violations: list[dict[str, Any]] = []
+    count = 0
+    min_margin: dict[str, dict[str, Any]] = {}
+    for tally in tallies:
+        count += tally.violations
+        violations += [
+            {'cycle': cyc, 'constraint': tally.name, 'margin': m, 'unit': tally.unit}
+            for cyc, m in tally.first[:max_violations]
+        ]
+        if tally.evaluations:
+            min_margin[tally.name] = {
+                'margin': tally.min_margin,
+                'unit': tally.unit,
+                'cycle': tally.min_cycle,
+                'evaluations': tally.evaluations,
+                'violations': tally.violations,
+            }
+    violations.sort(key=lambda v: (v['cycle'], v['constraint']))
+    return {
+        'violations': {'count': count, 'first': violations[:max_violations]},
+        'min_margin_s': {k: v['margin'] for k, v in min_margin.items() if v['unit'] == 's'},
+        'min_margin': min_margin,
+        'events': {k: int(n) for k, n in zip(EVENT_KINDS, kinds.tolist(), strict=True) if n},
+    }
+
+
+def check_window(start: float, duration: float) -> float:
+    """The end of the window ``(start, start + duration]``, s; ParameterError naming ``--from`` if it lies
+    past the longest line time a run may reach (:data:`folder_line.core.limits.DURATION`)."""
+    end = start + duration
+    if not end <= DURATION.hi:
+        raise ParameterError(
+            '--from',
+            start,
+            f'--from + --duration = {end:g} s of line time; a run reaches at most {DURATION.hi:g} s '
+            f'({DURATION.hi / 86400.0:.0f} days) of line time',
+        )
+    return end
+
+
+def window_summary(
+    scene: Scene,
+    start: float,
+    duration: float,
+    *,
+    commands: Iterable[LineCommand] = (),
+    window: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    max_violations: int = MAX_VIOLATIONS,
+) -> dict[str, Any]:
+    """The summary of the window ``(start, start + duration]`` of a run from 0 (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    start : float
+        Line time the window starts at, s (>= 0): the run is fast-forwarded to it.
+    duration : float
+        Line time of the window, s (in :data:`folder_line.core.limits.DURATION`).
+    commands : iterable of Command or Tuning
+        With their effective times (line time from 0; those before ``start`` act in the fast-forward).
+    window : float, optional
+        Line time per window from ``start`` on, s (default :data:`WINDOW`).
+    progress : callable, optional
+        Called with the line time reached (from 0) after each window, s.
+    max_violations : int
+        Violations listed.
+
+    Returns
+    -------
+    dict
+        ``scene``, ``from_s``, ``to_s``, ``duration_s``, ``seed``, ``effects``, ``cycles`` (folder cycles
+        judged at the knife, else layup crank turns completed, in the window), ``sheets_counted``,
+        ``violations``, ``min_margin_s``, ``min_margin``, ``events`` of the window; with ``leaf_flight``
+        ``landing_cv`` and ``landing_histogram`` of the leaves landed in it.
+    """
+    duration = DURATION.check('--duration', duration)
+    if not (math.isfinite(start) and start >= 0.0):
+        raise ParameterError('--from', start, 'must be a line time >= 0 s')
+    end = check_window(start, duration)
+    step = WINDOW if window is None else window
+    stream = LineStream(scene, commands)
+    fast_forward(stream, start, progress=progress)
+    before = stream.summary()
+    tallies = {name: ConstraintTally(name, tl.unit, tl.description) for name, tl in stream.tallies.constraints.items()}
+    kinds = np.zeros(len(EVENT_KINDS), dtype=np.int64)
+    landing = 'landing_cv' in before
+    cont = scene.machine('container') if landing else None
+    counts = np.zeros(cont.bins if cont is not None else 0, dtype=np.int64)
+    landed = event_kind('leaf_landed')
+    k = 1
+    while stream.t < end:
+        w = stream.advance(min(end, start + k * step))
+        k += 1
+        if w.events.size:
+            kinds += np.bincount(w.events['kind'], minlength=len(EVENT_KINDS))
+            if cont is not None:
+                x = w.events['value'][w.events['kind'] == landed]
+                counts += np.histogram(x, bins=cont.bins, range=(cont.x_left, cont.x_right))[0]
+        for rows in w.constraints:
+            tallies[rows.name].add(rows)
+        if progress is not None:
+            progress(stream.t)
+    for rows in stream.finish():
+        tallies[rows.name].add(rows)
+    after = stream.summary()
+    out: dict[str, Any] = {
+        'scene': scene.name,
+        'from_s': start,
+        'to_s': end,
+        'duration_s': duration,
+        'seed': scene.seed,
+        'effects': list(scene.effects),
+        'cycles': after['cycles'] - before['cycles'],
+        'sheets_counted': after['sheets_counted'] - before['sheets_counted'],
+    }
+    out.update(tally_figures(tallies.values(), kinds, max_violations))
+    if cont is not None:
+        hist = leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right)
+        out['landing_cv'] = hist.cv
+        out['landing_histogram'] = {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]}
+    return out
+
+
+def line_summary(
+    scene: Scene,
+    duration: float,
+    *,
+    start: float | None = None,
+    commands: Iterable[LineCommand] = (),
+    progress: Callable[[float], None] | None = None,
+) -> dict[str, Any]:
+    """The ``simulate`` verb's summary, streamed in windows of :data:`WINDOW` s.
+
+    Without ``start``: :func:`folder_line.core.line.model.run_summary` of ``duration`` s (``simulate(...).summary()``
+    bit for bit); with it (``--from``): :func:`window_summary` of ``(start, start + duration]``.
+    """
+    if start is None:
+        return model.run_summary(scene, duration, commands=commands, window=WINDOW, progress=progress)
+    return window_summary(scene, start, duration, commands=commands, window=WINDOW, progress=progress)
 
 
 def print_margins(min_margin: Mapping[str, Mapping[str, Any]], out: IO[str]) -> None:
@@ -52,13 +262,29 @@ def _print_folder(folder: dict[str, Any] | None, out: IO[str]) -> None:
         )
 
 
+def span_text(summary: Mapping[str, Any]) -> str:
+    """``'60 s of line time'``, or for a window (``--from``) ``'line time 3600..3660 s (60 s from --from 3600)'``."""
+    if 'from_s' in summary:
+        return (
+            f'line time {summary["from_s"]:g}..{summary["to_s"]:g} s '
+            f'({summary["duration_s"]:g} s from --from {summary["from_s"]:g})'
+        )
+    return f'{summary["duration_s"]:g} s of line time'
+
+
 def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
-    """Print the summary dict of :meth:`folder_line.core.line.model.LineResult.summary`."""
+    """Print a summary of :func:`line_summary` (``simulate(...).summary()``, or a window's)."""
     print(
-        f'scene {summary["scene"]}: {summary["duration_s"]:g} s of line time, seed {summary["seed"]}, '
+        f'scene {summary["scene"]}: {span_text(summary)}, seed {summary["seed"]}, '
         f'effects: {", ".join(summary["effects"]) or "none"}',
         file=out,
     )
+    if 'from_s' in summary:
+        print(
+            f'  (the line ran from 0 s; counted from {summary["from_s"]:g} s on: cycles, sheets, events, '
+            'constraints judged; the design figures: simulate without --from)',
+            file=out,
+        )
     for tu in summary.get('tunings', []):
         print(f'tuned: {tu["key"]} = {tu["value"]:g} {tu["unit"]} from {tu["t"]:.9g} s (--tune)', file=out)
     print(f'cycles: {summary["cycles"]}   sheets counted: {summary["sheets_counted"]}', file=out)

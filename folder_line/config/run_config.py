@@ -128,7 +128,7 @@ def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str
     Returns
     -------
     dict
-        ``scene`` (and ``overrides``), ``horizon``, ``rate``, ``lost_timeout``; ``sheet_counter`` also
+        ``scene`` (and ``overrides``), ``rate``, ``lost_timeout``; ``sheet_counter`` also
         ``marker_rate``.
     """
     params: dict[str, Any] = {'scene': str(cfg.scene if scene_file is None else scene_file)}

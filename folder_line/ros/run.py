@@ -56,7 +56,7 @@ from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
 from folder_line.core.line.margin_text import margin_at
-from folder_line.core.line.model import check_size, simulate
+from folder_line.core.line.model import run_summary
 from folder_line.core.line.tuning import Tuning
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
@@ -211,7 +211,6 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
     """
     names = names or InputNames()
     scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
-    check_size(scene, cfg.duration, cfg.horizon, '--duration')  # the nodes' horizon's cycles
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)
@@ -441,7 +440,8 @@ def _summary(
 ) -> dict[str, Any]:
     tunings = _tunings(recorder.diagnostics)  # the operator's changes: simulate runs them too
     span = min(recorder.sim_time, cfg.duration) or cfg.duration
-    expected = simulate(scene, span, sample_rate=0.0, commands=[tu for tu in tunings if tu.t <= span]).summary()
+    # streamed: the expected figures of a long run take no more memory than a short one's
+    expected = run_summary(scene, span, commands=[tu for tu in tunings if tu.t <= span])
     cause = None
     for st in recorder.diagnostics:  # the first violation that changed the state, with its cycle and node
         values = {kv.key: kv.value for kv in st.values}

@@ -7,9 +7,10 @@ within bounds. A candidate is judged in two stages, cheapest first:
    both loops assembled over the whole crank turn with a transmission angle of at least
    ``min_transmission`` (:mod:`folder_line.core.mechanisms.layup_design`), both chute exits
    inside the container walls and above its floor over the whole swing;
-2. only a geometry that passes is simulated (:func:`folder_line.core.line.model.simulate` of
-   the scene with the candidate's values): no leaf may spill over a wall or be damaged, and
-   the objective is the summary's ``layup.landing_cv``.
+2. only a geometry that passes is simulated (:func:`folder_line.core.line.model.run_summary` of
+   the scene with the candidate's values, streamed in memory that does not grow with the line
+   time): no leaf may spill over a wall or be damaged, and the objective is the summary's
+   ``layup.landing_cv``.
 
 The optimiser is :func:`scipy.optimize.differential_evolution`, seeded (a run is
 deterministic), started from a population that holds the scene's own geometry (so the best
@@ -31,7 +32,7 @@ from typing import IO, Any, NamedTuple
 import numpy as np
 
 from folder_line.config.scenes import apply_overrides
-from folder_line.core.line.model import simulate
+from folder_line.core.line.model import run_summary
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.mechanisms.layup_design import crank_rocker_margin, exit_clearance, transmission_check
@@ -332,7 +333,7 @@ def evaluate(
     if ok:
         if scene is None:
             scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
-        summary = simulate(scene, settings.duration, sample_rate=0.0).summary()
+        summary = run_summary(scene, settings.duration)
         lay = summary['layup']
         constraints['no_spill_or_damage'] = -float(lay['leaves_spilled'] + lay['leaves_damaged'])
     return Candidate(dict(values), constraints, dict(angles), ok, summary)

@@ -20,7 +20,7 @@ from typing import Any
 
 from folder_line.config.scenes import apply_overrides
 from folder_line.core.line.metrics import flatten_metrics, resolve_metric
-from folder_line.core.line.model import simulate
+from folder_line.core.line.model import run_summary
 from folder_line.core.line.scene import parse_scene
 from folder_line.errors import FolderLineError, ParameterError, shorten
 from folder_line.studies.montecarlo import SampleResult, SampleTask, run_sample
@@ -90,9 +90,12 @@ def point_source(task: PointTask) -> dict[str, Any]:
 
 
 def simulate_summary(source: Mapping[str, Any], duration: float) -> dict[str, Any]:
-    """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary."""
-    summary: dict[str, Any] = simulate(parse_scene(source), duration, sample_rate=0.0).summary()
-    return summary
+    """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary.
+
+    The run is streamed (:func:`folder_line.core.line.model.run_summary`): its memory does not grow with
+    ``duration`` (s), and the summary is ``simulate(...).summary()`` bit for bit.
+    """
+    return run_summary(parse_scene(source), duration)
 
 
 def evaluate_point(task: PointTask) -> PointResult:

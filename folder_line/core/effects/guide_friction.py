@@ -718,10 +718,7 @@ class GuideSlider:
             if kk[j, i] == 0:  # slips where its scan starts (after a failed start)
                 slip[r] = float(grid[j, i])
                 continue
-            if i == 0:
-                lo = float(t0[r] + (kk[j, 0] - 1) * h)
-            else:
-                lo = float(grid[j, i - 1])
+            lo = float(t0[r] + (kk[j, 0] - 1) * h) if i == 0 else float(grid[j, i - 1])  # the sample before
             slip[r] = _slip_time(p, self.kin1, float(s[r]), int(ch[r]), lo, float(grid[j, i]))
         k_next = k_next.copy()
         k_next[rows] = k_last[rows] + 1

@@ -5,16 +5,23 @@ the events up to that instant: fed (handed over) = delivered (released on the pi
 without a delivery: folded) + in the machine (on the feed belt, at the stops waiting for
 the knife, jammed after it, or folded on the chain); for the layup, leaves entered =
 landed (or exited, without ``leaf_flight``) + on the chutes + in the air.
+
+The counts are kept as the events come (:class:`SheetBalance`): the sheets and leaves in
+the machine, and counters of the ones delivered, so the memory does not grow with line
+time. A supervisor that starts watching a line already running counts the sheets handed
+over (and the leaves entered) from its first one on: the events of earlier ones are not
+counted, and not held against the balance.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.line.events import event_kind
 from folder_line.core.line.scene import Scene
 
 __all__ = ['Balance', 'SheetBalance']
@@ -36,8 +43,8 @@ _BALANCE_KINDS = np.array(
     dtype=np.int16,
 )
 
-#: (fed, delivered, in the machine, where, consistent)
-_Counts = tuple[int, int, int, dict[str, int], bool]
+_HAND, _STOPS, _CONTACT, _RELEASE = (event_kind(k) for k in ('sheet_handover', 'at_stops', 'knife_contact', 'released_on_pile'))
+_ENTER, _EXIT, _LANDED, _SPILLED = (event_kind(k) for k in ('leaf_enter', 'leaf_exit', 'leaf_landed', 'leaf_spilled'))
 
 
 @dataclass(frozen=True)
@@ -73,8 +80,38 @@ class Balance:
     missing: str = ''
 
 
+#: knife contacts kept before the oldest signature in the machine (for a late one handed over after its knife)
+_CONTACTS_KEPT = 16
+
+
+@dataclass
+class _Signature:
+    """A signature in the machine: its cycle, its arrival at the stops, and whether the knife folded it."""
+
+    cycle: int
+    t_a: float | None = None
+    folded: bool = False
+
+
+@dataclass
+class _Counter:
+    """The running counts of the folder and the layup (see :class:`SheetBalance`)."""
+
+    first_sheet: int | None = None  # the first signature seen handed over
+    fed: int = 0
+    delivered: int = 0  # released (with the delivery), else folded
+    folded: int = 0
+    ok: bool = True
+    sheets: dict[int, _Signature] = field(default_factory=dict)  # in the machine
+    contacts: dict[int, float] = field(default_factory=dict)  # cycle -> knife contact (of cycles with sheets)
+    first_leaf: int | None = None
+    entered: int = 0
+    exited: int = 0
+    down: int = 0
+
+
 class SheetBalance:
-    """The events a balance counts, and the balance at any time.
+    """The events a balance counts, kept as running counts, and the balance at any time since the last commit.
 
     Parameters
     ----------
@@ -88,7 +125,9 @@ class SheetBalance:
     def __init__(self, scene: Scene, with_delivery: bool) -> None:
         self.scene = scene
         self.with_delivery = with_delivery
-        self._rows: list[np.ndarray] = []
+        self.flight = scene.has('leaf_flight')
+        self._rows: list[np.ndarray] = []  # fed, not yet counted
+        self._counter = _Counter()
 
     def add(self, rows: np.ndarray) -> None:
         """Keep the rows (finite, of EVENT_DTYPE) a balance counts."""
@@ -96,97 +135,110 @@ class SheetBalance:
         if b.size:
             self._rows.append(b)
 
+    def commit(self, t: float) -> None:
+        """Count the rows up to ``t`` (s) for good: no balance is asked for before ``t`` any more."""
+        if not self._rows:
+            return
+        rows = np.concatenate(self._rows)
+        done = rows['t'] <= t
+        self._count(self._counter, rows[done])
+        rest = rows[~done]
+        self._rows = [rest] if rest.size else []
+
     def at(self, t: float, state: str, lost_nodes: Sequence[str], blind_from: float) -> Balance:
-        """The sheet balance from the events up to ``t`` (see :class:`Balance`).
+        """The sheet balance from the events up to ``t`` (see :class:`Balance`; ``t`` not before the last commit).
 
         ``lost_nodes`` (lost from ``blind_from`` on, s): their events may be missing, so a
         balance at or after ``blind_from`` is not ``ok`` and says why.
         """
-        rows = np.concatenate(self._rows) if self._rows else np.zeros(0, dtype=EVENT_DTYPE)
-        rows = rows[rows['t'] <= t]
-        kind = rows['kind']
-
-        def of(name: str) -> np.ndarray:
-            sel: np.ndarray = rows[kind == event_kind(name)]  # a field of a structured array is typed Any
-            return sel
-
+        c = self._counter
+        if self._rows:
+            rows = np.concatenate(self._rows)
+            c = copy.deepcopy(c)
+            self._count(c, rows[rows['t'] <= t])
         fed = delivered = in_machine = 0
         detail: dict[str, int] = {}
-        ok = True
-        parts: list[_Counts] = []
+        ok = c.ok
         if self.scene.has_folder:
-            parts.append(_folder_counts(of, self.with_delivery))
+            waiting = on_feed = jammed = on_chain = 0
+            for sig in c.sheets.values():
+                t_c = c.contacts.get(sig.cycle)
+                if sig.t_a is None:
+                    on_feed += 1
+                elif sig.folded:
+                    on_chain += 1
+                elif t_c is None:
+                    waiting += 1
+                else:
+                    jammed += 1
+            detail.update(
+                {'on_feed': on_feed, 'at_stops': waiting, 'jammed': jammed, 'on_chain': on_chain, 'folded': c.folded}
+            )
+            fed += c.fed
+            delivered += c.delivered
+            in_machine += on_feed + waiting + jammed + on_chain
         if self.scene.has_layup:
-            parts.append(_layup_counts(of, self.scene.has('leaf_flight')))
-        for f, d, m, where, consistent in parts:
-            ok &= consistent
-            detail.update(where)
-            fed += f
-            delivered += d
-            in_machine += m
+            on_chutes = c.entered - c.exited
+            in_air = c.exited - c.down if self.flight else 0
+            ok &= on_chutes >= 0 and in_air >= 0
+            detail.update({'on_chutes': on_chutes, 'in_air': in_air})
+            fed += c.entered
+            delivered += c.down if self.flight else c.exited
+            in_machine += on_chutes + in_air
         ok &= fed == delivered + in_machine
         if lost_nodes and t >= blind_from:
             missing = f'events of {", ".join(lost_nodes)} not received after {blind_from:.6f} s'
             return Balance(float(t), state, fed, delivered, in_machine, detail, False, missing)
         return Balance(float(t), state, fed, delivered, in_machine, detail, bool(ok))
 
+    def _count(self, c: _Counter, rows: np.ndarray) -> None:
+        """Count ``rows`` (in time order) into ``c``."""
+        rows = rows[np.lexsort((rows['sheet'], rows['kind'], rows['t']))]
+        for t, kind, sheet, cycle in zip(
+            rows['t'].tolist(), rows['kind'].tolist(), rows['sheet'].tolist(), rows['cycle'].tolist(), strict=True
+        ):
+            if kind == _HAND:
+                if c.first_sheet is None:
+                    c.first_sheet = sheet
+                if sheet in c.sheets or sheet < c.first_sheet:
+                    c.ok = False  # counted twice
+                    continue
+                c.fed += 1
+                c.sheets[sheet] = _Signature(cycle)
+            elif kind == _STOPS:
+                sig = c.sheets.get(sheet)
+                if sig is not None and sig.t_a is None:
+                    sig.t_a = t
+            elif kind == _CONTACT:
+                self._contact(c, cycle, t)
+            elif kind == _RELEASE:
+                sig = c.sheets.get(sheet)
+                if sig is not None and sig.folded:
+                    del c.sheets[sheet]
+                    c.delivered += 1
+                elif c.first_sheet is not None and sheet >= c.first_sheet:
+                    c.ok = False  # released, never folded (or twice)
+            elif kind == _ENTER:
+                if c.first_leaf is None:
+                    c.first_leaf = sheet
+                c.entered += int(sheet >= c.first_leaf)
+            elif c.first_leaf is not None and sheet >= c.first_leaf:
+                if kind == _EXIT:
+                    c.exited += 1
+                else:  # landed or spilled
+                    c.down += 1
 
-def _folder_counts(of: Callable[[str], np.ndarray], with_delivery: bool) -> _Counts:
-    """The folder's signatures: fed, delivered, in the machine (and where), consistent."""
-    hand = of('sheet_handover')
-    ids = hand['sheet']
-    ok = np.unique(ids).size == ids.size
-    stops = of('at_stops')
-    contact = of('knife_contact')
-    cc, first = np.unique(contact['cycle'], return_index=True)
-    tc = contact['t'][first]
-    arrived = np.isin(ids, stops['sheet'])
-    t_stop = np.zeros(ids.size)
-    if stops.size:
-        order = np.argsort(stops['sheet'], kind='stable')
-        ks, ts = stops['sheet'][order], stops['t'][order]
-        pos = np.minimum(np.searchsorted(ks, ids), ks.size - 1)
-        t_stop = np.where(arrived, ts[pos], 0.0)
-    if cc.size:
-        pos = np.minimum(np.searchsorted(cc, hand['cycle']), cc.size - 1)
-        knifed = cc[pos] == hand['cycle']
-        t_knife = np.where(knifed, tc[pos], np.inf)
-    else:
-        knifed = np.zeros(ids.size, dtype=bool)
-        t_knife = np.full(ids.size, np.inf)
-    folded = arrived & knifed & (t_stop <= t_knife)
-    jammed = arrived & knifed & ~folded
-    waiting = arrived & ~knifed
-    on_feed = ~arrived
-    if with_delivery:
-        rel = of('released_on_pile')['sheet']
-        ok &= bool(np.all(np.isin(rel, ids[folded]))) and np.unique(rel).size == rel.size
-        delivered = int(rel.size)
-        on_chain = int(np.count_nonzero(folded & ~np.isin(ids, rel)))
-    else:
-        delivered = int(np.count_nonzero(folded))
-        on_chain = 0
-    detail = {
-        'on_feed': int(np.count_nonzero(on_feed)),
-        'at_stops': int(np.count_nonzero(waiting)),
-        'jammed': int(np.count_nonzero(jammed)),
-        'on_chain': on_chain,
-        'folded': int(np.count_nonzero(folded)),
-    }
-    in_machine = detail['on_feed'] + detail['at_stops'] + detail['jammed'] + on_chain
-    return int(ids.size), delivered, in_machine, detail, bool(ok)
-
-
-def _layup_counts(of: Callable[[str], np.ndarray], flight: bool) -> _Counts:
-    """The layup's leaves: entered, down (landed or spilled; exited without ``flight``), in the machine."""
-    entered = of('leaf_enter').size
-    exited = of('leaf_exit').size
-    if flight:
-        down = of('leaf_landed').size + of('leaf_spilled').size
-        in_air = exited - down
-    else:
-        down, in_air = exited, 0
-    on_chutes = entered - exited
-    ok = on_chutes >= 0 and in_air >= 0
-    detail = {'on_chutes': int(on_chutes), 'in_air': int(in_air)}
-    return int(entered), int(down), int(on_chutes + in_air), detail, bool(ok)
+    def _contact(self, c: _Counter, cycle: int, t: float) -> None:
+        """The knife at ``t``: the signatures of ``cycle`` at the stops by then are folded."""
+        c.contacts[cycle] = t
+        for key, sig in list(c.sheets.items()):
+            if sig.cycle == cycle and sig.t_a is not None and sig.t_a <= t and not sig.folded:
+                sig.folded = True
+                c.folded += 1
+                if not self.with_delivery:
+                    del c.sheets[key]
+                    c.delivered += 1
+        # forget the contacts no signature in the machine belongs to (the last few kept for a late one)
+        low = min([sig.cycle for sig in c.sheets.values()] + [cycle - _CONTACTS_KEPT])
+        for k in [k for k in c.contacts if k < low]:
+            del c.contacts[k]

@@ -10,6 +10,11 @@ watermark into decisions (:class:`Due`), in time order:
 * ``release_at_min_speed`` at the ``released_on_pile`` time;
 * the layup's ``chute_speed`` at each ``leaf_exit``
   (:func:`folder_line.core.line.constraints.evaluate_layup_constraints`).
+
+A supervisor that starts watching a line already running judges the folder cycles whose
+start it saw: from the first knife event fed, cycle 0 if it is cycle 0's knife contact,
+else the cycle after the one that event belongs to (the ones before started unseen, and
+their signatures' events may never come).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ _FOLDER_KINDS = np.array(
     [event_kind(k) for k in ('sheet_handover', 'at_stops', 'bounce', 'settled', 'knife_contact')], dtype=np.int16
 )
 _CONTACT = event_kind('knife_contact')
+_EXIT = event_kind('knife_exit')
 _RELEASE = event_kind('released_on_pile')
 _LEAF_EXIT = event_kind('leaf_exit')
 
@@ -78,12 +84,20 @@ class CycleEvaluation:
         self._releases = np.zeros(0, dtype=EVENT_DTYPE)
         self._exits = np.zeros(0, dtype=EVENT_DTYPE)
         self.folder_done = -1  # last folder cycle judged
+        self.first_cycle: int | None = None  # the first folder cycle whose start was seen
         self._release_done = -math.inf  # last release time judged
         self._exit_done = -math.inf  # last leaf exit time judged
 
     def add(self, rows: np.ndarray) -> None:
         """Keep the rows (finite, of EVENT_DTYPE) that a later evaluation needs."""
         kind = rows['kind']
+        if self.first_cycle is None:
+            knife = rows[(kind == _CONTACT) | (kind == _EXIT)]
+            if knife.size:
+                first = knife[np.lexsort((knife['kind'], knife['t']))][0]
+                c = int(first['cycle'])
+                self.first_cycle = 0 if first['kind'] == _CONTACT and c == 0 else c + 1
+                self.folder_done = max(self.folder_done, self.first_cycle - 1)
         f = rows[np.isin(kind, _FOLDER_KINDS) & (rows['cycle'] > self.folder_done)]
         if f.size:
             self._folder = np.concatenate([self._folder, f])
@@ -103,7 +117,7 @@ class CycleEvaluation:
         items: list[Due] = []
         drive = None
         fb = self._folder
-        if self.timing is not None and fb.size:
+        if self.timing is not None and fb.size and self.first_cycle is not None:
             contact = (fb['kind'] == _CONTACT) & (fb['t'] <= W) & (fb['cycle'] > self.folder_done)
             if contact.any():
                 drive = drive_before()

@@ -401,6 +401,8 @@ class Supervisor:
             self.liveness.start(W)
         if self.now >= W:
             return []
+        if math.isfinite(self.now):  # no balance is asked for before the last watermark any more
+            self._sheets.commit(self.now)
         n_before = len(self._drive.issued)
         self.liveness.merge_clock()
         self._due = self._cycles.due(W, self._drive_before(W))

@@ -1,16 +1,19 @@
-"""What the machine nodes share: the scene, the line model, the tick.
+"""What the machine nodes share: the scene, the streamed line, the tick.
 
 ``crank_drive``, ``belt_conveyor``, ``feed_transporter``, ``sheet_counter`` and the
-``supervisor`` are :class:`MachineNode` subclasses. Each builds the line model of its
-scene once (:class:`folder_line.core.line.model.LineModel`, shared by the nodes of one
-process) and is a lockstep participant (:mod:`folder_line.ros.lockstep`): on
-every tick ``t`` of ``/clock`` it publishes
+``supervisor`` are :class:`MachineNode` subclasses. Each runs the line of its scene as a
+stream (:class:`folder_line.core.line.stream.LineStream`), computed a little ahead of its
+clock in windows of :data:`CHUNK` s of line time and forgotten behind it, for ever, in
+memory that does not grow with line time (a node started with a clock far into the line
+first fast-forwards there, keeping nothing). It is a lockstep participant
+(:mod:`folder_line.ros.lockstep`): on every tick ``t`` of ``/clock`` it publishes
 
 * the exact events of its machines with times in ``(t_prev, t]`` on
   ``/line/events`` as ``sensor_msgs/TimeReference``: ``time_ref`` is the event time
   (nearest ns), ``header.stamp`` the tick, ``header.frame_id`` the node,
   ``source`` is ``'<kind> sheet=<id> cycle=<k> value=<repr>'``
-  (:func:`folder_line.event_text.event_source`, re-exported here);
+  (:func:`folder_line.interfaces.event_source`); the first tick, at stamp ``t_0``, publishes
+  the events at ``t_0`` only (a line joined while running is not replayed from 0);
 * its joints' states on ``/line/<node>/joint_states`` at every point of its own
   grid (``rate`` Hz of sim time) in ``(t_prev, t]``, stamped with that grid point,
   so the clock's tick rate changes how many messages go out per tick, never what
@@ -21,7 +24,10 @@ node runs tick ``t`` only once the supervisor's previous tick is complete (its
 acknowledgement and every drive command it counts are in), so every command
 decided before ``t`` is applied: what a node publishes at stamp ``t`` depends only
 on the scene, ``t`` and the supervisor's commands (``/line/supervisor/commands``,
-each with its effective time), never on the load of the machine.
+each with its effective time), never on the load of the machine. A command effective
+inside the window computed ahead redoes that window from a copy of its start (the stamps
+already published are before the command and do not change), so a command costs the
+same at any line time.
 
 Inputs that are malformed, unknown or out of order (a command of an unknown kind,
 from anyone but the supervisor, or effective before the last tick published) are
@@ -32,7 +38,6 @@ off: it is refused at start and at run time.
 
 from __future__ import annotations
 
-import functools
 import math
 from array import array
 from collections.abc import Iterable, Mapping
@@ -48,9 +53,10 @@ from std_msgs.msg import String
 
 from folder_line.config.run_config import RATE
 from folder_line.config.scenes import InputNames, parse_set, shared_scene
-from folder_line.core.limits import HORIZON, LOST_TIMEOUT, TICK_RATE
-from folder_line.core.line.model import LineModel
+from folder_line.core.limits import LOST_TIMEOUT, TICK_RATE
+from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.scene import Scene
+from folder_line.core.line.stream import Checkpoint, LineStream
 from folder_line.core.line.tuning import (
     SCENE_KEYS,
     TUNABLES,
@@ -83,13 +89,15 @@ from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS, joint_states_topic
 __all__ = [
     'MACHINE_SPECS',
     'NODE_NAMES',
+    'CHUNK',
+    'FAST_FORWARD',
+    'FAST_WINDOW',
+    'KEEP',
     'MachineNode',
     'NodeMain',
-    'line_model',
     'machine_node',
     'node_scene',
     'parse_overrides',
-    'scene_model',
 ]
 
 
@@ -99,14 +107,6 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
         'overrides',
         '',
         'Scene overrides, "MACHINE.KEY=VALUE" separated by ";" (e.g. "feed_transporter.V_tr=5.833;seed=3")',
-        read_only=True,
-    ),
-    ParamSpec(
-        'horizon',
-        3600.0,
-        'Line time the model is built for; the node stops publishing after it',
-        unit='s',
-        bounds=HORIZON.bounds,
         read_only=True,
     ),
     ParamSpec(
@@ -126,10 +126,16 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ),
 )
 
-#: grid points of joint states sampled from the model in one call (see MachineNode._joint_row)
-SAMPLE_BATCH = 100
-
-#: the drive command kinds a machine node accepts
+#: line time a node computes ahead of its tick in one window of its stream, s (a command effective inside
+#: it redoes the window: at most this much line time is computed again)
+CHUNK = 0.25
+#: line time before its window the stream keeps (the longest clock step, a second, and a window): a grid
+#: point or a marker between the last tick and the window it falls in is still drawn from the line, s
+KEEP = 1.0 + CHUNK
+#: a node whose first tick is further into the line than this fast-forwards there first, s
+FAST_FORWARD = 60.0
+#: line time per window of a fast-forward, s (nothing of it is kept)
+FAST_WINDOW = 600.0
 
 
 #: the scene loader's inputs in a node's words: its parameters
@@ -145,17 +151,6 @@ def node_scene(scene: str, overrides: str = '') -> Scene:
     """The scene of the ``scene`` and ``overrides`` parameters, parsed once per process
     (:func:`folder_line.config.scenes.shared_scene`); errors name those parameters."""
     return shared_scene(scene, parse_overrides(overrides), names=NODE_NAMES)
-
-
-@functools.lru_cache(maxsize=8)
-def scene_model(scene: Scene, horizon: float, commands: tuple[LineCommand, ...]) -> LineModel:
-    """The line model of a scene, shared by every node of a process that asks for the same one."""
-    return LineModel(scene, horizon, commands)
-
-
-def line_model(scene: str, overrides: str, horizon: float, commands: tuple[LineCommand, ...]) -> LineModel:
-    """:func:`scene_model` of the scene named by a node's ``scene`` and ``overrides`` parameters."""
-    return scene_model(node_scene(scene, overrides), horizon, commands)
 
 
 def _check_sim_time(values: Mapping[str, Any]) -> None:
@@ -208,20 +203,20 @@ class MachineNode(Node):
         self.kinds = np.array(
             [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
         )
-        self._set_model(scene_model(self.scene, self.values['horizon'], self.commands))
-        self.horizon_ns = round(self.values['horizon'] * NS_PER_S)
+        self.stream = LineStream(self.scene, keep=KEEP)
         self.unit = UNIT_OF_NODE.get(self.NODE_NAME, '')  # the core's machine unit this node runs ('' none)
-        self.joints = self.model.units.get(self.unit, ())
+        self.joints = self.stream.units.get(self.unit, ())
         self._last_ns: int | None = None  # the latest tick published
         self._grid_ns: int | None = None  # the latest grid point published
         self._period_ns = round(NS_PER_S / self.values['rate'])
-        self._batch: tuple[int, int, list[tuple[array[float], array[float], array[float]]]] | None = None
+        self._start: Checkpoint | None = None  # the stream at the start of the window it computed last
+        self._pending = np.zeros(0, dtype=EVENT_DTYPE)  # this node's events computed, not yet published
+        self._samples: tuple[int, int, list[tuple[array[float], array[float], array[float]]]] | None = None
         self._names: list[str] = list(self.joints)
         # one joint state message, refilled for every grid point (publishing serializes it at once)
         self._joint_msg = JointState()
         self._joint_msg.header.frame_id = self.NODE_NAME
         self._joint_msg.name = self._names
-        self._horizon_logged = False
         self.rejected: dict[str, int] = {}
         self.published_joint_states = 0
         self.published_events = 0
@@ -246,10 +241,8 @@ class MachineNode(Node):
         )
         self.add_post_set_parameters_callback(self._apply)
         self.setup()
-        self.on_model()
         self.get_logger().info(
-            f'scene {self.model.scene.name!r}, joints {list(self.joints)}, '
-            f'{self.values["rate"]:g} Hz of sim time, horizon {self.values["horizon"]:g} s'
+            f'scene {self.scene.name!r}, joints {list(self.joints)}, {self.values["rate"]:g} Hz of sim time'
         )
 
     # ------------------------------------------------------------------ hooks
@@ -267,9 +260,6 @@ class MachineNode(Node):
 
     def setup(self) -> None:
         """Subclass hook: create extra publishers."""
-
-    def on_model(self) -> None:
-        """Subclass hook: the line model was (re)built (at start and after each command)."""
 
     def publish_sample(self, stamp_ns: int, t: float) -> None:
         """Subclass hook: called at every grid point ``t`` (after the joint states)."""
@@ -412,27 +402,44 @@ class MachineNode(Node):
             )
             return
         self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
-        self._set_model(scene_model(self.scene, self.values['horizon'], self.commands))
-        self._batch = None
-        self.on_model()
+        self._take_commands(command.t)
         self.lockstep.received('supervisor', 'commands')
 
-    def _set_model(self, model: LineModel) -> None:
-        """Take a (re)built model, with this node's own events picked out once (a tick only slices them)."""
-        self.model = model
-        ev = model.events
-        self._own_events = ev[np.isin(ev['kind'], self.kinds)] if ev.size else ev
-        self._own_t = self._own_events['t']
+    def _take_commands(self, t_effective: float) -> None:
+        """Run the line under :attr:`commands` from now on: a command effective inside the window computed
+        ahead redoes that window from its start (what was published is before the command)."""
+        stream = self.stream
+        if t_effective > stream.t or self._start is None:
+            stream.set_commands(self.commands)
+            return
+        end = stream.t
+        stream.restore(self._start, self.commands)
+        window = stream.advance(end)
+        last = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
+        mine = window.events[np.isin(window.events['kind'], self.kinds)]
+        self._pending = mine[mine['t'] > last]
+        self._samples = None  # sampled again, from the stream under the commands
+
+    # ------------------------------------------------------------------ the stream
+
+    def _cover(self, stamp_ns: int) -> None:
+        """Compute the line up to at least ``stamp_ns`` (ns): a window of :data:`CHUNK` s past it, after a
+        fast-forward if the stream is far behind (a clock started far into the line)."""
+        stream = self.stream
+        t = stamp_ns / NS_PER_S
+        if stream.t >= t:
+            return
+        if t - max(stream.t, 0.0) > FAST_FORWARD:  # far behind: get there at batch speed, keeping nothing
+            target = t - CHUNK
+            while stream.t < target:
+                stream.advance(min(target, max(stream.t, 0.0) + FAST_WINDOW))
+            self._pending = np.zeros(0, dtype=EVENT_DTYPE)
+        self._start = stream.checkpoint()
+        window = stream.advance(max(t, stream.t + CHUNK))
+        mine = window.events[np.isin(window.events['kind'], self.kinds)]
+        self._pending = np.concatenate((self._pending, mine)) if self._pending.size else mine
 
     def _on_tick(self, stamp_ns: int) -> None:
-        if stamp_ns > self.horizon_ns:
-            if not self._horizon_logged:
-                self.get_logger().error(
-                    f'sim time {stamp_ns / NS_PER_S:.9f} s passed the horizon '
-                    f'{self.values["horizon"]:g} s: publishing nothing more'
-                )
-                self._horizon_logged = True
-            return
         self.publish_at(stamp_ns)
 
     def _on_end(self, stamp_ns: int) -> None:
@@ -447,22 +454,23 @@ class MachineNode(Node):
         return list(range(first, stamp_ns + 1, self._period_ns))
 
     def _joint_row(self, g: int) -> tuple[array[float], array[float], array[float]]:
-        """Position, velocity, effort of this node's joints at grid point ``g`` (ns).
+        """Position, velocity, effort of this node's joints at grid point ``g`` (ns), from the stream.
 
-        The model is sampled :data:`SAMPLE_BATCH` grid points at a time (one numpy call
-        costs about as much for one point as for a hundred); the batch is dropped when the
-        model changes (a command) or the grid does (``rate``), so every row is the model's
-        value at its own time, whatever the clock's tick rate.
+        The grid points of the window computed are sampled in one call (one numpy call costs
+        about as much for one point as for many); the rows are dropped when the window or the
+        grid (``rate``) changes, so every row is the line's value at its own time, whatever the
+        clock's tick rate.
         """
-        c = self._batch
+        c = self._samples
         if c is not None:
             first, period, rows = c
             i, off = divmod(g - first, period)
             if period == self._period_ns and off == 0 and 0 <= i < len(rows):
                 return rows[i]
-        n = max(1, min(SAMPLE_BATCH, (self.horizon_ns - g) // self._period_ns + 1))
+        end = round(self.stream.t * NS_PER_S)
+        n = max(1, (end - g) // self._period_ns + 1)
         times = np.array([g + k * self._period_ns for k in range(n)], dtype=float) / NS_PER_S
-        js = self.model.sample(self.unit, times)
+        js = self.stream.sample(self.unit, times)
         if list(js.names) != self._names:
             self._names = list(js.names)
             self._joint_msg.name = self._names
@@ -470,17 +478,23 @@ class MachineNode(Node):
         pos, vel = [array('d', row) for row in js.position], [array('d', row) for row in js.velocity]
         eff = [array('d')] * n if js.effort is None else [array('d', row) for row in js.effort]
         rows = list(zip(pos, vel, eff, strict=True))
-        self._batch = (g, self._period_ns, rows)
+        self._samples = (g, self._period_ns, rows)
         return rows[0]
 
     def publish_at(self, stamp_ns: int) -> None:
         """Publish everything of the tick at ``stamp_ns`` (sim time, ns)."""
         t = stamp_ns / NS_PER_S
-        t_prev = -math.inf if self._last_ns is None else self._last_ns / NS_PER_S
+        first = self._last_ns is None
+        self._cover(stamp_ns)
+        if self._samples is not None and self._samples[0] + len(self._samples[2]) * self._samples[1] <= stamp_ns:
+            self._samples = None  # a new window: its grid points are sampled when first needed
         self._last_ns = stamp_ns
         stamp = ns_to_time_msg(stamp_ns)
-        i0, i1 = np.searchsorted(self._own_t, (t_prev, t), side='right')  # this node's events of (t_prev, t]
-        mine = self._own_events[i0 : max(i0, i1)]
+        pend = self._pending
+        n = int(np.searchsorted(pend['t'], t, side='right'))
+        mine, self._pending = pend[:n], pend[n:]
+        if first:  # a line joined at t_0: its events before t_0 are not published
+            mine = mine[mine['t'] >= t]
         for row in mine:
             ref = TimeReference()
             ref.header.stamp = stamp
@@ -489,6 +503,7 @@ class MachineNode(Node):
             ref.source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
             self.publish(self._event_pub, ref, 'events')
             self.published_events += 1
+        self.on_events(mine)
         points = self.grid_points(stamp_ns)
         if points:
             self._grid_ns = points[-1]
@@ -501,6 +516,9 @@ class MachineNode(Node):
                     self.published_joint_states += 1
                 self.publish_sample(g, g / NS_PER_S)
         self.publish_extra(stamp_ns, t, mine)
+
+    def on_events(self, events: np.ndarray) -> None:
+        """Subclass hook: this node's events of the tick, just published (before the grid points)."""
 
 
 class NodeMain(Protocol):

@@ -27,10 +27,9 @@ its ``released_on_pile``, ``leaf_landed`` and ``leaf_spilled`` events on ``/line
 
 It also draws the whole line: ``/line/markers`` (``visualization_msgs/MarkerArray``, frame
 ``line``) at ``marker_rate`` Hz of sim time on its own grid, stamps ``i / marker_rate``
-(0 = off), the scenery of its model (:class:`folder_line.core.line.scenery.Scenery`, rebuilt
-with the model at each command) as :mod:`folder_line.bag.markers` lays it out. This node has
-the whole model like every machine node and runs in every scene, so no node is added to the
-line for it.
+(0 = off), the scenery of its line (:class:`folder_line.core.line.scenery.Scenery` of its
+stream) as :mod:`folder_line.bag.markers` lays it out. This node runs the whole line like
+every machine node and runs in every scene, so no node is added to the line for it.
 Other parameters: see :mod:`folder_line.ros.nodes.machine`.
 """
 
@@ -42,6 +41,7 @@ import numpy as np
 from std_msgs.msg import Float64, UInt64
 from visualization_msgs.msg import MarkerArray
 
+from folder_line.bag.batch import SheetRate
 from folder_line.bag.markers import marker_specs, marker_stamps
 from folder_line.config.run_config import MARKER_RATE, MARKER_RATES
 from folder_line.core.line.scenery import Scenery
@@ -60,7 +60,10 @@ from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 
-__all__ = ['SheetCounter', 'counted_kind', 'main']
+__all__ = ['RATE_WINDOWS', 'SheetCounter', 'counted_kind', 'main']
+
+#: the range of ``rate_window``, s: the counted sheets of the longest are kept (bounded memory)
+RATE_WINDOWS = (0.001, 3600.0)
 
 
 def counted_kind(has_delivery: bool) -> int:
@@ -73,7 +76,7 @@ class SheetCounter(MachineNode):
 
     NODE_NAME = 'sheet_counter'
     EXTRA_SPECS = (
-        ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s', bounds=(0.001, 3600.0)),
+        ParamSpec('rate_window', 5.0, 'Window of the sheet rate, in sim time', unit='s', bounds=RATE_WINDOWS),
         ParamSpec(
             'marker_rate',
             MARKER_RATE,
@@ -92,22 +95,22 @@ class SheetCounter(MachineNode):
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, LINE_QOS)
         self._marker_ns: int | None = None  # the latest marker stamp published
         self._marker_rate = self.values['marker_rate']  # the rate of the grid _marker_ns is on
+        self._counted = counted_kind(self.scene.has_delivery)
+        self._sheets = SheetRate(self.values['rate_window'])  # the counted sheets the rate still reads
+        self._scenery: Scenery | None = None  # built when a marker is first due
 
-    def on_model(self) -> None:
-        ev = self.model.events
-        self._times = ev[ev['kind'] == counted_kind(self.model.scene.has_delivery)]['t']
-        self._scenery: Scenery | None = None  # built when a marker is first due under this model
+    def on_events(self, events: np.ndarray) -> None:
+        """Count the sheets counted at this tick (published before the grid points that read them)."""
+        self._sheets.window = self.values['rate_window']
+        self._sheets.add(events['t'][events['kind'] == self._counted])
 
     def count_at(self, t: float) -> int:
-        """Sheets counted with event time <= t."""
-        return int(np.searchsorted(self._times, t, side='right'))
+        """Sheets counted with event time <= t (t not before the rate window of the last tick)."""
+        return int(self._sheets.count(np.array([t]))[0])
 
     def rate_at(self, t: float) -> float:
         """Sheets per second over ``(t - window, t]`` (the elapsed time if shorter), 0 at t = 0."""
-        window: float = min(self.values['rate_window'], t)
-        if window <= 0.0:
-            return 0.0
-        return (self.count_at(t) - self.count_at(t - window)) / window
+        return float(self._sheets.rate(np.array([t]))[0])
 
     def publish_sample(self, stamp_ns: int, t: float) -> None:
         self.publish(self._count_pub, UInt64(data=self.count_at(t)))
@@ -124,9 +127,10 @@ class SheetCounter(MachineNode):
             # a new rate (or markers on again after 0): its grid starts at this tick, not at the last stamp drawn
             self._marker_ns = stamp_ns - 1
         self._marker_rate = rate
+        self._sheets.forget(t, RATE_WINDOWS[1])  # no rate after this tick reads further back, whatever its window
         for g in marker_stamps(self._marker_ns, stamp_ns, rate):
             if self._scenery is None:
-                self._scenery = Scenery(self.model)
+                self._scenery = Scenery(self.stream)
             specs = marker_specs(self._scenery.at(g / NS_PER_S))
             self.publish(self._marker_pub, marker_array(specs, g, delete_all=self.published_markers == 0))
             self._marker_ns = g

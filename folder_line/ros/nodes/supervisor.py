@@ -122,7 +122,7 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement
-from folder_line.ros.nodes.machine import MachineNode, scene_model
+from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -200,14 +200,10 @@ class Supervisor(MachineNode):
 
     def setup(self) -> None:
         v = self.values
-        joint_nodes = [NODE_OF_UNIT[unit] for unit in self.model.units]
-        scene, horizon = self.scene, v['horizon']
-        self.logic = supervisor_logic(
-            self.model.scene, v['horizon'], v, lambda commands: scene_model(scene, horizon, commands)
-        )
+        joint_nodes = [NODE_OF_UNIT[unit] for unit in self.stream.units]
+        self.logic = supervisor_logic(self.scene, v)
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
-        self._n_violations = self._n_balances = 0
         self._n_rejected = 0
         self._clock_step: int | None = None
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
@@ -376,6 +372,9 @@ class Supervisor(MachineNode):
         self._publish_outputs()
         super().publish_at(stamp_ns)
 
+    def _cover(self, stamp_ns: int) -> None:
+        """The supervisor's stream is advanced only to a diagnostics stamp (:meth:`diagnostics`)."""
+
     def publish_sample(self, stamp_ns: int, t: float) -> None:
         self._publish_state()
 
@@ -393,14 +392,12 @@ class Supervisor(MachineNode):
     def _publish_outputs(self) -> None:
         for t, command in self.logic.take_commands():
             self._publish_command(t, command)
-        violations = self.logic.violations
-        for v in violations[self._n_violations :]:
+        for v in self.logic.violations:
             self._publish_violation(v)
-        self._n_violations = len(violations)
-        balances = self.logic.balances
-        for b in balances[self._n_balances :]:
+        self.logic.violations.clear()  # published: the node keeps none (its memory does not grow)
+        for b in self.logic.balances:
             self._publish_balance(b)
-        self._n_balances = len(balances)
+        self.logic.balances.clear()
 
     def _publish_command(self, t: float, command: LineCommand) -> None:
         msg = TimeReference()
@@ -420,7 +417,7 @@ class Supervisor(MachineNode):
             ok,
             message,
             values,
-            self.model.scene.name,
+            self.scene.name,
             t_start=logic.t_start,
             watermark=logic.now,
             late=logic.late,
@@ -458,11 +455,15 @@ class Supervisor(MachineNode):
         }
 
     def diagnostics(self, stamp: int, t: float) -> DiagnosticArray:
-        """One status per constraint, from the cycles evaluated by time ``t`` (:func:`constraint_statuses`)."""
+        """One status per constraint, from the cycles the line judged by time ``t`` (its stream advanced there,
+        :func:`constraint_statuses`)."""
+        if self.stream.t < t:
+            self.stream.advance(t)
         arr = DiagnosticArray()
         arr.header.stamp = ns_to_time_msg(stamp)
         arr.header.frame_id = self.NODE_NAME
-        statuses = constraint_statuses(self.model, t, self.model.scene.name, self.rejected, self.logic.lost_nodes)
+        tallies = self.stream.tallies.constraints.values()
+        statuses = constraint_statuses(tallies, self.scene.name, self.rejected, self.logic.lost_nodes)
         arr.status = [_status_msg(st) for st in statuses]
         return arr
 

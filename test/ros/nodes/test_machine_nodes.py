@@ -309,17 +309,35 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     assert (len(landed) > 0) == scene.has_layup
 
 
-def test_a_node_publishes_nothing_past_its_horizon_and_still_answers_every_tick(ros: Ros) -> None:
-    node = ros.add(CLASSES['crank_drive'](context=ros.context, parameter_overrides=params(horizon=0.5)))
+def test_a_node_joined_an_hour_into_the_line_publishes_it_from_there(ros: Ros) -> None:
+    """No horizon: a clock started at 3600 s gets every grid point and event from its first tick on, the line's
+    values there (the node fast-forwarded to it keeping nothing), and none of the hour before."""
+    start = 3600.0
+    node = ros.add(CLASSES['feed_transporter'](context=ros.context))
     listener = ros.node('listener')
-    received, sub = subscribe(ros, listener, JointState, joint_states_topic('crank_drive'))
-    assert ros.spin_until(lambda: sub.get_publisher_count() == 1, timeout=20.0)
-    clock = start_clock(ros, 1.0, ['crank_drive'])
-    assert ros.spin_until(lambda: clock.done.done() and len(received) == node.published_joint_states, timeout=30.0)
-    assert [stamp_ns(m) for m in received.messages] == grid(0, NS_PER_S // 2, STEP)  # up to the horizon exactly
-    assert node.ticks == grid(0, NS_PER_S // 2, STEP)
-    assert node.lockstep.ticks == clock.ticks == 201 and node.done.result() == NS_PER_S
-    assert node._horizon_logged  # it saw sim time beyond the horizon and said so
+    received, sub = subscribe(ros, listener, JointState, joint_states_topic('feed_transporter'))
+    events, esub = subscribe(ros, listener, TimeReference, EVENTS_TOPIC)
+    assert ros.spin_until(lambda: sub.get_publisher_count() == 1 and esub.get_publisher_count() == 1, timeout=20.0)
+    clock = start_clock(ros, 0.5, ['feed_transporter'], start_time=start)
+    assert ros.spin_until(
+        lambda: clock.done.done()
+        and len(received) == node.published_joint_states
+        and len(events) == node.published_events,
+        timeout=60.0,
+    )
+    t0 = round(start * NS_PER_S)
+    stamps = grid(t0, t0 + NS_PER_S // 2, STEP)
+    assert [stamp_ns(m) for m in received.messages] == stamps and node.ticks == stamps
+    model = LineModel(load_scene('folder'), start + 0.5)  # the whole hour, kept: the reference
+    js = model.sample('feed', np.array(stamps, dtype=float) / NS_PER_S)
+    got = np.array([m.position for m in received.messages])
+    assert got.tobytes() == js.position.tobytes()
+    own = model.events[np.isin(model.events['kind'], [EVENT_KINDS.index(k) for k, n in EVENT_OWNER.items() if n == 'feed_transporter'])]
+    own = own[(own['t'] >= start) & (own['t'] <= start + 0.5)]
+    assert [m.source for m in events.messages] == [
+        f'{EVENT_KINDS[r["kind"]]} sheet={r["sheet"]} cycle={r["cycle"]} value={float(r["value"])!r}' for r in own
+    ]
+    assert len(own) > 20 and node.stream.t < start + 1.0
 
 
 def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
@@ -415,10 +433,11 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
         for value, reason in BAD_RATES:
             assert call(name, Parameter('rate', value=value)) == (False, reason)
             assert node.get_parameter('rate').value == 200.0 and node._period_ns == STEP
-        for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('horizon', 10.0), ('lost_timeout', 1.0)):
+        for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('lost_timeout', 1.0)):
             ok, reason = call(name, Parameter(read_only, value=value))
             assert not ok and 'read-only' in reason and read_only in reason
-        assert node.get_parameter('scene').value == 'folder' and node.model.scene.name == 'folder'
+        assert node.get_parameter('scene').value == 'folder' and node.scene.name == 'folder'
+        assert not node.has_parameter('horizon')  # the line runs until stopped: no horizon
         # the wall clock is refused at run time, with the reason naming use_sim_time
         assert call(name, Parameter('use_sim_time', value=False)) == (False, NO_WALL_CLOCK)
         assert node.get_parameter('use_sim_time').value is True
@@ -432,7 +451,7 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
     assert nodes[3].values['rate_window'] == 1.5
     assert call('sheet_counter', Parameter('marker_rate', value=0.0)) == (True, '')
     assert nodes[3].values['marker_rate'] == 0.0
-    assert {s.name for s in MACHINE_SPECS} == {'scene', 'overrides', 'horizon', 'rate', 'lost_timeout'}
+    assert {s.name for s in MACHINE_SPECS} == {'scene', 'overrides', 'rate', 'lost_timeout'}
 
 
 @pytest.mark.parametrize('cls', ALL_CLASSES, ids=lambda c: c.NODE_NAME)
@@ -521,11 +540,10 @@ def test_a_producer_whose_counted_messages_never_come_is_lost_not_waited_for_for
 def test_markers_turned_on_at_run_time_start_at_that_tick(ros: Ros) -> None:
     """marker_rate 0 at start, 5 Hz from t = 1800 s: one array at 1800 s, not the 9000 of the grid since 0."""
     counter = ros.add(SheetCounter(context=ros.context, parameter_overrides=params(scene='folder', marker_rate=0.0)))
-    none = np.zeros(0, dtype=counter.model.events.dtype)
-    counter.publish_extra(0, 0.0, none)
+    counter.publish_at(0)
     assert counter.published_markers == 0
     assert counter.set_parameters([Parameter('marker_rate', value=5.0)])[0].successful
-    counter.publish_extra(1800 * NS_PER_S, 1800.0, none)
+    counter.publish_at(1800 * NS_PER_S)  # the node fast-forwards there
     assert counter.published_markers == 1
-    counter.publish_extra(1800 * NS_PER_S + NS_PER_S // 2, 1800.5, none)  # then on its grid: 1800.2, 1800.4
+    counter.publish_at(1800 * NS_PER_S + NS_PER_S // 2)  # then on its grid: 1800.2, 1800.4
     assert counter.published_markers == 3
