@@ -47,7 +47,7 @@ class LineTimeProgress:
     The time left is estimated once the line time has moved for :data:`ESTIMATE_AFTER` s of
     wall time: the wall time taken per second of line time since it first moved (a start-up
     that does not advance the line, as the nodes' of ``run``, is not counted) times the line
-    time still to go. The last drawing at ``total`` says the wall time the whole took.
+    time still to go. A drawing at ``total`` says the wall time the whole took (``done in ...``).
 
     Safe to use from two threads (the loop that draws, a thread that logs: :func:`logs_above`).
 
@@ -100,7 +100,7 @@ class LineTimeProgress:
         done = int(self.width * fraction)
         text = f'[{"#" * done}{"." * (self.width - done)}] {t:7.2f} / {self.total:g} s of line time'
         if t >= self.total:
-            return text + f', {wall_text(now - self.started)} of wall time'
+            return text + f', done in {wall_text(now - self.started)}'
         left = self.left(t, now)
         return text if left is None or not math.isfinite(left) else text + f', {wall_text(left)} left'
 

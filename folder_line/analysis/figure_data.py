@@ -3,9 +3,15 @@
 Each function takes a :class:`~folder_line.analysis.recording.Recording` (and its
 :class:`~folder_line.analysis.replay.Evaluation`) and returns the recorded samples of one
 figure of :mod:`folder_line.analysis.figures` set against the model: the layup's exit
-speeds (:func:`exit_speed_data`), the delivery's efficiency along the stroke
-(:func:`efficiency_data`), the folder's first cycles operation by operation
-(:func:`cycle_rows`) and the leaves' landing positions (:func:`landing_data`).
+speeds (:func:`exit_speed_data`) and its leaves' (:func:`leaf_exit_data`), the delivery's
+efficiency along the stroke (:func:`efficiency_data`), the folder's first cycles operation by
+operation (:func:`cycle_rows`) and the leaves' landing positions (:func:`landing_data`).
+
+None of them holds more than a bounded part of a long run: the joint states are the
+recording's bounded sample; what is taken from the recorded events is gathered in slices of
+the event table (:func:`folder_line.analysis.streaming.event_chunks`), counted over every
+event, and the points drawn one per event (the leaves' exits and landings) are kept to
+:data:`LEAF_POINTS`, thinned by a hash of their times (:class:`folder_line.analysis.streaming.Thinned`).
 """
 
 from __future__ import annotations
@@ -16,9 +22,11 @@ from typing import Any
 import numpy as np
 
 from folder_line.analysis.recording import Recording
-from folder_line.analysis.replay import Evaluation
+from folder_line.analysis.replay import CYCLES_KEPT, Evaluation
+from folder_line.analysis.streaming import CHUNK, Thinned, event_chunks
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
+from folder_line.core.line.events import event_kind
 from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
@@ -26,16 +34,20 @@ from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
 __all__ = [
     'GANTT_CYCLES',
+    'LEAF_POINTS',
     'at_speed_time',
     'cycle_rows',
     'efficiency_data',
     'exit_speed_data',
     'landing_data',
+    'leaf_exit_data',
     'off_speed',
 ]
 
-#: cycles shown in the Gantt chart by default
-GANTT_CYCLES = 8
+#: cycles shown in the Gantt chart by default (the margins :func:`~folder_line.analysis.replay.evaluate` keeps)
+GANTT_CYCLES = CYCLES_KEPT
+#: leaves drawn at most in a figure that draws one point per leaf (every leaf is counted)
+LEAF_POINTS = 5000
 
 #: the supervisor's state of a line running at speed
 _AT_SPEED_STATE = 'EXECUTE'
@@ -64,9 +76,15 @@ def at_speed_time(rec: Recording, ev: Evaluation) -> float:
     """
     if rec.states:
         return next((t_ns / NS_PER_S for t_ns, state in rec.states if state == _AT_SPEED_STATE), math.inf)
-    grid = np.arange(0.0, rec.t_end + CHECK_PERIOD, CHECK_PERIOD)
-    fast = np.flatnonzero(np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED * target_rate(ev.drive, grid))
-    return float(grid[fast[0]]) if fast.size else math.inf
+    n = math.ceil((rec.t_end + CHECK_PERIOD) / CHECK_PERIOD)  # the points of np.arange(0, t_end + step, step)
+    for i in range(0, n, CHUNK):  # a slice of the grid at a time: an hour is 720 000 points
+        grid = np.arange(i, min(i + CHUNK, n), dtype=float) * CHECK_PERIOD
+        fast = np.flatnonzero(
+            np.asarray(ev.drive.rate(grid), dtype=float) >= SPEED_REACHED * target_rate(ev.drive, grid)
+        )
+        if fast.size:
+            return float(grid[fast[0]])
+    return math.inf
 
 
 def off_speed(rec: Recording, ev: Evaluation, t: np.ndarray) -> np.ndarray:
@@ -172,9 +190,37 @@ def efficiency_data(rec: Recording, ev: Evaluation) -> dict[str, np.ndarray] | N
     }
 
 
+_CYCLE_KINDS = np.array(
+    [
+        event_kind(k)
+        for k in ('knife_contact', 'knife_exit', 'sheet_handover', 'at_stops', 'settled', 'released_on_pile')
+    ],
+    dtype=np.int16,
+)
+
+
+def _cycle_events(rec: Recording, cycles: np.ndarray) -> np.ndarray:
+    """The recorded rows of ``cycles`` the cyclogram reads (knife, signatures), in table order: one scan of
+    the table in slices."""
+    parts = [
+        part[np.isin(part['kind'], _CYCLE_KINDS) & np.isin(part['cycle'], cycles)]
+        for part, _ in event_chunks(rec.events, rec.event_ns)
+    ]
+    return np.concatenate(parts) if parts else rec.events[:0]
+
+
 def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[dict[str, Any]]:
     """The first ``n`` judged folder cycles (and the first violated one with its neighbours): the
     operations' times and the margins.
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording (its events from the start of the span shown).
+    ev : Evaluation
+        ``rec`` judged, keeping the margins of at least ``n`` cycles (``keep_cycles``).
+    n : int
+        Cycles shown from the first.
 
     Returns
     -------
@@ -184,39 +230,44 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
         ``deadline`` (end of the allowed feed time, s), ``sheets`` (list of dicts
         ``sheet``, ``handover``, ``at_stops``, ``settled``, ``release``, None where
         absent) and ``margins`` (constraint -> margin of the cycle).
+
+    Raises
+    ------
+    ValueError
+        ``n`` is more than the cycles whose margins ``ev`` kept, and more were judged.
     """
     timing = ev.timing
     if timing is None:
         return []
-    contact = rec.events_of('knife_contact')
-    judged = np.unique(contact['cycle'])
-    cycles = judged[:n]
-    bad = [int(c.cycle[i]) for c in ev.constraints if c.name in FOLDER_CONSTRAINTS for i in np.flatnonzero(c.violated)]
-    if bad and min(bad) not in cycles:  # show the first violated cycle too, between its neighbours
-        around = np.arange(min(bad) - 1, min(bad) + 2)
-        cycles = np.union1d(cycles, around[np.isin(around, judged)])
+    if n > ev.keep_cycles and len(ev.first_cycles) == ev.keep_cycles:
+        raise ValueError(f'cycle_rows: the evaluation kept the margins of {ev.keep_cycles} cycles, not {n}')
+    cycles = np.array(ev.first_cycles[:n], dtype=np.int64)
+    if ev.first_violated is not None and ev.first_violated not in cycles:  # the first violated, between its neighbours
+        cycles = np.union1d(cycles, np.array(ev.around_violated, dtype=np.int64))
     if cycles.size == 0:
         return []
     drive = ev.drive
     th_start = cycles * timing.T + timing.knife.t_out
     # to the ns, as the recorded event times (a cycle starts at the knife exit of the cycle before)
     t_start = np.round(np.asarray(drive.time_of(th_start), dtype=float) * NS_PER_S) / NS_PER_S
+    rows = _cycle_events(rec, cycles)
 
-    def first_time(rows: np.ndarray, key: str, value: int) -> float | None:
-        hit = rows[rows[key] == value]
+    def of(kind: str) -> np.ndarray:
+        out: np.ndarray = rows[rows['kind'] == event_kind(kind)]
+        return out
+
+    def first_time(table: np.ndarray, key: str, value: int) -> float | None:
+        hit = table[table[key] == value]
         return float(hit['t'][0]) if hit.size else None
 
-    exits = rec.events_of('knife_exit')
-    hand = rec.events_of('sheet_handover')
-    stops = rec.events_of('at_stops')
-    settled = rec.events_of('settled')
-    release = rec.events_of('released_on_pile')
+    contact, exits, hand = of('knife_contact'), of('knife_exit'), of('sheet_handover')
+    stops, settled, release = of('at_stops'), of('settled'), of('released_on_pile')
     bouncing = rec.scene.has('stop_bounce')
-    margins = {c.name: dict(zip(c.cycle.tolist(), c.margin.tolist(), strict=True)) for c in ev.constraints}
     out = []
     for k, t0 in zip(cycles.tolist(), t_start.tolist(), strict=True):
         tc = first_time(contact, 'cycle', k)
-        assert tc is not None
+        if tc is None:  # a neighbour decided before the span shown
+            continue
         th_dead = float(np.asarray(drive.theta(np.asarray(tc)))) - (timing.T - timing.t_knife - timing.t_allowed)
         sheets = []
         for s in hand[hand['cycle'] == k]:
@@ -231,6 +282,7 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
                     'release': first_time(release, 'sheet', sid),
                 }
             )
+        margins = ev.cycle_margins.get(k, {})
         out.append(
             {
                 'cycle': k,
@@ -239,31 +291,108 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
                 'exit': first_time(exits, 'cycle', k),
                 'deadline': float(np.asarray(drive.time_of(np.asarray(th_dead)))),
                 'sheets': sheets,
-                'margins': {name: m[k] for name, m in margins.items() if k in m and name in FOLDER_CONSTRAINTS},
+                'margins': {name: margins[name] for name in FOLDER_CONSTRAINTS if name in margins},
             }
         )
     return out
 
 
-def landing_data(rec: Recording) -> dict[str, Any] | None:
-    """The leaves' landing positions, or None without ``leaf_flight``.
+def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> dict[str, Any] | None:
+    """The leaves' exits from the chutes (``leaf_exit`` events), counted, and at most ``cap`` of them to draw.
+
+    Parameters
+    ----------
+    rec : Recording
+    ev : Evaluation
+        ``rec`` judged (its drive: the crank angle at each exit; what is off speed: :func:`off_speed`).
+    cap : int
+        Exits kept to draw at most (a pseudo-random choice by a hash of their times beyond it).
 
     Returns
     -------
     dict or None
-        ``x`` (landed, m), ``spilled`` (m), ``edges``, ``counts`` and ``cv`` of the
-        histogram across the container (:func:`folder_line.core.effects.leaf_flight.histogram`,
-        the simulator's), ``x_left``, ``x_right`` (walls, m).
+        ``C`` and ``E`` (the exits of odd and even leaves): dicts of ``count``, ``off_speed`` (the
+        start-up, holds and stops) and ``start_up`` (before the drive reached speed), over every exit;
+        ``t`` (s), ``deg`` (crank angle, degrees in [0, 360)), ``value`` (absolute exit speed, m/s),
+        ``at_e`` and ``off`` (booleans) of the exits drawn; ``fraction`` drawn (1: every exit).
+        None if no leaf left a chute.
+    """
+    kind = event_kind('leaf_exit')
+    if not rec.scene.has_layup:
+        return None
+    lp = rec.scene.machine('layup')
+    t_speed = at_speed_time(rec, ev)
+    dtype = np.dtype([('t', 'f8'), ('deg', 'f8'), ('value', 'f8'), ('at_e', '?'), ('off', '?')])
+    kept = Thinned(cap, dtype)
+    tally = {name: {'count': 0, 'off_speed': 0, 'start_up': 0} for name in ('C', 'E')}
+    for part, ns in event_chunks(rec.events, rec.event_ns):
+        mine = part['kind'] == kind
+        exits = part[mine]
+        if not exits.size:
+            continue
+        turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
+        rows = np.zeros(exits.size, dtype=dtype)
+        rows['t'], rows['value'] = exits['t'], exits['value']
+        rows['deg'] = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
+        rows['at_e'] = exits['sheet'] % 2 == 1
+        rows['off'] = off_speed(rec, ev, exits['t'])
+        start_up = exits['t'] < t_speed
+        for name, at_e in (('C', False), ('E', True)):
+            m = rows['at_e'] == at_e
+            tally[name]['count'] += int(np.count_nonzero(m))
+            tally[name]['off_speed'] += int(np.count_nonzero(m & rows['off']))
+            tally[name]['start_up'] += int(np.count_nonzero(m & rows['off'] & start_up))
+        kept.add(ns[mine], rows)
+    if kept.seen == 0:
+        return None
+    r = kept.rows
+    return {
+        **tally,
+        't': r['t'],
+        'deg': r['deg'],
+        'value': r['value'],
+        'at_e': r['at_e'],
+        'off': r['off'],
+        'fraction': kept.fraction,
+    }
+
+
+def landing_data(rec: Recording, cap: int = LEAF_POINTS) -> dict[str, Any] | None:
+    """The leaves' landing positions, or None without ``leaf_flight``.
+
+    The histogram is the simulator's (:func:`folder_line.core.effects.leaf_flight.histogram`: the
+    container's equal bins), added up over slices of the events (exact); the landing positions
+    drawn one by one are at most ``cap`` (a pseudo-random choice by a hash of their times beyond it).
+
+    Returns
+    -------
+    dict or None
+        ``x`` (landed, drawn, m), ``spilled`` (drawn, m), ``landed`` and ``spilled_count`` (every
+        leaf), ``fraction`` (of the leaves drawn; 1: every one), ``edges``, ``counts`` and ``cv`` of the
+        histogram across the container, ``x_left``, ``x_right`` (walls, m).
     """
     scene = rec.scene
     if not scene.has('leaf_flight') or 'container' not in scene.machines:
         return None
     cont = scene.machine('container')
-    x = rec.events_of('leaf_landed')['value']
-    hist = leaf_flight.histogram(x, cont.x_left, cont.x_right, cont.bins)
+    landed_kind, spilled_kind = event_kind('leaf_landed'), event_kind('leaf_spilled')
+    counts = np.zeros(int(cont.bins), dtype=np.int64)
+    landed = Thinned(cap, np.dtype(float))
+    spilled = Thinned(cap, np.dtype(float))
+    for part, ns in event_chunks(rec.events, rec.event_ns):
+        m = part['kind'] == landed_kind
+        x = part['value'][m]
+        counts += leaf_flight.histogram(x, cont.x_left, cont.x_right, cont.bins).counts
+        landed.add(ns[m], x)
+        s = part['kind'] == spilled_kind
+        spilled.add(ns[s], part['value'][s])
+    hist = leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right)
     return {
-        'x': x,
-        'spilled': rec.events_of('leaf_spilled')['value'],
+        'x': landed.rows,
+        'spilled': spilled.rows,
+        'landed': landed.seen,
+        'spilled_count': spilled.seen,
+        'fraction': min(landed.fraction, spilled.fraction),
         'edges': np.asarray(hist.edges),
         'counts': np.asarray(hist.counts),
         'cv': hist.cv,

@@ -27,10 +27,13 @@ recorded points of a run are drawn against are the same.
     contact -> exit) and Г (delivery: knife exit -> released on the pile), each cycle
     annotated with its margins (paper F, figs. 1-2; :func:`~folder_line.analysis.figure_data.cycle_rows`);
 ``margins.png``
-    a histogram of each constraint's margins over all cycles, violations in red;
+    a histogram of each constraint's margins over all cycles, violations in red (the margins binned as
+    the evaluation's windows pass, on a binary grid regrouped into the bars: :func:`margin_bars`,
+    :class:`folder_line.analysis.streaming.MarginHistogram`);
 ``landing.png`` (scenes with ``leaf_flight``)
-    where the leaves landed across the container (``leaf_landed`` events), with the
-    spilled ones (:func:`~folder_line.analysis.figure_data.landing_data`).
+    where the leaves landed across the container (``leaf_landed`` events, the container's bins added
+    up slice by slice of the events: exact), with the spilled ones
+    (:func:`~folder_line.analysis.figure_data.landing_data`).
 
 Every quantity has one colour, that of :data:`~folder_line.analysis.colours.QUANTITY_COLOURS`,
 here and in ``folder-line report``.
@@ -58,10 +61,11 @@ from folder_line.analysis.figure_data import (
     efficiency_data,
     exit_speed_data,
     landing_data,
+    leaf_exit_data,
     off_speed,
 )
 from folder_line.analysis.recording import RecordedJoints, Recording
-from folder_line.analysis.replay import Evaluation
+from folder_line.analysis.replay import ConstraintMargins, Evaluation
 from folder_line.core.effects import chain_friction
 from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
 from folder_line.core.mechanisms import delivery, layup, layup_reach
@@ -80,6 +84,7 @@ __all__ = [
     'efficiency_figure',
     'exit_speed_curves',
     'exit_speeds_figure',
+    'margin_bars',
     'pyplot',
     'save_figure',
     'stroke_curves',
@@ -293,27 +298,28 @@ def _start_up_samples(
     ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
 
 
-def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation, lp: Any) -> None:
-    """The leaves' exit speeds at their crank angles; those off speed (start-up, holds) hollow."""
-    exits = rec.events_of('leaf_exit')
-    if not exits.size:
+def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation) -> None:
+    """The leaves' exit speeds at their crank angles; those off speed (start-up, holds) hollow
+    (:func:`~folder_line.analysis.figure_data.leaf_exit_data`: every exit counted, at most
+    :data:`~folder_line.analysis.figure_data.LEAF_POINTS` drawn)."""
+    data = leaf_exit_data(rec, ev)
+    if data is None:
         return
-    turns = (lp.n_kr / 60.0) * np.asarray(ev.drive.theta(exits['t']), dtype=float)
-    deg = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
-    early = off_speed(rec, ev, exits['t'])
-    start_up = exits['t'] < at_speed_time(rec, ev)
+    drawn = '' if data['fraction'] >= 1.0 else f'; a pseudo-random 1/{round(1 / data["fraction"])} drawn'
     for at_e, exit_name, marker in ((False, 'C', 'v'), (True, 'E', '^')):
-        mine = (exits['sheet'] % 2 == 1) == at_e
+        tally = data[exit_name]
+        mine = data['at_e'] == at_e
+        early = data['off']
         colour = QUANTITY_COLOURS[f'leaf_exit_{exit_name}']
-        n_early = int(np.count_nonzero(mine & early))
-        n_start = int(np.count_nonzero(mine & early & start_up))
+        n_early, n_start = tally['off_speed'], tally['start_up']
         where = [f'{n_start} in the start-up'] if n_start else []
         where += [f'{n_early - n_start} in holds/stops'] if n_early > n_start else []
-        label = f'leaf exits at {exit_name} ({int(np.count_nonzero(mine))}'
-        label += f'; hollow: {", ".join(where)})' if n_early else ')'
-        ax.plot(deg[mine & ~early], exits['value'][mine & ~early], marker, ms=6, color=colour, label=label)
+        label = f'leaf exits at {exit_name} ({tally["count"]}'
+        label += f'; hollow: {", ".join(where)}' if n_early else ''
+        label += drawn + ')'
+        ax.plot(data['deg'][mine & ~early], data['value'][mine & ~early], marker, ms=6, color=colour, label=label)
         if n_early:
-            ax.plot(deg[mine & early], exits['value'][mine & early], marker, ms=6, color=colour, mfc='none')
+            ax.plot(data['deg'][mine & early], data['value'][mine & early], marker, ms=6, color=colour, mfc='none')
 
 
 def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
@@ -347,7 +353,7 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
     ):
         _recorded_exit_speeds(ax, deg[~early], data[c][~early], data[e][~early], names)
         _start_up_samples(ax, deg[early], data[c][early], data[e][early], t_speed, later)
-    _leaf_exits(ax2, rec, ev, lp)
+    _leaf_exits(ax2, rec, ev)
     if scene.has('chute_belts'):
         vmin = float(scene.effect('chute_belts').v_min)
         ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
@@ -578,10 +584,10 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
 _DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
 
 
-def _margin_bins(m: np.ndarray, unit: str, bins: int = 30) -> np.ndarray:
-    """Histogram edges for margins ``m``: whole numbers for ``sheets``; one bin about the value where
-    the margins are equal to rounding (relative spread <= 1e-6)."""
-    lo, hi = float(m.min()), float(m.max())
+def _margin_bins(low: float, high: float, unit: str, bins: int = 30) -> np.ndarray:
+    """Histogram edges for margins from ``low`` to ``high``: whole numbers for ``sheets``; one bin about the
+    value where the margins are equal to rounding (relative spread <= 1e-6)."""
+    lo, hi = float(low), float(high)
     if unit == 'sheets':
         return np.arange(math.floor(lo) - 0.5, math.ceil(hi) + 1.0)
     if hi - lo <= 1e-6 * max(abs(lo), abs(hi)):
@@ -591,9 +597,27 @@ def _margin_bins(m: np.ndarray, unit: str, bins: int = 30) -> np.ndarray:
     return np.linspace(lo, hi, bins + 1)
 
 
+def margin_bars(margins: ConstraintMargins) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bars of one constraint in ``margins.png``: ``(edges, passed, violated)``, edges in the margin's SI
+    unit (:func:`_margin_bins` over the smallest to the largest margin; empty without a margin).
+
+    The counts are the streamed histogram's regrouped (:meth:`~folder_line.analysis.streaming.MarginHistogram.counts`):
+    exact, but for margins within one bin of the binary grid (1/2048 of the range at most) of a bar's edge,
+    which may be counted in the bar beside.
+    """
+    h = margins.histogram
+    if h.count == 0:
+        return np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    edges = _margin_bins(h.low, h.high, margins.unit)
+    if edges.size == 2:  # equal margins (to rounding): one bar holds them all
+        return edges, np.array([h.count - h.violations]), np.array([h.violations])
+    passed, violated = h.counts(edges)
+    return edges, passed, violated
+
+
 def _plot_margins(ev: Evaluation, out: Path) -> Path:
     plt = pyplot()
-    series = [c for c in ev.constraints]
+    series = list(ev.margins.values())
     n = max(len(series), 1)
     cols = 2 if n > 1 else 1
     nrows = math.ceil(n / cols)
@@ -604,27 +628,29 @@ def _plot_margins(ev: Evaluation, out: Path) -> Path:
         axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
     for ax, c in zip(axes.ravel(), series, strict=False):
         scale, unit = _DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
-        m = c.margin * scale
-        nv = int(np.count_nonzero(c.violated))
-        ax.set_title(
-            f'{c.name}: {c.margin.size} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k'
-        )
+        h = c.histogram
+        nv = h.violations
+        ax.set_title(f'{c.name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')
         ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
         ax.set_ylabel('count')
-        if m.size == 0:
+        if h.count == 0:
             ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
             continue
-        edges = _margin_bins(m, c.unit)
+        edges, passed, violated = margin_bars(c)
+        edges = edges * scale
+        centres = 0.5 * (edges[:-1] + edges[1:])
         ax.hist(
-            [m[m >= 0.0], m[m < 0.0]],
+            [centres, centres],
             bins=edges,
+            weights=[passed, violated],
             stacked=True,
             color=['C0', 'tab:red'],
             label=['passed', f'violated ({nv})' if nv else '_nolegend_'],
         )
         if edges[0] <= 0.0 <= edges[-1]:
             ax.axvline(0.0, color='k', lw=1)
-        ax.axvline(float(m.min()), color='tab:orange', ls='--', lw=1, label=f'min {m.min():.4g}')
+        low = h.low * scale
+        ax.axvline(low, color='tab:orange', ls='--', lw=1, label=f'min {low:.4g}')
         ax.legend(fontsize=7)
         ax.ticklabel_format(axis='x', style='sci', scilimits=(-3, 4), useOffset=False)
         if edges.size == 2:  # equal margins (to rounding): one bar
@@ -641,6 +667,7 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 4.5))
     edges, counts = data['edges'], data['counts']
+    thinned = data['fraction'] < 1.0
     ax.bar(
         edges[:-1],
         counts,
@@ -658,7 +685,7 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
             color='tab:red',
             ms=8,
             mew=2,
-            label=f'spilled over a wall ({data["spilled"].size})',
+            label=f'spilled over a wall ({data["spilled_count"]})',
         )
     ax.plot(
         data['x'],
@@ -666,7 +693,9 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
         '|',
         color='k',
         ms=10,
-        label='landing x of each leaf',
+        label=f'landing x of a pseudo-random 1/{round(1 / data["fraction"])} of the leaves'
+        if thinned
+        else 'landing x of each leaf',
     )
     for wall in (data['x_left'], data['x_right']):
         ax.axvline(wall, color='k', lw=3)

@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.analysis.streaming import stamp_priority
 from folder_line.bag.reader import read_bag
-from folder_line.config.run_config import BAG_DIR, RunConfig
+from folder_line.config.run_config import BAG_DIR
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.tuning import LineCommand, command_of
@@ -131,11 +132,10 @@ class Recording:
         The scene stored in the bag.
     t_end : float
         Line time reached: the last ``/clock`` (the bag's end if it has none), s.
-    horizon : float
-        The horizon the run's machine nodes built their line model for (``folder-line
-        run``'s rule from ``run.json``'s duration; ``t_end`` without ``run.json``), at
-        least ``t_end``, s. It matters only for a scene with ``motor_dynamics``, whose
-        drive is integrated up to the horizon.
+    duration : float
+        The run's duration, s: ``run.json``'s ``duration_s`` (what ``folder-line run`` was
+        asked for), else ``t_end``; at least ``t_end``. The line under the recorded
+        commands is known up to there (an animation's axes may look that far).
     events : ndarray of EVENT_DTYPE
         The events of ``/line/events``, ``t`` = ``time_ref`` in s, sorted as
         :func:`folder_line.core.line.events.merge_events` sorts (time, kind, sheet).
@@ -170,7 +170,7 @@ class Recording:
     run: dict[str, Any] | None
     scene: Scene
     t_end: float
-    horizon: float
+    duration: float
     events: np.ndarray
     event_ns: np.ndarray
     joints: dict[str, RecordedJoints]
@@ -189,16 +189,13 @@ class Recording:
         return rows
 
 
-def _live_horizon(run: Mapping[str, Any] | None, t_end: float) -> float:
-    """The horizon the run's nodes built their line model for (``folder-line run``'s rule), s.
-
-    It matters only for a scene with ``motor_dynamics``, whose drive is integrated up to
-    the horizon; without ``run.json`` the line time reached is used.
-    """
-    horizon = t_end
-    if run is not None and isinstance(run.get('duration_s'), (int, float)) and run['duration_s'] > 0:
-        horizon = RunConfig(duration=float(run['duration_s'])).horizon
-    return max(horizon, t_end, 1e-3)
+def _run_duration(run: Mapping[str, Any] | None, t_end: float) -> float:
+    """The run's duration (``run.json``'s ``duration_s``, else the line time reached), at least ``t_end``, s."""
+    duration = t_end
+    value = None if run is None else run.get('duration_s')
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0:
+        duration = float(value)
+    return max(duration, t_end)
 
 
 def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]:
@@ -260,20 +257,11 @@ class _Grow:
         return out
 
 
-def _priority(stamp_ns: np.ndarray) -> np.ndarray:
-    """A stamp's place in the sampling: splitmix64 of the stamp in ns (uniform on uint64, no pattern in time)."""
-    z = stamp_ns.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    out: np.ndarray = z ^ (z >> np.uint64(31))
-    return out
-
-
 class _Sampler:
     """The sampling of every node's joint states, shared so that the nodes keep the same ticks.
 
-    A sample is kept if the :func:`_priority` of its stamp is below ``2**64 / 2**level``:
-    a pseudo-random ``1 / 2**level`` of the ticks, the same for every node, with no
+    A sample is kept if the :func:`~folder_line.analysis.streaming.stamp_priority` of its stamp
+    is below ``2**64 / 2**level``: a pseudo-random ``1 / 2**level`` of the ticks, the same for every node, with no
     aliasing against the machines' periods (which a sample every k ticks has). ``level``
     is 0 (every sample kept) until a node keeps more than ``cap``, then raised until
     every node keeps at most half of ``cap``. The kept sets nest, so sampling what was
@@ -357,7 +345,7 @@ class _Joints:
         if self.names:  # NaN (counted in bad_values) does not hide the extremes
             np.fmin(self.low, np.fmin.reduce(rows, axis=0), out=self.low)
             np.fmax(self.high, np.fmax.reduce(rows, axis=0), out=self.high)
-        priority = _priority(t)
+        priority = stamp_priority(t)
         keep = self.sampler.keep(priority)
         end = self.n + int(np.count_nonzero(keep))
         self.t[self.n : end], self.priority[self.n : end], self.data[self.n : end] = t[keep], priority[keep], rows[keep]
@@ -515,7 +503,7 @@ def read_recording(
         run=run,
         scene=scene,
         t_end=t_end,
-        horizon=_live_horizon(run, t_end),
+        duration=_run_duration(run, t_end),
         events=events[order],
         event_ns=ns[order],
         joints=sampler.finish(joints),

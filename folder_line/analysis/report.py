@@ -7,9 +7,10 @@ judges it (:func:`folder_line.analysis.replay.evaluate`), replays the supervisor
 
 ``report.md``
     the run's numbers -- cycles, sheets counted, per-constraint minimum margins, the
-    violations (cycle, constraint, margin), the supervisor's state transitions (replayed,
-    and whether they agree with the recorded ones), the messages recorded and lost --
-    and the figures;
+    violations (cycle, constraint, margin), whether the recorded events are the line
+    model's (:func:`folder_line.analysis.replay.compare_events`), the supervisor's state
+    transitions (replayed, and whether they agree with the recorded ones), the messages
+    recorded and lost -- and the figures;
 the figures
     those of :data:`folder_line.analysis.figures.FIGURES` the scene has
     (:func:`folder_line.analysis.figures.draw_figures`);
@@ -20,6 +21,13 @@ the figures
 The numbers of ``report.md`` are those of ``simulate(scene, t_end, commands=...)`` for a
 run of ``t_end`` s: the recorded events are judged by the line's own constraint code.
 :func:`print_analysis` prints the headline numbers, as ``folder-line analyze`` does.
+
+Memory: the recording holds the events and a bounded sample of the joint states
+(:func:`folder_line.analysis.recording.read_recording`); the judging, the comparison with
+the line model and the figures go through the run window by window of line time and keep
+running figures only (:mod:`folder_line.analysis.replay`, :mod:`folder_line.analysis.streaming`),
+so what ``analyze`` holds besides the recording does not grow with the run's line time (but
+for the list of violations, which the report lists in full).
 """
 
 from __future__ import annotations
@@ -27,9 +35,11 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from folder_line.analysis.csv_export import CsvCollector
 from folder_line.analysis.figure_data import GANTT_CYCLES
@@ -37,12 +47,13 @@ from folder_line.analysis.figures import FIGURES, draw_figures
 from folder_line.analysis.recording import Recording, read_recording
 from folder_line.analysis.replay import (
     Evaluation,
+    EventCheck,
+    compare_events,
     evaluate,
     recorded_transitions,
     replay_transitions,
     transitions_agree,
 )
-from folder_line.core.line.events import ConstraintSeries
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
@@ -70,10 +81,14 @@ class AnalysisResult:
         ``sheets_counted``, ``sheet_counter``, ``min_margin`` (per constraint:
         ``margin``, ``unit``, ``cycle``, ``evaluations``, ``violations``),
         ``violations`` (count and every one), ``events`` (count per kind),
-        ``transitions``, ``transitions_source``, ``replay_matches``, ``messages``, ``lost``.
+        ``transitions``, ``transitions_source``, ``replay_matches``, ``events_check``
+        (:meth:`~folder_line.analysis.replay.EventCheck.as_dict`), ``messages``, ``lost``.
     recording : Recording
-    constraints : list of ConstraintSeries
-        The constraints judged on the recorded events.
+    evaluation : Evaluation
+        The recorded events judged (:func:`folder_line.analysis.replay.evaluate`): every
+        constraint's running figures, the violations.
+    events_check : EventCheck
+        The recorded events against the line model's.
     """
 
     out: Path
@@ -82,7 +97,8 @@ class AnalysisResult:
     csv: dict[str, Path]
     summary: dict[str, Any]
     recording: Recording
-    constraints: list[ConstraintSeries] = field(default_factory=list)
+    evaluation: Evaluation
+    events_check: EventCheck
 
 
 def _margin(name: str, value: float, unit: str) -> str:
@@ -91,7 +107,12 @@ def _margin(name: str, value: float, unit: str) -> str:
 
 
 def _report_lines(
-    rec: Recording, ev: Evaluation, summary: dict[str, Any], figures: Mapping[str, Path], csv_files: Mapping[str, Path]
+    rec: Recording,
+    ev: Evaluation,
+    check: EventCheck,
+    summary: dict[str, Any],
+    figures: Mapping[str, Path],
+    csv_files: Mapping[str, Path],
 ) -> list[str]:
     scene = rec.scene
     bag = rec.bag
@@ -121,9 +142,26 @@ def _report_lines(
         ),
         f'| events | {int(rec.events.size)} |',
         f'| violations | {summary["violations"]["count"]} |',
+        f"| recorded events equal to the line model's | {'yes' if check.agree else 'no'} |",
     ]
     if rec.bad_events:
         lines.append(f'| /line/events messages that are not events | {rec.bad_events} |')
+    lines += ['', '## The recorded events and the line model', '']
+    lines.append(
+        'The streamed line model under the recorded drive commands and tunings, replayed window by window '
+        f'({check.windows} windows) and compared with the recorded events of each window: {check.text()}.'
+    )
+    if check.differences:
+        lines += ['', '| t, s | kind | sheet | cycle | recorded value | model value |', '|---|---|---|---|---|---|']
+        lines += [
+            f'| {d["t"]:.9f} | {d["kind"]} | {d["sheet"]} | {d["cycle"]} | '
+            f'{"-" if d["recorded"] is None else repr(d["recorded"])} | '
+            f'{"-" if d["model"] is None else repr(d["model"])} |'
+            for d in check.differences
+        ]
+        more = check.values_differ + check.recorded_only + check.model_only - len(check.differences)
+        if more > 0:
+            lines += ['', f'... and {more} more.']
     lines += ['', '## Events', '', '| kind | count |', '|---|---|']
     lines += [f'| {k} | {n} |' for k, n in summary['events'].items()]
     lines += [
@@ -148,12 +186,12 @@ def _report_lines(
     lines += ['', '## Violations', '']
     viol = summary['violations']['first']
     if viol:
-        decided = {c.name: dict(zip(c.cycle.tolist(), c.t.tolist(), strict=True)) for c in ev.constraints}
+        decided = {(v.constraint, v.cycle): v.t for v in ev.violations}
         lines += ['| cycle or leaf | constraint | margin | decided at t, s |', '|---|---|---|---|']
         lines += [
             f'| {margin_at(v["constraint"], v["cycle"])} | {v["constraint"]} | '
             f'{_margin(v["constraint"], v["margin"], v["unit"])} | '
-            f'{decided.get(v["constraint"], {}).get(v["cycle"], float("nan")):.9g} |'
+            f'{decided.get((v["constraint"], v["cycle"]), float("nan")):.9g} |'
             for v in viol
         ]
     else:
@@ -292,16 +330,11 @@ def analyze(
 
 def _window(rec: Recording, t_from: float) -> Recording:
     """``rec`` with its events from ``t_from`` on (what the figures show; the joint
-    states were read from ``t_from`` on)."""
+    states were read from ``t_from`` on): views of its tables (sorted by time), no copy."""
     if t_from <= 0.0:
         return rec
-    keep = rec.events['t'] >= t_from
-    return dataclasses.replace(
-        rec,
-        events=rec.events[keep],
-        event_ns=rec.event_ns[keep],
-        landing_x=rec.landing_x,
-    )
+    i = int(np.searchsorted(rec.event_ns, round(t_from * NS_PER_S), side='left'))
+    return dataclasses.replace(rec, events=rec.events[i:], event_ns=rec.event_ns[i:])
 
 
 def _write_analysis(
@@ -310,7 +343,8 @@ def _write_analysis(
     """The evaluation, plots, CSVs and report of :func:`analyze`, into the claimed ``out_dir``."""
     if collector is not None:  # every CSV target is checked before anything is written
         collector.check(out_dir / 'csv', list(rec.bag.topics), '--out')
-    ev = evaluate(rec, t_from)
+    ev = evaluate(rec, t_from, keep_cycles=gantt_cycles)
+    check = compare_events(rec, t_from)
 
     summary = dict(ev.summary)
     summary['t_end'] = rec.t_end
@@ -318,6 +352,7 @@ def _write_analysis(
     summary['sheet_counter'] = rec.sheet_count
     summary['messages'] = {t: s.count for t, s in rec.bag.topics.items()}
     summary['lost'] = None if rec.run is None else rec.run.get('lost')
+    summary['events_check'] = check.as_dict()
     recorded = recorded_transitions(rec.states)
     summary['recorded_transitions'] = recorded
     try:
@@ -351,7 +386,7 @@ def _write_analysis(
     figures = draw_figures(_window(rec, t_from), ev, out_dir, gantt_cycles)
     csv_files = collector.write(out_dir / 'csv', list(rec.bag.topics)) if collector is not None else {}
     report = write_text_atomic(
-        out_dir / 'report.md', '\n'.join(_report_lines(rec, ev, summary, figures, csv_files)) + '\n'
+        out_dir / 'report.md', '\n'.join(_report_lines(rec, ev, check, summary, figures, csv_files)) + '\n'
     )
     return AnalysisResult(
         out=out_dir,
@@ -360,7 +395,8 @@ def _write_analysis(
         csv=csv_files,
         summary=summary,
         recording=rec,
-        constraints=ev.constraints,
+        evaluation=ev,
+        events_check=check,
     )
 
 

@@ -1,11 +1,13 @@
 """``folder-line animate`` and ``analyze --animate``: the line as a video, without ROS.
 
-``animate`` draws the batch model of a scene (:func:`folder_line.analysis.animation.batch_run`: the
+``animate`` draws the streamed line of a scene (:func:`folder_line.analysis.animation.batch_run`: the
 supervisor in the loop, as ``run`` and ``simulate --bag`` run it); ``analyze --animate`` a recorded
 run, with the states and violations it recorded
 (:func:`folder_line.analysis.animation.recorded_run`). Both draw the core's scenery
-(:class:`folder_line.core.line.scenery.Scenery`) frame by frame
-(:func:`folder_line.analysis.animation.render`) and show a progress bar of line time on stderr.
+(:class:`folder_line.core.line.scenery.Scenery`) frame by frame as the line is advanced window by
+window, from a fast-forward to ``--from`` (:func:`folder_line.analysis.animation.render`), and show a
+progress bar of line time on stderr. Neither keeps the line's history: memory does not grow with
+``--from`` or ``--duration``.
 Every target and number is checked before any work; a refusal is one line naming the option and
 its value, exit code 2, and nothing is written.
 """
@@ -37,7 +39,6 @@ from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited
 from folder_line.cli.study_options import add_scene_arguments, source_from
 from folder_line.core.limits import DURATION, Limit
 from folder_line.core.line.scene import parse_scene
-from folder_line.core.line.scenery import Scenery
 from folder_line.errors import ParameterError
 from folder_line.progress import LineTimeProgress
 
@@ -103,9 +104,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``animate`` verb to ``folder-line``'s sub-parsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         'animate',
-        help='video of the line (mp4 or gif) from the batch model, with time, cycle, PackML state, violations',
+        help='video of the line (mp4 or gif) from the streamed line, with time, cycle, PackML state, violations',
         description=(
-            'Draw the line seen from the side (x along the line, z up, metres) from the batch model of a scene, '
+            'Draw the line seen from the side (x along the line, z up, metres) from the streamed line of a scene, '
             'with the supervisor in the loop as `run` and `simulate --bag` run it (no ROS), and encode it with the '
             'ffmpeg of imageio-ffmpeg: .mp4 (H.264) or .gif. Each frame shows the line time, the machine cycle, '
             'the PackML state and the constraint violations as they are decided. ' + FRAMES_HELP
@@ -123,7 +124,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         type=limited('--from', _FROM),
         default=0.0,
         metavar='S',
-        help='line time of the first frame, s (default 0); the run is simulated from 0 to FROM + DURATION',
+        help=(
+            'line time of the first frame, s (default 0); the run is simulated from 0 to FROM + DURATION (the '
+            'supervisor in the loop), then the frames are drawn from a fast-forward to FROM'
+        ),
     )
     p.add_argument('--out', required=True, metavar='FILE.mp4|FILE.gif', help='the video to write')
     add_animation_options(p)
@@ -144,7 +148,7 @@ def _render(shown: AnimatedRun, scale: TimeScale, out: str, option: str, size: t
     bar = LineTimeProgress(sys.stderr, scale.duration)
     try:
         return render(
-            Scenery(shown.model),
+            shown.model,
             shown.timeline,
             scale,
             out,
@@ -152,7 +156,7 @@ def _render(shown: AnimatedRun, scale: TimeScale, out: str, option: str, size: t
             size,
             title=shown.title,
             note=scale_note(scale),
-            horizon=shown.model.horizon,
+            until=shown.until,
             progress=bar.show,
         )
     finally:
@@ -170,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     scale.check('--duration', args.duration)
     scene = parse_scene(source_from(args))
     tunings = check_tunings(scene, args.tune, args.t_from + args.duration)
-    shown = batch_animation(scene, scale, '--from' if args.t_from > args.duration else '--duration', tunings)
+    shown = batch_animation(scene, scale, tunings)
     _report(_render(shown, scale, args.out, '--out', args.size), scale, sys.stdout)
     return 0
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from folder_line.bag.batch import check_duration, write_batch_bag
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import Tuning
+from folder_line.core.line.tuning import LineCommand, Tuning, command_of
 from folder_line.errors import OutputError
 from folder_line.files.atomic import claim_output_dir
 from folder_line.progress import LineTimeProgress
@@ -19,11 +19,20 @@ from folder_line.progress import LineTimeProgress
 __all__ = ['write_bag']
 
 
-def write_bag(args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning] = ()) -> int:
-    """Write ``args.bag`` for ``scene`` and ``args.duration``; print what was written; exit code 0.
+def write_bag(
+    args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning] = ()
+) -> tuple[int, tuple[LineCommand, ...]]:
+    """Write ``args.bag`` for ``scene`` and ``args.duration``; print what was written.
 
     The folder must be missing or empty: a bag is never written over anything (checked, with the
-    duration, before any work).
+    duration, before any work). A progress bar of the line time written, with the wall time left,
+    goes to stderr.
+
+    Returns
+    -------
+    (int, tuple of Command or Tuning)
+        The exit code (0) and the commands the bag's supervisor issued (drive commands and the
+        tunings, by effective time): the line of the bag is the line under them.
 
     Raises
     ------
@@ -63,4 +72,4 @@ def write_bag(args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning] 
     for topic, n in sorted(result.counts.items()):
         print(f'  {topic:<40} {n}')
     print(f'wrote {result.path} ({result.segments} segments)')
-    return 0
+    return 0, tuple(command_of(t, kind) for t, kind in result.commands)

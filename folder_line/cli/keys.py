@@ -41,8 +41,13 @@ def print_metrics(summary: Mapping[str, Any], out: IO[str]) -> None:
     """Print every metric of a simulation summary: dotted path, value, unit."""
     metrics = flatten_metrics(summary)
     width = max((len(p) for p in metrics), default=0)
+    span = (
+        f'line time {summary["from_s"]:g}..{summary["to_s"]:g} s (--from)'
+        if 'from_s' in summary
+        else f'{summary.get("duration_s"):g} s'
+    )
     print(
-        f'metrics of scene {summary.get("scene")!r} over {summary.get("duration_s"):g} s '
+        f'metrics of scene {summary.get("scene")!r} over {span} '
         '(a name may be any unique dotted suffix, e.g. V_tr_min)',
         file=out,
     )

@@ -21,7 +21,6 @@ from typing import NoReturn
 from folder_line.accuracy.bench import STUDIES, run_benchmark
 from folder_line.accuracy.output import write_outputs
 from folder_line.analysis.report import analyze, print_analysis
-from folder_line.bag.batch import check_duration
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair
@@ -35,8 +34,7 @@ from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_pa
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig
 from folder_line.config.scenes import InputNames, parse_set
-from folder_line.core.limits import LOST_TIMEOUT, RTF, Limit
-from folder_line.core.line.model import simulate
+from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.scene import parse_scene
 from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import FolderLineError, OutputError, ParameterError, bounded_repr, path_repr, shorten
@@ -48,6 +46,7 @@ from folder_line.files.atomic import (
     write_json_atomic,
 )
 from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
+from folder_line.progress import LineTimeProgress
 
 #: the option that names each verb's output, for errors raised where it is not known
 _OUTPUT_OPTION = {
@@ -98,6 +97,10 @@ _OPERATOR_TIMEOUT = Limit('operator wait for the supervisor', 0.1, 3600.0, 's', 
 # what `bag play` and `analyze --from/--to` take from a bag: line time (a week at most)
 _BAG_TIME = Limit('line time in a bag', 0.0, 604800.0, 's', 'a week of line time')
 _BAG_SPAN = Limit('line time to play', 1e-9, 604800.0, 's', 'a week of line time')
+#: ``simulate --from``: where the output starts, line time (``--from`` + ``--duration`` within DURATION too)
+_FROM = Limit('line time the output starts at (`simulate --from`)', 0.0, DURATION.hi, 's', 'a run reaches DURATION')
+#: wall time ``simulate`` runs before its progress bar shows on a terminal, s: a quick run shows none
+BAR_DELAY = 0.5
 #: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
 _rtf = limited('--rtf', RTF, also='max')
 
@@ -148,8 +151,29 @@ def build_parser() -> argparse.ArgumentParser:
     kin.add_argument('--samples', type=_samples, default=360, metavar='N', help='number of samples (default 360)')
     kin.add_argument('--csv', metavar='PATH', help='write the table as CSV (SI units, angles in rad)')
 
-    sim = sub.add_parser('simulate', help='batch simulation of a scene with exact events (no ROS)')
+    sim = sub.add_parser(
+        'simulate',
+        help='simulation of a scene with exact events, streamed in bounded memory (no ROS)',
+        description=(
+            'Simulate a scene without ROS and print its summary. The line is streamed window by window: '
+            'memory does not grow with --duration, and on a terminal a progress bar on stderr shows the line '
+            'time done and the wall time left. The summary is that of simulate(scene, D).summary() of the '
+            'batch model, bit for bit.'
+        ),
+    )
     add_scene_arguments(sim, 60.0)
+    sim.add_argument(
+        '--from',
+        dest='start',
+        type=limited('--from', _FROM),
+        default=None,
+        metavar='S',
+        help='the line time the output starts at, s: the line still starts at 0 s (from standstill) and is '
+        'fast-forwarded to S keeping nothing; --duration D is the span after S. The summary (--json, '
+        '--list-metrics) is of the window S..S+D: the cycles, sheets, events and constraint rows the line '
+        'hands out from S on (a cycle counts where it is judged), without the design figures of a run from 0; '
+        '--plots draws that window; --tune times stay line times from 0. Not with --bag or --samples',
+    )
     listing = sim.add_mutually_exclusive_group()
     listing.add_argument('--json', metavar='PATH', help='write the summary as JSON')
     listing.add_argument(
@@ -168,7 +192,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument(
         '--plots',
         metavar='DIR',
-        help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR",
+        help="draw analyze's figures of the run (landing, cyclogram, margins, efficiency, exit speeds) into DIR, "
+        'from the streamed run in bounded memory (joint states: a pseudo-random sample of the 200 Hz ticks; '
+        'margins and landings: exact streamed histograms); with --bag, of the line of that bag',
     )
     add_tune_argument(sim)
     _add_marker_rate(sim, 'with --bag: ')
@@ -336,44 +362,82 @@ def _cmd_kinematics(args: argparse.Namespace) -> int:
     return 0
 
 
+def _progress_bar(end: float) -> LineTimeProgress | None:
+    """The line-time bar of a streamed run to ``end`` s, on stderr if it is a terminal (None otherwise)."""
+    if not sys.stderr.isatty():
+        return None
+    bar = LineTimeProgress(sys.stderr, end, delay=BAR_DELAY)
+    bar.show(0.0)  # the clock of the estimate starts here (nothing is drawn before BAR_DELAY)
+    return bar
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    if args.samples is not None and (args.list_keys or args.list_metrics):
-        listing = '--list-keys' if args.list_keys else '--list-metrics'
+    start = args.start
+    listing = '--list-keys' if args.list_keys else '--list-metrics' if args.list_metrics else None
+    if args.samples is not None and listing is not None:
         raise ParameterError('--samples', args.samples, f'runs a Monte Carlo; {listing} lists and runs nothing')
+    if start is not None:
+        if args.list_keys:
+            raise ParameterError('--from', start, 'starts the output of a run; --list-keys lists and runs nothing')
+        if args.bag is not None:
+            raise ParameterError(
+                '--from', start, 'not with --bag: a bag is written from line time 0, as a live run records it'
+            )
+        if args.samples is not None:
+            raise ParameterError('--from', start, 'not with --samples: a Monte Carlo sample runs from line time 0')
+        summary.check_window(start, args.duration)
     if args.json:
         check_output_file(args.json, '--json')
     if args.bag is not None and args.samples is not None:
         raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --bag writes one run')
-    draw = None
     if args.plots is not None:
-        from folder_line.cli.plots import check_plots, write_plots  # the analysis, the bag writer: only --plots
-
-        draw = write_plots
         if args.samples is not None:
             raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --plots draws one run')
-        if args.list_keys or args.list_metrics:
-            listing = '--list-keys' if args.list_keys else '--list-metrics'
+        if listing is not None:
             raise ParameterError('--plots', args.plots, f'draws a run; {listing} lists and runs nothing')
-        check_plots(args.plots)
+        from folder_line.cli import plots  # the figures' modules and matplotlib: only --plots
+
+        plots.check_plots(args.plots)
     if args.tune and args.samples is not None:
         raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --tune changes one run')
     data = source_from(args)
     if args.samples is not None:
         return montecarlo.simulate_samples(args, data)
     scene = parse_scene(data)
-    tunings = check_tunings(scene, args.tune, args.duration)
-    if draw is not None:
-        check_duration(scene, args.duration)  # the figures are drawn from the run's bag: whole ticks
+    end = (start or 0.0) + args.duration
+    tunings = check_tunings(scene, args.tune, end)
     if args.bag is not None:
-        code = batch_cli.write_bag(args, scene, tunings)
-        if draw is not None:
-            draw(args, scene, bag=args.bag)
+        code, issued = batch_cli.write_bag(args, scene, tunings)
+        if args.plots is not None:  # the line of the bag: under the commands its supervisor issued
+            bar = _progress_bar(end)
+            try:
+                figures, _ = plots.collect(
+                    scene, args.duration, commands=issued, progress=None if bar is None else bar.show
+                )
+            finally:
+                if bar is not None:
+                    bar.close()
+            plots.write_figures(args.plots, figures)
         return code
     if args.list_keys:
         keys.print_keys(data, sys.stdout)
         return 0
-    result = simulate(scene, args.duration, sample_rate=0.0, commands=tunings)
-    result_summary = result.summary()
+    bar = _progress_bar(end)
+    try:
+        progress = None if bar is None else bar.show
+        if args.plots is not None:  # one streamed run for the summary and the figures
+            figures, result_summary = plots.collect(
+                scene, args.duration, start=start, commands=tunings, progress=progress
+            )
+        else:
+            result_summary = summary.line_summary(
+                scene, args.duration, start=start, commands=tunings, progress=progress
+            )
+        if bar is not None:
+            bar.show(end, force=True)
+    finally:
+        if bar is not None:
+            bar.close()
     if tunings:
         result_summary['tunings'] = [
             {'t': tu.t, 'key': tu.key, 'value': tu.value, 'unit': TUNABLES[tu.key].unit} for tu in tunings
@@ -385,8 +449,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         dest = write_json_atomic(args.json, result_summary)
         print(f'wrote {dest}')
-    if draw is not None:
-        draw(args, scene, tunings=tunings)
+    if args.plots is not None:
+        plots.write_figures(args.plots, figures)
     return 0
 
 

@@ -1,35 +1,113 @@
-"""``folder-line simulate --plots DIR``: the figures of ``analyze`` from the batch model, without ROS.
+"""``folder-line simulate --plots DIR``: analyze's figures of the simulated line, streamed in bounded memory.
 
-The batch run is written as the bag a live lockstep run would record
-(:func:`folder_line.bag.batch.write_batch_bag`, into a temporary folder unless ``--bag``
-names one) and that bag is drawn by the very code ``analyze`` uses
-(:func:`folder_line.analysis.recording.read_recording`,
-:func:`folder_line.analysis.replay.evaluate`,
-:func:`folder_line.analysis.figures.draw_figures`). So ``simulate --plots`` draws what
-``analyze`` of that run would draw, pixel for pixel (``test/cli/test_plots.py``).
+The figures are those ``analyze`` draws of a recorded run (:data:`folder_line.analysis.figures.FIGURES`,
+with the papers' model curves of :mod:`folder_line.analysis.figures`), drawn from the line as it is
+streamed window by window (:class:`folder_line.core.line.stream.LineStream`, :data:`PLOT_WINDOW` s
+at a time, :data:`KEEP` s of it kept): what is kept for them does not grow with the line time.
+What each keeps, and so what it shows:
+
+``exit_speeds.png``, ``efficiency.png`` (joint states)
+    a pseudo-random sample of the ticks of the run's 200 Hz grid
+    (:data:`folder_line.config.run_config.RATE`): a tick is drawn if the splitmix64 hash of its
+    stamp in ns falls in the lowest ``1 / 2**L`` of its range, ``L`` the least that keeps about
+    :data:`JOINT_SAMPLES` of the span's ticks (every tick of a short span). The hash has no
+    pattern in time, so the sample does not alias with the machines' periods. The belt speed's
+    extremes are over every tick. The leaves' exits: their counts exact, at most
+    :data:`LEAF_SAMPLES` of each exit drawn (a pseudo-random sample by the hash of the leaf).
+``cyclogram.png``
+    the first :data:`folder_line.analysis.figure_data.GANTT_CYCLES` cycles judged at the knife,
+    and the first violated one with its neighbours: their events are taken from the last
+    windows while they are still held (:class:`_Cyclogram`).
+``margins.png``
+    exact counts of every constraint's margins in bins of a streamed histogram
+    (:class:`StreamedHistogram`): a grid of power-of-two widths aligned on 0 (on -0.5 for whole
+    sheets), whose width doubles, pairs of bins merged, whenever the margins seen would need
+    more than :data:`MARGIN_BINS` bins; the smallest margin exact.
+``landing.png``
+    exact counts in the container's bins (:func:`folder_line.core.effects.leaf_flight.histogram_of_counts`,
+    the summary's), the spilled leaves counted; the marks of single landings: at most
+    :data:`LEAF_SAMPLES` leaves, a pseudo-random sample.
+
+The line is the one the summary printed with it describes: the scene under its ``--tune``
+changes, from ``--from`` on if given; with ``--bag`` the line of that bag (under the commands its
+supervisor issued). The drive is at speed where it turns at
+:data:`folder_line.core.supervision.settings.SPEED_REACHED` of the speed it heads for (no
+supervisor state is recorded here: ``analyze`` of a bag takes the supervisor's ``EXECUTE``).
 """
 
 from __future__ import annotations
 
-import argparse
+import math
 import sys
-import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
 from folder_line.analysis.figure_data import GANTT_CYCLES
-from folder_line.analysis.figures import FIGURES, draw_figures
-from folder_line.analysis.recording import read_recording
-from folder_line.analysis.replay import evaluate
-from folder_line.bag.batch import write_batch_bag
+from folder_line.analysis.figures import FIGURES, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.cli import summary as summary_cli
+from folder_line.config.run_config import RATE
+from folder_line.core.effects import chain_friction, leaf_flight
+from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
+from folder_line.core.line.delivery_plan import delivery_plan
+from folder_line.core.line.events import ConstraintSeries, event_kind
+from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.tuning import Tuning
+from folder_line.core.line.stream import LineStream, Window
+from folder_line.core.line.tuning import LineCommand
+from folder_line.core.mechanisms import delivery
+from folder_line.core.mechanisms.cyclogram import cycle_timing
+from folder_line.core.mechanisms.drive import target_rate
+from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
 from folder_line.files.atomic import check_output_dir, claim_output_dir
+from folder_line.interfaces import NS_PER_S
 
-__all__ = ['OPTION', 'check_plots', 'write_plots']
+__all__ = [
+    'JOINT_SAMPLES',
+    'KEEP',
+    'LEAF_SAMPLES',
+    'MARGIN_BINS',
+    'OPTION',
+    'PLOT_WINDOW',
+    'FigureData',
+    'StreamedHistogram',
+    'check_plots',
+    'collect',
+    'draw',
+    'splitmix64',
+    'write_figures',
+]
 
 #: the option naming the folder
 OPTION = '--plots'
+#: line time per window of the streamed run, s
+PLOT_WINDOW = 60.0
+#: line time before each window the stream keeps, s: a cycle judged late is drawn from the events and
+#: the drive of the windows before
+KEEP = 2.0 * PLOT_WINDOW
+#: ticks of the 200 Hz grid drawn, about (the largest power-of-two fraction of the span's ticks at most this)
+JOINT_SAMPLES = 5000
+#: leaves drawn one by one at most, per exit (exit speeds) and spilled (landing)
+LEAF_SAMPLES = 2000
+#: landings marked one by one at most under the landing histogram (more would be one black band)
+LANDING_MARKS = 400
+#: most bins of a margin histogram (at least half as many once the margins spread: the width doubles)
+MARGIN_BINS = 48
+#: line time after a cycle's knife contact when its operations are taken from the windows held, s
+SETTLE = 10.0
+#: the operations of the cyclogram (paper F): letter, label, colour (``analyze``'s)
+OPERATIONS = (
+    ('А', 'feed: hand-over -> at the stops', 'tab:green'),
+    ('Б', 'settle + dwell: at the stops -> settled -> knife contact', 'tab:blue'),
+    ('В', 'knife: contact -> exit', 'tab:red'),
+    ('Г', 'delivery: knife exit -> released on the pile', 'tab:purple'),
+)
+_DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
+_STEP_NS = round(NS_PER_S / RATE)
 
 
 def check_plots(path: str) -> None:
@@ -37,22 +115,915 @@ def check_plots(path: str) -> None:
     check_output_dir(path, OPTION, files=tuple(FIGURES))
 
 
-def write_plots(
-    args: argparse.Namespace, scene: Scene, bag: str | None = None, tunings: Sequence[Tuning] = ()
-) -> dict[str, Path]:
-    """Draw ``analyze``'s figures of ``scene`` over ``args.duration`` into ``args.plots``; print each file.
+def splitmix64(x: np.ndarray) -> np.ndarray:
+    """splitmix64 of each value (int64 or uint64): uniform on uint64, no pattern in the input's order."""
+    z = np.asarray(x).astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    out: np.ndarray = z ^ (z >> np.uint64(31))
+    return out
+
+
+# --------------------------------------------------------------------------- streamed collections
+
+
+class StreamedHistogram:
+    """Exact counts of a stream of margins in bins whose width doubles as their range grows.
+
+    The bins are ``[origin + i w, origin + (i + 1) w)`` with ``w`` a power of two and ``origin`` 0
+    (-0.5 for whole numbers: one bin per number while ``w`` is 1), so 0 is always an edge and no
+    bin holds both a violation (< 0) and a pass. When the values seen would need more than
+    ``max_bins`` bins, ``w`` doubles and pairs of bins merge: every count stays exact, for the bins
+    of the final width. Memory: ``max_bins`` counts, whatever the number of values.
 
     Parameters
     ----------
-    args : argparse.Namespace
-        ``plots`` (the folder), ``duration``, ``scene`` and ``overrides``.
+    whole : bool
+        The values are whole numbers (``sheets``).
+    max_bins : int
+        Most bins held (>= 2).
+
+    Attributes
+    ----------
+    width : float
+        Bin width, the values' unit (0 before any value).
+    count, violated : int
+        Values added; those < 0.
+    low, high : float
+        Smallest and largest value (``inf``, ``-inf`` before any).
+    """
+
+    def __init__(self, whole: bool = False, max_bins: int = MARGIN_BINS) -> None:
+        self.origin = -0.5 if whole else 0.0
+        self.max_bins = max(int(max_bins), 2)
+        self.width = 1.0 if whole else 0.0
+        self.first = 0  # the index of the first bin held
+        self.passed = np.zeros(0, dtype=np.int64)
+        self.failed = np.zeros(0, dtype=np.int64)
+        self.count = self.violated = 0
+        self.low, self.high = math.inf, -math.inf
+
+    def _index(self, x: np.ndarray) -> np.ndarray:
+        return np.floor((x - self.origin) / self.width).astype(np.int64)
+
+    def add(self, values: np.ndarray) -> None:
+        """Count ``values`` (finite floats, the margins' unit)."""
+        x = np.asarray(values, dtype=float).reshape(-1)
+        if x.size == 0:
+            return
+        lo, hi = float(x.min()), float(x.max())
+        if self.width == 0.0:  # the least power of two that puts the first values' spread in the bins
+            spread = hi - lo
+            scale = spread / self.max_bins if spread > 0.0 else max(abs(lo), abs(hi)) * 2.0**-30
+            self.width = 2.0 ** math.ceil(math.log2(scale)) if scale > 0.0 else 2.0**-40
+        self.low, self.high = min(self.low, lo), max(self.high, hi)
+        while True:
+            i_lo, i_hi = self._index(np.array([self.low, self.high]))
+            if i_hi - i_lo < self.max_bins:
+                break
+            self._double()
+        i_lo, i_hi = int(i_lo), int(i_hi)
+        if self.passed.size == 0:
+            self.first = i_lo
+        start = min(self.first, i_lo)
+        size = max(self.first + self.passed.size, i_hi + 1) - start
+        if start != self.first or size != self.passed.size:
+            self.passed = _moved(self.passed, self.first - start, size)
+            self.failed = _moved(self.failed, self.first - start, size)
+            self.first = start
+        i = self._index(x) - self.first
+        bad = x < 0.0
+        self.passed += np.bincount(i[~bad], minlength=size)
+        self.failed += np.bincount(i[bad], minlength=size)
+        self.count += int(x.size)
+        self.violated += int(np.count_nonzero(bad))
+
+    def _double(self) -> None:
+        """Twice the width: bin ``i`` goes to ``floor(i / 2)``."""
+        self.width *= 2.0
+        if self.passed.size == 0:
+            return
+        old = np.arange(self.first, self.first + self.passed.size)
+        new = old // 2
+        first = int(new[0])
+        size = int(new[-1]) - first + 1
+        self.passed = np.bincount(new - first, weights=self.passed, minlength=size).astype(np.int64)
+        self.failed = np.bincount(new - first, weights=self.failed, minlength=size).astype(np.int64)
+        self.first = first
+
+    @property
+    def edges(self) -> np.ndarray:
+        """The edges of the bins held, the values' unit."""
+        return self.origin + self.width * np.arange(self.first, self.first + self.passed.size + 1)
+
+
+def _moved(counts: np.ndarray, at: int, size: int) -> np.ndarray:
+    out = np.zeros(size, dtype=np.int64)
+    out[at : at + counts.size] = counts
+    return out
+
+
+class _Sample:
+    """At most ``cap`` rows of a stream, a uniform pseudo-random choice: the rows with the smallest keys."""
+
+    def __init__(self, cap: int) -> None:
+        self.cap = cap
+        self.keys = np.zeros(0, dtype=np.uint64)
+        self.rows: dict[str, np.ndarray] = {}
+        self.count = 0
+
+    def add(self, keys: np.ndarray, **columns: np.ndarray) -> None:
+        self.count += int(keys.size)
+        if keys.size == 0:
+            return
+        self.keys = np.concatenate((self.keys, keys))
+        for name, col in columns.items():
+            self.rows[name] = np.concatenate((self.rows[name], col)) if name in self.rows else np.asarray(col)
+        if self.keys.size > 2 * self.cap:
+            self._cut()
+
+    def _cut(self) -> None:
+        keep = np.sort(np.argsort(self.keys, kind='stable')[: self.cap])
+        self.keys = self.keys[keep]
+        self.rows = {k: v[keep] for k, v in self.rows.items()}
+
+    def done(self) -> dict[str, np.ndarray]:
+        if self.keys.size > self.cap:
+            self._cut()
+        return self.rows
+
+    def column(self, name: str) -> np.ndarray:
+        return self.done().get(name, np.zeros(0))
+
+
+@dataclass
+class _Ticks:
+    """The ticks of the 200 Hz grid in ``[start, end]`` drawn: those whose hash is in the lowest ``1 / 2**level``."""
+
+    start: float
+    end: float
+    cap: int
+
+    def __post_init__(self) -> None:
+        self.k0 = -(-round(self.start * NS_PER_S) // _STEP_NS)
+        self.k1 = round(self.end * NS_PER_S) // _STEP_NS
+        self.total = max(self.k1 - self.k0 + 1, 0)
+        self.level = max(0, math.ceil(math.log2(self.total / self.cap))) if self.total > self.cap else 0
+
+    def between(self, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+        """All ticks of the window ``(t0, t1]`` (from ``start`` on), and those drawn: line times, s."""
+        lo = self.k0 if not math.isfinite(t0) or t0 <= self.start else round(t0 * NS_PER_S) // _STEP_NS + 1
+        hi = min(self.k1, round(t1 * NS_PER_S) // _STEP_NS)
+        stamps = np.arange(max(lo, self.k0), hi + 1, dtype=np.int64) * _STEP_NS
+        drawn = stamps if self.level == 0 else stamps[(splitmix64(stamps) >> np.uint64(64 - self.level)) == 0]
+        return stamps / NS_PER_S, drawn / NS_PER_S
+
+    def text(self, drawn: int) -> str:
+        """``'4001 ticks of the 200 Hz grid, all drawn'``, or how many are drawn and how."""
+        grid = f'{self.total} ticks of the {RATE:g} Hz grid'
+        if self.level == 0:
+            return f'{grid}, all drawn' if drawn == self.total else f'{grid}, {drawn} drawn'
+        return f'{grid}, {drawn} drawn (a pseudo-random 1/{2**self.level})'
+
+
+def _column(js: Any, name: str, quantity: str = 'position') -> np.ndarray:
+    data = getattr(js, quantity)
+    out: np.ndarray = data[:, js.names.index(name)]
+    return out
+
+
+class _Cyclogram:
+    """The folder's first cycles and the first violated one, from the events of the windows still held.
+
+    Per window the events of the cyclogram's kinds are held for :data:`KEEP` s; a cycle wanted
+    (one of the first ``n`` judged at the knife whose feed began in the span, at ``start`` or later,
+    or the first violated one after them with its neighbours) is taken from them :data:`SETTLE` s
+    after its knife contact, while the stream still holds the drive there; its sheets' releases on
+    the pile and its margins are taken as they come.
+    """
+
+    _KINDS = ('sheet_handover', 'at_stops', 'settled', 'knife_contact', 'knife_exit', 'released_on_pile')
+
+    def __init__(self, scene: Scene, n: int, start: float) -> None:
+        self.scene = scene
+        self.n = n
+        self.start = start
+        self.timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
+        self.kinds = np.array([event_kind(k) for k in self._KINDS])
+        self.k = {name: event_kind(name) for name in self._KINDS}
+        self.held: list[tuple[float, np.ndarray]] = []  # (window end, its events of the kinds)
+        self.first: list[int] = []  # the first n cycles judged at the knife
+        self.contact: dict[int, float] = {}  # cycle -> its knife contact, for the cycles wanted
+        self.rows: dict[int, dict[str, Any]] = {}  # cycle -> its row, once taken
+        self.release: dict[int, float] = {}  # sheet -> released on the pile, for the sheets of the rows
+        self.margins: dict[int, dict[str, float]] = {}  # cycle -> constraint -> margin, for the cycles wanted
+        self.held_rows: list[tuple[float, list[ConstraintSeries]]] = []
+        self.bad: int | None = None  # the first violated cycle (of those judged at the knife in the span)
+        self.cycles = 0  # knife contacts in the span
+
+    @property
+    def wanted(self) -> list[int]:
+        out = list(self.first)
+        if self.bad is not None and self.first and self.bad >= self.first[0]:
+            out += [c for c in (self.bad - 1, self.bad, self.bad + 1) if c not in out]
+        return sorted(out)
+
+    def _held_events(self) -> np.ndarray:
+        return np.concatenate([ev for _, ev in self.held]) if self.held else np.zeros(0)
+
+    def window(self, stream: LineStream, w: Window) -> None:
+        ev = w.events[np.isin(w.events['kind'], self.kinds)]
+        self.held = [(t, e) for t, e in self.held if t > w.t1 - KEEP] + [(w.t1, ev)]
+        folder_rows = [r for r in w.constraints if r.name in FOLDER_CONSTRAINTS and r.margin.size]
+        self.held_rows = [(t, r) for t, r in self.held_rows if t > w.t1 - KEEP] + [(w.t1, folder_rows)]
+        contacts = ev[ev['kind'] == self.k['knife_contact']]
+        self.cycles += int(contacts.size)
+        timing = self.timing
+        for c in contacts['cycle'].tolist():
+            if len(self.first) < self.n:  # a cycle whose feed began before the span is not the span's
+                began = float(np.asarray(stream.drive.time_of(np.asarray([c * timing.T + timing.knife.t_out])))[0])
+                if self.start <= 0.0 or began >= self.start:
+                    self.first.append(int(c))
+        self._rows_judged(folder_rows)
+        wanted = self.wanted
+        for row in contacts[np.isin(contacts['cycle'], wanted)]:
+            self.contact.setdefault(int(row['cycle']), float(row['t']))
+        rel = ev[ev['kind'] == self.k['released_on_pile']]
+        for row in rel:
+            if int(row['sheet']) in self.release and math.isnan(self.release[int(row['sheet'])]):
+                self.release[int(row['sheet'])] = float(row['t'])
+        for c in wanted:
+            if c not in self.rows and c in self.contact and w.t1 >= self.contact[c] + SETTLE:
+                self._take(stream, c)
+
+    def _rows_judged(self, rows: list[ConstraintSeries]) -> None:
+        """Note the margins of the cycles wanted and the first violated cycle (from the span's first cycle on)."""
+        if not self.first:
+            return
+        bad = [int(r.cycle[i]) for r in rows for i in np.flatnonzero(r.margin < 0.0) if r.cycle[i] >= self.first[0]]
+        if bad and (self.bad is None or min(bad) < self.bad):
+            self.bad = min(bad)
+            for c in self.wanted:  # a neighbour before it: from the held events and rows
+                hit = self._held_events()
+                hit = hit[(hit['kind'] == self.k['knife_contact']) & (hit['cycle'] == c)] if hit.size else hit
+                if hit.size:
+                    self.contact.setdefault(c, float(hit['t'][0]))
+            for _, held in self.held_rows:
+                self._margins_of(held)
+            return
+        self._margins_of(rows)
+
+    def _margins_of(self, rows: list[ConstraintSeries]) -> None:
+        wanted = set(self.wanted)
+        for r in rows:
+            for c, m in zip(r.cycle.tolist(), r.margin.tolist(), strict=True):
+                if c in wanted:
+                    self.margins.setdefault(c, {})[r.name] = m
+
+    def finish(self, stream: LineStream, rows: list[ConstraintSeries]) -> None:
+        folder_rows = [r for r in rows if r.name in FOLDER_CONSTRAINTS and r.margin.size]
+        self._rows_judged(folder_rows)
+        for c in self.wanted:
+            if c not in self.rows and c in self.contact:
+                self._take(stream, c)
+
+    def _take(self, stream: LineStream, k: int) -> None:
+        """Cycle ``k``'s row from the held events (its operations' times) and the drive (its start, deadline)."""
+        ev = self._held_events()
+        timing, drive = self.timing, stream.drive
+
+        def first_time(kind: str, key: str, value: int) -> float | None:
+            hit = ev[(ev['kind'] == self.k[kind]) & (ev[key] == value)]
+            return float(hit['t'][0]) if hit.size else None
+
+        tc = self.contact[k]
+        th_start = k * timing.T + timing.knife.t_out
+        t0 = float(np.round(np.asarray(drive.time_of(np.asarray([th_start])), dtype=float)[0] * NS_PER_S) / NS_PER_S)
+        th_dead = float(np.asarray(drive.theta(np.asarray([tc])), dtype=float)[0]) - (
+            timing.T - timing.t_knife - timing.t_allowed
+        )
+        bouncing = self.scene.has('stop_bounce')
+        sheets = []
+        hand = ev[(ev['kind'] == self.k['sheet_handover']) & (ev['cycle'] == k)]
+        for s in hand:
+            sid = int(s['sheet'])
+            t_a = first_time('at_stops', 'sheet', sid)
+            rel = first_time('released_on_pile', 'sheet', sid)
+            self.release[sid] = math.nan if rel is None else rel
+            sheets.append(
+                {
+                    'sheet': sid,
+                    'handover': float(s['t']),
+                    'at_stops': t_a,
+                    'settled': first_time('settled', 'sheet', sid) if bouncing else t_a,
+                }
+            )
+        self.rows[k] = {
+            'cycle': k,
+            'start': t0,
+            'contact': tc,
+            'exit': first_time('knife_exit', 'cycle', k),
+            'deadline': float(np.asarray(drive.time_of(np.asarray([th_dead])), dtype=float)[0]),
+            'sheets': sheets,
+        }
+
+    def done(self) -> list[dict[str, Any]]:
+        """The rows drawn, by cycle: with each sheet's release (None if not released in the span) and the margins."""
+        out = []
+        for c in self.wanted:
+            if c not in self.rows:
+                continue
+            row = dict(self.rows[c])
+            row['sheets'] = [
+                {
+                    **s,
+                    'release': None if math.isnan(self.release.get(s['sheet'], math.nan)) else self.release[s['sheet']],
+                }
+                for s in row['sheets']
+            ]
+            row['margins'] = dict(self.margins.get(c, {}))
+            out.append(row)
+        return out
+
+
+class FigureData:
+    """What the figures of a streamed run keep (bounded), as a :class:`folder_line.cli.summary.Observer`.
+
+    Parameters
+    ----------
     scene : Scene
-        The scene, parsed.
-    bag : str, optional
-        A bag of this run already written (``simulate --bag``); else one is written to a
-        temporary folder and removed.
-    tunings : sequence of Tuning
-        The run's ``--tune`` changes.
+    start, end : float
+        The span drawn, line time from 0, s.
+    """
+
+    def __init__(self, scene: Scene, start: float, end: float) -> None:
+        self.scene, self.start, self.end = scene, start, end
+        self.ticks = _Ticks(start, end, JOINT_SAMPLES)
+        self.layup = scene.has_layup
+        self.belts = scene.has('chute_belts')
+        self.delivery = scene.has_delivery
+        self.flight = scene.has('leaf_flight') and 'container' in scene.machines
+        self.joints: dict[str, list[np.ndarray]] = {}
+        self.belt_low, self.belt_high = math.inf, -math.inf
+        self.t_speed: float | None = None  # the first time on the check grid the drive is at speed (from start)
+        self.exits = {'C': _Sample(LEAF_SAMPLES), 'E': _Sample(LEAF_SAMPLES)}
+        self.exit_counts = {e: {'all': 0, 'early': 0, 'start_up': 0} for e in ('C', 'E')}
+        self.margins: dict[str, StreamedHistogram] = {}
+        self.units: dict[str, str] = {}
+        self.cyclogram = _Cyclogram(scene, GANTT_CYCLES, start) if scene.has_folder else None
+        cont = scene.machine('container') if self.flight else None
+        self.container = cont
+        self.landed = np.zeros(cont.bins if cont is not None else 0, dtype=np.int64)
+        self.landed_x = _Sample(LANDING_MARKS)
+        self.spilled_x = _Sample(LEAF_SAMPLES)
+
+    # ------------------------------------------------------------------ the stream's windows
+
+    def window(self, stream: LineStream, w: Window) -> None:
+        if not self.margins:
+            for name, tl in stream.tallies.constraints.items():
+                self.margins[name] = StreamedHistogram(whole=tl.unit == 'sheets')
+                self.units[name] = tl.unit
+        for rows in w.constraints:
+            self.margins[rows.name].add(rows.margin)
+        self._speed(stream, w)
+        every, drawn = self.ticks.between(w.t0, w.t1)
+        if self.layup or self.delivery:
+            self._joints(stream, every, drawn)
+        ev = w.events
+        if self.layup:
+            self._exits(stream, ev[ev['kind'] == event_kind('leaf_exit')])
+        if self.container is not None:
+            cont = self.container
+            x = ev['value'][ev['kind'] == event_kind('leaf_landed')]
+            self.landed += np.histogram(x, bins=cont.bins, range=(cont.x_left, cont.x_right))[0]
+            landed = ev[ev['kind'] == event_kind('leaf_landed')]
+            self.landed_x.add(splitmix64(landed['sheet']), x=landed['value'])
+            spilled = ev[ev['kind'] == event_kind('leaf_spilled')]
+            self.spilled_x.add(splitmix64(spilled['sheet']), x=spilled['value'])
+        if self.cyclogram is not None:
+            self.cyclogram.window(stream, w)
+
+    def finish(self, stream: LineStream, rows: list[ConstraintSeries]) -> None:
+        for r in rows:
+            self.margins[r.name].add(r.margin)
+        if self.cyclogram is not None:
+            self.cyclogram.finish(stream, rows)
+
+    def off_speed(self, stream: LineStream, t: np.ndarray) -> np.ndarray:
+        """Which line times ``t`` (in the last window) the drive turns below speed at: start-up, holds, stops."""
+        drive = stream.drive
+        out: np.ndarray = np.asarray(drive.rate(t), dtype=float) < SPEED_REACHED * target_rate(drive, t)
+        return out
+
+    def _speed(self, stream: LineStream, w: Window) -> None:
+        if self.t_speed is not None:
+            return
+        lo = self.start if not math.isfinite(w.t0) or w.t0 <= self.start else w.t0
+        k0 = math.ceil(lo / CHECK_PERIOD - 1e-9)
+        grid = np.arange(k0, math.floor(w.t1 / CHECK_PERIOD + 1e-9) + 1) * CHECK_PERIOD
+        grid = grid[(grid >= lo) & (grid <= w.t1)]
+        if grid.size:
+            fast = np.flatnonzero(~self.off_speed(stream, grid))
+            if fast.size:
+                self.t_speed = float(grid[fast[0]])
+
+    def _joints(self, stream: LineStream, every: np.ndarray, t: np.ndarray) -> None:
+        if self.belts and every.size:  # the belt's extremes over every tick
+            v = _column(stream.sample('belts', every), 'chute_belts', 'velocity')
+            self.belt_low, self.belt_high = min(self.belt_low, float(v.min())), max(self.belt_high, float(v.max()))
+        if t.size == 0:
+            return
+        cols: dict[str, np.ndarray] = {'t': t, 'off': self.off_speed(stream, t)}
+        if self.layup:
+            crank = stream.sample('drive', t)
+            cols['phi'] = np.mod(_column(crank, 'layup_crank'), 2.0 * math.pi)
+            cols['w3'] = _column(crank, 'transporter3', 'velocity')
+            cols['w5'] = _column(crank, 'transporter4', 'velocity')
+            cols['v_belt'] = _column(stream.sample('belts', t), 'chute_belts', 'velocity') if self.belts else 0.0 * t
+        if self.delivery:
+            ft = stream.sample('feed', t)
+            cols['x'] = _column(ft, 'carriage')
+            cols['v'] = _column(ft, 'carriage', 'velocity')
+            cols['v_chain'] = _column(ft, 'chain', 'velocity')
+            if ft.effort is not None and self.scene.has('chain_friction'):
+                cols['torque'] = _column(ft, 'chain', 'effort')
+        for name, col in cols.items():
+            self.joints.setdefault(name, []).append(np.asarray(col))
+
+    def _exits(self, stream: LineStream, exits: np.ndarray) -> None:
+        exits = exits[exits['t'] >= self.start]
+        if exits.size == 0:
+            return
+        lp = self.scene.machine('layup')
+        turns = (lp.n_kr / 60.0) * np.asarray(stream.drive.theta(exits['t']), dtype=float)
+        deg = np.degrees(np.mod(2.0 * math.pi * turns, 2.0 * math.pi))
+        early = self.off_speed(stream, exits['t'])
+        start_up = exits['t'] < (math.inf if self.t_speed is None else self.t_speed)
+        for at_e, name in ((False, 'C'), (True, 'E')):
+            mine = (exits['sheet'] % 2 == 1) == at_e
+            n = self.exit_counts[name]
+            n['all'] += int(np.count_nonzero(mine))
+            n['early'] += int(np.count_nonzero(mine & early))
+            n['start_up'] += int(np.count_nonzero(mine & early & start_up))
+            rows = exits[mine]
+            self.exits[name].add(splitmix64(rows['sheet']), deg=deg[mine], v=rows['value'], early=early[mine])
+
+    def joint(self, name: str) -> np.ndarray:
+        """A column of the ticks drawn (``t``, ``off``, ``phi``, ``w3``, ...), in time order."""
+        parts = self.joints.get(name, [])
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def collect(
+    scene: Scene,
+    duration: float,
+    *,
+    start: float | None = None,
+    commands: Sequence[LineCommand] = (),
+    progress: Any = None,
+) -> tuple[FigureData, dict[str, Any]]:
+    """Stream the line over ``duration`` s (from ``start`` on: ``--from``) keeping the figures' data.
+
+    Returns
+    -------
+    (FigureData, dict)
+        The figures' data and the run's summary (:func:`folder_line.cli.summary.line_summary`'s:
+        ``simulate(...).summary()`` bit for bit, or the window's with ``start``).
+    """
+    t0 = 0.0 if start is None else start
+    data = FigureData(scene, t0, t0 + duration)
+    result = summary_cli.line_summary(
+        scene,
+        duration,
+        start=start,
+        commands=commands,
+        progress=progress,
+        window=PLOT_WINDOW,
+        keep=KEEP,
+        observers=(data,),
+    )
+    return data, result
+
+
+# --------------------------------------------------------------------------- drawing
+
+
+def _span(data: FigureData) -> str:
+    return f'line time {data.start:g}..{data.end:g} s'
+
+
+def _exit_speeds(data: FigureData, out: Path) -> Path | None:
+    t = data.joint('t')
+    if not data.layup or t.size == 0:
+        return None
+    plt = pyplot()
+    scene = data.scene
+    lp = scene.machine('layup')
+    v_tr = float(lp.v_tr) if data.belts else 0.0
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
+    exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
+    off = data.joint('off').astype(bool)
+    t_speed = data.start if data.t_speed is None else data.t_speed
+    later = int(np.count_nonzero(off & (t >= t_speed)))
+    deg = np.degrees(data.joint('phi'))
+    v_c, v_e = data.joint('w3') * lp.l3, data.joint('w5') * lp.l5
+    belt = data.joint('v_belt')
+    va_c, va_e = np.sqrt(v_c * v_c + belt * belt), np.sqrt(v_e * v_e + belt * belt)
+    for ax, c, e, names in (
+        (ax1, v_c, v_e, (r'$\omega_3 l_3$', r'$\omega_5 l_5$')),
+        (ax2, va_c, va_e, ('$v_{aC}$', '$v_{aE}$')),
+    ):
+        ax.plot(
+            deg[~off],
+            c[~off],
+            'o',
+            ms=2.5,
+            color=QUANTITY_COLOURS['vC'],
+            alpha=0.8,
+            zorder=3,
+            label=f'simulated {names[0]}',
+        )
+        ax.plot(
+            deg[~off],
+            e[~off],
+            's',
+            ms=4.5,
+            color=QUANTITY_COLOURS['vE'],
+            mfc='none',
+            alpha=0.8,
+            label=f'simulated {names[1]}',
+        )
+        _off_speed(ax, deg[off], c[off], e[off], data, later)
+    _leaf_exits(ax2, data)
+    if data.belts:
+        vmin = float(scene.effect('chute_belts').v_min)
+        ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
+    ax1.set_ylabel('swing speed across the chute, m/s')
+    ax1.set_title(
+        'L: exit speeds (lines: model at nominal speed; paper Fig. 4)\n'
+        f'simulated at {data.ticks.text(int(t.size))}; {_span(data)}',
+        fontsize=10,
+    )
+    ax1.legend(loc='best', fontsize=7.5)
+    ax2.set_ylabel('absolute exit speed, m/s')
+    ax2.set_xlabel(r'crank angle $\varphi$, deg')
+    belt_text = f'belt speed {data.belt_low:.3f}..{data.belt_high:.3f} m/s at every tick' if data.belts else 'no belts'
+    ax2.set_title(f'L: absolute exit speeds with the belts ({belt_text}; paper Fig. 5)', fontsize=10)
+    ax2.legend(loc='best', fontsize=7.5, ncol=2)
+    fig.tight_layout()
+    return save_figure(fig, out / 'exit_speeds.png')
+
+
+def _off_speed(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, data: FigureData, later: int) -> None:
+    """The ticks drawn off speed: the start-up before the drive reached speed, holds and stops after: grey."""
+    if deg.size == 0:
+        return
+    colour = QUANTITY_COLOURS['start_up']
+    first = deg.size - later
+    t_speed = math.inf if data.t_speed is None else data.t_speed
+    if first and later:
+        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s) and {later} ticks of holds/stops'
+    elif first:
+        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s)'
+    else:
+        label = 'holds/stops (the drive ramping down or standing still)'
+    label += f': {deg.size} ticks drawn'
+    ax.plot(deg, v_c, 'x', ms=3.5, color=colour, alpha=0.8, label=label)
+    ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
+
+
+def _leaf_exits(ax: Any, data: FigureData) -> None:
+    for name, marker in (('C', 'v'), ('E', '^')):
+        n = data.exit_counts[name]
+        if not n['all']:
+            continue
+        sample = data.exits[name]
+        deg, v, early = sample.column('deg'), sample.column('v'), sample.column('early').astype(bool)
+        colour = QUANTITY_COLOURS[f'leaf_exit_{name}']
+        where = [f'{n["start_up"]} in the start-up'] if n['start_up'] else []
+        where += [f'{n["early"] - n["start_up"]} in holds/stops'] if n['early'] > n['start_up'] else []
+        label = f'leaf exits at {name} ({n["all"]}'
+        label += f'; {deg.size} drawn' if deg.size < n['all'] else ''
+        label += f'; hollow: {", ".join(where)})' if n['early'] else ')'
+        ax.plot(deg[~early], v[~early], marker, ms=6, color=colour, label=label)
+        if np.any(early):
+            ax.plot(deg[early], v[early], marker, ms=6, color=colour, mfc='none')
+
+
+def _efficiency(data: FigureData, out: Path) -> Path | None:
+    t = data.joint('t')
+    scene = data.scene
+    if not data.delivery or t.size == 0:
+        return None
+    timing = cycle_timing(scene.machine('cyclogram'), scene.machine('knife'))
+    plan = delivery_plan(scene, timing)
+    if plan is None:
+        return None
+    x, v, v_chain = data.joint('x'), data.joint('v'), data.joint('v_chain')
+    on = (x > 0.0) | (v > 0.0)  # a carriage on the stroke
+    u_grid = np.linspace(0.0, 2.0, 20001)
+    st = delivery.evaluate_stroke(plan.params, u_grid, return_section='geometric')
+    x_grid = u_grid * plan.chain.x_max + plan.rod * (1.0 - np.cos(st.alpha))
+    u = np.interp(x[on], x_grid, u_grid)
+    eta = delivery.evaluate_stroke(plan.params, u, return_section='geometric').eta
+    moving = v_chain[on] > 0.0
+    kv = np.divide(v[on], v_chain[on], out=np.zeros(u.size), where=moving)
+    torque = data.joint('torque')[on] if 'torque' in data.joints else np.zeros(0)
+    plt = pyplot()
+    rows = 3 if torque.size else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
+    ax_eta, ax_kv = axes[0], axes[1]
+    stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
+    ax_eta.plot(u, eta, 'o', ms=3, color='k', alpha=0.6, label=f'at the simulated carriage positions ({u.size} ticks)')
+    ax_kv.plot(u[moving], kv[moving], 'o', ms=3, color='k', alpha=0.6, label='simulated carriage speed / chain speed')
+    release = QUANTITY_COLOURS['release']
+    for ax in axes:
+        ax.axvline(plan.u_rel, color=release, ls='--', lw=1)
+    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color=release, va='bottom', fontsize=8)
+    ax_eta.set_ylabel('efficiency $\\eta$')
+    title = 'D: efficiency along the stroke (paper Fig. 2)'
+    if eta.size:
+        title += (
+            f'; min eta at the ticks drawn {eta.min():.3f}, of the model '
+            f'{delivery.stroke_minimum(plan.params, "eta")[1]:.3f}\n'
+            f'simulated at {data.ticks.text(int(t.size))}, {u.size} of them with a carriage on the stroke; '
+            f'{_span(data)}'
+        )
+    ax_eta.set_title(title, fontsize=9)
+    ax_eta.legend(fontsize=8, loc='lower left')
+    ax_kv.set_ylabel('carriage speed ratio $K_v$')
+    ax_kv.legend(fontsize=8, loc='lower left')
+    if torque.size:
+        ax_t = axes[2]
+        sch = plan.schedule
+        theta = sch.theta_enter0 + np.linspace(0.0, sch.T, 4001, endpoint=False)
+        a0, slack = sch.stroke_travel(theta)
+        stroke = a0 <= sch.S + slack
+        u_m = plan.path.position(np.clip(a0[stroke], 0.0, sch.S))
+        tq = np.asarray(chain_friction.sprocket_torque(scene, theta[stroke]), dtype=float)
+        order = np.argsort(u_m)
+        ax_t.plot(u_m[order], tq[order], color=QUANTITY_COLOURS['torque'], label='model: all carriages on the stroke')
+        ax_t.plot(u, torque, 'o', ms=3, color='k', alpha=0.6, label='simulated (effort on the chain)')
+        ax_t.set_ylabel('sprocket torque $M_1$, N m')
+        ax_t.legend(fontsize=8, loc='upper right')
+        ax_t.grid(alpha=0.3)
+    axes[-1].set_xlabel('stroke position u of the newest carriage (deceleration 0..1, acceleration 1..2)')
+    fig.tight_layout()
+    return save_figure(fig, out / 'efficiency.png')
+
+
+def _margin_text(margins: Mapping[str, float]) -> str:
+    parts = []
+    for name, m in margins.items():
+        value = format_margin(m, CONSTRAINT_UNITS.get(name, ''), name, precision=3, fixed=False, short=True)
+        parts.append(value if name == 'one_per_cycle' else f'{MARGIN_LABELS.get(name, name)} {value}')
+    return ' | '.join(parts)
+
+
+def _cyclogram(data: FigureData, out: Path) -> Path | None:
+    cg = data.cyclogram
+    if cg is None:
+        return None
+    rows = cg.done()
+    timing = cg.timing
+    plt = pyplot()
+    ms = 1e3
+    fig, ax = plt.subplots(figsize=(12, 2.2 + 0.55 * (len(rows) + 1)))
+    colours = {letter: colour for letter, _, colour in OPERATIONS}
+    x_max = timing.T * ms
+    for ph in timing.timeline:  # the nominal cycle of the paper's cyclogram, from the knife exit
+        a = (ph.t_start - timing.knife.t_out) % timing.T
+        b = a + ph.duration
+        for lo, hi in ((a, min(b, timing.T)), (0.0, b - timing.T)) if b > timing.T else ((a, b),):
+            if hi > lo:
+                ax.barh(-1, (hi - lo) * ms, left=lo * ms, height=0.5, color=PHASE_COLOURS[ph.name], alpha=0.35)
+        ax.text((a + min(b, timing.T)) / 2 * ms, -1, ph.name, ha='center', va='center', fontsize=7)
+    ax.axvline(timing.t_allowed * ms, color='k', ls=':', lw=1)
+    for i, row in enumerate(rows):
+        t0 = row['start']
+        h = 0.6 / max(len(row['sheets']), 1)
+        for j, s in enumerate(row['sheets']):
+            y = i - 0.3 + h * (j + 0.5)
+            settled = s['settled'] if s['settled'] is not None and s['settled'] <= row['contact'] else None
+            segs = [
+                ('А', s['handover'], s['at_stops'], None),
+                ('Б', s['at_stops'], s['settled'], '////'),
+                ('Б', s['settled'], row['contact'] if settled is not None else None, None),
+            ]
+            if s['release'] is not None and row['exit'] is not None:
+                segs.append(('Г', row['exit'], s['release'], None))
+            for letter, a, b, hatch in segs:
+                if a is None or b is None or b < a:
+                    continue
+                ax.barh(
+                    y,
+                    (b - a) * ms,
+                    left=(a - t0) * ms,
+                    height=h * 0.9,
+                    color=colours[letter],
+                    alpha=0.45 if hatch else 0.8,
+                    hatch=hatch,
+                    edgecolor='white' if hatch else None,
+                )
+                x_max = max(x_max, (b - t0) * ms)
+        if not row['sheets']:
+            ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
+        if row['exit'] is not None:
+            ax.barh(
+                i,
+                (row['exit'] - row['contact']) * ms,
+                left=(row['contact'] - t0) * ms,
+                height=0.6,
+                color=colours['В'],
+                alpha=0.8,
+            )
+            x_max = max(x_max, (row['exit'] - t0) * ms)
+        ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
+        x_max = max(x_max, (row['deadline'] - t0) * ms)
+    text_x = x_max * 1.03
+    for i, row in enumerate(rows):
+        bad = any(m < 0.0 for m in row['margins'].values())
+        text = _margin_text(row['margins']) or 'not judged in the span'
+        ax.text(text_x, i, text, va='center', fontsize=7.5, color='r' if bad else 'k')
+    ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
+    ax.set_yticks([-1, *range(len(rows))], ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
+    for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
+        if any(m < 0.0 for m in row['margins'].values()):
+            label.set_color('r')
+        if i and row['cycle'] != rows[i - 1]['cycle'] + 1:  # cycles left out
+            ax.axhline(i - 0.5, color='grey', ls='--', lw=0.8)
+    ax.invert_yaxis()
+    ax.set_xlim(0, x_max * 1.9)
+    ticks = plt.MaxNLocator(nbins=8).tick_values(0.0, x_max)
+    ax.set_xticks(ticks[(ticks >= 0.0) & (ticks <= x_max)])
+    ax.axvline(x_max * 1.015, color='grey', lw=0.5)
+    ax.set_xlabel('time from the start of the cycle (the knife exit of the cycle before), ms')
+    handles = [plt.Rectangle((0, 0), 1, 1, color=c, alpha=0.8) for _, _, c in OPERATIONS]
+    labels = [f'{letter}: {label}' for letter, label, _ in OPERATIONS]
+    handles.append(plt.Line2D([0], [0], color='k', lw=2))
+    labels.append('feed deadline of the cycle (window start + t_allowed)')
+    fig.legend(handles, labels, loc='lower center', ncol=2, fontsize=8, frameon=False)
+    firsts = [r for r in rows if r['cycle'] in cg.first]
+    shown = f'the first {len(firsts)}' + (' and the first violated' if len(firsts) < len(rows) else '')
+    if not rows:
+        shown = 'no cycle'
+    ax.set_title(
+        f'F: cyclogram of {shown} of {cg.cycles} cycles judged at the knife in {_span(data)} '
+        f'(paper F figs. 1-2)\nT = {timing.T * ms:.1f} ms; hatched: bouncing at the stops',
+        fontsize=10,
+    )
+    ax.grid(axis='x', alpha=0.3)
+    fig.tight_layout(rect=(0.0, 0.85 / fig.get_figheight(), 1.0, 1.0))
+    return save_figure(fig, out / 'cyclogram.png')
+
+
+def _margins(data: FigureData, out: Path) -> Path:
+    plt = pyplot()
+    names = list(data.margins)
+    n = max(len(names), 1)
+    cols = 2 if n > 1 else 1
+    nrows = math.ceil(n / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(5.4 * cols, 3.1 * nrows + 0.7), squeeze=False)
+    for ax in axes.ravel()[len(names) :]:
+        ax.axis('off')
+    if not names:
+        axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
+    for ax, name in zip(axes.ravel(), names, strict=False):
+        h = data.margins[name]
+        unit_in = data.units[name]
+        scale, unit = _DISPLAY_UNITS.get(unit_in, (1.0, unit_in))
+        nv = h.violated
+        ax.set_title(f'{name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')
+        ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
+        ax.set_ylabel('count')
+        if h.count == 0:
+            ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
+            continue
+        edges = h.edges * scale
+        flat = unit_in != 'sheets' and h.high - h.low <= 1e-6 * max(abs(h.low), abs(h.high))
+        if flat:  # equal to rounding: one bar about the value
+            mid = 0.5 * (h.low + h.high) * scale
+            half = max(abs(mid) * 0.02, 1e-12)
+            edges = np.array([mid - half, mid + half])
+            passed, failed = np.array([h.count - nv]), np.array([nv])
+            ax.text(
+                0.5,
+                0.5,
+                f'all {h.count} equal to {format_margin(h.low, unit_in, name)}\n(to rounding: one bar about it)',
+                ha='center',
+                va='center',
+                transform=ax.transAxes,
+                fontsize=8,
+                bbox={'facecolor': 'white', 'alpha': 0.8, 'edgecolor': 'none'},
+            )
+        else:
+            passed, failed = h.passed, h.failed
+        width = np.diff(edges)
+        nonzero = np.concatenate((passed, failed))
+        nonzero = nonzero[nonzero > 0]
+        if nonzero.size and nonzero.min() * 100 < nonzero.max():  # a bin under 1 % of the tallest: invisible
+            ax.set_yscale('log')
+            ax.set_ylabel('count (log scale)')
+        ax.bar(edges[:-1], passed, width=width, align='edge', color='C0', label='passed')
+        if nv:
+            ax.bar(
+                edges[:-1], failed, width=width, bottom=passed, align='edge', color='tab:red', label=f'violated ({nv})'
+            )
+        if edges[0] <= 0.0 <= edges[-1]:
+            ax.axvline(0.0, color='k', lw=1)
+        low = h.low * scale
+        ax.axvline(low, color='tab:orange', ls='--', lw=1, label=f'min {low:.4g}')
+        ax.legend(fontsize=7)
+        ax.ticklabel_format(axis='x', style='sci', scilimits=(-3, 4), useOffset=False)
+        span = edges[-1] - edges[0]
+        ax.set_xlim(edges[0] - 0.05 * span, edges[-1] + 0.05 * span)
+    fig.suptitle(
+        f'margins of every constraint judged in {_span(data)}: exact counts in bins of a streamed histogram '
+        '(widths double as the range grows)',
+        fontsize=9,
+    )
+    fig.tight_layout()
+    return save_figure(fig, out / 'margins.png')
+
+
+def _landing(data: FigureData, out: Path) -> Path | None:
+    cont = data.container
+    if cont is None:
+        return None
+    hist = leaf_flight.histogram_of_counts(data.landed, cont.x_left, cont.x_right)
+    edges, counts = np.asarray(hist.edges), np.asarray(hist.counts)
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    ax.bar(
+        edges[:-1],
+        counts,
+        width=np.diff(edges),
+        align='edge',
+        color='C0',
+        edgecolor='white',
+        label=f'landed ({int(counts.sum())})',
+    )
+    spilled = data.spilled_x.column('x')
+    if data.spilled_x.count:
+        drawn = '' if spilled.size == data.spilled_x.count else f'; {spilled.size} drawn'
+        ax.plot(
+            spilled,
+            np.zeros(spilled.size),
+            'x',
+            color='tab:red',
+            ms=8,
+            mew=2,
+            label=f'spilled over a wall ({data.spilled_x.count}{drawn})',
+        )
+    x = data.landed_x.column('x')
+    rug = (
+        'landing x of each leaf'
+        if x.size == data.landed_x.count
+        else f'landing x of {x.size} leaves (a pseudo-random sample)'
+    )
+    ax.plot(x, np.full(x.size, -0.04 * max(counts.max(initial=1), 1)), '|', color='k', ms=10, label=rug)
+    for wall in (cont.x_left, cont.x_right):
+        ax.axvline(wall, color='k', lw=3)
+    width = cont.x_right - cont.x_left
+    ax.set_xlim(cont.x_left - 0.1 * width, cont.x_right + 0.1 * width)
+    cv = 'n/a' if hist.cv is None else f'{hist.cv:.3f}'
+    ax.set_title(
+        f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}), {_span(data)}',
+        fontsize=10,
+    )
+    ax.set_xlabel('x on the container floor, m (thick lines: the walls)')
+    ax.set_ylabel('leaves per bin')
+    ax.yaxis.set_major_locator(plt.MaxNLocator(integer=True))
+    ax.legend(fontsize=8, loc='upper right')
+    fig.tight_layout()
+    return save_figure(fig, out / 'landing.png')
+
+
+def draw(data: FigureData, out: Path) -> dict[str, Path]:
+    """Draw the figures of :data:`~folder_line.analysis.figures.FIGURES` the scene has into ``out``.
+
+    Returns
+    -------
+    dict of str to Path
+        Figure file name -> the file written, in the order of ``FIGURES``.
+    """
+    figures: dict[str, Path] = {}
+    for name, fn in (
+        ('exit_speeds.png', _exit_speeds),
+        ('efficiency.png', _efficiency),
+        ('cyclogram.png', _cyclogram),
+        ('margins.png', _margins),
+        ('landing.png', _landing),
+    ):
+        written = fn(data, out)
+        if written is not None:
+            figures[name] = written
+    return figures
+
+
+def write_figures(path: str, data: FigureData) -> dict[str, Path]:
+    """Draw the figures of ``data`` into the folder ``path`` (claimed while drawing); print each file written.
 
     Returns
     -------
@@ -63,18 +1034,9 @@ def write_plots(
     ------
     folder_line.errors.OutputError
         The folder cannot be claimed.
-    folder_line.errors.ParameterError
-        ``--duration`` is not a whole number of ticks.
     """
-    with tempfile.TemporaryDirectory(prefix='folder-line-plots-') as tmp:
-        if bag is None:
-            bag = str(Path(tmp) / 'bag')
-            # the figures draw no markers
-            write_batch_bag(bag, scene, args.duration, tunings=tunings, marker_rate=0.0)
-        rec = read_recording(bag)
-        ev = evaluate(rec)
-        with claim_output_dir(args.plots, OPTION, files=tuple(FIGURES)) as out:
-            figures = draw_figures(rec, ev, out, GANTT_CYCLES)
-    for path in figures.values():
-        print(f'wrote {path}', file=sys.stdout)
+    with claim_output_dir(path, OPTION, files=tuple(FIGURES)) as out:
+        figures = draw(data, out)
+    for written in figures.values():
+        print(f'wrote {written}', file=sys.stdout)
     return figures

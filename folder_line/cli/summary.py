@@ -18,28 +18,31 @@ from 0 and are left out; ``simulate`` without ``--from`` gives them.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping
-from typing import IO, Any
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from typing import IO, Any, Protocol
 
 import numpy as np
 
+from folder_line.core.effects import leaf_flight
 from folder_line.core.limits import DURATION
 from folder_line.core.line import model
-from folder_line.core.line.events import EVENT_KINDS, event_kind
+from folder_line.core.line.events import EVENT_KINDS, ConstraintSeries, event_kind
 from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream
+from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream, Window
 from folder_line.core.line.tuning import LineCommand
-from folder_line.core.effects import leaf_flight
 from folder_line.errors import ParameterError
 
 __all__ = [
     'FAST_FORWARD',
     'WINDOW',
+    'Observer',
+    'check_window',
     'fast_forward',
     'line_summary',
     'print_margins',
     'print_summary',
+    'span_text',
     'tally_figures',
     'window_summary',
 ]
@@ -55,9 +58,10 @@ def fast_forward(
 ) -> None:
     """Advance ``stream`` to line time ``start`` (s) in windows of ``window`` s, keeping nothing of them.
 
-    ``progress`` is called with the line time reached after each window, s.
+    ``progress`` is called with the line time reached after each window, s. A ``start`` of 0 hands out
+    nothing: the first window of the stream then holds what happens at line time 0, as a run's does.
     """
-    while stream.t < start:
+    while start > 0.0 and stream.t < start:
         stream.advance(min(start, max(stream.t, 0.0) + window))
         if progress is not None:
             progress(stream.t)
@@ -112,10 +116,47 @@ def check_window(start: float, duration: float) -> float:
         raise ParameterError(
             '--from',
             start,
-            f'--from + --duration = {end:g} s of line time; a run reaches at most {DURATION.hi:g} s '
+            f'--from + --duration = {end:.10g} s of line time; a run reaches at most {DURATION.hi:.10g} s '
             f'({DURATION.hi / 86400.0:.0f} days) of line time',
         )
     return end
+
+
+class Observer(Protocol):
+    """What watches a streamed run besides its summary (``simulate --plots``' figures)."""
+
+    def window(self, stream: LineStream, window: Window) -> None:
+        """One window handed out (``stream`` advanced to its end; joint states sampled within it)."""
+
+    def finish(self, stream: LineStream, rows: list[ConstraintSeries]) -> None:
+        """The run's end: the rows of the cycles still waiting, judged (:meth:`LineStream.finish`)."""
+
+
+def _windows(
+    stream: LineStream,
+    start: float,
+    end: float,
+    step: float,
+    progress: Callable[[float], None] | None,
+    observers: Sequence[Observer],
+) -> Iterator[Window]:
+    """Advance ``stream`` from ``start`` to ``end`` (s) in windows of ``step`` s, each shown to ``observers``."""
+    k = 1
+    while stream.t < end:
+        w = stream.advance(min(end, start + k * step))
+        k += 1
+        for obs in observers:
+            obs.window(stream, w)
+        yield w
+        if progress is not None:
+            progress(stream.t)
+
+
+def _finish(stream: LineStream, observers: Sequence[Observer]) -> list[ConstraintSeries]:
+    rows = stream.finish()
+    for obs in observers:
+        obs.finish(stream, rows)
+    return rows
 
 
 def window_summary(
@@ -127,6 +168,8 @@ def window_summary(
     window: float | None = None,
     progress: Callable[[float], None] | None = None,
     max_violations: int = MAX_VIOLATIONS,
+    keep: float = 0.0,
+    observers: Sequence[Observer] = (),
 ) -> dict[str, Any]:
     """The summary of the window ``(start, start + duration]`` of a run from 0 (see the module docstring).
 
@@ -134,7 +177,7 @@ def window_summary(
     ----------
     scene : Scene
     start : float
-        Line time the window starts at, s (>= 0): the run is fast-forwarded to it.
+        Line time the window starts at, s (>= 0): the run is fast-forwarded to it (:func:`fast_forward`).
     duration : float
         Line time of the window, s (in :data:`folder_line.core.limits.DURATION`).
     commands : iterable of Command or Tuning
@@ -145,6 +188,10 @@ def window_summary(
         Called with the line time reached (from 0) after each window, s.
     max_violations : int
         Violations listed.
+    keep : float
+        Line time before each window the stream keeps, s (:class:`~folder_line.core.line.stream.LineStream`).
+    observers : sequence of Observer
+        Shown every window from ``start`` on, and the end.
 
     Returns
     -------
@@ -158,20 +205,15 @@ def window_summary(
     if not (math.isfinite(start) and start >= 0.0):
         raise ParameterError('--from', start, 'must be a line time >= 0 s')
     end = check_window(start, duration)
-    step = WINDOW if window is None else window
-    stream = LineStream(scene, commands)
+    stream = LineStream(scene, commands, keep=keep)
     fast_forward(stream, start, progress=progress)
     before = stream.summary()
     tallies = {name: ConstraintTally(name, tl.unit, tl.description) for name, tl in stream.tallies.constraints.items()}
     kinds = np.zeros(len(EVENT_KINDS), dtype=np.int64)
-    landing = 'landing_cv' in before
-    cont = scene.machine('container') if landing else None
+    cont = scene.machine('container') if 'landing_cv' in before else None
     counts = np.zeros(cont.bins if cont is not None else 0, dtype=np.int64)
     landed = event_kind('leaf_landed')
-    k = 1
-    while stream.t < end:
-        w = stream.advance(min(end, start + k * step))
-        k += 1
+    for w in _windows(stream, start, end, WINDOW if window is None else window, progress, observers):
         if w.events.size:
             kinds += np.bincount(w.events['kind'], minlength=len(EVENT_KINDS))
             if cont is not None:
@@ -179,9 +221,7 @@ def window_summary(
                 counts += np.histogram(x, bins=cont.bins, range=(cont.x_left, cont.x_right))[0]
         for rows in w.constraints:
             tallies[rows.name].add(rows)
-        if progress is not None:
-            progress(stream.t)
-    for rows in stream.finish():
+    for rows in _finish(stream, observers):
         tallies[rows.name].add(rows)
     after = stream.summary()
     out: dict[str, Any] = {
@@ -209,15 +249,30 @@ def line_summary(
     start: float | None = None,
     commands: Iterable[LineCommand] = (),
     progress: Callable[[float], None] | None = None,
+    window: float | None = None,
+    keep: float = 0.0,
+    observers: Sequence[Observer] = (),
 ) -> dict[str, Any]:
-    """The ``simulate`` verb's summary, streamed in windows of :data:`WINDOW` s.
+    """The ``simulate`` verb's summary, streamed in windows of ``window`` s (default :data:`WINDOW`).
 
-    Without ``start``: :func:`folder_line.core.line.model.run_summary` of ``duration`` s (``simulate(...).summary()``
-    bit for bit); with it (``--from``): :func:`window_summary` of ``(start, start + duration]``.
+    Without ``start``: the summary of ``duration`` s from 0, ``simulate(...).summary()`` bit for bit
+    (:func:`folder_line.core.line.model.run_summary` when nothing else watches the run); with it
+    (``--from``): :func:`window_summary` of ``(start, start + duration]``. ``keep`` and ``observers``
+    as :func:`window_summary`'s.
     """
-    if start is None:
-        return model.run_summary(scene, duration, commands=commands, window=WINDOW, progress=progress)
-    return window_summary(scene, start, duration, commands=commands, window=WINDOW, progress=progress)
+    step = WINDOW if window is None else window
+    if start is not None:
+        return window_summary(
+            scene, start, duration, commands=commands, window=step, progress=progress, keep=keep, observers=observers
+        )
+    if not observers:
+        return model.run_summary(scene, duration, commands=commands, window=step, progress=progress)
+    duration = DURATION.check('--duration', duration)
+    stream = LineStream(scene, commands, keep=keep)
+    for _ in _windows(stream, 0.0, duration, step, progress, observers):
+        pass
+    _finish(stream, observers)
+    return stream.summary()
 
 
 def print_margins(min_margin: Mapping[str, Mapping[str, Any]], out: IO[str]) -> None:

@@ -21,6 +21,23 @@ independent trials, which they are for per-sheet draws (``arrival_jitter``,
 
 Every sample carries its whole scene and its index, so the aggregate depends only on
 the scene, the duration and the number of samples: not on the workers or their order.
+
+Bounded memory
+--------------
+A sample is streamed window by window (:class:`folder_line.core.line.stream.LineStream`,
+:data:`WINDOW` s at a time): its summary is ``simulate(...).summary()`` bit for bit, and of
+each constraint's margins it keeps the count, the violations, the extremes, the mean and the
+sum of squared deviations of all of them (combined window by window, then sample by sample in
+index order: Chan et al.'s pairwise update), and a uniform random sample of at most
+:data:`MARGIN_SAMPLE` margins: each margin draws a random 64-bit key (from the sample's seed
+and the constraint's name) and the margins with the smallest keys are kept ("bottom-k"
+sampling). The pool of all samples keeps the :data:`MARGIN_SAMPLE` smallest keys of theirs,
+which is a uniform sample of all the margins pooled, as the results come in. So the counts,
+probabilities, extremes, mean and std are exact, and the quantiles and the histogram are those
+of every margin while the pool holds at most :data:`MARGIN_SAMPLE` of them (the distribution
+says ``method``: ``every margin``), else of the uniform sample (its ``kept`` margins; the 0 and
+1 quantiles stay the exact extremes). Memory: :data:`MARGIN_SAMPLE` margins per constraint,
+whatever the duration and the number of samples.
 """
 
 from __future__ import annotations
@@ -36,15 +53,20 @@ from typing import IO, Any
 import numpy as np
 
 from folder_line.core.line.metrics import flatten_metrics
-from folder_line.core.line.model import simulate
+from folder_line.core.line.model import WINDOW
 from folder_line.core.line.scene import parse_scene
+from folder_line.core.line.stream import LineStream
 from folder_line.errors import ParameterError
-from folder_line.studies.runner import Cluster, run_tasks
+from folder_line.studies.runner import Cluster, for_each_result
 
 __all__ = [
     'CONFIDENCE',
+    'MARGIN_SAMPLE',
     'QUANTILES',
+    'WINDOW',
     'ConstraintSample',
+    'MarginStream',
+    'Pool',
     'SampleResult',
     'SampleTask',
     'aggregate',
@@ -64,6 +86,8 @@ HIST_BINS = 30
 _FLAT_ULPS = 1024
 #: most samples of one Monte Carlo
 MAX_SAMPLES = 1_000_000
+#: margins kept per constraint, by a sample and by the pool: a uniform random sample beyond (module docstring)
+MARGIN_SAMPLE = 100_000
 _SALT = zlib.crc32(b'folder_line.studies.montecarlo')
 
 
@@ -109,7 +133,7 @@ class SampleTask:
 
 @dataclass(frozen=True, eq=False)
 class ConstraintSample:
-    """One constraint in one sample.
+    """One constraint in one sample: exact figures of all its margins, and a bounded sample of them.
 
     Attributes
     ----------
@@ -118,13 +142,120 @@ class ConstraintSample:
     evaluations, violations : int
         Cycles (or leaves) judged, and those with a negative margin.
     margins : ndarray
-        The margin of every judged cycle, in ``unit``.
+        The margins kept, in the order judged: all of them if there are at most
+        :data:`MARGIN_SAMPLE`, else a uniform random sample of that many (``unit``).
+    keys : ndarray of uint64, optional
+        The random key of each margin kept (the smallest keys are kept); default: one per
+        margin from its position (``margins`` must then be all of them).
+    low, high, mean, m2 : float, optional
+        Smallest, largest, mean of all the margins and the sum of their squared deviations from
+        the mean (``unit``, ``unit**2``); default: of ``margins``.
     """
 
     unit: str
     evaluations: int
     violations: int
     margins: np.ndarray
+    keys: np.ndarray | None = None
+    low: float = math.nan
+    high: float = math.nan
+    mean: float = math.nan
+    m2: float = math.nan
+
+    def __post_init__(self) -> None:
+        m = np.asarray(self.margins, dtype=float)
+        if self.keys is None:
+            if m.size != self.evaluations:
+                raise ValueError('ConstraintSample: without keys the margins must be all of them')
+            object.__setattr__(self, 'keys', _position_keys(m.size))
+        if math.isnan(self.mean):
+            n = m.size
+            object.__setattr__(self, 'low', float(m.min()) if n else math.inf)
+            object.__setattr__(self, 'high', float(m.max()) if n else -math.inf)
+            object.__setattr__(self, 'mean', float(m.mean()) if n else 0.0)
+            object.__setattr__(self, 'm2', float(np.sum((m - m.mean()) ** 2)) if n else 0.0)
+
+    @property
+    def complete(self) -> bool:
+        """Every margin is kept."""
+        return int(self.margins.size) == self.evaluations
+
+
+def _position_keys(n: int) -> np.ndarray:
+    """Keys for margins all kept: a hash of their position (any keys serve: none is dropped)."""
+    z = np.arange(n, dtype=np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    out: np.ndarray = z ^ (z >> np.uint64(31))
+    return out
+
+
+def _chan(a: tuple[int, float, float], b: tuple[int, float, float]) -> tuple[int, float, float]:
+    """Count, mean and sum of squared deviations of two sets joined (Chan, Golub and LeVeque)."""
+    na, ma, sa = a
+    nb, mb, sb = b
+    if nb == 0:
+        return a
+    if na == 0:
+        return b
+    n = na + nb
+    delta = mb - ma
+    return n, ma + delta * nb / n, sa + sb + delta * delta * na * nb / n
+
+
+def _smallest(keys: np.ndarray, cap: int) -> np.ndarray:
+    """Positions of the ``cap`` smallest keys, in their original order."""
+    if keys.size <= cap:
+        return np.arange(keys.size)
+    return np.sort(np.argsort(keys, kind='stable')[:cap])
+
+
+class MarginStream:
+    """One constraint's margins of one sample, window by window, in bounded memory (module docstring).
+
+    Parameters
+    ----------
+    unit : str
+    seed : int
+        The sample's seed: with the constraint's ``name`` it seeds the margins' random keys.
+    name : str
+    cap : int
+        Margins kept at most.
+    """
+
+    def __init__(self, unit: str, seed: int, name: str, cap: int = MARGIN_SAMPLE) -> None:
+        self.unit, self.cap = unit, cap
+        self.bits = np.random.default_rng([int(seed), zlib.crc32(name.encode())]).bit_generator
+        self.keys = np.zeros(0, dtype=np.uint64)
+        self.margins = np.zeros(0)
+        self.moments: tuple[int, float, float] = (0, 0.0, 0.0)
+        self.violations = 0
+        self.low, self.high = math.inf, -math.inf
+
+    def add(self, margins: np.ndarray) -> None:
+        """The margins of a window, in the order judged."""
+        m = np.asarray(margins, dtype=float).reshape(-1)
+        if m.size == 0:
+            return
+        mean = float(m.mean())
+        self.moments = _chan(self.moments, (int(m.size), mean, float(np.sum((m - mean) ** 2))))
+        self.violations += int(np.count_nonzero(m < 0.0))
+        self.low, self.high = min(self.low, float(m.min())), max(self.high, float(m.max()))
+        keys = np.asarray(self.bits.random_raw(m.size), dtype=np.uint64)
+        self.keys = np.concatenate((self.keys, keys))
+        self.margins = np.concatenate((self.margins, m))
+        if self.keys.size > 2 * self.cap:
+            self._cut()
+
+    def _cut(self) -> None:
+        keep = _smallest(self.keys, self.cap)
+        self.keys, self.margins = self.keys[keep], self.margins[keep]
+
+    def done(self) -> ConstraintSample:
+        """The sample's figures of this constraint."""
+        self._cut()
+        n, mean, m2 = self.moments
+        return ConstraintSample(self.unit, n, self.violations, self.margins, self.keys, self.low, self.high, mean, m2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,18 +279,26 @@ class SampleResult:
 
 
 def run_sample(task: SampleTask) -> SampleResult:
-    """Parse ``task.source`` once, give it the sample's seed, simulate (events only) and report."""
+    """Parse ``task.source`` once, give it the sample's seed, stream it (events only) and report.
+
+    The run is streamed in windows of :data:`WINDOW` s (its summary is ``simulate(...).summary()``
+    bit for bit); each constraint's margins go through a :class:`MarginStream`.
+    """
     scene = parse_scene(task.source)
     seed = sample_seed(scene.seed, task.index)
     scene = dataclasses.replace(scene, seed=seed, source=MappingProxyType({**scene.source, 'seed': seed}))
-    result = simulate(scene, task.duration, sample_rate=0.0)
-    constraints = {
-        c.name: ConstraintSample(
-            c.unit, int(c.margin.size), int(np.count_nonzero(c.violated)), np.asarray(c.margin, dtype=float)
-        )
-        for c in result.constraints
-    }
-    return SampleResult(task.index, seed, flatten_metrics(result.summary()), constraints)
+    stream = LineStream(scene)
+    margins = {name: MarginStream(tl.unit, seed, name) for name, tl in stream.tallies.constraints.items()}
+    k = 1
+    while stream.t < task.duration:
+        for rows in stream.advance(min(task.duration, k * WINDOW)).constraints:
+            margins[rows.name].add(rows.margin)
+        k += 1
+    for rows in stream.finish():
+        margins[rows.name].add(rows.margin)
+    return SampleResult(
+        task.index, seed, flatten_metrics(stream.summary()), {name: m.done() for name, m in margins.items()}
+    )
 
 
 def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
@@ -183,27 +322,131 @@ def _proportion(k: int, n: int) -> dict[str, Any]:
     return {'p': k / n if n else None, 'ci95': [lo, hi], 'k': k, 'n': n}
 
 
-def _distribution(margins: np.ndarray) -> dict[str, Any]:
-    if margins.size == 0:
+@dataclass
+class _Pooled:
+    """One constraint over the samples pooled so far: bounded (the smallest keys), plus each sample's scalars."""
+
+    unit: str
+    keys: np.ndarray
+    margins: np.ndarray
+    complete: bool = True
+    scalars: dict[int, tuple[int, int, float, float, float, float]] = dataclasses.field(default_factory=dict)
+
+
+class Pool:
+    """Samples pooled as they come, in any order, in bounded memory; :meth:`result` is :func:`aggregate`'s.
+
+    Parameters
+    ----------
+    cap : int
+        Margins kept per constraint (:data:`MARGIN_SAMPLE`).
+    """
+
+    def __init__(self, cap: int = MARGIN_SAMPLE) -> None:
+        self.cap = cap
+        self.constraints: dict[str, _Pooled] = {}
+        self.order: dict[str, int] = {}  # constraint -> (sample index, position) it was first seen at, for the order
+        self.metrics: dict[int, dict[str, float]] = {}
+        self.seeds: dict[int, int] = {}
+
+    def add(self, r: SampleResult) -> None:
+        """Pool one sample."""
+        self.metrics[r.index] = r.metrics
+        self.seeds[r.index] = r.seed
+        for pos, (name, c) in enumerate(r.constraints.items()):
+            where = r.index * 1_000_000 + pos
+            if name not in self.order or where < self.order[name]:
+                self.order[name] = where
+            pooled = self.constraints.get(name)
+            if pooled is None:
+                pooled = self.constraints[name] = _Pooled(c.unit, np.zeros(0, dtype=np.uint64), np.zeros(0))
+            pooled.scalars[r.index] = (c.evaluations, c.violations, c.low, c.high, c.mean, c.m2)
+            pooled.complete = pooled.complete and c.complete
+            assert c.keys is not None  # set by ConstraintSample
+            keys = np.concatenate((pooled.keys, c.keys))
+            margins = np.concatenate((pooled.margins, np.asarray(c.margins, dtype=float)))
+            keep = _smallest(keys, self.cap)
+            if keep.size < keys.size:
+                pooled.complete = False
+            pooled.keys, pooled.margins = keys[keep], margins[keep]
+
+    def result(self) -> dict[str, Any]:
+        """The aggregate of the samples pooled (:func:`aggregate`)."""
+        indices = sorted(self.metrics)
+        constraints: dict[str, Any] = {}
+        for name in sorted(self.constraints, key=lambda n: self.order[n]):
+            pooled = self.constraints[name]
+            rows = [pooled.scalars[i] for i in indices if i in pooled.scalars]
+            evaluations = sum(r[0] for r in rows)
+            violations = sum(r[1] for r in rows)
+            moments: tuple[int, float, float] = (0, 0.0, 0.0)
+            for n, _, _, _, mean, m2 in rows:  # in index order: the same figures whatever the order of arrival
+                moments = _chan(moments, (n, mean, m2))
+            low = min((r[2] for r in rows if r[0]), default=math.inf)
+            high = max((r[3] for r in rows if r[0]), default=-math.inf)
+            constraints[name] = {
+                'unit': pooled.unit,
+                'p_cycle': _proportion(violations, evaluations),
+                'p_run': _proportion(sum(1 for r in rows if r[1] > 0), len(rows)),
+                'margin': _distribution(pooled.margins, moments, low, high, pooled.complete),
+            }
+        paths: dict[str, list[float]] = {}
+        for i in indices:
+            for path, value in self.metrics[i].items():
+                paths.setdefault(path, []).append(value)
+        metrics = {
+            path: {
+                'mean': float(np.mean(v)),
+                'std': float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+                'min': float(np.min(v)),
+                'max': float(np.max(v)),
+                'n': len(v),
+            }
+            for path, v in paths.items()
+            if all(math.isfinite(x) for x in v)
+        }
+        return {
+            'samples': len(indices),
+            'seeds': [self.seeds[i] for i in indices],
+            'interval': f'Clopper-Pearson (exact binomial), {CONFIDENCE:.0%}',
+            'constraints': constraints,
+            'metrics': metrics,
+        }
+
+
+def _distribution(
+    kept: np.ndarray, moments: tuple[int, float, float], low: float, high: float, complete: bool
+) -> dict[str, Any]:
+    """The margin distribution: count, mean, std, extremes exact; quantiles and histogram of the margins kept."""
+    count, mean, m2 = moments
+    if count == 0 or kept.size == 0:
         return {'count': 0}
-    lo, hi = float(margins.min()), float(margins.max())
+    lo, hi = low, high
     if hi - lo <= _FLAT_ULPS * float(np.spacing(max(abs(lo), abs(hi)))):
         # one value up to rounding (a constraint no variation reaches): one narrow band around it, as
         # HIST_BINS bins of a few ulps each cannot be told apart
         half = 1e-9 * max(abs(lo), 1.0)
         lo, hi = lo - half, lo + half
-    counts, edges = np.histogram(margins, bins=HIST_BINS, range=(lo, hi))
+    counts, edges = np.histogram(kept, bins=HIST_BINS, range=(lo, hi))
+    quantiles = {f'{q:g}': float(v) for q, v in zip(QUANTILES, np.quantile(kept, QUANTILES), strict=True)}
+    quantiles['0'], quantiles['1'] = low, high  # exact, kept or not
     return {
-        'count': int(margins.size),
-        'mean': float(margins.mean()),
-        'std': float(margins.std(ddof=1)) if margins.size > 1 else 0.0,
-        'quantiles': {f'{q:g}': float(v) for q, v in zip(QUANTILES, np.quantile(margins, QUANTILES), strict=True)},
+        'count': int(count),
+        'kept': int(kept.size),
+        'method': 'every margin'
+        if complete
+        else f'a uniform random sample of {kept.size} of the {count} margins (those of the smallest random keys)',
+        'mean': float(mean),
+        'std': float(math.sqrt(m2 / (count - 1))) if count > 1 else 0.0,
+        'min': low,
+        'max': high,
+        'quantiles': quantiles,
         'histogram': {'counts': [int(c) for c in counts], 'edges': [float(e) for e in edges]},
     }
 
 
 def aggregate(results: Sequence[SampleResult]) -> dict[str, Any]:
-    """Pool samples into violation probabilities, margin distributions and metric statistics.
+    """Pool samples into violation probabilities, margin distributions and metric statistics (:class:`Pool`).
 
     Parameters
     ----------
@@ -213,50 +456,15 @@ def aggregate(results: Sequence[SampleResult]) -> dict[str, Any]:
     Returns
     -------
     dict
-        JSON-ready: ``samples``, ``interval`` (how the intervals are made), ``constraints``
-        (per name: ``unit``, ``p_cycle`` and ``p_run`` each ``{p, ci95, k, n}``, ``margin``
-        the distribution) and ``metrics`` (per path: ``mean``, ``std``, ``min``, ``max``, ``n``).
+        JSON-ready: ``samples``, ``seeds``, ``interval`` (how the intervals are made), ``constraints``
+        (per name: ``unit``, ``p_cycle`` and ``p_run`` each ``{p, ci95, k, n}``, ``margin`` the
+        distribution: ``count``, ``kept``, ``method``, ``mean``, ``std``, ``min``, ``max``,
+        ``quantiles``, ``histogram``) and ``metrics`` (per path: ``mean``, ``std``, ``min``, ``max``, ``n``).
     """
-    ordered = sorted(results, key=lambda r: r.index)
-    names: dict[str, str] = {}
-    for r in ordered:
-        for name, c in r.constraints.items():
-            names.setdefault(name, c.unit)
-    constraints: dict[str, Any] = {}
-    for name, unit in names.items():
-        present = [r.constraints[name] for r in ordered if name in r.constraints]
-        evaluations = sum(c.evaluations for c in present)
-        violations = sum(c.violations for c in present)
-        runs_bad = sum(1 for c in present if c.violations > 0)
-        margins = np.concatenate([c.margins for c in present]) if present else np.zeros(0)
-        constraints[name] = {
-            'unit': unit,
-            'p_cycle': _proportion(violations, evaluations),
-            'p_run': _proportion(runs_bad, len(present)),
-            'margin': _distribution(margins),
-        }
-    paths: dict[str, list[float]] = {}
-    for r in ordered:
-        for path, value in r.metrics.items():
-            paths.setdefault(path, []).append(value)
-    metrics = {
-        path: {
-            'mean': float(np.mean(v)),
-            'std': float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
-            'min': float(np.min(v)),
-            'max': float(np.max(v)),
-            'n': len(v),
-        }
-        for path, v in paths.items()
-        if all(math.isfinite(x) for x in v)
-    }
-    return {
-        'samples': len(ordered),
-        'seeds': [r.seed for r in ordered],
-        'interval': f'Clopper-Pearson (exact binomial), {CONFIDENCE:.0%}',
-        'constraints': constraints,
-        'metrics': metrics,
-    }
+    pool = Pool()
+    for r in sorted(results, key=lambda r: r.index):
+        pool.add(r)
+    return pool.result()
 
 
 def monte_carlo(
@@ -292,7 +500,8 @@ def monte_carlo(
     scene = parse_scene(source)
     plain = dict(source)
     tasks = [SampleTask(plain, float(duration), i) for i in range(samples)]
-    results = run_tasks(run_sample, tasks, cluster, label='samples', progress=progress)
+    pool = Pool()
+    for_each_result(run_sample, tasks, cluster, lambda _, r: pool.add(r), label='samples', progress=progress)
     out = {'scene': scene.name, 'seed': scene.seed, 'duration_s': float(duration)}
-    out.update(aggregate(results))
+    out.update(pool.result())
     return out

@@ -22,7 +22,7 @@ from typing import IO, Any, TypeVar
 
 from folder_line.errors import ParameterError
 
-__all__ = ['LOCAL_DASK_CONFIG', 'Cluster', 'run_tasks']
+__all__ = ['LOCAL_DASK_CONFIG', 'Cluster', 'for_each_result', 'run_tasks']
 
 T = TypeVar('T')
 R = TypeVar('R')
@@ -119,6 +119,71 @@ class _Progress:
         self.stream.flush()
 
 
+def for_each_result(
+    fn: Callable[[T], R],
+    tasks: Sequence[T],
+    cluster: Cluster,
+    on_result: Callable[[int, R], None],
+    *,
+    label: str = 'tasks',
+    progress: IO[str] | None = sys.stderr,
+) -> None:
+    """``on_result(i, fn(tasks[i]))`` for every task as it completes on a Dask cluster, in any order.
+
+    Each result is handed over and dropped at once, so a caller that pools them (a Monte Carlo)
+    holds what it pools, not every result.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (pickled to the workers).
+    tasks : sequence
+        Its arguments, one per task (picklable).
+    cluster : Cluster
+        A local cluster's size, or an existing scheduler's address.
+    on_result : callable
+        Called with the task's index and its result, in the order they complete.
+    label : str
+        Names the tasks on the progress bar.
+    progress : text stream or None
+        Where the progress bar goes (None: nowhere).
+
+    Raises
+    ------
+    Exception
+        The first exception a task raised, re-raised here with its own type and message.
+    """
+    import dask
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    bar = _Progress(progress, label, len(tasks))
+    if not tasks:
+        bar.close()
+        return
+    local: LocalCluster | None = None
+    if cluster.scheduler is None:
+        with dask.config.set(LOCAL_DASK_CONFIG):
+            local = LocalCluster(
+                n_workers=min(cluster.local_workers, len(tasks)),  # a process per task at most
+                threads_per_worker=cluster.threads,
+                processes=True,
+                dashboard_address=':0',  # None still binds the web server to 8787 (a warning if taken): any port
+                silence_logs=logging.CRITICAL,  # a task's exception is raised here, not logged there
+            )
+    try:
+        with Client(local if local is not None else cluster.scheduler) as client:
+            futures = client.map(fn, list(tasks), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for future in as_completed(futures):
+                on_result(index[future.key], future.result())  # a task's exception is raised here
+                future.release()
+                bar.step()
+    finally:
+        if local is not None:
+            local.close()
+    bar.close()
+
+
 def run_tasks(
     fn: Callable[[T], R],
     tasks: Sequence[T],
@@ -127,7 +192,7 @@ def run_tasks(
     label: str = 'tasks',
     progress: IO[str] | None = sys.stderr,
 ) -> list[R]:
-    """``[fn(t) for t in tasks]``, computed on a Dask cluster.
+    """``[fn(t) for t in tasks]``, computed on a Dask cluster (:func:`for_each_result`).
 
     Parameters
     ----------
@@ -152,33 +217,10 @@ def run_tasks(
     Exception
         The first exception a task raised, re-raised here with its own type and message.
     """
-    import dask
-    from dask.distributed import Client, LocalCluster, as_completed
+    results: list[Any] = [None] * len(tasks)
 
-    bar = _Progress(progress, label, len(tasks))
-    if not tasks:
-        bar.close()
-        return []
-    local: LocalCluster | None = None
-    if cluster.scheduler is None:
-        with dask.config.set(LOCAL_DASK_CONFIG):
-            local = LocalCluster(
-                n_workers=min(cluster.local_workers, len(tasks)),  # a process per task at most
-                threads_per_worker=cluster.threads,
-                processes=True,
-                dashboard_address=':0',  # None still binds the web server to 8787 (a warning if taken): any port
-                silence_logs=logging.CRITICAL,  # a task's exception is raised here, not logged there
-            )
-    try:
-        with Client(local if local is not None else cluster.scheduler) as client:
-            futures = client.map(fn, list(tasks), pure=False)
-            index = {f.key: i for i, f in enumerate(futures)}
-            results: list[Any] = [None] * len(futures)
-            for future in as_completed(futures):
-                results[index[future.key]] = future.result()  # a task's exception is raised here
-                bar.step()
-    finally:
-        if local is not None:
-            local.close()
-    bar.close()
+    def keep(i: int, result: R) -> None:
+        results[i] = result
+
+    for_each_result(fn, tasks, cluster, keep, label=label, progress=progress)
     return results

@@ -19,7 +19,7 @@ from folder_line.core.line.metric_units import metric_unit
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.studies.grid import Vary, grid_points
 from folder_line.studies.keys import check_key, key_unit, scene_value
-from folder_line.studies.montecarlo import SampleResult, aggregate
+from folder_line.studies.montecarlo import Pool, SampleResult
 from folder_line.studies.paper import paper_point
 from folder_line.studies.points import (
     OK,
@@ -31,7 +31,7 @@ from folder_line.studies.points import (
     resolve_metrics,
     simulate_summary,
 )
-from folder_line.studies.runner import Cluster, run_tasks
+from folder_line.studies.runner import Cluster, for_each_result, run_tasks
 
 __all__ = [
     'PROBABILITY_COLUMNS',
@@ -185,24 +185,33 @@ def run_sweep(plan: SweepPlan, cluster: Cluster, progress: IO[str] | None = None
     """Evaluate every point of ``plan`` on ``cluster`` (a progress bar on ``progress``).
 
     With ``plan.samples`` every (point, sample) pair is one task, all in one fan-out; each point's samples
-    are then pooled (:func:`folder_line.studies.montecarlo.aggregate`).
+    are pooled as they come (:class:`folder_line.studies.montecarlo.Pool`, bounded memory).
     """
     if plan.samples is None:
         results = run_tasks(evaluate_point, plan.tasks(), cluster, label='sweep', progress=progress)
         return SweepResult(plan, tuple(results))
     n = plan.samples
     tasks = [PointSampleTask(point, i) for point in plan.tasks() for i in range(n)]
-    runs = run_tasks(evaluate_point_sample, tasks, cluster, label='sweep samples', progress=progress)
+    pools = [Pool() for _ in plan.points]  # each point's samples pooled as they come: bounded memory
+    refusals: dict[int, tuple[int, PointResult]] = {}  # point -> its first refused sample (index, refusal)
+
+    def take(i: int, r: SampleResult | PointResult) -> None:
+        k = i // n
+        if isinstance(r, PointResult):
+            if k not in refusals or i < refusals[k][0]:
+                refusals[k] = (i, r)
+            return
+        pools[k].add(r)
+
+    for_each_result(evaluate_point_sample, tasks, cluster, take, label='sweep samples', progress=progress)
     points: list[PointResult] = []
     pooled: list[dict[str, Any] | None] = []
     for k in range(len(plan.points)):
-        group = runs[k * n : (k + 1) * n]
-        refused = next((r for r in group if isinstance(r, PointResult)), None)
-        if refused is not None:
-            points.append(refused)
+        if k in refusals:
+            points.append(refusals[k][1])
             pooled.append(None)
             continue
-        agg = aggregate([r for r in group if isinstance(r, SampleResult)])
+        agg = pools[k].result()
         means = tuple(agg['metrics'][m]['mean'] if m in agg['metrics'] else None for m in plan.metrics)
         missing = [m for m, v in zip(plan.metrics, means, strict=True) if v is None]
         points.append(PointResult(means, OK if not missing else f'missing: {", ".join(missing)}'))

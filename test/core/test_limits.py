@@ -13,11 +13,13 @@ from pathlib import Path
 import pytest
 
 from folder_line.cli import main as cli
-from folder_line.config.run_config import RunConfig, node_parameters
+from folder_line.cli import summary as summary_cli
+from folder_line.config.run_config import RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import load_scene
 from folder_line.core import limits as L
-from folder_line.core.line.model import LineModel
+from folder_line.core.line.model import LineModel, run_summary
 from folder_line.errors import ParameterError
+from folder_line.interfaces import KNOWN_PARTICIPANTS, MACHINE_NODES
 from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 from folder_line.ros.nodes.machine import MACHINE_SPECS
 
@@ -73,7 +75,7 @@ def _bounds(specs: tuple, name: str) -> tuple[float, float]:
 
 
 def test_node_parameters_take_the_same_ranges() -> None:
-    assert _bounds(MACHINE_SPECS, 'horizon') == L.HORIZON.bounds
+    assert all(s.name != 'horizon' for s in MACHINE_SPECS)  # the line is streamed: no model horizon to size
     assert _bounds(MACHINE_SPECS, 'rate') == L.TICK_RATE.bounds
     assert _bounds(MACHINE_SPECS, 'lost_timeout') == L.LOST_TIMEOUT.bounds
     assert _bounds(CLOCK_SPECS, 'rate') == L.TICK_RATE.bounds
@@ -82,10 +84,16 @@ def test_node_parameters_take_the_same_ranges() -> None:
     assert _bounds(CLOCK_SPECS, 'rtf') == (0.0, L.RTF.hi)  # 0: no ceiling; (0, lo) refused by the node
 
 
-def test_the_longest_run_gives_its_nodes_a_horizon_they_accept() -> None:
-    horizon = node_parameters(RunConfig(scene='folder', duration=L.DURATION.hi), 'crank_drive')['horizon']
-    assert L.HORIZON.lo <= horizon <= L.HORIZON.hi
-    assert node_parameters(RunConfig(scene='folder', duration=L.DURATION.lo), 'crank_drive')['horizon'] >= L.HORIZON.lo
+@pytest.mark.parametrize('duration', [L.DURATION.lo, L.DURATION.hi])
+def test_the_shortest_and_longest_runs_give_their_nodes_parameters_they_accept(duration: float) -> None:
+    """No memory limit: the longest run's clock takes its duration, and no machine node is sized for it."""
+    cfg = RunConfig(scene='folder', duration=duration)
+    lo, hi = _bounds(CLOCK_SPECS, 'duration')
+    assert lo <= clock_parameters(cfg, KNOWN_PARTICIPANTS)['duration'] == duration <= hi
+    for node in MACHINE_NODES:
+        params = node_parameters(cfg, node)
+        assert 'horizon' not in params
+        assert L.TICK_RATE.lo <= params['rate'] <= L.TICK_RATE.hi
 
 
 # --------------------------------------------------------------------------- scene keys
@@ -140,11 +148,48 @@ def test_the_cli_refuses_an_absurd_speed_in_one_line(capsys: pytest.CaptureFixtu
 
 
 def test_the_batch_model_and_simulate_use_the_same_ranges() -> None:
+    """The kept model, the streamed summary and simulate's window take line time in DURATION, said in seconds."""
     scene = load_scene('folder', {})
-    with pytest.raises(ParameterError, match=r'horizon=.*must be in \[0.001, 10003600\] s'):
-        LineModel(scene, math.nextafter(L.HORIZON.hi, math.inf))
+    beyond = math.nextafter(L.DURATION.hi, math.inf)
+    with pytest.raises(ParameterError, match=r'horizon=.*must be in \[0.001, 10000000\] s'):
+        LineModel(scene, beyond)
     with pytest.raises(ParameterError, match='horizon=5e-324'):
         LineModel(scene, 5e-324)
+    with pytest.raises(ParameterError, match=r'duration=.*must be in \[0.001, 10000000\] s'):
+        run_summary(scene, beyond)
+    with pytest.raises(
+        ParameterError, match=r'--from=.* = 10000001 s of line time; .* at most 10000000 s \(116 days\)'
+    ):
+        summary_cli.check_window(L.DURATION.hi - 1.0, 2.0)
+
+
+def test_the_longest_duration_is_simulated_not_refused(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No memory refusal any more (no check_size, no cycle cap): simulate hands the longest run to the stream.
+    The streamed summary itself is stubbed here (116 days of line time take hours)."""
+    asked: list[tuple[float, float | None]] = []
+
+    def streamed(scene: object, duration: float, *, start: float | None = None, **kwargs: object) -> dict:
+        asked.append((duration, start))
+        return run_summary(load_scene('folder', {}), 0.01)
+
+    monkeypatch.setattr(summary_cli, 'line_summary', streamed)
+    assert cli.main(['simulate', '--scene', 'folder', '--duration', f'{L.DURATION.hi!r}']) == 0
+    assert cli.main(['simulate', '--scene', 'folder', '--from', '5e6', '--duration', '5e6']) == 0
+    assert asked == [(L.DURATION.hi, None), (5e6, 5e6)]
+    assert capsys.readouterr().err == ''
+
+
+@pytest.mark.parametrize('value', ['-1', '-5e-324', '1e7', 'nan', 'inf', 'soon'])
+def test_from_is_a_line_time_in_the_run_refused_in_one_line(value: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--from``: [0, 1e7] s, and --from + --duration within the longest run (1e7 s), said as line time."""
+    with pytest.raises(SystemExit) as info:  # the parser's refusals exit, the verb's return
+        raise SystemExit(cli.main(['simulate', '--scene', 'folder', f'--from={value}', '--duration', '1']))
+    assert info.value.code == 2
+    (err,) = capsys.readouterr().err.strip().splitlines()
+    assert err.startswith('folder-line') and '--from=' in err, err
+    assert 'must be' in err or '10000001 s of line time; a run reaches at most 10000000 s' in err, err
 
 
 def test_the_readme_lists_every_limit() -> None:

@@ -52,7 +52,6 @@ class Line:
         self.executor = SingleThreadedExecutor(context=self.context)
         params = [
             Parameter('scene', value='folder'),
-            Parameter('horizon', value=DURATION + 1.0),
             Parameter('rate', value=200.0),
         ]
         # diagnostics every 0.1 s of sim time: a snapshot has some however slowly a loaded machine runs the line

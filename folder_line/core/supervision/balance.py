@@ -43,7 +43,9 @@ _BALANCE_KINDS = np.array(
     dtype=np.int16,
 )
 
-_HAND, _STOPS, _CONTACT, _RELEASE = (event_kind(k) for k in ('sheet_handover', 'at_stops', 'knife_contact', 'released_on_pile'))
+_HAND, _STOPS, _CONTACT, _RELEASE = (
+    event_kind(k) for k in ('sheet_handover', 'at_stops', 'knife_contact', 'released_on_pile')
+)
 _ENTER, _EXIT, _LANDED, _SPILLED = (event_kind(k) for k in ('leaf_enter', 'leaf_exit', 'leaf_landed', 'leaf_spilled'))
 
 

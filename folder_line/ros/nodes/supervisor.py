@@ -128,8 +128,10 @@ from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, TUNE_QOS, joint_states_topic
 
-__all__ = ['SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
+__all__ = ['RECORDS_KEPT', 'SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
+#: violations and balances the node keeps after publishing them (the memory does not grow with line time)
+RECORDS_KEPT = 1000
 #: service name -> (PackML command, drive command or None, waits for the next cycle boundary)
 SERVICES: dict[str, tuple[str, str | None, bool]] = {name: (name, *DRIVE_COMMANDS[name]) for name in OPERATOR_COMMANDS}
 
@@ -202,6 +204,7 @@ class Supervisor(MachineNode):
         v = self.values
         joint_nodes = [NODE_OF_UNIT[unit] for unit in self.stream.units]
         self.logic = supervisor_logic(self.scene, v)
+        self._n_violations = self._n_balances = 0
         self._joint_nodes = tuple(joint_nodes)
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_rejected = 0
@@ -392,12 +395,15 @@ class Supervisor(MachineNode):
     def _publish_outputs(self) -> None:
         for t, command in self.logic.take_commands():
             self._publish_command(t, command)
-        for v in self.logic.violations:
+        logic = self.logic
+        for v in logic.violations[self._n_violations :]:
             self._publish_violation(v)
-        self.logic.violations.clear()  # published: the node keeps none (its memory does not grow)
-        for b in self.logic.balances:
+        for b in logic.balances[self._n_balances :]:
             self._publish_balance(b)
-        self.logic.balances.clear()
+        # published: the last RECORDS_KEPT of each are kept (for a look at the node), not every one since the start
+        del logic.violations[:-RECORDS_KEPT]
+        del logic.balances[:-RECORDS_KEPT]
+        self._n_violations, self._n_balances = len(logic.violations), len(logic.balances)
 
     def _publish_command(self, t: float, command: LineCommand) -> None:
         msg = TimeReference()

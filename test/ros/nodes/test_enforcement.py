@@ -102,7 +102,7 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     scene = load_scene(SCENE)
     free = LineModel(scene, HORIZON)
     T = cycle_timing(scene.machines['cyclogram'], scene.machines['knife']).T
-    common = {'scene': SCENE, 'horizon': HORIZON, 'rate': RATE}
+    common = {'scene': SCENE, 'rate': RATE}
     nodes = {
         cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common)))
         for cls in (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)
@@ -317,7 +317,6 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
         rows.append((time_msg_to_ns(m.time_ref) / NS_PER_S, EVENT_KINDS.index(kind), sheet, cyc, value))
     again = replay(
         scene,
-        HORIZON,
         np.array(rows, dtype=EVENT_DTYPE),
         operator=[(t, c) for t, c, _ in logic.operator_log],
         lost=[(lost.t, 'belt_conveyor', -lost.margin)],

@@ -104,7 +104,7 @@ class Line:
 
     def __init__(self, ros: Ros, duration: float, **supervisor: Any) -> None:
         self.ros = ros
-        common = {'scene': 'folder', 'horizon': HORIZON}
+        common = {'scene': 'folder'}
         self.machines = {
             cls.NODE_NAME: ros.add(cls(context=ros.context, parameter_overrides=params(**common))) for cls in MACHINES
         }
@@ -208,7 +208,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     t_hold_ns = time_msg_to_ns(hold.time_ref)
     assert t_hold_ns == round(boundary * NS_PER_S)
     assert effective_in_message(message) == pytest.approx(boundary, abs=5e-7)
-    cycle = free._parts['folder'].timing.T
+    cycle = free.part('folder').timing.T
     assert t_request + LEAD < boundary <= t_request + LEAD + cycle
     knife_exits = free.events[free.events['kind'] == EVENT_KINDS.index('knife_exit')]['t']  # boundaries
     assert boundary in knife_exits
@@ -342,7 +342,7 @@ KEYS = {'margin', 'min_margin', 'unit', 'violations', 'evaluations', 'cycle'}
 @pytest.mark.parametrize('overrides', ['', 'feed_transporter.V_tr=5.8333'])
 def test_diagnostics_one_status_per_constraint_then_the_inputs(ros: Ros, overrides: str) -> None:
     extra = {'overrides': overrides} if overrides else {}
-    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(horizon=5.0, diag_rate=2.0, **extra)))
+    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(diag_rate=2.0, **extra)))
     scene = load_scene('folder', {'feed_transporter.V_tr': 5.8333} if overrides else None)
     model = LineModel(scene, 5.0)
     listener = ros.node('listener')
@@ -407,7 +407,7 @@ def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> No
     acknowledgement alone is not enough while an event it counts has not arrived; then exactly to t.
     An event published at tick t whose time rounds to the tick before (it came just after it) is
     still t's; an event of a node that takes no part is taken without waiting for it."""
-    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(horizon=1.0, lost_timeout=60.0)))
+    sup = ros.add(Supervisor(context=ros.context, parameter_overrides=params(lost_timeout=60.0)))
     s = 100 * MS
     belt = ros.add(FakeParticipant(ros.context, 'belt_conveyor', hold_from=s))  # publishes what the test says
     producer = ros.node('producer')
