@@ -157,8 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             'Simulate a scene without ROS and print its summary. The line is streamed window by window: '
             'memory does not grow with --duration, and on a terminal a progress bar on stderr shows the line '
-            'time done and the wall time left. The summary is that of simulate(scene, D).summary() of the '
-            'batch model, bit for bit.'
+            'time done and the wall time left. Without --from the summary is simulate(scene, D).summary() '
+            'of the batch model, bit for bit.'
         ),
     )
     add_scene_arguments(sim, 60.0)

@@ -46,6 +46,16 @@ def print_table(result: dict[str, Any], out: IO[str]) -> None:
             q = m['quantiles']
             row += ''.join(f' {format_margin(q[k], c["unit"], name):>18}' for k in ('0.01', '0.5', '0.99'))
         print(row, file=out)
+    sampled = [
+        n for n, c in result['constraints'].items() if c['margin'].get('method', 'every margin') != 'every margin'
+    ]
+    if sampled:
+        kept = result['constraints'][sampled[0]]['margin']['kept']
+        print(
+            f'  margin quantiles of {", ".join(sampled)}: of a uniform random sample of {kept} margins '
+            '(p, runs, mean, std and extremes: of every margin)',
+            file=out,
+        )
     print('what the margins mean (>= 0 passes):', file=out)
     for line in margin_legend(result['constraints']):
         print(line, file=out)

@@ -9,7 +9,8 @@ What each keeps, and so what it shows:
 ``exit_speeds.png``, ``efficiency.png`` (joint states)
     a pseudo-random sample of the ticks of the run's 200 Hz grid
     (:data:`folder_line.config.run_config.RATE`): a tick is drawn if the splitmix64 hash of its
-    stamp in ns falls in the lowest ``1 / 2**L`` of its range, ``L`` the least that keeps about
+    stamp in ns (:func:`folder_line.analysis.streaming.stamp_priority`, as ``analyze`` thins a
+    recording's) falls in the lowest ``1 / 2**L`` of its range, ``L`` the least that keeps about
     :data:`JOINT_SAMPLES` of the span's ticks (every tick of a short span). The hash has no
     pattern in time, so the sample does not alias with the machines' periods. The belt speed's
     extremes are over every tick. The leaves' exits: their counts exact, at most
@@ -22,11 +23,14 @@ What each keeps, and so what it shows:
     exact counts of every constraint's margins in bins of a streamed histogram
     (:class:`StreamedHistogram`): a grid of power-of-two widths aligned on 0 (on -0.5 for whole
     sheets), whose width doubles, pairs of bins merged, whenever the margins seen would need
-    more than :data:`MARGIN_BINS` bins; the smallest margin exact.
+    more than :data:`MARGIN_BINS` bins; the smallest margin exact. A count axis on a log scale
+    where a bin holds under 1 % of the tallest (it would not show), one bar about the value where
+    the margins are equal to rounding (said on the figure).
 ``landing.png``
     exact counts in the container's bins (:func:`folder_line.core.effects.leaf_flight.histogram_of_counts`,
-    the summary's), the spilled leaves counted; the marks of single landings: at most
-    :data:`LEAF_SAMPLES` leaves, a pseudo-random sample.
+    the summary's), the spilled leaves counted (at most :data:`LEAF_SAMPLES` of them marked); the
+    marks of single landings: at most :data:`LANDING_MARKS`, a pseudo-random sample by the hash
+    of the leaf (more would be one black band).
 
 The line is the one the summary printed with it describes: the scene under its ``--tune``
 changes, from ``--from`` on if given; with ``--bag`` the line of that bag (under the commands its
@@ -49,6 +53,7 @@ import numpy as np
 from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
 from folder_line.analysis.figure_data import GANTT_CYCLES
 from folder_line.analysis.figures import FIGURES, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.analysis.streaming import stamp_priority
 from folder_line.cli import summary as summary_cli
 from folder_line.config.run_config import RATE
 from folder_line.core.effects import chain_friction, leaf_flight
@@ -78,7 +83,6 @@ __all__ = [
     'check_plots',
     'collect',
     'draw',
-    'splitmix64',
     'write_figures',
 ]
 
@@ -113,15 +117,6 @@ _STEP_NS = round(NS_PER_S / RATE)
 def check_plots(path: str) -> None:
     """Refuse a ``--plots`` folder before any work: not a folder, or holding something other than the figures."""
     check_output_dir(path, OPTION, files=tuple(FIGURES))
-
-
-def splitmix64(x: np.ndarray) -> np.ndarray:
-    """splitmix64 of each value (int64 or uint64): uniform on uint64, no pattern in the input's order."""
-    z = np.asarray(x).astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    out: np.ndarray = z ^ (z >> np.uint64(31))
-    return out
 
 
 # --------------------------------------------------------------------------- streamed collections
@@ -275,7 +270,7 @@ class _Ticks:
         lo = self.k0 if not math.isfinite(t0) or t0 <= self.start else round(t0 * NS_PER_S) // _STEP_NS + 1
         hi = min(self.k1, round(t1 * NS_PER_S) // _STEP_NS)
         stamps = np.arange(max(lo, self.k0), hi + 1, dtype=np.int64) * _STEP_NS
-        drawn = stamps if self.level == 0 else stamps[(splitmix64(stamps) >> np.uint64(64 - self.level)) == 0]
+        drawn = stamps if self.level == 0 else stamps[(stamp_priority(stamps) >> np.uint64(64 - self.level)) == 0]
         return stamps / NS_PER_S, drawn / NS_PER_S
 
     def text(self, drawn: int) -> str:
@@ -466,7 +461,8 @@ class FigureData:
         self.joints: dict[str, list[np.ndarray]] = {}
         self.belt_low, self.belt_high = math.inf, -math.inf
         self.t_speed: float | None = None  # the first time on the check grid the drive is at speed (from start)
-        self.exits = {'C': _Sample(LEAF_SAMPLES), 'E': _Sample(LEAF_SAMPLES)}
+        # per exit, the leaves at speed and those off speed (start-up, holds) sampled apart: the few off speed all drawn
+        self.exits = {(e, off): _Sample(LEAF_SAMPLES) for e in ('C', 'E') for off in (False, True)}
         self.exit_counts = {e: {'all': 0, 'early': 0, 'start_up': 0} for e in ('C', 'E')}
         self.margins: dict[str, StreamedHistogram] = {}
         self.units: dict[str, str] = {}
@@ -498,9 +494,9 @@ class FigureData:
             x = ev['value'][ev['kind'] == event_kind('leaf_landed')]
             self.landed += np.histogram(x, bins=cont.bins, range=(cont.x_left, cont.x_right))[0]
             landed = ev[ev['kind'] == event_kind('leaf_landed')]
-            self.landed_x.add(splitmix64(landed['sheet']), x=landed['value'])
+            self.landed_x.add(stamp_priority(landed['sheet']), x=landed['value'])
             spilled = ev[ev['kind'] == event_kind('leaf_spilled')]
-            self.spilled_x.add(splitmix64(spilled['sheet']), x=spilled['value'])
+            self.spilled_x.add(stamp_priority(spilled['sheet']), x=spilled['value'])
         if self.cyclogram is not None:
             self.cyclogram.window(stream, w)
 
@@ -567,7 +563,11 @@ class FigureData:
             n['early'] += int(np.count_nonzero(mine & early))
             n['start_up'] += int(np.count_nonzero(mine & early & start_up))
             rows = exits[mine]
-            self.exits[name].add(splitmix64(rows['sheet']), deg=deg[mine], v=rows['value'], early=early[mine])
+            for off in (False, True):
+                pick = early[mine] == off
+                self.exits[name, off].add(
+                    stamp_priority(rows['sheet'][pick]), deg=deg[mine][pick], v=rows['value'][pick]
+                )
 
     def joint(self, name: str) -> np.ndarray:
         """A column of the ticks drawn (``t``, ``off``, ``phi``, ``w3``, ...), in time order."""
@@ -621,7 +621,7 @@ def _exit_speeds(data: FigureData, out: Path) -> Path | None:
     scene = data.scene
     lp = scene.machine('layup')
     v_tr = float(lp.v_tr) if data.belts else 0.0
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 9.5), sharex=True)
     exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
     off = data.joint('off').astype(bool)
     t_speed = data.start if data.t_speed is None else data.t_speed
@@ -670,7 +670,7 @@ def _exit_speeds(data: FigureData, out: Path) -> Path | None:
     ax2.set_xlabel(r'crank angle $\varphi$, deg')
     belt_text = f'belt speed {data.belt_low:.3f}..{data.belt_high:.3f} m/s at every tick' if data.belts else 'no belts'
     ax2.set_title(f'L: absolute exit speeds with the belts ({belt_text}; paper Fig. 5)', fontsize=10)
-    ax2.legend(loc='best', fontsize=7.5, ncol=2)
+    ax2.legend(loc='upper center', bbox_to_anchor=(0.5, -0.11), fontsize=7.5, ncol=2)  # below: it hides no point
     fig.tight_layout()
     return save_figure(fig, out / 'exit_speeds.png')
 
@@ -698,17 +698,18 @@ def _leaf_exits(ax: Any, data: FigureData) -> None:
         n = data.exit_counts[name]
         if not n['all']:
             continue
-        sample = data.exits[name]
-        deg, v, early = sample.column('deg'), sample.column('v'), sample.column('early').astype(bool)
+        at, off = data.exits[name, False], data.exits[name, True]
         colour = QUANTITY_COLOURS[f'leaf_exit_{name}']
         where = [f'{n["start_up"]} in the start-up'] if n['start_up'] else []
         where += [f'{n["early"] - n["start_up"]} in holds/stops'] if n['early'] > n['start_up'] else []
+        drawn_at, drawn_off = at.column('v').size, off.column('v').size
         label = f'leaf exits at {name} ({n["all"]}'
-        label += f'; {deg.size} drawn' if deg.size < n['all'] else ''
-        label += f'; hollow: {", ".join(where)})' if n['early'] else ')'
-        ax.plot(deg[~early], v[~early], marker, ms=6, color=colour, label=label)
-        if np.any(early):
-            ax.plot(deg[early], v[early], marker, ms=6, color=colour, mfc='none')
+        label += f'; {drawn_at} of the {at.count} at speed drawn' if drawn_at < at.count else ''
+        label += f'; hollow: {", ".join(where)}' if n['early'] else ''
+        label += f', {drawn_off} drawn)' if drawn_off < off.count else ')'
+        ax.plot(at.column('deg'), at.column('v'), marker, ms=6, color=colour, label=label)
+        if drawn_off:
+            ax.plot(off.column('deg'), off.column('v'), marker, ms=6, color=colour, mfc='none')
 
 
 def _efficiency(data: FigureData, out: Path) -> Path | None:

@@ -36,7 +36,9 @@ whoever waits for it; it is named in the log and in ``/diagnostics``, and the
 others go on without it. A participant that is only slow is waited for. One that
 waits, for the clock's next tick or for another participant, repeats its latest
 acknowledgement every ``HEARTBEAT`` s, so that only the silent one is declared lost,
-not those held up by it. One that answers but whose counted messages never arrive (a
+not those held up by it; so does one that works at length on a tick (a node that
+joins the line far into it and fast-forwards there: before its first acknowledgement
+it acknowledges the instant before the tick, :meth:`Participant.working`). One that answers but whose counted messages never arrive (a
 consumer that does not count what the producer counts, a broken link) is declared lost
 too, after ``MISSING_FACTOR`` times the limit, naming what is missing: a tick is never
 waited for for ever.
@@ -395,6 +397,20 @@ class Participant:
                 if self._on_end is not None:
                     self._on_end(stamp)
                 return
+
+    def working(self, stamp: int) -> None:
+        """Say that this participant is alive while it works at length on tick ``stamp`` (a node that joins
+        a line far into it fast-forwards there first): at most every ``HEARTBEAT`` s, it repeats its latest
+        acknowledgement, or, before its first, acknowledges the instant before the tick (nothing published).
+        Whoever waits for it takes that for alive and waiting, not for the tick done."""
+        now = time.monotonic()
+        if now - self._acked_at < HEARTBEAT:
+            return
+        if self._last_ack is None:
+            self._ack(stamp - 1)
+        else:
+            self._ack_pub.publish(self._last_ack)
+            self._acked_at = now
 
     def _ack(self, stamp: int) -> None:
         # one message object, refilled: publishing serializes it at once, and the heartbeat repeats the latest

@@ -8,7 +8,8 @@ each child dies with this process (``PR_SET_PDEATHSIG``), so a killed ``run`` le
 nothing behind. Either way a recorder in this process (``line_recorder``, a lockstep
 participant) subscribes to every line topic, hands every message to a
 :class:`folder_line.bag.writer.BagWriter` (``<out>/bag/``: rosbag2, MCAP, one file per second
-of line time) and compares what arrived with the batch simulation (``simulate``).
+of line time) and compares what arrived with the simulation of the same span (``simulate``, streamed:
+:func:`folder_line.core.line.model.run_summary`).
 
 The scene is parsed once: ``run`` merges it with the ``--set`` overrides, validates it and
 writes it to ``<out>/scene.yaml``; every node gets that path as its ``scene`` parameter

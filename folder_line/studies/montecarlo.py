@@ -219,12 +219,12 @@ class MarginStream:
     seed : int
         The sample's seed: with the constraint's ``name`` it seeds the margins' random keys.
     name : str
-    cap : int
-        Margins kept at most.
+    cap : int, optional
+        Margins kept at most (default :data:`MARGIN_SAMPLE`).
     """
 
-    def __init__(self, unit: str, seed: int, name: str, cap: int = MARGIN_SAMPLE) -> None:
-        self.unit, self.cap = unit, cap
+    def __init__(self, unit: str, seed: int, name: str, cap: int | None = None) -> None:
+        self.unit, self.cap = unit, MARGIN_SAMPLE if cap is None else cap
         self.bits = np.random.default_rng([int(seed), zlib.crc32(name.encode())]).bit_generator
         self.keys = np.zeros(0, dtype=np.uint64)
         self.margins = np.zeros(0)
@@ -338,12 +338,12 @@ class Pool:
 
     Parameters
     ----------
-    cap : int
-        Margins kept per constraint (:data:`MARGIN_SAMPLE`).
+    cap : int, optional
+        Margins kept per constraint (default :data:`MARGIN_SAMPLE`).
     """
 
-    def __init__(self, cap: int = MARGIN_SAMPLE) -> None:
-        self.cap = cap
+    def __init__(self, cap: int | None = None) -> None:
+        self.cap = MARGIN_SAMPLE if cap is None else cap
         self.constraints: dict[str, _Pooled] = {}
         self.order: dict[str, int] = {}  # constraint -> (sample index, position) it was first seen at, for the order
         self.metrics: dict[int, dict[str, float]] = {}

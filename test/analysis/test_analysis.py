@@ -10,8 +10,8 @@ and recorded by ``run_line`` in ``tmp_path``: the folder scene (2 s), the layup 
 (2 s) and the folder with seeded faults (2 s: a late sheet in cycle 13 makes the
 supervisor hold the line). What the live line did is checked there: the analysis of
 each against ``simulate`` of the bag's scene for the line time reached, the events
-against the line model at the nanosecond, the replayed supervisor against the states
-the live one published.
+against the line model at the nanosecond (and ``analyze``'s own comparison with the streamed
+line), the replayed supervisor against the states the live one published.
 """
 
 from __future__ import annotations
@@ -211,6 +211,11 @@ def _check_events(result: AnalysisResult, run: Path) -> None:
     assert _sorted_events(rec.event_ns, rec.events) == _sorted_events(np.round(sim['t'] * 1e9).astype(np.int64), sim)
     assert np.array_equal(rec.events['t'], rec.event_ns / 1e9)
     assert rec.bad_events == 0
+    # analyze's own comparison, window by window against the streamed line, says so too
+    check = result.events_check
+    assert check.agree and check.recorded == check.matched == rec.events.size, check.text()
+    assert result.summary['events_check']['agree'] is True
+    assert "| recorded events equal to the line model's | yes |" in result.report.read_text(encoding='utf-8')
 
 
 # --------------------------------------------------------------------------- folder

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
 import pytest
 
+import folder_line.studies.montecarlo as mc
 from folder_line.cli.main import main
+from folder_line.cli.montecarlo import print_table
+from folder_line.config.scenes import scene_mapping
+from folder_line.studies.runner import Cluster
 
 
 def test_samples_print_the_table_and_write_the_aggregate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -62,3 +67,16 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_run(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert '--json' in err and 'samples' not in err  # no progress line: nothing ran
+
+
+def test_the_table_says_when_the_quantiles_are_of_a_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past MARGIN_SAMPLE margins pooled, the quantiles are of a uniform sample: --json and the table say so."""
+    monkeypatch.setattr(mc, 'MARGIN_SAMPLE', 50)  # the pool's, in this process (the workers' keep theirs)
+    result = mc.monte_carlo(scene_mapping('folder_jitter'), 2.0, 3, Cluster(workers=1))
+    fw = result['constraints']['feed_window']['margin']
+    assert fw['kept'] == 50 < fw['count'] and fw['method'].startswith('a uniform random sample of 50 of the')
+    assert sum(fw['histogram']['counts']) == 50
+    text = io.StringIO()
+    print_table(result, text)
+    assert 'margin quantiles of feed_window' in text.getvalue()
+    assert 'uniform random sample of 50 margins' in text.getvalue()

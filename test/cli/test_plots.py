@@ -74,7 +74,10 @@ def test_what_the_figures_keep_is_bounded_and_its_counts_exact(line_long: tuple)
     assert data.landed.tolist() == summary['landing_histogram']['counts']
     exits = summary['events']['leaf_exit']
     assert data.exit_counts['C']['all'] + data.exit_counts['E']['all'] == exits
-    assert all(data.exits[e].column('v').size == min(plots.LEAF_SAMPLES, data.exit_counts[e]['all']) for e in 'CE')
+    for e in 'CE':
+        at, off = data.exits[e, False], data.exits[e, True]
+        assert at.count + off.count == data.exit_counts[e]['all'] and off.count == data.exit_counts[e]['early']
+        assert at.column('v').size == min(plots.LEAF_SAMPLES, at.count) and off.column('v').size == off.count
     assert data.landed_x.count == summary['events']['leaf_landed']
     assert data.landed_x.column('x').size == plots.LANDING_MARKS
 

@@ -18,10 +18,13 @@ import pytest
 from scipy.stats import binomtest, norm
 
 from folder_line.config.scenes import scene_mapping
+from folder_line.core.line.metrics import flatten_metrics
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import parse_scene
 from folder_line.studies.montecarlo import (
     ConstraintSample,
+    MarginStream,
+    Pool,
     SampleResult,
     SampleTask,
     aggregate,
@@ -77,7 +80,10 @@ def test_aggregate_pools_cycles_and_runs() -> None:
     assert w['p_cycle']['k'] == 2 and w['p_cycle']['n'] == 7 and w['p_cycle']['p'] == pytest.approx(2 / 7)
     assert w['p_run']['k'] == 1 and w['p_run']['n'] == 2
     assert w['margin']['quantiles']['0.5'] == 1.0 and w['margin']['quantiles']['0'] == -2.0
-    assert sum(w['margin']['histogram']['counts']) == 7
+    assert sum(w['margin']['histogram']['counts']) == 7 == w['margin']['kept'] == w['margin']['count']
+    assert w['margin']['method'] == 'every margin'
+    assert w['margin']['mean'] == pytest.approx(np.mean([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0]), rel=1e-15)
+    assert w['margin']['std'] == pytest.approx(np.std([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0], ddof=1), rel=1e-15)
     assert out['metrics']['x'] == {'mean': 0.5, 'std': pytest.approx(2**-0.5), 'min': 0.0, 'max': 1.0, 'n': 2}
     json.dumps(out)  # JSON-ready
 
@@ -122,3 +128,70 @@ def test_margins_equal_up_to_rounding_make_one_narrow_band() -> None:
     counts, edges = margin['histogram']['counts'], margin['histogram']['edges']
     assert sum(counts) == margin['count'] and np.all(np.diff(edges) > 0)
     assert edges[0] <= margin['quantiles']['0'] and margin['quantiles']['1'] <= edges[-1]
+
+
+# --------------------------------------------------------------------------- bounded memory
+
+
+def test_a_sample_keeps_a_bounded_uniform_sample_of_its_margins_and_exact_figures() -> None:
+    rng = np.random.default_rng(7)
+    margins = rng.normal(1.0, 0.5, 10_000)
+    one = MarginStream('s', 5, 'feed_window', cap=300)
+    one.add(margins)
+    cut = MarginStream('s', 5, 'feed_window', cap=300)
+    for part in np.array_split(margins, 37):  # windows cut anywhere: the same keys, the same sample
+        cut.add(part)
+    a, b = one.done(), cut.done()
+    assert np.array_equal(a.margins, b.margins) and np.array_equal(a.keys, b.keys)
+    assert a.margins.size == 300 and not a.complete
+    assert (a.evaluations, a.violations) == (10_000, int(np.count_nonzero(margins < 0)))
+    assert (a.low, a.high) == (margins.min(), margins.max())
+    assert a.mean == pytest.approx(margins.mean(), rel=1e-12)
+    assert a.m2 == pytest.approx(np.sum((margins - margins.mean()) ** 2), rel=1e-10)
+    assert set(a.margins.tolist()) <= set(margins.tolist())
+    order = np.searchsorted(np.sort(margins), a.margins)  # a uniform sample: its ranks spread over the whole
+    assert 0.35 < np.median(order) / margins.size < 0.65
+    assert MarginStream('s', 6, 'feed_window', cap=300).bits is not None  # another seed, other keys
+    other = MarginStream('s', 6, 'feed_window', cap=300)
+    other.add(margins)
+    assert not np.array_equal(other.done().margins, a.margins)
+
+
+def test_the_pool_is_a_uniform_sample_of_every_margin_whatever_the_order_of_arrival() -> None:
+    rng = np.random.default_rng(3)
+
+    def sample(i: int) -> SampleResult:
+        m = MarginStream('s', i, 'w', cap=500)
+        m.add(rng.normal(0.2 * i, 1.0, 2000))
+        return SampleResult(i, i, {'x': float(i)}, {'w': m.done()})
+
+    results = [sample(i) for i in range(6)]
+    forward, backward = Pool(cap=500), Pool(cap=500)
+    for r in results:
+        forward.add(r)
+    for r in reversed(results):
+        backward.add(r)
+    a, b = forward.result(), backward.result()
+    assert json.dumps(a) == json.dumps(b)
+    margin = a['constraints']['w']['margin']
+    assert margin['count'] == 12_000 and margin['kept'] == 500 and margin['method'].startswith('a uniform random')
+    assert sum(margin['histogram']['counts']) == 500
+    assert margin['quantiles']['0'] == margin['min'] == min(r.constraints['w'].low for r in results)
+    assert margin['quantiles']['1'] == margin['max']
+    everything = np.concatenate([r.constraints['w'].margins for r in results])
+    assert margin['mean'] == pytest.approx(np.mean([r.constraints['w'].mean for r in results]), rel=1e-12)
+    assert abs(margin['quantiles']['0.5'] - np.median(everything)) < 0.2  # the median of a uniform sample of 500
+
+
+def test_a_long_sample_keeps_a_bounded_number_of_margins(monkeypatch: pytest.MonkeyPatch) -> None:
+    import folder_line.studies.montecarlo as mc
+
+    monkeypatch.setattr(mc, 'MARGIN_SAMPLE', 100)
+    monkeypatch.setattr(mc, 'WINDOW', 5.0)
+    got = run_sample(SampleTask(_jitter_source(1.0), 30.0, 2))
+    direct = simulate(parse_scene({**_jitter_source(1.0), 'seed': sample_seed(1, 2)}), 30.0)
+    fw = direct.constraint('feed_window')
+    c = got.constraints['feed_window']
+    assert c.margins.size == 100 < c.evaluations == fw.margin.size
+    assert c.violations == int(np.count_nonzero(fw.violated)) and (c.low, c.high) == (fw.margin.min(), fw.margin.max())
+    assert got.metrics == flatten_metrics(direct.summary())  # the streamed summary: bit for bit

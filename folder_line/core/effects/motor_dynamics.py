@@ -659,7 +659,7 @@ class MotorDrive:
         return [s.t0 for s in self.segments]
 
     def _clip(self, t: npt.ArrayLike) -> FloatArray:
-        tt = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        tt: FloatArray = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
         if tt.size:
             self.extend(float(tt.max()))
         return tt

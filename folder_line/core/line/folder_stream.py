@@ -160,11 +160,14 @@ class FolderState:
     slots: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_SLOT_DTYPE))
     sheets: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=SHEET_DTYPE))
     history: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=SHEET_DTYPE))
-    found: np.ndarray = field(default_factory=empty_events)
+    found: list[np.ndarray] = field(default_factory=list)  # events found, not handed out
     judged_next: int = 0  # the first cycle not judged
-    exits: dict[int, float] = field(default_factory=dict)  # cycle -> its knife exit, s (those not judged)
-    expected: dict[int, int] = field(default_factory=dict)  # cycle -> signatures of its slot
-    settled: dict[int, int] = field(default_factory=dict)  # cycle -> signatures settled (rows handed out)
+    # per cycle from judged_next on: signatures of its slot (-1: not drawn), settled so far, knife contact out
+    expected: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    settled: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    contacted: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    exit_base: int = 0  # the cycle of exit_t[0]
+    exit_t: np.ndarray = field(default_factory=lambda: np.zeros(0))  # knife exits from cycle judged_next - 1 on, s
     rows: np.ndarray = field(default_factory=empty_events)  # the rows of the cycles not judged
     t_last: float = -math.inf  # the latest event handed out, s
     counts: _Counts = field(default_factory=_Counts)
@@ -184,6 +187,9 @@ class FolderStream:
         Master drive (replaced with :meth:`set_drive` when the commands change).
     tunings : iterable of Tuning
         The operator's changes; here the feed belt speed ``feed_transporter.V_tr``.
+    judge : bool
+        Judge the cycles and keep the running summary (False: the events alone, as a
+        machine node that publishes them needs; no rows, and :meth:`summary` counts nothing).
 
     Attributes
     ----------
@@ -197,9 +203,10 @@ class FolderStream:
     state : FolderState
     """
 
-    def __init__(self, scene: Scene, drive: Drive, tunings: Iterable[Tuning] = ()) -> None:
+    def __init__(self, scene: Scene, drive: Drive, tunings: Iterable[Tuning] = (), *, judge: bool = True) -> None:
         s = folder_steps.setup(scene, drive, math.inf)
         self.scene = scene
+        self.judge = judge
         self.drive = drive
         self.setup = s
         self.timing = s.timing
@@ -263,7 +270,7 @@ class FolderStream:
         st = self.state
         tables = tuple(tb for tb in tables if tb.size)
         if tables:
-            st.found = np.concatenate((st.found, *tables))
+            st.found.extend(tables)
 
     def compute(self, c: float) -> None:
         """Do every piece of work whose result lies at or before line time ``c`` (s)."""
@@ -319,8 +326,8 @@ class FolderStream:
         fed = mult > 0
         first_id[fed] = ids[(np.cumsum(mult) - mult)[fed]]
         st.sheet_next += n
-        for kk, m in zip(k.tolist(), mult.tolist(), strict=True):
-            st.expected[kk] = m
+        self._cycles_to(int(k[-1]) + 1)
+        st.expected[k - st.judged_next] = mult
         if s.faults is not None:
             slots = np.zeros(k.size, dtype=_SLOT_DTYPE)
             slots['k'], slots['theta'], slots['missing'], slots['double'] = k, theta_nom, missing, double
@@ -482,7 +489,9 @@ class FolderStream:
         if k_x.size:
             st.kx_next = int(k_x[-1]) + 1
             self._found(make_events('knife_exit', t_x, cycle=k_x))
-            st.exits.update(zip(k_x.tolist(), t_x.tolist(), strict=True))
+            if st.exit_t.size == 0:
+                st.exit_base = int(k_x[0])
+            st.exit_t = np.concatenate((st.exit_t, t_x))
             sh = st.sheets
             pos = np.searchsorted(k_x, sh['cycle'])
             hit = (pos < k_x.size) & (k_x[np.minimum(pos, k_x.size - 1)] == sh['cycle'])
@@ -532,16 +541,19 @@ class FolderStream:
         st = self.state
         if t > st.computed:
             raise ValueError(f'FolderStream.emit({t!r}): computed only to {st.computed!r} s')
-        f = st.found
+        f = np.concatenate(st.found) if len(st.found) > 1 else (st.found[0] if st.found else empty_events())
         out_mask = f['t'] <= t
         out = f[out_mask]
-        st.found = f[~out_mask]
+        rest = f[~out_mask]
+        st.found = [rest] if rest.size else []
         if out.size:
             out = out[np.lexsort((out['sheet'], out['kind'], out['t']))]
             st.t_last = max(st.t_last, float(out['t'][-1]))
         st.emitted = max(st.emitted, t)
-        if out.size == 0:  # nothing handed out: nothing judged, nothing leaves the machine
-            return out, [self.empty_rows[name] for name in self.constraint_names]
+        if out.size == 0 or not self.judge:  # nothing (to be) judged
+            if out.size:
+                self._retire(t)
+            return out, [] if not self.judge else [self.empty_rows[name] for name in self.constraint_names]
         self._tally(out, t)
         rows = self._judge(out, final=False)
         self._retire(t)
@@ -582,13 +594,14 @@ class FolderStream:
         if judged.size:
             st.rows = np.concatenate((st.rows, judged))
             last_kind = _K['settled'] if self.setup.bounce is not None else _K['at_stops']
-            for cyc in judged['cycle'][judged['kind'] == last_kind].tolist():
-                st.settled[cyc] = st.settled.get(cyc, 0) + 1
-        k = st.judged_next
-        contacts = set(st.rows['cycle'][st.rows['kind'] == _K['knife_contact']].tolist()) if st.rows.size else set()
+            done_cyc = judged['cycle'][judged['kind'] == last_kind]
+            contact_cyc = judged['cycle'][judged['kind'] == _K['knife_contact']]
+            self._cycles_to(int(max(done_cyc.max(initial=-1), contact_cyc.max(initial=-1))) + 1)
+            np.add.at(st.settled, done_cyc[done_cyc >= st.judged_next] - st.judged_next, 1)
+            st.contacted[contact_cyc[contact_cyc >= st.judged_next] - st.judged_next] = True
         # a cycle is complete once its knife contact is out, its slot drawn and its signatures settled
-        while k in contacts and (final or (k < st.slot_next and st.settled.get(k, 0) >= st.expected.get(k, 0))):
-            k += 1
+        ready = st.contacted & (final | ((st.expected >= 0) & (st.settled >= st.expected)))
+        k = st.judged_next + (int(np.argmin(ready)) if not ready.all() else ready.size)
         parts: list[ConstraintSeries] = []
         if k > st.judged_next:
             done = (st.rows['cycle'] >= st.judged_next) & (st.rows['cycle'] < k)
@@ -597,10 +610,10 @@ class FolderStream:
             ).constraints
             parts = [c for c in ev if c.name != 'release_at_min_speed']
             st.rows = st.rows[~done]
-            for cyc in range(st.judged_next, k):
-                st.expected.pop(cyc, None)
-                st.settled.pop(cyc, None)
-                st.exits.pop(cyc - 1, None)
+            n = k - st.judged_next
+            st.expected, st.settled, st.contacted = st.expected[n:], st.settled[n:], st.contacted[n:]
+            drop = min(max(0, (k - 1) - st.exit_base), st.exit_t.size)  # keep the exit that starts cycle k
+            st.exit_t, st.exit_base = st.exit_t[drop:], st.exit_base + drop
             st.judged_next = k
         rel = out[out['kind'] == _RELEASE]
         release = None
@@ -648,9 +661,21 @@ class FolderStream:
         """The earliest line time whose drive a cycle still to be judged reads (its start, where its feed
         deadline may lie), s."""
         st = self.state
+        if not self.judge:
+            return math.inf
         if st.judged_next == 0:
             return 0.0
-        return st.exits.get(st.judged_next - 1, math.inf)
+        i = (st.judged_next - 1) - st.exit_base
+        return float(st.exit_t[i]) if 0 <= i < st.exit_t.size else math.inf
+
+    def _cycles_to(self, end: int) -> None:
+        """Make the per-cycle arrays reach cycle ``end - 1`` (a cycle not drawn yet expects -1)."""
+        st = self.state
+        n = end - st.judged_next - st.expected.size
+        if n > 0:
+            st.expected = np.concatenate((st.expected, np.full(n, -1, dtype=np.int64)))
+            st.settled = np.concatenate((st.settled, np.zeros(n, dtype=np.int64)))
+            st.contacted = np.concatenate((st.contacted, np.zeros(n, dtype=bool)))
 
     def prune(self, t_keep: float) -> None:
         """Forget what no query from ``t_keep`` (s) on needs: the signatures that left the machine before it,

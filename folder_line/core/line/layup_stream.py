@@ -126,7 +126,7 @@ class LayupState:
     chutes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_CHUTE_DTYPE))
     flights: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=FLIGHT_DTYPE))
     history: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=FLIGHT_DTYPE))
-    found: np.ndarray = field(default_factory=empty_events)
+    found: list[np.ndarray] = field(default_factory=list)  # events found, not handed out
     exits: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_EXIT_DTYPE))
     figures: _Figures = field(default_factory=_Figures)
 
@@ -142,6 +142,8 @@ class LayupStream:
         The master drive (replaced with :meth:`set_drive` when the commands change).
     tunings : iterable of Tuning
         The operator's changes; here the chute belt speed ``layup.v_tr``.
+    judge : bool
+        Judge the leaves and keep the running summary (False: the events alone).
 
     Raises
     ------
@@ -157,9 +159,10 @@ class LayupStream:
     state : LayupState
     """
 
-    def __init__(self, scene: Scene, drive: Drive, tunings: Iterable[Tuning] = ()) -> None:
+    def __init__(self, scene: Scene, drive: Drive, tunings: Iterable[Tuning] = (), *, judge: bool = True) -> None:
         lp: LayupParams = scene.machine('layup')
         self.scene = scene
+        self.judge = judge
         self.params = lp
         self.drive = drive
         self.kinematics = LayupKinematics(lp, drive)
@@ -255,7 +258,7 @@ class LayupStream:
         st = self.state
         tables = tuple(tb for tb in tables if tb.size)
         if tables:
-            st.found = np.concatenate((st.found, *tables))
+            st.found.extend(tables)
 
     def compute(self, c: float) -> None:
         """Do every piece of work whose result lies at or before line time ``c`` (s)."""
@@ -450,9 +453,10 @@ class LayupStream:
         st = self.state
         if t > st.computed:
             raise ValueError(f'LayupStream.emit({t!r}): computed only to {st.computed!r} s')
-        f = st.found
+        f = np.concatenate(st.found) if len(st.found) > 1 else (st.found[0] if st.found else empty_events())
         m = f['t'] <= t
-        out, st.found = f[m], f[~m]
+        out, rest = f[m], f[~m]
+        st.found = [rest] if rest.size else []
         if out.size:
             out = out[np.lexsort((out['sheet'], out['kind'], out['t']))]
         ex = st.exits
@@ -461,6 +465,8 @@ class LayupStream:
         if exits.size:
             exits = exits[np.lexsort((exits['id'], exits['t']))]
         st.emitted = max(st.emitted, t)
+        if not self.judge:
+            return out, []
         self._tally(out, exits)
         xr = out[out['kind'] == _EXIT]
         series = chute_speed_series(self.scene, xr['sheet'], xr['t'], xr['value'])

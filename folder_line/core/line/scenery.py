@@ -400,8 +400,8 @@ class Scenery:
 
     def _sheets_live(self, t: float) -> np.ndarray:
         """The last :data:`_SHEETS_SHOWN` signatures handed over by ``t``, each time not yet come ``inf``."""
-        sh = self._folder.sheets_view()
-        sh = sh[~np.isnan(sh['t_h']) & (sh['t_h'] <= t)][-_SHEETS_SHOWN:].copy()
+        view: np.ndarray = self._folder.sheets_view()
+        sh: np.ndarray = view[~np.isnan(view['t_h']) & (view['t_h'] <= t)][-_SHEETS_SHOWN:].copy()
         for name in ('t_a', 't_c', 't_x', 't_r'):
             sh[name] = np.where(np.isnan(sh[name]) | (sh[name] > t), math.inf, sh[name])
         return sh

@@ -196,6 +196,10 @@ class LineStream:
         by effective time (more may follow: :meth:`set_commands`).
     keep : float
         Line time before each window that :meth:`sample` may still be asked for, s (>= 0).
+    judge : bool
+        Judge the constraints and keep the running summary (default). False hands out
+        the events and joint states alone, faster (a machine node that publishes them):
+        no rows, and :meth:`summary` counts nothing.
     drive_factory : callable, optional
         ``(scene, commands, previous drive) -> Drive`` (default
         :func:`folder_line.core.line.drives.make_drive`).
@@ -222,6 +226,7 @@ class LineStream:
         commands: Iterable[LineCommand] = (),
         *,
         keep: float = 0.0,
+        judge: bool = True,
         drive_factory: Any = None,
     ) -> None:
         self.scene = scene
@@ -236,8 +241,9 @@ class LineStream:
         self._t_keep = -math.inf
         self._before: list[Checkpoint] = []
         tunings = tunings_of(self.commands)
-        self.folder = FolderStream(scene, self.drive, tunings) if scene.has_folder else None
-        self.layup = LayupStream(scene, self.drive, tunings) if scene.has_layup else None
+        self.judge = judge
+        self.folder = FolderStream(scene, self.drive, tunings, judge=judge) if scene.has_folder else None
+        self.layup = LayupStream(scene, self.drive, tunings, judge=judge) if scene.has_layup else None
         self.lookahead = self.layup.lookahead if self.layup is not None else 0.0
         self.pile = PileStream(
             scene.has_delivery, scene.sheets.thickness, values_from(tunings, 'pile.t_lower', T_LOWER)

@@ -181,6 +181,9 @@ class MachineNode(Node):
 
     NODE_NAME = 'machine'
     EXTRA_SPECS: tuple[ParamSpec, ...] = ()
+    #: the node's stream judges the constraints (the supervisor's diagnostics); a machine node needs only its
+    #: events and joints
+    JUDGES = False
 
     def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
         overrides = list(parameter_overrides or [])
@@ -203,7 +206,7 @@ class MachineNode(Node):
         self.kinds = np.array(
             [EVENT_KINDS.index(k) for k, node in EVENT_OWNER.items() if node == self.NODE_NAME], dtype=np.int16
         )
-        self.stream = LineStream(self.scene, keep=KEEP)
+        self.stream = LineStream(self.scene, keep=KEEP, judge=self.JUDGES)
         self.unit = UNIT_OF_NODE.get(self.NODE_NAME, '')  # the core's machine unit this node runs ('' none)
         self.joints = self.stream.units.get(self.unit, ())
         self._last_ns: int | None = None  # the latest tick published
@@ -431,8 +434,10 @@ class MachineNode(Node):
             return
         if t - max(stream.t, 0.0) > FAST_FORWARD:  # far behind: get there at batch speed, keeping nothing
             target = t - CHUNK
+            self.get_logger().info(f'fast-forwarding the line to {target:.9g} s of line time')
             while stream.t < target:
                 stream.advance(min(target, max(stream.t, 0.0) + FAST_WINDOW))
+                self.lockstep.working(stamp_ns)  # alive, for whoever waits for this tick
             self._pending = np.zeros(0, dtype=EVENT_DTYPE)
         self._start = stream.checkpoint()
         window = stream.advance(max(t, stream.t + CHUNK))

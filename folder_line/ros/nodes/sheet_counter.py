@@ -123,8 +123,9 @@ class SheetCounter(MachineNode):
             self.publish(self._landing_pub, Float64(data=float(row['value'])))
             self.published_landing += 1
         rate = self.values['marker_rate']
-        if rate != self._marker_rate:
-            # a new rate (or markers on again after 0): its grid starts at this tick, not at the last stamp drawn
+        if rate != self._marker_rate or self._marker_ns is None:
+            # the first tick, a new rate, or markers on again after 0: the grid starts at this tick, not at the
+            # last stamp drawn (nor at 0, for a line joined far into it)
             self._marker_ns = stamp_ns - 1
         self._marker_rate = rate
         self._sheets.forget(t, RATE_WINDOWS[1])  # no rate after this tick reads further back, whatever its window

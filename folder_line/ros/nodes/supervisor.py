@@ -174,6 +174,7 @@ class Supervisor(MachineNode):
     """
 
     NODE_NAME = 'supervisor'
+    JUDGES = True
     EXTRA_SPECS = (
         ParamSpec(
             'command_lead',

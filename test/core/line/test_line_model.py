@@ -17,12 +17,12 @@ from folder_line.config.params import config_dir, load_params, read_yaml_mapping
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
 from folder_line.core.effects import motor_dynamics as md
-from folder_line.core.line.events import event_kind
 from folder_line.core.limits import DURATION as LINE_TIME
+from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_stream import FolderStream
 from folder_line.core.line.model import UNITS, LineModel, LineResult, sample_times, simulate
-from folder_line.core.line.stream import LineStream
 from folder_line.core.line.scene import Scene, parse_scene
+from folder_line.core.line.stream import LineStream
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms import knife as knf

@@ -320,9 +320,9 @@ def test_a_node_joined_an_hour_into_the_line_publishes_it_from_there(ros: Ros) -
     assert ros.spin_until(lambda: sub.get_publisher_count() == 1 and esub.get_publisher_count() == 1, timeout=20.0)
     clock = start_clock(ros, 0.5, ['feed_transporter'], start_time=start)
     assert ros.spin_until(
-        lambda: clock.done.done()
-        and len(received) == node.published_joint_states
-        and len(events) == node.published_events,
+        lambda: (
+            clock.done.done() and len(received) == node.published_joint_states and len(events) == node.published_events
+        ),
         timeout=60.0,
     )
     t0 = round(start * NS_PER_S)
@@ -332,7 +332,9 @@ def test_a_node_joined_an_hour_into_the_line_publishes_it_from_there(ros: Ros) -
     js = model.sample('feed', np.array(stamps, dtype=float) / NS_PER_S)
     got = np.array([m.position for m in received.messages])
     assert got.tobytes() == js.position.tobytes()
-    own = model.events[np.isin(model.events['kind'], [EVENT_KINDS.index(k) for k, n in EVENT_OWNER.items() if n == 'feed_transporter'])]
+    own = model.events[
+        np.isin(model.events['kind'], [EVENT_KINDS.index(k) for k, n in EVENT_OWNER.items() if n == 'feed_transporter'])
+    ]
     own = own[(own['t'] >= start) & (own['t'] <= start + 0.5)]
     assert [m.source for m in events.messages] == [
         f'{EVENT_KINDS[r["kind"]]} sheet={r["sheet"]} cycle={r["cycle"]} value={float(r["value"])!r}' for r in own
