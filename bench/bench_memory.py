@@ -1,78 +1,171 @@
-"""Peak memory of a batch model per knife cycle and per leaf: the figures ``check_size`` refuses by.
+"""Peak memory against line time: ``folder-line simulate`` and the live line's node processes.
 
-Run: ``.venv/bin/python bench/bench_memory.py`` (about a minute). Each scene is simulated
-(``simulate``, events only, and its summary, as ``folder-line simulate`` does) in a fresh
-process for two durations; the growth of the peak RSS between them, over the knife cycles
-(``folder``) or leaves (``layup``) added, is the peak memory per cycle or leaf. Start-up
-(imports, the interpreter) cancels out. The ``line`` scene checks the two figures
-together. Compare with :data:`folder_line.core.line.model.BYTES_PER_CYCLE` and
-:data:`~folder_line.core.line.model.BYTES_PER_LEAF`, which must not be below what is measured
-here.
+Run: ``.venv/bin/python bench/bench_memory.py`` (about 25 minutes on two cores; ``--quick``:
+1 h and 10 h of ``simulate`` only, and the nodes at 1 h, about three minutes).
+
+1. ``folder-line simulate --scene S --duration D`` in a fresh process for D = 1 h, 10 h and
+   100 h of ``line`` and of ``folder``; its peak resident set (``ru_maxrss`` of the child, from
+   ``os.wait4``). The line is streamed window by window: the goal is at most 300 MB at any span,
+   and no growth from 1 h to 100 h beyond noise.
+2. The live line as ``ros2 launch`` starts it: the five machine nodes of ``line``, one process
+   each from their executables with their default parameters, and ``line_clock``
+   (lockstep, ``rtf 0``) started at ``start_time`` = 1 h and = a day, for 5 s of line time. Each
+   node fast-forwards to the clock at batch speed keeping nothing, then publishes, and ends
+   with the line. The peak resident set of each node process (``ru_maxrss``) is read when it
+   is reaped; the goal is at most 200 MB per process at either start.
+
+The ROS part runs on a private domain (``ROS_DOMAIN_ID`` 97 unless set, localhost discovery).
 """
 
 from __future__ import annotations
 
-import json
+import argparse
+import os
+import signal
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+HOUR = 3600.0
+DAY = 86400.0
+SIMULATE_GOAL = 300e6  # bytes
+NODE_GOAL = 200e6  # bytes
+NODE_SPAN = 5.0  # line time each node run publishes, s
 
 
-def _peak(scene: str, duration: float) -> tuple[int, int, int]:
-    """(peak RSS bytes, knife cycles, leaves) of one batch run in a fresh process."""
-    code = """
-import json, resource, sys
-sys.path.insert(0, sys.argv[3])
-from folder_line.interfaces import EVENT_KINDS
-from folder_line.core.line.model import simulate
-from folder_line.config.scenes import load_scene
-scene = load_scene(sys.argv[1], {})
-result = simulate(scene, float(sys.argv[2]), sample_rate=0.0)
-result.summary()
-kinds = result.events["kind"]
-print(json.dumps({"rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
-                  "cycles": int((kinds == EVENT_KINDS.index("knife_contact")).sum()),
-                  "leaves": int((kinds == EVENT_KINDS.index("leaf_enter")).sum())}))
-"""
-    out = subprocess.run(
-        [sys.executable, '-c', code, scene, repr(duration), str(REPO)], capture_output=True, text=True, check=True
-    ).stdout
-    d = json.loads(out)
-    return d['rss'], d['cycles'], d['leaves']
+def simulate_peak(scene: str, duration: float) -> tuple[int, float]:
+    """(peak RSS bytes, wall s) of ``folder-line simulate --scene scene --duration duration``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [
+            sys.executable,
+            '-m',
+            'folder_line.cli.main',
+            'simulate',
+            '--scene',
+            scene,
+            '--duration',
+            f'{duration:g}',
+        ]
+        cmd += ['--json', str(Path(tmp) / 'summary.json')]
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            assert proc.stderr is not None
+            raise RuntimeError(f'simulate {scene} {duration:g} s failed: {proc.stderr.read().decode()}')
+    return usage.ru_maxrss * 1024, wall
 
 
-def growth(scene: str, d1: float, d2: float) -> tuple[float, int, int]:
-    """(peak RSS growth in bytes, cycles added, leaves added) from ``d1`` to ``d2`` s of line time."""
-    r1, c1, l1 = _peak(scene, d1)
-    r2, c2, l2 = _peak(scene, d2)
-    return r2 - r1, c2 - c1, l2 - l1
+def node_peaks(scene: str, start: float, env: dict[str, str], logs: Path) -> tuple[dict[str, int], float]:
+    """({node: peak RSS bytes}, wall s) of the machine nodes of ``scene`` when the line is joined at ``start``.
+
+    Each process is reaped with ``os.wait4`` (its ``ru_maxrss``): the nodes end with the line, or on SIGINT.
+    """
+    from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES
+
+    procs: dict[str, subprocess.Popen[bytes]] = {}
+    ended: dict[str, tuple[int, int]] = {}  # name -> (exit code, peak RSS bytes)
+
+    def start_node(name: str, params: dict[str, str]) -> None:
+        cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
+        for key, value in params.items():
+            cmd += ['-p', f'{key}:={value}']
+        with open(logs / f'{name}-{start:g}.log', 'wb') as log:
+            procs[name] = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=log)
+
+    def reap(name: str, block: bool) -> bool:
+        if name not in ended:
+            pid, status, usage = os.wait4(procs[name].pid, 0 if block else os.WNOHANG)
+            if pid == 0:
+                return False
+            ended[name] = (os.waitstatus_to_exitcode(status), usage.ru_maxrss * 1024)
+            procs[name].returncode = ended[name][0]  # reaped here: Popen must not wait for it again
+        return True
+
+    def log_of(name: str) -> Path:
+        return logs / f'{name}-{start:g}.log'
+
+    t0 = time.perf_counter()
+    try:
+        for name in MACHINE_NODES:
+            start_node(name, {'scene': scene})
+        clock = {
+            'rtf': '0.0',
+            'start_time': f'{start:.1f}',
+            'duration': f'{NODE_SPAN:.1f}',
+            'participants': ','.join(MACHINE_NODES),
+        }
+        start_node(LINE_CLOCK, clock)
+        while not reap(LINE_CLOCK, block=False):
+            for name in MACHINE_NODES:
+                if reap(name, block=False):
+                    raise RuntimeError(f'{name} ended before the clock: see {log_of(name)}')
+            time.sleep(0.2)
+        wall = time.perf_counter() - t0
+        if ended[LINE_CLOCK][0] != 0:
+            raise RuntimeError(f'line_clock exited {ended[LINE_CLOCK][0]}: see {log_of(LINE_CLOCK)}')
+        deadline = time.monotonic() + 10.0  # the nodes end with the line; SIGINT those that do not
+        while not all(reap(name, block=False) for name in MACHINE_NODES) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        for name in MACHINE_NODES:
+            if name not in ended:
+                os.kill(procs[name].pid, signal.SIGINT)  # not Popen.send_signal: it would reap the process
+                reap(name, block=True)
+        failed = [name for name in MACHINE_NODES if ended[name][0] != 0]
+        if failed:
+            raise RuntimeError(f'{", ".join(failed)} exited non-zero: see {logs}')
+        return {name: ended[name][1] for name in MACHINE_NODES}, wall
+    finally:
+        for name, proc in procs.items():
+            if name not in ended:
+                os.kill(proc.pid, signal.SIGKILL)
+                reap(name, block=True)
 
 
 def main() -> int:
-    from folder_line.core.line.model import BYTES_PER_CYCLE, BYTES_PER_LEAF
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument('--quick', action='store_true', help='1 h and 10 h of simulate, the nodes at 1 h')
+    args = ap.parse_args()
+    spans = [HOUR, 10 * HOUR] if args.quick else [HOUR, 10 * HOUR, 100 * HOUR]
+    ok = True
 
-    d1, d2 = 3600.0, 14400.0
-    rss, cycles, _ = growth('folder', d1, d2)
-    per_cycle = rss / cycles
-    rss, _, leaves = growth('layup', d1, d2)
-    per_leaf = rss / leaves
-    rss, cycles_line, leaves_line = growth('line', d1, d2)
-    predicted = cycles_line * BYTES_PER_CYCLE + leaves_line * BYTES_PER_LEAF
-    print(
-        f'peak memory per knife cycle (folder, {d1:g} -> {d2:g} s): {per_cycle:.0f} B '
-        f'(BYTES_PER_CYCLE = {BYTES_PER_CYCLE})'
-    )
-    print(f'peak memory per leaf (layup, {d1:g} -> {d2:g} s): {per_leaf:.0f} B (BYTES_PER_LEAF = {BYTES_PER_LEAF})')
-    print(
-        f'line, {d1:g} -> {d2:g} s: {rss / 1e6:.0f} MB measured, {predicted / 1e6:.0f} MB from the two figures '
-        f'({cycles_line} cycles, {leaves_line} leaves)'
-    )
-    if per_cycle > BYTES_PER_CYCLE or per_leaf > BYTES_PER_LEAF:
-        print('the constants are below what is measured: raise them', file=sys.stderr)
-        return 1
-    return 0
+    print('folder-line simulate, peak resident set (goal <= 300 MB, flat in line time):\n')
+    print('| scene | line time | peak RSS, MB | wall, s |')
+    print('|---|---:|---:|---:|')
+    for scene in ('folder', 'line'):
+        peaks = []
+        for span in spans:
+            rss, wall = simulate_peak(scene, span)
+            peaks.append(rss)
+            print(f'| {scene} | {span / HOUR:g} h | {rss / 1e6:.0f} | {wall:.0f} |', flush=True)
+        ok &= max(peaks) <= SIMULATE_GOAL
+        print(f'| {scene} | {spans[-1] / HOUR:g} h / 1 h | {peaks[-1] / peaks[0]:.2f} | |', flush=True)
+
+    env = dict(os.environ)
+    env.setdefault('ROS_DOMAIN_ID', '97')
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    starts = [HOUR] if args.quick else [HOUR, DAY]
+    print(f'\nthe machine nodes of line, one process each, joined at a start time for {NODE_SPAN:g} s')
+    print('(lockstep, rtf 0), peak resident set per process (goal <= 200 MB):\n')
+    with tempfile.TemporaryDirectory() as tmp:
+        logs = Path(tmp)
+        rows = {start: node_peaks('line', start, env, logs) for start in starts}
+    from folder_line.interfaces import MACHINE_NODES
+
+    print('| node | ' + ' | '.join(f'at {s / HOUR:g} h, MB' for s in starts) + ' |')
+    print('|---|' + '---:|' * len(starts))
+    for name in MACHINE_NODES:
+        print(f'| {name} | ' + ' | '.join(f'{rows[s][0][name] / 1e6:.0f}' for s in starts) + ' |')
+        ok &= all(rows[s][0][name] <= NODE_GOAL for s in starts)
+    print('| wall, s | ' + ' | '.join(f'{rows[s][1]:.0f}' for s in starts) + ' |')
+    if not ok:
+        print('over a goal', file=sys.stderr)
+    return 0 if ok else 1
 
 
 if __name__ == '__main__':

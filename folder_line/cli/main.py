@@ -395,7 +395,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --plots draws one run')
         if listing is not None:
             raise ParameterError('--plots', args.plots, f'draws a run; {listing} lists and runs nothing')
-        from folder_line.cli import plots  # the figures' modules and matplotlib: only --plots
+        import folder_line.cli.plots as plots  # the figures' modules and matplotlib: only --plots
 
         plots.check_plots(args.plots)
     if args.tune and args.samples is not None:

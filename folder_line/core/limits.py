@@ -20,8 +20,6 @@ __all__ = [
     'CRANK_SPEED',
     'CYLINDER_SPEED',
     'DURATION',
-    'HORIZON',
-    'HORIZON_MARGIN',
     'KNIFE_SPEED',
     'LIMITS',
     'LINEAR_SPEED',
@@ -77,22 +75,13 @@ class Limit:
 
 
 #: line time of a run or a simulation: from a millisecond to 1e7 s (116 days), where float64 time still
-#: resolves 2 ns; the event tables grow with it (see :func:`folder_line.core.line.model.check_size`)
+#: resolves 2 ns (the memory does not grow with it: the line is streamed)
 DURATION = Limit(
     'line time of a run or a simulation (`--duration`, `line_clock` `duration`)',
     1e-3,
     1e7,
     's',
     'float64 line time resolves 2 ns up to 1e7 s',
-)
-#: what ``run`` adds to the duration for the machine nodes' horizon (the last tick is inside it)
-HORIZON_MARGIN = 1.0
-HORIZON = Limit(
-    'line time a model is built for (node `horizon`; a batch model)',
-    1e-3,
-    DURATION.hi + 3600.0,
-    's',
-    'a run of the longest duration, plus up to an hour (run gives its nodes 1 s more)',
 )
 TICK_RATE = Limit(
     'tick and joint-state rate in sim time (`line_clock` and node `rate`)',
@@ -171,7 +160,6 @@ SHEET_INTERVAL = Limit(
 #: every limit, for the README table and the tests
 LIMITS: dict[str, Limit] = {
     'duration': DURATION,
-    'horizon': HORIZON,
     'rate': TICK_RATE,
     'rtf': RTF,
     'sample_rate': SAMPLE_RATE,

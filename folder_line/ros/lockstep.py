@@ -35,13 +35,15 @@ after ``lost_timeout`` s of wall time (``startup_timeout`` for the first tick) b
 whoever waits for it; it is named in the log and in ``/diagnostics``, and the
 others go on without it. A participant that is only slow is waited for. One that
 waits, for the clock's next tick or for another participant, repeats its latest
-acknowledgement every ``HEARTBEAT`` s, so that only the silent one is declared lost,
-not those held up by it; so does one that works at length on a tick (a node that
+acknowledgement every ``HEARTBEAT`` s (before its first, it acknowledges the instant
+before the tick it waits on), so that only the silent one is declared lost, not those
+held up by it; so does one that works at length on a tick (a node that
 joins the line far into it and fast-forwards there: before its first acknowledgement
-it acknowledges the instant before the tick, :meth:`Participant.working`). One that answers but whose counted messages never arrive (a
-consumer that does not count what the producer counts, a broken link) is declared lost
-too, after ``MISSING_FACTOR`` times the limit, naming what is missing: a tick is never
-waited for for ever.
+it acknowledges the instant before the tick, :meth:`Participant.working`). One that
+answers but whose counted messages never arrive (a consumer that does not count
+what the producer counts, a broken link) is declared lost too, after
+``MISSING_FACTOR`` times the limit, naming what is missing: a tick is never waited
+for for ever.
 """
 
 from __future__ import annotations
@@ -437,6 +439,10 @@ class Participant:
             # heartbeat (seconds): those waiting for this participant must not take it for lost.
             self._ack_pub.publish(self._last_ack)
             self._acked_at = now
+        elif self._last_ack is None and self.pending and now - self._acked_at >= HEARTBEAT:
+            # waiting for a producer before the first tick is done (the producers of a line joined far into
+            # it fast-forward first, at length): alive, at the instant before the tick, as working() says
+            self._ack(self.pending[0] - 1)
         if not self.pending or self._waiting_since is None:
             return
         waited = now - self._waiting_since

@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 
 from folder_line.cli.main import main
-from folder_line.config.run_config import RunConfig
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.drives import make_drive
 from folder_line.core.line.model import LineModel

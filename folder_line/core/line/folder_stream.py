@@ -326,8 +326,9 @@ class FolderStream:
         fed = mult > 0
         first_id[fed] = ids[(np.cumsum(mult) - mult)[fed]]
         st.sheet_next += n
-        self._cycles_to(int(k[-1]) + 1)
-        st.expected[k - st.judged_next] = mult
+        if self.judge:  # what a cycle waits for before it is judged
+            self._cycles_to(int(k[-1]) + 1)
+            st.expected[k - st.judged_next] = mult
         if s.faults is not None:
             slots = np.zeros(k.size, dtype=_SLOT_DTYPE)
             slots['k'], slots['theta'], slots['missing'], slots['double'] = k, theta_nom, missing, double
@@ -489,9 +490,10 @@ class FolderStream:
         if k_x.size:
             st.kx_next = int(k_x[-1]) + 1
             self._found(make_events('knife_exit', t_x, cycle=k_x))
-            if st.exit_t.size == 0:
-                st.exit_base = int(k_x[0])
-            st.exit_t = np.concatenate((st.exit_t, t_x))
+            if self.judge:  # where the cycles still to be judged start
+                if st.exit_t.size == 0:
+                    st.exit_base = int(k_x[0])
+                st.exit_t = np.concatenate((st.exit_t, t_x))
             sh = st.sheets
             pos = np.searchsorted(k_x, sh['cycle'])
             hit = (pos < k_x.size) & (k_x[np.minimum(pos, k_x.size - 1)] == sh['cycle'])

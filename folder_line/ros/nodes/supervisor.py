@@ -122,7 +122,7 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement
-from folder_line.ros.nodes.machine import MachineNode
+from folder_line.ros.nodes.machine import FAST_WINDOW, MachineNode
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -464,8 +464,10 @@ class Supervisor(MachineNode):
     def diagnostics(self, stamp: int, t: float) -> DiagnosticArray:
         """One status per constraint, from the cycles the line judged by time ``t`` (its stream advanced there,
         :func:`constraint_statuses`)."""
-        if self.stream.t < t:
-            self.stream.advance(t)
+        stream = self.stream
+        while stream.t < t:  # a clock started far into the line: in windows, keeping nothing behind them
+            stream.advance(min(t, max(stream.t, 0.0) + FAST_WINDOW))
+            self.lockstep.working(stamp)
         arr = DiagnosticArray()
         arr.header.stamp = ns_to_time_msg(stamp)
         arr.header.frame_id = self.NODE_NAME

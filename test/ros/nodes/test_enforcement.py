@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from ..conftest import Received, Ros
 
 SCENE = 'folder_faults'
-HORIZON = 10.0
+SPAN = 10.0
 DURATION = 7.0  # s of sim time the clock runs
 RATE = 100.0  # Hz of sim time: the clock, every node, the supervisor's check grid
 PERIOD = 1.0 / RATE
@@ -100,7 +100,7 @@ def call(ros: Ros, client: Any) -> tuple[bool, str]:
 
 def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(ros: Ros) -> None:
     scene = load_scene(SCENE)
-    free = LineModel(scene, HORIZON)
+    free = LineModel(scene, SPAN)
     T = cycle_timing(scene.machines['cyclogram'], scene.machines['knife']).T
     common = {'scene': SCENE, 'rate': RATE}
     nodes = {
@@ -232,10 +232,10 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     assert (viol['constraint'], viol['action']) == ('feed_window', 'hold') and float(viol['margin']) == v.margin
     # HELD at the first check-grid point at standstill; the crank ramped down and stood still, as the model says
     t_hold = published[0].t
-    held_model = LineModel(scene, HORIZON, published[:1])
+    held_model = LineModel(scene, SPAN, published[:1])
     t_held = on_grid(t_hold, lambda g: held_model.drive.rate(np.array([g]))[0] <= 0.0, h=PERIOD)
     assert logic.transitions[2].t == t_held and t_hold + scene.drive.t_brake <= t_held
-    model = LineModel(scene, HORIZON, published)
+    model = LineModel(scene, SPAN, published)
     crank = joints['crank_drive'].messages
     stamps = np.array([time_msg_to_ns(m.header.stamp) for m in crank])
     assert stamps.tolist() == ticks

@@ -60,7 +60,7 @@ RELIABLE = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 MS = 1_000_000  # ns
 STEP = 5 * MS  # ticks and grid at 200 Hz
 H = 1.0 / 200.0  # the supervisor's check period, s (as the node computes it)
-HORIZON = 5.0
+SPAN = 5.0
 LEAD = 0.1  # the supervisor's default command_lead, s
 MACHINES = (CrankDrive, BeltConveyor, FeedTransporter, SheetCounter)
 
@@ -184,7 +184,7 @@ def effective_in_message(message: str) -> float:
 
 def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     scene = load_scene('folder')
-    free = LineModel(scene, HORIZON)
+    free = LineModel(scene, SPAN)
     line = Line(ros, duration=3.0)
     sup = line.sup
     services = dict(line.listener.get_service_names_and_types())
@@ -215,7 +215,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
 
     # HOLDING, then HELD at the first point of the check grid at standstill
     t_hold = t_hold_ns / NS_PER_S
-    held = LineModel(scene, HORIZON, [Command(t_hold, 'hold')])
+    held = LineModel(scene, SPAN, [Command(t_hold, 'hold')])
     t_still = on_grid(t_hold, lambda g: held.drive.rate(np.array([g]))[0] <= 0.0)
     assert t_hold + scene.drive.t_brake <= t_still < t_hold + scene.drive.t_brake + H + 1e-9
     t_request2 = line.pause_at(t_still + 0.2)
@@ -239,7 +239,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert time_msg_to_ns(unhold.time_ref) == round((t_request2 + LEAD) * NS_PER_S)
     t_unhold = time_msg_to_ns(unhold.time_ref) / NS_PER_S
     cmds = [Command(t_hold, 'hold'), Command(t_unhold, 'unhold')]
-    model = LineModel(scene, HORIZON, cmds)
+    model = LineModel(scene, SPAN, cmds)
     t_speed = on_grid(t_unhold, lambda g: model.drive.rate(np.array([g]))[0] >= SPEED_REACHED)
     assert t_unhold + 0.99 * scene.drive.t_restart - 1e-9 <= t_speed < t_unhold + scene.drive.t_restart + 1e-9
     line.pause_at(t_speed + 0.2)
@@ -263,7 +263,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
 def test_stop_reset_start_abort_clear(ros: Ros) -> None:
     lead = 0.05
     scene = load_scene('folder')
-    free = LineModel(scene, HORIZON)
+    free = LineModel(scene, SPAN)
     line = Line(ros, duration=3.5, command_lead=lead)
     sup = line.sup
 
@@ -277,7 +277,7 @@ def test_stop_reset_start_abort_clear(ros: Ros) -> None:
     assert ok and message.startswith('stop: STOPPING, drive stop effective at') and 'next cycle boundary' in message
     t_stop = round(free.next_cycle_boundary(t1 + lead) * NS_PER_S) / NS_PER_S
     cmds = [Command(t_stop, 'stop')]
-    t_stopped = standstill(LineModel(scene, HORIZON, cmds), t_stop)
+    t_stopped = standstill(LineModel(scene, SPAN, cmds), t_stop)
 
     t2 = line.pause_at(t_stopped + 0.1)
     assert line.call('reset') == (True, 'reset: RESETTING')  # no drive command
@@ -287,14 +287,14 @@ def test_stop_reset_start_abort_clear(ros: Ros) -> None:
     assert ok and message.startswith('start: STARTING, drive start effective at')
     assert '0.05 s after the request' in message
     cmds.append(Command(round((t3 + lead) * NS_PER_S) / NS_PER_S, 'start'))
-    model = LineModel(scene, HORIZON, cmds)
+    model = LineModel(scene, SPAN, cmds)
     t_execute = on_grid(cmds[-1].t, lambda g: model.drive.rate(np.array([g]))[0] >= SPEED_REACHED)
 
     t4 = line.pause_at(t_execute + 0.1)
     ok, message = line.call('abort')
     assert ok and message.startswith('abort: ABORTING, drive stop effective at') and 'after the request' in message
     cmds.append(Command(round((t4 + lead) * NS_PER_S) / NS_PER_S, 'stop'))
-    t_aborted = standstill(LineModel(scene, HORIZON, cmds), cmds[-1].t)
+    t_aborted = standstill(LineModel(scene, SPAN, cmds), cmds[-1].t)
 
     t5 = line.pause_at(t_aborted + 0.1)
     assert line.call('clear') == (True, 'clear: CLEARING')
