@@ -5,8 +5,12 @@ The modules, in the order the data flows:
 :mod:`~folder_line.analysis.recording`
     a run directory or a bag decoded into a :class:`Recording` (:func:`read_recording`);
 :mod:`~folder_line.analysis.replay`
-    the recorded events judged by the line's constraint code (:func:`evaluate`) and the
-    supervisor's logic replayed on the recorded inputs (:func:`replay_transitions`);
+    the recorded events judged by the line's constraint code (:func:`evaluate`) and compared
+    with the streamed line model's (:func:`compare_events`), window by window of line time, and
+    the supervisor's logic replayed on the recorded inputs (:func:`replay_transitions`);
+:mod:`~folder_line.analysis.streaming`
+    what the figures show of a whole run, gathered as the windows pass in bounded memory (a
+    binned margin histogram, a hash-thinned sample);
 :mod:`~folder_line.analysis.figure_data` and :mod:`~folder_line.analysis.figures`
     what each figure shows, as arrays, and the figures drawn (with the papers' model
     curves that ``folder-line report`` draws too, in the colours of
@@ -19,13 +23,22 @@ The modules, in the order the data flows:
 """
 
 from folder_line.analysis.csv_export import CsvCollector, csv_name, flatten_message, message_rows
-from folder_line.analysis.figure_data import GANTT_CYCLES, cycle_rows, efficiency_data, exit_speed_data, landing_data
+from folder_line.analysis.figure_data import (
+    GANTT_CYCLES,
+    cycle_rows,
+    efficiency_data,
+    exit_speed_data,
+    landing_data,
+    leaf_exit_data,
+)
 from folder_line.analysis.figures import FIGURES, draw_figures
 from folder_line.analysis.recording import RecordedJoints, Recording, read_recording
 from folder_line.analysis.replay import (
     KEY_SUPERVISOR,
     SUPERVISOR_DEFAULTS,
     Evaluation,
+    EventCheck,
+    compare_events,
     evaluate,
     recorded_transitions,
     replay_transitions,
@@ -42,9 +55,11 @@ __all__ = [
     'AnalysisResult',
     'CsvCollector',
     'Evaluation',
+    'EventCheck',
     'RecordedJoints',
     'Recording',
     'analyze',
+    'compare_events',
     'csv_name',
     'cycle_rows',
     'draw_figures',
@@ -53,6 +68,7 @@ __all__ = [
     'exit_speed_data',
     'flatten_message',
     'landing_data',
+    'leaf_exit_data',
     'message_rows',
     'print_analysis',
     'read_recording',

@@ -535,9 +535,10 @@ class EventCheck:
         return self.error is None and self.values_differ == 0 and self.recorded_only == 0 and self.model_only == 0
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready."""
+        """JSON-ready, with :meth:`text` as ``text``."""
         return {
             'agree': self.agree,
+            'text': self.text(),
             't_from': self.t_from,
             't_end': self.t_end,
             'recorded': self.recorded,

@@ -401,7 +401,8 @@ def _write_analysis(
 
 
 def print_analysis(result: AnalysisResult, stream: Any) -> None:
-    """What ``folder-line analyze`` prints: the headline numbers and the files written."""
+    """What ``folder-line analyze`` prints: the headline numbers, whether the recorded events are the line
+    model's, and the files written."""
     s = result.summary
     print(
         f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles, '
@@ -416,6 +417,8 @@ def print_analysis(result: AnalysisResult, stream: Any) -> None:
         )
     if s['transitions']:
         print('states: ' + ' -> '.join(t['to'] for t in s['transitions']), file=stream)
+    if 'events_check' in s:
+        print(f'against the line model: {s["events_check"]["text"]}', file=stream)
     print(f'wrote {result.report}', file=stream)
     for path in result.figures.values():
         print(f'wrote {path}', file=stream)

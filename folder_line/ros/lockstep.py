@@ -409,7 +409,8 @@ class Participant:
         if now - self._acked_at < HEARTBEAT:
             return
         if self._last_ack is None:
-            self._ack(stamp - 1)
+            if stamp > 0:  # a line that starts at 0 has no instant before it (and nothing to fast-forward)
+                self._ack(stamp - 1)
         else:
             self._ack_pub.publish(self._last_ack)
             self._acked_at = now
@@ -439,9 +440,10 @@ class Participant:
             # heartbeat (seconds): those waiting for this participant must not take it for lost.
             self._ack_pub.publish(self._last_ack)
             self._acked_at = now
-        elif self._last_ack is None and self.pending and now - self._acked_at >= HEARTBEAT:
+        elif self._last_ack is None and self.pending and self.pending[0] > 0 and now - self._acked_at >= HEARTBEAT:
             # waiting for a producer before the first tick is done (the producers of a line joined far into
-            # it fast-forward first, at length): alive, at the instant before the tick, as working() says
+            # it fast-forward first, at length): alive, at the instant before the tick, as working() says.
+            # A line that starts at 0 has no instant before it, and its producers start at once.
             self._ack(self.pending[0] - 1)
         if not self.pending or self._waiting_since is None:
             return

@@ -50,7 +50,10 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 import rclpy
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.parameter import Parameter
+from rclpy.task import Future
 
 from folder_line.bag.statuses import accepted_tunings
 from folder_line.bag.writer import BagWriter
@@ -168,6 +171,7 @@ def _die_with_parent() -> None:  # pragma: no cover - runs in the child between 
 #: processes takes 0.1 s, or up to the 3 s announcement period of Fast DDS when the first exchange is
 #: missed (measured here: 24 of 62 probes found a running line only after 0.75-3.1 s, none later)
 OTHER_LINE_WAIT = 4.0
+WATCH = 0.2  # wall s between two looks at the bar, a foreign clock, the bag, lost nodes and signals
 _NAME_WAIT = 1.0  # wall s to learn the node of a publisher found (DDS discovery reports its endpoint first)
 _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoint whose node is not known yet
 
@@ -288,25 +292,30 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             nodes.append(clock)
             executor.add_node(clock)
             done = clock.done.done
-        last_draw = 0.0
         progress = LineTimeProgress(stream, cfg.duration)
+        stop = Future()  # the run's end: the clock done, or a reason to stop in ``interrupted``
+
+        def watch() -> None:
+            """In the executor, every :data:`WATCH` s of wall time: draw the bar, look for what stops the run."""
+            progress.show(recorder.sim_time)
+            if recorder.count_publishers(CLOCK_TOPIC) > 1:
+                interrupted.append('another /clock publisher appeared on this ROS domain')
+            if recorder.write_error is not None:
+                interrupted.append('the bag could not be written')
+            for name in set(recorder.lost) - ended_lost:  # once each
+                ended_lost.add(name)
+                _end_lost(procs.get(name))
+            if (done() or interrupted) and not stop.done():
+                stop.set_result(None)
+
+        # a timer, not a spin's timeout: rclpy's EventsExecutor did not return from
+        # spin_until_future_complete(timeout_sec=0.2) for a whole 30 s run of this line (and without a
+        # timeout it ran no callback at all)
+        watcher = recorder.create_timer(WATCH, watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
         with logs_above(progress):  # the nodes' log lines (rcutils, fd 2) above the bar, never through it
-            while not done() and not interrupted:
-                if clock is not None:
-                    executor.spin_until_future_complete(clock.done, timeout_sec=0.2)
-                else:
-                    executor.spin_once(timeout_sec=0.05)
-                now = time.perf_counter()
-                if now - last_draw > 0.2:
-                    progress.show(recorder.sim_time)
-                    last_draw = now
-                    if recorder.count_publishers(CLOCK_TOPIC) > 1:
-                        interrupted.append('another /clock publisher appeared on this ROS domain')
-                if recorder.write_error is not None:
-                    interrupted.append('the bag could not be written')
-                for name in set(recorder.lost) - ended_lost:  # once each
-                    ended_lost.add(name)
-                    _end_lost(procs.get(name))
+            while not (stop.done() or done() or interrupted):
+                executor.spin_until_future_complete(stop, timeout_sec=WATCH)
+            recorder.destroy_timer(watcher)
             if interrupted and clock is not None:
                 executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
             # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries

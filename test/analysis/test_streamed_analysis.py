@@ -2,7 +2,8 @@
 
 * ``analyze`` of the committed runs (``test/data/``) gives the numbers, cyclogram rows, landing
   histogram and margin bars the whole-span analysis gave before the line was streamed
-  (``data/before_streaming.json``: written by that analysis, at the commit before the streamed core);
+  (``data/before_streaming.json``: what ``analyze``, ``cycle_rows``, ``landing_data`` and the margins
+  figure's histogram gave at commit 75af36e, the last one with the whole-span line model);
 * the recorded events judged in tiny windows are judged as in one window (summary, violations,
   running figures, the figures' data), and as ``simulate`` judges its own events; the recorded
   events compared with the streamed line window by window are compared as in one window, and a

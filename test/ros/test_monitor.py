@@ -20,7 +20,10 @@ from std_msgs.msg import Float64, String, UInt64
 from folder_line.cli.main import main
 from folder_line.cli.monitor import run_monitor
 from folder_line.cli.monitor_view import LEVELS, MIN_HEIGHT, MIN_WIDTH, MonitorState, TopicStats
+from folder_line.config.scenes import load_scene
 from folder_line.core.line.margin_text import format_margin
+from folder_line.core.line.model import LineModel
+from folder_line.core.line.stream import LineStream
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     COMMANDS_TOPIC,
@@ -34,7 +37,6 @@ from folder_line.interfaces import (
     event_source,
 )
 from folder_line.ros import monitor as ros_monitor
-from folder_line.ros.nodes.machine import line_model
 from folder_line.ros.nodes.supervisor import Supervisor
 from folder_line.ros.recorder import LINE_TOPICS
 from folder_line.ros.time_msg import ns_to_time_msg
@@ -221,8 +223,16 @@ NS = 1_000_000_000
 
 
 def test_the_supervisors_own_diagnostics_render_as_one_row_per_constraint() -> None:
-    model = line_model('folder', '', 10.0, ())
-    fake = SimpleNamespace(model=model, NODE_NAME='supervisor', rejected={}, logic=SimpleNamespace(lost_nodes=[]))
+    scene = load_scene('folder')
+    model = LineModel(scene, 10.0)  # the reference: one window, each row decided where it is decided
+    fake = SimpleNamespace(
+        scene=scene,
+        stream=LineStream(scene),  # what the supervisor node judges on, advanced to each diagnostics stamp
+        NODE_NAME='supervisor',
+        rejected={},
+        logic=SimpleNamespace(lost_nodes=[]),
+        lockstep=SimpleNamespace(working=lambda stamp: None),
+    )
     state = MonitorState()
     state.ingest(DIAGNOSTICS_TOPIC, Supervisor.diagnostics(fake, 0, 0.0), 1.0)  # nothing evaluated yet
     state.ingest(DIAGNOSTICS_TOPIC, Supervisor.diagnostics(fake, 5 * NS, 5.0), 2.0)

@@ -148,7 +148,7 @@ def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[s
     assert float(rows['/clock'][1]) > 0.0
     # the announcement, transient-local: received once however late the monitor came
     assert rows['/line/participants'][2:] == ['1', 'lockstep', 'clock,', '5', 'participants']
-    constraints = line.supervisor.model.constraints
+    constraints = list(line.supervisor.stream.tallies.constraints.values())
     assert constraints
     shown = {'s': r'[+-]\d+\.\d{4} ms', 'm': r'[+-]\d+\.\d{4} mm', 'sheets': r'1 sheet|\d+ sheets? off'}
     for c in constraints:  # one row per constraint: level, margin and smallest margin, each in its unit

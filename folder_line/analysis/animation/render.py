@@ -141,7 +141,16 @@ def render(
     Returns
     -------
     Animation
+
+    Raises
+    ------
+    ValueError
+        ``line`` was advanced past the first frame's time.
+    OutputError
+        The target is refused or cannot be written (:func:`~folder_line.analysis.animation.encode.video_writer`).
     """
+    if line.t > scale.t_from:
+        raise ValueError(f'render: the line is at {line.t!r} s, past the first frame ({scale.t_from!r} s)')
     t0 = time.perf_counter()
     n = scale.frames
     fast_forward(line, scale.t_from)

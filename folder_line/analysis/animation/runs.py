@@ -123,14 +123,12 @@ def _timeline(
     )
 
 
-def _flags(rows: dict[str, list[ConstraintSeries]], t_end: float) -> list[Flag]:
-    """The violated rows decided by ``t_end``: per constraint (in the line's order), in row order."""
-    out = []
-    for parts in rows.values():
-        for c in parts:
-            for i in np.flatnonzero(c.violated & (c.t <= t_end)).tolist():
-                out.append(Flag(float(c.t[i]), c.name, int(c.cycle[i]), float(c.margin[i]), c.unit))
-    return out
+def _add_flags(flags: dict[str, list[Flag]], rows: Sequence[ConstraintSeries], t_end: float) -> None:
+    """Add the violated rows decided by ``t_end`` of a window (per constraint, in row order): only the violations
+    are kept as the windows pass."""
+    for c in rows:
+        for i in np.flatnonzero(c.violated & (c.t <= t_end)).tolist():
+            flags[c.name].append(Flag(float(c.t[i]), c.name, int(c.cycle[i]), float(c.margin[i]), c.unit))
 
 
 def batch_run(scene: Scene, scale: TimeScale, tunings: Sequence[Tuning] = ()) -> AnimatedRun:
@@ -153,7 +151,7 @@ def batch_run(scene: Scene, scale: TimeScale, tunings: Sequence[Tuning] = ()) ->
     t_end = scale.t_end
     sup = supervisor_logic(scene, SUPERVISOR_DEFAULTS)
     line = LineStream(scene)
-    rows: dict[str, list[ConstraintSeries]] = {name: [] for name in line.tallies.constraints}
+    found: dict[str, list[Flag]] = {name: [] for name in line.tallies.constraints}  # in the line's order
     pending = sorted(tunings, key=lambda tu: tu.t)  # each asked at the last tick before it, as simulate --bag does
     ticks: list[float] = []  # 0, step, 2 step, ..., t_end
     while not ticks or ticks[-1] < t_end:
@@ -180,13 +178,11 @@ def batch_run(scene: Scene, scale: TimeScale, tunings: Sequence[Tuning] = ()) ->
                 window = line.advance(w)
                 end = i + 1
                 break
-        for c in window.constraints:
-            rows[c.name].append(c)
+        _add_flags(found, window.constraints, t_end)
         k = end
-    for c in line.advance(t_end + JUDGED_AFTER).constraints + line.finish():  # decided by the end, judged after
-        rows[c.name].append(c)
+    _add_flags(found, line.advance(t_end + JUDGED_AFTER).constraints + line.finish(), t_end)  # judged after the end
     states = [(0.0, 'STARTING')] + [(float(tr.t), str(tr.target)) for tr in sup.transitions]
-    flags = _flags(rows, t_end)
+    flags = [f for per in found.values() for f in per]
     commands = tuple(sup.commands)
     title = f'scene {scene.name}: the line seen from the side (the streamed line, supervisor in the loop)'
     return AnimatedRun(scene, commands, _timeline(scene, commands, states, flags, scale.slowdown), title, states, flags)

@@ -1,7 +1,7 @@
 """F with D, streamed: the folder and its delivery advanced window by window from a carried state.
 
 :class:`FolderStream` computes the folder's exact events (the timeline of
-``docs/machines.md``: hand-over, arrival at the front stops, bounces, knife contact and
+:mod:`folder_line.core.line.folder_sim`: hand-over, arrival at the front stops, bounces, knife contact and
 exit, release on the pile, faults), its joint states and its per-cycle constraints,
 for ever, in memory that does not grow with line time. Two calls drive it:
 
