@@ -75,11 +75,13 @@ from folder_line.interfaces import NODE_OF_UNIT
 __all__ = [
     'COINCIDE_FRACTION',
     'DPI',
+    'DISPLAY_UNITS',
     'FIGURES',
     'OPERATIONS',
     'PHASE_COLOURS',
     'QUANTITY_COLOURS',
     'coincidence',
+    'cyclogram_figure',
     'draw_figures',
     'efficiency_figure',
     'exit_speed_curves',
@@ -484,13 +486,28 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
     timing = ev.timing
     if timing is None:
         return None
+    shown = (
+        f'the first {len(rows)}'
+        if [r['cycle'] for r in rows] == list(range(len(rows)))
+        else f'the first {n} and the first violated'
+    )
+    title = (
+        f'F: cyclogram of {shown} of {ev.cycles} cycles (paper F figs. 1-2), '
+        f'T = {timing.T * 1e3:.1f} ms; hatched: bouncing at the stops'
+    )
+    return save_figure(cyclogram_figure(rows, timing, title), out / 'cyclogram.png')
+
+
+def cyclogram_figure(rows: Sequence[Mapping[str, Any]], timing: Any, title: str, unjudged: str = '') -> Any:
+    """The cyclogram of the cycles ``rows`` (:func:`~folder_line.analysis.figure_data.cycle_rows`'s) under
+    the nominal cycle of ``timing`` (a :class:`~folder_line.core.mechanisms.cyclogram.CycleTiming`), titled
+    ``title``; ``unjudged`` is written for a cycle without margins."""
     plt = pyplot()
     ms = 1e3
     fig, ax = plt.subplots(figsize=(12, 2.2 + 0.55 * (len(rows) + 1)))
     colours = {letter: colour for letter, _, colour in OPERATIONS}
     x_max = timing.T * ms
-    # the nominal cycle of the paper's cyclogram, from the knife exit
-    for ph in timing.timeline:
+    for ph in timing.timeline:  # the nominal cycle of the paper's cyclogram, from the knife exit
         a = (ph.t_start - timing.knife.t_out) % timing.T
         b = a + ph.duration
         for lo, hi in ((a, min(b, timing.T)), (0.0, b - timing.T)) if b > timing.T else ((a, b),):
@@ -499,57 +516,14 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
         ax.text((a + min(b, timing.T)) / 2 * ms, -1, ph.name, ha='center', va='center', fontsize=7)
     ax.axvline(timing.t_allowed * ms, color='k', ls=':', lw=1)
     for i, row in enumerate(rows):
-        t0 = row['start']
-        n_s = max(len(row['sheets']), 1)
-        h = 0.6 / n_s
-        for j, s in enumerate(row['sheets']):
-            y = i - 0.3 + h * (j + 0.5)
-            segs = [
-                ('А', s['handover'], s['at_stops'], None),
-                ('Б', s['at_stops'], s['settled'], '////'),
-                (
-                    'Б',
-                    s['settled'],
-                    row['contact'] if s['settled'] is not None and s['settled'] <= row['contact'] else None,
-                    None,
-                ),
-            ]
-            if s['release'] is not None and row['exit'] is not None:
-                segs.append(('Г', row['exit'], s['release'], None))
-            for letter, a, b, hatch in segs:
-                if a is None or b is None or b < a:
-                    continue
-                ax.barh(
-                    y,
-                    (b - a) * ms,
-                    left=(a - t0) * ms,
-                    height=h * 0.9,
-                    color=colours[letter],
-                    alpha=0.45 if hatch else 0.8,
-                    hatch=hatch,
-                    edgecolor='white' if hatch else None,
-                )
-                x_max = max(x_max, (b - t0) * ms)
-        if not row['sheets']:
-            ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
-        if row['exit'] is not None:
-            ax.barh(
-                i,
-                (row['exit'] - row['contact']) * ms,
-                left=(row['contact'] - t0) * ms,
-                height=0.6,
-                color=colours['В'],
-                alpha=0.8,
-            )
-            x_max = max(x_max, (row['exit'] - t0) * ms)
-        ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
-        x_max = max(x_max, (row['deadline'] - t0) * ms)
+        x_max = max(x_max, _cycle_bars(ax, i, row, colours))
     text_x = x_max * 1.03
     for i, row in enumerate(rows):
         bad = any(m < 0.0 for m in row['margins'].values())
-        ax.text(text_x, i, _margin_text(row['margins']), va='center', fontsize=7.5, color='r' if bad else 'k')
+        text = _margin_text(row['margins']) or unjudged
+        ax.text(text_x, i, text, va='center', fontsize=7.5, color='r' if bad else 'k')
     ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
-    ax.set_yticks([-1] + list(range(len(rows))), ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
+    ax.set_yticks([-1, *range(len(rows))], ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
     for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
         if any(m < 0.0 for m in row['margins'].values()):
             label.set_color('r')
@@ -566,22 +540,60 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
     handles.append(plt.Line2D([0], [0], color='k', lw=2))
     labels.append('feed deadline of the cycle (window start + t_allowed)')
     fig.legend(handles, labels, loc='lower center', ncol=2, fontsize=8, frameon=False)
-    shown = (
-        f'the first {len(rows)}'
-        if [r['cycle'] for r in rows] == list(range(len(rows)))
-        else f'the first {n} and the first violated'
-    )
-    ax.set_title(
-        f'F: cyclogram of {shown} of {ev.cycles} cycles (paper F figs. 1-2), '
-        f'T = {timing.T * ms:.1f} ms; hatched: bouncing at the stops',
-        fontsize=10,
-    )
+    ax.set_title(title, fontsize=10)
     ax.grid(axis='x', alpha=0.3)
     fig.tight_layout(rect=(0.0, 0.85 / fig.get_figheight(), 1.0, 1.0))
-    return save_figure(fig, out / 'cyclogram.png')
+    return fig
 
 
-_DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
+def _cycle_bars(ax: Any, i: int, row: Mapping[str, Any], colours: Mapping[str, str]) -> float:
+    """The operations of one cycle drawn on row ``i``; the latest time drawn, ms from the cycle's start."""
+    ms = 1e3
+    t0 = row['start']
+    x_max = 0.0
+    h = 0.6 / max(len(row['sheets']), 1)
+    for j, s in enumerate(row['sheets']):
+        y = i - 0.3 + h * (j + 0.5)
+        settled = s['settled'] if s['settled'] is not None and s['settled'] <= row['contact'] else None
+        segs = [
+            ('А', s['handover'], s['at_stops'], None),
+            ('Б', s['at_stops'], s['settled'], '////'),
+            ('Б', s['settled'], row['contact'] if settled is not None else None, None),
+        ]
+        if s['release'] is not None and row['exit'] is not None:
+            segs.append(('Г', row['exit'], s['release'], None))
+        for letter, a, b, hatch in segs:
+            if a is None or b is None or b < a:
+                continue
+            ax.barh(
+                y,
+                (b - a) * ms,
+                left=(a - t0) * ms,
+                height=h * 0.9,
+                color=colours[letter],
+                alpha=0.45 if hatch else 0.8,
+                hatch=hatch,
+                edgecolor='white' if hatch else None,
+            )
+            x_max = max(x_max, (b - t0) * ms)
+    if not row['sheets']:
+        ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
+    if row['exit'] is not None:
+        ax.barh(
+            i,
+            (row['exit'] - row['contact']) * ms,
+            left=(row['contact'] - t0) * ms,
+            height=0.6,
+            color=colours['В'],
+            alpha=0.8,
+        )
+        x_max = max(x_max, (row['exit'] - t0) * ms)
+    ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
+    return max(x_max, float((row['deadline'] - t0) * ms))
+
+
+#: a quantity's display scale and unit, by its SI unit
+DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
 
 
 def _margin_bins(low: float, high: float, unit: str, bins: int = 30) -> np.ndarray:
@@ -627,7 +639,7 @@ def _plot_margins(ev: Evaluation, out: Path) -> Path:
     if not series:
         axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
     for ax, c in zip(axes.ravel(), series, strict=False):
-        scale, unit = _DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
+        scale, unit = DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
         h = c.histogram
         nv = h.violations
         ax.set_title(f'{c.name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')

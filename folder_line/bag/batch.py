@@ -61,11 +61,14 @@ import numpy as np
 
 from folder_line.bag.cdr import (
     JointStateLayout,
-    clock_cdr,
+    clock_rows,
+    diagnostic_array_cdr,
     float64_cdr,
+    float64_rows,
     string_cdr,
     time_reference_cdr,
-    uint64_cdr,
+    time_references,
+    uint64_rows,
 )
 from folder_line.bag.markers import marker_specs, marker_stamps, markers_cdr
 from folder_line.bag.statuses import (
@@ -77,8 +80,7 @@ from folder_line.bag.statuses import (
     tuning_status,
     violation_status,
 )
-from folder_line.bag.types import typestore
-from folder_line.bag.writer import BagWriter
+from folder_line.bag.writer import BagWriter, TickMessages
 from folder_line.config.run_config import MARKER_RATE, RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
 from folder_line.core.line.events import EVENT_DTYPE
@@ -108,7 +110,6 @@ from folder_line.interfaces import (
     SHEET_RATE_TOPIC,
     SUPERVISOR,
     SUPERVISOR_STATE_TOPIC,
-    event_source,
     joint_states_topic,
     seconds_to_ns,
 )
@@ -188,27 +189,11 @@ class SheetRate:
         self.times = self.times[n:]
 
 
-def _status_msg(s: Status) -> Any:  # a typestore diagnostic_msgs/msg/DiagnosticStatus
-    types = typestore().types
-    kv = types['diagnostic_msgs/msg/KeyValue']
-    return types['diagnostic_msgs/msg/DiagnosticStatus'](
-        level=s.level,
-        name=s.name,
-        message=s.message,
-        hardware_id=s.hardware_id,
-        values=[kv(key=k, value=v) for k, v in s.values],
-    )
-
-
 def _array_cdr(stamp: int, statuses: list[Status]) -> bytes:
     """CDR of the supervisor's ``diagnostic_msgs/msg/DiagnosticArray`` of ``statuses`` stamped ``stamp`` (ns)."""
-    types = typestore().types
-    header = types['std_msgs/msg/Header'](
-        stamp=types['builtin_interfaces/msg/Time'](sec=stamp // NS_PER_S, nanosec=stamp % NS_PER_S),
-        frame_id=SUPERVISOR,
+    return diagnostic_array_cdr(
+        stamp, SUPERVISOR, [(s.level, s.name, s.message, s.hardware_id, s.values) for s in statuses]
     )
-    msg = types['diagnostic_msgs/msg/DiagnosticArray'](header=header, status=[_status_msg(s) for s in statuses])
-    return bytes(typestore().serialize_cdr(msg, 'diagnostic_msgs/msg/DiagnosticArray', little_endian=True))
 
 
 class _SupervisorOut:
@@ -297,7 +282,9 @@ class _Writer:
         self.line = line
         self.sup = sup
         self.units = {node: {n: u for u, n in NODE_OF_UNIT.items()}.get(node, '') for node in JOINT_NODES}
-        self.kinds = {node: _own_kinds(node) for node in JOINT_NODES}
+        self.owner = np.full(len(EVENT_KINDS), -1, dtype=np.int64)  # event kind -> its node's index
+        for j, node in enumerate(JOINT_NODES):
+            self.owner[_own_kinds(node)] = j
         self.layouts: dict[str, JointStateLayout] = {}
         self.landed = EVENT_KINDS.index('leaf_landed')
         self.counted = EVENT_KINDS.index(counted_event(scene.has_delivery))
@@ -305,67 +292,110 @@ class _Writer:
         self.marker_rate = marker_rate
         self.marker_ns: int | None = None
         self.scenery: Scenery | None = None
-        self.states: dict[str, bytes] = {}
+        self.states: dict[str, np.ndarray] = {}  # the CDR of each state
 
     def write(self, stamps: np.ndarray, events: np.ndarray, ticks: list[_Tick]) -> None:
-        """Write the ticks ``stamps`` (ns): per tick ``/clock``, then node by node what it publishes."""
+        """Write the ticks ``stamps`` (ns): per tick ``/clock``, then node by node what it publishes.
+
+        The window is written at once (:class:`~folder_line.bag.writer.TickMessages`): each topic's
+        messages of every tick as one column, put in the tick's order by their slot (``/clock``;
+        per node its events, joint states and the counter's outputs and markers; the supervisor's
+        outputs, state and diagnostics), as a tick-by-tick write would order them.
+        """
         line = self.line
+        n = len(stamps)
         t = stamps / NS_PER_S
-        joints: dict[str, tuple[bytes, int]] = {}
-        for node, unit in self.units.items():
-            if unit not in line.units:
-                continue
-            js = line.sample(unit, t)
-            layout = self.layouts.get(node)
-            if layout is None:
-                effort = 0 if js.effort is None else js.effort.shape[1]
-                width = js.position.shape[1]
-                layout = self.layouts[node] = JointStateLayout.of(node, list(js.names), (width, width, effort))
-            joints[node] = (layout.many(stamps, js.position, js.velocity, js.effort), len(layout.template))
+        out = TickMessages(stamps)
+        out.add_rows(CLOCK_TOPIC, 0, clock_rows(stamps))
         self.rates.add(events['t'][events['kind'] == self.counted])
         count = self.rates.count(t)
         rate = self.rates.rate(t)
         self.rates.forget(float(t[-1]))
-        bounds = np.searchsorted(events['t'], np.concatenate(([-math.inf], t)), side='right')  # the window's
-        own = {node: np.isin(events['kind'], kinds) for node, kinds in self.kinds.items()}
-        for i in range(t.size):
-            stamp = int(stamps[i])
-            tick = events[bounds[i] : bounds[i + 1]]
-            mask_lo, mask_hi = bounds[i], bounds[i + 1]
-            items: list[tuple[str, bytes, int]] = [(CLOCK_TOPIC, clock_cdr(stamp), stamp)]
-            for node in JOINT_NODES:
-                mine = tick[own[node][mask_lo:mask_hi]]
-                for row in mine:
-                    source = event_source(EVENT_KINDS[row['kind']], row['sheet'], row['cycle'], row['value'])
-                    time_ref = max(0, round(float(row['t']) * NS_PER_S))
-                    items.append((EVENTS_TOPIC, time_reference_cdr(stamp, node, time_ref, source), stamp))
-                if node in joints:
-                    blob, size = joints[node]
-                    items.append((joint_states_topic(node), blob[i * size : (i + 1) * size], stamp))
-                if node == 'sheet_counter':
-                    items.append((SHEET_COUNT_TOPIC, uint64_cdr(int(count[i])), stamp))
-                    items.append((SHEET_RATE_TOPIC, float64_cdr(float(rate[i])), stamp))
-                    for row in mine[mine['kind'] == self.landed]:
-                        items.append((LANDING_TOPIC, float64_cdr(float(row['value'])), stamp))
-                    items.extend(self._markers(stamp))
-            tk = ticks[i]
-            items.extend(tk.outs)
-            if tk.state not in self.states:
-                self.states[tk.state] = string_cdr(tk.state)
-            items.append((SUPERVISOR_STATE_TOPIC, self.states[tk.state], stamp))
-            if tk.diag:
-                items.append((DIAGNOSTICS_TOPIC, self.sup.diagnostics(line, stamp), stamp))
-            self.bag.write_many(stamp, items)
+        # each event goes out at its tick: events[bounds[i]:bounds[i + 1]] at tick i
+        bounds = np.searchsorted(events['t'], np.concatenate(([-math.inf], t)), side='right')
+        tick_of = np.searchsorted(bounds, np.arange(len(events)), side='right') - 1
+        sent = (tick_of >= 0) & (tick_of < n)
+        kind = events['kind'].astype(np.int64)
+        known = (kind >= 0) & (kind < len(self.owner))
+        owner = np.where(known, self.owner[np.where(known, kind, 0)], -1)  # each event's node (index), -1: none
+        for j, node in enumerate(JOINT_NODES):
+            slot = 1 + 10 * j
+            mine = sent & (owner == j)
+            if mine.any():
+                rows, at = events[mine], tick_of[mine]
+                out.add_packed(EVENTS_TOPIC, slot, at, *_event_cdrs(node, stamps[at], rows))
+            unit = self.units[node]
+            if unit in line.units:
+                js = line.sample(unit, t)
+                layout = self.layouts.get(node)
+                if layout is None:
+                    effort = 0 if js.effort is None else js.effort.shape[1]
+                    width = js.position.shape[1]
+                    layout = self.layouts[node] = JointStateLayout.of(node, list(js.names), (width, width, effort))
+                rows_js = layout.rows(stamps, js.position, js.velocity, js.effort)
+                out.add_rows(joint_states_topic(node), slot + 1, rows_js)
+            if node == 'sheet_counter':
+                out.add_rows(SHEET_COUNT_TOPIC, slot + 2, uint64_rows(count))
+                out.add_rows(SHEET_RATE_TOPIC, slot + 3, float64_rows(rate))
+                landed = mine & (events['kind'] == self.landed)
+                if landed.any():
+                    values = events['value'][landed].tolist()
+                    out.add_each(LANDING_TOPIC, slot + 4, tick_of[landed], [float64_cdr(v) for v in values])
+                self._markers(out, stamps, slot + 5)
+        outs = [(i, item) for i, tk in enumerate(ticks[:n]) for item in tk.outs]
+        if outs:
+            out.add_each(
+                [topic for _, (topic, _, _) in outs],
+                100,
+                [i for i, _ in outs],
+                [cdr for _, (_, cdr, _) in outs],
+                [publish for _, (_, _, publish) in outs],
+            )
+        states = [tk.state for tk in ticks[:n]]
+        for state in dict.fromkeys(states):
+            if state not in self.states:
+                self.states[state] = np.frombuffer(string_cdr(state), dtype=np.uint8)
+            at = np.flatnonzero([s == state for s in states])
+            row = self.states[state]
+            out.add_rows(SUPERVISOR_STATE_TOPIC, 101, np.broadcast_to(row, (len(at), len(row))), at)
+        diag = [i for i, tk in enumerate(ticks[:n]) if tk.diag]
+        if diag:
+            out.add_each(DIAGNOSTICS_TOPIC, 102, diag, [self.sup.diagnostics(line, int(stamps[i])) for i in diag])
+        self.bag.write_ticks(out)
 
-    def _markers(self, stamp: int) -> list[tuple[str, bytes, int]]:
-        out = []
-        for g in marker_stamps(self.marker_ns, stamp, self.marker_rate):
-            if self.scenery is None:
-                self.scenery = Scenery(self.line)
-            cdr = markers_cdr(marker_specs(self.scenery.at(g / NS_PER_S)), g, delete_all=self.marker_ns is None)
-            out.append((MARKERS_TOPIC, cdr, stamp))
+    def _markers(self, out: TickMessages, stamps: np.ndarray, slot: int) -> None:
+        """The marker arrays due in the ticks ``stamps``: each grid point at the first tick at or after it."""
+        grid = list(marker_stamps(self.marker_ns, int(stamps[-1]), self.marker_rate))
+        if not grid:
+            return
+        if self.scenery is None:
+            self.scenery = Scenery(self.line)
+        blobs = []
+        for g, shapes in zip(grid, self.scenery.at_times([g / NS_PER_S for g in grid]), strict=True):
+            blobs.append(markers_cdr(marker_specs(shapes), g, delete_all=self.marker_ns is None))
             self.marker_ns = g
-        return out
+        out.add_each(MARKERS_TOPIC, slot, np.searchsorted(stamps, grid, side='left'), blobs)
+
+
+def _event_cdrs(node: str, stamps: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``/line/events`` ``TimeReference`` of each event ``rows`` of ``node``, sent at ``stamps`` (ns):
+    their CDR one after the other and the length of each (:func:`~folder_line.bag.cdr.time_references`).
+
+    ``time_ref`` is the event's time rounded to the ns (not below 0); ``source`` is
+    :func:`~folder_line.interfaces.event_source`'s text, formatted here for all rows at once.
+    """
+    time_ref = np.maximum(0, np.rint(rows['t'] * NS_PER_S).astype(np.int64))
+    sources = [
+        f'{_KIND_NAMES[k]} sheet={sheet} cycle={cycle} value={value!r}'  # event_source(kind, sheet, cycle, value)
+        for k, sheet, cycle, value in zip(
+            rows['kind'].tolist(), rows['sheet'].tolist(), rows['cycle'].tolist(), rows['value'].tolist(), strict=True
+        )
+    ]
+    return time_references(stamps, node, time_ref, sources)
+
+
+#: the event kinds by index, as :func:`~folder_line.interfaces.event_source` names them
+_KIND_NAMES: tuple[str, ...] = tuple(EVENT_KINDS)
 
 
 def _heard(events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -458,16 +488,18 @@ def write_batch_bag(
             bounds = np.searchsorted(heard_t, np.concatenate(([window.t0], t)), side='right')
             ticks: list[_Tick] = []
             n_commands = len(logic.commands)
+            # per tick as Python numbers (the same values: the loop runs 200 times a second of line time)
+            cuts, times, diags = bounds.tolist(), t.tolist(), (stamps % diag_step == 0).tolist()
             for i in range(end - k):
-                if bounds[i + 1] > bounds[i]:
-                    logic.feed(heard[bounds[i] : bounds[i + 1]])
-                logic.tick(float(t[i]))
+                if cuts[i + 1] > cuts[i]:
+                    logic.feed(heard[cuts[i] : cuts[i + 1]])
+                logic.tick(times[i])
                 while pending and pending[0][0] == k + i:
-                    sup.tune(float(t[i]), pending.pop(0)[1])
-                ticks.append(_Tick(logic.state, sup.outputs(), bool(stamps[i] % diag_step == 0)))
+                    sup.tune(times[i], pending.pop(0)[1])
+                ticks.append(_Tick(logic.state, sup.outputs(), diags[i]))
                 if len(logic.commands) != n_commands:  # the line runs under it from the next tick on
                     line.restore(start, logic.commands)
-                    window = line.advance(float(t[i]))
+                    window = line.advance(times[i])
                     stamps, end = stamps[: i + 1], k + i + 1
                     break
             writer.write(stamps, window.events, ticks)

@@ -23,13 +23,13 @@ in a batch bag alike.
 
 from __future__ import annotations
 
+import functools
+import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from folder_line.bag.types import typestore
 from folder_line.core.line.scenery import LINE_FRAME, Shape
 from folder_line.interfaces import NS_PER_S
 
@@ -124,55 +124,100 @@ def marker_stamps(after_ns: int | None, until_ns: int, rate: float) -> Iterator[
 
 
 def markers_cdr(specs: list[MarkerSpec], stamp_ns: int, *, delete_all: bool = False) -> bytes:
-    """CDR of the ``MarkerArray`` of ``specs`` stamped ``stamp_ns`` (a ``DELETEALL`` first if ``delete_all``)."""
-    types = typestore().types
-    header = types['std_msgs/msg/Header'](
-        stamp=types['builtin_interfaces/msg/Time'](sec=stamp_ns // NS_PER_S, nanosec=stamp_ns % NS_PER_S),
-        frame_id=LINE_FRAME,
-    )
-    markers = [_marker(types, header, s) for s in specs]
+    """CDR of the ``MarkerArray`` of ``specs`` stamped ``stamp_ns`` (a ``DELETEALL`` first if ``delete_all``).
+
+    Little-endian CDR as the rosbags typestore serializes it (``test/bag/test_markers_cdr.py``
+    compares them), written field by field with :mod:`struct`: a marker's layout depends only
+    on its namespace and where it starts (the alignment), so each is one packing of its
+    numbers, its points' bytes and the constant tail of empty fields.
+    """
+    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+    body = bytearray(_ENCAPSULATION)
+    body += struct.pack('<I', len(specs) + bool(delete_all))
     if delete_all:
-        markers.insert(0, _marker(types, header, None))
-    msg = types[MARKERS_TYPE](markers=markers)
-    return bytes(typestore().serialize_cdr(msg, MARKERS_TYPE, little_endian=True))
+        _append_marker(body, sec, nanosec, '', 0, 0, ACTION_DELETEALL, _ORIGIN, _ORIGIN, (0.0, 0.0, 0.0, 0.0), None)
+    for m in specs:
+        _append_marker(body, sec, nanosec, m.ns, m.id, m.type, m.action, m.position, m.scale, m.color, m.points)
+    return bytes(body)
 
 
-def _marker(types: Any, header: Any, s: MarkerSpec | None) -> Any:
-    point, vec, rgba = (
-        types['geometry_msgs/msg/Point'],
-        types['geometry_msgs/msg/Vector3'],
-        types['std_msgs/msg/ColorRGBA'],
+#: little-endian CDR encapsulation header
+_ENCAPSULATION = b'\x00\x01\x00\x00'
+_ORIGIN = (0.0, 0.0, 0.0)
+_FRAME = LINE_FRAME.encode()
+
+
+def _layout(codes: list[str], start: int) -> tuple[struct.Struct, int]:
+    """The :class:`struct.Struct` of CDR fields ``codes`` (struct codes; ``<n>s`` for raw bytes) written
+    from an offset ``start`` (mod 8) of the message body, each aligned to its size; and where it ends (mod 8)."""
+    fmt = '<'
+    pos = start
+    for code in codes:
+        size = int(code[:-1]) if code.endswith('s') else struct.calcsize('<' + code)
+        align = 1 if code.endswith('s') else size
+        pad = -pos % align
+        fmt += f'{pad}x{code}' if pad else code
+        pos += pad + size
+    return struct.Struct(fmt), pos % 8
+
+
+@functools.cache
+def _head(ns: bytes, start: int) -> tuple[struct.Struct, int]:
+    """A marker's fields up to its points' count (namespace ``ns``, starting at ``start`` mod 8)."""
+    codes = ['i', 'I', 'I', f'{len(_FRAME) + 1}s', 'I', f'{len(ns) + 1}s', 'i', 'i', 'i']
+    codes += ['d'] * 10 + ['f'] * 4 + ['i', 'I', '?', 'I']  # pose, scale; color; lifetime, frame_locked, points
+    return _layout(codes, start)
+
+
+@functools.cache
+def _tail(start: int) -> bytes:
+    """A marker's fields after its points (all empty), starting at ``start`` mod 8."""
+    codes = ['I', 'I', '1s', 'i', 'I', 'I', '1s', 'I', '1s', 'I', 'I', 'I', '1s', 'I', '1s', 'I', '1s', 'I', '?']
+    layout, _ = _layout(codes, start)
+    return layout.pack(0, 1, b'', 0, 0, 1, b'', 1, b'', 0, 0, 1, b'', 1, b'', 1, b'', 0, False)
+
+
+def _append_marker(
+    body: bytearray,
+    sec: int,
+    nanosec: int,
+    ns: str,
+    id_: int,
+    type_: int,
+    action: int,
+    position: tuple[float, float, float],
+    scale: tuple[float, float, float],
+    color: tuple[float, float, float, float],
+    points: np.ndarray | None,
+) -> None:
+    """One ``visualization_msgs/Marker`` (frame :data:`LINE_FRAME`, identity orientation) appended to ``body``."""
+    raw = ns.encode()
+    head, end = _head(raw, (len(body) - 4) % 8)
+    n = 0 if points is None else len(points)
+    body += head.pack(
+        sec,
+        nanosec,
+        len(_FRAME) + 1,
+        _FRAME,
+        len(raw) + 1,
+        raw,
+        id_,
+        type_,
+        action,
+        *position,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+        *scale,
+        *color,
+        0,
+        0,
+        False,
+        n,
     )
-    pose = types['geometry_msgs/msg/Pose'](
-        position=point(x=0.0, y=0.0, z=0.0) if s is None else point(x=s.position[0], y=s.position[1], z=s.position[2]),
-        orientation=types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0),
-    )
-    return types['visualization_msgs/msg/Marker'](
-        header=header,
-        ns='' if s is None else s.ns,
-        id=0 if s is None else s.id,
-        type=0 if s is None else s.type,
-        action=ACTION_DELETEALL if s is None else s.action,
-        pose=pose,
-        scale=vec(x=0.0, y=0.0, z=0.0) if s is None else vec(x=s.scale[0], y=s.scale[1], z=s.scale[2]),
-        color=rgba(r=0.0, g=0.0, b=0.0, a=0.0)
-        if s is None
-        else rgba(r=s.color[0], g=s.color[1], b=s.color[2], a=s.color[3]),
-        lifetime=types['builtin_interfaces/msg/Duration'](sec=0, nanosec=0),
-        frame_locked=False,
-        points=[] if s is None else [point(x=float(x), y=float(y), z=float(z)) for x, y, z in s.points],
-        colors=[],
-        texture_resource='',
-        texture=types['sensor_msgs/msg/CompressedImage'](
-            header=types['std_msgs/msg/Header'](
-                stamp=types['builtin_interfaces/msg/Time'](sec=0, nanosec=0), frame_id=''
-            ),
-            format='',
-            data=np.zeros(0, dtype=np.uint8),
-        ),
-        uv_coordinates=[],
-        text='',
-        mesh_resource='',
-        mesh_file=types['visualization_msgs/msg/MeshFile'](filename='', data=np.zeros(0, dtype=np.uint8)),
-        mesh_use_embedded_materials=False,
-    )
+    if n:
+        body += bytes(-end % 8)
+        body += np.ascontiguousarray(points, dtype='<f8').tobytes()
+        end = 0
+    body += _tail(end)

@@ -71,6 +71,8 @@ KEY_REPAIR = 'folder_line.repair'
 KEY_COMPLETE = 'folder_line.complete'
 
 _SPLIT = re.compile(r'_(\d+)\.mcap$')
+#: a file name YAML writes as it is (a plain scalar that reads back as this string)
+_PLAIN = re.compile(r'[A-Za-z_][A-Za-z0-9_.\-]{0,60}\.mcap\Z')
 
 
 @dataclass(frozen=True)
@@ -146,8 +148,17 @@ class MetadataBuilder:
     def add_file(self, summary: FileSummary) -> None:
         """List one more finished file (after the ones already added)."""
         self.files.append(summary)
-        self._paths.append(_dump([summary.path], 2))
-        self._entries.append(_dump([summary.entry()], 2))
+        if _PLAIN.match(summary.path):  # what yaml writes, without its cost (a bag has thousands of files)
+            self._paths.append(f'  - {summary.path}\n')
+            self._entries.append(
+                f'  - path: {summary.path}\n'
+                f'    starting_time:\n      nanoseconds_since_epoch: {int(summary.start_ns)}\n'
+                f'    duration:\n      nanoseconds: {int(summary.end_ns - summary.start_ns)}\n'
+                f'    message_count: {int(summary.count)}\n'
+            )
+        else:
+            self._paths.append(_dump([summary.path], 2))
+            self._entries.append(_dump([summary.entry()], 2))
 
     def render(self, topics: Mapping[str, TopicSummary], custom: Mapping[str, str]) -> str:
         """The text of ``metadata.yaml`` for the files added, ``topics`` and ``custom`` (``custom_data``)."""

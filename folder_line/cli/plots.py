@@ -43,16 +43,24 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
+from folder_line.analysis.colours import QUANTITY_COLOURS
 from folder_line.analysis.figure_data import GANTT_CYCLES
-from folder_line.analysis.figures import FIGURES, exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.analysis.figures import (
+    DISPLAY_UNITS,
+    FIGURES,
+    cyclogram_figure,
+    exit_speed_curves,
+    pyplot,
+    save_figure,
+    stroke_curves,
+)
 from folder_line.analysis.streaming import stamp_priority
 from folder_line.cli import summary as summary_cli
 from folder_line.config.run_config import RATE
@@ -60,7 +68,7 @@ from folder_line.core.effects import chain_friction, leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.events import ConstraintSeries, event_kind
-from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
+from folder_line.core.line.margin_text import format_margin
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream, Window
 from folder_line.core.line.tuning import LineCommand
@@ -103,14 +111,6 @@ LANDING_MARKS = 400
 MARGIN_BINS = 48
 #: line time after a cycle's knife contact when its operations are taken from the windows held, s
 SETTLE = 10.0
-#: the operations of the cyclogram (paper F): letter, label, colour (``analyze``'s)
-OPERATIONS = (
-    ('А', 'feed: hand-over -> at the stops', 'tab:green'),
-    ('Б', 'settle + dwell: at the stops -> settled -> knife contact', 'tab:blue'),
-    ('В', 'knife: contact -> exit', 'tab:red'),
-    ('Г', 'delivery: knife exit -> released on the pile', 'tab:purple'),
-)
-_DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
 _STEP_NS = round(NS_PER_S / RATE)
 
 
@@ -774,108 +774,20 @@ def _efficiency(data: FigureData, out: Path) -> Path | None:
     return save_figure(fig, out / 'efficiency.png')
 
 
-def _margin_text(margins: Mapping[str, float]) -> str:
-    parts = []
-    for name, m in margins.items():
-        value = format_margin(m, CONSTRAINT_UNITS.get(name, ''), name, precision=3, fixed=False, short=True)
-        parts.append(value if name == 'one_per_cycle' else f'{MARGIN_LABELS.get(name, name)} {value}')
-    return ' | '.join(parts)
-
-
 def _cyclogram(data: FigureData, out: Path) -> Path | None:
     cg = data.cyclogram
     if cg is None:
         return None
     rows = cg.done()
-    timing = cg.timing
-    plt = pyplot()
-    ms = 1e3
-    fig, ax = plt.subplots(figsize=(12, 2.2 + 0.55 * (len(rows) + 1)))
-    colours = {letter: colour for letter, _, colour in OPERATIONS}
-    x_max = timing.T * ms
-    for ph in timing.timeline:  # the nominal cycle of the paper's cyclogram, from the knife exit
-        a = (ph.t_start - timing.knife.t_out) % timing.T
-        b = a + ph.duration
-        for lo, hi in ((a, min(b, timing.T)), (0.0, b - timing.T)) if b > timing.T else ((a, b),):
-            if hi > lo:
-                ax.barh(-1, (hi - lo) * ms, left=lo * ms, height=0.5, color=PHASE_COLOURS[ph.name], alpha=0.35)
-        ax.text((a + min(b, timing.T)) / 2 * ms, -1, ph.name, ha='center', va='center', fontsize=7)
-    ax.axvline(timing.t_allowed * ms, color='k', ls=':', lw=1)
-    for i, row in enumerate(rows):
-        t0 = row['start']
-        h = 0.6 / max(len(row['sheets']), 1)
-        for j, s in enumerate(row['sheets']):
-            y = i - 0.3 + h * (j + 0.5)
-            settled = s['settled'] if s['settled'] is not None and s['settled'] <= row['contact'] else None
-            segs = [
-                ('А', s['handover'], s['at_stops'], None),
-                ('Б', s['at_stops'], s['settled'], '////'),
-                ('Б', s['settled'], row['contact'] if settled is not None else None, None),
-            ]
-            if s['release'] is not None and row['exit'] is not None:
-                segs.append(('Г', row['exit'], s['release'], None))
-            for letter, a, b, hatch in segs:
-                if a is None or b is None or b < a:
-                    continue
-                ax.barh(
-                    y,
-                    (b - a) * ms,
-                    left=(a - t0) * ms,
-                    height=h * 0.9,
-                    color=colours[letter],
-                    alpha=0.45 if hatch else 0.8,
-                    hatch=hatch,
-                    edgecolor='white' if hatch else None,
-                )
-                x_max = max(x_max, (b - t0) * ms)
-        if not row['sheets']:
-            ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
-        if row['exit'] is not None:
-            ax.barh(
-                i,
-                (row['exit'] - row['contact']) * ms,
-                left=(row['contact'] - t0) * ms,
-                height=0.6,
-                color=colours['В'],
-                alpha=0.8,
-            )
-            x_max = max(x_max, (row['exit'] - t0) * ms)
-        ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
-        x_max = max(x_max, (row['deadline'] - t0) * ms)
-    text_x = x_max * 1.03
-    for i, row in enumerate(rows):
-        bad = any(m < 0.0 for m in row['margins'].values())
-        text = _margin_text(row['margins']) or 'not judged in the span'
-        ax.text(text_x, i, text, va='center', fontsize=7.5, color='r' if bad else 'k')
-    ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
-    ax.set_yticks([-1, *range(len(rows))], ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
-    for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
-        if any(m < 0.0 for m in row['margins'].values()):
-            label.set_color('r')
-        if i and row['cycle'] != rows[i - 1]['cycle'] + 1:  # cycles left out
-            ax.axhline(i - 0.5, color='grey', ls='--', lw=0.8)
-    ax.invert_yaxis()
-    ax.set_xlim(0, x_max * 1.9)
-    ticks = plt.MaxNLocator(nbins=8).tick_values(0.0, x_max)
-    ax.set_xticks(ticks[(ticks >= 0.0) & (ticks <= x_max)])
-    ax.axvline(x_max * 1.015, color='grey', lw=0.5)
-    ax.set_xlabel('time from the start of the cycle (the knife exit of the cycle before), ms')
-    handles = [plt.Rectangle((0, 0), 1, 1, color=c, alpha=0.8) for _, _, c in OPERATIONS]
-    labels = [f'{letter}: {label}' for letter, label, _ in OPERATIONS]
-    handles.append(plt.Line2D([0], [0], color='k', lw=2))
-    labels.append('feed deadline of the cycle (window start + t_allowed)')
-    fig.legend(handles, labels, loc='lower center', ncol=2, fontsize=8, frameon=False)
     firsts = [r for r in rows if r['cycle'] in cg.first]
     shown = f'the first {len(firsts)}' + (' and the first violated' if len(firsts) < len(rows) else '')
     if not rows:
         shown = 'no cycle'
-    ax.set_title(
+    title = (
         f'F: cyclogram of {shown} of {cg.cycles} cycles judged at the knife in {_span(data)} '
-        f'(paper F figs. 1-2)\nT = {timing.T * ms:.1f} ms; hatched: bouncing at the stops',
-        fontsize=10,
+        f'(paper F figs. 1-2)\nT = {cg.timing.T * 1e3:.1f} ms; hatched: bouncing at the stops'
     )
-    ax.grid(axis='x', alpha=0.3)
-    fig.tight_layout(rect=(0.0, 0.85 / fig.get_figheight(), 1.0, 1.0))
+    fig = cyclogram_figure(rows, cg.timing, title, unjudged='not judged in the span')
     return save_figure(fig, out / 'cyclogram.png')
 
 
@@ -893,7 +805,7 @@ def _margins(data: FigureData, out: Path) -> Path:
     for ax, name in zip(axes.ravel(), names, strict=False):
         h = data.margins[name]
         unit_in = data.units[name]
-        scale, unit = _DISPLAY_UNITS.get(unit_in, (1.0, unit_in))
+        scale, unit = DISPLAY_UNITS.get(unit_in, (1.0, unit_in))
         nv = h.violated
         ax.set_title(f'{name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')
         ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')

@@ -293,7 +293,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             executor.add_node(clock)
             done = clock.done.done
         progress = LineTimeProgress(stream, cfg.duration)
-        stop = Future()  # the run's end: the clock done, or a reason to stop in ``interrupted``
+        stop: Future[None] = Future()  # the run's end: the clock done, or a reason to stop in ``interrupted``
 
         def watch() -> None:
             """In the executor, every :data:`WATCH` s of wall time: draw the bar, look for what stops the run."""

@@ -241,23 +241,25 @@ def test_write_many_is_write_serialized(tmp_path: Path) -> None:
 def test_an_interrupted_bag_is_marked_partial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Ctrl-C in the middle: the files written stay readable and the bag says it is partial."""
     from folder_line.bag import batch
+    from folder_line.config.run_config import RATE
     from folder_line.config.scenes import load_scene
 
     calls = []
-    original = batch._write_block
+    original = batch._Writer.write
 
     def interrupted(*args: Any) -> None:
         calls.append(1)
-        if len(calls) == 2:
+        if len(calls) == 3:
             raise KeyboardInterrupt
         original(*args)
 
-    monkeypatch.setattr(batch, '_write_block', interrupted)
+    monkeypatch.setattr(batch._Writer, 'write', interrupted)
     with pytest.raises(KeyboardInterrupt):
         batch.write_batch_bag(tmp_path / 'bag', load_scene('folder'), 20.0)
     assert custom_data(tmp_path / 'bag')['folder_line.complete'] == 'false'
     got = read_independently(tmp_path / 'bag')
-    assert len(got[('/clock', '')]) == batch.BLOCK_TICKS  # the first block, whole
+    # the windows written, whole: tick 0, then the ticks up to the first diagnostics stamp (1 s)
+    assert len(got[('/clock', '')]) == 1 + round(RATE / batch.DIAG_RATE)
 
 
 def test_packed_message_index_is_mcaps() -> None:

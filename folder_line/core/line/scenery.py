@@ -69,6 +69,7 @@ max). A shape with nothing to show has no points (it keeps its place in the orde
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -156,11 +157,18 @@ class Shape:
     rgba: tuple[float, float, float, float]
 
 
+#: each colour as a message carries it (float32), made once
+_RGBA32: dict[tuple[float, ...], tuple[float, float, float, float]] = {}
+
+
 def _shape(machine: str, part: str, kind: str, points: Any, width: float, rgba: tuple[float, ...]) -> Shape:
     p = np.array(points, dtype=np.float64).reshape(-1, 3)
     p.setflags(write=False)
-    r, g, b, a = (float(np.float32(c)) for c in rgba)  # as a message carries them (float32)
-    return Shape(machine, part, kind, p, float(width), (r, g, b, a))
+    colour = _RGBA32.get(rgba)
+    if colour is None:
+        r, g, b, a = (float(np.float32(c)) for c in rgba)  # as a message carries them (float32)
+        colour = _RGBA32[rgba] = (r, g, b, a)
+    return Shape(machine, part, kind, p, float(width), colour)
 
 
 def _xz(x: Any, z: Any, origin: tuple[float, float, float]) -> np.ndarray:
@@ -176,13 +184,14 @@ def _theta(line: LineStream, t: float) -> float:
 
 def _marks(a: np.ndarray, b: np.ndarray, travel: float) -> np.ndarray:
     """Points every :data:`_MARK` along segment a -> b, shifted by a belt's travel."""
-    length = float(np.linalg.norm(b - a))
+    ab = b - a
+    length = math.sqrt(float(ab.dot(ab)))  # np.linalg.norm of a vector, without its checks
     if length <= 0.0:
         return np.zeros((0, 3))
     off = travel % _MARK
     d = off + _MARK * np.arange(int(math.floor((length - off) / _MARK)) + 1)
     d = d[d <= length]
-    return a + np.outer(d / length, b - a)
+    return a + np.outer(d / length, ab)
 
 
 def chain_loop(transfer: float, stroke: float, span: float, pitch: float) -> tuple[float, float, int]:
@@ -270,7 +279,7 @@ class Scenery:
         )
         return dict(zip(('O1', 'O2', 'O3', 'A', 'B', 'C', 'E'), pts, strict=True))
 
-    def _layup_shapes(self, t: float, theta: float) -> list[Shape]:
+    def _layup_shapes(self, t: float, theta: float, views: dict[str, np.ndarray]) -> list[Shape]:
         j = self._layup_joints(theta)
         links = np.stack([j['O1'], j['A'], j['A'], j['B'], j['O2'], j['C'], j['C'], j['E'], j['O3'], j['E']])
         out = [
@@ -297,12 +306,14 @@ class Scenery:
         out.append(_shape('layup', 'belt', 'segments', belts, 0.012, _DARK if self._belts else _GREY))
         out.append(_shape('layup', 'belt_mark', 'points', np.concatenate(marks) if marks else [], 0.02, _ORANGE))
         if self._container:
-            out += self._leaves(t)
+            out += self._leaves(t, views)
             out += [self._static['wall'], self._static['floor']]
         return out
 
-    def _leaves(self, t: float) -> list[Shape]:
-        f = self._layup.flights_view()
+    def _leaves(self, t: float, views: dict[str, np.ndarray]) -> list[Shape]:
+        f = views.get('flights')
+        if f is None:
+            f = views['flights'] = self._layup.flights_view()
         air = (f['t_exit'] <= t) & (f['t_land'] > t)
         x, y, _, _ = leaf_flight.state(
             self._drag, f['x0'][air], f['y0'][air], f['vx'][air], f['vy'][air], t - f['t_exit'][air]
@@ -346,6 +357,10 @@ class Scenery:
         self._static['stop'] = _shape(
             'folder', 'stop', 'segments', [[self._stops_x, 0.0, oz], [self._stops_x, 0.0, oz + 0.06]], 0.015, _RED
         )
+        self._belt_mark_ends = (
+            np.array([self._belt_x0, 0.0, oz + 0.012]),
+            np.array([self._stops_x - 0.01, 0.0, oz + 0.012]),
+        )
         self._static['feed_belt'] = _shape(
             'folder',
             'feed_belt',
@@ -382,11 +397,7 @@ class Scenery:
                 'folder',
                 'belt_mark',
                 'points',
-                _marks(
-                    np.array([self._belt_x0, 0.0, oz + 0.012]),
-                    np.array([self._stops_x - 0.01, 0.0, oz + 0.012]),
-                    travel,
-                ),
+                _marks(*self._belt_mark_ends, travel),
                 0.015,
                 _ORANGE,
             ),
@@ -398,9 +409,11 @@ class Scenery:
             ),
         ]
 
-    def _sheets_live(self, t: float) -> np.ndarray:
+    def _sheets_live(self, t: float, views: dict[str, np.ndarray]) -> np.ndarray:
         """The last :data:`_SHEETS_SHOWN` signatures handed over by ``t``, each time not yet come ``inf``."""
-        view: np.ndarray = self._folder.sheets_view()
+        view = views.get('sheets')
+        if view is None:
+            view = views['sheets'] = self._folder.sheets_view()
         sh: np.ndarray = view[~np.isnan(view['t_h']) & (view['t_h'] <= t)][-_SHEETS_SHOWN:].copy()
         for name in ('t_a', 't_c', 't_x', 't_r'):
             sh[name] = np.where(np.isnan(sh[name]) | (sh[name] > t), math.inf, sh[name])
@@ -410,11 +423,11 @@ class Scenery:
         _, _, oz = FOLDER_ORIGIN
         z = oz + 0.004
         out: list[list[float]] = []
-        for row in sheets:
-            t_a, t_c, t_x = float(row['t_a']), float(row['t_c']), float(row['t_x'])
+        columns = (sheets[name].tolist() for name in ('t_a', 't_c', 't_x', 'b_h', 'L'))
+        for t_a, t_c, t_x, b_h, length in zip(*columns, strict=True):
             if t < t_a:  # on the feed belt: where the belt has carried it since the hand-over
-                done = min(max(self._folder.V_tr * (b_t - float(row['b_h'])), 0.0), float(row['L']))
-                lead = self._stops_x - float(row['L']) + done
+                done = min(max(self._folder.V_tr * (b_t - float(b_h)), 0.0), float(length))
+                lead = self._stops_x - float(length) + done
                 out += [[lead - self._L_a, 0.0, z], [lead, 0.0, z]]
             elif t < t_c or t_a > t_c:  # at the stops (a jammed one stays there)
                 out += [[self._stops_x - self._L_a, 0.0, z], [self._stops_x, 0.0, z]]
@@ -453,8 +466,11 @@ class Scenery:
         self._pile_x = float(grip_rel[0])
         self._pile_top = self._p0[2] - 0.04
 
-    def _chain_point(self, d: np.ndarray) -> np.ndarray:
-        """Points of the drawn chain loop at chain travel ``d`` from the pickup, in [0, loop)."""
+    def _chain_point(self, d: np.ndarray, stroke: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """Points of the drawn chain loop at chain travel ``d`` from the pickup, in [0, loop).
+
+        ``stroke``: the points ``_stroke_xz`` gives for those of ``d`` on the stroke, if the caller has them.
+        """
         plan = self._plan
         sch = plan.schedule
         L, S, R, span = sch.L_transfer, sch.S, self._radius, self._span
@@ -466,8 +482,7 @@ class Scenery:
         x[a], z[a] = x0 + d[a], z0
         b = (d >= L) & (d < L + S)
         if b.any():
-            u = plan.path.position(d[b] - L)
-            x[b], z[b] = self._stroke_xz(u)
+            x[b], z[b] = self._stroke_xz(plan.path.position(d[b] - L)) if stroke is None else stroke
         xe = x0 + L + span
         c = (d >= L + S) & (d < L + S + math.pi * R)
         w = (d[c] - L - S) / R
@@ -488,9 +503,10 @@ class Scenery:
         z = self._p0[2] + self._y_max * np.asarray(self._psi(xi), dtype=float)
         return x, z
 
-    def _gripper(self, u: np.ndarray) -> np.ndarray:
-        """The carriage (gripper B) on its guide for chain pins at stroke positions ``u``: behind the pin by l cos α."""
-        x, z = self._stroke_xz(u)
+    def _gripper(self, u: np.ndarray, stroke: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """The carriage (gripper B) on its guide for chain pins at stroke positions ``u``: behind the pin by l cos α
+        (``stroke``: ``_stroke_xz(u)``, if the caller has it)."""
+        x, z = self._stroke_xz(u) if stroke is None else stroke
         rod = self._plan.rod
         alpha = np.arcsin(np.clip((z - self._p0[2]) / rod, -1.0, 1.0))
         return np.stack([x - rod * np.cos(alpha), np.zeros(x.shape), np.full(x.shape, self._p0[2])], axis=1)
@@ -505,15 +521,17 @@ class Scenery:
     def _delivery_shapes(self, t: float, theta: float, live: np.ndarray) -> list[Shape]:
         sch = self._plan.schedule
         d = self._carriage_travel(theta)
-        pins = self._chain_point(d)
-        on = (d >= sch.L_transfer) & (d < sch.L_transfer + sch.S)
+        on = (d >= sch.L_transfer) & (d < sch.L_transfer + sch.S)  # the carriages on the stroke
         u = self._plan.path.position(d[on] - sch.L_transfer) if on.any() else np.zeros(0)
-        grip = self._gripper(u) if u.size else np.zeros((0, 3))
+        stroke = self._stroke_xz(u) if u.size else None  # their chain pins, computed once for both
+        pins = self._chain_point(d, stroke)
+        grip = self._gripper(u, stroke) if u.size else np.zeros((0, 3))
         rods = np.stack([pins[on], grip], axis=1).reshape(-1, 3)
         sheets: list[np.ndarray] = []
-        for row in live:
-            if row['fate'] == 1 and row['t_x'] <= t < row['t_r']:
-                j = int(row['cycle']) % self._n_car
+        columns = (live[name].tolist() for name in ('fate', 't_x', 't_r', 'cycle'))
+        for fate, t_x, t_r, cycle in zip(*columns, strict=True):
+            if fate == 1 and t_x <= t < t_r:
+                j = int(cycle) % self._n_car
                 p = pins[j]
                 sheets += [p, p - np.array([0.5 * self._L_a, 0.0, 0.0])]
         z_table, _ = self._pile.state(np.array([t]))
@@ -552,13 +570,22 @@ class Scenery:
 
     def at(self, t: float) -> tuple[Shape, ...]:
         """The machine at line time ``t`` (s, in the line's last window), in a stable order (module docstring)."""
-        t = float(t)
+        return self._at(float(t), {})
+
+    def at_times(self, times: Iterable[float]) -> list[tuple[Shape, ...]]:
+        """:meth:`at` of each of ``times`` (of the line's last window), the same shapes: what the line holds
+        (its signatures, its leaves' flights) is read once for them all."""
+        views: dict[str, np.ndarray] = {}
+        return [self._at(float(t), views) for t in times]
+
+    def _at(self, t: float, views: dict[str, np.ndarray]) -> tuple[Shape, ...]:
+        """:meth:`at`; ``views``: the line's tables read so far for times of this window (filled here)."""
         theta = _theta(self.line, t)
         out: list[Shape] = []
         if self._layup is not None:
-            out += self._layup_shapes(t, theta)
+            out += self._layup_shapes(t, theta, views)
         if self._folder is not None:
-            live = self._sheets_live(t)
+            live = self._sheets_live(t, views)
             out += self._folder_shapes(t, theta, live)
             if self._folder.plan is not None:
                 out += self._delivery_shapes(t, theta, live)

@@ -249,12 +249,7 @@ class LineStream:
             scene.has_delivery, scene.sheets.thickness, values_from(tunings, 'pile.t_lower', T_LOWER)
         )
         self._counted = EVENT_KINDS.index(counted_event(scene.has_delivery))
-        units: dict[str, list[Any]] = {}
-        for p in [self.folder, self.layup, self.pile]:
-            if p is not None:
-                for unit in p.units:
-                    units.setdefault(unit, []).append(p)
-        self._unit_parts = {unit: units[unit] for unit in UNITS if unit in units}
+        self._unit_parts = self._parts_of_units()
         self.units = {unit: tuple(n for p in ps for n in p.units[unit]) for unit, ps in self._unit_parts.items()}
         tallies: dict[str, ConstraintTally] = {}
         if self.folder is not None:
@@ -268,6 +263,15 @@ class LineStream:
         self.tallies = _Tallies(tallies)
 
     # ------------------------------------------------------------------ parts
+
+    def _parts_of_units(self) -> dict[str, list[Any]]:
+        """Unit -> the parts that sample its joints, the units in :data:`UNITS` order."""
+        units: dict[str, list[Any]] = {}
+        for p in [self.folder, self.layup, self.pile]:
+            if p is not None:
+                for unit in p.units:
+                    units.setdefault(unit, []).append(p)
+        return {unit: units[unit] for unit in UNITS if unit in units}
 
     @property
     def parts(self) -> dict[str, Any]:
@@ -450,6 +454,7 @@ class LineStream:
         self._t_keep = parts['t_keep']
         self._before = []
         self.pile = parts['pile']
+        self._unit_parts = self._parts_of_units()  # the pile is a new object
         self.tallies = parts['tallies']
         for name, p in self.parts.items():
             p.set_drive(self.drive)

@@ -21,7 +21,10 @@ from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.errors import ParameterError
 
-__all__ = ['replay', 'run_closed_loop']
+__all__ = ['REPLAY_WINDOW', 'replay', 'run_closed_loop']
+
+#: line time :func:`replay` feeds and ticks at once, s (a multiple of the live check period)
+REPLAY_WINDOW = 60.0
 
 
 def replay(
@@ -35,6 +38,7 @@ def replay(
     lost: Iterable[tuple[float, str, float]] = (),
     tunings: Iterable[tuple[float, str, float, float]] = (),
     until: float | None = None,
+    window: float = REPLAY_WINDOW,
     **params: Any,
 ) -> Supervisor:
     """Run a :class:`~folder_line.core.supervision.supervisor.Supervisor` over a recorded stream.
@@ -59,6 +63,10 @@ def replay(
         Tunings accepted ``(t, key, value, effective time)`` (the live ``tuning_log``).
     until : float, optional
         The live run's last watermark, s (default: the latest input time).
+    window : float
+        Line time fed and ticked at once, s (> 0; default :data:`REPLAY_WINDOW`): the
+        supervisor is ticked at every multiple of it, as the live one is at its check
+        period, so that what it holds between ticks does not grow with the recording.
     **params
         :class:`Supervisor` parameters; ``t_start`` as the live one's.
 
@@ -68,8 +76,12 @@ def replay(
         After the replay: its ``transitions``, ``commands``, ``violations`` and
         ``balances`` are the live run's.
     """
+    if not (math.isfinite(window) and window > 0):
+        raise ParameterError('window', window, 'a positive number of seconds')
     sup = Supervisor(scene, **params)
-    ev = np.sort(np.asarray(events).reshape(-1), order='t', kind='stable')
+    ev = np.asarray(events).reshape(-1)
+    if ev.size > 1 and not bool(np.all(ev['t'][1:] >= ev['t'][:-1])):  # a recording comes sorted: no copy then
+        ev = np.sort(ev, order='t', kind='stable')
     hd = {n: np.sort(np.asarray(list(ts), dtype=float)) for n, ts in (heard or {}).items()}
     clk = np.sort(np.asarray(list(clock), dtype=float))
     bad = sorted((float(t), str(tp), int(c)) for t, tp, c in bad_values)
@@ -107,17 +119,28 @@ def replay(
             sup.lost(gone[i_g][1], gone[i_g][0], gone[i_g][2])
             i_g += 1
 
+    ticked = 0  # the windows ticked, from 0
+
+    def tick_to(t: float) -> None:
+        """Feed and tick every window's end before ``t``, then ``t``."""
+        nonlocal ticked
+        while (ticked + 1) * window < t:
+            ticked += 1
+            feed_to(ticked * window)
+            sup.tick(ticked * window)
+        feed_to(t)
+        sup.tick(t)
+
     if sup.t_start is None:
         raise ParameterError('t_start', None, "replay needs the live run's t_start")
+    ticked = math.floor(max(sup.t_start, 0.0) / window)  # no tick before the live one's first
     for t_op, name, tuning in ops:
-        feed_to(t_op)
-        sup.tick(t_op)
+        tick_to(t_op)
         if tuning is None:
             sup.command(name, t_op)
         else:
             sup.tune(tuning[0], tuning[1], t_op, effective=tuning[2])
-    feed_to(end)
-    sup.tick(end)
+    tick_to(end)
     return sup
 
 

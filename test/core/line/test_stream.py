@@ -196,11 +196,18 @@ def test_a_checkpoint_at_an_awkward_time_gives_the_same_rest_of_the_run(scenes: 
         stream.restore(cp)
         assert stream.t == 2.0371
         assert stream.advance(6.0).events.tobytes() == rest.tobytes()
+    grid = np.linspace(2.05, 6.0, 80)
     stream.restore(cp, [*known, later])
     learnt = stream.advance(6.0).events
     upfront = LineStream(scene, [*known, later])
     upfront.advance(2.0371)
     assert learnt.tobytes() == upfront.advance(6.0).events.tobytes()
+    # and so are its joint states, every unit's (the pile table's too: restored as a new object)
+    got, want = stream.sample_all(grid), upfront.sample_all(grid)
+    assert got.keys() == want.keys()
+    for unit in want:
+        assert got[unit].position.tobytes() == want[unit].position.tobytes(), unit
+        assert got[unit].velocity.tobytes() == want[unit].velocity.tobytes(), unit
     assert learnt.tobytes() != rest.tobytes()  # the stop changed the line after 4.4 s
     before = learnt[learnt['t'] <= 4.4]
     assert before.tobytes() == rest[rest['t'] <= 4.4].tobytes()  # and nothing before it

@@ -128,6 +128,13 @@ def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free
     again = replay(SCENE, stream, heard=fed['heard'], until=3.0, **KW)
     assert again.transitions == sup.transitions and again.commands == sup.commands
     assert again.balances == sup.balances and again.violations == sup.violations
+    # fed and ticked in windows of any length (a multiple of the check period), or at once: the same
+    for window in (0.05, 0.75, 1e9):
+        other = replay(SCENE, stream, heard=fed['heard'], until=3.0, window=window, **KW)
+        assert other.transitions == sup.transitions and other.commands == sup.commands, window
+        assert other.balances == sup.balances and other.violations == sup.violations, window
+    with pytest.raises(ParameterError, match='window'):
+        replay(SCENE, stream, heard=fed['heard'], until=3.0, window=0.0, **KW)
     # the drive stands still from HELD on: no rate, no phase, no machine event
     t_held = sup.transitions[-1].t
     t = np.linspace(t_held, 3.0, 200)
