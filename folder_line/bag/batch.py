@@ -483,6 +483,7 @@ def write_batch_bag(
             start = line.checkpoint()
             window = line.advance((end - 1) * step_ns / NS_PER_S)
             heard, heard_t = _heard(window.events)
+            logic.preview(heard)  # the window's cycles evaluated at once (the decisions are the same)
             stamps = np.arange(k, end, dtype=np.int64) * step_ns
             t = stamps / NS_PER_S
             bounds = np.searchsorted(heard_t, np.concatenate(([window.t0], t)), side='right')

@@ -292,3 +292,24 @@ def test_diagnostic_array_cdr_is_the_typestores() -> None:
         )
         want = bytes(typestore().serialize_cdr(msg, 'diagnostic_msgs/msg/DiagnosticArray', little_endian=True))
         assert cdr.diagnostic_array_cdr(stamp, frame, statuses) == want, trial
+
+
+@pytest.mark.parametrize(('scene', 'duration'), [('folder_faults', 40.0), ('folder_jitter', 20.0), ('line', 10.0)])
+def test_the_supervisor_evaluating_a_window_ahead_decides_as_tick_by_tick(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, scene: str, duration: float
+) -> None:
+    """``simulate --bag`` shows the supervisor each window's events ahead (``Supervisor.preview``); the
+    bag is byte for byte the one of a supervisor that evaluates each cycle when it is due. folder_faults
+    over 40 s has a violation and a hold, missing, late and double sheets (two releases in a cycle)."""
+    from folder_line.core.supervision.supervisor import Supervisor
+
+    ahead = batch.write_batch_bag(tmp_path / 'ahead' / 'bag', load_scene(scene), duration)
+    monkeypatch.setattr(Supervisor, 'preview', lambda self, rows: None)
+    plain = batch.write_batch_bag(tmp_path / 'plain' / 'bag', load_scene(scene), duration)
+    assert ahead.commands == plain.commands and ahead.state == plain.state
+    if scene == 'folder_faults':
+        assert ahead.commands  # the hold
+    files = segment_files(tmp_path / 'plain' / 'bag')
+    assert [p.name for p in files] == [p.name for p in segment_files(tmp_path / 'ahead' / 'bag')]
+    for p in files:
+        assert (tmp_path / 'ahead' / 'bag' / p.name).read_bytes() == p.read_bytes(), p.name

@@ -20,6 +20,9 @@ __all__ = [
     'JointSamples',
     'event_kind',
     'empty_events',
+    'append_events',
+    'kind_table',
+    'kinds_in',
     'make_events',
     'merge_events',
     'stack_samples',
@@ -68,6 +71,34 @@ def event_kind(name: str) -> int:
     except KeyError:
         msg = f'event kind {name!r} unknown; known: {", ".join(EVENT_KINDS)}'
         raise KeyError(msg) from None
+
+
+def kind_table(names: Iterable[str]) -> np.ndarray:
+    """A lookup table for :func:`kinds_in`: True at the index of each kind in ``names`` (one entry per
+    16-bit value, so that any ``kind`` field indexes it)."""
+    table = np.zeros(1 << 16, dtype=bool)
+    table[[event_kind(n) for n in names]] = True
+    return table
+
+
+def kinds_in(kind: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Which of the event kinds ``kind`` (ints) the ``table`` (:func:`kind_table`) holds; a value that
+    is no kind's index is not held. The same as ``np.isin`` on the table's kinds, without its sort."""
+    k = np.asarray(kind)
+    if k.dtype == np.int16:  # EVENT_DTYPE's: a negative kind reads as 32768 and up, held by no table
+        held: np.ndarray = table[k.view(np.uint16)]
+        return held
+    known = (k >= 0) & (k < table.size)
+    return table[np.where(known, k, 0)] & known
+
+
+def append_events(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rows of ``a`` then those of ``b`` (both of EVENT_DTYPE): ``np.concatenate`` without its
+    promotion of the structured type, which costs more than the copy for the few rows of a tick."""
+    out = np.empty(a.size + b.size, dtype=EVENT_DTYPE)
+    out[: a.size] = a
+    out[a.size :] = b
+    return out
 
 
 def empty_events() -> np.ndarray:

@@ -16,31 +16,28 @@ counted, and not held against the balance.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from folder_line.core.line.events import event_kind
+from folder_line.core.line.events import event_kind, kind_table, kinds_in
 from folder_line.core.line.scene import Scene
 
 __all__ = ['Balance', 'SheetBalance']
 
-_BALANCE_KINDS = np.array(
-    [
-        event_kind(k)
-        for k in (
-            'sheet_handover',
-            'at_stops',
-            'knife_contact',
-            'released_on_pile',
-            'leaf_enter',
-            'leaf_exit',
-            'leaf_landed',
-            'leaf_spilled',
-        )
-    ],
-    dtype=np.int16,
+_BALANCE_KINDS = kind_table(
+    (
+        'sheet_handover',
+        'at_stops',
+        'knife_contact',
+        'released_on_pile',
+        'leaf_enter',
+        'leaf_exit',
+        'leaf_landed',
+        'leaf_spilled',
+    )
 )
 
 _HAND, _STOPS, _CONTACT, _RELEASE = (
@@ -129,23 +126,26 @@ class SheetBalance:
         self.with_delivery = with_delivery
         self.flight = scene.has('leaf_flight')
         self._rows: list[np.ndarray] = []  # fed, not yet counted
+        self._t_first = math.inf  # the earliest time among them, s
         self._counter = _Counter()
 
     def add(self, rows: np.ndarray) -> None:
         """Keep the rows (finite, of EVENT_DTYPE) a balance counts."""
-        b = rows[np.isin(rows['kind'], _BALANCE_KINDS)]
+        b = rows[kinds_in(rows['kind'], _BALANCE_KINDS)]
         if b.size:
             self._rows.append(b)
+            self._t_first = min(self._t_first, float(b['t'].min()))
 
     def commit(self, t: float) -> None:
         """Count the rows up to ``t`` (s) for good: no balance is asked for before ``t`` any more."""
-        if not self._rows:
+        if not self._rows or t < self._t_first:
             return
         rows = np.concatenate(self._rows)
         done = rows['t'] <= t
         self._count(self._counter, rows[done])
         rest = rows[~done]
         self._rows = [rest] if rest.size else []
+        self._t_first = float(rest['t'].min()) if rest.size else math.inf
 
     def at(self, t: float, state: str, lost_nodes: Sequence[str], blind_from: float) -> Balance:
         """The sheet balance from the events up to ``t`` (see :class:`Balance`; ``t`` not before the last commit).

@@ -27,16 +27,14 @@ import numpy as np
 
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
-from folder_line.core.line.events import EVENT_DTYPE, event_kind
+from folder_line.core.line.events import EVENT_DTYPE, append_events, event_kind, kind_table, kinds_in
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 
 __all__ = ['CycleEvaluation', 'Due']
 
-_FOLDER_KINDS = np.array(
-    [event_kind(k) for k in ('sheet_handover', 'at_stops', 'bounce', 'settled', 'knife_contact')], dtype=np.int16
-)
+_FOLDER_KINDS = kind_table(('sheet_handover', 'at_stops', 'bounce', 'settled', 'knife_contact'))
 _CONTACT = event_kind('knife_contact')
 _EXIT = event_kind('knife_exit')
 _RELEASE = event_kind('released_on_pile')
@@ -87,6 +85,12 @@ class CycleEvaluation:
         self.first_cycle: int | None = None  # the first folder cycle whose start was seen
         self._release_done = -math.inf  # last release time judged
         self._exit_done = -math.inf  # last leaf exit time judged
+        self._next: float | None = None  # the earliest time an evaluation may be due, s (None: not known)
+        self._judged = False  # an evaluation was taken since the last commit
+        # evaluations made ahead (:meth:`preview`): folder cycle -> its Due, (t, cycle) -> release margins
+        self._ahead_drive: Drive | None = None
+        self._ahead: dict[int, Due] = {}
+        self._ahead_releases: dict[tuple[float, int], Due] = {}
 
     def add(self, rows: np.ndarray) -> None:
         """Keep the rows (finite, of EVENT_DTYPE) that a later evaluation needs."""
@@ -98,15 +102,94 @@ class CycleEvaluation:
                 c = int(first['cycle'])
                 self.first_cycle = 0 if first['kind'] == _CONTACT and c == 0 else c + 1
                 self.folder_done = max(self.folder_done, self.first_cycle - 1)
-        f = rows[np.isin(kind, _FOLDER_KINDS) & (rows['cycle'] > self.folder_done)]
+                self._judged = True  # the rows of cycles before it go at the next commit
+        f = rows[kinds_in(kind, _FOLDER_KINDS) & (rows['cycle'] > self.folder_done)]
         if f.size:
-            self._folder = np.concatenate([self._folder, f])
+            self._folder = append_events(self._folder, f)
         r = rows[kind == _RELEASE]
         if r.size:
-            self._releases = np.concatenate([self._releases, r])
+            self._releases = append_events(self._releases, r)
         x = rows[kind == _LEAF_EXIT]
         if x.size:
-            self._exits = np.concatenate([self._exits, x])
+            self._exits = append_events(self._exits, x)
+        if self._next is not None:  # the new candidates only move it earlier
+            self._next = min(self._next, self._earliest_of(f, r, x))
+
+    def _earliest_of(self, f: np.ndarray, r: np.ndarray, x: np.ndarray) -> float:
+        """The earliest time among the knife contacts ``f``, releases ``r`` and leaf exits ``x`` not yet
+        judged (inf if none)."""
+        out = math.inf
+        contact = f['t'][(f['kind'] == _CONTACT) & (f['cycle'] > self.folder_done)]
+        for t in (contact, r['t'][r['t'] > self._release_done], x['t'][x['t'] > self._exit_done]):
+            if t.size:
+                out = min(out, float(t.min()))
+        return out
+
+    def next_due(self) -> float:
+        """The earliest time an evaluation may be due (s; inf if none): :meth:`due` before it gives none."""
+        if self._next is None:
+            self._next = self._earliest_of(self._folder, self._releases, self._exits)
+        return self._next
+
+    def preview(self, rows: np.ndarray, drive: Drive) -> None:
+        """Evaluate ahead the cycles and releases of ``rows`` (finite, of EVENT_DTYPE), events that
+        will be fed, under ``drive``.
+
+        :meth:`due` then takes their evaluations from here, as long as the drive it is given is
+        ``drive`` (a new command makes a new drive: it evaluates again). Each cycle is judged on
+        the rows up to its own knife contact (``causal``), so evaluating many cycles at once, on
+        more rows, gives each one's margins as evaluating it alone does.
+        """
+        self._ahead_drive = drive
+        self._ahead = {}
+        self._ahead_releases = {}
+        if self.timing is None:
+            return
+        kind = rows['kind']
+        if self.first_cycle is not None:
+            f = rows[kinds_in(kind, _FOLDER_KINDS) & (rows['cycle'] > self.folder_done)]
+            fb = np.concatenate([self._folder[self._folder['cycle'] > self.folder_done], f])
+            contacts = fb['cycle'][fb['kind'] == _CONTACT]
+            if contacts.size:
+                sub = fb[fb['cycle'] <= contacts.max()]
+                for it in self._folder_items(sub, drive):
+                    self._ahead[it.cycle] = it
+        r = rows[(kind == _RELEASE) & (rows['t'] > self._release_done)]
+        if r.size:
+            # a release is judged with the others of its cycle due at the same time (the smallest
+            # margin): only a cycle's single release is evaluated ahead
+            known = self._releases['cycle'][self._releases['t'] > self._release_done]
+            cycles, counts = np.unique(np.concatenate([known, r['cycle']]), return_counts=True)
+            single = r[np.isin(r['cycle'], cycles[counts == 1])]
+            if single.size:
+                for it in self._release_items(single, drive):
+                    self._ahead_releases[(it.t, it.cycle)] = it
+
+    def _folder_items(self, sub: np.ndarray, drive: Drive) -> list[Due]:
+        """The folder cycles' evaluations of the rows ``sub``."""
+        assert self.timing is not None
+        ev = folder_evaluation(sub, self.timing, self.scene, drive, plan=self.plan, causal=True)
+        per: dict[int, list[tuple[str, str, float]]] = {int(c): [] for c in ev.cycle}
+        for s in ev.constraints:
+            if s.name == 'release_at_min_speed':
+                continue
+            for c, m in zip(s.cycle.tolist(), s.margin.tolist(), strict=True):
+                per[int(c)].append((s.name, s.unit, float(m)))
+        return [
+            Due(float(tc), 0, int(c), tuple(per[int(c)]), int(n), 'folder')
+            for c, tc, n in zip(ev.cycle.tolist(), ev.t.tolist(), ev.signatures.tolist(), strict=True)
+        ]
+
+    def _release_items(self, rows: np.ndarray, drive: Drive) -> list[Due]:
+        """The evaluations of the releases ``rows``."""
+        assert self.timing is not None
+        ev = folder_evaluation(rows, self.timing, self.scene, drive, plan=self.plan, causal=True)
+        return [
+            Due(float(tr), 1, int(c), ((s.name, s.unit, float(m)),), 1, 'release')
+            for s in ev.constraints
+            if s.name == 'release_at_min_speed'
+            for c, m, tr in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True)
+        ]
 
     def due(self, W: float, drive_before: Callable[[], Drive]) -> list[Due]:
         """The evaluations due by ``W`` that are not yet taken, in time order.
@@ -115,6 +198,8 @@ class CycleEvaluation:
         line model may have to be built) only if a folder cycle or a release is due.
         """
         items: list[Due] = []
+        if self.next_due() > W:
+            return items
         drive = None
         fb = self._folder
         if self.timing is not None and fb.size and self.first_cycle is not None:
@@ -122,28 +207,25 @@ class CycleEvaluation:
             if contact.any():
                 drive = drive_before()
                 last = int(fb['cycle'][contact].max())
-                sub = fb[
-                    (fb['cycle'] > self.folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)
-                ]
-                ev = folder_evaluation(sub, self.timing, self.scene, drive, plan=self.plan, causal=True)
-                per: dict[int, list[tuple[str, str, float]]] = {int(c): [] for c in ev.cycle}
-                for s in ev.constraints:
-                    if s.name == 'release_at_min_speed':
-                        continue
-                    for c, m in zip(s.cycle.tolist(), s.margin.tolist(), strict=True):
-                        per[int(c)].append((s.name, s.unit, float(m)))
-                for c, tc, n in zip(ev.cycle.tolist(), ev.t.tolist(), ev.signatures.tolist(), strict=True):
-                    items.append(Due(float(tc), 0, int(c), tuple(per[int(c)]), int(n), 'folder'))
+                ahead = [self._ahead.get(c) for c in range(self.folder_done + 1, last + 1)]
+                if drive is self._ahead_drive and None not in ahead:
+                    items += [it for it in ahead if it is not None]
+                else:
+                    sub = fb[
+                        (fb['cycle'] > self.folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)
+                    ]
+                    items += self._folder_items(sub, drive)
         rb = self._releases
         if self.timing is not None and rb.size:
             due = (rb['t'] <= W) & (rb['t'] > self._release_done)
             if due.any():
                 drive = drive_before() if drive is None else drive
-                ev = folder_evaluation(rb[due], self.timing, self.scene, drive, plan=self.plan, causal=True)
-                for s in ev.constraints:
-                    if s.name == 'release_at_min_speed':
-                        for c, m, tr in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
-                            items.append(Due(float(tr), 1, int(c), ((s.name, s.unit, float(m)),), 1, 'release'))
+                keys = list(zip(rb['t'][due].tolist(), rb['cycle'][due].tolist(), strict=True))
+                known = [self._ahead_releases.get(k) for k in keys]
+                if drive is self._ahead_drive and None not in known:
+                    items += [it for it in known if it is not None]
+                else:
+                    items += self._release_items(rb[due], drive)
         xb = self._exits
         if xb.size:
             due = (xb['t'] <= W) & (xb['t'] > self._exit_done)
@@ -156,6 +238,8 @@ class CycleEvaluation:
 
     def taken(self, it: Due) -> None:
         """The evaluation ``it`` was taken: its rows are judged."""
+        self._next = None
+        self._judged = True
         if it.source == 'folder':
             self.folder_done = max(self.folder_done, it.cycle)
         elif it.source == 'release':
@@ -165,6 +249,9 @@ class CycleEvaluation:
 
     def commit(self) -> None:
         """Drop the buffered rows of what has been judged."""
+        if not self._judged:
+            return
+        self._judged = False
         fb = self._folder
         if fb.size:
             self._folder = fb[fb['cycle'] > self.folder_done]

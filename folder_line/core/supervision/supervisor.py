@@ -288,6 +288,18 @@ class Supervisor:
         self._cycles.add(rows)
         self._sheets.add(rows)
 
+    def preview(self, rows: np.ndarray) -> None:
+        """Events that will be fed (:meth:`feed`, in any batching) before the drive changes: their
+        cycles are evaluated now, at once, and judged at their times as if evaluated then
+        (:meth:`CycleEvaluation.preview <folder_line.core.supervision.evaluation.CycleEvaluation.preview>`).
+        Changes no decision; a run that knows its events ahead (``simulate --bag``) is faster.
+        """
+        rows = np.asarray(rows).reshape(-1)
+        if rows.dtype != EVENT_DTYPE:
+            raise ParameterError('rows', rows.dtype, 'must be an array of EVENT_DTYPE')
+        rows = rows[np.isfinite(rows['t']) & np.isfinite(rows['value'])]
+        self._cycles.preview(rows, self._drive.drive)
+
     def heard(self, node: str, t: float | Sequence[float] | np.ndarray) -> None:
         """Node ``node`` was heard at stamp(s) ``t`` (s); nodes not watched are ignored."""
         self.late += self.liveness.heard(node, t, self.now)

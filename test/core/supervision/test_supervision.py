@@ -698,3 +698,56 @@ def test_the_balance_after_a_lost_participant_reads_not_judged() -> None:
     (b,) = sup.balances
     assert b.state == 'ABORTED' and not b.ok
     assert b.missing == 'events of feed_transporter not received after 0.400000 s'
+
+
+@pytest.mark.parametrize('name', ['folder_faults', 'folder_jitter', 'line'])
+def test_cycles_evaluated_ahead_are_judged_as_when_due(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``Supervisor.preview`` of each second's events, then the events fed tick by tick (5 ms): the same
+    evaluations (margins and all), violations and transitions as without it, while most cycles are taken
+    from the preview. Not enforcing, folder_faults runs on through its missing, late and double
+    signatures (a cycle with two releases is evaluated when due, not ahead)."""
+    from folder_line.core.line.stream import LineStream
+    from folder_line.core.supervision import evaluation
+
+    scene = load_scene(name)
+    stream = LineStream(scene)
+    windows = [stream.advance(float(s)).events for s in range(1, 41)]
+    calls: list[int] = []
+    taken: list[Any] = []  # every evaluation judged, in order
+    real_evaluation, real_taken = evaluation.folder_evaluation, evaluation.CycleEvaluation.taken
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        return real_evaluation(*args, **kwargs)
+
+    def recorded(self: Any, it: Any) -> None:
+        taken.append(it)
+        real_taken(self, it)
+
+    monkeypatch.setattr(evaluation, 'folder_evaluation', counted)
+    monkeypatch.setattr(evaluation.CycleEvaluation, 'taken', recorded)
+    runs = []
+    for ahead in (True, False):
+        sup = Supervisor(scene, enforce=False, lead=0.01)
+        calls.clear()
+        taken.clear()
+        t0 = 0.0
+        for second, rows in enumerate(windows, start=1):
+            if ahead:
+                sup.preview(rows)
+            for k in range(1, 201):
+                t = second - 1 + k * 0.005
+                sup.feed(rows[(rows['t'] > t0) & (rows['t'] <= t)])
+                sup.tick(t)
+                t0 = t
+        runs.append((sup, list(taken), len(calls)))
+    (a, taken_a, n_ahead), (b, taken_b, n_plain) = runs
+    assert len(taken_a) > 500 and taken_a == taken_b
+    assert a.violations == b.violations and a.transitions == b.transitions and a.stats == b.stats
+    if scene.has_folder:
+        assert n_ahead < n_plain / 4, (n_ahead, n_plain)
+    if name == 'folder_faults':
+        assert a.violations  # the faults are judged
+        releases = np.concatenate(windows)
+        released = releases['cycle'][releases['kind'] == event_kind('released_on_pile')]
+        assert np.unique(released, return_counts=True)[1].max() == 2  # a cycle with a double sheet
