@@ -21,6 +21,8 @@ from folder_line.config.scenes import scene_mapping
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import parse_scene
 
+from ._events_only import events_recording
+
 DURATION = 6.0
 
 
@@ -30,21 +32,7 @@ def _recording(sigma: float | None) -> Recording:
         data['effects']['arrival_jitter'] = {'distribution': 'normal', 'sigma': sigma}
     scene = parse_scene(data)
     result = simulate(scene, DURATION)
-    return Recording(
-        bag=None,
-        run=None,
-        scene=scene,
-        t_end=DURATION,
-        duration=DURATION,
-        events=result.events,
-        event_ns=np.round(result.events['t'] * 1e9).astype(np.int64),
-        joints={},
-        states=[],
-        commands=(),
-        sheet_count=None,
-        landing_x=np.zeros(0),
-        bad_events=0,
-    )
+    return events_recording(scene, result.events, DURATION)
 
 
 def _occupied_bins(sigma: float | None) -> int:

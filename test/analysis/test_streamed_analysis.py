@@ -41,6 +41,8 @@ from folder_line.core.line.scenery import Scenery
 from folder_line.core.line.stream import LineStream
 from folder_line.interfaces import EVENT_KINDS
 
+from ._events_only import events_recording
+
 #: the module (the package's ``render`` is its function)
 render_mod = importlib.import_module('folder_line.analysis.animation.render')
 DATA = Path(__file__).resolve().parents[1] / 'data'
@@ -102,25 +104,7 @@ def _late_faults() -> Scene:
 
 def _recording(scene: Scene, duration: float, *, exact: bool = False) -> Recording:
     """The events of ``simulate`` as a recording holds them (times to the ns, unless ``exact``)."""
-    events = simulate(scene, duration, sample_rate=0.0).events.copy()
-    ns = np.round(events['t'] * 1e9).astype(np.int64)
-    if not exact:
-        events['t'] = ns / 1e9
-    return Recording(
-        bag=None,
-        run=None,
-        scene=scene,
-        t_end=duration,
-        duration=duration,
-        events=events,
-        event_ns=ns,
-        joints={},
-        states=[],
-        commands=(),
-        sheet_count=None,
-        landing_x=np.zeros(0),
-        bad_events=0,
-    )
+    return events_recording(scene, simulate(scene, duration, sample_rate=0.0).events, duration, to_the_ns=not exact)
 
 
 RUNS = {
