@@ -76,6 +76,7 @@ __all__ = [
     'NODE_OF_UNIT',
     'NS_PER_S',
     'OPERATOR_COMMANDS',
+    'GRANT_TOPIC',
     'PARTICIPANTS_TOPIC',
     'RECORDER',
     'SHEET_COUNT_TOPIC',
@@ -85,6 +86,7 @@ __all__ = [
     'SUPERVISOR_STATE_TOPIC',
     'TUNABLE_PARAMETERS',
     'TUNE_TOPIC',
+    'PROGRESS_PATTERN',
     'TICK_DONE_PATTERN',
     'TIME_MSG_MAX_NS',
     'TOPICS',
@@ -96,6 +98,7 @@ __all__ = [
     'joint_states_topic',
     'parse_event_source',
     'seconds_to_ns',
+    'progress_topic',
     'tick_done_topic',
 ]
 
@@ -184,6 +187,11 @@ TUNABLE_PARAMETERS: dict[str, dict[str, str]] = {
     'sheet_counter': {'pile_lowering_time': 'pile.t_lower'},
 }
 
+GRANT_TOPIC = '/line/grant'
+"""``line_clock``'s time grants to the participants (``sensor_msgs/msg/TimeReference``): ``header.stamp`` is
+the last tick granted, ``time_ref`` the first tick of the current step, ``source`` ``'step=<ns>'``; the
+participants take their ticks from it, never from ``/clock`` (see :mod:`folder_line.ros.lockstep`)."""
+
 PARTICIPANTS_TOPIC = '/line/participants'
 """``line_clock``'s announcement of the lockstep participants (``std_msgs/msg/String``)."""
 
@@ -195,7 +203,11 @@ JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
 """Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
 
 TICK_DONE_PATTERN = '/line/{node}/tick_done'
-"""A participant's acknowledgement of a tick (``sensor_msgs/msg/TimeReference``); see :func:`tick_done_topic`."""
+"""A participant's acknowledgement of every tick (``sensor_msgs/msg/TimeReference``); see :func:`tick_done_topic`."""
+
+PROGRESS_PATTERN = '/line/{node}/progress'
+"""A participant's latest acknowledgement, now and then and while it waits (``sensor_msgs/msg/TimeReference``,
+best-effort); see :func:`progress_topic`."""
 
 #: the drive commands the supervisor publishes on :data:`COMMANDS_TOPIC`
 COMMAND_KINDS: tuple[str, ...] = ('hold', 'unhold', 'stop', 'start')
@@ -234,6 +246,17 @@ def joint_states_node(topic: str) -> str | None:
         node = topic[len(head) : len(topic) - len(tail)]
         return node if _NODE_NAME.match(node) else None
     return None
+
+
+def progress_topic(node: str) -> str:
+    """``/line/<node>/progress``, the participant's latest acknowledgement (for the clock and the nodes).
+
+    Raises
+    ------
+    ValueError
+        ``node`` is not a plain node name.
+    """
+    return _node_topic(PROGRESS_PATTERN, node)
 
 
 def tick_done_topic(node: str) -> str:

@@ -226,7 +226,14 @@ def build_parser() -> argparse.ArgumentParser:
         'wall time a tick waits for a node before the node is declared lost',
     )
     _add_out(run, 'out')
-    run.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
+    where = run.add_mutually_exclusive_group()
+    where.add_argument('--processes', action='store_true', help='one process per node, as a launch file would')
+    where.add_argument(
+        '--external-nodes',
+        action='store_true',
+        help='the machine nodes run elsewhere (each on its own host): start only line_clock and the recorder '
+        'here, print the command for each node, and wait for them',
+    )
     _add_marker_rate(run, '')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
@@ -467,6 +474,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         rtf=args.rtf,
         out=Path(args.out),
         processes=args.processes,
+        external=args.external_nodes,
         clock=args.clock,
         lost_timeout=args.lost_timeout,
         marker_rate=args.marker_rate,

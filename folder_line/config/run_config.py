@@ -92,6 +92,9 @@ class RunConfig:
         Output directory.
     processes : bool
         One process per node instead of one executor.
+    external : bool
+        The machine nodes run elsewhere (their own hosts, started by hand or by their own launch):
+        only ``line_clock`` and the recorder run here, and wait for them.
     clock : {'lockstep', 'wall'}
         Lockstep sim time (default) or wall-clock pacing (hardware in the loop).
     lost_timeout : float
@@ -107,6 +110,7 @@ class RunConfig:
     rate: float = RATE
     out: Path = Path('out')
     processes: bool = False
+    external: bool = False
     clock: str = 'lockstep'
     lost_timeout: float = 3.0
     marker_rate: float = MARKER_RATE

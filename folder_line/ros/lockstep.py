@@ -1,11 +1,15 @@
 """The lockstep protocol of the live line, on standard messages.
 
-``line_clock`` owns simulated time and publishes it tick by tick on ``/clock``
-(``rosgraph_msgs/Clock``). In ``lockstep`` mode (the default) it publishes tick
-``k + 1`` only once every *participant* has finished tick ``k``; when the machine
-cannot keep up, simulated time slows down instead of dropping a tick (Gazebo's
-lockstep, CARLA's synchronous mode). In ``wall`` mode (hardware in the loop) it
-paces ticks by the wall clock and counts the late participants instead.
+``line_clock`` owns simulated time. It *grants* time to the participants on
+``/line/grant`` and publishes every tick it grants on ``/clock`` for everyone else.
+A participant runs the ticks granted to it, each once its inputs allow, and
+acknowledges each on ``/line/<node>/tick_done``. In ``lockstep`` mode (the default)
+the clock grants ticks up to ``window`` s of sim time ahead of the slowest
+participant's latest acknowledgement, and never faster than ``rtf``: when the
+machine or the network cannot keep up, sim time slows down instead of dropping a
+tick. In ``wall`` mode (hardware in the loop) it grants by the wall clock and counts
+late participants instead. The protocol and its safety argument are in the README
+("The live line's protocol").
 
 Topics
 ------
@@ -14,36 +18,32 @@ Topics
     ``'clock=lockstep end=<ns or none> participants=crank_drive,...,line_recorder'``
     (:func:`format_announcement`). Every participant waits for it, so the set of
     participants has one source: ``line_clock``'s ``participants`` parameter.
+``/line/grant`` (``sensor_msgs/TimeReference``, reliable)
+    ``header.stamp`` = the last tick granted, ``time_ref`` = the first tick of the
+    current step, ``source`` = ``'step=<ns>'``, ``header.frame_id`` = ``line_clock``
+    (:func:`grant_ticks`). Repeated while nothing new is granted: the clock is alive.
 ``/line/<node>/tick_done`` (``sensor_msgs/TimeReference``)
     A participant's acknowledgement of a tick, published after all that tick's
-    messages: ``header.stamp`` = ``time_ref`` = the tick, ``header.frame_id`` = the
-    participant, ``source`` = its cumulative published counts
-    (:func:`folder_line.core.supervision.lockstep.format_counts`). Consumers that must not act on
-    missing input (the supervisor, the machine nodes for the supervisor's commands,
-    the recorder) count what they received from each producer and wait until the
-    counts reach the acknowledged ones (:class:`folder_line.core.supervision.lockstep.TickLedger`).
-    Acknowledgements are taken raw and decoded by ``rosbags``' CDR deserializer
-    (:func:`read_ack`), three times cheaper than rclpy's message conversion; a tick
-    has about twenty of them.
+    messages: ``header.stamp`` = the tick, ``header.frame_id`` = the participant,
+    ``time_ref`` = its *promise* (nothing it publishes later matters before it: the
+    tick itself, or for the supervisor the tick plus ``command_lead``), ``source`` =
+    its cumulative published counts, per stream and per topic
+    (:func:`folder_line.core.supervision.lockstep.format_counts`). Consumers that must
+    not act on missing input count what they received from each producer and wait
+    until the counts reach the acknowledged ones
+    (:class:`folder_line.core.supervision.lockstep.TickLedger`). Acknowledgements are
+    cumulative, so the clock and the nodes read them best-effort: a lost one is
+    replaced by the next or by a repeat, never held back behind a repair.
 
-Data publishers of the line are reliable and transient-local with a deep history,
-so a subscriber that matches late (discovery between processes takes up to seconds)
-still gets every message of the first ticks.
-
-A participant that stops answering (killed, crashed, SIGSTOP) is declared *lost*
-after ``lost_timeout`` s of wall time (``startup_timeout`` for the first tick) by
-whoever waits for it; it is named in the log and in ``/diagnostics``, and the
-others go on without it. A participant that is only slow is waited for. One that
-waits, for the clock's next tick or for another participant, repeats its latest
-acknowledgement every ``HEARTBEAT`` s (before its first, it acknowledges the instant
-before the tick it waits on), so that only the silent one is declared lost, not those
-held up by it; so does one that works at length on a tick (a node that
-joins the line far into it and fast-forwards there: before its first acknowledgement
-it acknowledges the instant before the tick, :meth:`Participant.working`). One that
-answers but whose counted messages never arrive (a consumer that does not count
-what the producer counts, a broken link) is declared lost too, after
-``MISSING_FACTOR`` times the limit, naming what is missing: a tick is never waited
-for for ever.
+A participant that stops answering is first *waited for*: after ``lost_timeout`` s
+of wall time whoever waits for it names it, and how long, at a bounded rate, and
+takes it back when it answers. It is declared *lost* only once its DDS participant
+has left the graph too (its process ended, or its lease ran out: killed, crashed,
+stopped, or cut off for longer than the lease). A participant that waits repeats
+its latest acknowledgement every ``HEARTBEAT`` s, so only the silent one is waited
+for, not those held up by it. One that answers but whose counted messages never
+arrive is declared lost after ``MISSING_FACTOR`` times the limit, naming what is
+missing: a tick is never waited for for ever.
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -66,35 +67,50 @@ from std_msgs.msg import String
 
 from folder_line.core.supervision.lockstep import TickLedger, format_counts, parse_counts
 from folder_line.interfaces import (
-    CLOCK_TOPIC,
+    GRANT_TOPIC,
     KNOWN_PARTICIPANTS,
     MACHINE_NODES,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
+    RECORDER,
+    progress_topic,
     tick_done_topic,
 )
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import PUBLISH_DEPTH
 
 __all__ = [
+    'ACK_QOS',
     'CLOCK_MODES',
     'DEFAULT_PARTICIPANTS',
+    'GRANT_QOS',
+    'HEARTBEAT',
     'LINE_QOS',
+    'MAX_GRANT',
     'PARTICIPANTS_QOS',
     'TICK_QOS',
+    'WAIT_REPORT',
     'Announcement',
     'Participant',
     'format_announcement',
+    'format_grant',
+    'grant_ticks',
     'parse_announcement',
     'participant_names',
     'read_ack',
 ]
 
-HEARTBEAT = 0.1  # wall s: a participant that waits repeats its latest acknowledgement this often
+HEARTBEAT = 0.05  # wall s: a participant that waits repeats its latest acknowledgement this often
+#: a participant that runs ticks one after another says how far it got at least every this many ticks
+PROGRESS_EVERY = 10
+#: wall s between two reports of the same wait (a participant waited for, a silent clock)
+WAIT_REPORT = 5.0
 #: a producer that acknowledged a tick whose counted messages have not all arrived after this many times the
-#: lost limit is lost too: a reliable writer repairs a dropped sample at its next heartbeat (Fast DDS: up to
-#: ~3 s), so this is far longer than any repair, yet a consumer never waits for ever on messages that never come
+#: lost limit is lost too: a reliable writer repairs a dropped sample at its next heartbeat (the line's Fast
+#: DDS profile: tens of ms), so this is far longer than any repair, yet a consumer never waits for ever
 MISSING_FACTOR = 3.0
+#: most ticks one grant may add (a grant beyond it is refused as malformed)
+MAX_GRANT = 1_000_000
 
 #: what ``line_clock`` waits for when started by hand with no ``participants``
 DEFAULT_PARTICIPANTS: tuple[str, ...] = MACHINE_NODES
@@ -108,10 +124,57 @@ LINE_QOS = QoSProfile(
 )
 """QoS of every data publisher and subscription of the line: reliable, transient-local, 1000 deep."""
 TICK_QOS = LINE_QOS
+"""QoS of the acknowledgements of every tick (``tick_done``; the recorder needs every one, in order)."""
+ACK_QOS = QoSProfile(
+    depth=10,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_LAST,
+)
+"""QoS of ``progress``, the latest acknowledgement (the clock and the nodes read it): cumulative, so
+best-effort (a repeat stands in for a lost one at once, where a reliable reader would hold it back until the
+repair)."""
+GRANT_QOS = LINE_QOS
+"""QoS of the grants: reliable and in order (a grant adds the ticks after the previous one)."""
 PARTICIPANTS_QOS = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
 CLOCK_SUB_QOS = QoSProfile(depth=PUBLISH_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def format_grant(last: int, first: int, step: int) -> TimeReference:
+    """The grant of every tick up to ``last`` (ns) on the grid ``first + k * step`` (ns)."""
+    msg = TimeReference()
+    msg.header.stamp = ns_to_time_msg(last)
+    msg.header.frame_id = 'line_clock'
+    msg.time_ref = ns_to_time_msg(first)
+    msg.source = f'step={step}'
+    return msg
+
+
+def grant_ticks(msg: TimeReference, granted: int | None) -> list[int]:
+    """The ticks a grant adds after ``granted`` (ns; None: the first grant seen, which adds its last tick only).
+
+    Raises ``ValueError`` with the reason for a message that is not a grant of ``line_clock``.
+    """
+    if msg.header.frame_id != 'line_clock':
+        raise ValueError(f'grant from {msg.header.frame_id[:40]!r}: only line_clock grants time')
+    key, _, value = msg.source.partition('=')
+    if key != 'step' or not value.isdigit() or not 0 < int(value) <= 1000 * NS_PER_S:
+        raise ValueError(f'grant source {msg.source[:40]!r}: must be step=<ns>')
+    last, first, step = time_msg_to_ns(msg.header.stamp), time_msg_to_ns(msg.time_ref), int(value)
+    if first > last:
+        raise ValueError(f'grant of {last} ns whose step starts later, at {first} ns')
+    if granted is None:
+        return [last]
+    if last <= granted:
+        return []
+    start = granted + step if granted >= first else first
+    if (last - start) // step >= MAX_GRANT:
+        raise ValueError(f'grant of {(last - start) // step} ticks at once (at most {MAX_GRANT})')
+    ticks = list(range(start, last, step))
+    ticks.append(last)
+    return ticks
 
 
 @dataclass(frozen=True)
@@ -176,8 +239,8 @@ def _typestore() -> Any:
 _cached_counts = functools.lru_cache(maxsize=256)(parse_counts)
 
 
-def read_ack(data: bytes) -> tuple[str, int, dict[str, int]]:
-    """``(frame_id, stamp ns, counts)`` of a ``tick_done`` message as published (CDR bytes).
+def read_ack(data: bytes) -> tuple[str, int, dict[str, int], int]:
+    """``(frame_id, stamp ns, counts, promise ns)`` of a ``tick_done`` message as published (CDR bytes).
 
     Raises ``ValueError`` with the reason for bytes that are not a ``sensor_msgs/TimeReference``
     or whose ``source`` is not counts (:func:`folder_line.core.supervision.lockstep.parse_counts`). The
@@ -187,11 +250,15 @@ def read_ack(data: bytes) -> tuple[str, int, dict[str, int]]:
         msg = _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference')
     except Exception as err:  # noqa: BLE001 - any decoding failure of foreign bytes is a rejection
         raise ValueError(f'not a sensor_msgs/TimeReference ({type(err).__name__}: {str(err)[:80]})') from None
-    return msg.header.frame_id, time_msg_to_ns(msg.header.stamp), _cached_counts(msg.source)
+    stamp = time_msg_to_ns(msg.header.stamp)
+    return msg.header.frame_id, stamp, _cached_counts(msg.source), time_msg_to_ns(msg.time_ref)
 
 
 Depends = Callable[[Announcement], Mapping[str, tuple[str, ...]]]
 """A participant's dependencies once the participants are known: producer -> counted streams."""
+Needs = Callable[[int, 'int | None'], 'tuple[int, int | None] | None']
+"""``needs(stamp, previous) -> (stamp_need, promise_need)``: the tick may run once every producer's ticks up to
+``stamp_need`` are complete, or a complete tick of it promises ``promise_need`` (None: no condition)."""
 
 
 class Participant:
@@ -206,19 +273,22 @@ class Participant:
     on_tick : callable
         ``on_tick(stamp_ns)``: publish everything of that tick (through :meth:`publish`).
     needs : callable, optional
-        ``needs(stamp_ns, previous_ns) -> ns``: the producers' tick that must be
-        complete before this tick may run (default: ``previous_ns``, the tick before).
+        :data:`Needs` (default: the producers' previous tick complete).
+    promise : callable, optional
+        ``promise(stamp_ns) -> ns``: the promise acknowledged with a tick (default: the tick).
     on_lost : callable, optional
         ``on_lost(producer, waited_s, stamp_ns)`` when a producer is declared lost.
     on_reject : callable, optional
         ``on_reject(kind, reason)`` for a malformed, foreign or out-of-order input.
     on_end : callable, optional
         ``on_end(stamp_ns)`` once the announced last tick is done (after its acknowledgement).
+    on_ack : callable, optional
+        ``on_ack(producer, stamp_ns, counts)`` for every acknowledgement taken (the recorder places messages).
     lost_timeout, startup_timeout : float
-        Wall seconds a tick may wait for a producer before it is declared lost (the first tick).
-    clock_subscription : bool
-        Subscribe to ``/clock`` (default). A node that takes ``/clock`` itself passes False and
-        hands every message to :meth:`on_clock`: one delivery per tick instead of two.
+        Wall seconds a tick may wait for a producer before it is reported (the first tick: declared lost).
+    every_tick : bool
+        Read the producers' acknowledgements of every tick (``tick_done``, reliable; the recorder) instead
+        of their ``progress`` (best-effort).
     """
 
     def __init__(
@@ -227,45 +297,60 @@ class Participant:
         depends: Depends,
         on_tick: Callable[[int], None],
         *,
-        needs: Callable[[int, int | None], int | None] | None = None,
+        needs: Needs | None = None,
+        promise: Callable[[int], int] | None = None,
         on_lost: Callable[[str, float, int], None] | None = None,
         on_reject: Callable[[str, str], None] | None = None,
         on_end: Callable[[int], None] | None = None,
+        on_ack: Callable[[str, int, Mapping[str, int]], None] | None = None,
         lost_timeout: float = 3.0,
         startup_timeout: float = 60.0,
-        clock_subscription: bool = True,
+        every_tick: bool = False,
     ) -> None:
         self.node = node
         self.name = node.get_name()
         self._depends = depends
         self._on_tick = on_tick
-        self._needs = needs or (lambda stamp, previous: previous)
+        self._needs: Needs = needs or (lambda stamp, previous: None if previous is None else (previous, None))
+        self._promise = promise or (lambda stamp: stamp)
         self._on_lost = on_lost
         self._on_reject = on_reject
         self._on_end = on_end
+        self._on_ack_taken = on_ack
+        self._every_tick = every_tick
         self.lost_timeout = lost_timeout
         self.startup_timeout = startup_timeout
         self.announcement: Announcement | None = None
         self.ledger: TickLedger | None = None
         self.counts: dict[str, int] = {'messages': 0, 'events': 0, 'commands': 0}
-        self.pending: list[int] = []
+        self._topics: dict[int, str] = {}  # id(publisher) -> its topic, counted per topic too
+        self.pending: deque[int] = deque()
+        self.granted: int | None = None  # the latest tick granted, ns
         self.last_done: int | None = None
         self.ticks = 0
         self.ended = False
+        self.clock_silent = 0.0  # wall s the clock has been silent, once reported (0: it speaks)
+        self.lost: list[str] = []  # the producers declared lost
         self._waiting_since: float | None = None
+        self._clock_heard = time.monotonic()
+        self._reported: dict[str, float] = {}  # producer (or the clock) -> wall time of its latest wait report
         # counted before the announcement (discovery between processes orders nothing): applied to the ledger
         self._early: dict[tuple[str, str], int] = {}
         self._heard: dict[str, float] = {}  # producer -> wall time of its latest acknowledgement (a repeat too)
         self._last_ack: TimeReference | None = None
-        self._acked_at = 0.0  # wall time (monotonic) the latest acknowledgement was sent or repeated
-        self._ack_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
+        self._acked_at = 0.0  # wall time (monotonic) the latest progress was sent or repeated
+        self._unsaid = 0  # ticks done since the latest progress
+        self.acknowledged = 0  # tick_done messages published
+        self.said = 0  # progress messages published (repeats too)
+        self._tick_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
+        self._per_tick = False  # the recorder takes part: it reads every tick's acknowledgement
+        self._ack_pub = node.create_publisher(TimeReference, progress_topic(self.name), ACK_QOS)
         # a deep queue (compatible with the depth-1 publisher): a malformed or foreign announcement arriving
         # right after line_clock's must not push it out of the queue before it is taken
         node.create_subscription(String, PARTICIPANTS_TOPIC, self._on_announcement, LINE_QOS)
-        if clock_subscription:
-            node.create_subscription(ClockMsg, CLOCK_TOPIC, self.on_clock, CLOCK_SUB_QOS)
-        # the node's sim clock (use_sim_time) is fed from this subscription: rclpy's TimeSource would take
-        # every /clock message a second time through a subscription of its own
+        node.create_subscription(TimeReference, GRANT_TOPIC, self.on_grant, GRANT_QOS)
+        # the node's sim clock (use_sim_time) is fed with the ticks it runs, never from /clock: rclpy's
+        # TimeSource would take every /clock message, a foreign one too, through a subscription of its own
         time_source = getattr(node, '_time_source', None)
         own = getattr(time_source, '_clock_sub', None)
         if time_source is not None and own is not None:
@@ -279,11 +364,17 @@ class Participant:
     # ------------------------------------------------------------------ publishing
 
     def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
-        """Publish ``msg`` and count it (``messages``, and ``stream`` if given)."""
+        """Publish ``msg`` and count it (``messages``, its topic, and ``stream`` if given)."""
         publisher.publish(msg)
-        self.counts['messages'] += 1
+        counts = self.counts
+        counts['messages'] += 1
+        topic = self._topics.get(id(publisher))
+        if topic is None:
+            topic = self._topics[id(publisher)] = publisher.topic_name
+            counts[topic] = 0
+        counts[topic] += 1
         if stream is not None:
-            self.counts[stream] += 1
+            counts[stream] += 1
 
     def received(self, producer: str, stream: str, n: int = 1) -> None:
         """Count a message of ``stream`` from ``producer`` (a no-op if not waited for), then advance.
@@ -319,23 +410,22 @@ class Participant:
                 f'{self.name} is not among the participants {",".join(a.participants)}: line_clock will not wait for it'
             )
         self.announcement = a
+        self._per_tick = RECORDER in a.participants and self.name != RECORDER  # the recorder reads them
         deps = {p: s for p, s in self._depends(a).items() if p in a.participants and p != self.name}
         self.ledger = TickLedger(deps, {s for streams in deps.values() for s in streams})
-        self._streams = deps
         self._heard = dict.fromkeys(deps, time.monotonic())
         for (producer, stream), n in self._early.items():
             self.ledger.received(producer, stream, n)
         self._early.clear()
+        topic, qos = (tick_done_topic, TICK_QOS) if self._every_tick else (progress_topic, ACK_QOS)
         for producer in deps:
-            self.node.create_subscription(
-                TimeReference, tick_done_topic(producer), self._on_ack(producer), TICK_QOS, raw=True
-            )
+            self.node.create_subscription(TimeReference, topic(producer), self._on_ack(producer), qos, raw=True)
         self.advance()
 
     def _on_ack(self, producer: str) -> Callable[[bytes], None]:
         def on_ack(data: bytes) -> None:
             try:
-                frame_id, stamp, counts = read_ack(data)
+                frame_id, stamp, counts, promise = read_ack(data)
             except ValueError as err:
                 self._reject('tick_done', str(err))
                 return
@@ -343,62 +433,84 @@ class Participant:
                 self._reject('tick_done', f"frame_id {frame_id[:40]!r} on {producer}'s topic")
                 return
             assert self.ledger is not None
-            refused = self.ledger.ack(producer, stamp, counts)
+            refused = self.ledger.ack(producer, stamp, counts, promise)
             if refused is not None:
                 self._reject('tick_done', refused)
                 return
-            self._heard[producer] = time.monotonic()
+            self._answered(producer)
+            if self._on_ack_taken is not None:
+                self._on_ack_taken(producer, stamp, counts)
             if self.pending:
                 self.advance()
 
         return on_ack
 
-    def on_clock(self, msg: ClockMsg) -> None:
-        """A ``/clock`` tick (from the participant's own subscription, or handed on by its node)."""
-        if self._time_source is not None:
-            self._time_source.clock_callback(msg)
-        stamp = time_msg_to_ns(msg.clock)
-        if self.last_done is not None and stamp <= self.last_done:
-            if stamp == self.last_done:
-                self._ack(stamp)  # line_clock repeats a tick until everyone answered it
-            else:
-                self._reject('clock', f'tick {stamp} ns is older than the last tick done {self.last_done} ns')
+    def _answered(self, producer: str) -> None:
+        now = time.monotonic()
+        if producer in self._reported:
+            waited = now - self._heard.get(producer, now)
+            del self._reported[producer]
+            self.node.get_logger().info(f'participant {producer} answers again after {waited:.1f} s: taken back')
+        self._heard[producer] = now
+
+    def on_grant(self, msg: TimeReference) -> None:
+        """A grant of ``line_clock`` (:data:`GRANT_TOPIC`): queue the ticks it adds."""
+        try:
+            ticks = grant_ticks(msg, self.granted)
+        except ValueError as err:
+            self._reject('grant', str(err))
             return
-        if self.pending and stamp <= self.pending[-1]:
-            return  # a repeated tick still pending
-        self.pending.append(stamp)
+        now = time.monotonic()
+        if self.clock_silent:
+            self.node.get_logger().info(f'line_clock speaks again after {now - self._clock_heard:.1f} s')
+            self.clock_silent = 0.0
+        self._clock_heard = now
+        if not ticks:
+            last = time_msg_to_ns(msg.header.stamp)
+            if last == self.last_done:
+                self._say()  # the first tick is granted again until everyone answered it
+            return
+        self.granted = ticks[-1]
+        self.pending.extend(ticks)
         if self._waiting_since is None:
-            self._waiting_since = time.monotonic()
+            self._waiting_since = now
         self.advance()
 
     # ------------------------------------------------------------------ ticks
 
-    def required(self, stamp: int) -> int | None:
-        """The producers' tick that must be complete before tick ``stamp`` runs."""
+    def required(self, stamp: int) -> tuple[int, int | None] | None:
+        """What tick ``stamp`` needs of the producers (:data:`Needs`)."""
         return self._needs(stamp, self.last_done)
 
     def advance(self) -> None:
         """Run every pending tick whose inputs are complete, in order."""
-        if self.ledger is None or self.ended:
+        ledger = self.ledger
+        if ledger is None or self.ended:
             return
-        while self.pending:
-            stamp = self.pending[0]
-            need = self.required(stamp)
-            if need is not None and not self.ledger.complete_through(need):
-                return
-            self.pending.pop(0)
+        pending = self.pending
+        while pending:
+            stamp = pending[0]
+            need = self._needs(stamp, self.last_done)
+            if need is not None and not ledger.ready(*need):
+                break
+            pending.popleft()
+            if self._time_source is not None:
+                self._time_source.clock_callback(ClockMsg(clock=ns_to_time_msg(stamp)))
             self._on_tick(stamp)
             self.last_done = stamp
             self.ticks += 1
             self._ack(stamp)
-            self._waiting_since = time.monotonic() if self.pending else None
+            self._waiting_since = time.monotonic() if pending else None
             a = self.announcement
             if a is not None and a.end_ns is not None and stamp >= a.end_ns:
                 self.ended = True
-                self.pending.clear()
+                pending.clear()
+                self._say()
                 if self._on_end is not None:
                     self._on_end(stamp)
                 return
+        if self._unsaid:
+            self._say()  # waiting now: say how far it got
 
     def working(self, stamp: int) -> None:
         """Say that this participant is alive while it works at length on tick ``stamp`` (a node that joins
@@ -411,67 +523,117 @@ class Participant:
         if self._last_ack is None:
             if stamp > 0:  # a line that starts at 0 has no instant before it (and nothing to fast-forward)
                 self._ack(stamp - 1)
+                self._say()
         else:
-            self._ack_pub.publish(self._last_ack)
-            self._acked_at = now
+            self._say()
 
     def _ack(self, stamp: int) -> None:
+        """Acknowledge tick ``stamp``: on ``tick_done`` if the recorder takes part; on ``progress`` every
+        :data:`PROGRESS_EVERY` ticks (and when the participant waits, :meth:`advance`)."""
         # one message object, refilled: publishing serializes it at once, and the heartbeat repeats the latest
         ack = self._last_ack
         if ack is None:
             ack = TimeReference()
             ack.header.frame_id = self.name
-        ack.header.stamp = ack.time_ref = ns_to_time_msg(stamp)
+        ack.header.stamp = ns_to_time_msg(stamp)
+        ack.time_ref = ns_to_time_msg(max(stamp, self._promise(stamp)))
         ack.source = format_counts(self.counts)
-        self._ack_pub.publish(ack)
+        if self._per_tick:
+            self._tick_pub.publish(ack)
+            self.acknowledged += 1
         self._last_ack = ack
-        self._acked_at = time.monotonic()
+        self._unsaid += 1
+        if self._unsaid >= PROGRESS_EVERY:
+            self._say()
+
+    def _say(self) -> None:
+        """Publish the latest acknowledgement on ``progress``."""
+        if self._last_ack is not None:
+            self._ack_pub.publish(self._last_ack)
+            self.said += 1
+            self._unsaid = 0
+            self._acked_at = time.monotonic()
 
     def _check_lost(self) -> None:
-        """While a tick waits: repeat the latest acknowledgement (alive, waiting), and declare lost the producers
-        it waits for that acknowledged nothing, not even a repeat, for the limit: a producer that waits for
-        a lost one itself is not lost."""
-        if self.ledger is None or self.ended:
-            return
+        """Every ``HEARTBEAT``: repeat the latest acknowledgement if nothing was sent since (alive, waiting;
+        an ended participant too, until it is destroyed: its last one may have been lost); report the
+        producers waited for and a silent clock; declare lost a silent producer that left the graph."""
         now = time.monotonic()
         if self._last_ack is not None and now - self._acked_at >= HEARTBEAT:
-            # waiting, for the clock's next tick or for a producer: say so. This also stands in for an
-            # acknowledgement lost on the way, which a reliable writer sends again only at its next
-            # heartbeat (seconds): those waiting for this participant must not take it for lost.
-            self._ack_pub.publish(self._last_ack)
-            self._acked_at = now
+            self._say()
         elif self._last_ack is None and self.pending and self.pending[0] > 0 and now - self._acked_at >= HEARTBEAT:
             # waiting for a producer before the first tick is done (the producers of a line joined far into
             # it fast-forward first, at length): alive, at the instant before the tick, as working() says.
             # A line that starts at 0 has no instant before it, and its producers start at once.
             self._ack(self.pending[0] - 1)
-        if not self.pending or self._waiting_since is None:
+            self._say()
+        if self.ledger is None or self.ended:
+            return
+        if not self.pending:
+            self._check_clock(now)
+            return
+        if self._waiting_since is None:
             return
         waited = now - self._waiting_since
         limit = self.startup_timeout if self.last_done is None else self.lost_timeout
         if waited <= limit:
             return
         need = self.required(self.pending[0])
-        if need is None:
+        if need is not None:
+            for producer in self.ledger.waiting_for(*need):
+                self._judge(producer, now, waited, limit, need[0])
+        self.advance()
+
+    def _check_clock(self, now: float) -> None:
+        """Waiting for a grant: a clock silent for ``lost_timeout`` is named, every :data:`WAIT_REPORT` s."""
+        silent = now - self._clock_heard
+        if self.last_done is None or silent <= self.lost_timeout:
             return
-        for producer in self.ledger.waiting_for(need):
-            why = f'limit {limit:g} s'
-            if now - self._heard.get(producer, -math.inf) <= limit:
-                # it answers: lost only if it acknowledged the tick and its counted messages do not come
-                acked = self.ledger.last_ack(producer)
-                missing = self.ledger.missing(producer)
-                if acked is None or acked < need or not missing or waited <= MISSING_FACTOR * limit:
-                    continue
+        if now - self._reported.get('line_clock', -math.inf) < WAIT_REPORT:
+            return
+        self._reported['line_clock'] = now
+        gone = self.node.count_publishers(GRANT_TOPIC) == 0
+        self.clock_silent = silent
+        self.node.get_logger().error(
+            f'line_clock silent for {silent:.1f} s of wall time after tick {self.last_done / NS_PER_S:.9f} s'
+            + (' and gone from the graph' if gone else '')
+            + ': waiting for its next grant'
+        )
+
+    def _judge(self, producer: str, now: float, waited: float, limit: float, need: int) -> None:
+        """``producer`` holds up a tick for longer than ``limit``: lost if it left the graph (or its counted
+        messages never come); else waited for, and said so every :data:`WAIT_REPORT` s."""
+        assert self.ledger is not None
+        silent = now - self._heard.get(producer, -math.inf)
+        present = self.node.count_publishers(progress_topic(producer)) > 0
+        why = ''
+        if silent > limit and not present:
+            why = f'silent for {silent:.1f} s (limit {limit:g} s) and gone from the graph'
+        elif silent <= limit:
+            acked = self.ledger.last_ack(producer)
+            missing = self.ledger.missing(producer)
+            if acked is not None and acked >= need and missing and waited > MISSING_FACTOR * limit:
                 shortfall = ', '.join(f'{n} {stream}' for stream, n in sorted(missing.items()))
                 why = f'acknowledged, but {shortfall} it counted never arrived within {MISSING_FACTOR:g} x {limit:g} s'
+        elif self.last_done is None and waited > self.startup_timeout:
+            why = f'no answer to the first tick in {waited:.1f} s (startup_timeout {self.startup_timeout:g} s)'
+        if why:
             self.ledger.lose(producer)
+            self.lost.append(producer)
+            self._reported.pop(producer, None)
             self.node.get_logger().error(
                 f'participant {producer} lost: tick {need / NS_PER_S:.9f} s not complete after {waited:.1f} s of '
                 f'wall time ({why}); going on without it'
             )
             if self._on_lost is not None:
                 self._on_lost(producer, waited, need)
-        self.advance()
+            return
+        if silent > limit and now - self._reported.get(producer, -math.inf) >= WAIT_REPORT:
+            self._reported[producer] = now
+            self.node.get_logger().warning(
+                f'waiting for {producer}: silent for {silent:.1f} s of wall time, still in the graph '
+                f'(slow or cut off, not lost); tick {need / NS_PER_S:.9f} s waits'
+            )
 
     def destroy(self) -> None:
         """Cancel the wall timer (the node destroys its entities)."""

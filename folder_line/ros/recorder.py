@@ -6,25 +6,28 @@ bytes it was published as: the subscriptions are raw, so a message is never turn
 Python objects and back to be recorded (only the few fields the recorder reads are
 deserialized, by rclpy). It is a
 lockstep participant (``line_recorder``, :mod:`folder_line.ros.lockstep`): it
-acknowledges tick ``t`` once every other participant's tick ``t`` is complete here,
-i.e. every message they published up to ``t`` has been recorded, so ``line_clock``
-never runs ahead of the bag. A repeated ``/clock`` tick (the clock repeats its first
-tick until every participant answered it) is recorded once. A message that arrives
-before the ``/clock`` of its tick (DDS orders nothing across topics) is held until
-that ``/clock`` is recorded (:meth:`LineRecorder.flush`), so every message's log time
-in the bag is its tick: the bag does not depend on the load.
+runs tick ``t`` once every other participant's tick ``t`` is complete here, i.e.
+every message they published up to ``t`` has arrived, so ``line_clock`` never runs
+more than its window ahead of the bag. It reads every acknowledgement (reliably, in
+order), whose per-topic counts say which of a producer's messages belong to which
+tick; a producer's messages are held until their tick runs here, and written then at
+that tick, after the tick's ``/clock``. So every message's log time in the bag is its
+tick, whatever the order in which DDS delivers the topics and however far ahead the
+producers run: the bag does not depend on the load. ``/clock`` is recorded as the
+ticks ``line_clock`` granted (the same messages it publishes); a foreign ``/clock`` is
+never recorded.
 """
 
 from __future__ import annotations
 
 import time
-from collections import Counter
-from collections.abc import Callable
+from collections import Counter, deque
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, Header, String, UInt64
@@ -50,9 +53,9 @@ from folder_line.interfaces import (
     is_command_source,
     parse_event_source,
 )
-from folder_line.ros.lockstep import CLOCK_SUB_QOS, LINE_QOS, Announcement, Participant
+from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.ros.nodes.supervisor import STATE_QOS
-from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
 __all__ = ['LINE_TOPICS', 'LineRecorder']
@@ -83,6 +86,19 @@ _PRODUCER: dict[str, str | None] = {
     SHEET_RATE_TOPIC: 'sheet_counter',
     LANDING_TOPIC: 'sheet_counter',
     MARKERS_TOPIC: 'sheet_counter',
+}
+
+#: participant -> the topics it publishes, each counted in its acknowledgements (``/clock`` is line_clock's)
+PRODUCER_TOPICS: dict[str, tuple[str, ...]] = {
+    node: tuple(
+        t
+        for t, who in _PRODUCER.items()
+        if who == node
+        or (who is None and t == joint_states_topic(node))
+        or (t == EVENTS_TOPIC and node in EVENT_OWNER.values())
+        or (t in (DIAGNOSTICS_TOPIC, COMMANDS_TOPIC) and node == 'supervisor')
+    )
+    for node in MACHINE_NODES
 }
 
 #: ``sink(topic, cdr, log_ns, publish_ns)``: the message as published (CDR bytes), the tick it is
@@ -130,37 +146,40 @@ class LineRecorder(Node):
         self.counts: Counter[str] = Counter()
         self.event_counts: Counter[str] = Counter()
         self.sim_time = 0.0
-        self.clock_wall: tuple[float, float] | None = None  # wall time (s) of the first and latest /clock
+        self.clock_wall: tuple[float, float] | None = None  # wall time (s) of the first and latest tick recorded
         self.state = ''
         self.sheet_count = 0
         self.lost: dict[str, float] = {}
+        #: per topic, messages that arrived for ticks after the last one recorded (a stopped line), not recorded
+        self.unrecorded: Counter[str] = Counter()
         #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
         self.write_error: OSError | None = None
         # the ERROR statuses seen (lost participants, violations, ...) and the operator's tunings
         self.diagnostics: list[Any] = []
         self._last_clock = -1
-        self._held: list[tuple[str, bytes, int]] = []  # (topic, cdr, publish ns) of a tick whose /clock is not in
+        # per producer: its acknowledgements not yet recorded, and per topic its messages not yet recorded
+        self._acks: dict[str, deque[tuple[int, Mapping[str, int]]]] = {n: deque() for n in PRODUCER_TOPICS}
+        self._held: dict[str, dict[str, deque[tuple[bytes, int]]]] = {
+            n: {t: deque() for t in topics} for n, topics in PRODUCER_TOPICS.items()
+        }
+        self._done: dict[tuple[str, str], int] = {}  # (producer, topic) -> its messages recorded (or counted)
         self._sim_origin = 0.0
         for topic, cls in LINE_TOPICS.items():
+            if topic == CLOCK_TOPIC:
+                continue  # recorded from the ticks line_clock grants
             qos = (
-                COMMANDS_QOS
-                if topic == COMMANDS_TOPIC
-                else STATE_QOS
-                if topic == SUPERVISOR_STATE_TOPIC
-                else CLOCK_SUB_QOS
-                if topic == CLOCK_TOPIC
-                else LINE_QOS
+                COMMANDS_QOS if topic == COMMANDS_TOPIC else STATE_QOS if topic == SUPERVISOR_STATE_TOPIC else LINE_QOS
             )
             self.create_subscription(cls, topic, self._callback(topic, cls), qos, raw=True)
-        # the participant takes /clock from this node's own subscription (after the tick is recorded)
         self.lockstep = Participant(
             self,
             self._depends,
-            lambda stamp: None,
-            needs=lambda stamp, previous: stamp,
+            self._on_tick,
+            needs=lambda stamp, previous: (stamp, None),
             on_lost=self._on_lost,
+            on_ack=self._on_ack,
             lost_timeout=lost_timeout,
-            clock_subscription=False,
+            every_tick=True,
         )
 
     def rtf_achieved(self) -> float:
@@ -171,10 +190,49 @@ class LineRecorder(Node):
 
     @staticmethod
     def _depends(a: Announcement) -> dict[str, tuple[str, ...]]:
-        return {n: ('messages',) for n in MACHINE_NODES}
+        return dict(PRODUCER_TOPICS)
 
     def _on_lost(self, producer: str, waited: float, stamp: int) -> None:
         self.lost[producer] = stamp / NS_PER_S
+        self._acks[producer].clear()
+        for topic, queue in self._held[producer].items():  # no tick of it will place them: at the latest tick
+            while queue:
+                self._sink(topic, *queue.popleft())
+
+    def _on_ack(self, producer: str, stamp: int, counts: Mapping[str, int]) -> None:
+        acks = self._acks.get(producer)
+        if acks is not None:
+            acks.append((stamp, counts))
+
+    def _on_tick(self, stamp: int) -> None:
+        """Every producer's messages up to ``stamp`` are in: record the tick's ``/clock``, then its messages."""
+        first = self._last_clock < 0
+        self._last_clock = stamp
+        self.sim_time = max(self.sim_time, stamp / NS_PER_S)
+        now = time.monotonic()
+        if first:  # the first tick waits for everyone to start: the rate counts from it
+            self._sim_origin = self.sim_time
+        self.clock_wall = (now, now) if self.clock_wall is None else (self.clock_wall[0], now)
+        self.counts[CLOCK_TOPIC] += 1
+        if self.sink is not None:
+            self._sink(CLOCK_TOPIC, serialize_message(Clock(clock=ns_to_time_msg(stamp))), stamp)
+        for producer, acks in self._acks.items():
+            counts = None
+            while acks and acks[0][0] <= stamp:
+                counts = acks.popleft()[1]
+            if counts is not None:
+                self._place(producer, counts)
+
+    def _place(self, producer: str, counts: Mapping[str, int]) -> None:
+        """Record ``producer``'s messages that ``counts`` (its acknowledged per-topic totals) covers."""
+        for topic, queue in self._held[producer].items():
+            due = counts.get(topic, 0) - self._written(producer, topic)
+            for _ in range(min(due, len(queue))):
+                self._sink(topic, *queue.popleft())
+                self._done[producer, topic] = self._written(producer, topic) + 1
+
+    def _written(self, producer: str, topic: str) -> int:
+        return self._done.get((producer, topic), 0)
 
     def _callback(self, topic: str, cls: type) -> Callable[[bytes], None]:
         producer = _PRODUCER.get(topic, '')
@@ -192,19 +250,7 @@ class LineRecorder(Node):
                 if has_header
                 else None
             )
-            if topic == CLOCK_TOPIC:
-                stamp = time_msg_to_ns(msg.clock)
-                if stamp <= self._last_clock:
-                    self.lockstep.on_clock(msg)  # a repeated tick: recorded once, answered again
-                    return
-                first = self._last_clock < 0
-                self._last_clock = stamp
-                self.sim_time = max(self.sim_time, stamp / NS_PER_S)
-                now = time.monotonic()
-                if first:  # the first tick waits for everyone to start: the rate counts from it
-                    self._sim_origin = self.sim_time
-                self.clock_wall = (now, now) if self.clock_wall is None else (self.clock_wall[0], now)
-            elif topic == EVENTS_TOPIC:
+            if topic == EVENTS_TOPIC:
                 self.event_counts[msg.source.split(' ', 1)[0]] += 1
             elif topic == SUPERVISOR_STATE_TOPIC:
                 self.state = msg.data
@@ -215,27 +261,17 @@ class LineRecorder(Node):
                     st for st in msg.status if st.level == DiagnosticStatus.ERROR or st.name == TUNING_STATUS
                 )
             self.counts[topic] += 1
-            source = (
-                ''
-                if producer == ''
-                else producer
-                if producer is not None
-                else header.frame_id
-                if header is not None
-                else ''
-            )
+            source = producer if producer else header.frame_id if producer is None and header is not None else ''
+            publish_ns = time_msg_to_ns(header.stamp) if header is not None else -1
+            counted = source in self._held and topic in self._held[source] and _could_publish(source, topic, msg)
+            if not counted or self.lockstep.ledger is not None and self.lockstep.ledger.is_lost(source):
+                self._sink(topic, data, publish_ns)  # not a participant's (line_clock's, a lost one's): as it comes
+                return
             if self.sink is not None:
-                publish_ns = time_msg_to_ns(header.stamp) if header is not None else -1
-                if source and self._ahead(source):
-                    self._held.append((topic, data, publish_ns))
-                else:
-                    self._sink(topic, data, publish_ns)
-                    if topic == CLOCK_TOPIC:
-                        self.flush()
-            if source and _could_publish(source, topic, msg):
-                self.lockstep.received(source, 'messages')
-            if topic == CLOCK_TOPIC:
-                self.lockstep.on_clock(msg)
+                self._held[source][topic].append((data, publish_ns))
+            else:
+                self._done[source, topic] = self._written(source, topic) + 1
+            self.lockstep.received(source, topic)
 
         return on_message
 
@@ -243,8 +279,7 @@ class LineRecorder(Node):
         """Record at the latest tick; a message without a stamp of its own is stamped with it. A write the
         OS refuses is kept in :attr:`write_error` (for ``run`` to end the line with it), not raised into
         the executor."""
-        assert self.sink is not None
-        if self.write_error is not None:
+        if self.sink is None or self.write_error is not None:
             return
         log_ns = max(self._last_clock, 0)
         try:
@@ -252,32 +287,11 @@ class LineRecorder(Node):
         except OSError as exc:
             self.write_error = exc
 
-    def _ahead(self, producer: str) -> bool:
-        """Whether a message of ``producer`` arriving now belongs to a tick whose ``/clock`` is not recorded yet.
-
-        In lockstep a producer publishes tick ``t`` after ``/clock`` ``t``, which comes after this
-        recorder completed the producer's tick before; so a message that arrives when the producer's
-        latest complete tick is the latest ``/clock`` recorded here belongs to the next tick. It is held
-        until that ``/clock`` is recorded, so that its log time in the bag is its tick whatever the order
-        in which DDS delivers the topics (the bag does not depend on the load).
-        """
-        if self._last_clock < 0:
-            return True
-        a, ledger = self.lockstep.announcement, self.lockstep.ledger
-        if (
-            a is None
-            or a.clock != 'lockstep'
-            or ledger is None
-            or not ledger.knows(producer)
-            or ledger.is_lost(producer)
-        ):
-            return False
-        complete = ledger.complete(producer)
-        return complete is not None and complete >= self._last_clock
-
     def flush(self) -> None:
-        """Hand the held messages to the sink (at a recorded ``/clock``, and before the bag is closed)."""
-        held, self._held = self._held, []
-        if self.sink is not None:
-            for topic, data, publish_ns in held:
-                self._sink(topic, data, publish_ns)
+        """Before the bag is closed: the messages still held belong to ticks this recorder never completed
+        (the line was stopped while producers ran ahead of it). They are not recorded at a tick that is not
+        theirs: the bag ends with the last whole tick, and they are counted in :attr:`unrecorded`."""
+        for topics in self._held.values():
+            for topic, queue in topics.items():
+                self.unrecorded[topic] += len(queue)
+                queue.clear()

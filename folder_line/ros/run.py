@@ -39,12 +39,13 @@ import contextlib
 import ctypes
 import json
 import os
+import shlex
 import shutil
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -64,7 +65,7 @@ from folder_line.core.line.model import run_summary
 from folder_line.core.line.tuning import Tuning
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
-from folder_line.interfaces import CLOCK_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
+from folder_line.interfaces import CLOCK_TOPIC, GRANT_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
 from folder_line.progress import LineTimeProgress, logs_above
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
@@ -199,6 +200,16 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
         executor.spin_once(timeout_sec=0.05)
 
 
+def _print_external(cfg: RunConfig, stream: IO[str]) -> None:
+    """What to start on each machine's host (``--external-nodes``): the nodes' parameters, as ``ros2 run``."""
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')
+    print(f'waiting for the machine nodes on ROS_DOMAIN_ID={domain}; start each on its host:', file=stream)
+    for name in MACHINE_NODES:
+        args = ' '.join(f'-p {shlex.quote(_ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
+        print(f'  ros2 run folder_line {name} --ros-args {args}', file=stream)
+    stream.flush()
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | None = None) -> RunResult:
     """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``.
 
@@ -287,7 +298,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             clock = None
             done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
         else:
-            nodes += add_machine_nodes(cfg, ctx, executor, scene_file=scene_file)
+            if cfg.external:
+                _print_external(cfg, stream)
+            else:
+                nodes += add_machine_nodes(cfg, ctx, executor, scene_file=scene_file)
             clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
@@ -298,8 +312,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
         def watch() -> None:
             """In the executor, every :data:`WATCH` s of wall time: draw the bar, look for what stops the run."""
             progress.show(recorder.sim_time)
-            if recorder.count_publishers(CLOCK_TOPIC) > 1:
-                interrupted.append('another /clock publisher appeared on this ROS domain')
+            # a foreign /clock changes nothing here: line_clock refuses and names it, the nodes take time
+            # only from its grants. A silent clock that also left the graph will not come back
+            if recorder.lockstep.clock_silent and recorder.count_publishers(GRANT_TOPIC) == 0:
+                interrupted.append(f'line_clock silent for {recorder.lockstep.clock_silent:.1f} s and gone')
             if recorder.write_error is not None:
                 interrupted.append('the bag could not be written')
             for name in set(recorder.lost) - ended_lost:  # once each
@@ -328,7 +344,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
         if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
             raise recorder.write_error
         result.counts = dict(recorder.counts)
-        published = None if cfg.processes else _published_counts(nodes)
+        published = None if cfg.processes or cfg.external else _published_counts(nodes)
         bag.close(published)
         lost = dict(recorder.lost)
         if clock is not None:
@@ -342,7 +358,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             lost,
             None if clock is None else clock.rtf_achieved,
         )
-        result.summary.update(_bag_summary(bag, published))
+        result.summary.update(_bag_summary(bag, published, recorder.unrecorded))
     finally:
         if procs and not interrupted and procs['line_clock'].poll() is not None:
             # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
@@ -488,12 +504,17 @@ def _summary(
     }
 
 
-def _bag_summary(bag: Any, published: dict[str, int] | None) -> dict[str, Any]:
+def _bag_summary(bag: Any, published: dict[str, int] | None, unrecorded: Mapping[str, int]) -> dict[str, Any]:
+    """``unrecorded``: per topic, messages of ticks after the last one recorded (a stopped line), not lost."""
     recorded = dict(sorted(bag.counts.items()))
+    after = {t: n for t, n in sorted(unrecorded.items()) if n}
     out: dict[str, Any] = {
         'bag': {'path': str(bag.path), 'segments': len(bag.files), 'messages': recorded},
         'published': None if published is None else {t: published.get(t, 0) for t in recorded},
-        'lost': None if published is None else {t: published.get(t, 0) - n for t, n in recorded.items()},
+        'lost': None
+        if published is None
+        else {t: published.get(t, 0) - n - after.get(t, 0) for t, n in recorded.items()},
+        'after_last_tick': after,
     }
     out['loss_accounting'] = (
         _PROCESSES_LOSS

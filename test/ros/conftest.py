@@ -56,6 +56,12 @@ class Ros:
         self.executor.add_node(node)
         return node
 
+    def remove(self, node: Node) -> None:
+        """Stop spinning ``node`` and destroy it now (its endpoints leave the graph, as when its process ends)."""
+        self.executor.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
+
     def node(self, name: str, **kwargs: Any) -> Node:
         """A plain node in this context."""
         return self.add(rclpy.create_node(name, context=self.context, **kwargs))

@@ -13,41 +13,62 @@ counts what it has received from each producer, and a tick of that producer is
 the acknowledged ones. :class:`TickLedger` keeps that book; it is pure (no ROS,
 no clock) so that it can be tested exhaustively.
 
-Counts travel as text, ``'messages=12 events=3 commands=0'``
-(:func:`format_counts`, :func:`parse_counts`).
+An acknowledgement may also carry a *promise*: a time up to which nothing the
+producer publishes later can matter (the supervisor's commands take effect
+``command_lead`` after their decision, so its promise runs that far ahead of its
+tick). A consumer may run ahead to what the promises of its producers allow
+(:meth:`TickLedger.ready`): the lookahead of conservative distributed simulation.
+
+Counts travel as text, ``'messages=12 events=3 commands=0'``, optionally followed by
+per-topic counts, ``'/line/supervisor/state=7'`` (:func:`format_counts`, :func:`parse_counts`).
 """
 
 from __future__ import annotations
 
+import re
 from collections import deque
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
-__all__ = ['STREAMS', 'TickLedger', 'format_counts', 'parse_counts']
+__all__ = ['MAX_TOPICS', 'STREAMS', 'TickLedger', 'format_counts', 'is_topic_stream', 'parse_counts']
 
 #: the counted streams, in the order :func:`format_counts` writes them
 STREAMS: tuple[str, ...] = ('messages', 'events', 'commands')
 
 _MAX_COUNT = 2**63 - 1
+#: at most this many per-topic counts in one acknowledgement
+MAX_TOPICS = 16
+_TOPIC = re.compile(r'/[A-Za-z0-9_/]{1,120}')
+
+
+def is_topic_stream(key: str) -> bool:
+    """Whether ``key`` names a per-topic count (a topic name, ``'/line/events'``) rather than a stream."""
+    return _TOPIC.fullmatch(key) is not None
 
 
 def format_counts(counts: Mapping[str, int]) -> str:
-    """``{'messages': 12, 'events': 3}`` -> ``'messages=12 events=3 commands=0'`` (every stream, in order)."""
-    return ' '.join(f'{s}={int(counts.get(s, 0))}' for s in STREAMS)
+    """``{'messages': 12, 'events': 3}`` -> ``'messages=12 events=3 commands=0'`` (every stream, in order),
+    then the per-topic counts of ``counts`` (keys that are topic names) in the order given."""
+    streams = ' '.join(f'{s}={int(counts.get(s, 0))}' for s in STREAMS)
+    topics = ''.join(f' {k}={int(n)}' for k, n in counts.items() if k[:1] == '/')
+    return streams + topics
 
 
 def parse_counts(text: str) -> dict[str, int]:
     """The counts of :func:`format_counts`; raises ``ValueError`` with the reason on anything else.
 
     Every stream of :data:`STREAMS` must appear exactly once with a count in ``[0, 2**63)``;
-    nothing else may.
+    besides them, at most :data:`MAX_TOPICS` distinct topic names may.
     """
-    if len(text) > 200:
-        raise ValueError(f'counts text of {len(text)} characters (at most 200)')
+    if len(text) > 2000:
+        raise ValueError(f'counts text of {len(text)} characters (at most 2000)')
     out: dict[str, int] = {}
+    topics = 0
     for item in text.split():
         key, sep, value = item.partition('=')
-        if not sep or key not in STREAMS or key in out:
+        topic = is_topic_stream(key)
+        topics += topic
+        if not sep or (key not in STREAMS and not topic) or key in out or topics > MAX_TOPICS:
             raise ValueError(f'unexpected item {item[:40]!r} in counts {text[:80]!r}')
         if not value.isdigit() or len(value) > 19 or int(value) > _MAX_COUNT:
             raise ValueError(f'count {item[:40]!r} is not an integer in [0, 2**63)')
@@ -60,10 +81,11 @@ def parse_counts(text: str) -> dict[str, int]:
 
 @dataclass
 class _Producer:
-    acks: deque[tuple[int, dict[str, int]]] = field(default_factory=deque)  # not yet complete, in order
+    acks: deque[tuple[int, dict[str, int], int]] = field(default_factory=deque)  # (stamp, counts, promise)
     last_ack: int | None = None  # latest acknowledged stamp, ns
     last_counts: dict[str, int] = field(default_factory=dict)
     complete: int | None = None  # latest stamp whose messages are all in, ns
+    promised: int | None = None  # the promise of that complete acknowledgement, ns
     received: dict[str, int] = field(default_factory=dict)
     lost: bool = False
 
@@ -76,13 +98,13 @@ class TickLedger:
     producers : iterable of str
         The participants whose ticks this consumer waits for.
     streams : iterable of str
-        The streams this consumer counts (a subset of :data:`STREAMS`); an
+        The streams this consumer counts (of :data:`STREAMS`, or topic names); an
         acknowledged stream it does not count is not waited for.
     """
 
     def __init__(self, producers: Iterable[str], streams: Iterable[str] = ()) -> None:
         self._streams = tuple(streams)
-        unknown = sorted(set(self._streams) - set(STREAMS))
+        unknown = sorted(s for s in set(self._streams) - set(STREAMS) if not is_topic_stream(s))
         if unknown:
             raise ValueError(f'streams {unknown}: not among {STREAMS}')
         self._p: dict[str, _Producer] = {p: _Producer(received=dict.fromkeys(self._streams, 0)) for p in producers}
@@ -101,14 +123,19 @@ class TickLedger:
         """Whether ``producer`` is one of this ledger's producers."""
         return producer in self._p
 
-    def ack(self, producer: str, stamp_ns: int, counts: Mapping[str, int]) -> str | None:
-        """Take ``producer``'s acknowledgement of the tick at ``stamp_ns``.
+    def ack(self, producer: str, stamp_ns: int, counts: Mapping[str, int], promise_ns: int | None = None) -> str | None:
+        """Take ``producer``'s acknowledgement of the tick at ``stamp_ns``, promising ``promise_ns``
+        (default: the tick itself; never less).
 
         Returns None if taken (a repeated acknowledgement of the latest tick, as at
         start-up, is taken and changes nothing), else the reason it is refused: an
-        unknown or lost producer, a stamp older than the latest acknowledged one, or
-        counts that go backwards.
+        unknown or lost producer, a stamp older than the latest acknowledged one,
+        counts that go backwards, or a promise before the tick.
         """
+        promise = stamp_ns if promise_ns is None else promise_ns
+        if promise < stamp_ns:
+            return f'promise {promise} ns is before its tick {stamp_ns} ns'
+
         st = self._p.get(producer)
         if st is None:
             return f'{producer!r} is not a participant here'
@@ -123,7 +150,7 @@ class TickLedger:
                 return f'counts {dict(counts)} go backwards from {st.last_counts}'
         st.last_ack = stamp_ns
         st.last_counts = {s: int(counts.get(s, 0)) for s in self._streams}
-        st.acks.append((stamp_ns, st.last_counts))
+        st.acks.append((stamp_ns, st.last_counts, promise))
         self._settle(st)
         return None
 
@@ -139,7 +166,7 @@ class TickLedger:
 
     def _settle(self, st: _Producer) -> None:
         while st.acks and all(st.received[s] >= n for s, n in st.acks[0][1].items()):
-            st.complete = st.acks.popleft()[0]
+            st.complete, _, st.promised = st.acks.popleft()
 
     def complete(self, producer: str) -> int | None:
         """Latest tick (ns) of ``producer`` whose messages are all in (None: none yet)."""
@@ -149,13 +176,30 @@ class TickLedger:
         """Latest tick (ns) ``producer`` acknowledged."""
         return self._p[producer].last_ack
 
+    def promised(self, producer: str) -> int | None:
+        """The promise (ns) of ``producer``'s latest complete tick (None: none yet)."""
+        return self._p[producer].promised
+
     def complete_through(self, stamp_ns: int) -> bool:
         """Whether every live producer's ticks up to ``stamp_ns`` are complete."""
-        return all(st.lost or (st.complete is not None and st.complete >= stamp_ns) for st in self._p.values())
+        return self.ready(stamp_ns)
 
-    def waiting_for(self, stamp_ns: int) -> list[str]:
-        """The live producers whose tick ``stamp_ns`` is not complete yet, in order."""
-        return [p for p, st in self._p.items() if not st.lost and (st.complete is None or st.complete < stamp_ns)]
+    @staticmethod
+    def _ready(st: _Producer, stamp_ns: int, promise_ns: int | None) -> bool:
+        if st.lost:
+            return True
+        if st.complete is None or st.promised is None:
+            return False
+        return st.complete >= stamp_ns or (promise_ns is not None and st.promised >= promise_ns)
+
+    def ready(self, stamp_ns: int, promise_ns: int | None = None) -> bool:
+        """Whether every live producer's ticks up to ``stamp_ns`` are complete, or (``promise_ns`` given) a
+        complete tick of it promises at least ``promise_ns``."""
+        return all(self._ready(st, stamp_ns, promise_ns) for st in self._p.values())
+
+    def waiting_for(self, stamp_ns: int, promise_ns: int | None = None) -> list[str]:
+        """The live producers that :meth:`ready` still waits for, in order."""
+        return [p for p, st in self._p.items() if not self._ready(st, stamp_ns, promise_ns)]
 
     def missing(self, producer: str) -> dict[str, int]:
         """Per stream, how many acknowledged messages of ``producer`` have not arrived (positive only)."""

@@ -1,29 +1,37 @@
-"""Node ``line_clock``: the owner of simulated time, published tick by tick on ``/clock``.
+"""Node ``line_clock``: the owner of simulated time.
 
 Sim time advances on a fixed grid, ``t_k = start_time + k / rate`` (integer ns),
 up to ``start_time + duration`` exactly. Before its first tick the node announces
-the line's participants and clock mode on ``/line/participants`` (see
-:mod:`folder_line.ros.lockstep`).
+the line's participants and clock mode on ``/line/participants``; it grants ticks to
+them on ``/line/grant`` and publishes every tick it grants on ``/clock`` (see
+:mod:`folder_line.ros.lockstep`). It takes no ``/clock`` of anyone else: a foreign
+``/clock`` message is counted, its publisher named once in the log and on
+``/diagnostics`` (``folder_line/line_clock/foreign_clock``, WARN), and sim time goes on.
 
 ``clock = lockstep`` (default)
-    Tick ``k + 1`` is published only once every participant has acknowledged tick
-    ``k`` on ``/line/<node>/tick_done``: no tick is ever skipped, and when the machine
-    is busy sim time slows down. ``rtf`` is a ceiling (sim seconds per wall second;
-    ``0`` = as fast as the slowest participant allows). The first tick is repeated
-    every 0.2 s of wall time until every participant has answered it, so sim time
-    does not advance until all of them are up and matched.
+    The first tick is granted again every 0.2 s of wall time until every participant
+    has answered it, so sim time does not advance until all of them are up and
+    matched. Then ticks are granted up to ``window`` s of sim time ahead of the
+    slowest participant's latest acknowledgement: no tick is ever skipped, and when
+    the machine or the network is slow, sim time slows down. ``rtf`` is a ceiling at
+    every moment (sim seconds per wall second; ``0`` = as fast as the slowest
+    participant allows): after a stall, sim time does not run faster to catch up.
 ``clock = wall`` (hardware in the loop)
-    Ticks are published when the wall clock says (``rtf`` > 0 required), whatever the
+    Ticks are granted when the wall clock says (``rtf`` > 0 required), whatever the
     participants do; a participant whose acknowledgement of a tick is not in when the
     next tick is due is *late*. Lateness is counted per participant and published on
     ``/diagnostics`` (``folder_line/line_clock/lateness``, WARN) every second of sim
     time: its own state, never a constraint violation.
 
 In both modes a participant that answers nothing for ``lost_timeout`` s of wall
-time (``startup_timeout`` for the first tick) is declared lost: named in the log
-and on ``/diagnostics`` (``folder_line/line_clock/lost``, ERROR), and no longer
-waited for. With ``duration > 0`` the node stops once the last tick is answered
-(as a process it then exits 0, or 3 if a participant was lost).
+time is *waited for*: named in the log and on ``/diagnostics``
+(``folder_line/line_clock/waiting``, WARN, with the wall seconds) every few seconds,
+and taken back when it answers (``folder_line/line_clock/resumed``). It is declared
+*lost* once its DDS participant has also left the graph (its process ended, or its
+lease ran out), or if it never answered the first tick in ``startup_timeout``:
+named in the log and on ``/diagnostics`` (``folder_line/line_clock/lost``, ERROR),
+and no longer waited for. With ``duration > 0`` the node stops once the last tick is
+answered (as a process it then exits 0, or 3 if a participant was lost).
 
 Parameters
 ----------
@@ -31,6 +39,8 @@ rate : float, Hz of sim time, [1, 10000], default 200.0
     Ticks per simulated second (dynamic).
 rtf : float, [0, 1000], default 1.0
     Real-time factor ceiling; 0 = no ceiling (lockstep only); otherwise >= 0.001 (dynamic).
+window : float, s of sim time, [0, 60], default 0.5 (read-only)
+    How far the clock grants ahead of the slowest participant (0: one tick, a barrier per tick).
 clock : str, lockstep or wall, default lockstep (read-only)
 participants : str, default the five machine nodes (read-only)
     Comma-separated participant node names (``line_recorder`` for ``folder-line run``'s recorder).
@@ -43,8 +53,10 @@ startup_timeout : float, s of wall time, [1, 3600], default 60.0 (read-only)
 
 from __future__ import annotations
 
+import math
 import sys
 import time
+from collections import deque
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -53,6 +65,7 @@ from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
@@ -64,28 +77,34 @@ from folder_line.errors import ParameterError
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     DIAGNOSTICS_TOPIC,
+    GRANT_TOPIC,
     KNOWN_PARTICIPANTS,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
     TIME_MSG_MAX_NS,
+    progress_topic,
     seconds_to_ns,
-    tick_done_topic,
 )
 from folder_line.ros.lockstep import (
+    ACK_QOS,
     CLOCK_MODES,
+    CLOCK_SUB_QOS,
     DEFAULT_PARTICIPANTS,
+    GRANT_QOS,
+    HEARTBEAT,
     LINE_QOS,
     PARTICIPANTS_QOS,
-    TICK_QOS,
+    WAIT_REPORT,
     Announcement,
     format_announcement,
+    format_grant,
     participant_names,
     read_ack,
 )
 from folder_line.ros.parameters import ParamSpec, declare_parameters
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg
-from folder_line.ros.topics import CLOCK_QOS
+from folder_line.ros.topics import CLOCK_QOS, PUBLISH_DEPTH
 
 __all__ = ['EXIT_LOST', 'NODE_NAME', 'SPECS', 'LineClock', 'main', 'parse_participants']
 
@@ -93,6 +112,10 @@ NODE_NAME = 'line_clock'
 EXIT_LOST = 3
 MIN_RTF = RTF.lo
 REPEAT_FIRST = 0.2  # wall s between repetitions of the first tick
+#: wall s a grant may be late before the rtf ceiling counts afresh from it (no catching up after a stall)
+MAX_BURST = 0.02
+#: wall s between two grants at least: at a high rtf a grant holds several ticks
+GRANT_PERIOD = 0.005
 
 SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('rate', 200.0, 'Ticks per second of simulated time', unit='Hz', bounds=TICK_RATE.bounds),
@@ -102,6 +125,14 @@ SPECS: tuple[ParamSpec, ...] = (
         'Real-time factor ceiling: simulated seconds per wall second (0: as fast as the line '
         f'allows, lockstep only; else >= {RTF.lo:g})',
         bounds=(0.0, RTF.hi),
+    ),
+    ParamSpec(
+        'window',
+        0.5,
+        'Lockstep: sim time granted ahead of the slowest participant (0: one tick, a barrier per tick)',
+        unit='s',
+        bounds=(0.0, 60.0),
+        read_only=True,
     ),
     ParamSpec(
         'clock',
@@ -164,7 +195,7 @@ def _check(values: Mapping[str, Any]) -> None:
 
 
 class LineClock(Node):
-    """Publishes simulated time on ``/clock`` (see the module docstring).
+    """Grants simulated time and publishes it on ``/clock`` (see the module docstring).
 
     Attributes
     ----------
@@ -172,10 +203,14 @@ class LineClock(Node):
         Completes with the last stamp (ns) once the last tick is answered.
     lost : dict of str to float
         Participants declared lost -> the tick (s) they did not answer.
+    waiting : dict of str to float
+        Participants waited for now -> wall time (monotonic s) of their latest answer.
     late : dict of str to int
         Wall mode: ticks each participant answered late.
+    foreign_clock : int
+        ``/clock`` messages not published by this node (refused).
     ticks : int
-        Ticks published (a repeated first tick counts once).
+        Ticks granted (a repeated first tick counts once).
     """
 
     NODE_NAME = NODE_NAME
@@ -192,31 +227,41 @@ class LineClock(Node):
         self._start = seconds_to_ns(v['start_time'])
         self._end = self._start + seconds_to_ns(v['duration']) if v['duration'] > 0.0 else None
         self._step: int = round(NS_PER_S / v['rate'])
+        self._first: int = self._start  # the first tick of the current step
+        self._window = seconds_to_ns(v['window'])
         self._rtf: float = v['rtf']
-        self.current: int | None = None  # the latest tick published, ns
+        self.current: int | None = None  # the latest tick granted, ns
         self._origin: tuple[int, float] | None = None  # (sim ns, wall s) the rtf ceiling counts from
-        self._published_at = 0.0
+        self._granted_at = 0.0  # wall time of the latest grant (or its repeat)
+        self._advanced_at = 0.0  # wall time of the latest tick granted
         self.published_clock = 0
         self.ticks = 0
+        self.grants = 0  # grants published (repeats too)
         self.lost: dict[str, float] = {}
+        self.waiting: dict[str, float] = {}
         self.late: dict[str, int] = dict.fromkeys(self.participants, 0)
         self.rejected = 0
+        self.foreign_clock = 0
+        self._foreign_named: set[str] = set()
+        self._own_clock: deque[bytes] = deque()  # /clock messages published, not yet seen back
         self.done: Future[int] = Future()
         self.first_done_wall: float | None = None
         self._finished_wall: float | None = None
         self._ledger = TickLedger(self.participants)
-        self._answered: set[str] = set()
         self._heard: dict[str, float] = dict.fromkeys(self.participants, time.monotonic())
+        self._reported: dict[str, float] = {}
         self._pub = self.create_publisher(ClockMsg, CLOCK_TOPIC, CLOCK_QOS)
+        self._grant_pub = self.create_publisher(TimeReference, GRANT_TOPIC, GRANT_QOS)
         self._diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
         announce = self.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
         self.announcement = Announcement(self.mode, self._end, self.participants)
         announce.publish(String(data=format_announcement(self.announcement)))
         for name in self.participants:
-            self.create_subscription(TimeReference, tick_done_topic(name), self._on_ack(name), TICK_QOS, raw=True)
-        self._pacer = self.create_timer(1.0, self._on_pacer, clock=self._wall)
+            self.create_subscription(TimeReference, progress_topic(name), self._on_ack(name), ACK_QOS, raw=True)
+        self.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS, raw=True)
+        self._pacer = self.create_timer(1.0, self._pump, clock=self._wall)
         self._pacer.cancel()
-        self._watch = self.create_timer(0.1, self._on_watch, clock=self._wall)
+        self._watch = self.create_timer(HEARTBEAT, self._on_watch, clock=self._wall)
         self._next_lateness = self._start + NS_PER_S
         self.add_post_set_parameters_callback(self._apply)
         rtf_text = 'no rtf ceiling' if self._rtf == 0.0 else f'rtf {self._rtf:g}'
@@ -225,7 +270,8 @@ class LineClock(Node):
             + (f' for {v["duration"]:g} s' if self._end is not None else '')
             + f'; participants {", ".join(self.participants)}'
         )
-        self._publish(self._start)
+        self._publish_tick(self._start)
+        self._grant()
 
     # ------------------------------------------------------------------ state
 
@@ -241,37 +287,98 @@ class LineClock(Node):
         """Messages published so far, per topic (the recorder's loss accounting)."""
         return {CLOCK_TOPIC: self.published_clock, PARTICIPANTS_TOPIC: 1}
 
-    # ------------------------------------------------------------------ internals
+    # ------------------------------------------------------------------ inputs
 
     def _apply(self, parameters: list[Parameter[Any]]) -> None:
         for p in parameters:
             if p.name == 'rtf':
                 self._rtf = p.value
                 if self.current is not None and self._origin is not None:
-                    self._origin = (self.current, self._published_at)
+                    self._origin = (self.current, time.monotonic())
             elif p.name == 'rate':
                 self._step = round(NS_PER_S / p.value)
+                if self.current is not None:
+                    self._first = self.current + self._step  # the new step starts with the next tick
 
     def _on_ack(self, name: str) -> Any:
         def on_ack(data: bytes) -> None:
             try:
-                frame_id, stamp, counts = read_ack(data)
+                frame_id, stamp, counts, promise = read_ack(data)
             except ValueError:
                 self.rejected += 1
                 return
-            if frame_id != name or self._ledger.ack(name, stamp, counts) is not None:
+            if frame_id != name or self._ledger.ack(name, stamp, counts, promise) is not None:
                 self.rejected += 1
                 return
-            self._heard[name] = time.monotonic()  # a repeated acknowledgement too: alive, waiting for another
-            if stamp == self.current:
-                self._answered.add(name)
-                if self._all_answered():
-                    self._advance()
+            self._heard_from(name)
+            if self.done.done() or self.current is None:
+                return
+            if self.first_done_wall is None:
+                if self._all_answered(self._start):
+                    self._first_done()
+                return
+            if self.mode == 'lockstep':
+                self._pump()
+            elif self._end is not None and self.current >= self._end and self._all_answered(self._end):
+                self._finish('duration reached')
 
         return on_ack
 
-    def _all_answered(self) -> bool:
-        return all(p in self._answered or p in self.lost for p in self.participants)
+    def _heard_from(self, name: str) -> None:
+        now = time.monotonic()
+        if name in self.waiting:
+            waited = now - self.waiting.pop(name)
+            self.get_logger().info(f'participant {name} answers again after {waited:.1f} s: taken back')
+            self._status(
+                'resumed',
+                DiagnosticStatus.OK,
+                f'{name} answers again after {waited:.1f} s',
+                {'node': name, 'waited_wall_s': f'{waited:.3f}'},
+            )
+        self._heard[name] = now
+
+    def _on_clock(self, data: bytes) -> None:
+        """Every ``/clock`` message on the domain: this node's own come back in order; any other is foreign."""
+        own = self._own_clock
+        if own and data == own[0]:
+            own.popleft()
+            return
+        self.foreign_clock += 1
+        others = sorted(
+            f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+            for info in self.get_publishers_info_by_topic(CLOCK_TOPIC)
+            if info.node_name != NODE_NAME or info.node_namespace != self.get_namespace()
+        )
+        new = [n for n in others if n not in self._foreign_named] or ([] if others else ['an unknown publisher'])
+        new = [n for n in new if n not in self._foreign_named]
+        if not new:
+            return
+        self._foreign_named.update(new)
+        self.get_logger().warning(
+            f'refused a foreign /clock message from {", ".join(new)}: the line takes time only from its own '
+            f'line_clock, and sim time goes on ({self.foreign_clock} refused so far)'
+        )
+        self._status(
+            'foreign_clock',
+            DiagnosticStatus.WARN,
+            f'foreign /clock from {", ".join(new)} refused',
+            {'publishers': ', '.join(sorted(self._foreign_named)), 'refused': str(self.foreign_clock)},
+            stamp=self.current or self._start,
+        )
+
+    # ------------------------------------------------------------------ granting
+
+    def _all_answered(self, stamp: int) -> bool:
+        return all(
+            p in self.lost or ((a := self._ledger.last_ack(p)) is not None and a >= stamp) for p in self.participants
+        )
+
+    def _first_done(self) -> None:
+        self.first_done_wall = time.monotonic()
+        assert self.current is not None
+        self._origin = (self.current, self.first_done_wall)
+        self.get_logger().info('every participant answered the first tick: sim time runs')
+        self._pump()
 
     def _next_stamp(self) -> int | None:
         assert self.current is not None
@@ -282,121 +389,153 @@ class LineClock(Node):
             nxt = min(nxt, self._end)
         return min(nxt, TIME_MSG_MAX_NS)
 
+    def _limit(self) -> int:
+        """Lockstep: the last tick the window allows (one tick past the slowest answer at least)."""
+        assert self.current is not None
+        acks = [self._ledger.last_ack(p) for p in self.participants if p not in self.lost]
+        if not acks:
+            return TIME_MSG_MAX_NS
+        if any(a is None for a in acks):
+            return self.current
+        slowest = min(a for a in acks if a is not None)
+        return max(slowest + self._window, slowest + self._step if slowest >= self.current else slowest)
+
     def _due(self, stamp: int) -> float:
-        """Wall time (monotonic s) at which ``stamp`` may be published (the rtf ceiling)."""
+        """Wall time (monotonic s) at which ``stamp`` may be granted (the rtf ceiling)."""
         if self._rtf == 0.0 or self._origin is None:
             return 0.0
         sim0, wall0 = self._origin
         return wall0 + (stamp - sim0) / NS_PER_S / self._rtf
 
-    def _advance(self) -> None:
-        """Every participant answered the current tick (lockstep): publish the next, or finish."""
-        assert self.current is not None, 'an answer (or a lost participant) is to a tick already published'
-        if self.first_done_wall is None:
-            self.first_done_wall = time.monotonic()
-            self._origin = (self.current, self.first_done_wall)
-            self._ledger_first_done()
-        if self.mode == 'wall':
+    def _pump(self) -> None:
+        """Grant every tick that is due and that the window allows; then wait for the next due time, or
+        finish once the last tick is answered."""
+        self._pacer.cancel()
+        if self.done.done() or self.current is None or self.first_done_wall is None:
             return
-        nxt = self._next_stamp()
-        if nxt is None:
-            self._finish('duration reached')
-            return
-        wait = self._due(nxt) - time.monotonic()
-        if wait > 0.0:
-            self._pacer.timer_period_ns = max(int(wait * NS_PER_S), 1)
-            self._pacer.reset()
-        else:
-            self._publish(nxt)
-
-    def _ledger_first_done(self) -> None:
-        self.get_logger().info('every participant answered the first tick: sim time runs')
-        if self.mode == 'wall':
-            self._pacer.timer_period_ns = max(int(self._step / max(self._rtf, MIN_RTF)), 1)
-            self._pacer.reset()
-
-    def _on_pacer(self) -> None:
-        if self.mode == 'lockstep':
-            self._pacer.cancel()
-            if self.current is None or not self._all_answered():
-                return
-            nxt = self._next_stamp()
-            if nxt is None:
-                self._finish('duration reached')
-            elif time.monotonic() >= self._due(nxt):  # never early: rtf is a ceiling
-                self._publish(nxt)
-            else:
-                self._advance()
-            return
-        # wall mode: publish every tick that is due, late participants counted
-        while self.current is not None and not self.done.done():
-            nxt = self._next_stamp()
-            if nxt is None:
-                if self._all_answered() or time.monotonic() - self._published_at > self.values['lost_timeout']:
-                    self._finish('duration reached')
-                return
-            if time.monotonic() < self._due(nxt):
-                return
-            for p in self.participants:
-                if p not in self._answered and p not in self.lost:
-                    self.late[p] += 1
-            self._publish(nxt)
-
-    def _publish(self, stamp: int) -> None:
         now = time.monotonic()
+        limit = self._limit() if self.mode == 'lockstep' else TIME_MSG_MAX_NS
+        granted = False
+        while (nxt := self._next_stamp()) is not None and nxt <= limit:
+            due = max(self._due(nxt), self._granted_at + GRANT_PERIOD)
+            if due > now:
+                self._pacer.timer_period_ns = max(int((due - now) * NS_PER_S), 1)
+                self._pacer.reset()
+                break
+            if self.mode == 'wall':
+                self._count_late()
+            elif now - self._due(nxt) > MAX_BURST:  # late (a stall): the ceiling counts from now, no catching up
+                self._origin = (nxt, now)
+            self._publish_tick(nxt)
+            granted = True
+        if granted:
+            self._grant()
+        if self._at_end(now):
+            self._finish('duration reached')
+
+    def _at_end(self, now: float) -> bool:
+        """The last tick is granted and answered (wall mode: or unanswered for ``lost_timeout``)."""
+        assert self.current is not None
+        if self._end is None or self.current < self._end:
+            return False
+        return self._all_answered(self._end) or (
+            self.mode == 'wall' and now - self._advanced_at > self.values['lost_timeout']
+        )
+
+    def _count_late(self) -> None:
+        assert self.current is not None
         for p in self.participants:
-            if p in self._answered:
-                self._heard[p] = now  # waits count from the oldest tick not answered
+            a = self._ledger.last_ack(p)
+            if p not in self.lost and (a is None or a < self.current):
+                self.late[p] += 1
+
+    def _publish_tick(self, stamp: int) -> None:
         self.current = stamp
-        self._answered = set()
-        self._published_at = now
-        self._pub.publish(ClockMsg(clock=ns_to_time_msg(stamp)))
+        self._advanced_at = time.monotonic()
+        msg = ClockMsg(clock=ns_to_time_msg(stamp))
+        self._pub.publish(msg)
+        self._own_clock.append(serialize_message(msg))
+        while len(self._own_clock) > PUBLISH_DEPTH:  # never seen back (no matching subscription): forget
+            self._own_clock.popleft()
         self.published_clock += 1
         self.ticks += 1
         if self.mode == 'wall' and stamp >= self._next_lateness:
             self._next_lateness = stamp + NS_PER_S
             self._report_lateness(stamp)
-        if self.mode == 'lockstep' and self.first_done_wall is not None and self._all_answered():
-            # every participant was lost: no answer will come to advance the clock; its pacer does
-            self._pacer.timer_period_ns = 1
-            self._pacer.reset()
+
+    def _grant(self) -> None:
+        assert self.current is not None
+        first = self._first if self._first <= self.current else self.current
+        self._grant_pub.publish(format_grant(self.current, first, self._step))
+        self.grants += 1
+        self._granted_at = time.monotonic()
 
     def _on_watch(self) -> None:
-        """Repeat the first tick until everyone answered it; declare silent participants lost."""
+        """Repeat the latest grant when nothing was granted for a while (the first tick until everyone
+        answered it); name the participants waited for; declare lost the silent ones that left the graph."""
         if self.current is None or self.done.done():
             return
         now = time.monotonic()
         first = self.first_done_wall is None
-        if first and now - self._published_at >= REPEAT_FIRST and not self._all_answered():
-            self._pub.publish(ClockMsg(clock=ns_to_time_msg(self.current)))
+        if now - self._granted_at >= (REPEAT_FIRST if first else HEARTBEAT):
+            self._grant()
+        if not first and self.mode == 'lockstep' and not self._pacer.is_canceled():
+            return  # pacing: nobody is waited for
+        for p in self.participants:
+            if p not in self.lost and not self._answered_latest(p):
+                self._judge(p, now, first)
+        if not first:
+            self._pump()
+        elif self._all_answered(self._start):
+            self._first_done()
+
+    def _answered_latest(self, p: str) -> bool:
+        a = self._ledger.last_ack(p)
+        return a is not None and self.current is not None and a >= self.current
+
+    def _judge(self, p: str, now: float, first: bool) -> None:
         limit = self.values['startup_timeout'] if first else self.values['lost_timeout']
-        silent = [
-            p
-            for p in self.participants
-            if p not in self._answered and p not in self.lost and now - self._heard[p] > limit
-        ]
-        for p in silent:
-            waited = now - self._heard[p]
-            self.lost[p] = self.current / NS_PER_S
-            self._ledger.lose(p)
-            self.get_logger().error(
-                f'participant {p} lost: no answer to tick {self.current / NS_PER_S:.9f} s in '
-                f'{waited:.1f} s of wall time (limit {limit:g} s)'
-            )
-            self._status(
-                'lost',
-                DiagnosticStatus.ERROR,
-                f'participant {p} lost at {self.current / NS_PER_S:.9f} s',
-                {
-                    'node': p,
-                    'tick': repr(self.current / NS_PER_S),
-                    'waited_wall_s': f'{waited:.3f}',
-                    'limit_s': repr(limit),
-                },
-                stamp=self.current,
-            )
-        if silent and self._all_answered():
-            self._advance()
+        silent = now - self._heard[p]
+        if silent <= limit:
+            return
+        present = self.count_publishers(progress_topic(p)) > 0
+        if first or not present:
+            self._lose(p, silent, limit, 'no answer to the first tick' if first else 'gone from the graph')
+            return
+        self.waiting.setdefault(p, self._heard[p])
+        if now - self._reported.get(p, -math.inf) < WAIT_REPORT:
+            return
+        self._reported[p] = now
+        assert self.current is not None
+        self.get_logger().warning(
+            f'waiting for {p}: silent for {silent:.1f} s of wall time, still in the graph (slow or cut off, not lost)'
+        )
+        self._status(
+            'waiting',
+            DiagnosticStatus.WARN,
+            f'waiting for {p}: silent for {silent:.1f} s',
+            {'node': p, 'silent_wall_s': f'{silent:.3f}', 'tick': repr(self.current / NS_PER_S)},
+            stamp=self.current,
+        )
+
+    def _lose(self, p: str, waited: float, limit: float, why: str) -> None:
+        assert self.current is not None
+        a = self._ledger.last_ack(p)
+        tick = self._start if a is None else min(self.current, a + self._step)
+        self.lost[p] = tick / NS_PER_S
+        self.waiting.pop(p, None)
+        self._ledger.lose(p)
+        self.get_logger().error(
+            f'participant {p} lost: no answer to tick {tick / NS_PER_S:.9f} s in '
+            f'{waited:.1f} s of wall time (limit {limit:g} s; {why})'
+        )
+        self._status(
+            'lost',
+            DiagnosticStatus.ERROR,
+            f'participant {p} lost at {tick / NS_PER_S:.9f} s',
+            {'node': p, 'tick': repr(tick / NS_PER_S), 'waited_wall_s': f'{waited:.3f}', 'limit_s': repr(limit)},
+            stamp=self.current,
+        )
 
     def _report_lateness(self, stamp: int) -> None:
         worst = max(self.late.values(), default=0)
@@ -404,9 +543,11 @@ class LineClock(Node):
         text = ', '.join(f'{p} {n}' for p, n in self.late.items() if n) or 'none'
         self._status('lateness', level, f'late ticks: {text}', {p: str(n) for p, n in self.late.items()}, stamp=stamp)
 
-    def _status(self, what: str, level: bytes, message: str, values: Mapping[str, str], stamp: int) -> None:
+    def _status(
+        self, what: str, level: bytes, message: str, values: Mapping[str, str], stamp: int | None = None
+    ) -> None:
         arr = DiagnosticArray()
-        arr.header.stamp = ns_to_time_msg(stamp)
+        arr.header.stamp = ns_to_time_msg(self._start if stamp is None else stamp)
         arr.header.frame_id = NODE_NAME
         st = DiagnosticStatus(
             name=f'folder_line/line_clock/{what}', hardware_id=NODE_NAME, level=level, message=message

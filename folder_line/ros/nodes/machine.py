@@ -87,6 +87,7 @@ from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS, joint_states_topic
 
 __all__ = [
+    'EXIT_LOST',
     'MACHINE_SPECS',
     'NODE_NAMES',
     'CHUNK',
@@ -125,6 +126,9 @@ MACHINE_SPECS: tuple[ParamSpec, ...] = (
         read_only=True,
     ),
 )
+
+#: exit code of a node process whose line did not end as expected (a participant lost, a silent clock)
+EXIT_LOST = 3
 
 #: line time a node computes ahead of its tick in one window of its stream, s (a command effective inside
 #: it redoes the window: at most this much line time is computed again)
@@ -237,6 +241,7 @@ class MachineNode(Node):
             self.depends,
             self._on_tick,
             needs=self.needs,
+            promise=self.promise,
             on_lost=self.on_lost,
             on_reject=self.reject,
             on_end=self._on_end,
@@ -251,15 +256,27 @@ class MachineNode(Node):
     # ------------------------------------------------------------------ hooks
 
     def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
-        """The producers this node waits for: in lockstep, the supervisor's commands."""
-        return {'supervisor': ('commands',)} if a.clock == 'lockstep' else {}
+        """The producers this node waits for: the supervisor's commands (in wall mode too, so that a hold
+        or a stop always reaches the machines in time; a machine that waits for them is late instead)."""
+        return {'supervisor': ('commands',)}
 
-    def needs(self, stamp: int, previous: int | None) -> int | None:
-        """Tick ``stamp`` runs once the producers' ``previous`` tick is complete."""
-        return previous
+    def needs(self, stamp: int, previous: int | None) -> tuple[int, int | None] | None:
+        """Tick ``stamp`` runs once the supervisor promised it (no command of it can take effect at or before
+        ``stamp``), or its ``previous`` tick is complete; the first tick runs at once."""
+        return None if previous is None else (previous, stamp)
+
+    def promise(self, stamp: int) -> int:
+        """The promise acknowledged with tick ``stamp``: nothing this node publishes later matters before it."""
+        return stamp
 
     def on_lost(self, producer: str, waited: float, stamp: int) -> None:
         """A producer this node waits for was declared lost (logged by the participant)."""
+
+    def exit_code(self) -> int:
+        """The process's exit code: :data:`EXIT_LOST` if the line did not end as expected here (a producer
+        was lost, or the clock is silent and the last tick never came), else 0."""
+        failed = self.lockstep.lost or (self.lockstep.clock_silent and not self.done.done())
+        return EXIT_LOST if failed else 0
 
     def setup(self) -> None:
         """Subclass hook: create extra publishers."""
@@ -526,6 +543,11 @@ class MachineNode(Node):
         """Subclass hook: this node's events of the tick, just published (before the grid points)."""
 
 
+def node_exit_code(node: Node) -> int:
+    """The exit code of a machine node's process (:meth:`MachineNode.exit_code`; 0 for any other node)."""
+    return node.exit_code() if isinstance(node, MachineNode) else 0
+
+
 class NodeMain(Protocol):
     """A node module's ``main(args=None) -> exit code``."""
 
@@ -552,8 +574,8 @@ def machine_node(name: str, module: str) -> tuple[type[MachineNode], NodeMain]:
     cls = type(title, (MachineNode,), {'NODE_NAME': name, '__doc__': f'The ``{name}`` node.', '__module__': module})
 
     def main(args: list[str] | None = None) -> int:
-        return run_node(cls, args)
+        return run_node(cls, args, exit_code=node_exit_code)
 
-    main.__doc__ = f'Run ``{name}`` until Ctrl-C; exit code 0 (2 on a bad parameter).'
+    main.__doc__ = f'Run ``{name}`` until Ctrl-C; exit code 0 (2 on a bad parameter, 3 if the line did not end).'
     main.__module__ = module
     return cls, main

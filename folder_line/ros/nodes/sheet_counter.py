@@ -56,7 +56,7 @@ from folder_line.interfaces import (
 )
 from folder_line.ros.lockstep import LINE_QOS
 from folder_line.ros.markers import marker_array
-from folder_line.ros.nodes.machine import MachineNode
+from folder_line.ros.nodes.machine import MachineNode, node_exit_code
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 
@@ -148,8 +148,8 @@ class SheetCounter(MachineNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run ``sheet_counter`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
-    return run_node(SheetCounter, args)
+    """Run ``sheet_counter`` until Ctrl-C; exit code 0 (2 on a bad parameter, 3 if the line did not end)."""
+    return run_node(SheetCounter, args, exit_code=node_exit_code)
 
 
 if __name__ == '__main__':

@@ -122,7 +122,7 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement
-from folder_line.ros.nodes.machine import FAST_WINDOW, MachineNode
+from folder_line.ros.nodes.machine import FAST_WINDOW, MachineNode, node_exit_code
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -130,6 +130,8 @@ from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, TUNE_QOS, joint_
 
 __all__ = ['RECORDS_KEPT', 'SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
 
+#: ns the supervisor's promise stays short of ``command_lead`` (a command's effective time travels rounded to ns)
+PROMISE_MARGIN = 1000
 #: violations and balances the node keeps after publishing them (the memory does not grow with line time)
 RECORDS_KEPT = 1000
 #: service name -> (PackML command, drive command or None, waits for the next cycle boundary)
@@ -210,6 +212,7 @@ class Supervisor(MachineNode):
         self._rows: list[tuple[float, int, int, int, float]] = []
         self._n_rejected = 0
         self._clock_step: int | None = None
+        self._lead_ns = seconds_to_ns(v['command_lead'])
         self._state_pub = self.create_publisher(String, SUPERVISOR_STATE_TOPIC, STATE_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
         self._cmd_pub = self.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
@@ -228,12 +231,17 @@ class Supervisor(MachineNode):
         """Every machine participant, with its events."""
         return {n: ('events',) for n in MACHINE_NODES if n != self.NODE_NAME}
 
-    def needs(self, stamp: int, previous: int | None) -> int | None:
+    def needs(self, stamp: int, previous: int | None) -> tuple[int, int | None] | None:
         """Tick ``stamp`` runs once every machine participant's tick ``stamp`` is complete."""
         if previous is not None:
             step = stamp - previous
             self._clock_step = step if self._clock_step is None else max(self._clock_step, step)
-        return stamp
+        return (stamp, None)
+
+    def promise(self, stamp: int) -> int:
+        """Every command decided after tick ``stamp`` takes effect ``command_lead`` after it at the earliest
+        (a decision is never before the latest tick done), so the machines may run up to just before that."""
+        return stamp + max(self._lead_ns - PROMISE_MARGIN, 0)
 
     def on_lost(self, producer: str, waited: float, stamp: int) -> None:
         """A machine participant stopped answering: abort, naming it (decided at the last complete tick)."""
@@ -478,8 +486,8 @@ class Supervisor(MachineNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run ``supervisor`` until Ctrl-C; exit code 0 (2 on a bad parameter)."""
-    return run_node(Supervisor, args)
+    """Run ``supervisor`` until Ctrl-C; exit code 0 (2 on a bad parameter, 3 if the line did not end)."""
+    return run_node(Supervisor, args, exit_code=node_exit_code)
 
 
 if __name__ == '__main__':

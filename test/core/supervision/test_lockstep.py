@@ -24,11 +24,41 @@ def test_counts_round_trip_and_refusals() -> None:
         ('messages=1 events=2 commands=-1', 'integer'),
         ('messages=1 messages=2 events=0 commands=0', 'unexpected'),
         ('jump=1 messages=1 events=2 commands=0', 'unexpected'),
-        ('x' * 201, 'at most 200'),
+        ('x' * 2001, 'at most 2000'),
+        ('messages=1 events=2 commands=0 /a=1 /a=2', 'unexpected'),
+        ('messages=1 events=2 commands=0 /a b=1', 'unexpected'),
+        ('messages=1 events=2 commands=0 ' + ' '.join(f'/t{i}=1' for i in range(17)), 'unexpected'),
         ('messages=99999999999999999999 events=0 commands=0', 'integer'),
     ]:
         with pytest.raises(ValueError, match=why):
             parse_counts(bad)
+
+
+def test_per_topic_counts_round_trip_and_are_counted() -> None:
+    c = {**counts(4, 1), '/line/supervisor/state': 3}
+    text = format_counts(c)
+    assert text == 'messages=4 events=1 commands=0 /line/supervisor/state=3'
+    assert parse_counts(text) == c
+    ledger = TickLedger(['supervisor'], ['/line/supervisor/state'])
+    assert ledger.ack('supervisor', 10, c) is None
+    for _ in range(2):
+        ledger.received('supervisor', '/line/supervisor/state')
+    assert not ledger.complete_through(10)
+    ledger.received('supervisor', '/line/supervisor/state')
+    assert ledger.complete_through(10)
+
+
+def test_a_promise_lets_a_consumer_run_ahead_of_the_complete_tick() -> None:
+    ledger = TickLedger(['supervisor'], ['commands'])
+    assert ledger.ack('supervisor', 10, counts(commands=1), promise_ns=50) is None
+    assert not ledger.ready(15, 40)  # the command it counted is not in: nothing is promised yet
+    ledger.received('supervisor', 'commands')
+    assert ledger.promised('supervisor') == 50
+    assert ledger.ready(15, 50) and ledger.ready(10) and not ledger.ready(15, 51) and not ledger.ready(11)
+    assert ledger.waiting_for(15, 51) == ['supervisor'] and ledger.waiting_for(15, 50) == []
+    assert 'before its tick' in (ledger.ack('supervisor', 20, counts(commands=1), promise_ns=19) or '')
+    assert ledger.ack('supervisor', 20, counts(commands=1)) is None  # no promise: the tick itself
+    assert ledger.promised('supervisor') == 20 and not ledger.ready(21, 30)
 
 
 def test_a_tick_is_complete_only_when_its_messages_are_in() -> None:

@@ -38,19 +38,22 @@ from folder_line.errors import ParameterError
 from folder_line.interfaces import (
     CLOCK_TOPIC,
     DIAGNOSTICS_TOPIC,
+    GRANT_TOPIC,
     KNOWN_PARTICIPANTS,
     MACHINE_NODES,
     NS_PER_S,
     PARTICIPANTS_TOPIC,
+    progress_topic,
     tick_done_topic,
 )
 from folder_line.ros.lockstep import (
-    CLOCK_SUB_QOS,
+    ACK_QOS,
+    GRANT_QOS,
     LINE_QOS,
     PARTICIPANTS_QOS,
-    TICK_QOS,
     Announcement,
     format_announcement,
+    grant_ticks,
     parse_announcement,
     read_ack,
 )
@@ -69,7 +72,7 @@ MS = 1_000_000  # ns
 
 
 class FakeParticipant(Node):
-    """A lockstep participant that acknowledges ``/clock`` ticks as the test says.
+    """A lockstep participant that acknowledges the ticks granted as the test says.
 
     Parameters
     ----------
@@ -116,17 +119,20 @@ class FakeParticipant(Node):
         self.acked_ns: dict[int, int] = {}
         self.held: int | None = None
         self.counts = {'messages': 0, 'events': 0, 'commands': 0}
+        self.granted: int | None = None
+        self.queue: list[int] = []  # ticks granted, not yet answered
+        self.busy = False  # a delayed answer is under way
+        self.grants = 0
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._pub = self.create_publisher(TimeReference, tick_done_topic(name), TICK_QOS)
-        self.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS)
+        self._pub = self.create_publisher(TimeReference, progress_topic(name), ACK_QOS)
+        self.create_subscription(TimeReference, GRANT_TOPIC, self._on_grant, GRANT_QOS)
 
     def run_to(self, hold_from: int | None = None, when: Any = None) -> None:
         """Hold the ticks at or after ``hold_from`` (None: none), or from the first tick at whose arrival
-        ``when(stamp)`` is true; acknowledge the tick held now unless it is still to be held."""
+        ``when(stamp)`` is true; go on with the ticks granted unless they are still to be held."""
         self.hold_from, self.pause_when = hold_from, when
-        if self.held is not None and (hold_from is None or self.held < hold_from):
-            stamp, self.held = self.held, None
-            self.ack(stamp)
+        self.held = None
+        self._work()
 
     def ack(self, stamp: int) -> None:
         """Publish the acknowledgement of ``stamp`` now."""
@@ -138,32 +144,52 @@ class FakeParticipant(Node):
         self.acked_ns.setdefault(stamp, time.monotonic_ns())
         self._pub.publish(msg)
 
-    def _on_clock(self, msg: ClockMsg) -> None:
-        stamp = time_msg_to_ns(msg.clock)
-        if self.ticks and stamp <= self.ticks[-1]:
-            if stamp in self.acked_ns:
-                self.ack(stamp)  # the repeated first tick: answer again
+    def _on_grant(self, msg: TimeReference) -> None:
+        self.grants += 1
+        ticks = grant_ticks(msg, self.granted)
+        if not ticks:
+            if time_msg_to_ns(msg.header.stamp) in self.acked_ns:
+                self.ack(time_msg_to_ns(msg.header.stamp))  # the repeated first grant: answer again
             return
-        self.ticks.append(stamp)
-        self.arrival_ns.append(time.monotonic_ns())
-        if self.answers is not None and len(self.ticks) > self.answers:
-            return
-        if (self.hold_from is not None and stamp >= self.hold_from) or (
-            self.pause_when is not None and self.pause_when(stamp)
-        ):
-            self.held = stamp
-            return
-        if self.delay > 0.0:
-            timer: list[Any] = []
+        self.granted = ticks[-1]
+        now = time.monotonic_ns()
+        for stamp in ticks:
+            self.ticks.append(stamp)
+            self.arrival_ns.append(now)
+        self.queue.extend(ticks)
+        self._work()
 
-            def later() -> None:
-                timer[0].cancel()
-                self.destroy_timer(timer[0])
+    def _work(self) -> None:
+        """Answer the queued ticks in order: at once, or each ``delay`` after the one before."""
+        while self.queue and not self.busy and self.held is None:
+            stamp = self.queue[0]
+            if self.answers is not None and len(self.acked_ns) >= self.answers:
+                return
+            if (self.hold_from is not None and stamp >= self.hold_from) or (
+                self.pause_when is not None and self.pause_when(stamp)
+            ):
+                self.held = stamp
+                return
+            self.queue.pop(0)
+            if self.delay <= 0.0:
                 self.ack(stamp)
+                continue
+            self._answer_later(stamp)
+            return
 
-            timer.append(self.create_timer(self.delay, later, clock=self._steady))
-        else:
+    def _answer_later(self, stamp: int) -> None:
+        """Answer ``stamp`` after ``delay`` s of wall time, then go on with the queue."""
+        self.busy = True
+        timer: list[Any] = []
+
+        def later() -> None:
+            timer[0].cancel()
+            self.destroy_timer(timer[0])
             self.ack(stamp)
+            self.busy = False
+            self._work()
+
+        timer.append(self.create_timer(self.delay, later, clock=self._steady))
 
 
 def grid(start_ns: int, end_ns: int, step_ns: int) -> list[int]:
@@ -209,6 +235,7 @@ def test_specs() -> None:
         'duration': 0.0,
         'lost_timeout': 3.0,
         'startup_timeout': 60.0,
+        'window': 0.5,
     }
     assert by_name['rtf'].bounds == (0.0, 1000.0) and not by_name['rtf'].low_open
     assert by_name['rate'].bounds == (1.0, 10000.0)
@@ -282,7 +309,7 @@ def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
     data = serialize_message(msg)
     # a ROS string ends at its first NUL: rclpy reads '\x00' back as '' too
     assert deserialize_message(data, TimeReference).header.frame_id == frame.split('\x00', 1)[0]
-    assert read_ack(data) == (frame.split('\x00', 1)[0], stamp, counts)
+    assert read_ack(data) == (frame.split('\x00', 1)[0], stamp, counts, stamp)
 
 
 @given(data=st.binary(max_size=300))
@@ -303,6 +330,7 @@ def test_bytes_that_are_no_acknowledgement_are_refused_with_a_reason(data: bytes
 def test_topics_of_the_protocol() -> None:
     assert PARTICIPANTS_TOPIC == '/line/participants'
     assert tick_done_topic('crank_drive') == '/line/crank_drive/tick_done'
+    assert progress_topic('crank_drive') == '/line/crank_drive/progress'
     assert PARTICIPANTS_QOS.depth == 1
 
 
@@ -329,23 +357,26 @@ def test_lockstep_publishes_every_tick_of_the_grid_up_to_the_end_exactly(
     assert clock.lost == {} and clock.rejected == 0
 
 
-def test_the_first_tick_is_repeated_until_a_late_participant_answers_it(ros: Ros) -> None:
+def test_the_first_tick_is_granted_again_until_a_late_participant_answers_it(ros: Ros) -> None:
     listener = ros.node('listener')
     received = ros.subscribe(listener, ClockMsg, CLOCK_TOPIC, RELIABLE)
+    grants = ros.subscribe(listener, TimeReference, GRANT_TOPIC, RELIABLE)
     clock = make_clock(ros, rate=100.0, duration=0.05, rtf=0.0)
-    # nobody answers: the first tick again and again (/clock is volatile: a late subscriber needs a repeat)
-    assert ros.spin_until(lambda: len(received) >= 2, timeout=20.0)
-    assert set(clock_stamps(received)) == {0} and clock.current == 0 and clock.ticks == 1
+    # nobody answers: the first tick granted again and again (a late subscriber gets it)
+    assert ros.spin_until(lambda: len(grants) >= 3, timeout=20.0)
+    assert {time_msg_to_ns(g.header.stamp) for g in grants.messages} == {0} and clock.current == 0
+    assert clock_stamps(received) == [0] and clock.ticks == 1  # /clock once per tick
     fake = ros.add(FakeParticipant(ros.context))  # comes late, gets the first tick all the same
     assert ros.spin_until(clock.done.done, timeout=20.0)
     assert fake.ticks == grid(0, 50 * MS, 10 * MS) and clock.ticks == 6
-    assert distinct(clock_stamps(received)) == fake.ticks
+    assert ros.spin_until(lambda: len(received) == 6, timeout=10.0)
+    assert clock_stamps(received) == fake.ticks
 
 
-def test_the_clock_waits_for_a_slow_participant_and_skips_no_tick(ros: Ros) -> None:
+def test_with_no_window_the_clock_waits_for_a_slow_participant_tick_by_tick(ros: Ros) -> None:
     slow = ros.add(FakeParticipant(ros.context, 'line_recorder', delay=0.02))
     prompt = ros.add(FakeParticipant(ros.context, 'crank_drive'))
-    clock = make_clock(ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.3, rtf=1.0)
+    clock = make_clock(ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.3, rtf=1.0, window=0.0)
     assert ros.spin_until(clock.done.done, timeout=30.0)
     expected = grid(0, 300 * MS, 10 * MS)
     assert slow.ticks == prompt.ticks == expected and clock.ticks == 31
@@ -355,6 +386,23 @@ def test_the_clock_waits_for_a_slow_participant_and_skips_no_tick(ros: Ros) -> N
     # so sim time slowed down: 30 acknowledgements of at least 20 ms each for 0.3 s of sim time
     assert clock.rtf_achieved <= 0.3 / (30 * 0.02)
     assert clock.lost == {} and clock.late == {'crank_drive': 0, 'line_recorder': 0}
+
+
+def test_the_clock_grants_up_to_its_window_ahead_of_the_slowest_participant(ros: Ros) -> None:
+    slow = ros.add(FakeParticipant(ros.context, 'line_recorder', delay=0.01))
+    prompt = ros.add(FakeParticipant(ros.context, 'crank_drive'))
+    clock = make_clock(ros, participants='crank_drive,line_recorder', rate=100.0, duration=1.0, rtf=0.0, window=0.1)
+    assert ros.spin_until(clock.done.done, timeout=60.0)
+    expected = grid(0, NS_PER_S, 10 * MS)
+    assert slow.ticks == prompt.ticks == expected and clock.ticks == 101 and clock.lost == {}
+    acked = sorted(slow.acked_ns.items())
+    ahead = 0
+    for stamp, arrival in zip(prompt.ticks[1:], prompt.arrival_ns[1:], strict=True):
+        # granted only once the slow one had answered the tick a window (0.1 s) before it
+        answered = max((s for s, at in acked if at <= arrival), default=-1)
+        assert stamp <= answered + 100 * MS, (stamp, answered)
+        ahead = max(ahead, stamp - answered)
+    assert ahead > 10 * MS  # it did run ahead: not a barrier per tick
 
 
 @pytest.mark.parametrize('rtf', [0.5, 4.0])
@@ -370,9 +418,29 @@ def test_sim_time_is_never_ahead_of_rtf_times_wall_time(ros: Ros, rtf: float) ->
     assert 0.0 < clock.rtf_achieved <= rtf
 
 
+def test_after_a_stall_sim_time_does_not_run_faster_than_rtf_to_catch_up(ros: Ros) -> None:
+    fake = ros.add(FakeParticipant(ros.context, hold_from=100 * MS))
+    clock = make_clock(ros, rate=100.0, duration=0.6, rtf=1.0, lost_timeout=60.0, window=0.05)
+    assert ros.spin_until(lambda: fake.held == 100 * MS, timeout=30.0)
+    ros.spin_for(0.5)  # a stall of half a second of wall time
+    granted = fake.granted
+    assert granted is not None and granted <= 150 * MS  # at most the window ahead of the participant
+    fake.run_to(None)
+    resumed = time.monotonic_ns()
+    assert ros.spin_until(clock.done.done, timeout=30.0)
+    assert fake.ticks == grid(0, 600 * MS, 10 * MS)
+    # the ceiling counts afresh after the stall: from the first tick granted after it, never faster than rtf
+    later = [(s, a) for s, a in zip(fake.ticks, fake.arrival_ns, strict=True) if s > granted]
+    s0, a0 = later[0]
+    assert a0 >= resumed
+    for stamp, arrival in later[1:]:
+        assert stamp - s0 <= (arrival - a0) + 20 * MS, (stamp - s0, arrival - a0)  # MAX_BURST: 20 ms
+    assert (later[-1][1] - a0) / NS_PER_S >= (later[-1][0] - s0) / NS_PER_S - 0.02
+
+
 def test_rate_and_rtf_changes_apply_from_the_current_tick(ros: Ros) -> None:
     fake = ros.add(FakeParticipant(ros.context, hold_from=100 * MS))
-    clock = make_clock(ros, rate=100.0, duration=0.3, rtf=0.0, lost_timeout=60.0)
+    clock = make_clock(ros, rate=100.0, duration=0.3, rtf=0.0, lost_timeout=60.0, window=0.0)
     assert ros.spin_until(lambda: fake.held == 100 * MS, timeout=30.0)
     results = clock.set_parameters([Parameter('rate', value=50.0), Parameter('rtf', value=0.5)])
     assert all(r.successful for r in results)
@@ -397,42 +465,67 @@ def test_rtf_0_has_no_ceiling(ros: Ros) -> None:
     assert clock.rtf_achieved > 100.0 / 60.0
 
 
-def test_a_silent_participant_is_declared_lost_and_the_clock_goes_on(ros: Ros) -> None:
+def test_a_silent_participant_is_waited_for_and_lost_only_once_it_leaves_the_graph(ros: Ros) -> None:
     listener = ros.node('listener')
     diags = ros.subscribe(listener, DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
     prompt = ros.add(FakeParticipant(ros.context, 'line_recorder'))
     silent = ros.add(FakeParticipant(ros.context, 'crank_drive', answers=1))  # the first tick only
     clock = make_clock(
-        ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.2, rtf=0.0, lost_timeout=0.5
+        ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.2, rtf=0.0, lost_timeout=0.5, window=0.0
     )
+    # alive (in the graph) but silent: waited for, and said so on /diagnostics, never lost
+    assert ros.spin_until(lambda: 'crank_drive' in clock.waiting, timeout=20.0)
+    assert ros.spin_until(
+        lambda: any(s.name == 'folder_line/line_clock/waiting' for d in diags.messages for s in d.status), timeout=10.0
+    )
+    ros.spin_for(1.0)
+    assert clock.lost == {} and clock.current == 10 * MS and not clock.done.done()
+    [waiting] = [s for d in diags.messages for s in d.status if s.name.endswith('/waiting')]
+    values = {kv.key: kv.value for kv in waiting.values}
+    assert waiting.level == DiagnosticStatus.WARN and values['node'] == 'crank_drive'
+    assert float(values['silent_wall_s']) > 0.5
+    # its process ends (its node leaves the graph): now it is lost, named with the tick it did not answer
+    silent_acked = dict(silent.acked_ns)
+    ros.remove(silent)
     assert ros.spin_until(lambda: 'crank_drive' in clock.lost, timeout=20.0)
-    assert clock.lost == {'crank_drive': 0.01}  # named with the tick it did not answer, waited for until then
+    assert clock.lost == {'crank_drive': 0.01} and 'crank_drive' not in clock.waiting
     assert ros.spin_until(clock.done.done, timeout=20.0)
     assert prompt.ticks == grid(0, 200 * MS, 10 * MS) and clock.ticks == 21
-    assert silent.ticks[:2] == [0, 10 * MS] and list(silent.acked_ns) == [0]
-    # lost no earlier than lost_timeout after the tick it did not answer was published (which was after
-    # both acknowledgements of the first tick)
-    assert prompt.arrival_ns[2] - max(prompt.acked_ns[0], silent.acked_ns[0]) > 0.5 * NS_PER_S
+    assert list(silent_acked) == [0]
     assert ros.spin_until(
         lambda: any(s.name == 'folder_line/line_clock/lost' for d in diags.messages for s in d.status), timeout=10.0
     )
-    [status] = [s for d in diags.messages for s in d.status]
+    [status] = [s for d in diags.messages for s in d.status if s.name.endswith('/lost')]
     values = {kv.key: kv.value for kv in status.values}
     assert status.level == DiagnosticStatus.ERROR and status.message == 'participant crank_drive lost at 0.010000000 s'
     assert (values['node'], values['tick'], values['limit_s']) == ('crank_drive', '0.01', '0.5')
     assert float(values['waited_wall_s']) >= 0.5  # waited > 0.5, printed to the ms
-    # it answers after all: refused (it is lost), counted, and the clock is not disturbed
-    silent.ack(10 * MS)
-    assert ros.spin_until(lambda: clock.rejected == 1, timeout=10.0)
-    assert clock.lost == {'crank_drive': 0.01}
+
+
+def test_a_participant_that_answers_again_is_taken_back(ros: Ros) -> None:
+    listener = ros.node('listener')
+    diags = ros.subscribe(listener, DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
+    prompt = ros.add(FakeParticipant(ros.context, 'line_recorder'))
+    paused = ros.add(FakeParticipant(ros.context, 'crank_drive', hold_from=50 * MS))
+    clock = make_clock(
+        ros, participants='crank_drive,line_recorder', rate=100.0, duration=0.2, rtf=0.0, lost_timeout=0.3
+    )
+    assert ros.spin_until(lambda: 'crank_drive' in clock.waiting, timeout=20.0)
+    paused.run_to(None)  # cut off for a while, then back: nothing lost
+    assert ros.spin_until(clock.done.done, timeout=20.0)
+    assert clock.lost == {} and clock.waiting == {}
+    assert paused.ticks == prompt.ticks == grid(0, 200 * MS, 10 * MS)
+    assert ros.spin_until(
+        lambda: any(s.name == 'folder_line/line_clock/resumed' for d in diags.messages for s in d.status), timeout=10.0
+    )
 
 
 def test_malformed_and_foreign_acknowledgements_are_rejected_and_counted(ros: Ros) -> None:
     fake = ros.add(FakeParticipant(ros.context, hold_from=50 * MS))
-    clock = make_clock(ros, rate=100.0, duration=0.1, rtf=0.0, lost_timeout=60.0)
+    clock = make_clock(ros, rate=100.0, duration=0.1, rtf=0.0, lost_timeout=60.0, window=0.0)
     hostile = ros.node('hostile')
-    pub = hostile.create_publisher(TimeReference, tick_done_topic('line_recorder'), TICK_QOS)
-    assert ros.spin_until(lambda: fake.held == 50 * MS, timeout=20.0)
+    pub = hostile.create_publisher(TimeReference, progress_topic('line_recorder'), ACK_QOS)
+    assert ros.spin_until(lambda: fake.held == 50 * MS and pub.get_subscription_count() == 1, timeout=20.0)
     for frame, source in [
         ('line_recorder', 'garbage'),
         ('line_recorder', 'messages=1 events=0'),
@@ -456,7 +549,8 @@ def test_wall_mode_paces_by_the_wall_clock_and_counts_late_participants(ros: Ros
     late = ros.add(FakeParticipant(ros.context, hold_from=10 * MS))
     clock = make_clock(ros, clock='wall', rate=100.0, duration=0.2, rtf=1.0, lost_timeout=60.0)
     # it answers nothing from 0.01 s on: the wall clock publishes every tick anyway
-    assert ros.spin_until(lambda: late.held == 200 * MS, timeout=30.0)
+    assert ros.spin_until(lambda: late.granted == 200 * MS, timeout=30.0)
+    assert late.held == 10 * MS
     assert late.ticks == grid(0, 200 * MS, 10 * MS)
     assert not clock.done.done()  # the last tick waits for its answer (or lost_timeout)
     late.run_to(None)  # answers the last tick
@@ -499,6 +593,7 @@ def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
         ('duration', 1.0),
         ('lost_timeout', 1.0),
         ('startup_timeout', 2.0),
+        ('window', 1.0),
     ]:
         [result] = clock.set_parameters([Parameter(name, value=value)])
         assert not result.successful and 'read-only' in result.reason and name in result.reason

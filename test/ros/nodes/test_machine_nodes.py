@@ -45,6 +45,7 @@ from folder_line.interfaces import (
     TOPICS,
     UNIT_OF_NODE,
     parse_event_source,
+    progress_topic,
     tick_done_topic,
 )
 from folder_line.ros.lockstep import MISSING_FACTOR
@@ -109,8 +110,10 @@ def subscribe(ros: Ros, node: Node, msg_type: type, topic: str) -> tuple[Receive
 
 
 def start_clock(ros: Ros, duration: float, participants: Any, **values: Any) -> LineClock:
-    """``line_clock`` in lockstep for ``duration`` s of sim time, no rtf ceiling unless given."""
+    """``line_clock`` in lockstep for ``duration`` s of sim time, no rtf ceiling unless given, a barrier per tick
+    (window 0) unless given: a test that holds the line holds it at the tick it names."""
     values.setdefault('rtf', 0.0)
+    values.setdefault('window', 0.0)
     return ros.add(
         LineClock(
             context=ros.context,
@@ -238,6 +241,7 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(
     }
     expected.update({joint_states_topic(n): 'sensor_msgs/msg/JointState' for n in joints})
     expected.update({tick_done_topic(n): 'sensor_msgs/msg/TimeReference' for n in nodes})
+    expected.update({progress_topic(n): 'sensor_msgs/msg/TimeReference' for n in nodes})
     for topic, type_name in expected.items():
         assert graph.get(topic) == [type_name], (topic, graph.get(topic))
     missing = set(CLASSES) - set(joints)  # layup: no feed transporter, no topic

@@ -38,9 +38,9 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     SUPERVISOR_STATE_TOPIC,
     UNIT_OF_NODE,
-    tick_done_topic,
+    progress_topic,
 )
-from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS, TICK_QOS
+from folder_line.ros.lockstep import ACK_QOS, LINE_QOS, PARTICIPANTS_QOS
 from folder_line.ros.nodes.belt_conveyor import BeltConveyor
 from folder_line.ros.nodes.crank_drive import CrankDrive
 from folder_line.ros.nodes.feed_transporter import FeedTransporter
@@ -129,7 +129,11 @@ class Line:
             LineClock(
                 context=ros.context,
                 parameter_overrides=params(
-                    duration=duration, rtf=0.0, lost_timeout=60.0, participants=','.join([*self.nodes, 'line_recorder'])
+                    duration=duration,
+                    rtf=0.0,
+                    lost_timeout=60.0,
+                    window=0.0,  # a barrier per tick: the test holds the line at the ticks it names
+                    participants=','.join([*self.nodes, 'line_recorder']),
                 ),
             )
         )
@@ -424,11 +428,11 @@ def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> No
         LineClock(
             context=ros.context,
             parameter_overrides=params(
-                participants='belt_conveyor,supervisor', rtf=0.0, duration=0.2, lost_timeout=60.0
+                participants='belt_conveyor,supervisor', rtf=0.0, duration=0.2, lost_timeout=60.0, window=0.0
             ),
         )
     )
-    assert ros.spin_until(lambda: belt.held == s and sup.lockstep.pending == [s], timeout=30.0)
+    assert ros.spin_until(lambda: belt.held == s and list(sup.lockstep.pending) == [s], timeout=30.0)
     assert sup.lockstep.last_done == s - STEP and sup.logic.now == (s - STEP) / NS_PER_S
     # crank_drive is no participant here: its knife_exit (judged by no constraint, at 0: late) is not waited for
     events.publish(event('crank_drive', 'knife_exit sheet=0 cycle=0 value=0.0', 0, 0))
@@ -437,7 +441,7 @@ def test_the_watermark_waits_for_every_event_a_tick_acknowledged(ros: Ros) -> No
     belt.run_to(s + STEP)
     assert ros.spin_until(lambda: sup.lockstep.ledger.last_ack('belt_conveyor') == s, timeout=20.0)
     ros.spin_for(0.2)  # nothing may happen: the supervisor waits for the events
-    assert sup.lockstep.pending == [s] and sup.logic.now == (s - STEP) / NS_PER_S
+    assert list(sup.lockstep.pending) == [s] and sup.logic.now == (s - STEP) / NS_PER_S
     assert sup.lockstep.ledger.missing('belt_conveyor') == {'events': 2} and clock.current == s
     # they arrive (belt slow-downs: judged by no constraint), one of them at the previous tick's ns
     events.publish(event('belt_conveyor', 'belt_slowdown_start sheet=0 cycle=0 value=0.5', s, s - 2 * MS))
@@ -459,8 +463,10 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
     diags, _ = subscribe(ros, line.listener, DiagnosticArray, DIAGNOSTICS_TOPIC)
     hostile = ros.node('intruder')
 
-    def publish(msg_type: type, topic: str, qos: QoSProfile, *messages: Any) -> None:
+    def publish(msg_type: type, topic: str, qos: QoSProfile, *messages: Any, readers: int = 0) -> None:
         pub = hostile.create_publisher(msg_type, topic, qos)
+        # acknowledgements are read best-effort and volatile: only readers matched already get them
+        assert ros.spin_until(lambda: pub.get_subscription_count() >= readers, timeout=20.0)
         for m in messages:
             pub.publish(m)
 
@@ -479,10 +485,15 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
         ref('supervisor', 'jump', NS_PER_S),
     )  # to every machine node
     publish(
-        TimeReference, tick_done_topic('supervisor'), TICK_QOS, ref('supervisor', 'garbage'), ref('intruder', counts)
+        TimeReference,
+        progress_topic('supervisor'),
+        ACK_QOS,
+        ref('supervisor', 'garbage'),
+        ref('intruder', counts),
+        readers=5,
     )  # to the machine nodes and the clock
     publish(
-        TimeReference, tick_done_topic('crank_drive'), TICK_QOS, ref('crank_drive', 'messages=1')
+        TimeReference, progress_topic('crank_drive'), ACK_QOS, ref('crank_drive', 'messages=1'), readers=2
     )  # to the supervisor and the clock
     publish(
         String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS, String(data='clock=banana end=none participants=crank_drive')
