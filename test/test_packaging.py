@@ -80,7 +80,7 @@ def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_console_scripts_are_listed() -> None:
     scripts = console_scripts()
     assert scripts['folder-line'] == 'folder_line.cli.main:main'
-    assert scripts['line_clock'] == 'folder_line.ros.nodes.line_clock:main'
+    assert scripts['line_clock'] == 'folder_line.ros.entry:line_clock'  # light: a stop while it imports exits 0
 
 
 def test_every_console_script_is_an_executable_in_lib_package(install: Path) -> None:
@@ -103,6 +103,12 @@ def test_ament_index_package_xml_and_config_are_installed(install: Path) -> None
         for path in expected:
             installed = share / PACKAGE / path.relative_to(REPO)
             assert installed.read_bytes() == path.read_bytes(), installed
+
+
+def test_the_fast_dds_profile_is_installed_beside_its_module(install: Path) -> None:
+    [site] = (install / PACKAGE / 'lib').glob('python3*/site-packages')
+    shipped = REPO / 'folder_line' / 'ros' / 'fastdds_line.xml'
+    assert (site / 'folder_line' / 'ros' / 'fastdds_line.xml').read_bytes() == shipped.read_bytes()
 
 
 def _installed_env(install: Path, tmp: Path) -> dict[str, str]:

@@ -289,6 +289,9 @@ class Participant:
     every_tick : bool
         Read the producers' acknowledgements of every tick (``tick_done``, reliable; the recorder) instead
         of their ``progress`` (best-effort).
+    prompt : bool
+        Say how far it got (``progress``) whenever it stops to wait, not only every :data:`PROGRESS_EVERY`
+        ticks and on the heartbeat: for a participant whose ticks others wait for (not the recorder).
     """
 
     def __init__(
@@ -306,6 +309,7 @@ class Participant:
         lost_timeout: float = 3.0,
         startup_timeout: float = 60.0,
         every_tick: bool = False,
+        prompt: bool = True,
     ) -> None:
         self.node = node
         self.name = node.get_name()
@@ -318,6 +322,7 @@ class Participant:
         self._on_end = on_end
         self._on_ack_taken = on_ack
         self._every_tick = every_tick
+        self._prompt = prompt
         self.lost_timeout = lost_timeout
         self.startup_timeout = startup_timeout
         self.announcement: Announcement | None = None
@@ -494,8 +499,6 @@ class Participant:
             if need is not None and not ledger.ready(*need):
                 break
             pending.popleft()
-            if self._time_source is not None:
-                self._time_source.clock_callback(ClockMsg(clock=ns_to_time_msg(stamp)))
             self._on_tick(stamp)
             self.last_done = stamp
             self.ticks += 1
@@ -509,7 +512,10 @@ class Participant:
                 if self._on_end is not None:
                     self._on_end(stamp)
                 return
-        if self._unsaid:
+        if self._time_source is not None and self._unsaid:  # the node's sim clock: the latest tick it ran
+            assert self.last_done is not None
+            self._time_source.clock_callback(ClockMsg(clock=ns_to_time_msg(self.last_done)))
+        if self._unsaid and self._prompt:
             self._say()  # waiting now: say how far it got
 
     def working(self, stamp: int) -> None:

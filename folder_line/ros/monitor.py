@@ -40,6 +40,7 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     SUPERVISOR_STATE_TOPIC,
 )
+from folder_line.ros.dds_profile import use_line_profile
 from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
 from folder_line.ros.topics import COMMANDS_QOS
@@ -331,6 +332,7 @@ def monitor_session(
     context = rclpy.Context()
     try:
         with _Stop() as stop:
+            use_line_profile()  # before this process's first participant
             rclpy.init(args=list(argv or []), context=context, signal_handler_options=SignalHandlerOptions.NO)
             executor = SingleThreadedExecutor(context=context)
             node = MonitorNode(sink, topics, context=context)

@@ -31,6 +31,7 @@ from std_srvs.srv import Trigger
 from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import ParameterError
 from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
+from folder_line.ros.dds_profile import use_line_profile
 
 __all__ = ['COMMANDS', 'Answer', 'call_command', 'call_tune', 'service_name', 'tunable_parameter']
 
@@ -65,6 +66,7 @@ def _session() -> Iterator[tuple[Node, SingleThreadedExecutor]]:
     """A node of its own (``folder_line_operator_<pid>``) in a context of its own, spun by its executor;
     rclpy's signal handlers are not installed, so Ctrl-C raises ``KeyboardInterrupt`` in the caller."""
     context = rclpy.Context()
+    use_line_profile()  # before this process's first participant
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = Node(f'folder_line_operator_{os.getpid()}', context=context)

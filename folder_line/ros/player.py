@@ -40,6 +40,7 @@ from folder_line.interfaces import (
     PARTICIPANTS_TOPIC,
     SUPERVISOR_STATE_TOPIC,
 )
+from folder_line.ros.dds_profile import use_line_profile
 from folder_line.ros.lockstep import LINE_QOS, PARTICIPANTS_QOS
 from folder_line.ros.nodes.supervisor import STATE_QOS
 from folder_line.ros.topics import CLOCK_QOS, COMMANDS_QOS
@@ -238,6 +239,7 @@ def play_bag(
     """
     plan = play_plan(path, start, duration, topics)
     context = Context()
+    use_line_profile()  # before this process's first participant
     rclpy.init(
         args=None if argv is None else list(argv), context=context, signal_handler_options=SignalHandlerOptions.NO
     )

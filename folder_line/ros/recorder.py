@@ -180,6 +180,7 @@ class LineRecorder(Node):
             on_ack=self._on_ack,
             lost_timeout=lost_timeout,
             every_tick=True,
+            prompt=False,  # only the clock reads its progress, within its window
         )
 
     def rtf_achieved(self) -> float:

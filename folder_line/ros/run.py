@@ -67,6 +67,7 @@ from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, GRANT_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
 from folder_line.progress import LineTimeProgress, logs_above
+from folder_line.ros.dds_profile import use_line_profile
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
@@ -86,7 +87,8 @@ __all__ = [
 
 
 _PROCESSES_LOSS = (
-    'unavailable with --processes: the publishers run in other processes and their counts are not collected'
+    'unavailable with --processes or --external-nodes: the publishers run in other processes and their counts '
+    'are not collected'
 )
 
 
@@ -200,12 +202,19 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
         executor.spin_once(timeout_sec=0.05)
 
 
+def _shell_word(text: str) -> str:
+    """``text`` as one shell word, readable: ``"scene:='folder'"`` rather than shlex's ``'scene:='"'"'folder'"'"''``."""
+    if "'" in text and not any(c in text for c in '"$`\\!'):
+        return f'"{text}"'
+    return shlex.quote(text)
+
+
 def _print_external(cfg: RunConfig, stream: IO[str]) -> None:
     """What to start on each machine's host (``--external-nodes``): the nodes' parameters, as ``ros2 run``."""
     domain = os.environ.get('ROS_DOMAIN_ID', '0')
     print(f'waiting for the machine nodes on ROS_DOMAIN_ID={domain}; start each on its host:', file=stream)
     for name in MACHINE_NODES:
-        args = ' '.join(f'-p {shlex.quote(_ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
+        args = ' '.join(f'-p {_shell_word(_ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
         print(f'  ros2 run folder_line {name} --ros-args {args}', file=stream)
     stream.flush()
 
@@ -227,6 +236,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
     """
     names = names or InputNames()
     scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
+    use_line_profile()  # before the first participant of this process (and its node processes)
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)

@@ -234,6 +234,7 @@ class LineClock(Node):
         self._origin: tuple[int, float] | None = None  # (sim ns, wall s) the rtf ceiling counts from
         self._granted_at = 0.0  # wall time of the latest grant (or its repeat)
         self._advanced_at = 0.0  # wall time of the latest tick granted
+        self._slot = 0.0  # earliest wall time of the next grant (GRANT_PERIOD after the due time of the last)
         self.published_clock = 0
         self.ticks = 0
         self.grants = 0  # grants published (repeats too)
@@ -408,30 +409,44 @@ class LineClock(Node):
         return wall0 + (stamp - sim0) / NS_PER_S / self._rtf
 
     def _pump(self) -> None:
-        """Grant every tick that is due and that the window allows; then wait for the next due time, or
-        finish once the last tick is answered."""
+        """Grant every tick that is due and that the window allows, at most once per :data:`GRANT_PERIOD`;
+        then wait for the next due time, or finish once the last tick is answered."""
         self._pacer.cancel()
         if self.done.done() or self.current is None or self.first_done_wall is None:
             return
         now = time.monotonic()
         limit = self._limit() if self.mode == 'lockstep' else TIME_MSG_MAX_NS
-        granted = False
-        while (nxt := self._next_stamp()) is not None and nxt <= limit:
-            due = max(self._due(nxt), self._granted_at + GRANT_PERIOD)
-            if due > now:
-                self._pacer.timer_period_ns = max(int((due - now) * NS_PER_S), 1)
-                self._pacer.reset()
-                break
-            if self.mode == 'wall':
-                self._count_late()
-            elif now - self._due(nxt) > MAX_BURST:  # late (a stall): the ceiling counts from now, no catching up
-                self._origin = (nxt, now)
-            self._publish_tick(nxt)
-            granted = True
-        if granted:
-            self._grant()
+        nxt = self._next_stamp()
+        if nxt is not None and nxt <= limit:
+            start = max(self._due(nxt), self._slot)
+            if start > now:
+                self._wake_at(start, now)
+            else:
+                self._grant_due(nxt, limit, start, now)
         if self._at_end(now):
             self._finish('duration reached')
+
+    def _grant_due(self, nxt: int, limit: int, start: float, now: float) -> None:
+        """Grant the ticks from ``nxt`` that are due by ``now`` and within ``limit``, in one grant."""
+        if self.mode == 'lockstep' and now - self._due(nxt) > MAX_BURST:
+            # late (a stall): the ceiling counts afresh, with at most MAX_BURST to catch up
+            self._origin = (nxt, now - MAX_BURST)
+        stamp: int | None = nxt
+        while stamp is not None and stamp <= limit and self._due(stamp) <= now:
+            if self.mode == 'wall':
+                self._count_late()
+            self._publish_tick(stamp)
+            stamp = self._next_stamp()
+        self._grant()
+        # the next grant's earliest time counts from this one's due time, not from when the executor ran it:
+        # a late wake-up does not push every later grant back
+        self._slot = max(start, now - GRANT_PERIOD) + GRANT_PERIOD
+        if stamp is not None and stamp <= limit:
+            self._wake_at(max(self._due(stamp), self._slot), now)
+
+    def _wake_at(self, when: float, now: float) -> None:
+        self._pacer.timer_period_ns = max(int((when - now) * NS_PER_S), 1)
+        self._pacer.reset()
 
     def _at_end(self, now: float) -> bool:
         """The last tick is granted and answered (wall mode: or unanswered for ``lost_timeout``)."""

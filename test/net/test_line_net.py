@@ -1,0 +1,140 @@
+"""The live line on a plant network: each machine node on a host of its own, over UDP through the impairing switch.
+
+``folder-line run --external-nodes`` runs ``line_clock`` and the recorder on host ``control``;
+each machine node runs on its own host (:mod:`._line`). Every case is compared with a clean
+run of the same line: the same bag message for message (read with the independent ``mcap``
+reader), ``line_clock``'s own statuses about the network left aside.
+"""
+
+from __future__ import annotations
+
+import collections
+import re
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from folder_line.config.run_config import RunConfig
+from folder_line.interfaces import MACHINE_NODES
+from folder_line.ros.dds_profile import LEASE_DURATION
+
+from ._line import HOSTS, LineRun, bag_messages, clock_status, run_line
+from .netns import Network
+
+DURATION = 6.0  # s of line time of every run
+CUT = 5.0  # wall s each machine host is cut off for
+
+
+@pytest.fixture(scope='module')
+def line_net(switch_binary: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Network]:
+    """The six hosts (control and one per machine node), shared by the tests of this module."""
+    with Network(list(HOSTS), tmp_path_factory.mktemp('line_net'), switch=switch_binary) as network:
+        yield network
+
+
+def config(tmp: Path, **values: Any) -> RunConfig:
+    values.setdefault('rtf', 0.0)
+    values.setdefault('duration', DURATION)
+    return RunConfig(scene='folder', out=tmp / 'out', **values)
+
+
+@pytest.fixture(scope='module')
+def clean(line_net: Network, tmp_path_factory: pytest.TempPathFactory) -> tuple[LineRun, collections.Counter[Any]]:
+    """The line on the network with no impairment, as fast as it goes: the reference of every case."""
+    line_net.clear()
+    run = run_line(line_net, config(tmp_path_factory.mktemp('clean')))
+    assert_ended_as_expected(run)
+    return run, bag_messages(run.out, skip=clock_status)
+
+
+def assert_ended_as_expected(run: LineRun) -> None:
+    assert run.run_code == 0, (run.run_code, run.logs.get('run', '')[-3000:])
+    assert run.summary['outcome']['ok'] and run.summary['supervisor_state'] == 'EXECUTE', run.summary['outcome']
+    assert not run.summary.get('lost_participants'), run.summary
+    assert run.summary['sim_time_reached_s'] == DURATION
+    assert all(code == 0 for code in run.node_codes.values()), run.node_codes
+
+
+def assert_same_bag(run: LineRun, clean: collections.Counter[Any]) -> None:
+    got = bag_messages(run.out, skip=clock_status)
+    missing, extra = clean - got, got - clean
+    assert not missing and not extra, (sorted(missing)[:3], sorted(extra)[:3], len(missing), len(extra))
+
+
+def test_a_delay_of_5_ms_on_every_link_costs_almost_no_time(
+    line_net: Network, tmp_path: Path, clean: tuple[LineRun, collections.Counter[Any]]
+) -> None:
+    line_net.clear()
+    for host in HOSTS:
+        line_net.set(host, delay_ms=5.0, jitter_ms=2.0)
+    run = run_line(line_net, config(tmp_path, rtf=1.0))
+    assert_ended_as_expected(run)
+    assert run.rtf >= 0.9, run.summary['rtf_achieved']
+    assert_same_bag(run, clean[1])
+
+
+def test_5_percent_loss_on_every_link_loses_no_node_and_no_message(
+    line_net: Network, tmp_path: Path, clean: tuple[LineRun, collections.Counter[Any]]
+) -> None:
+    line_net.clear()
+    for host in HOSTS:
+        line_net.set(host, loss=0.05)
+    run = run_line(line_net, config(tmp_path, rtf=1.0))
+    counters = line_net.counters()
+    assert sum(c.lost for c in counters.values()) > 100, counters  # loss there was
+    assert_ended_as_expected(run)
+    assert not re.search(r'waiting for \w+: silent', run.logs['run']), run.logs['run'][-2000:]  # never silent 3 s
+    assert run.rtf >= 0.5, run.summary['rtf_achieved']
+    assert_same_bag(run, clean[1])
+
+
+def test_each_machine_host_cut_off_for_5_s_in_turn_is_waited_out(
+    line_net: Network, tmp_path: Path, clean: tuple[LineRun, collections.Counter[Any]]
+) -> None:
+    cuts: list[tuple[str, float, float]] = []
+
+    def cut_each(net: Network, nodes: dict[str, subprocess.Popen[bytes]], started: float) -> None:
+        for host in MACHINE_NODES:
+            time.sleep(0.5)
+            net.cut(host)
+            t_cut = time.monotonic()
+            time.sleep(CUT)
+            net.cut(host, False)
+            cuts.append((host, t_cut, time.monotonic()))
+
+    line_net.clear()
+    run = run_line(line_net, config(tmp_path, rtf=1.0, duration=DURATION), during=cut_each)
+    assert [c[0] for c in cuts] == list(MACHINE_NODES)
+    assert_ended_as_expected(run)
+    # every node was waited for (silent longer than lost_timeout), named, and taken back
+    log = run.logs['run']
+    for host in MACHINE_NODES:
+        assert f'waiting for {host}: silent for' in log, (host, log[-3000:])
+        assert f'participant {host} answers again after' in log, (host, log[-3000:])
+    assert_same_bag(run, clean[1])
+
+
+def test_a_killed_node_is_named_lost_within_the_bound_and_the_line_aborts(line_net: Network, tmp_path: Path) -> None:
+    killed: list[float] = []
+
+    def kill_feed(net: Network, nodes: dict[str, subprocess.Popen[bytes]], started: float) -> None:
+        time.sleep(1.0)
+        nodes['feed_transporter'].send_signal(signal.SIGKILL)
+        killed.append(time.monotonic())
+
+    line_net.clear()
+    lost = 'participant feed_transporter lost'
+    run = run_line(line_net, config(tmp_path, rtf=1.0, duration=DURATION), during=kill_feed, watch=[lost])
+    assert killed and lost in run.seen, run.logs['run'][-3000:]
+    named_after = run.seen[lost] - killed[0]
+    bound = 3.0 + LEASE_DURATION + 3.0  # lost_timeout, the DDS lease, the announcement period and scheduling
+    assert 3.0 < named_after < bound, named_after
+    assert run.run_code == 1
+    assert run.summary['supervisor_state'] == 'ABORTED' and 'feed_transporter' in run.summary['lost_participants']
+    assert re.search(r'lost:feed_transporter', run.summary['outcome']['message']), run.summary['outcome']
+    assert run.node_codes['feed_transporter'] == -signal.SIGKILL
