@@ -12,6 +12,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    # the Fast DDS profile the node processes load (folder_line.ros.dds_profile)
+    package_data={'folder_line.ros': ['fastdds_line.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -39,15 +41,17 @@ setup(
     description='Simulation of a folding/layup line as ROS 2 nodes',
     license='Apache-2.0',
     python_requires='>=3.10',
+    # a node's executable enters through folder_line.ros.entry, which makes a stop during its imports a
+    # clean exit (0, no traceback) before it imports the node's module
     entry_points={
         'console_scripts': [
             'folder-line = folder_line.cli.main:main',
-            'line_clock = folder_line.ros.nodes.line_clock:main',
-            'crank_drive = folder_line.ros.nodes.crank_drive:main',
-            'belt_conveyor = folder_line.ros.nodes.belt_conveyor:main',
-            'feed_transporter = folder_line.ros.nodes.feed_transporter:main',
-            'sheet_counter = folder_line.ros.nodes.sheet_counter:main',
-            'supervisor = folder_line.ros.nodes.supervisor:main',
+            'line_clock = folder_line.ros.entry:line_clock',
+            'crank_drive = folder_line.ros.entry:crank_drive',
+            'belt_conveyor = folder_line.ros.entry:belt_conveyor',
+            'feed_transporter = folder_line.ros.entry:feed_transporter',
+            'sheet_counter = folder_line.ros.entry:sheet_counter',
+            'supervisor = folder_line.ros.entry:supervisor',
         ],
     },
 )

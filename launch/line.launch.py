@@ -9,85 +9,95 @@ as its lockstep participants: sim time does not advance until every one of them 
 answered the first tick, and then only as fast as the slowest allows (``rtf`` is a
 ceiling; ``0.0`` = as fast as possible). Without ``duration`` the line runs until
 Ctrl-C, in memory that does not grow with line time; ``start_time`` starts the clock
-that far into the line (the nodes fast-forward there). With ``duration`` > 0 every node
-ends after the last tick and the launch shuts down when ``line_clock`` exits; a node that
-dies shuts the launch down too (its exit is reported). This is ``folder-line run --processes``
+that far into the line (the nodes fast-forward there). This is ``folder-line run --processes``
 without the recorder: record with ``ros2 bag record`` (which cannot answer ticks, so
 it is not a participant).
+
+How it ends, and its exit code:
+
+* Every argument is read and checked, as its nodes would, before any node starts
+  (:func:`folder_line.ros.line_launch.line_parameters`): a bad one (``rtf:=fast``) fails the
+  launch with one line naming it, exit code 1, and no node running.
+* With ``duration`` > 0 every node ends by itself after the last tick: once ``line_clock``
+  has exited, the launch waits for the others (it signals none of them: a signal to a process
+  that is exiting can lose its exit status in launch), stops any still running ``END_GRACE`` s
+  later, and exits 0.
+* A node that exits non-zero (a participant lost: ``line_clock`` exits 3; parameters refused:
+  2; a machine node that lost a producer or its clock: 3) shuts the launch down, which then
+  exits 1 (launch's code for an error, the only non-zero one it has) with one ERROR line naming
+  the node and its code. An exit status launch lost itself (reported as 255) is not counted as a
+  failure; a line says so.
+* Each node asks the kernel to stop it (SIGTERM) if this launch process dies
+  (:mod:`folder_line.ros.entry`): a launch that is killed leaves no node behind.
 """
 
 from __future__ import annotations
 
-from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
+import functools
+import os
+
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler, TimerAction
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
+from launch.events.process import ProcessExited
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from launch_ros.parameter_descriptions import ParameterValue
 
-from folder_line.interfaces import MACHINE_NODES  # the installed package names its nodes once
-from launch import LaunchDescription
+from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES  # the installed package names its nodes once
+from folder_line.ros.entry import PARENT_PID_ENV
+from folder_line.ros.line_launch import ARGUMENTS, END_GRACE, STATUS_LOST, LineEnd, Step, failure_text, line_parameters
+from launch import Action, LaunchContext, LaunchDescription
 
-ARGUMENTS = (
-    ('scene', 'folder', 'scene name (config/scenes) or path of a scene YAML file'),
-    ('overrides', '', 'scene overrides "MACHINE.KEY=VALUE" separated by ";"'),
-    ('rate', '200.0', 'tick rate of line_clock and joint-state rate of the machine nodes, Hz of sim time'),
-    ('rtf', '1.0', 'real-time factor ceiling of line_clock (0.0: as fast as the line allows)'),
-    ('duration', '0.0', 'sim time to run for, s (0: until Ctrl-C)'),
-    ('start_time', '0.0', 'sim time of the first tick, s (the nodes fast-forward there)'),
-    ('clock', 'lockstep', 'lockstep (sim time waits for every node) or wall (hardware in the loop)'),
-    ('lost_timeout', '3.0', 'wall time a tick waits for a node before it is declared lost, s'),
-    ('marker_rate', '5.0', 'sheet_counter: /line/markers per second of sim time, frame line (0: none)'),
-)
+
+class LineNodeFailed(RuntimeError):
+    """A node of the line exited non-zero: raised in launch's event handling, it makes the launch exit 1."""
 
 
 def generate_launch_description() -> LaunchDescription:
-    """The line's nodes with shared scene parameters; the launch ends with ``line_clock``."""
-    arg = {name: LaunchConfiguration(name) for name, _, _ in ARGUMENTS}
-    lost = ParameterValue(arg['lost_timeout'], value_type=float)
-    common = {
-        'scene': ParameterValue(arg['scene'], value_type=str),
-        'overrides': ParameterValue(arg['overrides'], value_type=str),
-        'rate': ParameterValue(arg['rate'], value_type=float),
-        'lost_timeout': lost,
-        'use_sim_time': True,
-    }
-    actions: list = [
+    """The arguments, then the line's nodes, built once every argument has been checked."""
+    actions: list[Action] = [
         DeclareLaunchArgument(name, default_value=default, description=text) for name, default, text in ARGUMENTS
     ]
-    drawing = {'marker_rate': ParameterValue(arg['marker_rate'], value_type=float)}  # the node that draws
-    nodes = [
-        Node(
+    actions.append(OpaqueFunction(function=start_line))
+    return LaunchDescription(actions)
+
+
+def start_line(context: LaunchContext) -> list[Action]:
+    """The nodes with their parameters, and what ends the launch; raises (nothing started) on a bad argument."""
+    given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS}
+    parameters = line_parameters(given)  # a ParameterError: launch logs it, starts nothing and exits 1
+    parent = {PARENT_PID_ENV: str(os.getpid())}  # each node stops if this process dies
+    names = (*MACHINE_NODES, LINE_CLOCK)
+    end = LineEnd(names)
+    stragglers = TimerAction(period=END_GRACE, actions=[EmitEvent(event=Shutdown(reason='the line ended'))])
+    actions: list[Action] = []
+    for name in names:
+        node = Node(
             package='folder_line',
             executable=name,
             name=name,
-            parameters=[common, drawing] if name == 'sheet_counter' else [common],
+            parameters=[parameters[name]],
             output='screen',
+            additional_env=parent,
         )
-        for name in MACHINE_NODES
-    ]
-    clock = Node(
-        package='folder_line',
-        executable='line_clock',
-        name='line_clock',
-        output='screen',
-        parameters=[
-            {
-                'rtf': ParameterValue(arg['rtf'], value_type=float),
-                'duration': ParameterValue(arg['duration'], value_type=float),
-                'start_time': ParameterValue(arg['start_time'], value_type=float),
-                'rate': ParameterValue(arg['rate'], value_type=float),
-                'clock': ParameterValue(arg['clock'], value_type=str),
-                'participants': ','.join(MACHINE_NODES),
-                'lost_timeout': lost,
-            }
-        ],
-    )
-    actions += nodes + [clock]
-    for node in [*nodes, clock]:  # the line ends with its clock; a node that dies ends it too
-        actions.append(
-            RegisterEventHandler(
-                OnProcessExit(target_action=node, on_exit=[EmitEvent(event=Shutdown(reason='a line node exited'))])
-            )
-        )
-    return LaunchDescription(actions)
+        on_exit = functools.partial(node_exited, end, stragglers, name)
+        actions += [node, RegisterEventHandler(OnProcessExit(target_action=node, on_exit=on_exit))]
+    return actions
+
+
+def node_exited(
+    end: LineEnd, stragglers: TimerAction, name: str, event: ProcessExited, context: LaunchContext
+) -> list[Action]:
+    """A node exited: the line ends with its clock, the others by themselves; a node that failed fails the launch."""
+    step = end.exited(name, event.returncode)
+    if step is Step.FAIL:
+        # launch shuts down on an exception in an event handler and then exits 1: its only way to a non-zero code
+        raise LineNodeFailed(failure_text(name, event.returncode))
+    actions: list[Action] = []
+    if event.returncode == STATUS_LOST:
+        actions.append(LogInfo(msg=f'{name}: launch lost its exit status (reported as {STATUS_LOST}); not a failure'))
+    if step is Step.WAIT_FOR_THE_REST:
+        actions.append(stragglers)  # stops the nodes still running END_GRACE s from now
+    elif step is Step.ENDED:
+        stragglers.cancel()  # every node has ended: launch is idle and exits
+    return actions

@@ -3,11 +3,14 @@
 A node of the line declares its parameters from a table of :class:`ParamSpec` with
 :func:`declare_parameters`, which checks the starting values and installs the
 validation (:func:`make_screen` before rclpy's own checks, :func:`make_validator` on
-set), so that every refusal names the parameter and the value.
+set), so that every refusal names the parameter and the value. A float parameter also takes
+an integer, at start (``--ros-args -p rate:=200``, a parameter file, overrides) and at run time
+(``ros2 param set /node rate 200``), and stores it as a float: ROS users type integers.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,6 +31,7 @@ __all__ = [
     'make_validator',
     'parameter_values',
     'sim_time_overrides',
+    'starting_values',
 ]
 
 ParamValue = bool | int | float | str
@@ -46,6 +50,13 @@ _KINDS: dict[type, tuple[str, Parameter.Type]] = {
 }
 
 
+def _as_float(value: int) -> float:
+    try:
+        return float(value)
+    except OverflowError:  # beyond any float: not finite
+        return math.inf
+
+
 def _type_name(value: object) -> str:
     return 'nothing (parameter unset)' if value is None else type(value).__name__
 
@@ -55,7 +66,8 @@ class ParamSpec:
     """Declaration of one node parameter: default, meaning, unit, allowed values.
 
     The parameter's ROS type is that of ``default``: a float parameter has a float
-    default (``200.0``, not ``200``), and then refuses integers, as ROS does.
+    default (``200.0``, not ``200``). Unlike ROS, it also takes an integer (``200``),
+    which it stores as a float; a bool or a string it refuses.
 
     Parameters
     ----------
@@ -137,7 +149,7 @@ class ParamSpec:
         return ' '.join(parts)
 
     def check(self, value: object) -> ParamValue:
-        """Return ``value`` if this parameter accepts it, else raise.
+        """The value this parameter stores for ``value``, if it accepts it, else raise.
 
         Parameters
         ----------
@@ -147,33 +159,65 @@ class ParamSpec:
         Returns
         -------
         bool, int, float or str
-            ``value`` itself (never converted).
+            ``value`` itself, or for a float parameter given an integer, that integer as a float.
 
         Raises
         ------
         ParameterError
-            Wrong type, NaN or infinite, out of bounds, or not one of the choices;
-            the message names the parameter and the value.
+            Wrong type (a bool or a string for a number, a float for an integer, ...), NaN or
+            infinite, out of bounds, or not one of the choices; the message names the
+            parameter and the value as given.
         """
         kind = type(self.default)
+        stored = value
+        if kind is float and type(value) is int:  # not a bool: exact types
+            stored = _as_float(value)
         # bool is an int subclass and int is not a float here: compare exact types.
-        if type(value) is not kind:
-            hint = ''
-            if kind is float and type(value) is int:
-                hint = f' (write {value}.0)'
-            msg = f'must be {_KINDS[kind][0]}{hint}, got {_type_name(value)}'
-            raise ParameterError(self.name, value, msg)
-        if isinstance(value, float) and not math.isfinite(value):  # type(value) is kind: kind is float
+        if type(stored) is not kind:
+            raise ParameterError(self.name, value, f'must be {_KINDS[kind][0]}, got {_type_name(value)}')
+        if isinstance(stored, float) and not math.isfinite(stored):  # type(stored) is kind: kind is float
             raise ParameterError(self.name, value, 'must be finite (not NaN or inf)')
-        if self.bounds is not None and isinstance(value, (int, float)):  # bounds only on numbers (__post_init__)
+        if self.bounds is not None and isinstance(stored, (int, float)):  # bounds only on numbers (__post_init__)
             lo, hi = self.bounds
-            bad_lo = value <= lo if self.low_open else value < lo
-            bad_hi = value >= hi if self.high_open else value > hi
+            bad_lo = stored <= lo if self.low_open else stored < lo
+            bad_hi = stored >= hi if self.high_open else stored > hi
             if bad_lo or bad_hi:
                 raise ParameterError(self.name, value, f'must be {self.constraint_text()}')
-        if self.choices and value not in self.choices:
+        if self.choices and stored not in self.choices:
             raise ParameterError(self.name, value, f'must be one of {", ".join(self.choices)}')
-        return value
+        return stored
+
+    def from_text(self, text: str) -> ParamValue:
+        """The value ``text`` stands for, checked (:meth:`check`): a launch argument, read as ``launch_ros`` does.
+
+        A float parameter reads ``text`` with ``float`` (``'200'`` is 200.0), an integer one with
+        ``int``, a bool one as ``true``/``false`` (any case) or ``1``/``0``; a string one takes it as
+        it is. Text that does not read as the parameter's type is refused as the string it is.
+
+        Parameters
+        ----------
+        text : str
+            The value as typed, e.g. ``'200'`` of ``rate:=200``.
+
+        Returns
+        -------
+        bool, int, float or str
+            The value the parameter stores.
+
+        Raises
+        ------
+        ParameterError
+            ``text`` is not of the parameter's type or not an allowed value; the message names the
+            parameter and the value as read (``rtf='fast'``, ``lost_timeout=0.01``).
+        """
+        kind = type(self.default)
+        value: object = text
+        if kind is bool:
+            value = {'true': True, '1': True, 'false': False, '0': False}.get(text.strip().lower(), text)
+        elif kind in (int, float):
+            with contextlib.suppress(ValueError):  # not a number: refused below as the text
+                value = kind(text)
+        return self.check(value)
 
     def descriptor(self) -> ParameterDescriptor:
         """The ``ParameterDescriptor`` to declare the parameter with (a new one each call)."""
@@ -216,12 +260,14 @@ def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter[Any]]], 
 
     rclpy applies the declared descriptor before any on-set callback and refuses
     a value of the wrong ROS type with ``"Wrong parameter type, expected '1' got
-    '4'"`` (type codes, no name). So that every refusal has one format naming the
-    parameter and the value, this callback, which runs first, replaces each
+    '4'"`` (type codes, no name), an integer for a float parameter included. This
+    callback runs first. An integer for a float parameter it replaces by the same
+    value as a float (``ros2 param set /node rate 200`` sets 200.0). So that every
+    refusal has one format naming the parameter and the value, it replaces each
     proposed value its :class:`ParamSpec` refuses by a stand-in holding the
     spec's default and the reason; the validator of :func:`make_validator` then
-    refuses the stand-in with that reason, so nothing is applied. Values the spec
-    accepts pass unchanged. (rclpy still answers read-only parameters itself.)
+    refuses the stand-in with that reason, so nothing is applied. Other values the
+    spec accepts pass unchanged. (rclpy still answers read-only parameters itself.)
     """
     by_name = {spec.name: spec for spec in specs}
 
@@ -231,9 +277,12 @@ def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter[Any]]], 
             spec = by_name.get(parameter.name)
             if spec is not None and not isinstance(parameter, _Refused):
                 try:
-                    spec.check(parameter.value)
+                    value = spec.check(parameter.value)
                 except ParameterError as err:
                     parameter = _Refused(spec, str(err))
+                else:
+                    if type(value) is not type(parameter.value):  # an integer for a float parameter
+                        parameter = Parameter(parameter.name, spec.type, value)
             out.append(parameter)
         return out
 
@@ -253,7 +302,7 @@ def make_validator(
     ``cross_check`` gets the current values updated with every proposed parameter.
     A refusal keeps the old values (rclpy applies nothing) and its reason names the
     parameter and the value: ``"rtf=nan: must be finite (not NaN or inf)"``,
-    ``"rtf=5: must be a float (write 5.0), got int"``, or for the cross-check
+    ``"rtf='fast': must be a float, got str"``, or for the cross-check
     ``"lo=2.0 rejected: <the core's error>"``.
 
     Parameters
@@ -300,7 +349,8 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec], cross_check: Cros
 
     Starting values are the defaults unless overridden (``--ros-args -p``,
     parameter files, ``parameter_overrides``); they pass the same checks as later
-    changes, so a node never starts on a value it would refuse. Then
+    changes, so a node never starts on a value it would refuse, and a float parameter
+    takes an integer there too (see :func:`starting_values`). Then
     :func:`make_screen` is installed as the pre-set and :func:`make_validator` as
     the on-set parameters callback. Call it once per node, with all its specs, and
     add no other pre-set callback (rclpy concatenates the lists they return);
@@ -324,24 +374,65 @@ def declare_parameters(node: Node, specs: Sequence[ParamSpec], cross_check: Cros
     Raises
     ------
     ParameterError
-        A starting value is refused by its spec.
+        A starting value is refused by its spec (of the wrong type, out of range, ...).
     FolderLineError
         ``cross_check`` refuses the starting values.
     rclpy.exceptions.ParameterException
-        rclpy refused an override itself (wrong type, outside a finite range).
+        rclpy refused a declaration itself (e.g. a parameter already declared).
     """
     names = [spec.name for spec in specs]
     if len(set(names)) != len(names):
         raise ParameterError('specs', names, 'parameter names must be distinct')
-    node.declare_parameters('', [(spec.name, spec.default, spec.descriptor()) for spec in specs])
+    start = starting_values(node, specs)
+    node.declare_parameters(
+        '', [(spec.name, start[spec.name], spec.descriptor()) for spec in specs], ignore_override=True
+    )
     values = parameter_values(node, specs)
-    for spec in specs:
-        spec.check(values[spec.name])
     if cross_check is not None:
         cross_check(dict(values))
     node.add_pre_set_parameters_callback(make_screen(specs))
     node.add_on_set_parameters_callback(make_validator(specs, lambda: parameter_values(node, specs), cross_check))
     return values
+
+
+def starting_values(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamValue]:
+    """The value each of ``specs`` starts at on ``node``: its override, else its default, checked by the spec.
+
+    rclpy takes a parameter's override (``--ros-args -p``, a parameter file, the node's
+    ``parameter_overrides``) only as it declares the parameter, and there refuses an override
+    of another type than the descriptor's, an integer for a float parameter included, with a
+    message of its own. So each parameter is first declared with a dynamically typed
+    descriptor, which takes any type, and its value read; then the declaration is undone
+    (``undeclare_parameter`` calls no callback and publishes no parameter event; the probe's
+    declaration published one, as the real one will) and the value checked with
+    :meth:`ParamSpec.check`, which stores an integer for a float parameter as a float. Only
+    rclpy's public API is used; the caller declares the parameters with these values and
+    ``ignore_override=True``.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node; none of ``specs`` is declared on it.
+    specs : sequence of ParamSpec
+        Its parameters, with distinct names.
+
+    Returns
+    -------
+    dict
+        The starting values by name, as the parameters store them.
+
+    Raises
+    ------
+    ParameterError
+        A starting value is refused by its spec; the message names the parameter and the value.
+    """
+    probes = node.declare_parameters(
+        '', [(spec.name, spec.default, ParameterDescriptor(dynamic_typing=True)) for spec in specs]
+    )
+    given = {probe.name: probe.value for probe in probes}
+    for spec in specs:
+        node.undeclare_parameter(spec.name)
+    return {spec.name: spec.check(given[spec.name]) for spec in specs}
 
 
 def sim_time_overrides(

@@ -297,7 +297,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             }
             commands['line_clock'] = [_ros_arg(k, v) for k, v in clock_params.items()]
             for name, args in commands.items():
-                cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
+                # through the light entry module: a stop while the node imports is a clean exit
+                cmd = [sys.executable, '-m', 'folder_line.ros.entry', name, '--ros-args']
                 for a in args:
                     cmd += ['-p', a]
                 # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe

@@ -5,9 +5,11 @@ A node module of the line ends with::
     def main(args: list[str] | None = None) -> int:
         return run_node(MyNode, args)
 
-:func:`run_node` returns :data:`EXIT_OK` or, when the node refuses its parameters,
-:data:`EXIT_BAD_PARAMETER`; :func:`events_executor` is the executor every in-process
-line (``folder-line run``, the benchmarks) spins its nodes with.
+and its executable enters through :mod:`folder_line.ros.entry`, which makes a stop during the
+imports a clean exit. :func:`run_node` returns :data:`EXIT_OK`, :data:`EXIT_BAD_PARAMETER` when
+the node refuses its parameters, or the code the node asks for (``exit_code``);
+:func:`events_executor` is the executor every in-process line (``folder-line run``, the
+benchmarks) spins its nodes with.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from typing import Any
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental.events_executor import EventsExecutor
@@ -32,12 +35,15 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from folder_line.errors import FolderLineError
+from folder_line.ros.dds_profile import use_line_profile
 
 __all__ = [
     'EXIT_BAD_PARAMETER',
     'EXIT_OK',
     'LINGER',
     'SPIN_PERIOD',
+    'STOP_GRACE',
+    'STOP_SIGNALS',
     'TEARDOWN_TIMEOUT',
     'events_executor',
     'run_node',
@@ -56,8 +62,88 @@ LINGER = 0.2
 """Wall time, s, that :func:`run_node` keeps a node that is ``done`` alive before destroying it, so
 that subscribers in other processes still get its last messages."""
 
+FLUSH_TIMEOUT = 3.0
+"""Longest wall time, s, a node that finished waits for its readers to acknowledge what it published."""
+
 TEARDOWN_TIMEOUT = 5.0
 """Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+"""The signals that stop a node: ``ros2 launch`` sends SIGINT, then SIGTERM after its ``sigterm_timeout`` (5 s)."""
+
+STOP_GRACE = 1.0
+"""Wall time, s, that a node process still spinning gets after a SIGTERM repeats a stop request, before it
+exits at once (see :func:`run_node`)."""
+
+
+class _StopNow(BaseException):
+    """Raised by :func:`run_node`'s signal handler into a node being built: SIGTERM after a stop request.
+
+    A ``BaseException``, as ``KeyboardInterrupt`` is: an ``except Exception`` does not stop it.
+    """
+
+
+class _StopRequests:
+    """The stop requests of a node run by :func:`run_node`: its signal handler and what a repeated SIGTERM does.
+
+    A signal handler runs between two bytecodes of the code it interrupts, which may hold any
+    lock (another signal's handler in ``threading.Event.set``, a write to ``sys.stderr``): so
+    nothing here takes one. The request is a plain attribute, the exit at once is a SIGALRM
+    timer, and its line goes to file descriptor 2. ``phase`` is ``'start'``, ``'building'``,
+    ``'spinning'`` or ``'teardown'``; ``code`` gives the exit code of a node that exits at once.
+    """
+
+    def __init__(self, name: str, own_process: bool) -> None:
+        self.requested = False
+        self.phase = 'start'
+        self.code: Callable[[], int] = lambda: EXIT_OK
+        self._name = name
+        self._own_process = own_process  # only a process's own node may end the process
+        self._alarm: Any = None  # the SIGALRM handler before this one armed its own
+
+    def is_set(self) -> bool:
+        """Whether a stop was requested."""
+        return self.requested
+
+    def enter(self, phase: str) -> None:
+        """The node is now in ``phase``; the teardown cancels an exit at once (its own watchdog bounds it)."""
+        self.phase = phase
+        if phase == 'teardown':
+            self.disarm()
+
+    def disarm(self) -> None:
+        """Cancel an exit at once and restore the SIGALRM handler (a no-op if none was armed)."""
+        if self._alarm is not None:
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, self._alarm)
+            self._alarm = None
+
+    def on_signal(self, signum: int, frame: object) -> None:
+        """The handler of :data:`STOP_SIGNALS` (see :func:`run_node`)."""
+        again = self.requested
+        self.requested = True
+        if not again or signum != signal.SIGTERM:
+            return
+        if self.phase == 'building':
+            self.phase = 'start'  # raised once
+            raise _StopNow
+        if self.phase == 'spinning' and self._own_process and self._alarm is None:
+            self._alarm = signal.signal(signal.SIGALRM, self._exit_now)
+            signal.setitimer(signal.ITIMER_REAL, STOP_GRACE)
+
+    def _exit_now(self, signum: int, frame: object) -> None:
+        if self.phase != 'spinning':
+            return
+        try:
+            code = self.code()
+        except Exception:  # the node is in the middle of a callback: its state may not answer
+            code = EXIT_OK
+        line = (
+            f'{self._name}: a callback still ran {STOP_GRACE:g} s after SIGTERM repeated the stop request; '
+            'exiting at once\n'
+        )
+        os.write(2, line.encode())
+        os._exit(code)
 
 
 def run_node(
@@ -75,22 +161,40 @@ def run_node(
     ``rclpy.task.Future``, until that future completes (a node that finishes on its
     own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
 
-    Signals are handled synchronously, in the spinning thread: rclpy's own
-    handlers are not installed (``SignalHandlerOptions.NO``); a Python handler only
-    records the request and the spin, which never waits longer than
-    :data:`SPIN_PERIOD`, stops between two callbacks. rclpy's handlers would shut
-    the context down from another thread while a callback may be using it, which
-    ends in ``RCLError: publisher's context is invalid`` tracebacks (about one
-    Ctrl-C in three on a 1 kHz publisher here) and occasionally a crash under load.
-    A second SIGINT while stopping raises ``KeyboardInterrupt``, still caught.
-    Called from another thread, it installs no signal handler at all.
+    Stopping. A node that is stopped (SIGINT or SIGTERM, at any moment) exits with its
+    exit code, 0 unless the node asks for another (``exit_code``), and no traceback:
+
+    * Signals are handled synchronously, in the spinning thread: rclpy's own handlers are
+      not installed (``SignalHandlerOptions.NO``); a Python handler records the request and
+      the spin, which never waits longer than :data:`SPIN_PERIOD`, stops between two
+      callbacks. rclpy's handlers would shut the context down from another thread while a
+      callback may be using it, which ends in ``RCLError: publisher's context is invalid``
+      tracebacks (about one Ctrl-C in three on a 1 kHz publisher here) and occasionally a
+      crash under load. A request before ``rclpy.init`` skips it; one while the node is
+      being built lets the build finish and skips the spin.
+    * A repeated SIGINT is the same request: a Ctrl-C in the terminal of ``ros2 launch``
+      reaches each node twice, from the terminal and from launch. A SIGTERM after a request
+      (``ros2 launch`` sends it ``sigterm_timeout``, 5 s, after its SIGINT, to a node still
+      running) is a request to stop now. While the node is being built it raises into the
+      constructor, and the half-built node is collected. While the node spins, the process, if
+      the node is its own, exits at once :data:`STOP_GRACE` s later with one line on stderr,
+      unless the node's teardown has begun by then: a callback that does not return cannot be
+      cut short without rclpy's executor logging the exception as a fatal error, with its
+      frames. During the teardown requests are only recorded (see the watchdog below).
+      Python runs signal handlers in the main thread, between bytecodes: code blocked in a C
+      call (a middleware call that hangs) hears no request until it returns; SIGKILL ends it.
+    * When the node runs as a process of its own (``args`` None, the main thread), SIGINT and
+      SIGTERM are ignored once this returns, through the interpreter's exit: Python's default
+      handlers would turn a late request (launch signals every node still running when the
+      line's clock exits, nodes that are exiting too) into a death by signal, exit code -2,
+      which launch reports as an ERROR. Otherwise the previous handlers are restored.
+      Called from another thread, it installs no signal handler at all.
 
     Teardown. Destroying the node can hang inside the middleware: with both cores
     busy, one of 20 runs of ``folder-line run --processes`` (120 node stops) hung in
     ``Node.destroy_node`` (rcl's node finalisation with Fast DDS) until killed. When
-    the node runs as a process of its own (``args`` from ``sys.argv``, the main
-    thread), its work is done by then, so a watchdog ends the process after
-    ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
+    the node runs as a process of its own, its work is done by then, so a watchdog ends the
+    process after ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
     stderr and the exit code it would have returned; if the hang holds the GIL (no Python
     thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
     exit code 1.
@@ -106,26 +210,22 @@ def run_node(
         :data:`TEARDOWN_TIMEOUT` for a process's own node (``args`` None, main thread),
         else no watchdog (a test calling this must not lose its process).
     exit_code : callable, optional
-        ``exit_code(node)``: the exit code of a node that ran (default 0), e.g. non-zero
-        when ``line_clock`` lost a participant.
+        ``exit_code(node)``: the exit code of a node that was built, asked once its spin is
+        over, whether it finished or was stopped, e.g. non-zero when ``line_clock`` lost a
+        participant. Default: ``node.exit_code()`` if the node has such a method, else 0.
 
     Returns
     -------
     int
-        :data:`EXIT_OK` (0) on a stop request or completion; :data:`EXIT_BAD_PARAMETER`
-        (2) when the node refuses its parameters, after one line on stderr naming
-        the parameter and value.
+        :data:`EXIT_OK` (0) on a stop request or completion, unless ``exit_code`` says
+        otherwise; :data:`EXIT_BAD_PARAMETER` (2) when the node refuses its parameters,
+        after one line on stderr naming the parameter and value.
     """
     name = getattr(node_factory, 'NODE_NAME', getattr(node_factory, '__name__', 'node'))
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: object) -> None:
-        if stop.is_set() and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        stop.set()
-
     in_main_thread = threading.current_thread() is threading.main_thread()
-    if teardown_timeout is None and args is None and in_main_thread:
+    own_process = args is None and in_main_thread
+    stop = _StopRequests(name, own_process)
+    if teardown_timeout is None and own_process:
         teardown_timeout = TEARDOWN_TIMEOUT
     watchdog: threading.Timer | None = None
 
@@ -153,32 +253,29 @@ def run_node(
 
     previous: dict[signal.Signals, Any] = {}
     if in_main_thread:
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            previous[signum] = signal.signal(signum, on_signal)
+        for signum in STOP_SIGNALS:
+            previous[signum] = signal.signal(signum, stop.on_signal)
     try:
+        if stop.is_set():
+            return EXIT_OK
+        use_line_profile()  # the line's Fast DDS profile, before this process's first participant
         with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
-            refused: str | None
-            try:
-                node = node_factory()
-            except (FolderLineError, ParameterException) as err:
-                refused = f'{name}: error: {err}'
-            else:
-                refused = None
-            if refused is not None:
-                # the half-built node hangs off the traceback, which is gone now: collect it while the
-                # context is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
-                gc.collect()
-                print(refused, file=sys.stderr)
-                return EXIT_BAD_PARAMETER
+            node = _build(node_factory, name, stop)
+            if isinstance(node, int):
+                return node
             code = EXIT_OK
+            stop.code = lambda: _exit_code(node, exit_code)
             try:
+                stop.enter('spinning')
                 _spin(node, stop)
-                code = EXIT_OK if exit_code is None else exit_code(node)
+                code = _exit_code(node, exit_code)
             finally:
+                stop.enter('teardown')
                 arm(code)
+                _flush(node)
                 node.destroy_node()
             return code
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except (KeyboardInterrupt, ExternalShutdownException, _StopNow):
         pass
     except (FolderLineError, ParameterException) as err:
         print(f'{name}: error: {err}', file=sys.stderr)
@@ -190,9 +287,54 @@ def run_node(
         if watchdog is not None:
             watchdog.cancel()
             faulthandler.cancel_dump_traceback_later()
+        stop.disarm()
         for signum, handler in previous.items():
-            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+            if own_process:
+                signal.signal(signum, signal.SIG_IGN)
+            else:
+                signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     return EXIT_OK
+
+
+def _flush(node: Node) -> None:
+    """A node that finished (its ``done`` future completed) waits, at most :data:`FLUSH_TIMEOUT` s, until every
+    reader has acknowledged what it published: a sample lost on the way is repaired before the writer goes."""
+    done = getattr(node, 'done', None)
+    if not (isinstance(done, Future) and done.done()):
+        return
+    deadline = time.monotonic() + FLUSH_TIMEOUT
+    for publisher in node.publishers:
+        left = deadline - time.monotonic()
+        if left <= 0.0 or not publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+            return
+
+
+def _build(node_factory: Callable[[], Node], name: str, stop: _StopRequests) -> Node | int:
+    """The node, or the exit code of one not built: refused (one line on stderr), or stopped while being built."""
+    try:
+        stop.enter('building')
+        try:
+            return node_factory()
+        finally:
+            stop.enter('start')
+    except (FolderLineError, ParameterException) as err:
+        refused: str | None = f'{name}: error: {err}'
+    except _StopNow:
+        refused = None
+    # the half-built node hung off the traceback, which is gone now: collect it while the context
+    # is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
+    gc.collect()
+    if refused is None:
+        return EXIT_OK
+    print(refused, file=sys.stderr)
+    return EXIT_BAD_PARAMETER
+
+
+def _exit_code(node: Node, exit_code: Callable[[Node], int] | None) -> int:
+    if exit_code is not None:
+        return int(exit_code(node))
+    own = getattr(node, 'exit_code', None)
+    return int(own()) if callable(own) else EXIT_OK
 
 
 def events_executor(context: Any) -> Any:
@@ -213,7 +355,7 @@ def events_executor(context: Any) -> Any:
     return EventsExecutor(context=context)
 
 
-def _spin(node: Node, stop: threading.Event) -> None:
+def _spin(node: Node, stop: _StopRequests) -> None:
     done = getattr(node, 'done', None)
     if not isinstance(done, Future):
         done = None

@@ -146,8 +146,8 @@ def cmdline(pid: int) -> list[str]:
 
 
 def child_node(pid: int, node: str) -> int:
-    """The child of ``pid`` that runs node ``node`` (``-m folder_line.ros.nodes.<node>``)."""
-    found = [c for c in children(pid) if f'folder_line.ros.nodes.{node}' in cmdline(c)]
+    """The child of ``pid`` that runs node ``node`` (``-m folder_line.ros.entry <node>``)."""
+    found = [c for c in children(pid) if _runs_node(cmdline(c), node)]
     assert len(found) == 1, {c: cmdline(c) for c in children(pid)}
     return found[0]
 
@@ -185,6 +185,13 @@ def start_time(pid: int) -> int:
         return -1
 
 
+def _runs_node(args: list[str], node: str) -> bool:
+    """Whether a command line runs ``node`` (``-m folder_line.ros.entry <node>`` or ``...ros.nodes.<node>``)."""
+    if f'folder_line.ros.nodes.{node}' in args:
+        return True
+    return any(a == 'folder_line.ros.entry' and args[i + 1 : i + 2] == [node] for i, a in enumerate(args))
+
+
 def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
     """Live processes started at ``since`` (clock ticks, :func:`start_time`) or later whose arguments name
     ``out`` or run ``folder_line.ros.nodes`` with ``ROS_DOMAIN_ID=domain`` (older ones are not the run's)."""
@@ -198,7 +205,7 @@ def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
             continue
         if str(out) in text:
             found[int(entry.name)] = args
-        elif 'folder_line.ros.nodes.' in text:
+        elif 'folder_line.ros.nodes.' in text or 'folder_line.ros.entry' in text:
             try:
                 environ = (entry / 'environ').read_bytes().split(b'\0')
             except OSError:

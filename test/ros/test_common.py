@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from rcl_interfaces.msg import ParameterType
-from rclpy.exceptions import InvalidNodeNameException, InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import InvalidNodeNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -76,6 +76,17 @@ def test_check_accepts_and_returns_the_value_itself(spec: ParamSpec, value: obje
     assert out == value and type(out) is type(value)
 
 
+@pytest.mark.parametrize(('spec', 'value'), [(GAIN, 5), (GAIN, 10), (OFFSET, -(2**63)), (FIXED, 0), (FIXED, 1)])
+def test_check_takes_an_integer_for_a_float_and_returns_the_float(spec: ParamSpec, value: int) -> None:
+    out = spec.check(value)
+    assert out == float(value) and type(out) is float
+
+
+def test_an_integer_beyond_any_float_is_not_finite() -> None:
+    with pytest.raises(ParameterError, match='must be finite'):
+        OFFSET.check(10**400)
+
+
 @pytest.mark.parametrize(
     ('spec', 'value', 'words'),
     [
@@ -84,7 +95,6 @@ def test_check_accepts_and_returns_the_value_itself(spec: ParamSpec, value: obje
         (OFFSET, -math.inf, 'finite'),
         (GAIN, 0.0, '(0, 10]'),
         (GAIN, 10.000001, '(0, 10]'),
-        (GAIN, 5, 'must be a float (write 5.0), got int'),
         (GAIN, 'abc', 'must be a float, got str'),
         (GAIN, True, 'got bool'),
         (GAIN, None, 'unset'),
@@ -158,7 +168,7 @@ def test_types_follow_the_default() -> None:
 
 def test_screen_replaces_refused_values_by_valid_stand_ins_that_the_validator_refuses() -> None:
     screen = make_screen(SPECS)
-    proposed = [Parameter('gain', value=5), Parameter('offset', value=2.0), Parameter('use_sim_time', value=True)]
+    proposed = [Parameter('gain', value='5'), Parameter('offset', value=2.0), Parameter('use_sim_time', value=True)]
     screened = screen(proposed)
     assert [p.name for p in screened] == ['gain', 'offset', 'use_sim_time']
     assert screened[1:] == proposed[1:]  # accepted values pass unchanged
@@ -167,7 +177,13 @@ def test_screen_replaces_refused_values_by_valid_stand_ins_that_the_validator_re
     assert screen(screened)[0] is stand_in
     validate = make_validator(SPECS, lambda: {s.name: s.default for s in SPECS})
     result = validate(screened)
-    assert not result.successful and result.reason == 'gain=5: must be a float (write 5.0), got int'
+    assert not result.successful and result.reason == "gain='5': must be a float, got str"
+
+
+def test_screen_turns_an_integer_for_a_float_into_the_float() -> None:
+    [gain, count] = make_screen(SPECS)([Parameter('gain', value=5), Parameter('count', value=5)])
+    assert (gain.type_, gain.value) == (Parameter.Type.DOUBLE, 5.0) and type(gain.value) is float
+    assert (count.type_, count.value) == (Parameter.Type.INTEGER, 5)  # an integer parameter keeps its integer
 
 
 def test_validator_reports_the_first_bad_parameter_and_runs_the_cross_check() -> None:
@@ -177,8 +193,8 @@ def test_validator_reports_the_first_bad_parameter_and_runs_the_cross_check() ->
     assert ok.successful, ok.reason  # parameters without a spec pass
     bad = validate([Parameter('gain', value=2.0), Parameter('offset', value=math.nan)])
     assert not bad.successful and bad.reason == 'offset=nan: must be finite (not NaN or inf)'
-    wrong_type = validate([Parameter('gain', value=5)])
-    assert not wrong_type.successful and wrong_type.reason.startswith('gain=5: must be a float')
+    wrong_type = validate([Parameter('gain', value=True)])
+    assert not wrong_type.successful and wrong_type.reason == 'gain=True: must be a float, got bool'
     crossed = validate([Parameter('lo', value=2.0)])
     assert not crossed.successful
     assert crossed.reason.startswith('lo=2.0 rejected: probe loop cannot be assembled')
@@ -296,7 +312,7 @@ def test_declared_parameters_start_from_defaults_and_use_sim_time(ros: Ros) -> N
         ('offset', -math.inf, 'offset=-inf: must be finite (not NaN or inf)'),
         ('count', 101, 'count=101: must be an integer in [1, 100]'),
         ('mode', 'fast', "mode='fast': must be one of slow, normal"),
-        ('gain', 5, 'gain=5: must be a float (write 5.0), got int'),
+        ('gain', 0, 'gain=0: must be a float in (0, 10]'),  # an integer is taken as a float, and checked
         ('gain', 'abc', "gain='abc': must be a float, got str"),
         ('count', 3.0, 'count=3.0: must be an integer, got float'),
         ('enabled', 'yes', "enabled='yes': must be a bool, got str"),
@@ -370,8 +386,9 @@ def test_rejection_through_the_parameter_service(ros: Ros) -> None:
         (Parameter('gain', value=0.0), ParameterError, 'gain=0.0: must be a float in (0, 10]'),
         (Parameter('mode', value='fast'), ParameterError, "mode='fast'"),
         (Parameter('lo', value=3.0), AssemblyError, 'lo=3.0 m must be below hi=1.0 m'),
-        (Parameter('gain', value=20.0), InvalidParameterValueException, 'gain'),
-        (Parameter('gain', value=2), InvalidParameterTypeException, 'gain'),
+        (Parameter('gain', value=20.0), ParameterError, 'gain=20.0: must be a float in (0, 10]'),
+        (Parameter('gain', value='2'), ParameterError, "gain='2': must be a float, got str"),
+        (Parameter('count', value=2.0), ParameterError, 'count=2.0: must be an integer, got float'),
     ],
 )
 def test_bad_starting_values_stop_the_node(ros: Ros, override: Parameter, error: type, words: str) -> None:

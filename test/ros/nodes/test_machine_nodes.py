@@ -413,7 +413,7 @@ BAD_RATES = [
     (0.0, 'rate=0.0: must be a float in [1, 10000] Hz'),
     (20000.0, 'rate=20000.0: must be a float in [1, 10000] Hz'),
     ('x', "rate='x': must be a float, got str"),
-    (100, 'rate=100: must be a float (write 100.0), got int'),
+    (True, 'rate=True: must be a float, got bool'),  # an integer is taken (as a float)
 ]
 NO_WALL_CLOCK = (
     "use_sim_time=False rejected: use_sim_time=False: a line node runs on the line's simulated time "
@@ -475,8 +475,8 @@ BAD_STARTS = [
     ('overrides:=feed_transporter.V_tr=-1', 'feed_transporter.V_tr=-1: must be in [0.001, 1000] m/s'),
     ('use_sim_time:=false', "use_sim_time=False: a line node runs on the line's simulated time (/clock)"),
     ('overrides:=feed_transporter.V_tr', "overrides='feed_transporter.V_tr': must be KEY=VALUE"),
-    ('rate:=nan', 'Invalid parameter value (nan) for parameter. Reason: Parameter rate out of range'),
-    ('lost_timeout:=0.0', 'Invalid parameter value (0.0) for parameter. Reason: Parameter lost_timeout out of range'),
+    ('rate:=nan', 'rate=nan: must be finite (not NaN or inf)'),  # the start value checked by the spec, as a change
+    ('lost_timeout:=0.0', 'lost_timeout=0.0: must be a float in [0.1, 3600] s'),
 ]
 
 
