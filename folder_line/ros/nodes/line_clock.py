@@ -112,8 +112,9 @@ NODE_NAME = 'line_clock'
 EXIT_LOST = 3
 MIN_RTF = RTF.lo
 REPEAT_FIRST = 0.2  # wall s between repetitions of the first tick
-#: wall s a grant may be late before the rtf ceiling counts afresh from it (no catching up after a stall)
-MAX_BURST = 0.02
+#: wall s of lateness a grant may catch up (a late wake-up, a busy executor); later than that (a stall), the rtf
+#: ceiling counts afresh: sim time never runs ahead of rtf x wall time by more than rtf x MAX_BURST
+MAX_BURST = 0.1
 #: wall s between two grants at least: at a high rtf a grant holds several ticks
 GRANT_PERIOD = 0.005
 
