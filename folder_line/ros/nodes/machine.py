@@ -6,7 +6,7 @@ stream (:class:`folder_line.core.line.stream.LineStream`), computed a little ahe
 clock in windows of :data:`CHUNK` s of line time and forgotten behind it, for ever, in
 memory that does not grow with line time (a node started with a clock far into the line
 first fast-forwards there, keeping nothing). It is a lockstep participant
-(:mod:`folder_line.ros.lockstep`): on every tick ``t`` of ``/clock`` it publishes
+(:mod:`folder_line.ros.lockstep`): on every tick ``t`` granted to it it publishes
 
 * the exact events of its machines with times in ``(t_prev, t]`` on
   ``/line/events`` as ``sensor_msgs/TimeReference``: ``time_ref`` is the event time
@@ -19,10 +19,11 @@ first fast-forwards there, keeping nothing). It is a lockstep participant
   so the clock's tick rate changes how many messages go out per tick, never what
   they hold;
 
-then acknowledges the tick on ``/line/<node>/tick_done``. In lockstep, a machine
-node runs tick ``t`` only once the supervisor's previous tick is complete (its
-acknowledgement and every drive command it counts are in), so every command
-decided before ``t`` is applied: what a node publishes at stamp ``t`` depends only
+then acknowledges the tick. A machine node runs tick ``t`` only once the supervisor
+has promised ``t`` (an acknowledged tick of it, with every drive command it counts in,
+whose promise, the tick plus ``command_lead``, reaches ``t``) or its previous tick is
+complete, so every command that can take effect by ``t`` is applied: what a node
+publishes at stamp ``t`` depends only
 on the scene, ``t`` and the supervisor's commands (``/line/supervisor/commands``,
 each with its effective time), never on the load of the machine. A command effective
 inside the window computed ahead redoes that window from a copy of its start (the stamps
