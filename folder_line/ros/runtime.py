@@ -262,6 +262,8 @@ def run_node(
         with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
             node = _build(node_factory, name, stop)
             if isinstance(node, int):
+                if own_process and teardown_timeout is not None:
+                    _quiet_exit_after(teardown_timeout, node)  # its one line is out: a hung shutdown ends too
                 return node
             code = EXIT_OK
             stop.code = lambda: _exit_code(node, exit_code)
@@ -294,6 +296,15 @@ def run_node(
             else:
                 signal.signal(signum, signal.SIG_DFL if handler is None else handler)
     return EXIT_OK
+
+
+def _quiet_exit_after(seconds: float, code: int) -> None:
+    """End the process with ``code`` if it is still alive ``seconds`` from now: a node that was never built
+    (refused, or stopped while being built) has said all it has to say, and the middleware's shutdown
+    has been seen to hang, rarely, with many processes starting at once."""
+    timer = threading.Timer(seconds, os._exit, args=(code,))
+    timer.daemon = True
+    timer.start()
 
 
 def _flush(node: Node) -> None:

@@ -6,10 +6,10 @@ run of the same line: the same bag message for message (read with the independen
 reader), ``line_clock``'s own statuses about the network left aside.
 
 The issue's pace bounds (rtf >= 0.9 with delay, >= 0.5 with loss, at a ceiling of 1) hold against
-what this machine can do at all: the clean run goes as fast as it can (rtf max), and a bound is
-``bound x min(1, that rtf)``. On an idle machine that reaches rtf 1 (the bench: 1.05) it is the
-bound itself; on a busy one the CPU, which slows both runs alike, cannot fail it, while a protocol
-that pays the network's latency per tick (the old barrier: rtf 0.07 at 20 ms) still does.
+what this machine does with a clean network under the same ceiling: a bound is ``bound x`` the clean
+run's rtf. Where the clean line keeps rtf 1 it is the bound itself; on a busy or slow machine the CPU
+and the start-up, which cost both runs alike, cannot fail it, while a protocol that pays the network's
+latency per tick (the old barrier: rtf 0.07 at 20 ms) still does.
 """
 
 from __future__ import annotations
@@ -51,9 +51,9 @@ def config(tmp: Path, **values: Any) -> RunConfig:
 
 @pytest.fixture(scope='module')
 def clean(line_net: Network, tmp_path_factory: pytest.TempPathFactory) -> tuple[LineRun, collections.Counter[Any]]:
-    """The line on the network with no impairment, as fast as it goes: the reference of every case."""
+    """The line on the network with no impairment, at the cases' ceiling (rtf 1): the reference of every case."""
     line_net.clear()
-    run = run_line(line_net, config(tmp_path_factory.mktemp('clean')))
+    run = run_line(line_net, config(tmp_path_factory.mktemp('clean'), rtf=1.0))
     assert_ended_as_expected(run)
     return run, bag_messages(run.out, skip=clock_status)
 
@@ -73,7 +73,7 @@ def assert_same_bag(run: LineRun, clean: collections.Counter[Any]) -> None:
 
 
 def reachable(clean: tuple[LineRun, collections.Counter[Any]]) -> float:
-    """The rtf this machine reached with the clean network at no ceiling, capped at the ceiling 1 of the cases."""
+    """The rtf this machine reached with the clean network at the cases' ceiling, 1."""
     return min(1.0, clean[0].rtf)
 
 
