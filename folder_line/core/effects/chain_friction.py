@@ -1,6 +1,6 @@
 """Effect ``chain_friction``: efficiency, forces and sprocket torque of the delivery (D).
 
-Source: paper 002 and MACHINES.md section D, eqs. (1)-(9), as implemented (friction
+Source: paper 002, eqs. (1)-(9) (the README, "The papers' results, recomputed"), as implemented (friction
 terms as losses, states instead of NaN) in :mod:`folder_line.core.mechanisms.delivery`::
 
     P_AB = P_k / (cos a - f_Bp |sin a| - f_B r_B |sin b| / (K_v cos a))        (1)

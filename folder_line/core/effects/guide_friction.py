@@ -1,9 +1,9 @@
 """``guide_friction`` — a leaf slides down a swinging chute against Coulomb friction (L, no belts).
 
-Paper 000 (MACHINES.md section L, "Results"): at the swing extremes the exit speeds
+Paper 000 (its results, recomputed in the README): at the swing extremes the exit speeds
 v_C, v_E vanish, "leaves lose speed, stay longer on the guides O2C, O3E, are braked
 by friction, and the container edges fill unevenly". This effect models that leaf
-on the guide (MACHINES.md, "Effects: suggested models", guide_friction).
+on the guide (README, "Modelling choices where the papers are silent").
 
 Frame and equation
 ------------------
@@ -24,7 +24,7 @@ may take either sign — and Coulomb friction ``μ |N|`` acts along −sign(ṡ)
     N  = ε s + 2 ω ṡ + g sin θ'                                    (normal push)
     s̈ = g cos θ' + ω² s − μ |ε s + 2 ω ṡ + g sin θ'| sign(ṡ)      (sliding)
 
-— MACHINES.md's equation with these signs exactly. The chute must point downward
+— the equation with these signs exactly. The chute must point downward
 over its whole swing (cos θ' > 0; checked by the simulator), so the driving force
 ``D = g cos θ' + ω² s`` is > 0 for s >= 0: a leaf never slides back up, ṡ >= 0
 throughout, and sign(ṡ) = +1 while it moves.

@@ -1,6 +1,6 @@
 """Effect ``motor_dynamics``: the master drive from a motor torque-speed curve and inertia.
 
-Source: MACHINES.md, "Effects: suggested models", ``motor_dynamics``
+Source: the papers (README), "Effects: suggested models", ``motor_dynamics``
 (``J dω/dt = T_m(ω) - T_load(φ, ω)``, linear ``T_m = T_0 (1 - ω/ω_0)`` near the
 operating point, load from ``chain_friction`` plus viscous ``b ω``, start from
 standstill, stop by a brake torque).

@@ -5,7 +5,7 @@ over ``[0, duration]`` in one window and keeps what it handed out.
 
 Leaves stream into the two chutes (transporter 3 with exit C, transporter 4 with
 exit E, alternating), leave the chute exits and, with ``leaf_flight``, fly to the
-container floor (paper 000; MACHINES.md section L).
+container floor (paper 000; the papers (README) section L).
 
 Stream
 ------

@@ -1,6 +1,6 @@
 """F: cycle timing of the second-fold apparatus — feed versus knife (paper 001, Figs. 1-2).
 
-What the paper says (seed 001, OCR re-read; MACHINES.md section F)
+What the paper says (seed 001, OCR re-read; the papers (README) section F)
 -------------------------------------------------------------------
 * Reference press ДАВР-62: folding cylinder ``D_fc = 267.38 mm``, ``n_c = 25000``
   rev/h, ``omega_c = 43.6 1/s``; printing speed ``V_d = omega_c R_fc`` ("5.829"
