@@ -203,7 +203,8 @@ JOINT_STATES_TOPIC_PATTERN = '/line/{node}/joint_states'
 """Joint states of one machine (``sensor_msgs/msg/JointState``); see :func:`joint_states_topic`."""
 
 TICK_DONE_PATTERN = '/line/{node}/tick_done'
-"""A participant's acknowledgement of every tick (``sensor_msgs/msg/TimeReference``); see :func:`tick_done_topic`."""
+"""A participant's acknowledgements of every tick, several per message (``sensor_msgs/msg/TimeReference``, for
+the recorder); see :func:`tick_done_topic`."""
 
 PROGRESS_PATTERN = '/line/{node}/progress'
 """A participant's latest acknowledgement, now and then and while it waits (``sensor_msgs/msg/TimeReference``,

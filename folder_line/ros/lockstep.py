@@ -3,7 +3,7 @@
 ``line_clock`` owns simulated time. It *grants* time to the participants on
 ``/line/grant`` and publishes every tick it grants on ``/clock`` for everyone else.
 A participant runs the ticks granted to it, each once its inputs allow, and
-acknowledges each on ``/line/<node>/tick_done``. In ``lockstep`` mode (the default)
+says how far it got on ``/line/<node>/progress``. In ``lockstep`` mode (the default)
 the clock grants ticks up to ``window`` s of sim time ahead of the slowest
 participant's latest acknowledgement, and never faster than ``rtf``: when the
 machine or the network cannot keep up, sim time slows down instead of dropping a
@@ -22,18 +22,25 @@ Topics
     ``header.stamp`` = the last tick granted, ``time_ref`` = the first tick of the
     current step, ``source`` = ``'step=<ns>'``, ``header.frame_id`` = ``line_clock``
     (:func:`grant_ticks`). Repeated while nothing new is granted: the clock is alive.
-``/line/<node>/tick_done`` (``sensor_msgs/TimeReference``)
-    A participant's acknowledgement of a tick, published after all that tick's
-    messages: ``header.stamp`` = the tick, ``header.frame_id`` = the participant,
-    ``time_ref`` = its *promise* (nothing it publishes later matters before it: the
-    tick itself, or for the supervisor the tick plus ``command_lead``), ``source`` =
-    its cumulative published counts, per stream and per topic
-    (:func:`folder_line.core.supervision.lockstep.format_counts`). Consumers that must
-    not act on missing input count what they received from each producer and wait
-    until the counts reach the acknowledged ones
+``/line/<node>/progress`` (``sensor_msgs/TimeReference``, best-effort)
+    A participant's latest acknowledgement, published after all that tick's
+    messages, every :data:`PROGRESS_EVERY` ticks, whenever it stops to wait, and every
+    :data:`HEARTBEAT` s while it waits: ``header.stamp`` = the tick,
+    ``header.frame_id`` = the participant, ``time_ref`` = its *promise* (nothing it
+    publishes later matters before it: the tick itself, or for the supervisor the tick
+    plus ``command_lead``), ``source`` = its cumulative published counts, per stream and
+    per topic (:func:`folder_line.core.supervision.lockstep.format_counts`). Consumers
+    that must not act on missing input count what they received from each producer and
+    wait until the counts reach the acknowledged ones
     (:class:`folder_line.core.supervision.lockstep.TickLedger`). Acknowledgements are
     cumulative, so the clock and the nodes read them best-effort: a lost one is
     replaced by the next or by a repeat, never held back behind a repair.
+``/line/<node>/tick_done`` (``sensor_msgs/TimeReference``, reliable)
+    Only when the recorder takes part (it records every producer's messages at their
+    own tick): the acknowledgements of every tick since the previous ``tick_done``, in
+    one message, sent with each ``progress`` (``source``:
+    :func:`folder_line.core.supervision.lockstep.format_ticks`; ``header.stamp`` and
+    ``time_ref``: the last tick's).
 
 A participant that stops answering is first *waited for*: after ``lost_timeout`` s
 of wall time whoever waits for it names it, and how long, at a bounded rate, and
@@ -65,7 +72,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
-from folder_line.core.supervision.lockstep import TickLedger, format_counts, parse_counts
+from folder_line.core.supervision.lockstep import TickLedger, format_counts, format_ticks, parse_counts, parse_ticks
 from folder_line.interfaces import (
     GRANT_TOPIC,
     KNOWN_PARTICIPANTS,
@@ -98,6 +105,7 @@ __all__ = [
     'parse_announcement',
     'participant_names',
     'read_ack',
+    'read_ticks',
 ]
 
 HEARTBEAT = 0.05  # wall s: a participant that waits repeats its latest acknowledgement this often
@@ -239,19 +247,32 @@ def _typestore() -> Any:
 _cached_counts = functools.lru_cache(maxsize=256)(parse_counts)
 
 
+def _decode(data: bytes) -> Any:
+    try:
+        return _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference')
+    except Exception as err:  # noqa: BLE001 - any decoding failure of foreign bytes is a rejection
+        raise ValueError(f'not a sensor_msgs/TimeReference ({type(err).__name__}: {str(err)[:80]})') from None
+
+
 def read_ack(data: bytes) -> tuple[str, int, dict[str, int], int]:
-    """``(frame_id, stamp ns, counts, promise ns)`` of a ``tick_done`` message as published (CDR bytes).
+    """``(frame_id, stamp ns, counts, promise ns)`` of a ``progress`` message as published (CDR bytes).
 
     Raises ``ValueError`` with the reason for bytes that are not a ``sensor_msgs/TimeReference``
     or whose ``source`` is not counts (:func:`folder_line.core.supervision.lockstep.parse_counts`). The
     counts mapping may be shared between calls: read it, do not change it.
     """
-    try:
-        msg = _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference')
-    except Exception as err:  # noqa: BLE001 - any decoding failure of foreign bytes is a rejection
-        raise ValueError(f'not a sensor_msgs/TimeReference ({type(err).__name__}: {str(err)[:80]})') from None
+    msg = _decode(data)
     stamp = time_msg_to_ns(msg.header.stamp)
     return msg.header.frame_id, stamp, _cached_counts(msg.source), time_msg_to_ns(msg.time_ref)
+
+
+def read_ticks(data: bytes) -> tuple[str, list[tuple[int, dict[str, int]]], int]:
+    """``(frame_id, [(stamp ns, counts), ...], promise ns)`` of a ``tick_done`` message as published: the
+    ticks it acknowledges, in order (:func:`folder_line.core.supervision.lockstep.parse_ticks`), and the
+    promise of the last. ``ValueError`` with the reason, as :func:`read_ack`."""
+    msg = _decode(data)
+    stamp = time_msg_to_ns(msg.header.stamp)
+    return msg.header.frame_id, parse_ticks(msg.source, stamp), time_msg_to_ns(msg.time_ref)
 
 
 Depends = Callable[[Announcement], Mapping[str, tuple[str, ...]]]
@@ -345,6 +366,7 @@ class Participant:
         self._last_ack: TimeReference | None = None
         self._acked_at = 0.0  # wall time (monotonic) the latest progress was sent or repeated
         self._unsaid = 0  # ticks done since the latest progress
+        self._ticks: list[tuple[int, dict[str, int]]] = []  # ticks done since the latest tick_done: (stamp, counts)
         self.acknowledged = 0  # tick_done messages published
         self.said = 0  # progress messages published (repeats too)
         self._tick_pub = node.create_publisher(TimeReference, tick_done_topic(self.name), TICK_QOS)
@@ -430,7 +452,11 @@ class Participant:
     def _on_ack(self, producer: str) -> Callable[[bytes], None]:
         def on_ack(data: bytes) -> None:
             try:
-                frame_id, stamp, counts, promise = read_ack(data)
+                if self._every_tick:
+                    frame_id, ticks, promise = read_ticks(data)
+                else:
+                    frame_id, stamp, counts, promise = read_ack(data)
+                    ticks = [(stamp, counts)]
             except ValueError as err:
                 self._reject('tick_done', str(err))
                 return
@@ -438,13 +464,16 @@ class Participant:
                 self._reject('tick_done', f"frame_id {frame_id[:40]!r} on {producer}'s topic")
                 return
             assert self.ledger is not None
-            refused = self.ledger.ack(producer, stamp, counts, promise)
-            if refused is not None:
-                self._reject('tick_done', refused)
-                return
+            last = ticks[-1][0]
+            for stamp, counts in ticks:
+                known = self.ledger.last_ack(producer)
+                refused = self.ledger.ack(producer, stamp, counts, promise if stamp == last else stamp)
+                if refused is not None:
+                    self._reject('tick_done', refused)
+                    return
+                if self._on_ack_taken is not None and stamp != known:  # a repeat changes nothing
+                    self._on_ack_taken(producer, stamp, counts)
             self._answered(producer)
-            if self._on_ack_taken is not None:
-                self._on_ack_taken(producer, stamp, counts)
             if self.pending:
                 self.advance()
 
@@ -534,8 +563,9 @@ class Participant:
             self._say()
 
     def _ack(self, stamp: int) -> None:
-        """Acknowledge tick ``stamp``: on ``tick_done`` if the recorder takes part; on ``progress`` every
-        :data:`PROGRESS_EVERY` ticks (and when the participant waits, :meth:`advance`)."""
+        """Acknowledge tick ``stamp``: on ``progress`` every :data:`PROGRESS_EVERY` ticks (and when the
+        participant waits, :meth:`advance`); on ``tick_done``, if the recorder takes part, with the ticks
+        since the previous one (:meth:`_say`)."""
         # one message object, refilled: publishing serializes it at once, and the heartbeat repeats the latest
         ack = self._last_ack
         if ack is None:
@@ -545,15 +575,26 @@ class Participant:
         ack.time_ref = ns_to_time_msg(max(stamp, self._promise(stamp)))
         ack.source = format_counts(self.counts)
         if self._per_tick:
-            self._tick_pub.publish(ack)
-            self.acknowledged += 1
+            self._ticks.append((stamp, dict(self.counts)))
         self._last_ack = ack
         self._unsaid += 1
         if self._unsaid >= PROGRESS_EVERY:
             self._say()
 
     def _say(self) -> None:
-        """Publish the latest acknowledgement on ``progress``."""
+        """Publish the ticks acknowledged since the previous call on ``tick_done`` (if the recorder takes
+        part), then the latest acknowledgement on ``progress``."""
+        if self._ticks:
+            ack = self._last_ack
+            assert ack is not None
+            batch = TimeReference()
+            batch.header.frame_id = self.name
+            batch.header.stamp = ack.header.stamp
+            batch.time_ref = ack.time_ref
+            batch.source = format_ticks(self._ticks)
+            self._ticks.clear()
+            self._tick_pub.publish(batch)
+            self.acknowledged += 1
         if self._last_ack is not None:
             self._ack_pub.publish(self._last_ack)
             self.said += 1

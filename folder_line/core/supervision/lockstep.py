@@ -21,16 +21,29 @@ tick). A consumer may run ahead to what the promises of its producers allow
 
 Counts travel as text, ``'messages=12 events=3 commands=0'``, optionally followed by
 per-topic counts, ``'/line/supervisor/state=7'`` (:func:`format_counts`, :func:`parse_counts`).
+The acknowledgements of several ticks travel as one text (:func:`format_ticks`,
+:func:`parse_ticks`): the counts of the latest, then, tick by tick backwards, how much earlier
+each previous tick was and what it had not yet published, ``'... | 5000000 messages=2 /line/events=1'``.
 """
 
 from __future__ import annotations
 
 import re
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-__all__ = ['MAX_TOPICS', 'STREAMS', 'TickLedger', 'format_counts', 'is_topic_stream', 'parse_counts']
+__all__ = [
+    'MAX_TICKS',
+    'MAX_TOPICS',
+    'STREAMS',
+    'TickLedger',
+    'format_counts',
+    'format_ticks',
+    'is_topic_stream',
+    'parse_counts',
+    'parse_ticks',
+]
 
 #: the counted streams, in the order :func:`format_counts` writes them
 STREAMS: tuple[str, ...] = ('messages', 'events', 'commands')
@@ -38,7 +51,10 @@ STREAMS: tuple[str, ...] = ('messages', 'events', 'commands')
 _MAX_COUNT = 2**63 - 1
 #: at most this many per-topic counts in one acknowledgement
 MAX_TOPICS = 16
+#: at most this many ticks in one text of :func:`format_ticks`
+MAX_TICKS = 64
 _TOPIC = re.compile(r'/[A-Za-z0-9_/]{1,120}')
+_TICK_SEP = ' | '
 
 
 def is_topic_stream(key: str) -> bool:
@@ -76,6 +92,48 @@ def parse_counts(text: str) -> dict[str, int]:
     missing = [s for s in STREAMS if s not in out]
     if missing:
         raise ValueError(f'counts {text[:80]!r} lack {", ".join(missing)}')
+    return out
+
+
+def format_ticks(ticks: Sequence[tuple[int, Mapping[str, int]]]) -> str:
+    """The acknowledgements ``[(stamp ns, counts), ...]`` of consecutive ticks (stamps increasing) as one
+    text: :func:`format_counts` of the last, then per earlier tick, latest first, ``' | <ns before the
+    next> key=<what it had not yet published> ...'`` (the keys that differ only)."""
+    if not ticks:
+        raise ValueError('no tick to format')
+    parts = [format_counts(ticks[-1][1])]
+    for (stamp, counts), (later, later_counts) in zip(ticks[-2::-1], ticks[:0:-1], strict=True):
+        if later <= stamp:
+            raise ValueError(f'tick {later} ns does not follow {stamp} ns')
+        less = ''.join(f' {k}={n - counts.get(k, 0)}' for k, n in later_counts.items() if n != counts.get(k, 0))
+        parts.append(f'{later - stamp}{less}')
+    return _TICK_SEP.join(parts)
+
+
+def parse_ticks(text: str, stamp_ns: int) -> list[tuple[int, dict[str, int]]]:
+    """The acknowledgements of :func:`format_ticks` whose last tick is ``stamp_ns``, in tick order;
+    raises ``ValueError`` with the reason on anything else (counts that would go negative, a tick
+    not before the next, more than :data:`MAX_TICKS` ticks)."""
+    if len(text) > 2000 * MAX_TICKS:
+        raise ValueError(f'ticks text of {len(text)} characters (at most {2000 * MAX_TICKS})')
+    head, *earlier = text.split(_TICK_SEP)
+    if len(earlier) >= MAX_TICKS:
+        raise ValueError(f'{len(earlier) + 1} ticks in one acknowledgement (at most {MAX_TICKS})')
+    counts = parse_counts(head)
+    out = [(stamp_ns, counts)]
+    for part in earlier:
+        gap, *items = part.split()
+        if not gap.isdigit() or not 0 < int(gap) <= stamp_ns or len(gap) > 19:
+            raise ValueError(f'tick gap {gap[:25]!r} is not a positive integer up to the tick, in ns')
+        stamp_ns -= int(gap)
+        counts = dict(counts)
+        for item in items:
+            key, _, value = item.partition('=')
+            if key not in counts or not value.isdigit() or len(value) > 19 or int(value) > counts[key]:
+                raise ValueError(f'unexpected item {item[:40]!r} in the tick before {stamp_ns + int(gap)} ns')
+            counts[key] -= int(value)
+        out.append((stamp_ns, counts))
+    out.reverse()
     return out
 
 

@@ -6,7 +6,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from folder_line.core.supervision.lockstep import STREAMS, TickLedger, format_counts, parse_counts
+from folder_line.core.supervision.lockstep import (
+    MAX_TICKS,
+    STREAMS,
+    TickLedger,
+    format_counts,
+    format_ticks,
+    parse_counts,
+    parse_ticks,
+)
 
 
 def counts(messages: int = 0, events: int = 0, commands: int = 0) -> dict[str, int]:
@@ -128,3 +136,51 @@ def test_any_interleaving_completes_exactly_the_ticks_whose_messages_are_in(data
 
 def test_streams_are_the_acknowledged_ones() -> None:
     assert STREAMS == ('messages', 'events', 'commands')
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(1, 10**9), st.integers(0, 3), st.integers(0, 2), st.integers(0, 2), st.integers(0, 1)),
+        min_size=1,
+        max_size=MAX_TICKS,
+    )
+)
+def test_ticks_round_trip(steps: list[tuple[int, int, int, int, int]]) -> None:
+    """Several ticks' acknowledgements in one text come back as they were, in order: stamps and every count
+    (a topic first counted at a later tick reads as 0 before it)."""
+    ticks: list[tuple[int, dict[str, int]]] = []
+    stamp, c = 0, {**counts(), '/line/a': 0}
+    for gap, m, e, a, b in steps:
+        stamp += gap
+        c = dict(c)
+        c['messages'] += m + e + a + b
+        c['events'] += e
+        c['/line/a'] += a
+        if b or '/line/b' in c:
+            c['/line/b'] = c.get('/line/b', 0) + b
+        ticks.append((stamp, c))
+    back = parse_ticks(format_ticks(ticks), stamp)
+    assert [s for s, _ in back] == [s for s, _ in ticks]
+    for (_, got), (_, want) in zip(back, ticks, strict=True):
+        assert {k: n for k, n in got.items() if n or k in want} == want
+
+
+def test_ticks_refusals() -> None:
+    """A tick text that is not one of format_ticks is refused with the reason; nothing of it is taken."""
+    head = 'messages=4 events=1 commands=0 /a=3'
+    assert parse_ticks(head, 20) == [(20, {**counts(4, 1), '/a': 3})]
+    for bad, why in [
+        (head + ' | 0 messages=1', 'positive'),
+        (head + ' | x messages=1', 'positive'),
+        (head + ' | 21 messages=1', 'up to the tick'),
+        (head + ' | 5 messages=5', 'unexpected item'),  # a count below zero
+        (head + ' | 5 /b=1', 'unexpected item'),  # a key the later tick does not have
+        (head + ' | 5 messages=-1', 'unexpected item'),
+        (head + ' | 1' * MAX_TICKS, f'at most {MAX_TICKS}'),
+        ('messages=4 events=1', 'lack'),
+    ]:
+        with pytest.raises(ValueError, match=why):
+            parse_ticks(bad, 20)
+    with pytest.raises(ValueError, match='does not follow'):
+        format_ticks([(5, counts()), (5, counts())])

@@ -33,7 +33,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
-from folder_line.core.supervision.lockstep import format_counts
+from folder_line.core.supervision.lockstep import format_counts, format_ticks
 from folder_line.errors import ParameterError
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -56,6 +56,7 @@ from folder_line.ros.lockstep import (
     grant_ticks,
     parse_announcement,
     read_ack,
+    read_ticks,
 )
 from folder_line.ros.nodes.line_clock import EXIT_LOST, MAX_BURST, SPECS, LineClock, parse_participants
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -310,6 +311,22 @@ def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
     # a ROS string ends at its first NUL: rclpy reads '\x00' back as '' too
     assert deserialize_message(data, TimeReference).header.frame_id == frame.split('\x00', 1)[0]
     assert read_ack(data) == (frame.split('\x00', 1)[0], stamp, counts, stamp)
+
+
+def test_the_acknowledgements_of_several_ticks_are_read_from_one_message() -> None:
+    """tick_done carries every tick since the previous one (format_ticks): read back in order, with the
+    promise of the last; a text that is not one is refused with the reason."""
+    ticks = [
+        (5_000_000 * k, {'messages': 3 * k, 'events': k // 2, 'commands': 0, '/line/events': k // 2}) for k in (1, 2, 3)
+    ]
+    msg = TimeReference(source=format_ticks(ticks))
+    msg.header.frame_id = 'crank_drive'
+    msg.header.stamp = ns_to_time_msg(ticks[-1][0])
+    msg.time_ref = ns_to_time_msg(ticks[-1][0] + 7)
+    assert read_ticks(serialize_message(msg)) == ('crank_drive', ticks, ticks[-1][0] + 7)
+    msg.source += ' | 99999999999 messages=1'  # a tick before 0
+    with pytest.raises(ValueError, match='tick gap'):
+        read_ticks(serialize_message(msg))
 
 
 @given(data=st.binary(max_size=300))
