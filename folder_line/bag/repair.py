@@ -36,7 +36,7 @@ from folder_line.bag.writer import start_mcap
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_text_atomic
 
-__all__ = ['TRUNCATED_SUFFIX', 'RepairResult', 'repair', 'repair_bag']
+__all__ = ['TRUNCATED_SUFFIX', 'RepairResult', 'repair', 'repair_bag', 'repairable']
 
 #: added to the name of an unfinished file that repair replaced or set aside
 TRUNCATED_SUFFIX = '.truncated'
@@ -207,6 +207,20 @@ def _old_custom(bag: Path) -> dict[str, str] | None:
     return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else None
 
 
+def repairable(directory: str | os.PathLike[str]) -> list[Path]:
+    """The ``.mcap`` files :func:`repair` would read in ``directory``; ``BagError`` (nothing touched) if it is
+    not a directory or holds none: not a bag."""
+    bag = Path(directory)
+    if not bag.is_dir():
+        msg = f'{bag}: not a directory'
+        raise BagError(msg)
+    paths = segment_files(bag)
+    if not paths:
+        msg = f'{bag}: no .mcap files: not a rosbag2 bag in MCAP storage'
+        raise BagError(msg)
+    return paths
+
+
 def repair(directory: str | os.PathLike[str]) -> RepairResult:
     """Rebuild a bag's ``metadata.yaml`` from the ``.mcap`` files present.
 
@@ -225,13 +239,7 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
         message (then nothing is changed).
     """
     bag = Path(directory)
-    if not bag.is_dir():
-        msg = f'{bag}: not a directory'
-        raise BagError(msg)
-    paths = segment_files(bag)
-    if not paths:
-        msg = f'{bag}: no .mcap files: not a rosbag2 bag in MCAP storage'
-        raise BagError(msg)
+    paths = repairable(bag)
     result = RepairResult(metadata=bag / METADATA_FILE)
     # read everything first: a bag with nothing to salvage is left exactly as it was
     found: list[tuple[Path, _Scan, tuple[list[Any], list[Any], int] | None]] = []

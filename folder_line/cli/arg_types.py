@@ -20,8 +20,9 @@ __all__ = ['add_tune_argument', 'check_tunings', 'limited', 'number', 'tuning', 
 
 def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
     """A value in the physical range ``limit`` (:mod:`folder_line.core.limits`: the same bounds as the scene
-    loader's and the node parameters'); ``also``: one word that is also accepted, as 0.0 (``max``)."""
-    extra = f' or {also}' if also else ''
+    loader's and the node parameters'); ``also``: one word that is also accepted, returned as 0.0 (``max``),
+    as is 0 itself (the node parameters' spelling of it)."""
+    extra = f', or 0 or {also}' if also else ''
 
     def parse(text: str) -> float:
         if also and text.strip().lower() == also:
@@ -32,6 +33,8 @@ def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], flo
             raise argparse.ArgumentTypeError(
                 f'{option}={bounded_repr(text)}: must be a number in {limit.text()}{extra}'
             ) from None
+        if also and value == 0.0:
+            return 0.0
         if not limit.lo <= value <= limit.hi:  # NaN fails too
             raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {limit.text()}{extra}')
         return value

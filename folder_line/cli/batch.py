@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from folder_line.bag.batch import check_duration, write_batch_bag
+from folder_line.config.run_config import MARKER_RATE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand, Tuning, command_of
 from folder_line.errors import OutputError
@@ -56,7 +57,7 @@ def write_bag(
                 custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
                 progress=bar.show,
                 tunings=tunings,
-                marker_rate=args.marker_rate,
+                marker_rate=MARKER_RATE if args.marker_rate is None else args.marker_rate,
             )
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None

@@ -23,7 +23,7 @@ from folder_line.accuracy.output import write_outputs
 from folder_line.analysis.report import analyze, print_analysis
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
-from folder_line.bag.repair import repair
+from folder_line.bag.repair import repair, repairable
 from folder_line.cli import animate as animate_cli
 from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
@@ -128,15 +128,25 @@ def _add_out(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument('--out', default=default, metavar='DIR', help=f'output directory (default ./{default})')
 
 
-def _add_marker_rate(parser: argparse.ArgumentParser, when: str) -> None:
-    """``--marker-rate HZ``: ``/line/markers`` per second of line time (the machine for RViz/Foxglove)."""
-    _addlimited(
-        parser,
+def _add_marker_rate(parser: argparse.ArgumentParser, when: str, *, given_only: bool = False) -> None:
+    """``--marker-rate HZ``: ``/line/markers`` per second of line time (the machine for RViz/Foxglove);
+    ``given_only``: None unless given (the verb refuses it where it does nothing), :data:`MARKER_RATE` meant."""
+    if not given_only:
+        _addlimited(
+            parser,
+            '--marker-rate',
+            MARKER_RATES,
+            MARKER_RATE,
+            'HZ',
+            f'{when}/line/markers per second of line time, 0: none',
+        )
+        return
+    parser.add_argument(
         '--marker-rate',
-        MARKER_RATES,
-        MARKER_RATE,
-        'HZ',
-        f'{when}/line/markers per second of line time, 0: none',
+        type=limited('--marker-rate', MARKER_RATES),
+        default=None,
+        metavar='HZ',
+        help=f'{when}/line/markers per second of line time, 0: none (default {MARKER_RATE:g})',
     )
 
 
@@ -197,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
         'margins and landings: exact streamed histograms); with --bag, of the line of that bag',
     )
     add_tune_argument(sim)
-    _add_marker_rate(sim, 'with --bag: ')
+    _add_marker_rate(sim, 'with --bag: ', given_only=True)
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
 
@@ -407,6 +417,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         plots.check_plots(args.plots)
     if args.tune and args.samples is not None:
         raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --tune changes one run')
+    if args.marker_rate is not None and args.bag is None:
+        raise ParameterError('--marker-rate', args.marker_rate, 'draws the machine into a bag: only with --bag')
+    if args.samples is None:
+        for option, value, default in (
+            ('--workers', args.workers, None),
+            ('--threads', args.threads, 1),
+            ('--scheduler', args.scheduler, None),
+        ):
+            if value != default:
+                raise ParameterError(option, value, 'runs the samples of a Monte Carlo: only with --samples')
     data = source_from(args)
     if args.samples is not None:
         return montecarlo.simulate_samples(args, data)
@@ -533,6 +553,7 @@ def _cmd_bag(args: argparse.Namespace) -> int:
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
         check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
+        repairable(bag)  # a folder that is no bag is refused before the claim's write probe goes into it
         with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
             if bag.is_dir() and bag.resolve().name == BAG_DIR:
                 claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import curses
+import os
 import shutil
 import sys
 import time
@@ -61,8 +62,9 @@ def run_monitor(
     Returns
     -------
     int
-        0 after ``q``, Ctrl-C or the snapshot; 2 when the curses view has no terminal
-        to draw on (a line on stderr says to use ``--once``).
+        0 after ``q``, Ctrl-C or the snapshot; 1 after a snapshot in which nothing of the line
+        arrived (a line on stderr says so); 2 when the curses view has no terminal to draw on (a
+        line on stderr says to use ``--once``).
     """
     stream = sys.stdout if stream is None else stream
     if not once and not (sys.stdin.isatty() and sys.stdout.isatty()):
@@ -81,6 +83,14 @@ def run_monitor(
             width = shutil.get_terminal_size((120, 50)).columns if stream.isatty() else 160
             stream.write('\n'.join(state.render(max(width, MIN_WIDTH), None, time.time())) + '\n')
             stream.flush()
+            if state.last_wall is None:
+                domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
+                print(
+                    f'folder-line: error: monitor --once: no message of the line on ROS_DOMAIN_ID={domain} within '
+                    f'--timeout {timeout:g} s: is a line running there?',
+                    file=sys.stderr,
+                )
+                return 1
     except KeyboardInterrupt:  # a second Ctrl-C while stopping
         pass
     return 0

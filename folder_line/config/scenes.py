@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import errno
 import os
 from collections.abc import Hashable, Iterable, Mapping
 from dataclasses import dataclass
@@ -101,6 +102,16 @@ def resolve_scene(name_or_path: str | os.PathLike[str], names: InputNames = Inpu
     """Path of a scene given by name (``folder``) or by file path (errors name ``names.scene``)."""
     text = str(name_or_path)
     path = Path(text)
+    if path.is_symlink() and not path.exists():  # a loop or a dangling link: say which, not "no such file"
+        looped = False
+        try:
+            path.resolve(strict=True)
+        except RuntimeError:  # Python 3.11's Path.resolve on a symlink loop
+            looped = True
+        except OSError as exc:
+            looped = exc.errno == errno.ELOOP
+        why = 'a symbolic link that loops (it leads to itself)' if looped else 'a broken symbolic link'
+        raise InputFileError(names.scene, text, why if looped else f'{why}: {os.readlink(path)!r} does not exist')
     if path.suffix in ('.yaml', '.yml') or os.sep in text or (path.exists() and not path.is_dir()):
         if not path.exists():  # anything else that is there (a FIFO, a folder) is refused by the reader
             raise InputFileError(names.scene, text, 'no such file')

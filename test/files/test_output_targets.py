@@ -455,6 +455,25 @@ def test_real_full_disk(small_tmpfs: Callable[[str], Path], capsys: pytest.Captu
     assert snapshot(disk, folder_mtimes=False) == before
 
 
+def test_a_video_on_a_full_disk_keeps_the_one_there(
+    small_tmpfs: Callable[[str], Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """ffmpeg fails on the full disk and says so only in its log: the video it leaves is checked, refused, and
+    the old file stays (issue 25: it was replaced by a 0-byte file, with ``wrote`` and exit 0)."""
+    disk = small_tmpfs('size=256k')
+    (disk / 'x.mp4').write_bytes(b'the previous video')
+    with contextlib.suppress(OSError), open(disk / 'fill', 'wb') as f:
+        f.write(bytes(1 << 20))  # fills the disk: ENOSPC part way
+    before = snapshot(disk, folder_mtimes=False)
+    argv = ['animate', '--scene', 'folder', '--duration', '2', '--fps', '1', '--slowdown', '1']
+    assert main([*argv, '--out', str(disk / 'x.mp4')]) == 2
+    err = capsys.readouterr().err  # the progress lines of the drawing, then the error
+    assert 'Traceback' not in err and "wrote '" not in err and 'wrote ' + str(disk) not in err
+    (line,) = [x for x in err.splitlines() if x.startswith('folder-line')]
+    assert line.startswith(f"folder-line: error: --out='{disk / 'x.mp4'}': cannot write: ffmpeg: wrote no readable")
+    assert snapshot(disk, folder_mtimes=False) == before
+
+
 def _read_only_folder(tmp_path: Path, small_tmpfs: Callable[[str], Path]) -> tuple[Path, str]:
     """A folder nobody may write into, and the OS reason the writer will see."""
     if not ROOT:

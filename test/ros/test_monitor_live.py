@@ -157,13 +157,17 @@ def test_once_prints_a_snapshot_of_the_running_line(line: Line, node_env: dict[s
         assert re.match(rf'folder_line/{c.name} +(OK|WARN|ERROR) +({value}) +({value}) +\d+/\d+', text), text
 
 
-def test_once_without_a_line_says_so_and_exits_0(node_env: dict[str, str]) -> None:
+def test_once_without_a_line_says_so_and_exits_1(node_env: dict[str, str]) -> None:
     env = dict(node_env, ROS_DOMAIN_ID=str(215 + DOMAIN_ID % 18))  # nobody there
     proc = subprocess.run(
         monitor_cmd('--once', '--timeout', '1'), env=env, capture_output=True, text=True, timeout=60, check=False
     )
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 1, proc.stderr
     assert 'waiting for the line' in proc.stdout and 'supervisor ?' in proc.stdout
+    assert proc.stderr.strip().splitlines()[-1] == (
+        f'folder-line: error: monitor --once: no message of the line on ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]} within '
+        '--timeout 1 s: is a line running there?'
+    )
 
 
 # --------------------------------------------------------------------------- the curses view in tmux

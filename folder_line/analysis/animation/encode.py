@@ -155,6 +155,21 @@ def _make_palette(path: Path, size: tuple[int, int], frames: Iterable[np.ndarray
         gen.close()
 
 
+def _check_written(path: Path, frames: int) -> None:
+    """``OSError`` unless ffmpeg left a readable video with frames at ``path``: ``write_frames`` does not
+    report ffmpeg's failures (a full disk leaves an empty or headless file and a zero exit of ours)."""
+    if frames == 0:
+        return
+    try:
+        found, _ = imageio_ffmpeg.count_frames_and_secs(str(path))
+    except (RuntimeError, OSError):
+        found = 0
+    if found == 0:
+        size = path.stat().st_size if path.exists() else 0
+        msg = f'wrote no readable video ({size} bytes for {frames} frames; is the disk full?)'
+        raise OSError(msg)
+
+
 class VideoWriter:
     """Frames in, an ``.mp4`` or ``.gif`` out (:func:`video_writer` opens and closes it).
 
@@ -239,6 +254,7 @@ def video_writer(
             writer = VideoWriter(tmp, fmt, size, fps, palette)
             yield writer
             writer.close()
+            _check_written(tmp, writer.frames)
         except (RuntimeError, OSError) as exc:
             if isinstance(exc, OutputError):
                 raise

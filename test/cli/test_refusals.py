@@ -1,0 +1,92 @@
+"""Inputs the verbs refused too late, or not at all: each ends in one line naming the option and the value, exit 2,
+and nothing touched (issue 25's "smaller faults")."""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import pytest
+
+from folder_line.cli.arg_types import limited
+from folder_line.cli.main import main
+from folder_line.core.limits import RTF
+
+
+def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
+    err = capsys.readouterr().err
+    lines = [x for x in err.splitlines() if x.startswith('folder-line')]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def test_rtf_0_means_no_ceiling_as_the_limits_table_and_the_node_parameter_say() -> None:
+    parse = limited('--rtf', RTF, also='max')
+    assert parse('0') == parse('0.0') == parse('max') == 0.0
+    assert parse('2.5') == 2.5
+    with pytest.raises(argparse.ArgumentTypeError, match=r"--rtf='0.0005': must be in \[0.001, 1000\], or 0 or max"):
+        parse('0.0005')
+    with pytest.raises(argparse.ArgumentTypeError, match='or 0 or max'):
+        parse('-0.5')
+
+
+@pytest.mark.parametrize(
+    ('extra', 'expected'),
+    [
+        (
+            ['--marker-rate', '5'],
+            'folder-line: error: --marker-rate=5.0: draws the machine into a bag: only with --bag',
+        ),
+        (['--workers', '2'], 'folder-line: error: --workers=2: runs the samples of a Monte Carlo: only with --samples'),
+        (['--threads', '3'], 'folder-line: error: --threads=3: runs the samples of a Monte Carlo: only with --samples'),
+        (
+            ['--scheduler', 'tcp://127.0.0.1:8786'],
+            "folder-line: error: --scheduler='tcp://127.0.0.1:8786': runs the samples of a Monte Carlo: only with "
+            '--samples',
+        ),
+    ],
+)
+def test_an_option_that_would_do_nothing_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], expected: str
+) -> None:
+    out = tmp_path / 'summary.json'
+    argv = ['simulate', '--scene', 'folder', '--duration', '0.5', '--json', str(out), *extra]
+    assert main(argv) == 2
+    assert one_error_line(capsys) == expected
+    assert not out.exists()
+
+
+def test_the_marker_rate_is_taken_with_a_bag(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--scene', 'folder', '--duration', '0.5', '--bag', str(bag), '--marker-rate', '2']) == 0
+    capsys.readouterr()
+    meta = (bag / 'metadata.yaml').read_text()
+    assert '/line/markers' in meta
+
+
+@pytest.mark.parametrize(
+    ('target', 'expected'),
+    [
+        (None, "--scene='{p}': a symbolic link that loops (it leads to itself)"),
+        ('nowhere.yaml', "--scene='{p}': a broken symbolic link: 'nowhere.yaml' does not exist"),
+    ],
+)
+def test_a_scene_that_is_a_bad_symbolic_link_is_named_as_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], target: str | None, expected: str
+) -> None:
+    link = tmp_path / 'scene'
+    os.symlink(link.name if target is None else target, link)
+    assert main(['simulate', '--scene', str(link), '--duration', '0.5']) == 2
+    assert one_error_line(capsys) == 'folder-line: error: ' + expected.format(p=link)
+
+
+def test_repair_of_a_folder_that_is_no_bag_touches_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    folder = tmp_path / 'notes'
+    folder.mkdir()
+    (folder / 'a.txt').write_text('mine\n')
+    os.utime(folder, ns=(1_000_000_000, 1_000_000_000))  # a probe file created and removed would change this
+    assert main(['bag', 'repair', str(folder)]) == 2
+    assert one_error_line(capsys) == f'folder-line: error: {folder}: no .mcap files: not a rosbag2 bag in MCAP storage'
+    assert sorted(p.name for p in folder.iterdir()) == ['a.txt']
+    assert folder.stat().st_mtime_ns == 1_000_000_000
