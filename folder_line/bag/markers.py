@@ -115,7 +115,10 @@ def marker_stamps(after_ns: int | None, until_ns: int, rate: float) -> Iterator[
         return
     i = 0 if after_ns is None else max(0, int(after_ns * rate // NS_PER_S) - 1)
     while True:
-        stamp = round(i * NS_PER_S / rate)
+        x = i * NS_PER_S / rate
+        if not x <= until_ns + 1:  # past the end (an infinite one too: a rate so low its next point overflows)
+            return
+        stamp = round(x)
         if stamp > until_ns:
             return
         if after_ns is None or stamp > after_ns:

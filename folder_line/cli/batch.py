@@ -14,7 +14,7 @@ from folder_line.config.run_config import MARKER_RATE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand, Tuning, command_of
 from folder_line.errors import OutputError
-from folder_line.files.atomic import claim_output_dir
+from folder_line.files.atomic import LOCK_FILE, claim_output_dir
 from folder_line.progress import LineTimeProgress
 
 __all__ = ['write_bag']
@@ -50,15 +50,24 @@ def write_bag(
     bar = LineTimeProgress(sys.stderr, args.duration)
     try:
         with claim_output_dir(bag, '--bag'):
-            result = write_batch_bag(
-                bag,
-                scene,
-                args.duration,
-                custom={'folder_line.scene_arg': str(args.scene), 'folder_line.overrides': json.dumps(args.overrides)},
-                progress=bar.show,
-                tunings=tunings,
-                marker_rate=MARKER_RATE if args.marker_rate is None else args.marker_rate,
-            )
+            try:
+                result = write_batch_bag(
+                    bag,
+                    scene,
+                    args.duration,
+                    custom={
+                        'folder_line.scene_arg': str(args.scene),
+                        'folder_line.overrides': json.dumps(args.overrides),
+                    },
+                    progress=bar.show,
+                    tunings=tunings,
+                    marker_rate=MARKER_RATE if args.marker_rate is None else args.marker_rate,
+                )
+            except OSError as exc:  # a full disk: the folder was new or empty, and is left so
+                if isinstance(exc, OutputError):
+                    raise
+                _empty(bag)
+                raise OutputError('--bag', str(bag), f'cannot write: {exc.strerror or exc}') from None
     except OutputError as exc:  # a write refused inside the bag: name --bag, not the verb's --json
         raise exc.with_option('--bag') from None
     finally:
@@ -74,3 +83,11 @@ def write_bag(
         print(f'  {topic:<40} {n}')
     print(f'wrote {result.path} ({result.segments} segments)')
     return 0, tuple(command_of(t, kind) for t, kind in result.commands)
+
+
+def _empty(bag: Path) -> None:
+    """Remove what the bag writer left in ``bag`` (new or empty before it, and claimed): its files, never the
+    claim's lock."""
+    for entry in bag.iterdir():
+        if entry.name != LOCK_FILE and entry.is_file():
+            entry.unlink(missing_ok=True)

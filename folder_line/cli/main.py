@@ -553,7 +553,8 @@ def _cmd_bag(args: argparse.Namespace) -> int:
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
         check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder
-        repairable(bag)  # a folder that is no bag is refused before the claim's write probe goes into it
+        if bag.is_dir():
+            repairable(bag)  # a folder that is no bag is refused before the claim's write probe goes into it
         with contextlib.ExitStack() as claims:  # the bag, and the run folder holding it: a run may be writing
             if bag.is_dir() and bag.resolve().name == BAG_DIR:
                 claims.enter_context(claim_output_dir(bag.resolve().parent, 'DIR', create=False))

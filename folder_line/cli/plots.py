@@ -76,6 +76,7 @@ from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
+from folder_line.errors import OutputError
 from folder_line.files.atomic import check_output_dir, claim_output_dir
 from folder_line.interfaces import NS_PER_S
 
@@ -949,7 +950,14 @@ def write_figures(path: str, data: FigureData) -> dict[str, Path]:
         The folder cannot be claimed.
     """
     with claim_output_dir(path, OPTION, files=tuple(FIGURES)) as out:
-        figures = draw(data, out)
+        before = {p.name for p in out.iterdir()}
+        try:
+            figures = draw(data, out)
+        except OSError as exc:  # a full disk part way: the figures this call added go, the option is named
+            for name in FIGURES:
+                if name not in before:
+                    (out / name).unlink(missing_ok=True)
+            raise (exc.with_option(OPTION) if isinstance(exc, OutputError) else exc) from None
     for written in figures.values():
         print(f'wrote {written}', file=sys.stdout)
     return figures

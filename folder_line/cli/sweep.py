@@ -108,10 +108,17 @@ def run(args: argparse.Namespace) -> int:
                 ('--out', 'out'),
             ),
         )
-        written = [write_csv_atomic(out / FILES[0], sweep_columns(result))]
-        png = plot_sweep(result, out / FILES[2])
-        files = [FILES[0], FILES[1]] + ([FILES[2]] if png is not None else [])
-        written.append(write_json_atomic(out / FILES[1], sweep_document(result, command, files)))
+        before = {p.name for p in out.iterdir()}
+        try:
+            written = [write_csv_atomic(out / FILES[0], sweep_columns(result))]
+            png = plot_sweep(result, out / FILES[2])
+            files = [FILES[0], FILES[1]] + ([FILES[2]] if png is not None else [])
+            written.append(write_json_atomic(out / FILES[1], sweep_document(result, command, files)))
+        except OSError:  # a full disk part way: the files this run added go (the claim removes a folder it made)
+            for name in FILES:
+                if name not in before:
+                    (out / name).unlink(missing_ok=True)
+            raise
         if png is not None:
             written.append(png)
         _print_summary(result)

@@ -90,3 +90,17 @@ def test_repair_of_a_folder_that_is_no_bag_touches_nothing(tmp_path: Path, capsy
     assert one_error_line(capsys) == f'folder-line: error: {folder}: no .mcap files: not a rosbag2 bag in MCAP storage'
     assert sorted(p.name for p in folder.iterdir()) == ['a.txt']
     assert folder.stat().st_mtime_ns == 1_000_000_000
+
+
+def test_a_motor_step_that_would_run_for_hours_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``motor_dynamics.h=1e-9`` ran for good (a billion DOPRI5 steps, memory growing): now one line naming the
+    key and the least step that would do, exit 2, nothing written."""
+    out = tmp_path / 'summary.json'
+    argv = ['simulate', '--scene', 'line', '--duration', '1', '--set', 'motor_dynamics.h=1e-9', '--json', str(out)]
+    assert main(argv) == 2
+    line = one_error_line(capsys)
+    assert line.startswith('folder-line: error: effects.motor_dynamics.h=1e-09: asks for ~1.94e+09 steps before')
+    assert line.endswith('at most max_steps=20000000: use h >= 9.69e-08 s')
+    assert not out.exists()

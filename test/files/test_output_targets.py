@@ -474,6 +474,61 @@ def test_a_video_on_a_full_disk_keeps_the_one_there(
     assert snapshot(disk, folder_mtimes=False) == before
 
 
+@pytest.mark.parametrize('existing', [False, True])
+def test_a_bag_on_a_full_disk_leaves_nothing_and_names_the_bag(
+    small_tmpfs: Callable[[str], Path], capsys: pytest.CaptureFixture[str], existing: bool
+) -> None:
+    """The disk fills part way through ``simulate --bag``: one line naming ``--bag`` and its path (it named
+    ``--json`` and no path), and the folder is as it was: gone if it was made for the bag, empty if it was."""
+    disk = small_tmpfs('size=300k')
+    bag = disk / 'bag'
+    if existing:
+        bag.mkdir()
+    before = snapshot(disk, folder_mtimes=False)
+    assert main(['simulate', '--scene', 'folder', '--duration', '20', '--bag', str(bag)]) == 2
+    err = capsys.readouterr().err
+    assert 'Traceback' not in err
+    (line,) = [x for x in err.splitlines() if x.startswith('folder-line')]
+    assert line == f"folder-line: error: --bag='{bag}': cannot write: No space left on device"
+    assert snapshot(disk, folder_mtimes=False) == before
+
+
+@pytest.mark.parametrize(
+    ('argv', 'option', 'name'),
+    [
+        (['simulate', '--scene', 'folder', '--duration', '2', '--plots'], '--plots', 'efficiency.png'),
+        (
+            [
+                'sweep',
+                '--vary',
+                'feed_transporter.V_tr=9:10:2',
+                '--scene',
+                'folder',
+                '--duration',
+                '1',
+                '--workers',
+                '1',
+                '--out',
+            ],
+            '--out',
+            'sweep.png',
+        ),
+    ],
+    ids=['plots', 'sweep'],
+)
+def test_figures_on_a_full_disk_leave_nothing_and_name_their_option(
+    small_tmpfs: Callable[[str], Path], capsys: pytest.CaptureFixture[str], argv: list[str], option: str, name: str
+) -> None:
+    """The disk fills after the first files: those go too, and the error names the option of the folder (the
+    figures named ``--json``; a sweep left its CSV behind)."""
+    disk = small_tmpfs('size=100k')
+    before = snapshot(disk, folder_mtimes=False)
+    assert main([*argv, str(disk / 'out')]) == 2
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith('folder-line')]
+    assert line == f"folder-line: error: {option}='{disk / 'out' / name}': cannot write: No space left on device"
+    assert snapshot(disk, folder_mtimes=False) == before
+
+
 def _read_only_folder(tmp_path: Path, small_tmpfs: Callable[[str], Path]) -> tuple[Path, str]:
     """A folder nobody may write into, and the OS reason the writer will see."""
     if not ROOT:

@@ -87,7 +87,7 @@ class Params:
     Attributes
     ----------
     v_min : float
-        Smallest admissible absolute exit speed of a leaf, m/s (>= 0); the
+        Smallest admissible absolute exit speed of a leaf, m/s, in [0, 1000]; the
         ``chute_speed`` constraint. Suggested 2.0.
     """
 

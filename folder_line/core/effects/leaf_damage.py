@@ -42,7 +42,7 @@ class Params:
     Attributes
     ----------
     v_damage : float
-        Absolute exit speed at and above which a leaf is damaged, m/s (> 0).
+        Absolute exit speed at and above which a leaf is damaged, m/s, in (0, 1000].
         Suggested 4.5 (paper: damage at 5.6 m/s, none at 2.8 m/s).
     """
 

@@ -79,7 +79,7 @@ class Params:
     Attributes
     ----------
     drag : float
-        Linear drag coefficient k per unit mass, 1/s (>= 0; 0 = no drag). Terminal
+        Linear drag coefficient k per unit mass, 1/s, in [0, 1000] (0 = no drag). Terminal
         speed g/k. Suggested 0.0.
     """
 

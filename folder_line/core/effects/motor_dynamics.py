@@ -167,7 +167,7 @@ class Params:
     rtol : float
         DOPRI5 relative tolerance, in [100 eps, 1).
     atol : float
-        DOPRI5 absolute tolerance (Θ in nominal s, ω in rad/s), > 0.
+        DOPRI5 absolute tolerance (Θ in nominal s, ω in rad/s), in [1e-20, 1000].
     t_stop : float
         Motor switched off and brake applied at this time, s (>= 0; ``>= duration``: never).
     T_brake : float
@@ -190,7 +190,8 @@ class Params:
         check_fields(
             self,
             'effects.motor_dynamics',
-            **dict.fromkeys(('J', 'T_0', 'omega_0', 'h', 'atol'), positive),
+            **dict.fromkeys(('J', 'T_0', 'omega_0', 'h'), positive),
+            atol=within(1e-20, 1e3),  # a tolerance, not a physical magnitude: reference solutions go to 1e-16
             omega_nom=MOTOR_SPEED.check,
             **dict.fromkeys(('b', 't_stop', 'T_brake'), non_negative),
             rtol=within(100 * EPS, 1.0, hi_open=True),
@@ -914,6 +915,24 @@ def _params(scene: Scene) -> Params:
     return p
 
 
+#: the drive is integrated at least this many mechanical time constants (or to the end) before it can settle
+SETTLE_TAUS = 5.0
+
+
+def _check_work(p: Params, duration: float) -> None:
+    """Refuse, naming ``h``, a step that cannot settle the drive within :data:`MAX_STEPS` steps: the
+    integration covers at least ``min(duration, SETTLE_TAUS tau)`` of line time with steps of at most ``h``."""
+    span = min(duration, SETTLE_TAUS * p.tau)
+    if span / p.h > MAX_STEPS:
+        raise ParameterError(
+            'effects.motor_dynamics.h',
+            p.h,
+            f'asks for ~{span / p.h:.3g} steps before the drive can settle ({span:.3g} s of line time: '
+            f'{SETTLE_TAUS:g} x its time constant {p.tau:.3g} s, or the run if shorter); at most '
+            f'max_steps={MAX_STEPS}: use h >= {span / MAX_STEPS:.3g} s',
+        )
+
+
 def stream_drive(
     scene: Scene,
     commands: Iterable[Command] = (),
@@ -952,6 +971,7 @@ def stream_drive(
         previous.set_switches(switches, bool(commands))
         return previous
     p = _params(scene)
+    _check_work(p, duration)
     load = chain_friction.master_load(scene, p.omega_nom) if scene.has('chain_friction') else None
     if load is not None:
         _check_load(p, load)

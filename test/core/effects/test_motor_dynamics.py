@@ -18,7 +18,7 @@ from folder_line.core.line.drives import make_drive
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.errors import IntegrationError, ParameterError
+from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS
 
 from .._reference import EPS
@@ -472,20 +472,29 @@ class TestStiffStartAndStepSizes:
 
     def test_tiny_steps(self) -> None:
         """h = 1e-9 s: over 1e-5 s (1e4 steps) RK4 is exact to rounding; over 1 s the run needs 1e9
-        steps and fails at once with the documented max-steps IntegrationError (not after minutes)."""
+        steps and is refused at once, naming h (not after minutes); streamed (no end), the drive must still
+        settle over 5 time constants, and is refused the same way."""
         drive = md.build_drive(motor_scene(method='rk4', h=1e-9), 1e-5, periodic=False)
         t = np.linspace(0.0, 1e-5, 101)
         th, w = closed_form(MOTOR, t)
         assert drive.steps == 10_000
         assert np.abs(drive.omega(t) - w).max() <= 1e-15 * MOTOR['omega_0']
         assert np.abs(drive.theta(t) - th).max() <= 1e-18
-        with pytest.raises(IntegrationError) as info:
-            md.build_drive(motor_scene(method='rk4', h=1e-9), 1.0, periodic=False)
-        msg = str(info.value)
-        assert f'more than max_steps={md.MAX_STEPS} steps' in msg and '1e+09 steps of h' in msg
-        assert info.value.step == 0 and info.value.h == 1e-9
-        with pytest.raises(IntegrationError, match='max_steps'):
-            md.build_drive(motor_scene(method='dopri5', h=1e-9), 1.0, periodic=False)
+        for method in ('rk4', 'dopri5'):
+            with pytest.raises(ParameterError) as info:
+                md.build_drive(motor_scene(method=method, h=1e-9), 1.0, periodic=False)
+            assert info.value.key == 'effects.motor_dynamics.h' and info.value.value == 1e-9
+            span = min(1.0, md.SETTLE_TAUS * md._params(motor_scene()).tau)
+            assert f'asks for ~{span / 1e-9:.3g} steps' in str(info.value)
+            assert f'at most max_steps={md.MAX_STEPS}' in str(info.value)
+            with pytest.raises(ParameterError, match='effects.motor_dynamics.h'):
+                md.stream_drive(motor_scene(method=method, h=1e-9))
+        # the least h refused and the largest taken are one step apart in the steps they ask for
+        tau = md._params(motor_scene()).tau
+        h_ok = md.SETTLE_TAUS * tau / md.MAX_STEPS
+        md.stream_drive(motor_scene(method='dopri5', h=h_ok * 1.0001))
+        with pytest.raises(ParameterError, match='effects.motor_dynamics.h'):
+            md.stream_drive(motor_scene(method='dopri5', h=h_ok * 0.999))
 
     def test_huge_steps(self) -> None:
         """h = 1 s: RK4 is refused up front (ParameterError naming h) where h c/J > 2.21; on a
