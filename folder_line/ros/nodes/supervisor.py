@@ -16,11 +16,12 @@ Inputs
   code as the batch simulator (:mod:`folder_line.core.line.constraints`, causal evaluation);
 * ``/line/<node>/joint_states`` of every node of the scene with joints, and
   ``/line/sheet_counter/rate`` and ``/line/sheet_counter/landing_x``: checked for NaN/inf;
-* ``/line/<node>/tick_done``: the machine participants' acknowledgements.
+* ``/line/<node>/progress``: the machine participants' acknowledgements.
 
 A participant that does not complete a tick within ``lost_timeout`` s of wall time is
-*lost*: the logic aborts with cause ``lost:<node>`` (ABORTING, then ABORTED at
-standstill) and judges nothing after that time. A malformed, unknown or out-of-order
+waited for, and named; one whose process is gone from the graph as well is *lost*: the
+logic aborts with cause ``lost:<node>`` (ABORTING, then ABORTED at standstill) and judges
+nothing after that time. A malformed, unknown or out-of-order
 input on any subscribed topic is rejected, logged once per kind and counted in the
 ``folder_line/supervisor/inputs`` diagnostic; the node keeps running.
 
