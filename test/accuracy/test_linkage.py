@@ -33,7 +33,8 @@ def test_reference_closes_both_loops_on_the_assembly_branches(phi: float) -> Non
         bx, by = PARAMS.O2B * mp.cos(t3), PARAMS.O2B * mp.sin(t3)
         cx, cy = PARAMS.l3 * mp.cos(t3), PARAMS.l3 * mp.sin(t3)
         ex, ey = PARAMS.l5 * mp.cos(t5), PARAMS.l5 * mp.sin(t5)  # E - O3
-        # MACHINES.md: (A - O2) × (B - O2) > 0 and (C - O3) × (E - O3) > 0, clearly (not a toggle)
+        # the assembly branch of the L six-bar (module docstring of core/mechanisms/layup.py):
+        # (A - O2) × (B - O2) > 0 and (C - O3) × (E - O3) > 0, clearly (not a toggle)
         assert ax * by - ay * bx > mp.mpf('1e-3')
         assert (cx - PARAMS.O2O3) * ey - cy * ex > mp.mpf('1e-3')
         # the link lengths hold too (B on the rod circle, E on the coupler circle)

@@ -92,7 +92,8 @@ def hand(
     r_O: float = 0.1,
     signed: bool = False,
 ) -> dict[str, float]:
-    """MACHINES.md D eqs. (1)-(9), cycloidal law, written out with math only.
+    """The delivery paper's eqs. (1)-(9) (module docstring of core/mechanisms/delivery.py), cycloidal law,
+    written out with math only.
 
     ``signed=True`` keeps the paper's signs; otherwise every friction term is a magnitude.
     """

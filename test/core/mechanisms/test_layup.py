@@ -63,7 +63,7 @@ def raw(**over: float) -> SimpleNamespace:
 
 
 def residuals(p: LayupParams, s: L.LayupState) -> np.ndarray:
-    """Loop-closure residuals, m, computed from the definitions in MACHINES.md."""
+    """Loop-closure residuals, m, from the six-bar's definitions (module docstring of core/mechanisms/layup.py)."""
     ax = p.a + p.R_kr * np.cos(s.phi)
     ay = p.b + p.R_kr * np.sin(s.phi)
     return np.stack(
@@ -304,7 +304,7 @@ def test_unvalidated_first_loop_failure_names_the_first_angle() -> None:
 def test_definitions_branches_and_residuals() -> None:
     s = M.arrays(DENSE)
     assert np.abs(residuals(P, s)).max() < 1e-14
-    # branches exactly as MACHINES.md states them
+    # branches exactly as the module docstring of core/mechanisms/layup.py states them
     cross_b = (0.0 - s.xA) * (s.yB - s.yA) - (0.0 - s.yA) * (s.xB - s.xA)
     cross_e = (P.O2O3 - s.xC) * (s.yE - s.yC) - (0.0 - s.yC) * (s.xE - s.xC)
     assert (cross_b < 0).all() and (cross_e < 0).all()
