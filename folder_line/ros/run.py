@@ -82,6 +82,7 @@ __all__ = [
     'other_line',
     'outcome',
     'print_run_summary',
+    'ros_arg',
     'run_line',
 ]
 
@@ -153,7 +154,7 @@ def add_machine_nodes(
     return nodes
 
 
-def _ros_arg(key: str, value: Any) -> str:
+def ros_arg(key: str, value: Any) -> str:
     """``key:=value`` for ``--ros-args -p`` (rcl reads the value as YAML): a float as its ``repr``, a string
     single-quoted, so that a path holding ``': '`` or ``' #'`` stays the string it is."""
     if isinstance(value, str):
@@ -214,7 +215,7 @@ def _print_external(cfg: RunConfig, stream: IO[str]) -> None:
     domain = os.environ.get('ROS_DOMAIN_ID', '0')
     print(f'waiting for the machine nodes on ROS_DOMAIN_ID={domain}; start each on its host:', file=stream)
     for name in MACHINE_NODES:
-        args = ' '.join(f'-p {_shell_word(_ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
+        args = ' '.join(f'-p {_shell_word(ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
         print(f'  ros2 run folder_line {name} --ros-args {args}', file=stream)
     stream.flush()
 
@@ -292,10 +293,10 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             logs = cfg.out / 'logs'  # each process's stderr
             logs.mkdir(exist_ok=True)
             commands = {
-                name: [_ros_arg(k, v) for k, v in node_parameters(cfg, name, scene_file).items()]
+                name: [ros_arg(k, v) for k, v in node_parameters(cfg, name, scene_file).items()]
                 for name in MACHINE_NODES
             }
-            commands['line_clock'] = [_ros_arg(k, v) for k, v in clock_params.items()]
+            commands['line_clock'] = [ros_arg(k, v) for k, v in clock_params.items()]
             for name, args in commands.items():
                 # through the light entry module: a stop while the node imports is a clean exit
                 cmd = [sys.executable, '-m', 'folder_line.ros.entry', name, '--ros-args']

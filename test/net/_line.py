@@ -20,6 +20,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from folder_line.config.run_config import RunConfig, node_parameters
 from folder_line.interfaces import DIAGNOSTICS_TOPIC, MACHINE_NODES
+from folder_line.ros.run import ros_arg
 
 from .netns import Network
 from .probes import PYTHON, REPO, domain_id, ros_environment
@@ -47,17 +48,11 @@ class LineRun:
         return float(self.summary.get('rtf_achieved') or 0.0)
 
 
-def _ros_arg(key: str, value: Any) -> str:
-    if isinstance(value, str):
-        return "{}:='{}'".format(key, value.replace("'", "''"))
-    return f'{key}:={value!r}' if isinstance(value, float) else f'{key}:={value}'
-
-
 def node_command(cfg: RunConfig, name: str) -> list[str]:
     """The machine node ``name`` as ``run --external-nodes`` says to start it."""
     cmd = [PYTHON, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
     for key, value in node_parameters(cfg, name).items():
-        cmd += ['-p', _ros_arg(key, value)]
+        cmd += ['-p', ros_arg(key, value)]
     return cmd
 
 

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ros import _line_runs
+
 from .netns import Host, Network
 
 PYTHON = sys.executable
@@ -22,13 +24,8 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def wait_until(predicate: Callable[[], bool], timeout: float, interval: float = 0.005) -> bool:
-    """Poll ``predicate`` until it holds or ``timeout`` s have passed; its last value."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            return predicate()
-        time.sleep(interval)
-    return True
+    """:func:`ros._line_runs.wait_until`, polled every 5 ms: the probes time repairs of a few ms."""
+    return _line_runs.wait_until(predicate, timeout, interval)
 
 
 class Lines:

@@ -40,6 +40,7 @@ if not __package__:  # run as a script: the package ``net`` is test/net
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from folder_line.interfaces import MACHINE_NODES  # noqa: E402
+from folder_line.ros.run import ros_arg  # noqa: E402
 from net.netns import Network, available, build_switch  # noqa: E402
 from net.probes import PYTHON, domain_id, ros_environment  # noqa: E402
 
@@ -87,15 +88,6 @@ class Trial:
     load_average: tuple[float, float] = (0.0, 0.0)  # 1-minute load of the machine at start and end
 
 
-def _ros_arg(key: str, value: Any) -> str:
-    """``key:=value`` as ``folder-line run`` writes it (strings single-quoted YAML)."""
-    if isinstance(value, str):
-        return "{}:='{}'".format(key, value.replace("'", "''"))
-    if isinstance(value, bool):
-        return f'{key}:={str(value).lower()}'
-    return f'{key}:={value!r}'
-
-
 def node_command(
     name: str, duration: float, rtf: float, rate: float, lost_timeout: float, extra: Sequence[str] = ()
 ) -> list[str]:
@@ -112,7 +104,7 @@ def node_command(
         params = {'scene': 'folder', 'rate': rate, 'lost_timeout': lost_timeout, 'use_sim_time': True}
     cmd = [PYTHON, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
     for key, value in params.items():
-        cmd += ['-p', _ros_arg(key, value)]
+        cmd += ['-p', ros_arg(key, value)]
     for rule in extra:
         cmd += ['-p', rule]
     return cmd
