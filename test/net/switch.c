@@ -280,19 +280,27 @@ static void transmit(int out, const unsigned char *data, size_t len)
 		p->c.err++;
 }
 
+/* Whether a frame through port ``p`` goes nowhere: the port is cut, or the frame is lost (counted). */
+static int blocked(struct port *p)
+{
+	if (p->cut) {
+		p->c.cut++;
+		return 1;
+	}
+	if (dropped(p->loss)) {
+		p->c.lost++;
+		return 1;
+	}
+	return 0;
+}
+
 /* One copy of a frame to port ``out``: its egress impairments, then now or later (after the
  * frame queued before it for ``out`` if ``in_order``). */
 static void forward(int out, const unsigned char *data, size_t len, uint64_t now, uint64_t delay, int in_order)
 {
 	struct port *p = &ports[out];
-	if (p->cut) {
-		p->c.cut++;
+	if (blocked(p))
 		return;
-	}
-	if (dropped(p->loss)) {
-		p->c.lost++;
-		return;
-	}
 	uint64_t due = now + delay + draw_delay_ns(p);
 	if ((in_order || p->fifo) && due < p->last_due)
 		due = p->last_due;
@@ -322,14 +330,8 @@ static void on_frame(int in, unsigned char *data, size_t len, unsigned status)
 	p->c.rx++;
 	if (len < ETH_HLEN)
 		return;
-	if (p->cut) {
-		p->c.cut++;
+	if (blocked(p))
 		return;
-	}
-	if (dropped(p->loss)) {
-		p->c.lost++;
-		return;
-	}
 	if ((status & TP_STATUS_CSUMNOTREADY) && complete_checksum(data, len))
 		p->c.csum++;
 	learn(data + 6, in);
