@@ -616,8 +616,11 @@ class Participant:
             self._say()
         if self.ledger is None or self.ended:
             return
+        # the clock first, pending ticks or not: a clock killed mid-grant leaves the ticks it granted to some
+        # participants pending for ever at those that wait for the others (the supervisor), whose producers are
+        # alive and waiting for the next grant themselves
+        self._check_clock(now)
         if not self.pending:
-            self._check_clock(now)
             return
         if self._waiting_since is None:
             return
@@ -632,7 +635,8 @@ class Participant:
         self.advance()
 
     def _check_clock(self, now: float) -> None:
-        """Waiting for a grant: a clock silent for ``lost_timeout`` is named, every :data:`WAIT_REPORT` s."""
+        """A clock silent for ``lost_timeout`` is named, every :data:`WAIT_REPORT` s (a live clock repeats its
+        latest grant while it grants nothing new, so silence means it is gone or cut off)."""
         silent = now - self._clock_heard
         if self.last_done is None or silent <= self.lost_timeout:
             return
