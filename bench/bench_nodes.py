@@ -31,6 +31,11 @@ What is measured
   (``test/net/netns.py``), clean, with 5 +- 2 ms of delay on every host's link, and with 5 %
   loss on every link. CPU per tick is every process's.
 
+* **The key** (``--key``): what closing the line to strangers costs. The in-process line at
+  200 Hz, in child processes that alternate: *closed* (the line's key and partition, the
+  default) and *open* (a profiles file of the user's own: no partition), three of each;
+  medians of rtf and CPU per tick, and their ratios.
+
 Under load: run it with two busy loops on both cores (``timeout 600 sh -c 'while :; do
 :; done' &`` twice) to see sim time slow down while the recorded answer stays the same.
 """
@@ -40,9 +45,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import json
 import os
 import platform
 import re
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -57,7 +65,9 @@ if __name__ == '__main__':
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     from folder_line.ros.dds_profile import use_line_profile
+    from folder_line.ros.line_key import ensure_key
 
+    ensure_key(os.environ)  # one line key for this process and its children (the lines run here are closed)
     use_line_profile()  # the floors run with the line's Fast DDS profile, as the line does
 
 
@@ -355,13 +365,21 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--quick', action='store_true', help='shorter spans')
     parser.add_argument('--net', action='store_true', help='also the line distributed over impaired links (root)')
+    parser.add_argument('--key', action='store_true', help='only the line closed (its key) against open, side by side')
     parser.add_argument('--floor-role', nargs='+', help=argparse.SUPPRESS)  # a process of the cross-process floor
+    parser.add_argument('--key-role', type=float, help=argparse.SUPPRESS)  # one run of --key, of this many sim s
     args = parser.parse_args()
     if args.floor_role:
         role, n, *fanout = args.floor_role
         _floor_role(role, int(n), int(fanout[0]) if fanout else 0)
         return 0
+    if args.key_role:
+        cpu, rtf, s = _run(args.key_role, 200.0, False)
+        print(json.dumps({'cpu': cpu, 'rtf': rtf, 'partition': s.get('partition')}))
+        return 0
     span = 2.0 if args.quick else 10.0
+    if args.key:
+        return key_cost(span)
     print(
         f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
         f'Python {platform.python_version()}; load average {os.getloadavg()[0]:.2f}'
@@ -404,6 +422,40 @@ def main() -> int:
             else:
                 r = line(duration, rate, how, lockstep)
             _row(label, rate, duration, r, fanout, floors, across)
+    return 0
+
+
+def key_cost(span: float, repeats: int = 3) -> int:
+    """``--key``: the in-process line closed and open, alternating, each in a process of its own."""
+    from folder_line.ros.dds_profile import PROFILE_FILE, PROFILES_FILE_VARIABLE
+
+    results: dict[str, list[dict[str, float]]] = {'closed': [], 'open': []}
+    with tempfile.TemporaryDirectory(prefix='bench_key_') as tmp:
+        own = Path(tmp) / 'my_profiles.xml'  # a profiles file of the user's own: the line stays open
+        own.write_bytes(PROFILE_FILE.read_bytes())
+        for _ in range(repeats):
+            for how in ('closed', 'open'):
+                env = dict(os.environ)
+                if how == 'open':
+                    env[PROFILES_FILE_VARIABLE] = str(own)
+                done = subprocess.run(
+                    [sys.executable, __file__, '--key-role', str(span)],
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                )
+                results[how].append(json.loads(done.stdout.strip().splitlines()[-1]))
+    med = {how: {k: statistics.median(r[k] for r in rs) for k in ('cpu', 'rtf')} for how, rs in results.items()}
+    print(f'in process, 200 Hz, {span:g} s of line time, {repeats} runs of each, alternating; medians:')
+    print('| line | rtf reached | CPU per tick |')
+    print('|---|---|---|')
+    for how in ('open', 'closed'):
+        print(f'| {how} | {med[how]["rtf"]:.2f} | {med[how]["cpu"] * 1e3:.2f} ms |')
+    print(
+        f'closed / open: rtf {med["closed"]["rtf"] / med["open"]["rtf"]:.3f}, '
+        f'CPU per tick {med["closed"]["cpu"] / med["open"]["cpu"]:.3f}'
+    )
     return 0
 
 

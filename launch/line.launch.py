@@ -27,6 +27,8 @@ How it ends, and its exit code:
   exits 1 (launch's code for an error, the only non-zero one it has) with one ERROR line naming
   the node and its code. An exit status launch lost itself (reported as 255) is not counted as a
   failure; a line says so.
+* Every node gets the line's key (``FOLDER_LINE_KEY``: the caller's, or a new one, logged at the
+  start), so the line hears only its own nodes (:mod:`folder_line.ros.line_key`).
 * Each node asks the kernel to stop it (SIGTERM) if this launch process dies
   (:mod:`folder_line.ros.entry`): a launch that is killed leaves no node behind.
 """
@@ -45,7 +47,16 @@ from launch_ros.actions import Node
 
 from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES  # the installed package names its nodes once
 from folder_line.ros.entry import PARENT_PID_ENV
-from folder_line.ros.line_launch import ARGUMENTS, END_GRACE, STATUS_LOST, LineEnd, Step, failure_text, line_parameters
+from folder_line.ros.line_launch import (
+    ARGUMENTS,
+    END_GRACE,
+    STATUS_LOST,
+    LineEnd,
+    Step,
+    failure_text,
+    line_key_environment,
+    line_parameters,
+)
 from launch import Action, LaunchContext, LaunchDescription
 
 
@@ -66,11 +77,12 @@ def start_line(context: LaunchContext) -> list[Action]:
     """The nodes with their parameters, and what ends the launch; raises (nothing started) on a bad argument."""
     given = {name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS}
     parameters = line_parameters(given)  # a ParameterError: launch logs it, starts nothing and exits 1
-    parent = {PARENT_PID_ENV: str(os.getpid())}  # each node stops if this process dies
+    key_env, told = line_key_environment(os.environ)  # a bad FOLDER_LINE_KEY fails the launch, as a bad argument
+    parent = {PARENT_PID_ENV: str(os.getpid()), **key_env}  # each node stops if this process dies; one line key
     names = (*MACHINE_NODES, LINE_CLOCK)
     end = LineEnd(names)
     stragglers = TimerAction(period=END_GRACE, actions=[EmitEvent(event=Shutdown(reason='the line ended'))])
-    actions: list[Action] = []
+    actions: list[Action] = [] if told is None else [LogInfo(msg=told)]
     for name in names:
         node = Node(
             package='folder_line',

@@ -1,9 +1,13 @@
-"""The ROS environment of a test process (not a test module): a ROS domain of its own, discovery on this host.
+"""The ROS environment of a test process (not a test module): a ROS domain of its own, discovery on this host,
+and a line key of its own (the line's DDS partition).
 
 ``test/conftest.py`` applies :func:`use_ros_environment` to ``os.environ`` when pytest loads it,
 before any test module imports rclpy. So every rclpy context of the test process, and every
 process a test starts with a copy of ``os.environ`` (:func:`node_environment`), share one domain
 and no other ROS graph on the machine does. Tests that need its number import :data:`DOMAIN_ID`.
+Every process of the test process's tree is one line (``FOLDER_LINE_KEY``): a test's own nodes
+are insiders, as an operator's would be; a stranger is a process started without the key
+(:func:`stranger_environment`).
 """
 
 from __future__ import annotations
@@ -11,6 +15,9 @@ from __future__ import annotations
 import os
 from collections.abc import MutableMapping
 from pathlib import Path
+
+from folder_line.ros.dds_profile import PROFILE_FILE, PROFILES_FILE_VARIABLE, use_line_profile
+from folder_line.ros.line_key import KEY_VARIABLE, new_key
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -24,6 +31,10 @@ def use_ros_environment(env: MutableMapping[str, str]) -> None:
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.pop('ROS_STATIC_PEERS', None)
     env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated; would conflict with the range above
+    env[KEY_VARIABLE] = new_key()
+    env.pop(PROFILES_FILE_VARIABLE, None)
+    env.pop('FASTRTPS_DEFAULT_PROFILES_FILE', None)
+    use_line_profile(env)  # the key's partition, for the first participant of this process and its children
 
 
 def node_environment() -> dict[str, str]:
@@ -32,4 +43,12 @@ def node_environment() -> dict[str, str]:
     env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO), env.get('PYTHONPATH', '')) if p)
     env['PYTHONUNBUFFERED'] = '1'
     env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+    return env
+
+
+def stranger_environment() -> dict[str, str]:
+    """:func:`node_environment` without the line's key: a process on the same domain that is not of the line."""
+    env = node_environment()
+    env.pop(KEY_VARIABLE)
+    env[PROFILES_FILE_VARIABLE] = str(PROFILE_FILE)
     return env

@@ -15,6 +15,7 @@ import pytest
 
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES
+from folder_line.ros.line_key import KEY_VARIABLE, read_key
 
 REPO = Path(__file__).resolve().parent.parent
 LAUNCH = REPO / 'launch' / 'line.launch.py'
@@ -75,7 +76,21 @@ def test_launch_ends_with_line_clock_and_fails_on_a_failed_node() -> None:
 def test_launch_nodes_die_with_the_launch() -> None:
     assert ('folder_line.ros.entry', 'PARENT_PID_ENV') in _imports()
     text = LAUNCH.read_text()
-    assert '{PARENT_PID_ENV: str(os.getpid())}' in text and 'additional_env=parent' in text
+    assert '{PARENT_PID_ENV: str(os.getpid()), **key_env}' in text and 'additional_env=parent' in text
+
+
+def test_every_launched_node_gets_the_line_key() -> None:
+    from folder_line.ros.line_launch import line_key_environment
+
+    text = LAUNCH.read_text()
+    assert 'key_env, told = line_key_environment(os.environ)' in text
+    assert '[] if told is None else [LogInfo(msg=told)]' in text  # a new key is told to the operator
+    env, told = line_key_environment({})
+    key = env[KEY_VARIABLE]
+    assert read_key(env) is not None and told is not None and f'{KEY_VARIABLE}={key}' in told
+    assert line_key_environment({KEY_VARIABLE: f' {key} '}) == ({KEY_VARIABLE: key}, None)  # the caller's
+    with pytest.raises(ParameterError, match=KEY_VARIABLE):
+        line_key_environment({KEY_VARIABLE: 'not-a-key'})
 
 
 def test_launch_file_is_installed() -> None:

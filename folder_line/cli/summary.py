@@ -366,7 +366,9 @@ def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
         hist = summary['landing_histogram']
         counts = hist['counts']
         top = max(counts) or 1
-        print(f'landing across the container (cv {summary["landing_cv"]:.3f}):', file=out)
+        cv = summary['landing_cv']
+        cv_text = 'n/a: no leaf landed' if cv is None else f'{cv:.3f}'
+        print(f'landing across the container (cv {cv_text}):', file=out)
         edges = hist['edges']
         for i, c in enumerate(counts):
             print(f'  {edges[i]:+.3f}..{edges[i + 1]:+.3f} m {"#" * round(40 * c / top):<40} {c}', file=out)

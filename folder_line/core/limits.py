@@ -17,18 +17,24 @@ from folder_line.core.numerics.validate import as_float
 from folder_line.errors import ParameterError
 
 __all__ = [
+    'BOUNCE_DECELERATION',
     'CRANK_SPEED',
     'CYLINDER_SPEED',
     'DURATION',
     'KNIFE_SPEED',
+    'LINE_DAMPING',
     'LIMITS',
     'LINEAR_SPEED',
     'LOST_TIMEOUT',
+    'MACHINE_LENGTH',
+    'MOTOR_INERTIA',
     'MOTOR_SPEED',
+    'MOTOR_TORQUE',
     'PILE_LOWERING',
     'RTF',
     'SAMPLE_RATE',
     'SHEET_INTERVAL',
+    'SPROCKET_RADIUS',
     'TICK_RATE',
     'Limit',
 ]
@@ -156,6 +162,49 @@ SHEET_INTERVAL = Limit(
     's',
     'from 10 000 sheets a second to one in 12 days (a long-run check with a few leaves)',
 )
+MACHINE_LENGTH = Limit(
+    'a length of the folder or the delivery (`cyclogram.D_fc`, `cyclogram.L_feed`, `cyclogram.L_a`, '
+    '`delivery_chain.x_max`)',
+    1e-4,
+    100.0,
+    'm',
+    "from a tenth of a millimetre to a machine a hundred metres long (the papers': 0.08-1.2 m)",
+)
+SPROCKET_RADIUS = Limit(
+    'radius of the delivery chain sprocket (`chain_friction.r`)',
+    1e-3,
+    10.0,
+    'm',
+    'a millimetre to ten metres: the sprocket turns at v_A / r, a motor speed',
+)
+BOUNCE_DECELERATION = Limit(
+    'deceleration of a rebounding signature (`stop_bounce.a_f`)',
+    1.0,
+    1e6,
+    'm/s²',
+    'from a soft brush (a rebound of 0.5 m at 1 m/s) to a hard stop (0.5 µm)',
+)
+MOTOR_INERTIA = Limit(
+    'inertia of the master shaft and all geared to it (`motor_dynamics.J`)',
+    1e-6,
+    1e5,
+    'kg m²',
+    'from a small servo rotor to a flywheel of tonnes; the time constant J / (T_0 / omega_0) must stay finite',
+)
+MOTOR_TORQUE = Limit(
+    'stall torque of the motor (`motor_dynamics.T_0`)',
+    1e-3,
+    1e7,
+    'N m',
+    'from a toy motor to the largest industrial drives (~1e6 N m)',
+)
+LINE_DAMPING = Limit(
+    'viscous load of the line on the master shaft (`motor_dynamics.b`)',
+    0.0,
+    1e5,
+    'N m s',
+    'none, up to a load that would brake 1e7 N m at 100 rad/s',
+)
 
 #: every limit, for the README table and the tests
 LIMITS: dict[str, Limit] = {
@@ -171,4 +220,10 @@ LIMITS: dict[str, Limit] = {
     'motor_speed': MOTOR_SPEED,
     'pile_lowering': PILE_LOWERING,
     'sheet_interval': SHEET_INTERVAL,
+    'machine_length': MACHINE_LENGTH,
+    'sprocket_radius': SPROCKET_RADIUS,
+    'bounce_deceleration': BOUNCE_DECELERATION,
+    'motor_inertia': MOTOR_INERTIA,
+    'motor_torque': MOTOR_TORQUE,
+    'line_damping': LINE_DAMPING,
 }

@@ -23,13 +23,19 @@ The numbers are read from the XML file (:func:`read_profile`), not repeated here
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import math
 import os
+import stat
+import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import MutableMapping
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
+
+from folder_line.ros.line_key import partition_name, read_key
 
 __all__ = [
     'HEARTBEAT_PERIOD',
@@ -38,7 +44,10 @@ __all__ = [
     'PROFILE',
     'PROFILES_FILE_VARIABLE',
     'PROFILE_FILE',
+    'GRAPH_TOPIC',
     'DdsProfile',
+    'line_partition',
+    'line_profile_text',
     'read_profile',
     'use_line_profile',
 ]
@@ -52,6 +61,9 @@ PROFILES_FILE_VARIABLE: Final = 'FASTDDS_DEFAULT_PROFILES_FILE'
 _USER_VARIABLES: Final = (PROFILES_FILE_VARIABLE, 'FASTRTPS_DEFAULT_PROFILES_FILE')  # the latter: Fast DDS 2's
 _FASTDDS_RMWS: Final = frozenset({'rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp'})
 _NS: Final = {'dds': 'http://www.eprosima.com'}
+
+GRAPH_TOPIC: Final = 'ros_discovery_info'
+"""The topic on which each ROS participant tells the others its nodes (rmw_dds_common)."""
 
 
 @dataclass(frozen=True)
@@ -144,15 +156,100 @@ LEASE_ANNOUNCEMENT: Final = PROFILE.lease_announcement
 """Seconds between a participant's announcements of itself."""
 
 
+def line_profile_text(partition: str) -> str:
+    """The line's profiles (:data:`PROFILE_FILE`) in the line's partition, as Fast DDS's ``partitions`` property.
+
+    The default DataReader is in ``partition`` only: it hears the line's writers alone. The
+    default DataWriter is in ``partition`` and the default partition: everyone hears it. The
+    reader of the ROS graph's own topic (:data:`GRAPH_TOPIC`, found by rmw_fastrtps under a
+    profile of that name) is in both, so the line still knows the names of nodes outside it.
+    """
+    ET.register_namespace('', _NS['dds'])
+    root = ET.parse(PROFILE_FILE).getroot()
+    reader = _default_profile(root, 'data_reader')
+    graph_reader = copy.deepcopy(reader)
+    del graph_reader.attrib['is_default_profile']
+    graph_reader.set('profile_name', GRAPH_TOPIC)
+    profiles = _find(root, 'profiles')
+    profiles.append(graph_reader)
+    for element, partitions in (
+        (_default_profile(root, 'data_writer'), f';{partition}'),
+        (reader, partition),
+        (graph_reader, f';{partition}'),
+    ):
+        policy = ET.SubElement(element, f'{{{_NS["dds"]}}}propertiesPolicy')
+        prop = ET.SubElement(ET.SubElement(policy, f'{{{_NS["dds"]}}}properties'), f'{{{_NS["dds"]}}}property')
+        ET.SubElement(prop, f'{{{_NS["dds"]}}}name').text = 'partitions'
+        ET.SubElement(prop, f'{{{_NS["dds"]}}}value').text = partitions
+    root.insert(0, ET.Comment(f' folder_line: the line profile in partition {partition} (dds_profile.py) '))
+    return ET.tostring(root, encoding='unicode', xml_declaration=True)
+
+
+def _profile_dir() -> Path:
+    """This user's folder of line profiles: ``folder_line-<uid>`` in ``XDG_RUNTIME_DIR`` or the temp folder, 0700."""
+    base = Path(os.environ.get('XDG_RUNTIME_DIR') or tempfile.gettempdir())
+    folder = base / f'folder_line-{os.getuid()}'
+    folder.mkdir(mode=0o700, exist_ok=True)
+    st = os.lstat(folder)
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o077:
+        msg = f'{folder} is not a private folder of this user: remove it, or set XDG_RUNTIME_DIR to one'
+        raise OSError(msg)
+    return folder
+
+
+def _profile_path(partition: str) -> Path:
+    return _profile_dir() / f'{partition}.xml'
+
+
+def _write_profile(partition: str) -> Path:
+    """The profiles file of ``partition``, written (atomically: other processes may be reading it) unless it
+    already holds what this version writes."""
+    path = _profile_path(partition)
+    text = line_profile_text(partition)
+    with contextlib.suppress(OSError):
+        if path.read_text(encoding='utf-8') == text:
+            return path
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix='.tmp')
+    with os.fdopen(fd, 'w', encoding='utf-8') as f:
+        f.write(text)
+    os.replace(tmp, path)
+    return path
+
+
+def _ours(path: str) -> bool:
+    """Whether ``path`` is the shipped profile or one :func:`use_line_profile` wrote (not the user's own)."""
+    return Path(path) == PROFILE_FILE or Path(path).parent == _profile_dir()
+
+
+def line_partition(environ: Mapping[str, str] = os.environ) -> str | None:
+    """The partition of the line that processes started with ``environ`` join, or None: an *open* line
+    (no key, or the user's own profiles file, which :func:`use_line_profile` leaves alone).
+
+    Raises
+    ------
+    ParameterError
+        ``environ`` holds a key that is not one.
+    """
+    key = read_key(environ)
+    if key is None:
+        return None
+    partition = partition_name(key)
+    named = environ.get(PROFILES_FILE_VARIABLE, '')
+    return partition if named and Path(named) == _profile_path(partition) else None
+
+
 def use_line_profile(environ: MutableMapping[str, str] = os.environ) -> str | None:
     """Have the participants made after this call (``rclpy.init``) load the line's profile.
 
-    Sets ``FASTDDS_DEFAULT_PROFILES_FILE`` in ``environ`` to :data:`PROFILE_FILE`, unless
+    Sets ``FASTDDS_DEFAULT_PROFILES_FILE`` in ``environ`` to the line's profiles file, unless
     the user named a profiles file (that variable, or Fast DDS 2's
-    ``FASTRTPS_DEFAULT_PROFILES_FILE``), or ``RMW_IMPLEMENTATION`` is not Fast DDS. Fast DDS
-    loads the file once per process, at its first participant; processes started later
-    with a copy of ``environ`` load it too. A ``DEFAULT_FASTDDS_PROFILES.xml`` in the
-    working directory is loaded after it and its default profiles take precedence.
+    ``FASTRTPS_DEFAULT_PROFILES_FILE``), or ``RMW_IMPLEMENTATION`` is not Fast DDS. With a key
+    (:data:`folder_line.ros.line_key.KEY_VARIABLE`) that file is the line's profile with the
+    key's partition (:func:`line_profile_text`), written once per key to a private folder of
+    this user; without one it is :data:`PROFILE_FILE`. Fast DDS loads the file once per
+    process, at its first participant; processes started later with a copy of ``environ``
+    load it too. A ``DEFAULT_FASTDDS_PROFILES.xml`` in the working directory is loaded after
+    it and its default profiles take precedence.
 
     Parameters
     ----------
@@ -164,11 +261,20 @@ def use_line_profile(environ: MutableMapping[str, str] = os.environ) -> str | No
     str or None
         The profiles file the participants will load (the user's, if set), or None when
         the RMW is not Fast DDS.
+
+    Raises
+    ------
+    ParameterError
+        ``environ`` holds a key that is not one.
+    OSError
+        The private folder cannot be made or written.
     """
     if environ.get('RMW_IMPLEMENTATION', '') not in ('', *_FASTDDS_RMWS):
         return None
+    key = read_key(environ)
     for variable in _USER_VARIABLES:
-        if environ.get(variable):
+        if environ.get(variable) and not _ours(environ[variable]):
             return environ[variable]
-    environ[PROFILES_FILE_VARIABLE] = str(PROFILE_FILE)
-    return str(PROFILE_FILE)
+    path = PROFILE_FILE if key is None else _write_profile(partition_name(key))
+    environ[PROFILES_FILE_VARIABLE] = str(path)
+    return str(path)

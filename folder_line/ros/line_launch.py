@@ -20,6 +20,7 @@ import signal
 from collections.abc import Iterable, Mapping, Sequence
 
 from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES
+from folder_line.ros.line_key import KEY_VARIABLE, new_key, read_key
 from folder_line.ros.nodes import line_clock, machine
 from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 from folder_line.ros.nodes.machine import MACHINE_SPECS, node_scene
@@ -27,7 +28,16 @@ from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.parameters import ParamSpec, ParamValue
 from folder_line.ros.runtime import EXIT_BAD_PARAMETER, LINGER, TEARDOWN_TIMEOUT
 
-__all__ = ['ARGUMENTS', 'END_GRACE', 'STATUS_LOST', 'LineEnd', 'Step', 'failure_text', 'line_parameters']
+__all__ = [
+    'ARGUMENTS',
+    'END_GRACE',
+    'STATUS_LOST',
+    'LineEnd',
+    'Step',
+    'failure_text',
+    'line_key_environment',
+    'line_parameters',
+]
 
 ARGUMENTS: tuple[tuple[str, str, str], ...] = (
     ('scene', 'folder', 'scene name (config/scenes) or path of a scene YAML file'),
@@ -133,6 +143,31 @@ def line_parameters(given: Mapping[str, str]) -> dict[str, dict[str, ParamValue]
     out['sheet_counter'].update(_read(SheetCounter.EXTRA_SPECS, arguments))
     out[LINE_CLOCK] = {**_read(CLOCK_SPECS, arguments), 'participants': ','.join(MACHINE_NODES)}
     return out
+
+
+def line_key_environment(environ: Mapping[str, str]) -> tuple[dict[str, str], str | None]:
+    """The line's key for every node of the launch: the user's (:data:`~folder_line.ros.line_key.KEY_VARIABLE`
+    in ``environ``) or a new one.
+
+    Returns
+    -------
+    env : dict of str to str
+        ``{KEY_VARIABLE: key}``, for each node's environment.
+    told : str or None
+        For a new key, the line to log: the operators and the nodes of other hosts need it.
+
+    Raises
+    ------
+    ParameterError
+        ``environ`` holds a key that is not one.
+    """
+    if read_key(environ) is not None:
+        return {KEY_VARIABLE: environ[KEY_VARIABLE].strip()}, None
+    key = new_key()
+    told = (
+        f"line key (the operators' folder-line hold/tune/monitor and other hosts' nodes need it): {KEY_VARIABLE}={key}"
+    )
+    return {KEY_VARIABLE: key}, told
 
 
 def failure_text(name: str, returncode: int) -> str:

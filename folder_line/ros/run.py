@@ -55,6 +55,8 @@ from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.parameter import Parameter
 from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import String
 
 from folder_line.bag.statuses import accepted_tunings
 from folder_line.bag.writer import BagWriter
@@ -67,11 +69,14 @@ from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_json_atomic
 from folder_line.interfaces import CLOCK_TOPIC, GRANT_TOPIC, KNOWN_PARTICIPANTS, MACHINE_NODES, PARTICIPANTS_TOPIC
 from folder_line.progress import LineTimeProgress, logs_above
-from folder_line.ros.dds_profile import use_line_profile
+from folder_line.ros.dds_profile import line_partition, use_line_profile
+from folder_line.ros.line_key import KEY_VARIABLE, ensure_key
+from folder_line.ros.lockstep import CLOCK_SUB_QOS, PARTICIPANTS_QOS
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
 from folder_line.ros.runtime import events_executor
+from folder_line.ros.strangers import UNKNOWN_NODE
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
@@ -177,18 +182,18 @@ def _die_with_parent() -> None:  # pragma: no cover - runs in the child between 
 OTHER_LINE_WAIT = 4.0
 WATCH = 0.2  # wall s between two looks at the bar, a foreign clock, the bag, lost nodes and signals
 _NAME_WAIT = 1.0  # wall s to learn the node of a publisher found (DDS discovery reports its endpoint first)
-_UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw_dds_common's node name of an endpoint whose node is not known yet
 
 
 def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
-    is not ours, seen within ``wait`` s of discovery."""
+    is not ours, seen within ``wait`` s of discovery. For an open line (no partition: every line's
+    publishers reach it)."""
     deadline = time.monotonic() + wait
     seen: float | None = None  # when a publisher was first seen: its node's name follows its endpoint
     while True:
         for topic in (CLOCK_TOPIC, PARTICIPANTS_TOPIC):
             infos = node.get_publishers_info_by_topic(topic)
-            named = [i for i in infos if i.node_name != _UNKNOWN_NODE]
+            named = [i for i in infos if i.node_name != UNKNOWN_NODE]
             if named or (infos and seen is not None and time.monotonic() > seen + _NAME_WAIT):
                 who = (
                     named[0].node_namespace.rstrip('/') + '/' + named[0].node_name
@@ -203,6 +208,30 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
         executor.spin_once(timeout_sec=0.05)
 
 
+def same_key_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
+    """Another line with this line's key, in words, or None: a ``/line/participants`` or ``/clock`` message
+    heard within ``wait`` s. Lines with other keys are in other partitions: they neither reach this one
+    nor are reached by it, so they may run beside it."""
+    heard: list[str] = []
+    subs = [
+        node.create_subscription(
+            String, PARTICIPANTS_TOPIC, lambda _m: heard.append(PARTICIPANTS_TOPIC), PARTICIPANTS_QOS
+        ),
+        node.create_subscription(ClockMsg, CLOCK_TOPIC, lambda _m: heard.append(CLOCK_TOPIC), CLOCK_SUB_QOS),
+    ]
+    deadline = time.monotonic() + wait
+    try:
+        while not heard and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        for sub in subs:
+            node.destroy_subscription(sub)
+    if not heard:
+        return None
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')
+    return f'a line with this {KEY_VARIABLE} already publishes {heard[0]} on ROS_DOMAIN_ID={domain}'
+
+
 def _shell_word(text: str) -> str:
     """``text`` as one shell word, readable: ``"scene:='folder'"`` rather than shlex's ``'scene:='"'"'folder'"'"''``."""
     if "'" in text and not any(c in text for c in '"$`\\!'):
@@ -213,10 +242,11 @@ def _shell_word(text: str) -> str:
 def _print_external(cfg: RunConfig, stream: IO[str]) -> None:
     """What to start on each machine's host (``--external-nodes``): the nodes' parameters, as ``ros2 run``."""
     domain = os.environ.get('ROS_DOMAIN_ID', '0')
+    key = f'{KEY_VARIABLE}={os.environ[KEY_VARIABLE]} ' if os.environ.get(KEY_VARIABLE) else ''
     print(f'waiting for the machine nodes on ROS_DOMAIN_ID={domain}; start each on its host:', file=stream)
     for name in MACHINE_NODES:
         args = ' '.join(f'-p {_shell_word(ros_arg(k, v))}' for k, v in node_parameters(cfg, name).items())
-        print(f'  ros2 run folder_line {name} --ros-args {args}', file=stream)
+        print(f'  {key}ros2 run folder_line {name} --ros-args {args}', file=stream)
     stream.flush()
 
 
@@ -237,7 +267,16 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
     """
     names = names or InputNames()
     scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
+    _, made = ensure_key(os.environ)  # this line's key: its nodes and its operators share it
     use_line_profile()  # before the first participant of this process (and its node processes)
+    partition = line_partition()  # None: the user's own profiles file, an open line
+    made = made and partition is not None
+    if made:
+        print(
+            f"line key (the operators' folder-line hold/tune/monitor and the nodes on other hosts need it): "
+            f'{KEY_VARIABLE}={os.environ[KEY_VARIABLE]}',
+            file=stream,
+        )
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     executor = events_executor(ctx)
@@ -258,15 +297,17 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
     try:
         probe = rclpy.create_node('folder_line_run_probe', context=ctx)
         executor.add_node(probe)
-        other = other_line(probe, executor)
+        # a key made here is this line's alone; a line with a key given may meet another with the same
+        other = None if made else other_line(probe, executor) if partition is None else same_key_line(probe, executor)
         executor.remove_node(probe)
         probe.destroy_node()
         if other is not None:
-            msg = (
-                f'another line is running: {other}; stop it, or give this run its own '
+            cure = (
                 'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)'
+                if partition is None
+                else f'{KEY_VARIABLE} (unset it, and run makes one)'
             )
-            raise FolderLineError(msg)
+            raise FolderLineError(f'another line is running: {other}; stop it, or give this run its own {cure}')
         cfg.out.mkdir(parents=True, exist_ok=True)
         bag_path = cfg.out / BAG_DIR
         _clear_previous_bag(bag_path)
@@ -371,6 +412,7 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
             None if clock is None else clock.rtf_achieved,
         )
         result.summary.update(_bag_summary(bag, published, recorder.unrecorded))
+        result.summary['partition'] = partition  # None: an open line (the user's own profiles file)
     finally:
         if procs and not interrupted and procs['line_clock'].poll() is not None:
             # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is

@@ -258,7 +258,11 @@ def run_node(
     try:
         if stop.is_set():
             return EXIT_OK
-        use_line_profile()  # the line's Fast DDS profile, before this process's first participant
+        try:
+            use_line_profile()  # the line's Fast DDS profile, before this process's first participant
+        except (FolderLineError, OSError) as err:  # a bad FOLDER_LINE_KEY, a profiles folder not private
+            print(f'{name}: error: {err}', file=sys.stderr)
+            return EXIT_BAD_PARAMETER
         with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
             node = _build(node_factory, name, stop)
             if isinstance(node, int):

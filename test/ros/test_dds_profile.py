@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import ctypes.util
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -35,16 +36,21 @@ from typing import TYPE_CHECKING
 
 import pytest
 
+from folder_line.errors import ParameterError
 from folder_line.ros.dds_profile import (
+    GRAPH_TOPIC,
     HEARTBEAT_PERIOD,
     LEASE_ANNOUNCEMENT,
     LEASE_DURATION,
     PROFILE,
     PROFILE_FILE,
     PROFILES_FILE_VARIABLE,
+    line_partition,
+    line_profile_text,
     read_profile,
     use_line_profile,
 )
+from folder_line.ros.line_key import KEY_BYTES, KEY_VARIABLE, ensure_key, partition_name, read_key
 
 if TYPE_CHECKING:
     from .conftest import Ros
@@ -90,10 +96,76 @@ def test_another_rmw_is_left_alone() -> None:
 
 
 def test_the_default_is_this_process_environment(monkeypatch: pytest.MonkeyPatch) -> None:
-    for variable in (PROFILES_FILE_VARIABLE, LEGACY_VARIABLE, 'RMW_IMPLEMENTATION'):
+    for variable in (PROFILES_FILE_VARIABLE, LEGACY_VARIABLE, 'RMW_IMPLEMENTATION', KEY_VARIABLE):
         monkeypatch.setenv(variable, 'x')  # recorded, so that the test's own setting is undone too
         monkeypatch.delenv(variable)
     assert use_line_profile() == str(PROFILE_FILE) == os.environ[PROFILES_FILE_VARIABLE]
+
+
+# --- the line's key: its partition ---------------------------------------------------------------------
+
+KEY = '00112233445566778899aabbccddeeff'
+
+
+def _partitions(path: Path) -> dict[str, str]:
+    """profile name -> the value of its ``partitions`` property."""
+    out = {}
+    for profile in ET.parse(path).getroot().iter():
+        for prop in profile.findall(f'{{{NS}}}propertiesPolicy/{{{NS}}}properties/{{{NS}}}property'):
+            if prop.findtext(f'{{{NS}}}name') == 'partitions':
+                out[profile.get('profile_name', '')] = prop.findtext(f'{{{NS}}}value', '')
+    return out
+
+
+def test_a_key_puts_the_readers_in_its_partition_and_the_writers_in_it_and_the_default(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv('XDG_RUNTIME_DIR', str(tmp_path))
+    env = {KEY_VARIABLE: KEY}
+    path = Path(str(use_line_profile(env)))
+    partition = partition_name(bytes.fromhex(KEY))
+    assert env == {KEY_VARIABLE: KEY, PROFILES_FILE_VARIABLE: str(path)} and line_partition(env) == partition
+    assert path.parent == tmp_path / f'folder_line-{os.getuid()}' and path.parent.stat().st_mode & 0o777 == 0o700
+    assert re.fullmatch(r'folder_line_[0-9a-f]{16}', partition) and KEY not in path.read_text()  # not the key
+    assert _partitions(path) == {
+        'folder_line_writer': f';{partition}',  # the default partition ('') and the line's
+        'folder_line_reader': partition,
+        GRAPH_TOPIC: f';{partition}',  # the graph's names of nodes outside the line
+    }
+    assert read_profile(path) == PROFILE  # the rest of the line's profile, unchanged
+    # another key, another partition; the same key, the same file (rewritten only if it differs)
+    assert partition_name(bytes.fromhex(KEY[::-1])) != partition
+    path.write_text('stale')
+    assert use_line_profile({KEY_VARIABLE: KEY}) == str(path) and _partitions(path)[GRAPH_TOPIC] == f';{partition}'
+
+
+def test_without_a_key_or_with_the_users_own_file_the_line_is_open() -> None:
+    assert line_partition({}) is None
+    env = {KEY_VARIABLE: KEY, PROFILES_FILE_VARIABLE: '/nowhere/my_profiles.xml'}
+    assert use_line_profile(env) == '/nowhere/my_profiles.xml' and line_partition(env) is None
+
+
+@pytest.mark.parametrize('text', ['xyz', '0011', 'g' * 32, '00112233445566778899aabbccddee'])
+def test_a_key_that_is_not_one_is_refused_with_its_name(text: str) -> None:
+    with pytest.raises(ParameterError) as refused:
+        use_line_profile({KEY_VARIABLE: text})
+    assert refused.value.key == KEY_VARIABLE and 'hex digits' in refused.value.reason
+    assert read_key({KEY_VARIABLE: ' ' + KEY + ' '}) == bytes.fromhex(KEY) and read_key({KEY_VARIABLE: ''}) is None
+
+
+def test_a_profiles_folder_that_is_not_private_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv('XDG_RUNTIME_DIR', str(tmp_path))
+    (tmp_path / f'folder_line-{os.getuid()}').mkdir(mode=0o755)
+    os.chmod(tmp_path / f'folder_line-{os.getuid()}', 0o755)  # others may write a profile for us to load
+    with pytest.raises(OSError, match='not a private folder'):
+        use_line_profile({KEY_VARIABLE: KEY})
+
+
+def test_ensure_key_makes_one_once() -> None:
+    env: dict[str, str] = {}
+    key, made = ensure_key(env)
+    assert made and len(key) == KEY_BYTES and env[KEY_VARIABLE] == key.hex()
+    assert ensure_key(env) == (key, False)
 
 
 # --- the file ------------------------------------------------------------------------------------------
@@ -132,7 +204,10 @@ def test_the_file_leaves_the_transports_alone() -> None:
 @pytest.mark.skipif(not XSD.is_file(), reason='no Fast DDS XML schema in this environment')
 def test_every_element_is_one_of_the_fast_dds_schema() -> None:
     schema = XSD.read_text(encoding='utf-8')
-    for element in ET.parse(PROFILE_FILE).getroot().iter():
+    keyed = ET.fromstring(line_profile_text('folder_line_0123456789abcdef'))
+    for element in [*ET.parse(PROFILE_FILE).getroot().iter(), *keyed.iter()]:
+        if not isinstance(element.tag, str):
+            continue  # a comment
         tag = element.tag.rpartition('}')[2]
         assert f'name="{tag}"' in schema, tag
 
@@ -217,11 +292,15 @@ rclpy.spin(node)
 """
 
 
-@pytest.mark.parametrize('broken', [False, True], ids=['line', 'broken-copy'])
+@pytest.mark.parametrize(
+    ('broken', 'keyed'), [(False, True), (False, False), (True, False)], ids=['keyed', 'open', 'broken-copy']
+)
 def test_fast_dds_loads_the_file_without_an_error(
-    node_env: dict[str, str], tmp_path: Path, children: list[Child], broken: bool
+    node_env: dict[str, str], tmp_path: Path, children: list[Child], broken: bool, keyed: bool
 ) -> None:
     profile = None
+    if not keyed:
+        node_env = {k: v for k, v in node_env.items() if k != KEY_VARIABLE}
     if broken:  # the control: an element Fast DDS does not know
         profile = tmp_path / 'broken.xml'
         profile.write_text(PROFILE_FILE.read_text().replace('heartbeat_period>', 'heartbeat_periodx>'))

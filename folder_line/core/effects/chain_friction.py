@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.limits import MOTOR_SPEED
+from folder_line.core.limits import MOTOR_SPEED, SPROCKET_RADIUS
 from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule, chain_path, schedule
 from folder_line.core.mechanisms.delivery import (
     RETURN_SECTIONS,
@@ -61,7 +61,7 @@ from folder_line.core.mechanisms.delivery import (
 )
 from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
-from folder_line.core.numerics.validate import among, check_fields, non_negative, positive
+from folder_line.core.numerics.validate import among, check_fields, non_negative
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -91,7 +91,7 @@ class Params:
     P_k : float
         Useful carriage force on the stroke, N (>= 0).
     r : float
-        Sprocket radius, m (> 0).
+        Sprocket radius, m, in [0.001, 10] (:data:`folder_line.core.limits.SPROCKET_RADIUS`).
     return_section : {'geometric', 'paper_mirror'}
         Slope sign on the second section, as in
         :func:`folder_line.core.mechanisms.delivery.evaluate_stroke` (``'geometric'`` is the
@@ -104,7 +104,11 @@ class Params:
 
     def __post_init__(self) -> None:
         check_fields(
-            self, 'effects.chain_friction', P_k=non_negative, r=positive, return_section=among(RETURN_SECTIONS)
+            self,
+            'effects.chain_friction',
+            P_k=non_negative,
+            r=SPROCKET_RADIUS.check,
+            return_section=among(RETURN_SECTIONS),
         )
 
 

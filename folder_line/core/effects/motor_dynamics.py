@@ -104,7 +104,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.effects import chain_friction
-from folder_line.core.limits import DURATION, MOTOR_SPEED
+from folder_line.core.limits import DURATION, LINE_DAMPING, MOTOR_INERTIA, MOTOR_SPEED, MOTOR_TORQUE
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.numerics import dense
 from folder_line.core.numerics import integrators as ig
@@ -151,15 +151,17 @@ class Params:
     Attributes
     ----------
     J : float
-        Inertia of the master shaft with everything geared to it, kg m² (> 0).
+        Inertia of the master shaft with everything geared to it, kg m², in
+        :data:`~folder_line.core.limits.MOTOR_INERTIA`.
     T_0 : float
-        Stall torque of the linear motor curve ``T_m = T_0 (1 - ω/ω_0)``, N m (> 0).
+        Stall torque of the linear motor curve ``T_m = T_0 (1 - ω/ω_0)``, N m, in
+        :data:`~folder_line.core.limits.MOTOR_TORQUE`.
     omega_0 : float
         No-load speed, rad/s (> omega_nom).
     omega_nom : float
         Nominal master-shaft speed (λ = ω/omega_nom), rad/s, in :data:`~folder_line.core.limits.MOTOR_SPEED`.
     b : float
-        Viscous load of the line, N m s (>= 0).
+        Viscous load of the line, N m s, in :data:`~folder_line.core.limits.LINE_DAMPING`.
     method : {'rk4', 'dopri5'}
         Fixed-step RK4 (step ``h``) or adaptive DOPRI5 (``rtol``, ``atol``, max step ``h``).
     h : float
@@ -190,10 +192,13 @@ class Params:
         check_fields(
             self,
             'effects.motor_dynamics',
-            **dict.fromkeys(('J', 'T_0', 'omega_0', 'h'), positive),
+            J=MOTOR_INERTIA.check,
+            T_0=MOTOR_TORQUE.check,
+            **dict.fromkeys(('omega_0', 'h'), positive),
             atol=within(1e-20, 1e3),  # a tolerance, not a physical magnitude: reference solutions go to 1e-16
             omega_nom=MOTOR_SPEED.check,
-            **dict.fromkeys(('b', 't_stop', 'T_brake'), non_negative),
+            b=LINE_DAMPING.check,
+            **dict.fromkeys(('t_stop', 'T_brake'), non_negative),
             rtol=within(100 * EPS, 1.0, hi_open=True),
             method=among(METHODS),
         )

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.limits import BOUNCE_DECELERATION
 from folder_line.core.numerics.validate import check_fields, positive, within
 from folder_line.errors import ParameterError
 
@@ -76,7 +77,8 @@ class Params:
     e : float
         Coefficient of restitution, dimensionless, in [0, 1).
     a_f : float
-        Deceleration of the rebounding signature (table, strings, belt), m/s² (> 0).
+        Deceleration of the rebounding signature (table, strings, belt), m/s², in [1, 1e6]
+        (:data:`folder_line.core.limits.BOUNCE_DECELERATION`).
     tolerance : float
         Largest admissible rebound distance (fold tolerance), m (> 0).
     v_rest : float
@@ -93,7 +95,7 @@ class Params:
             self,
             'effects.stop_bounce',
             e=within(0.0, 1.0, hi_open=True),
-            a_f=positive,
+            a_f=BOUNCE_DECELERATION.check,
             tolerance=positive,
             v_rest=positive,
         )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from folder_line.core.limits import LINEAR_SPEED, SHEET_INTERVAL
+from folder_line.core.limits import DURATION, LINEAR_SPEED, MACHINE_LENGTH, SHEET_INTERVAL
 from folder_line.core.numerics.validate import in_range, non_negative, positive
 from folder_line.errors import ParameterError
 
@@ -74,9 +74,11 @@ class ChainParams:
     Attributes
     ----------
     x_max : float
-        Length of one section (deceleration or acceleration) of the stroke, m (> 0).
+        Length of one section (deceleration or acceleration) of the stroke, m, in [1e-4, 100].
     pitch : float
-        Chain length between two carriages, m (> 0).
+        Chain length between two carriages, m (> 0). A scene refuses more than 100 carriages on the
+        stroke at once, and a chain speed ``pitch / T`` outside :data:`~folder_line.core.limits.LINEAR_SPEED`
+        (:func:`folder_line.core.mechanisms.chain.schedule`).
     L_transfer : float
         Chain travel from taking the signature at the folding rollers to the start of
         the stroke, m (>= 0).
@@ -87,7 +89,7 @@ class ChainParams:
     L_transfer: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, 'x_max', positive('delivery_chain.x_max', self.x_max))
+        object.__setattr__(self, 'x_max', MACHINE_LENGTH.check('delivery_chain.x_max', self.x_max))
         object.__setattr__(self, 'pitch', positive('delivery_chain.pitch', self.pitch))
         object.__setattr__(self, 'L_transfer', non_negative('delivery_chain.L_transfer', self.L_transfer))
 
@@ -105,7 +107,8 @@ class StreamParams:
         L: uniform random spread of each arrival, as a fraction of ``interval``, in
         [0, 1); drawn from the scene's seed. F ignores it (a late signature is a fault).
     phase : float
-        Delay of every arrival after its nominal time, s (>= 0): L, of the first leaf;
+        Delay of every arrival after its nominal time, s, in [0, 1e7] (the longest line time,
+        :data:`folder_line.core.limits.DURATION`): L, of the first leaf;
         F, of the handover after the feed window opens.
     thickness : float
         Thickness of one counted sheet as it lies stacked, m, in (0, 0.1]: F with D, a
@@ -122,5 +125,5 @@ class StreamParams:
     def __post_init__(self) -> None:
         object.__setattr__(self, 'interval', SHEET_INTERVAL.check('sheets.interval', self.interval))
         object.__setattr__(self, 'jitter', in_range('sheets.jitter', self.jitter, 0.0, 1.0, hi_open=True))
-        object.__setattr__(self, 'phase', non_negative('sheets.phase', self.phase))
+        object.__setattr__(self, 'phase', in_range('sheets.phase', self.phase, 0.0, DURATION.hi))
         object.__setattr__(self, 'thickness', in_range('sheets.thickness', self.thickness, 0.0, 0.1, lo_open=True))

@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.limits import LINEAR_SPEED
 from folder_line.core.line.machines import ChainParams
 from folder_line.core.mechanisms import knife as knife_mod
 from folder_line.core.mechanisms.delivery import DeliveryParams
@@ -74,6 +75,8 @@ if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
 __all__ = [
+    'MAX_ON_STROKE',
+    'MAX_STROKE',
     'OFF_STROKE',
     'PATH_INTERVALS',
     'ChainPath',
@@ -310,21 +313,57 @@ class ChainSchedule:
         return self.v_A * ph, self.v_A * slack
 
 
+MAX_STROKE = 100.0
+"""Longest delivery stroke a scene may have, m of chain (the paper's: 0.67 m)."""
+
+MAX_ON_STROKE = 100
+"""Most carriages a scene may put on the delivery stroke at once (:attr:`ChainSchedule.max_on_stroke`):
+the chain load sums over every one at every step, so the work grows with it (752 carriages, from
+``delivery.Lambda=1000``, took 27 s before the scene's first tick)."""
+
+
 @functools.lru_cache(maxsize=32)
 def _schedule(delivery: DeliveryParams, chain: ChainParams, knife: knife_mod.KnifeParams) -> ChainSchedule:
     T = 2.0 * math.pi / knife.omega_k  # as folder_line.core.mechanisms.cyclogram.cycle_timing, bit for bit
+    S = _path(delivery, chain).length
+    if not math.isfinite(S) or S > MAX_STROKE:
+        reason = (
+            f'makes the delivery stroke {S:.4g} m of chain long (a guide Lambda x_max high); at most {MAX_STROKE:g} m'
+        )
+        raise ParameterError('delivery.Lambda', delivery.Lambda, reason)
+    on_stroke = S / chain.pitch
+    if not on_stroke < MAX_ON_STROKE:
+        reason = (
+            f'puts {on_stroke:.4g} carriages on the delivery stroke at once (its chain travel is {S:.4g} m); '
+            f'at most {MAX_ON_STROKE}: a longer pitch, or a shorter stroke (delivery.Lambda, delivery_chain.x_max)'
+        )
+        raise ParameterError('delivery_chain.pitch', chain.pitch, reason)
+    v_A = chain.pitch / T
+    if not v_A <= LINEAR_SPEED.hi:
+        reason = (
+            f'drives the chain at pitch / T = {v_A:.4g} m/s (one pitch per knife cycle); at most {LINEAR_SPEED.text()}'
+        )
+        raise ParameterError('delivery_chain.pitch', chain.pitch, reason)
     return ChainSchedule(
         T=T,
         pitch=chain.pitch,
-        v_A=chain.pitch / T,
+        v_A=v_A,
         L_transfer=chain.L_transfer,
-        S=_path(delivery, chain).length,
+        S=S,
         theta_pick0=T + knife_mod.window(knife).t_out,
     )
 
 
 def schedule(scene: Scene) -> ChainSchedule:
-    """The scene's :class:`ChainSchedule` (needs the ``knife``, ``delivery``, ``delivery_chain`` sections)."""
+    """The scene's :class:`ChainSchedule` (needs the ``knife``, ``delivery``, ``delivery_chain`` sections).
+
+    Raises
+    ------
+    ParameterError
+        The work the scene asks of the chain is unbounded: a stroke longer than :data:`MAX_STROKE`
+        (``delivery.Lambda``), more than :data:`MAX_ON_STROKE` carriages on it at once, or a chain
+        faster than :data:`~folder_line.core.limits.LINEAR_SPEED` (``delivery_chain.pitch``).
+    """
     return _schedule(scene.machine('delivery'), scene.machine('delivery_chain'), scene.machine('knife'))
 
 

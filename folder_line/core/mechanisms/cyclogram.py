@@ -66,7 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from folder_line.core.limits import CYLINDER_SPEED
+from folder_line.core.limits import CYLINDER_SPEED, MACHINE_LENGTH
 from folder_line.core.mechanisms.knife import KnifeParams, KnifeWindow, window
 from folder_line.core.numerics.validate import check_fields, in_range, positive, within
 from folder_line.errors import ParameterError
@@ -100,14 +100,15 @@ class CyclogramParams:
     Parameters
     ----------
     D_fc : float
-        Folding cylinder diameter, m; > 0 (paper 0.26738).
+        Folding cylinder diameter, m; in [1e-4, 100] (:data:`folder_line.core.limits.MACHINE_LENGTH`;
+        paper 0.26738).
     n_c : float
         Folding cylinder speed, rev/h; > 0 (paper 25000).
     L_feed : float
-        Travel of the signature on the 2nd transporter to the front stops, m; > 0
+        Travel of the signature on the 2nd transporter to the front stops, m; in [1e-4, 100]
         (paper 0.230).
     L_a : float
-        Cut-sheet (signature) length, m; > 0 (paper 0.420).
+        Cut-sheet (signature) length, m; in [1e-4, 100] (paper 0.420).
     reserve : float
         Time reserve: the feed may use only ``(1 - reserve)`` of the feed window;
         dimensionless, in [0, 1) (paper 0.10).
@@ -132,10 +133,10 @@ class CyclogramParams:
         check_fields(
             self,
             'cyclogram',
-            D_fc=positive,
+            D_fc=MACHINE_LENGTH.check,
             n_c=CYLINDER_SPEED.check,
-            L_feed=positive,
-            L_a=positive,
+            L_feed=MACHINE_LENGTH.check,
+            L_a=MACHINE_LENGTH.check,
             reserve=within(0.0, 1.0, hi_open=True),
             dwell_frac=within(0.0, 1.0, hi_open=True),
         )

@@ -262,8 +262,22 @@ class DeliveryParams:
         ----------
         x_max : float
             Length of one section along the carriage guide, m, > 0.
+
+        Raises
+        ------
+        ParameterError
+            The length is not finite (``alpha_m_deg`` so small that its sine is 0, or ``Lambda``
+            so large): it names ``delivery.alpha_m_deg``.
         """
-        return self.Lambda * positive('x_max', x_max) / math.sin(self.alpha_m)
+        sin_alpha = math.sin(self.alpha_m)
+        length = self.Lambda * positive('x_max', x_max) / sin_alpha if sin_alpha > 0.0 else math.inf
+        if not math.isfinite(length):
+            reason = (
+                f'with delivery.Lambda={self.Lambda:g} and x_max={x_max:g} m the rod, Lambda x_max / sin(alpha_m), '
+                'would be infinitely long'
+            )
+            raise ParameterError('delivery.alpha_m_deg', self.alpha_m_deg, reason)
+        return length
 
 
 # --------------------------------------------------------------------------- results

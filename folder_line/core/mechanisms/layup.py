@@ -419,13 +419,14 @@ class LayupModel:
         self._l5 = p.l5
         self._d0 = p.O2O3
         self._vt2 = p.v_tr * p.v_tr
-        self._P1 = (p.O2B + p.l2) ** 2
-        self._M1 = (p.O2B - p.l2) ** 2
-        self._g1 = 0.5 * (p.O2B**2 - p.l2**2)
+        # products, not **: a float ** that overflows raises OverflowError, a product gives inf (refused later)
+        self._P1 = (p.O2B + p.l2) * (p.O2B + p.l2)
+        self._M1 = (p.O2B - p.l2) * (p.O2B - p.l2)
+        self._g1 = 0.5 * (p.O2B * p.O2B - p.l2 * p.l2)
         self._n1 = 1.0 / (2.0 * p.O2B * p.l2)
-        self._P2 = (p.l5 + p.l4) ** 2
-        self._M2 = (p.l5 - p.l4) ** 2
-        self._g2 = 0.5 * (p.l5**2 - p.l4**2)
+        self._P2 = (p.l5 + p.l4) * (p.l5 + p.l4)
+        self._M2 = (p.l5 - p.l4) * (p.l5 - p.l4)
+        self._g2 = 0.5 * (p.l5 * p.l5 - p.l4 * p.l4)
         self._n2 = 1.0 / (2.0 * p.l5 * p.l4)
         self.point = self._make_point()
 
@@ -844,6 +845,11 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
         def f(x: float, k: int = k) -> float:
             return model.discriminants_scalar(x)[k]
 
+        if not np.all(np.isfinite(D)):  # lengths so large (~1e154 m and up) that their squares overflow
+            bad = float(D[~np.isfinite(D)][0])
+            raise AssemblyError(
+                name, 0.0, f'cannot be computed: its normalised discriminant is {bad} (the links overflow)'
+            )
         neg = D < 0.0
         if neg.all():
             raise AssemblyError(

@@ -85,6 +85,8 @@ from folder_line.interfaces import (
     progress_topic,
     seconds_to_ns,
 )
+from folder_line.ros.dds_profile import line_partition
+from folder_line.ros.line_key import KEY_VARIABLE
 from folder_line.ros.lockstep import (
     ACK_QOS,
     CLOCK_MODES,
@@ -103,6 +105,7 @@ from folder_line.ros.lockstep import (
 )
 from folder_line.ros.parameters import ParamSpec, declare_parameters
 from folder_line.ros.runtime import run_node
+from folder_line.ros.strangers import foreign_publishers
 from folder_line.ros.time_msg import ns_to_time_msg
 from folder_line.ros.topics import CLOCK_QOS, PUBLISH_DEPTH
 
@@ -117,6 +120,8 @@ REPEAT_FIRST = 0.2  # wall s between repetitions of the first tick
 MAX_BURST = 0.1
 #: wall s between two grants at least: at a high rtf a grant holds several ticks
 GRANT_PERIOD = 0.005
+#: wall s between two looks at the graph for publishers on the line's topics that are not the line's
+STRANGER_SCAN = 2.0
 
 SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('rate', 200.0, 'Ticks per second of simulated time', unit='Hz', bounds=TICK_RATE.bounds),
@@ -176,6 +181,13 @@ SPECS: tuple[ParamSpec, ...] = (
 )
 
 
+def _few(topics: set[str], most: int = 3) -> str:
+    """``'/a, /b, /c and 24 more topics'``: a log line's worth of ``topics``."""
+    listed = sorted(topics)
+    more = len(listed) - most
+    return ', '.join(listed[:most]) + (f' and {more} more topics' if more > 0 else '')
+
+
 def parse_participants(text: str) -> tuple[str, ...]:
     """``'crank_drive, supervisor'`` -> ``('crank_drive', 'supervisor')``; ParameterError naming ``participants``."""
     try:
@@ -210,6 +222,10 @@ class LineClock(Node):
         Wall mode: ticks each participant answered late.
     foreign_clock : int
         ``/clock`` messages not published by this node (refused).
+    partition : str or None
+        The line's DDS partition (:func:`folder_line.ros.dds_profile.line_partition`); None: an open line.
+    strangers : dict of str to set of str
+        Nodes not of the line seen publishing on its topics -> those topics.
     ticks : int
         Ticks granted (a repeated first tick counts once).
     """
@@ -237,6 +253,7 @@ class LineClock(Node):
         self._advanced_at = 0.0  # wall time of the latest tick granted
         self._slot = 0.0  # earliest wall time of the next grant (GRANT_PERIOD after the due time of the last)
         self.published_clock = 0
+        self.published_statuses = 0  # on /diagnostics
         self.ticks = 0
         self.grants = 0  # grants published (repeats too)
         self.lost: dict[str, float] = {}
@@ -245,6 +262,8 @@ class LineClock(Node):
         self.rejected = 0
         self.foreign_clock = 0
         self._foreign_named: set[str] = set()
+        self.partition = line_partition()
+        self.strangers: dict[str, set[str]] = {}
         self._own_clock: deque[bytes] = deque()  # /clock messages published, not yet seen back
         self.done: Future[int] = Future()
         self.first_done_wall: float | None = None
@@ -264,6 +283,7 @@ class LineClock(Node):
         self._pacer = self.create_timer(1.0, self._pump, clock=self._wall)
         self._pacer.cancel()
         self._watch = self.create_timer(HEARTBEAT, self._on_watch, clock=self._wall)
+        self._scan = self.create_timer(STRANGER_SCAN, self._look_for_strangers, clock=self._wall)
         self._next_lateness = self._start + NS_PER_S
         self.add_post_set_parameters_callback(self._apply)
         rtf_text = 'no rtf ceiling' if self._rtf == 0.0 else f'rtf {self._rtf:g}'
@@ -272,6 +292,11 @@ class LineClock(Node):
             + (f' for {v["duration"]:g} s' if self._end is not None else '')
             + f'; participants {", ".join(self.participants)}'
         )
+        if self.partition is None:
+            self.get_logger().warning(
+                f'an open line: any node on this ROS domain can feed it; start every node of the line with '
+                f'the same {KEY_VARIABLE} (and no profiles file of your own) to close it'
+            )
         self._publish_tick(self._start)
         self._grant()
 
@@ -287,7 +312,7 @@ class LineClock(Node):
 
     def published_counts(self) -> dict[str, int]:
         """Messages published so far, per topic (the recorder's loss accounting)."""
-        return {CLOCK_TOPIC: self.published_clock, PARTICIPANTS_TOPIC: 1}
+        return {CLOCK_TOPIC: self.published_clock, PARTICIPANTS_TOPIC: 1, DIAGNOSTICS_TOPIC: self.published_statuses}
 
     # ------------------------------------------------------------------ inputs
 
@@ -365,6 +390,33 @@ class LineClock(Node):
             DiagnosticStatus.WARN,
             f'foreign /clock from {", ".join(new)} refused',
             {'publishers': ', '.join(sorted(self._foreign_named)), 'refused': str(self.foreign_clock)},
+            stamp=self.current or self._start,
+        )
+
+    def _look_for_strangers(self) -> None:
+        """Name, once per node and topic, the publishers on the line's topics that are not the line's nodes."""
+        found = foreign_publishers(self)
+        new = {who: topics - self.strangers.get(who, set()) for who, topics in found.items()}
+        new = {who: topics for who, topics in new.items() if topics}
+        if not new:
+            return
+        for who, topics in new.items():
+            self.strangers.setdefault(who, set()).update(topics)
+        effect = (
+            "refused: they are not in the line's partition"
+            if self.partition is not None
+            else f'an open line hears them: start it with {KEY_VARIABLE} to refuse them'
+        )
+        named = '; '.join(f'{who} on {_few(topics)}' for who, topics in sorted(new.items()))
+        self.get_logger().warning(f'publishers not of the line: {named}; {effect}')
+        self._status(
+            'foreign_publishers',
+            DiagnosticStatus.WARN,
+            f'{len(self.strangers)} node(s) not of the line publish on its topics: {effect}',
+            {
+                'publishers': '; '.join(f'{w}: {" ".join(sorted(t))}' for w, t in sorted(self.strangers.items())),
+                'partition': self.partition or 'none (open line)',
+            },
             stamp=self.current or self._start,
         )
 
@@ -571,6 +623,7 @@ class LineClock(Node):
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         arr.status.append(st)
         self._diag.publish(arr)
+        self.published_statuses += 1
 
     def _finish(self, why: str) -> None:
         self._pacer.cancel()

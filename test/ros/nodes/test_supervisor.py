@@ -522,11 +522,13 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
         lambda: (
             line.clock.done.done()
             and all(n.done.done() for n in line.nodes.values())
-            and len(diags) == line.sup.published_diagnostics
+            and len(diags) == line.sup.published_diagnostics + line.clock.published_statuses
         ),
         timeout=60.0,
     )
     assert all_in()  # counted once each, and the line ran every tick to the end
+    # named by the clock, which looks at the graph every 2 s (an insider here: the test process has the key)
+    assert ros.spin_until(lambda: '/intruder' in line.clock.strangers, timeout=20.0)
     assert line.clock.ticks == 401 and line.clock.lost == {}
     assert all(n.lockstep.ticks == 401 for n in line.nodes.values())
     assert line.sup.packml.state == 'EXECUTE' and line.sup.logic.violations == []
