@@ -23,7 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.analysis.gap_cycles import Unjudged, unjudged, without_unjudged
 from folder_line.analysis.streaming import stamp_priority
+from folder_line.bag.gaps import Gap
 from folder_line.bag.reader import read_bag
 from folder_line.config.run_config import BAG_DIR
 from folder_line.core.line.events import EVENT_DTYPE, event_kind
@@ -47,6 +49,8 @@ from folder_line.interfaces import (
 )
 
 __all__ = ['JOINT_SAMPLES', 'SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
+
+_NONE = np.zeros(0, dtype=np.int64)  # no cycle, no leaf
 
 #: joint-state samples kept per node at most (:class:`RecordedJoints`); the figures draw them
 JOINT_SAMPLES = 5000
@@ -164,6 +168,11 @@ class Recording:
         ``/diagnostics`` (violations, balances, operator commands).
     bad_values : list of (float, str, int)
         ``(stamp s, topic, count)`` of joint states carrying NaN or inf.
+    gaps : tuple of Gap
+        Line time whose messages a repair found lost (:mod:`folder_line.bag.gaps`).
+    unjudged : Unjudged
+        The folder cycles and leaves a gap may have taken events from: their events are left
+        out of ``events`` (:mod:`folder_line.analysis.gap_cycles`).
     """
 
     bag: Any
@@ -182,6 +191,8 @@ class Recording:
     diagnostics_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     supervisor_status: list[tuple[int, str, dict[str, str]]] = field(default_factory=list)
     bad_values: list[tuple[float, str, int]] = field(default_factory=list)
+    gaps: tuple[Gap, ...] = ()
+    unjudged: Unjudged = field(default_factory=lambda: Unjudged(_NONE, _NONE))
 
     def events_of(self, kind: str) -> np.ndarray:
         """Rows of one event kind."""
@@ -498,14 +509,22 @@ def read_recording(
     cmds = tuple(sorted((command_of(t / NS_PER_S, k) for t, k in commands), key=lambda c: c.t))
     end_ns = contents.end_ns if t_to is None else min(contents.end_ns, round(t_to * NS_PER_S))
     t_end = (clock_end if clock_end >= 0 else end_ns) / NS_PER_S
+    events, ns = events[order], ns[order]
+    gaps = tuple(contents.gaps)
+    skip = unjudged(events, ns, gaps)
+    if skip:  # the events of cycles and leaves a gap took events from are not judged at all
+        keep = without_unjudged(events, skip)
+        events, ns = events[keep], ns[keep]
     return Recording(
         bag=contents,
         run=run,
         scene=scene,
         t_end=t_end,
         duration=_run_duration(run, t_end),
-        events=events[order],
-        event_ns=ns[order],
+        events=events,
+        event_ns=ns,
+        gaps=gaps,
+        unjudged=skip,
         joints=sampler.finish(joints),
         states=states,
         commands=cmds,

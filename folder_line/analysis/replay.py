@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from folder_line.analysis.gap_cycles import without_unjudged
 from folder_line.analysis.recording import Recording
 from folder_line.analysis.streaming import CHUNK, MarginHistogram
 from folder_line.bag.statuses import accepted_tunings
@@ -703,7 +704,7 @@ def compare_events(
         for cut in _cuts(0.0, t_from, fast_forward):
             w = stream.advance(cut)
         ns = _model_ns(w.events)
-        keep = ns >= from_ns
+        keep = (ns >= from_ns) & without_unjudged(w.events, rec.unjudged)
         pending = _keys(ns[keep], w.events[keep])
     events, event_ns = rec.events, rec.event_ns
     lo = int(np.searchsorted(event_ns, from_ns, side='left'))
@@ -713,7 +714,8 @@ def compare_events(
         last = n == len(cuts)
         end_ns = round(cut * NS_PER_S)
         hi = events.size if last else int(np.searchsorted(event_ns, end_ns, side='right'))
-        model = np.concatenate((pending, _keys(_model_ns(w.events), w.events)))
+        judged = without_unjudged(w.events, rec.unjudged)  # a gap's cycles are not in the recording either
+        model = np.concatenate((pending, _keys(_model_ns(w.events[judged]), w.events[judged])))
         pending = np.zeros(0, dtype=_KEY)
         cmp.window(_keys(event_ns[lo:hi], events[lo:hi]), model, None if last else end_ns)
         lo = hi
@@ -777,6 +779,9 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
     :func:`supervisor_parameters`, updated from ``params``. The logic needs no line model:
     it keeps the drive under the commands it issues.
 
+    A bag with gaps (:mod:`folder_line.bag.gaps`) is replayed up to its first gap: what the
+    supervisor decided after it depends on what it saw in it.
+
     Returns
     -------
     (list of dict, Supervisor)
@@ -813,14 +818,18 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         'state': 'STARTING',
         't_start': t_start,
     }
+    events, until = rec.events, max(rec.t_end, t_start)
+    if rec.gaps:  # what the supervisor did after a gap depends on what it saw in it: replayed up to the first
+        until = min(until, max(rec.gaps[0].first_ns / NS_PER_S, t_start))
+        events = events[rec.event_ns < rec.gaps[0].first_ns]
     sup = replay(
         rec.scene,
-        rec.events,
-        bad_values=rec.bad_values,
-        operator=operator,
-        lost=lost,
-        tunings=tunings,
-        until=max(rec.t_end, t_start),
+        events,
+        bad_values=[b for b in rec.bad_values if b[0] <= until],
+        operator=[o for o in operator if o[0] <= until],
+        lost=[x for x in lost if x[0] <= until],
+        tunings=[x for x in tunings if x[0] <= until],
+        until=until,
         **kwargs,
     )
     out = [

@@ -54,6 +54,7 @@ from folder_line.analysis.replay import (
     replay_transitions,
     transitions_agree,
 )
+from folder_line.bag.gaps import Gap, describe_gaps
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
@@ -128,6 +129,15 @@ def _report_lines(
         (
             "- numbers: the recorded events judged by the line's constraint code "
             '(`folder_line.core.line.constraints`), as `simulate(scene, line time reached)` judges its own'
+        ),
+        *(
+            [
+                f'- **a repaired bag with {describe_gaps(rec.gaps)}** of line time whose messages may be lost: '
+                f'{rec.unjudged.text() or "no cycle"} not judged (nor counted below), the supervisor replayed '
+                f'up to {rec.gaps[0].first_ns / NS_PER_S:.9g} s'
+            ]
+            if rec.gaps
+            else []
         ),
         '',
         '## Summary',
@@ -355,6 +365,10 @@ def _write_analysis(
     summary['events_check'] = check.as_dict()
     recorded = recorded_transitions(rec.states)
     summary['recorded_transitions'] = recorded
+    summary['gaps'] = [[g.first_ns / NS_PER_S, g.last_ns / NS_PER_S] for g in rec.gaps]
+    summary['unjudged'] = rec.unjudged.text()
+    if rec.gaps:  # the replay stops at the first gap: compared with what was recorded before it
+        recorded = [t for t in recorded if t['t'] * NS_PER_S < rec.gaps[0].first_ns]
     try:
         replayed, sup = replay_transitions(rec)
     except (FolderLineError, ValueError, TypeError) as exc:  # a stream the logic rejects: say so, keep the record
@@ -374,7 +388,9 @@ def _write_analysis(
         summary['transitions_source'] = (
             'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
             'through '
-            'folder_line.core.supervision.offline.replay (decision times); '
+            'folder_line.core.supervision.offline.replay (decision times'
+            + (f'; up to the first gap, at {rec.gaps[0].first_ns / NS_PER_S:.3f} s' if rec.gaps else '')
+            + '); '
             + (
                 'they agree with the states recorded on /line/supervisor/state'
                 if summary['replay_matches']
@@ -404,8 +420,9 @@ def print_analysis(result: AnalysisResult, stream: Any) -> None:
     """What ``folder-line analyze`` prints: the headline numbers, whether the recorded events are the line
     model's, and the files written."""
     s = result.summary
+    judged = ' judged' if s.get('gaps') else ''
     print(
-        f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles, '
+        f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles{judged}, '
         f'{s["sheets_counted"]} sheets counted, {s["violations"]["count"]} violations',
         file=stream,
     )
@@ -413,6 +430,13 @@ def print_analysis(result: AnalysisResult, stream: Any) -> None:
         print(
             f'  {name:<24} min margin {margin_text(m["margin"], m["unit"], name)}, at {margin_at(name, m["cycle"])}, '
             f'{m["violations"]} of {m["evaluations"]} violated',
+            file=stream,
+        )
+    if s.get('gaps'):
+        gaps = describe_gaps(Gap(round(a * NS_PER_S), round(b * NS_PER_S)) for a, b in s['gaps'])
+        print(
+            f'repaired bag with {gaps}: {s["unjudged"] or "no cycle"} not judged (events may be lost there); '
+            f'states replayed up to {s["gaps"][0][0]:.3f} s',
             file=stream,
         )
     if s['transitions']:

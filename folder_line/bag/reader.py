@@ -13,9 +13,10 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any
 
-from rosbags.rosbag2 import Reader
+from rosbags.rosbag2 import Reader, ReaderError
 
 from folder_line import __version__
+from folder_line.bag.gaps import Gap, describe_gaps, read_gaps
 from folder_line.bag.metadata import (
     KEY_COMPLETE,
     KEY_EFFECTS,
@@ -92,6 +93,11 @@ class BagContents:
         return list(json.loads(self.custom.get(KEY_EFFECTS, '[]')))
 
     @property
+    def gaps(self) -> list[Gap]:
+        """Line time whose messages are lost, as a repair recorded it (:mod:`folder_line.bag.gaps`)."""
+        return read_gaps(self.custom)
+
+    @property
     def published(self) -> dict[str, int] | None:
         """Publisher-side counts per topic, or None if the writer did not know them."""
         text = self.custom.get(KEY_PUBLISHED)
@@ -144,7 +150,20 @@ def _raw_of(
         wanted = [c for c in reader.connections if topics is None or c.topic in topics]
         if not wanted:
             return
-        for conn, t_ns, raw in reader.messages(connections=wanted, start=start_ns, stop=stop_ns):
+        messages = reader.messages(connections=wanted, start=start_ns, stop=stop_ns)
+        while True:
+            try:
+                conn, t_ns, raw = next(messages)
+            except StopIteration:
+                return
+            except ReaderError as exc:  # a chunk whose checksum fails, a record cut short
+                bag = path if path.is_dir() else path.parent
+                msg = (
+                    f'{path}: cannot read on: {exc} '.replace('\n', ' ')
+                    + f'(the file is damaged; folder-line bag repair {bag} drops what cannot be read and records '
+                    'the line time lost)'
+                )
+                raise BagError(msg) from exc
             yield conn.topic, conn.msgtype, t_ns, raw
 
 
@@ -372,11 +391,21 @@ def bag_info_lines(contents: BagContents) -> list[str]:
         'are whole, the rest is salvaged by: folder-line bag repair DIR',
         'repaired': 'repaired after its writer stopped (see folder_line.repair)',
     }.get(state or '', 'not recorded (written before folder_line.complete existed)')
+    gaps = contents.gaps
+    if gaps:
+        state_text = (
+            f'repaired with {describe_gaps(gaps)} of line time: messages were lost there (see folder_line.repair)'
+        )
     lines = [
         f'bag        {contents.path}',
         f'state      {state_text}',
         f'files      {len(contents.files)} ({names})',
         f'line time  {span}',
+        *(
+            f'gap        {g.first_ns / NS_PER_S:.3f} .. {g.last_ns / NS_PER_S:.3f} s ({g.seconds:.3f} s): '
+            'analyze judges no cycle across it'
+            for g in gaps[:10]
+        ),
         f'messages   {contents.message_count}',
         'topics:',
     ]

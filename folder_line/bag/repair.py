@@ -1,14 +1,20 @@
-"""Bag repair: rebuild ``metadata.yaml`` from the ``.mcap`` files, salvaging an unfinished one.
+"""Bag repair: rebuild ``metadata.yaml`` from the ``.mcap`` files, salvaging what can be read, naming what cannot.
 
 A SIGKILL of the writer leaves the finished segments whole and listed, and the open
 segment without summary or footer (:mod:`folder_line.bag.writer`). :func:`repair` reads
-that file up to its last complete chunk, rewrites it as a finished file and lists
-every file again in a new ``metadata.yaml``.
+every file chunk by chunk, each chunk checked against its CRC: an unfinished file is read up
+to its last complete chunk, a chunk whose checksum fails is dropped, and such a file is
+rewritten as a finished file of what is whole (the original kept beside it). Every file is
+listed again in a new ``metadata.yaml``. What is lost in the middle of the bag -- a dropped
+chunk, the tail of an unfinished file before the last, a segment file that is missing -- is
+recorded as a gap of line time (:mod:`folder_line.bag.gaps`), and the bag is then
+``repaired``, never ``complete``.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import struct
 from dataclasses import dataclass, field
@@ -16,10 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from mcap.exceptions import McapError
-from mcap.reader import make_reader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 
+from folder_line.bag.gaps import KEY_GAPS, Gap, describe_gaps, format_gaps, merge_gaps, read_gaps
 from folder_line.bag.metadata import (
     KEY_COMPLETE,
     KEY_REPAIR,
@@ -36,10 +42,14 @@ from folder_line.bag.writer import start_mcap
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_text_atomic
 
-__all__ = ['TRUNCATED_SUFFIX', 'RepairResult', 'repair', 'repair_bag', 'repairable']
+__all__ = ['DAMAGED_SUFFIX', 'TRUNCATED_SUFFIX', 'RepairResult', 'repair', 'repair_bag', 'repairable']
 
 #: added to the name of an unfinished file that repair replaced or set aside
 TRUNCATED_SUFFIX = '.truncated'
+#: added to the name of a finished file with chunks whose checksum fails, which repair replaced
+DAMAGED_SUFFIX = '.damaged'
+
+_SEGMENT = re.compile(r'(.+)_(\d+)\.mcap')
 
 # what the mcap reader raises on a file that ends early or has garbage at its end
 _READ_ERRORS: tuple[type[BaseException], ...] = (
@@ -71,6 +81,14 @@ class RepairResult:
     removed : list of str
         Unfinished files with nothing to salvage, renamed to ``<file>.truncated`` and
         not listed.
+    bad_chunks : dict of str to int
+        File -> chunks dropped because their checksum fails (a finished file so damaged is
+        rewritten too, the original kept as ``<file>.damaged``).
+    missing : list of str
+        Segment files missing between those present (by their ``_<i>`` numbers, or listed in
+        the old ``metadata.yaml``).
+    gaps : list of Gap
+        Line time whose messages were lost, merged (:mod:`folder_line.bag.gaps`).
     """
 
     metadata: Path
@@ -78,15 +96,25 @@ class RepairResult:
     salvaged: dict[str, int] = field(default_factory=dict)
     dropped: dict[str, int] = field(default_factory=dict)
     removed: list[str] = field(default_factory=list)
+    bad_chunks: dict[str, int] = field(default_factory=dict)
+    missing: list[str] = field(default_factory=list)
+    gaps: list[Gap] = field(default_factory=list)
 
     def describe(self) -> str:
-        """One line: what was listed, salvaged and dropped."""
+        """One line: what was listed, salvaged and dropped, and the gaps left."""
         parts = [f'{len(self.files)} files, {sum(f.count for f in self.files)} messages']
         for name, n in self.salvaged.items():
-            parts.append(f'{name} unfinished: salvaged {n} messages, dropped {self.dropped.get(name, 0)} bytes')
+            if name in self.dropped:
+                parts.append(f'{name} unfinished: salvaged {n} messages, dropped {self.dropped[name]} bytes')
         for name in self.removed:
             parts.append(f'{name} unfinished: nothing to salvage, dropped {self.dropped.get(name, 0)} bytes')
-        if not self.salvaged and not self.removed:
+        for name, n in self.bad_chunks.items():
+            parts.append(f'{name}: dropped {n} chunk{"s" if n > 1 else ""} whose checksum fails')
+        if self.missing:
+            parts.append('missing ' + ', '.join(self.missing))
+        if self.gaps:
+            parts.append(describe_gaps(self.gaps))
+        if len(parts) == 1:
             parts.append('nothing dropped')
         return '; '.join(parts)
 
@@ -112,52 +140,61 @@ class _Scan:
             self.custom = dict(record.metadata)
 
 
-def _scan_finished(path: Path) -> _Scan | None:
-    """The summary of a finished file (footer and statistics), or None if it has none."""
-    try:
-        with path.open('rb') as fh:
-            reader = make_reader(fh)
-            summary = reader.get_summary()
-            if summary is None or summary.statistics is None:
-                return None
-            stats = summary.statistics
-            scan = _Scan(
-                schemas=dict(summary.schemas),
-                channels=dict(summary.channels),
-                counts=dict(stats.channel_message_counts),
-                start_ns=stats.message_start_time if stats.message_count else 0,
-                end_ns=stats.message_end_time if stats.message_count else 0,
-            )
-            for record in reader.iter_metadata():
-                scan.note_metadata(record)
-            return scan
-    except _READ_ERRORS:
-        return None
+@dataclass
+class _Read:
+    """One ``.mcap`` file read record by record, each chunk checked against its CRC."""
+
+    scan: _Scan
+    messages: list[Any]
+    metadata: list[Any]
+    good: int  # bytes read before the first record that could not be read
+    finished: bool  # its footer was read
+    lost: list[Gap]  # the log-time spans of the chunks whose checksum fails
+
+    @property
+    def damaged(self) -> bool:
+        return not self.finished or bool(self.lost)
 
 
-def _salvage(path: Path) -> tuple[_Scan, list[Any], list[Any], int]:
-    """Read an unfinished file record by record up to its first incomplete record.
-
-    Returns the scan, the complete messages, the metadata records and the number of
-    bytes read successfully.
-    """
+def _read(path: Path) -> _Read:
+    """Every readable record of ``path`` up to its first unreadable one; a chunk whose CRC fails is
+    skipped (its span noted), the records after it are read on."""
     scan = _Scan()
     messages: list[Any] = []
     metadata: list[Any] = []
+    lost: list[Gap] = []
     good = 0
+    finished = footer = False
+
+    def take(record: Any) -> None:
+        if isinstance(record, Schema):
+            scan.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            scan.channels[record.id] = record
+        elif isinstance(record, Message):
+            messages.append(record)
+        elif isinstance(record, Metadata):
+            metadata.append(record)
+            scan.note_metadata(record)
+
     with path.open('rb') as fh:
         try:
-            for record in StreamReader(fh).records:
-                if isinstance(record, Schema):
-                    scan.schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    scan.channels[record.id] = record
-                elif isinstance(record, Message):
-                    messages.append(record)
-                elif isinstance(record, Metadata):
-                    metadata.append(record)
-                    scan.note_metadata(record)
+            for record in StreamReader(fh, emit_chunks=True).records:
+                if isinstance(record, Chunk):
+                    try:
+                        inner = breakup_chunk(record, validate_crc=True)
+                    except _READ_ERRORS:
+                        lost.append(
+                            Gap(record.message_start_time, max(record.message_end_time, record.message_start_time))
+                        )
+                        inner = []
+                    for r in inner:
+                        take(r)
+                else:
+                    take(record)
+                    footer = footer or isinstance(record, Footer)
                 good = fh.tell()
+            finished = footer  # and the magic after it read: the stream ended where it should
         except _READ_ERRORS:
             pass
     messages = [m for m in messages if m.channel_id in scan.channels]
@@ -166,12 +203,12 @@ def _salvage(path: Path) -> tuple[_Scan, list[Any], list[Any], int]:
     if messages:
         scan.start_ns = min(m.log_time for m in messages)
         scan.end_ns = max(m.log_time for m in messages)
-    return scan, messages, metadata, good
+    return _Read(scan, messages, metadata, good, finished, lost)
 
 
-def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any]) -> None:
+def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any], suffix: str = TRUNCATED_SUFFIX) -> None:
     """Write the salvaged records as a finished file in place of ``path``; keep the original
-    as ``<path>.truncated`` (hard link first, so that a crash in between loses nothing)."""
+    as ``<path><suffix>`` (hard link first, so that a crash in between loses nothing)."""
     tmp = path.with_name(f'.{path.name}.salvage.tmp')
     with tmp.open('wb') as fh:
         writer = start_mcap(fh, role='repair')
@@ -185,7 +222,7 @@ def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any]) 
         for m in messages:
             writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
         writer.finish()  # type: ignore[no-untyped-call]  # mcap leaves Writer.finish unannotated (-> None)
-    keep = path.with_name(path.name + TRUNCATED_SUFFIX)
+    keep = path.with_name(path.name + suffix)
     keep.unlink(missing_ok=True)
     try:
         os.link(path, keep)
@@ -197,14 +234,64 @@ def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any]) 
     scan.counts = {channel_ids[cid]: n for cid, n in scan.counts.items()}
 
 
-def _old_custom(bag: Path) -> dict[str, str] | None:
-    """``custom_data`` of the bag's old ``metadata.yaml``, or None if it cannot be read."""
+def _old_metadata(bag: Path) -> tuple[dict[str, str] | None, dict[str, Gap]]:
+    """``custom_data`` of the bag's old ``metadata.yaml`` (None if it cannot be read), and the log-time span
+    of each file it lists (by name)."""
     try:
-        data = read_metadata(bag)
-        custom = data['rosbag2_bagfile_information'].get('custom_data')
+        info = read_metadata(bag)['rosbag2_bagfile_information']
+        custom = info.get('custom_data')
     except (FolderLineError, KeyError, TypeError, AttributeError):
-        return None
-    return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else None
+        return None, {}
+    spans: dict[str, Gap] = {}
+    try:
+        for entry in info.get('files') or ():
+            start = int(entry['starting_time']['nanoseconds_since_epoch'])
+            spans[str(entry['path'])] = Gap(start, start + int(entry['duration']['nanoseconds']))
+    except (KeyError, TypeError, ValueError, AttributeError):
+        spans = {}
+    return ({str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else None), spans
+
+
+def _missing(paths: list[Path], listed: dict[str, Gap]) -> list[str]:
+    """Segment files absent between the first and the last present (``<name>_<i>.mcap``), and those the old
+    metadata lists that are absent, in order."""
+    present = {p.name for p in paths}
+    out = [name for name in listed if name not in present]
+    numbered = [(m.group(1), int(m.group(2))) for p in paths if (m := _SEGMENT.fullmatch(p.name))]
+    for stem in {s for s, _ in numbered}:
+        idx = sorted(i for s, i in numbered if s == stem)
+        out += [f'{stem}_{i}.mcap' for i in range(0, idx[-1]) if i not in idx and f'{stem}_{i}.mcap' not in out]
+    return sorted(set(out), key=_segment_key)
+
+
+def _gaps(
+    reads: list[tuple[Path, _Read]], missing: list[str], listed: dict[str, Gap], recorded: list[Gap]
+) -> list[Gap]:
+    """The line time lost: dropped chunks, the unread tail of an unfinished file before the last one with
+    messages, and each missing file (its span from the old metadata, else the gap an earlier repair recorded
+    between its neighbours, else all the time between them); and the gaps ``recorded`` already."""
+    gaps = [g for _, r in reads for g in r.lost]
+    spans = [(p.name, r.scan.start_ns, r.scan.end_ns) for p, r in reads if r.scan.count]
+    order = {n: i for i, n in enumerate(sorted([*(p.name for p, _ in reads), *missing], key=_segment_key))}
+    for path, r in reads:
+        after = [s for n, s, _ in spans if order[n] > order[path.name]]
+        if not r.finished and after:  # its tail is lost up to the next file's first message
+            gaps.append(Gap(r.scan.end_ns + 1 if r.scan.count else 0, min(after) - 1))
+    for name in missing:
+        before = [e for n, _, e in spans if order[n] < order[name]]
+        after = [s for n, s, _ in spans if order[n] > order[name]]
+        if name in listed:
+            gaps.append(listed[name])
+        elif after:
+            between = Gap(max(before) + 1 if before else 0, min(after) - 1)
+            known = [g for g in recorded if between.first_ns <= g.first_ns and g.last_ns <= between.last_ns]
+            gaps += known or [between]
+    return merge_gaps(g for g in [*gaps, *recorded] if g.last_ns >= g.first_ns)
+
+
+def _segment_key(name: str) -> tuple[int, str]:
+    m = _SEGMENT.fullmatch(name)
+    return (int(m.group(2)) if m else -1, name)
 
 
 def repairable(directory: str | os.PathLike[str]) -> list[Path]:
@@ -222,15 +309,19 @@ def repairable(directory: str | os.PathLike[str]) -> list[Path]:
 
 
 def repair(directory: str | os.PathLike[str]) -> RepairResult:
-    """Rebuild a bag's ``metadata.yaml`` from the ``.mcap`` files present.
+    """Rebuild a bag's ``metadata.yaml`` from the ``.mcap`` files present; record what is lost.
 
-    Finished files are listed as they are. An unfinished file (no footer, as a SIGKILL
-    leaves the open segment) is read up to its first incomplete chunk; if that yields
-    messages it is rewritten as a finished file (the original kept as
-    ``<file>.truncated``), else it is renamed to ``<file>.truncated``. ``custom_data``
-    comes from the old ``metadata.yaml`` if it is readable, else from the files' MCAP
-    metadata records; ``folder_line.repair`` records what was done. The result is
-    checked by opening the bag with rosbags.
+    Every file is read chunk by chunk, each chunk checked against its CRC (:func:`_read`). A
+    whole finished file is listed as it is. An unfinished file (no footer, as a SIGKILL leaves
+    the open segment) is read up to its first incomplete record, and a chunk whose checksum
+    fails is dropped: such a file is rewritten as a finished file of what is whole (the
+    original kept as ``<file>.truncated``, or ``<file>.damaged`` for a finished one); one with
+    nothing whole is renamed to ``<file>.truncated`` and not listed. ``custom_data`` comes from
+    the old ``metadata.yaml`` if it is readable, else from the files' MCAP metadata records;
+    ``folder_line.repair`` records what was done, ``folder_line.gaps`` the line time lost
+    (:mod:`folder_line.bag.gaps`), and ``folder_line.complete`` is ``repaired`` unless the bag
+    was closed by its writer and nothing is lost. The result is checked by opening the bag with
+    rosbags.
 
     Raises
     ------
@@ -242,32 +333,28 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     paths = repairable(bag)
     result = RepairResult(metadata=bag / METADATA_FILE)
     # read everything first: a bag with nothing to salvage is left exactly as it was
-    found: list[tuple[Path, _Scan, tuple[list[Any], list[Any], int] | None]] = []
-    for path in paths:
-        scan = _scan_finished(path)
-        if scan is not None:
-            found.append((path, scan, None))
-        else:
-            scan, messages, metadata, good = _salvage(path)
-            found.append((path, scan, (messages, metadata, good)))
-    if not any(salvage is None or salvage[0] for _, _, salvage in found):
+    reads = [(path, _read(path)) for path in paths]
+    if not any(r.scan.count for _, r in reads):
         msg = f'{bag}: none of the {len(paths)} .mcap files holds a readable message (nothing was changed)'
         raise BagError(msg)
+    custom, listed = _old_metadata(bag)
+    result.missing = _missing(paths, listed)
+    result.gaps = _gaps(reads, result.missing, listed, _recorded_gaps(custom or {}))
     scans: list[tuple[Path, _Scan]] = []
-    for path, scan, salvage in found:
-        if salvage is not None:
-            messages, metadata, good = salvage
-            result.dropped[path.name] = path.stat().st_size - good
-            if messages:
-                _rewrite(path, scan, messages, metadata)
-                result.salvaged[path.name] = len(messages)
-            else:
+    for path, r in reads:
+        if r.damaged:
+            if not r.finished:
+                result.dropped[path.name] = path.stat().st_size - r.good
+            if r.lost:
+                result.bad_chunks[path.name] = len(r.lost)
+            if not r.messages:
                 os.replace(path, path.with_name(path.name + TRUNCATED_SUFFIX))
                 result.removed.append(path.name)
                 continue
-        scans.append((path, scan))
+            _rewrite(path, r.scan, r.messages, r.metadata, TRUNCATED_SUFFIX if not r.finished else DAMAGED_SUFFIX)
+            result.salvaged[path.name] = len(r.messages)
+        scans.append((path, r.scan))
 
-    custom = _old_custom(bag)
     if custom is None:
         custom = next((dict(s.custom) for _, s in scans if s.custom is not None), {})
     topics: dict[str, TopicSummary] = {}
@@ -283,12 +370,23 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
             )
         meta.add_file(FileSummary(path.name, scan.start_ns, scan.end_ns, scan.count))
     result.files = list(meta.files)
-    if custom.get(KEY_COMPLETE) != 'true':
+    lossless = not (result.gaps or result.missing or result.bad_chunks)
+    if not (custom.get(KEY_COMPLETE) == 'true' and lossless):
         custom[KEY_COMPLETE] = 'repaired'
+    if result.gaps:  # a second repair keeps the first's
+        custom[KEY_GAPS] = format_gaps(result.gaps)
     custom[KEY_REPAIR] = result.describe()
     write_text_atomic(result.metadata, meta.render(topics, custom))
     open_each(bag)
     return result
+
+
+def _recorded_gaps(custom: dict[str, str]) -> list[Gap]:
+    """The gaps ``custom`` records already, none if it records none or nothing readable."""
+    try:
+        return read_gaps(custom)
+    except BagError:
+        return []
 
 
 def repair_bag(directory: str | os.PathLike[str]) -> Path:

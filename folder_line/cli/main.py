@@ -61,6 +61,7 @@ _OUTPUT_OPTION = {
     'sweep': '--out',
     'solve': '--json',
     'scenes': 'stdout',
+    'profile': 'stdout',
     'animate': '--out',
     **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
     'tune': 'stdout',
@@ -210,6 +211,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_marker_rate(sim, 'with --bag: ', given_only=True)
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
+    sub.add_parser(
+        'profile',
+        help="print the path of the line's Fast DDS profile for FOLDER_LINE_KEY (writing it if needed), for ros2 "
+        'tools that must reach a closed line: FASTDDS_DEFAULT_PROFILES_FILE=$(folder-line profile) ros2 param set ...',
+    )
 
     run = sub.add_parser('run', help='run the line as ROS 2 nodes over DDS for a while, then report')
     add_scene_arguments(run, 20.0)
@@ -594,6 +600,24 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_profile(args: argparse.Namespace) -> int:
+    from folder_line.ros.dds_profile import line_partition, use_line_profile
+    from folder_line.ros.line_key import KEY_VARIABLE
+
+    env = dict(os.environ)
+    if not env.get(KEY_VARIABLE, '').strip():
+        _error(f'{KEY_VARIABLE} is not set: give the key of the line (folder-line run prints it)')
+        return EXIT_USAGE
+    env.pop('FASTDDS_DEFAULT_PROFILES_FILE', None)  # the line's own, not the one this shell may name
+    env.pop('FASTRTPS_DEFAULT_PROFILES_FILE', None)
+    path = use_line_profile(env)
+    if path is None or line_partition(env) is None:
+        _error(f'RMW_IMPLEMENTATION={env.get("RMW_IMPLEMENTATION")}: the line key needs rmw_fastrtps_cpp')
+        return EXIT_USAGE
+    print(path)
+    return 0
+
+
 def _cmd_scenes(args: argparse.Namespace) -> int:
     keys.print_scenes(sys.stdout)
     return 0
@@ -667,6 +691,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
+        'profile': _cmd_profile,
         'animate': animate_cli.run,
         **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),
         'tune': _cmd_tune,

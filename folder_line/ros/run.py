@@ -112,7 +112,7 @@ def _clear_previous_bag(path: Path) -> None:
     if not path.exists():
         return
     ours = path.is_dir() and all(
-        p.is_file() and (p.name == 'metadata.yaml' or p.suffix in ('.mcap', '.truncated', '.tmp'))
+        p.is_file() and (p.name == 'metadata.yaml' or p.suffix in ('.mcap', '.truncated', '.damaged', '.tmp'))
         for p in path.iterdir()
     )
     if not ours:

@@ -580,3 +580,19 @@ def test_over_udp_a_lost_sample_is_repaired_at_the_next_heartbeat_and_a_cut_is_w
         f'{len(into_cut)} published into the {CUT:g} s cut arrived {min(received[n] for n in into_cut) - healed_at:.3f}'
         f'..{max(received[n] for n in into_cut) - healed_at:.3f} s after it; {cut_datagrams} datagrams cut'
     )
+
+
+def test_folder_line_profile_prints_the_keys_profile(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from folder_line.cli.main import main
+
+    monkeypatch.setenv(KEY_VARIABLE, KEY)
+    monkeypatch.setenv(PROFILES_FILE_VARIABLE, '/nowhere/else.xml')  # the shell's own is not the line's
+    assert main(['profile']) == 0
+    path = Path(capsys.readouterr().out.strip())
+    assert path.is_file() and _partitions(path)['folder_line_reader'] == partition_name(bytes.fromhex(KEY))
+    monkeypatch.delenv(KEY_VARIABLE)
+    assert main(['profile']) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith(f'folder-line: error: {KEY_VARIABLE} is not set')
