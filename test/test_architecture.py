@@ -158,7 +158,7 @@ FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
     ('cli/main.py', 'folder_line.cli.monitor'): 'loads rclpy: only `folder-line monitor` needs DDS',
     ('cli/main.py', 'folder_line.ros.operator'): 'loads rclpy: only the operator commands need DDS',
     ('cli/main.py', 'folder_line.ros.dds_profile'): 'the ros package: only `folder-line profile` needs it',
-    ('cli/main.py', 'folder_line.ros.line_key'): 'the ros package: only `folder-line profile` needs it',
+    ('cli/main.py', 'folder_line.ros.line_key'): 'the ros package: only `profile` and the operators need it',
     ('cli/main.py', 'folder_line.cli.plots'): 'the analysis and the batch bag writer: only `simulate --plots` draws',
     ('analysis/figures.py', 'matplotlib'): 'slow to import, and the back end must be chosen before pyplot',
     ('analysis/figures.py', 'matplotlib.pyplot'): 'imported after matplotlib.use("Agg")',

@@ -523,6 +523,15 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     return run_monitor(rate=args.rate, once=args.once, window=args.window, timeout=args.timeout)
 
 
+def _key_hint() -> str:
+    """Which line key this process has: a closed line answers only a caller with its own."""
+    from folder_line.ros.line_key import KEY_VARIABLE
+
+    if os.environ.get(KEY_VARIABLE, '').strip():
+        return f'with this {KEY_VARIABLE}'
+    return f'and open? A line started by folder-line run is closed: give its {KEY_VARIABLE}'
+
+
 def _cmd_operator(args: argparse.Namespace) -> int:
     from folder_line.ros.operator import call_command  # loads rclpy: only the verbs that use DDS need it
 
@@ -531,7 +540,7 @@ def _cmd_operator(args: argparse.Namespace) -> int:
         domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
         _error(
             f'{args.verb}: no supervisor answered /line/supervisor/{args.verb} on ROS domain {domain} within '
-            f'{args.timeout:g} s (is the line running, on this domain?)'
+            f'{args.timeout:g} s (is the line running, on this domain, {_key_hint()}?)'
         )
         return EXIT_NO_ANSWER
     print(f'{args.verb}: {"accepted" if answer.accepted else "refused"}: {answer.message}')
@@ -548,7 +557,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         node, _ = tunable_parameter(key)
         _error(
             f'tune: node /{node} did not answer on ROS domain {domain} within {args.timeout:g} s '
-            '(is the line running, on this domain?)'
+            f'(is the line running, on this domain, {_key_hint()}?)'
         )
         return EXIT_NO_ANSWER
     print(f'tune: {"accepted" if answer.accepted else "refused"}: {answer.message}')

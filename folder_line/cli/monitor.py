@@ -112,7 +112,7 @@ def _key(session: MonitorSession, operator: OperatorKeys, key: str) -> None:
 
 
 def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> int:
-    operator = state.operator = OperatorKeys()
+    operator = state.operator = OperatorKeys(keyed=bool(os.environ.get('FOLDER_LINE_KEY', '').strip()))
 
     def loop(stdscr: Any) -> int:
         with contextlib.suppress(curses.error):  # a terminal that cannot hide the cursor

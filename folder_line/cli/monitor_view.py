@@ -313,11 +313,14 @@ class OperatorKeys:
         What the view shows of it: the keys, a confirmation question, or the latest answer.
     pending : str or None
         A command waiting for its confirmation.
+    keyed : bool
+        The monitor has the line's key: a closed line answers only then (:mod:`folder_line.ros.line_key`).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, keyed: bool = True) -> None:
         self.pending: str | None = None
         self.line = ''
+        self.keyed = keyed
 
     @staticmethod
     def keys() -> str:
@@ -342,7 +345,9 @@ class OperatorKeys:
 
     def sent(self, command: str) -> None:
         """``command`` went out."""
-        self.line = f'{command}: sent, waiting for the supervisor'
+        self.line = f'{command}: sent, waiting for the supervisor' + (
+            '' if self.keyed else " (a closed line answers only a monitor started with the line's FOLDER_LINE_KEY)"
+        )
 
     def answer(self, command: str, accepted: bool, message: str) -> None:
         """The supervisor answered ``command``."""

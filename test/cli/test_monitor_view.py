@@ -35,3 +35,11 @@ def test_the_operator_row_is_shown_in_the_live_view_only() -> None:
     state.operator = OperatorKeys()
     lines = state.render(160)
     assert lines[2].startswith('operator keys: h hold')  # under the header, above the topics
+
+
+def test_a_monitor_without_the_line_key_says_why_a_closed_line_may_not_answer() -> None:
+    keyed, stranger = OperatorKeys(), OperatorKeys(keyed=False)
+    keyed.sent('hold')
+    stranger.sent('hold')
+    assert keyed.line == 'hold: sent, waiting for the supervisor'
+    assert stranger.line.startswith(keyed.line) and 'FOLDER_LINE_KEY' in stranger.line

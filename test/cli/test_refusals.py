@@ -104,3 +104,35 @@ def test_a_motor_step_that_would_run_for_hours_is_refused_before_any_work(
     assert line.startswith('folder-line: error: effects.motor_dynamics.h=1e-09: asks for ~1.94e+09 steps before')
     assert line.endswith('at most max_steps=20000000: use h >= 9.69e-08 s')
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ('scene', 'setting', 'named'),
+    [
+        # the issue's: tracebacks (non-finite summary figures, an OverflowError) and a hang
+        ('folder', 'cyclogram.D_fc=5e-324', 'cyclogram.D_fc=5e-324: must be in [0.0001, 100] m'),
+        ('folder', 'cyclogram.L_feed=1e308', 'cyclogram.L_feed=1e+308: must be in [0.0001, 100] m'),
+        ('folder', 'stop_bounce.a_f=5e-324', 'effects.stop_bounce.a_f=5e-324: must be in [1, 1000000] m/s²'),
+        ('line', 'chain_friction.r=5e-324', 'effects.chain_friction.r=5e-324: must be in [0.001, 10] m'),
+        ('line', 'delivery.Lambda=1e308', 'delivery.Lambda=1e+308: makes the delivery stroke'),
+        ('line', 'delivery.Lambda=1e10', 'delivery.Lambda=10000000000.0: makes the delivery stroke 6e+09 m'),
+        ('line', 'delivery_chain.pitch=1e308', 'delivery_chain.pitch=1e+308: drives the chain at pitch / T = inf'),
+        # found by trying every numeric key at 5e-324, 1e-9, 1e9 and 1e308
+        ('line', 'delivery_chain.pitch=1e-4', 'delivery_chain.pitch=0.0001: puts 6653 carriages'),
+        ('line', 'delivery_chain.x_max=5e-324', 'delivery_chain.x_max=5e-324: must be in [0.0001, 100] m'),
+        ('line', 'delivery.alpha_m_deg=5e-324', 'delivery.alpha_m_deg=5e-324: with delivery.Lambda=0.4'),
+        ('line', 'motor_dynamics.J=5e-324', 'effects.motor_dynamics.J=5e-324: must be in [1e-06, 100000] kg m²'),
+        ('line', 'motor_dynamics.T_0=1e308', 'effects.motor_dynamics.T_0=1e+308: must be in [0.001, 10000000] N m'),
+        ('line', 'motor_dynamics.b=1e308', 'effects.motor_dynamics.b=1e+308: must be in [0, 100000] N m s'),
+        ('layup', 'sheets.phase=1e308', 'sheets.phase=1e+308: must be'),
+        ('layup', 'layup.l4=1e308', 'a link too extreme (layup.l3=1, layup.l4=1e+308'),
+    ],
+)
+def test_an_extreme_scene_value_is_refused_in_one_line_naming_its_key(
+    scene: str, setting: str, named: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--scene', scene, '--duration', '1', '--set', setting, '--bag', str(bag)]) == 2
+    line = one_error_line(capsys)
+    assert line.startswith('folder-line: error: ') and named in line, line
+    assert not bag.exists()  # before any work

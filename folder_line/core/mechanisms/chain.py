@@ -325,7 +325,8 @@ the chain load sums over every one at every step, so the work grows with it (752
 @functools.lru_cache(maxsize=32)
 def _schedule(delivery: DeliveryParams, chain: ChainParams, knife: knife_mod.KnifeParams) -> ChainSchedule:
     T = 2.0 * math.pi / knife.omega_k  # as folder_line.core.mechanisms.cyclogram.cycle_timing, bit for bit
-    S = _path(delivery, chain).length
+    with np.errstate(over='ignore', invalid='ignore'):  # a non-finite length is refused just below
+        S = _path(delivery, chain).length
     if not math.isfinite(S) or S > MAX_STROKE:
         reason = (
             f'makes the delivery stroke {S:.4g} m of chain long (a guide Lambda x_max high); at most {MAX_STROKE:g} m'

@@ -837,7 +837,8 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
     """
     model = LayupModel(params)
     phis = np.arange(n) * (TAU / n)
-    discs = model.discriminants(phis)
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):  # a non-finite one is refused below
+        discs = model.discriminants(phis)
     result: list[float] = []
     for k, name in enumerate((LOOP1, LOOP2)):
         D = discs[k]
@@ -845,10 +846,12 @@ def check_assembly(params: LayupParams, n: int = ASSEMBLY_SAMPLES) -> AssemblyMa
         def f(x: float, k: int = k) -> float:
             return model.discriminants_scalar(x)[k]
 
-        if not np.all(np.isfinite(D)):  # lengths so large (~1e154 m and up) that their squares overflow
+        if not np.all(np.isfinite(D)):  # a length so extreme (~1e154 m and up, ~1e-154 m down) the arithmetic fails
             bad = float(D[~np.isfinite(D)][0])
+            links = ('R_kr', 'a', 'b', 'l2', 'O2B') if k == 0 else ('l3', 'l4', 'l5', 'O2O3')
+            given = ', '.join(f'layup.{f}={getattr(params, f):g}' for f in links)
             raise AssemblyError(
-                name, 0.0, f'cannot be computed: its normalised discriminant is {bad} (the links overflow)'
+                name, 0.0, f'cannot be computed: its normalised discriminant is {bad}, a link too extreme ({given})'
             )
         neg = D < 0.0
         if neg.all():
