@@ -18,9 +18,11 @@ from folder_line.errors import ParameterError
 
 __all__ = [
     'BOUNCE_DECELERATION',
+    'CARRIAGE_FORCE',
     'CRANK_SPEED',
     'CYLINDER_SPEED',
     'DURATION',
+    'FRICTION_COEFFICIENT',
     'KNIFE_SPEED',
     'LINE_DAMPING',
     'LIMITS',
@@ -31,6 +33,7 @@ __all__ = [
     'MOTOR_SPEED',
     'MOTOR_TORQUE',
     'PILE_LOWERING',
+    'REST_SPEED',
     'RTF',
     'SAMPLE_RATE',
     'SHEET_INTERVAL',
@@ -205,6 +208,27 @@ LINE_DAMPING = Limit(
     'N m s',
     'none, up to a load that would brake 1e7 N m at 100 rad/s',
 )
+FRICTION_COEFFICIENT = Limit(
+    'kinetic friction coefficient of the signature on the feed belt (`feed_slip.mu`)',
+    1e-3,
+    10.0,
+    '',
+    'from ice on steel to a gripping belt',
+)
+REST_SPEED = Limit(
+    'speed below which an impact at the stops does not rebound (`stop_bounce.v_rest`)',
+    1e-6,
+    100.0,
+    'm/s',
+    'a micrometre per second to ten times the fastest belt: the rebounds are counted down to it',
+)
+CARRIAGE_FORCE = Limit(
+    'useful force of a delivery carriage on the stroke (`chain_friction.P_k`)',
+    0.0,
+    1e6,
+    'N',
+    'none, to a hundred tonnes',
+)
 
 #: every limit, for the README table and the tests
 LIMITS: dict[str, Limit] = {
@@ -226,4 +250,7 @@ LIMITS: dict[str, Limit] = {
     'motor_inertia': MOTOR_INERTIA,
     'motor_torque': MOTOR_TORQUE,
     'line_damping': LINE_DAMPING,
+    'friction_coefficient': FRICTION_COEFFICIENT,
+    'rest_speed': REST_SPEED,
+    'carriage_force': CARRIAGE_FORCE,
 }

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.limits import MOTOR_SPEED, SPROCKET_RADIUS
+from folder_line.core.limits import CARRIAGE_FORCE, MOTOR_SPEED, SPROCKET_RADIUS
 from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule, chain_path, schedule
 from folder_line.core.mechanisms.delivery import (
     RETURN_SECTIONS,
@@ -61,7 +61,7 @@ from folder_line.core.mechanisms.delivery import (
 )
 from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
-from folder_line.core.numerics.validate import among, check_fields, non_negative
+from folder_line.core.numerics.validate import among, check_fields
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
@@ -89,7 +89,7 @@ class Params:
     Attributes
     ----------
     P_k : float
-        Useful carriage force on the stroke, N (>= 0).
+        Useful carriage force on the stroke, N, in [0, 1e6] (:data:`folder_line.core.limits.CARRIAGE_FORCE`).
     r : float
         Sprocket radius, m, in [0.001, 10] (:data:`folder_line.core.limits.SPROCKET_RADIUS`).
     return_section : {'geometric', 'paper_mirror'}
@@ -106,7 +106,7 @@ class Params:
         check_fields(
             self,
             'effects.chain_friction',
-            P_k=non_negative,
+            P_k=CARRIAGE_FORCE.check,
             r=SPROCKET_RADIUS.check,
             return_section=among(RETURN_SECTIONS),
         )

@@ -54,8 +54,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.limits import FRICTION_COEFFICIENT
 from folder_line.core.numerics.constants import G
-from folder_line.core.numerics.validate import check_fields, non_negative, positive, within
+from folder_line.core.numerics.validate import check_fields, non_negative, positive
 from folder_line.errors import ParameterError
 
 __all__ = ['Params', 'SlipArrival', 'accel', 'arrival', 'min_belt_speed', 'slip_cost']
@@ -68,7 +69,8 @@ class Params:
     Attributes
     ----------
     mu : float
-        Kinetic friction coefficient signature/belt, dimensionless, in (0, 10].
+        Kinetic friction coefficient signature/belt, dimensionless, in [0.001, 10]
+        (:data:`folder_line.core.limits.FRICTION_COEFFICIENT`).
     p : float
         Hold-down force pressing the signature on the belt, N (>= 0).
     m : float
@@ -80,7 +82,7 @@ class Params:
     m: float
 
     def __post_init__(self) -> None:
-        check_fields(self, 'effects.feed_slip', mu=within(0.0, 10.0, lo_open=True), p=non_negative, m=positive)
+        check_fields(self, 'effects.feed_slip', mu=FRICTION_COEFFICIENT.check, p=non_negative, m=positive)
         if not math.isfinite(self.accel) or self.accel > 1e9:
             raise ParameterError(
                 'effects.feed_slip.p',

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.limits import BOUNCE_DECELERATION
+from folder_line.core.limits import BOUNCE_DECELERATION, REST_SPEED
 from folder_line.core.numerics.validate import check_fields, positive, within
 from folder_line.errors import ParameterError
 
@@ -82,7 +82,8 @@ class Params:
     tolerance : float
         Largest admissible rebound distance (fold tolerance), m (> 0).
     v_rest : float
-        Impacts slower than this do not rebound, m/s (> 0).
+        Impacts slower than this do not rebound, m/s, in [1e-6, 100]
+        (:data:`folder_line.core.limits.REST_SPEED`).
     """
 
     e: float
@@ -97,7 +98,7 @@ class Params:
             e=within(0.0, 1.0, hi_open=True),
             a_f=BOUNCE_DECELERATION.check,
             tolerance=positive,
-            v_rest=positive,
+            v_rest=REST_SPEED.check,
         )
 
 
