@@ -4,6 +4,7 @@ and nothing touched (issue 25's "smaller faults")."""
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
 
@@ -136,3 +137,37 @@ def test_an_extreme_scene_value_is_refused_in_one_line_naming_its_key(
     line = one_error_line(capsys)
     assert line.startswith('folder-line: error: ') and named in line, line
     assert not bag.exists()  # before any work
+
+
+def _extremes(scene: str) -> list[tuple[str, str]]:
+    """Every numeric ``--set`` key of ``scene`` whose range is open at an end, with the most extreme float there."""
+    from folder_line.config.keys import scene_keys
+    from folder_line.config.scenes import scene_mapping
+
+    out = []
+    for info in scene_keys(scene_mapping(scene)):
+        if info.choices or not info.has_range or info.whole:
+            continue
+        if info.lo == 0.0 and info.lo_open:
+            out.append((info.key, '5e-324'))
+        if info.hi == math.inf:
+            out.append((info.key, '1e308'))
+    return out
+
+
+@pytest.mark.parametrize(
+    ('scene', 'key', 'value'), [(scene, *kv) for scene in ('folder', 'line', 'layup') for kv in _extremes(scene)]
+)
+def test_every_extreme_of_an_open_range_runs_clean_or_is_refused_in_one_line(
+    scene: str, key: str, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each scene at the smallest positive and the largest float of each open range of its keys: a run with
+    nothing on stderr (no numpy warning, no traceback), or exit 2 with one line that names a key."""
+    code = main(['simulate', '--scene', scene, '--duration', '1', '--set', f'{key}={value}'])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code in (0, 2), (code, err)
+    if code == 0:
+        assert err == []
+    else:
+        (line,) = err
+        assert line.startswith('folder-line: error: ') and '=' in line, line
