@@ -394,7 +394,10 @@ class LineClock(Node):
         )
 
     def _look_for_strangers(self) -> None:
-        """Name, once per node and topic, the publishers on the line's topics that are not the line's nodes."""
+        """Name, once per node and topic, the publishers on the line's topics that are not the line's nodes
+        (while the line runs: the recorder takes the status into the bag)."""
+        if self.done.done():
+            return
         found = foreign_publishers(self)
         new = {who: topics - self.strangers.get(who, set()) for who, topics in found.items()}
         new = {who: topics for who, topics in new.items() if topics}
