@@ -334,7 +334,7 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     result = RepairResult(metadata=bag / METADATA_FILE)
     # read everything first: a bag with nothing to salvage is left exactly as it was
     reads = [(path, _read(path)) for path in paths]
-    if not any(r.scan.count for _, r in reads):
+    if not any(r.scan.count or not r.damaged for _, r in reads):  # a whole file, even empty, is a bag
         msg = f'{bag}: none of the {len(paths)} .mcap files holds a readable message (nothing was changed)'
         raise BagError(msg)
     custom, listed = _old_metadata(bag)
