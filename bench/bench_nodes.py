@@ -32,9 +32,9 @@ What is measured
   loss on every link. CPU per tick is every process's.
 
 * **The key** (``--key``): what closing the line to strangers costs. The in-process line at
-  200 Hz, in child processes that alternate: *closed* (the line's key and partition, the
-  default) and *open* (a profiles file of the user's own: no partition), three of each;
-  medians of rtf and CPU per tick, and their ratios.
+  200 Hz, in child processes that alternate: *closed* (the line's key: its partition and its
+  signatures, the default) and *open* (no key and a profiles file of the user's own: no
+  partition, nothing signed), three of each; medians of rtf and CPU per tick, and their ratios.
 
 Under load: run it with two busy loops on both cores (``timeout 600 sh -c 'while :; do
 :; done' &`` twice) to see sim time slow down while the recorded answer stays the same.
@@ -67,7 +67,8 @@ if __name__ == '__main__':
     from folder_line.ros.dds_profile import use_line_profile
     from folder_line.ros.line_key import ensure_key
 
-    ensure_key(os.environ)  # one line key for this process and its children (the lines run here are closed)
+    if '--key-role' not in sys.argv:  # (a run of --key takes the key, or none, from its parent)
+        ensure_key(os.environ)  # one line key for this process and its children (the lines run here are closed)
     use_line_profile()  # the floors run with the line's Fast DDS profile, as the line does
 
 
@@ -374,8 +375,11 @@ def main() -> int:
         _floor_role(role, int(n), int(fanout[0]) if fanout else 0)
         return 0
     if args.key_role:
+        from folder_line.ros.signing import line_signer
+
+        signer = line_signer()  # read once, now: without a key in the environment, this process signs nothing
         cpu, rtf, s = _run(args.key_role, 200.0, False)
-        print(json.dumps({'cpu': cpu, 'rtf': rtf, 'partition': s.get('partition')}))
+        print(json.dumps({'cpu': cpu, 'rtf': rtf, 'partition': s.get('partition'), 'signed': signer.keyed}))
         return 0
     span = 2.0 if args.quick else 10.0
     if args.key:
@@ -428,6 +432,7 @@ def main() -> int:
 def key_cost(span: float, repeats: int = 3) -> int:
     """``--key``: the in-process line closed and open, alternating, each in a process of its own."""
     from folder_line.ros.dds_profile import PROFILE_FILE, PROFILES_FILE_VARIABLE
+    from folder_line.ros.line_key import KEY_VARIABLE, new_key
 
     results: dict[str, list[dict[str, float]]] = {'closed': [], 'open': []}
     with tempfile.TemporaryDirectory(prefix='bench_key_') as tmp:
@@ -436,8 +441,10 @@ def key_cost(span: float, repeats: int = 3) -> int:
         for _ in range(repeats):
             for how in ('closed', 'open'):
                 env = dict(os.environ)
-                if how == 'open':
+                env.setdefault(KEY_VARIABLE, new_key())
+                if how == 'open':  # no partition, no signatures (run makes a key only after the signer is read)
                     env[PROFILES_FILE_VARIABLE] = str(own)
+                    env.pop(KEY_VARIABLE)
                 done = subprocess.run(
                     [sys.executable, __file__, '--key-role', str(span)],
                     env=env,
@@ -445,7 +452,9 @@ def key_cost(span: float, repeats: int = 3) -> int:
                     text=True,
                     check=True,
                 )
-                results[how].append(json.loads(done.stdout.strip().splitlines()[-1]))
+                result = json.loads(done.stdout.strip().splitlines()[-1])
+                assert result['signed'] == (how == 'closed') and bool(result['partition']) == (how == 'closed'), result
+                results[how].append(result)
     med = {how: {k: statistics.median(r[k] for r in rs) for k in ('cpu', 'rtf')} for how, rs in results.items()}
     print(f'in process, 200 Hz, {span:g} s of line time, {repeats} runs of each, alternating; medians:')
     print('| line | rtf reached | CPU per tick |')

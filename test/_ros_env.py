@@ -46,6 +46,15 @@ def node_environment() -> dict[str, str]:
     return env
 
 
+def sniffer_environment() -> dict[str, str]:
+    """:func:`node_environment` without the line's key but with its DDS profile (its partition): a process
+    of someone who read the partition's name off the network."""
+    env = node_environment()
+    env.pop(KEY_VARIABLE)
+    assert env[PROFILES_FILE_VARIABLE] != str(PROFILE_FILE)  # the line's keyed profile
+    return env
+
+
 def stranger_environment() -> dict[str, str]:
     """:func:`node_environment` without the line's key: a process on the same domain that is not of the line."""
     env = node_environment()

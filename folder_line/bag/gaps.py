@@ -70,17 +70,20 @@ def read_gaps(custom: Mapping[str, str]) -> list[Gap]:
         return []
     try:
         pairs = json.loads(text)
-        ok = isinstance(pairs, list) and len(pairs) <= _MAX_GAPS
-        gaps = [Gap(int(a), int(b)) for a, b in pairs] if ok else []
-        ok = ok and all(
-            type(a) is int and type(b) is int and 0 <= a <= b for a, b in pairs
+    except ValueError:
+        pairs = None
+    ok = (
+        isinstance(pairs, list)
+        and len(pairs) <= _MAX_GAPS
+        and all(
+            isinstance(pair, list) and len(pair) == 2 and all(type(v) is int for v in pair) and 0 <= pair[0] <= pair[1]
+            for pair in pairs
         )  # no bool, no float, in order
-    except (ValueError, TypeError):
-        ok = False
+    )
     if not ok:
         msg = f'custom_data {KEY_GAPS}={text[:80]!r}: not a list of [first_ns, last_ns] integer pairs'
         raise BagError(msg)
-    return merge_gaps(gaps)
+    return merge_gaps(Gap(a, b) for a, b in pairs)
 
 
 def describe_gaps(gaps: Iterable[Gap]) -> str:

@@ -89,6 +89,8 @@ class RepairResult:
         the old ``metadata.yaml``).
     gaps : list of Gap
         Line time whose messages were lost, merged (:mod:`folder_line.bag.gaps`).
+    unreadable : str
+        The old ``metadata.yaml``'s gaps, when they could not be read (then not kept), else ''.
     """
 
     metadata: Path
@@ -99,6 +101,7 @@ class RepairResult:
     bad_chunks: dict[str, int] = field(default_factory=dict)
     missing: list[str] = field(default_factory=list)
     gaps: list[Gap] = field(default_factory=list)
+    unreadable: str = ''
 
     def describe(self) -> str:
         """One line: what was listed, salvaged and dropped, and the gaps left."""
@@ -114,6 +117,8 @@ class RepairResult:
             parts.append('missing ' + ', '.join(self.missing))
         if self.gaps:
             parts.append(describe_gaps(self.gaps))
+        if self.unreadable:
+            parts.append(f'the old gaps could not be read, and were not kept: {self.unreadable}')
         if len(parts) == 1:
             parts.append('nothing dropped')
         return '; '.join(parts)
@@ -156,13 +161,16 @@ class _Read:
         return not self.finished or bool(self.lost)
 
 
-def _read(path: Path) -> _Read:
+def _read(path: Path, keep: bool = False) -> _Read:
     """Every readable record of ``path`` up to its first unreadable one; a chunk whose CRC fails is
-    skipped (its span noted), the records after it are read on."""
+    skipped (its span noted), the records after it are read on. The messages are kept only if ``keep``
+    (to rewrite a damaged file): an intact file is only counted, chunk by chunk."""
     scan = _Scan()
     messages: list[Any] = []
     metadata: list[Any] = []
     lost: list[Gap] = []
+    counts: dict[int, int] = {}
+    spans: dict[int, tuple[int, int]] = {}  # channel id -> first and last log time of its messages
     good = 0
     finished = footer = False
 
@@ -172,7 +180,12 @@ def _read(path: Path) -> _Read:
         elif isinstance(record, Channel):
             scan.channels[record.id] = record
         elif isinstance(record, Message):
-            messages.append(record)
+            cid, t = record.channel_id, record.log_time
+            counts[cid] = counts.get(cid, 0) + 1
+            first, last = spans.get(cid, (t, t))
+            spans[cid] = (min(first, t), max(last, t))
+            if keep:
+                messages.append(record)
         elif isinstance(record, Metadata):
             metadata.append(record)
             scan.note_metadata(record)
@@ -198,11 +211,11 @@ def _read(path: Path) -> _Read:
         except _READ_ERRORS:
             pass
     messages = [m for m in messages if m.channel_id in scan.channels]
-    for m in messages:
-        scan.counts[m.channel_id] = scan.counts.get(m.channel_id, 0) + 1
-    if messages:
-        scan.start_ns = min(m.log_time for m in messages)
-        scan.end_ns = max(m.log_time for m in messages)
+    scan.counts = {cid: n for cid, n in counts.items() if cid in scan.channels}
+    known = [span for cid, span in spans.items() if cid in scan.channels]
+    if known:
+        scan.start_ns = min(first for first, _ in known)
+        scan.end_ns = max(last for _, last in known)
     return _Read(scan, messages, metadata, good, finished, lost)
 
 
@@ -334,12 +347,17 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     result = RepairResult(metadata=bag / METADATA_FILE)
     # read everything first: a bag with nothing to salvage is left exactly as it was
     reads = [(path, _read(path)) for path in paths]
+    reads = [(path, _read(path, keep=True) if r.damaged else r) for path, r in reads]  # to rewrite it
     if not any(r.scan.count or not r.damaged for _, r in reads):  # a whole file, even empty, is a bag
         msg = f'{bag}: none of the {len(paths)} .mcap files holds a readable message (nothing was changed)'
         raise BagError(msg)
     custom, listed = _old_metadata(bag)
     result.missing = _missing(paths, listed)
-    result.gaps = _gaps(reads, result.missing, listed, _recorded_gaps(custom or {}))
+    try:
+        recorded = read_gaps(custom or {})
+    except BagError as err:  # named in folder_line.repair, not kept
+        recorded, result.unreadable = [], str(err)
+    result.gaps = _gaps(reads, result.missing, listed, recorded)
     scans: list[tuple[Path, _Scan]] = []
     for path, r in reads:
         if r.damaged:
@@ -379,14 +397,6 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     write_text_atomic(result.metadata, meta.render(topics, custom))
     open_each(bag)
     return result
-
-
-def _recorded_gaps(custom: dict[str, str]) -> list[Gap]:
-    """The gaps ``custom`` records already, none if it records none or nothing readable."""
-    try:
-        return read_gaps(custom)
-    except BagError:
-        return []
 
 
 def repair_bag(directory: str | os.PathLike[str]) -> Path:

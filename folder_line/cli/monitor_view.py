@@ -44,6 +44,7 @@ from folder_line.interfaces import (
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
 )
+from folder_line.ros.signing import without_signature
 
 __all__ = [
     'CONFIRM',
@@ -482,11 +483,12 @@ class MonitorState:
             return f'{self.landing_x:.4f} m'
         if topic == COMMANDS_TOPIC:
             t = _stamp_s(msg.time_ref)
-            self.commands.append((msg.source, t))
+            source = without_signature(msg.source)
+            self.commands.append((source, t))
             del self.commands[:-8]
-            return f'{msg.source} effective at {t:.3f} s'
+            return f'{source} effective at {t:.3f} s'
         if topic == PARTICIPANTS_TOPIC:  # 'clock=lockstep end=... participants=a,b'
-            fields = dict(item.partition('=')[::2] for item in str(msg.data).split())
+            fields = dict(item.partition('=')[::2] for item in without_signature(str(msg.data)).split())
             names = [n for n in fields.get('participants', '').split(',') if n]
             return f'{fields.get("clock", "?")} clock, {len(names)} participants'
         if topic == MARKERS_TOPIC:  # the machine drawn: how many markers, of which stamp

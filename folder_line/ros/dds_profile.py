@@ -185,10 +185,14 @@ def line_profile_text(partition: str) -> str:
     return ET.tostring(root, encoding='unicode', xml_declaration=True)
 
 
+def _profile_folder() -> Path:
+    """Where this user's line profiles go: ``folder_line-<uid>`` in ``XDG_RUNTIME_DIR`` or the temp folder."""
+    return Path(os.environ.get('XDG_RUNTIME_DIR') or tempfile.gettempdir()) / f'folder_line-{os.getuid()}'
+
+
 def _profile_dir() -> Path:
-    """This user's folder of line profiles: ``folder_line-<uid>`` in ``XDG_RUNTIME_DIR`` or the temp folder, 0700."""
-    base = Path(os.environ.get('XDG_RUNTIME_DIR') or tempfile.gettempdir())
-    folder = base / f'folder_line-{os.getuid()}'
+    """:func:`_profile_folder`, made if missing (0700) and checked to be this user's alone: before a write."""
+    folder = _profile_folder()
     folder.mkdir(mode=0o700, exist_ok=True)
     st = os.lstat(folder)
     if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o077:
@@ -198,13 +202,13 @@ def _profile_dir() -> Path:
 
 
 def _profile_path(partition: str) -> Path:
-    return _profile_dir() / f'{partition}.xml'
+    return _profile_folder() / f'{partition}.xml'
 
 
 def _write_profile(partition: str) -> Path:
     """The profiles file of ``partition``, written (atomically: other processes may be reading it) unless it
     already holds what this version writes."""
-    path = _profile_path(partition)
+    path = _profile_dir() / f'{partition}.xml'
     text = line_profile_text(partition)
     with contextlib.suppress(OSError):
         if path.read_text(encoding='utf-8') == text:
@@ -218,7 +222,7 @@ def _write_profile(partition: str) -> Path:
 
 def _ours(path: str) -> bool:
     """Whether ``path`` is the shipped profile or one :func:`use_line_profile` wrote (not the user's own)."""
-    return Path(path) == PROFILE_FILE or Path(path).parent == _profile_dir()
+    return Path(path) == PROFILE_FILE or Path(path).parent == _profile_folder()
 
 
 def line_partition(environ: Mapping[str, str] = os.environ) -> str | None:

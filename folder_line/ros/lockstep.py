@@ -83,6 +83,7 @@ from folder_line.interfaces import (
     progress_topic,
     tick_done_topic,
 )
+from folder_line.ros.signing import open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import PUBLISH_DEPTH
 
@@ -106,6 +107,7 @@ __all__ = [
     'participant_names',
     'read_ack',
     'read_ticks',
+    'sign_ack',
 ]
 
 HEARTBEAT = 0.05  # wall s: a participant that waits repeats its latest acknowledgement this often
@@ -156,7 +158,7 @@ def format_grant(last: int, first: int, step: int) -> TimeReference:
     msg.header.stamp = ns_to_time_msg(last)
     msg.header.frame_id = 'line_clock'
     msg.time_ref = ns_to_time_msg(first)
-    msg.source = f'step={step}'
+    msg.source = sign_text(f'step={step}', 'grant', msg.header.frame_id, msg.header.stamp, msg.time_ref)
     return msg
 
 
@@ -167,9 +169,13 @@ def grant_ticks(msg: TimeReference, granted: int | None) -> list[int]:
     """
     if msg.header.frame_id != 'line_clock':
         raise ValueError(f'grant from {msg.header.frame_id[:40]!r}: only line_clock grants time')
-    key, _, value = msg.source.partition('=')
+    try:
+        source = open_text(msg.source, 'grant', msg.header.frame_id, msg.header.stamp, msg.time_ref)
+    except ValueError as err:
+        raise ValueError(f'grant: {err}') from None
+    key, _, value = source.partition('=')
     if key != 'step' or not value.isdigit() or not 0 < int(value) <= 1000 * NS_PER_S:
-        raise ValueError(f'grant source {msg.source[:40]!r}: must be step=<ns>')
+        raise ValueError(f'grant source {source[:40]!r}: must be step=<ns>')
     last, first, step = time_msg_to_ns(msg.header.stamp), time_msg_to_ns(msg.time_ref), int(value)
     if first > last:
         raise ValueError(f'grant of {last} ns whose step starts later, at {first} ns')
@@ -195,15 +201,20 @@ class Announcement:
 
 
 def format_announcement(a: Announcement) -> str:
-    """``'clock=lockstep end=20000000000 participants=crank_drive,supervisor'``."""
+    """``'clock=lockstep end=20000000000 participants=crank_drive,supervisor'``, signed on a keyed line
+    (:func:`folder_line.ros.signing.sign_text`)."""
     end = 'none' if a.end_ns is None else str(a.end_ns)
-    return f'clock={a.clock} end={end} participants={",".join(a.participants)}'
+    return sign_text(f'clock={a.clock} end={end} participants={",".join(a.participants)}', 'announcement')
 
 
 def parse_announcement(text: str) -> Announcement:
     """Inverse of :func:`format_announcement`; ``ValueError`` with the reason on anything else."""
     if len(text) > 1000:
         raise ValueError(f'announcement of {len(text)} characters (at most 1000)')
+    try:
+        text = open_text(text, 'announcement')
+    except ValueError as err:
+        raise ValueError(f'announcement: {err}') from None
     fields = dict(item.partition('=')[::2] for item in text.split())
     if set(fields) != {'clock', 'end', 'participants'}:
         raise ValueError(f'announcement {text[:80]!r}: needs exactly clock=, end= and participants=')
@@ -262,8 +273,8 @@ def read_ack(data: bytes) -> tuple[str, int, dict[str, int], int]:
     counts mapping may be shared between calls: read it, do not change it.
     """
     msg = _decode(data)
-    stamp = time_msg_to_ns(msg.header.stamp)
-    return msg.header.frame_id, stamp, _cached_counts(msg.source), time_msg_to_ns(msg.time_ref)
+    source = _open_ack(msg, 'progress')
+    return msg.header.frame_id, time_msg_to_ns(msg.header.stamp), _cached_counts(source), time_msg_to_ns(msg.time_ref)
 
 
 def read_ticks(data: bytes) -> tuple[str, list[tuple[int, dict[str, int]]], int]:
@@ -271,8 +282,21 @@ def read_ticks(data: bytes) -> tuple[str, list[tuple[int, dict[str, int]]], int]
     ticks it acknowledges, in order (:func:`folder_line.core.supervision.lockstep.parse_ticks`), and the
     promise of the last. ``ValueError`` with the reason, as :func:`read_ack`."""
     msg = _decode(data)
+    source = _open_ack(msg, 'tick_done')
     stamp = time_msg_to_ns(msg.header.stamp)
-    return msg.header.frame_id, parse_ticks(msg.source, stamp), time_msg_to_ns(msg.time_ref)
+    return msg.header.frame_id, parse_ticks(source, stamp), time_msg_to_ns(msg.time_ref)
+
+
+def _open_ack(msg: Any, kind: str) -> str:
+    try:
+        return open_text(msg.source, kind, msg.header.frame_id, msg.header.stamp, msg.time_ref)
+    except ValueError as err:
+        raise ValueError(f'{kind} of {msg.header.frame_id[:40]!r}: {err}') from None
+
+
+def sign_ack(msg: TimeReference, kind: str) -> None:
+    """Sign ``msg``, a ``progress`` or ``tick_done`` (``kind``) whose fields are all set, in place."""
+    msg.source = sign_text(msg.source, kind, msg.header.frame_id, msg.header.stamp, msg.time_ref)
 
 
 Depends = Callable[[Announcement], Mapping[str, tuple[str, ...]]]
@@ -574,6 +598,7 @@ class Participant:
         ack.header.stamp = ns_to_time_msg(stamp)
         ack.time_ref = ns_to_time_msg(max(stamp, self._promise(stamp)))
         ack.source = format_counts(self.counts)
+        sign_ack(ack, 'progress')
         if self._per_tick:
             self._ticks.append((stamp, dict(self.counts)))
         self._last_ack = ack
@@ -592,6 +617,7 @@ class Participant:
             batch.header.stamp = ack.header.stamp
             batch.time_ref = ack.time_ref
             batch.source = format_ticks(self._ticks)
+            sign_ack(batch, 'tick_done')
             self._ticks.clear()
             self._tick_pub.publish(batch)
             self.acknowledged += 1

@@ -18,6 +18,7 @@ import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import rclpy
 from rclpy.client import Client
@@ -32,6 +33,7 @@ from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import ParameterError
 from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
 from folder_line.ros.dds_profile import use_line_profile
+from folder_line.ros.signing import SIGNATURE_PARAMETER, line_signer, sign_request
 
 __all__ = ['COMMANDS', 'Answer', 'call_command', 'call_tune', 'service_name', 'tunable_parameter']
 
@@ -96,6 +98,30 @@ def _check_timeout(timeout: float) -> None:
         raise ParameterError('--timeout', timeout, 'must be > 0 s')
 
 
+def _set_signed(
+    node: Node, executor: SingleThreadedExecutor, target: str, parameters: list[Parameter[Any]], timeout: float
+) -> Answer | None:
+    """Set ``parameters`` of node ``target`` at once, signed on a keyed line
+    (:func:`folder_line.ros.signing.sign_request`): None when accepted, else the refusal (an empty
+    message: ``target`` did not answer within ``timeout``)."""
+    client = AsyncParameterClient(node, target)
+    if not _until(executor, client.services_are_ready, timeout):
+        return Answer(False, '')
+    if line_signer().keyed:
+        signature = sign_request(target, [(p.name, p.value) for p in parameters])
+        parameters = [*parameters, Parameter(SIGNATURE_PARAMETER, value=signature)]
+    future = client.set_parameters_atomically(parameters)
+    executor.spin_until_future_complete(future, timeout_sec=timeout)
+    if not future.done():
+        return Answer(False, '')
+    response = future.result()
+    assert response is not None
+    if not response.result.successful:
+        change = ', '.join(f'{p.name}={p.value!r}' for p in parameters if p.name != SIGNATURE_PARAMETER)
+        return Answer(False, f'/{target} {change}: {response.result.reason}')
+    return None
+
+
 def call_command(command: str, timeout: float = 5.0) -> Answer | None:
     """Call the supervisor's service ``command`` once; None if no supervisor answered within ``timeout``.
 
@@ -121,6 +147,10 @@ def call_command(command: str, timeout: float = 5.0) -> Answer | None:
         client: Client[Trigger.Request, Trigger.Response] = node.create_client(Trigger, service_name(command))
         if not _until(executor, client.service_is_ready, timeout):
             return None
+        if line_signer().keyed:  # a keyed line takes a command whose request is signed first
+            refused = _set_signed(node, executor, 'supervisor', [Parameter('operator_command', value=command)], timeout)
+            if refused is not None:
+                return refused if refused.message else None
         future = client.call_async(Trigger.Request())
         executor.spin_until_future_complete(future, timeout_sec=timeout)
         if not future.done():
@@ -155,18 +185,9 @@ def call_tune(key: str, value: float, timeout: float = 5.0) -> Answer | None:
     _check_timeout(timeout)
     target, param = tunable_parameter(key)
     with _session() as (node, executor):
-        client = AsyncParameterClient(node, target)
-        if not _until(executor, client.services_are_ready, timeout):
-            return None
-        future = client.set_parameters([Parameter(param, value=float(value))])
-        executor.spin_until_future_complete(future, timeout_sec=timeout)
-        if not future.done():
-            return None
-        response = future.result()
-        assert response is not None
-        (result,) = response.results
-        if not result.successful:
-            return Answer(False, f'/{target} {param}={float(value)!r}: {result.reason}')
+        refused = _set_signed(node, executor, target, [Parameter(param, value=float(value))], timeout)
+        if refused is not None:
+            return None if not refused.message else refused
         unit = TUNABLES[key].unit
         return Answer(
             True,

@@ -21,15 +21,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from folder_line.errors import FolderLineError, ParameterError
+from folder_line.ros.signing import SIGNATURE_PARAMETER, RequestGuard
 
 __all__ = [
     'CrossCheck',
     'ParamSpec',
     'ParamValue',
     'declare_parameters',
+    'guard_changes',
     'make_screen',
     'make_validator',
     'parameter_values',
+    'proposed_value',
     'sim_time_overrides',
     'starting_values',
 ]
@@ -246,13 +249,20 @@ def parameter_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
 class _Refused(Parameter[Any]):
     """Stand-in for a proposed value that its spec refuses (see :func:`make_screen`).
 
-    It carries the spec's default, so rclpy's own descriptor checks pass, and the
-    reason, which the validator then returns.
+    It carries the spec's default, so rclpy's own descriptor checks pass, the reason,
+    which the validator then returns, and the value proposed (:func:`proposed_value`).
     """
 
-    def __init__(self, spec: ParamSpec, reason: str) -> None:
+    def __init__(self, spec: ParamSpec, reason: str, proposed: object) -> None:
         super().__init__(spec.name, spec.type, spec.default)
         self.reason = reason
+        self.proposed = proposed
+
+
+def proposed_value(parameter: Parameter[Any]) -> object:
+    """The value proposed for ``parameter``, as the caller sent it, after :func:`make_screen` (which may
+    have put a stand-in in its place)."""
+    return parameter.proposed if isinstance(parameter, _Refused) else parameter.value
 
 
 def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter[Any]]], list[Parameter[Any]]]:
@@ -279,7 +289,7 @@ def make_screen(specs: Sequence[ParamSpec]) -> Callable[[list[Parameter[Any]]], 
                 try:
                     value = spec.check(parameter.value)
                 except ParameterError as err:
-                    parameter = _Refused(spec, str(err))
+                    parameter = _Refused(spec, str(err), parameter.value)
                 else:
                     if type(value) is not type(parameter.value):  # an integer for a float parameter
                         parameter = Parameter(parameter.name, spec.type, value)
@@ -337,7 +347,7 @@ def make_validator(
             try:
                 cross_check(values)
             except FolderLineError as err:
-                change = ', '.join(f'{p.name}={p.value!r}' for p in parameters)
+                change = ', '.join(f'{p.name}={p.value!r}' for p in parameters if p.name != SIGNATURE_PARAMETER)
                 return SetParametersResult(successful=False, reason=f'{change} rejected: {err}')
         return SetParametersResult(successful=True)
 
@@ -456,3 +466,29 @@ def sim_time_overrides(
     if not any(p.name == 'use_sim_time' for p in overrides):
         overrides.append(Parameter('use_sim_time', Parameter.Type.BOOL, use_sim_time))
     return overrides
+
+
+def guard_changes(node: Node) -> RequestGuard:
+    """Declare :data:`SIGNATURE_PARAMETER` on ``node`` and refuse, on a keyed line, every change of its
+    parameters from now on that it does not sign (:class:`RequestGuard`). Call it once the node has set
+    what it sets itself."""
+    guard = RequestGuard(node.get_name())
+    node.declare_parameter(
+        SIGNATURE_PARAMETER,
+        '',
+        ParameterDescriptor(
+            description='Signature of the latest change at run time on a keyed line, set with the change '
+            '(folder-line tune and hold sign theirs)'
+        ),
+    )
+
+    def check(parameters: list[Parameter[Any]]) -> SetParametersResult:
+        if not guard.signer.keyed:
+            return SetParametersResult(successful=True)
+        signature = next((p.value for p in parameters if p.name == SIGNATURE_PARAMETER), None)
+        values = [(p.name, proposed_value(p)) for p in parameters if p.name != SIGNATURE_PARAMETER]
+        why = guard.check(signature, values) if values else f'{SIGNATURE_PARAMETER} alone signs no change'
+        return SetParametersResult(successful=not why, reason=why)
+
+    node.add_on_set_parameters_callback(check)
+    return guard

@@ -55,6 +55,7 @@ from folder_line.interfaces import (
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
 from folder_line.ros.nodes.supervisor import STATE_QOS
+from folder_line.ros.signing import open_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
@@ -112,6 +113,10 @@ _READ_WHOLE = frozenset(
 )
 
 
+#: topics whose messages are signed on a keyed line (:mod:`folder_line.ros.signing`)
+_SIGNED = frozenset({COMMANDS_TOPIC, PARTICIPANTS_TOPIC})
+
+
 def _could_publish(producer: str, topic: str, msg: Any) -> bool:
     """Whether ``producer`` could have published ``msg``: only such messages count towards its ticks.
 
@@ -152,6 +157,9 @@ class LineRecorder(Node):
         self.lost: dict[str, float] = {}
         #: per topic, messages that arrived for ticks after the last one recorded (a stopped line), not recorded
         self.unrecorded: Counter[str] = Counter()
+        #: per topic, messages refused as unsigned on a keyed line (:mod:`folder_line.ros.signing`), not recorded
+        self.refused: Counter[str] = Counter()
+        self._commands_at: tuple[int, set[tuple[int, str]]] = (-1, set())  # the latest stamp of a command, its own
         #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
         self.write_error: OSError | None = None
         # the ERROR statuses seen (lost participants, violations, ...) and the operator's tunings
@@ -244,6 +252,11 @@ class LineRecorder(Node):
 
         def on_message(data: bytes) -> None:
             msg: Any = deserialize_message(data, cls) if whole else None
+            if topic in _SIGNED:  # recorded as what it says, without its signature (the bag is the key's)
+                opened = self._opened(topic, data, msg)
+                if opened is None:
+                    return
+                data = opened
             header = (
                 msg.header
                 if whole and hasattr(msg, 'header')
@@ -275,6 +288,37 @@ class LineRecorder(Node):
             self.lockstep.received(source, topic)
 
         return on_message
+
+    def _opened(self, topic: str, data: bytes, msg: Any) -> bytes | None:
+        """``data`` (message ``msg``, deserialized if not None) without its signature; None, counted in
+        :attr:`refused`, when the signature is missing or wrong on a keyed line."""
+        try:
+            if topic == COMMANDS_TOPIC:
+                source = open_text(msg.source, 'command', msg.header.frame_id, msg.header.stamp, msg.time_ref)
+                if not self._first_time(time_msg_to_ns(msg.header.stamp), (time_msg_to_ns(msg.time_ref), source)):
+                    self.refused[topic] += 1  # a command played again: the supervisor publishes each once
+                    return None
+                if source == msg.source:
+                    return data
+                msg.source = source
+                return bytes(serialize_message(msg))
+            text = deserialize_message(data, String).data
+            opened = open_text(text, 'announcement')
+            return data if opened == text else bytes(serialize_message(String(data=opened)))
+        except ValueError:
+            self.refused[topic] += 1
+            return None
+
+    def _first_time(self, stamp: int, command: tuple[int, str]) -> bool:
+        """Whether ``command`` (effective ns, source), stamped ``stamp`` (ns), is new: the supervisor stamps
+        its commands in order, so one stamped earlier than the latest, or seen at that stamp, is a copy."""
+        latest, seen = self._commands_at
+        if stamp < latest or (stamp == latest and command in seen):
+            return False
+        if stamp > latest:
+            self._commands_at = (stamp, set())
+        self._commands_at[1].add(command)
+        return True
 
     def _sink(self, topic: str, data: bytes, publish_ns: int) -> None:
         """Record at the latest tick; a message without a stamp of its own is stamped with it. A write the

@@ -55,7 +55,6 @@ from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.parameter import Parameter
 from rclpy.task import Future
-from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
 
 from folder_line.bag.statuses import accepted_tunings
@@ -71,7 +70,7 @@ from folder_line.interfaces import CLOCK_TOPIC, GRANT_TOPIC, KNOWN_PARTICIPANTS,
 from folder_line.progress import LineTimeProgress, logs_above
 from folder_line.ros.dds_profile import line_partition, use_line_profile
 from folder_line.ros.line_key import KEY_VARIABLE, ensure_key
-from folder_line.ros.lockstep import CLOCK_SUB_QOS, PARTICIPANTS_QOS
+from folder_line.ros.lockstep import PARTICIPANTS_QOS, parse_announcement
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
@@ -209,23 +208,25 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
 
 
 def same_key_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
-    """Another line with this line's key, in words, or None: a ``/line/participants`` or ``/clock`` message
-    heard within ``wait`` s. Lines with other keys are in other partitions: they neither reach this one
-    nor are reached by it, so they may run beside it."""
+    """Another line with this line's key, in words, or None: its ``line_clock``'s announcement on
+    ``/line/participants`` (transient-local: a running line's reaches every late joiner), signed with the
+    key, heard within ``wait`` s. Lines with other keys are in other partitions: they neither reach this
+    one nor are reached by it, so they may run beside it. An announcement not signed with the key (someone
+    who learnt the partition) is no line and is ignored."""
     heard: list[str] = []
-    subs = [
-        node.create_subscription(
-            String, PARTICIPANTS_TOPIC, lambda _m: heard.append(PARTICIPANTS_TOPIC), PARTICIPANTS_QOS
-        ),
-        node.create_subscription(ClockMsg, CLOCK_TOPIC, lambda _m: heard.append(CLOCK_TOPIC), CLOCK_SUB_QOS),
-    ]
+
+    def on_announcement(msg: String) -> None:
+        with contextlib.suppress(ValueError):
+            parse_announcement(msg.data)
+            heard.append(PARTICIPANTS_TOPIC)
+
+    sub = node.create_subscription(String, PARTICIPANTS_TOPIC, on_announcement, PARTICIPANTS_QOS)
     deadline = time.monotonic() + wait
     try:
         while not heard and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
     finally:
-        for sub in subs:
-            node.destroy_subscription(sub)
+        node.destroy_subscription(sub)
     if not heard:
         return None
     domain = os.environ.get('ROS_DOMAIN_ID', '0')

@@ -197,7 +197,8 @@ def run_node(
     process after ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
     stderr and the exit code it would have returned; if the hang holds the GIL (no Python
     thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
-    exit code 1.
+    exit code 1. A node refused at start says so first, then its half-built node is torn down
+    under the same watchdog.
 
     Parameters
     ----------
@@ -229,18 +230,19 @@ def run_node(
         teardown_timeout = TEARDOWN_TIMEOUT
     watchdog: threading.Timer | None = None
 
-    def arm(code: int) -> None:
+    def arm(code: int, quiet: bool = False) -> None:
         nonlocal watchdog
         if teardown_timeout is None or watchdog is not None:
             return
 
         def expire() -> None:
-            print(
-                f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
-                'exiting anyway (the node had stopped)',
-                file=sys.stderr,
-                flush=True,
-            )
+            if not quiet:  # (a refused node has said all it has to say in its one line)
+                print(
+                    f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
+                    'exiting anyway (the node had stopped)',
+                    file=sys.stderr,
+                    flush=True,
+                )
             sys.stdout.flush()
             os._exit(code)
 
@@ -266,8 +268,10 @@ def run_node(
         with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
             node = _build(node_factory, name, stop)
             if isinstance(node, int):
-                if own_process and teardown_timeout is not None:
-                    _quiet_exit_after(teardown_timeout, node)  # its one line is out: a hung shutdown ends too
+                arm(node, quiet=True)  # the half-built node's teardown is bounded as any other
+                # it hung off the traceback, which is gone now: collect it while the context is alive
+                # (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
+                gc.collect()
                 return node
             code = EXIT_OK
             stop.code = lambda: _exit_code(node, exit_code)
@@ -302,15 +306,6 @@ def run_node(
     return EXIT_OK
 
 
-def _quiet_exit_after(seconds: float, code: int) -> None:
-    """End the process with ``code`` if it is still alive ``seconds`` from now: a node that was never built
-    (refused, or stopped while being built) has said all it has to say, and the middleware's shutdown
-    has been seen to hang, rarely, with many processes starting at once."""
-    timer = threading.Timer(seconds, os._exit, args=(code,))
-    timer.daemon = True
-    timer.start()
-
-
 def _flush(node: Node) -> None:
     """A node that finished (its ``done`` future completed) waits, at most :data:`FLUSH_TIMEOUT` s, until every
     reader has acknowledged what it published: a sample lost on the way is repaired before the writer goes."""
@@ -336,13 +331,9 @@ def _build(node_factory: Callable[[], Node], name: str, stop: _StopRequests) -> 
         refused: str | None = f'{name}: error: {err}'
     except _StopNow:
         refused = None
-    # the half-built node hung off the traceback, which is gone now: collect it while the context
-    # is alive (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
-    gc.collect()
-    if refused is None:
-        return EXIT_OK
-    print(refused, file=sys.stderr)
-    return EXIT_BAD_PARAMETER
+    if refused is not None:
+        print(refused, file=sys.stderr, flush=True)  # first: whatever the teardown of the half-built node does
+    return EXIT_OK if refused is None else EXIT_BAD_PARAMETER
 
 
 def _exit_code(node: Node, exit_code: Callable[[Node], int] | None) -> int:

@@ -36,6 +36,7 @@ from folder_line.config.run_config import RunConfig
 from folder_line.interfaces import KNOWN_PARTICIPANTS, LINE_TOPIC_TYPES
 from folder_line.ros.lockstep import Announcement, format_announcement
 from folder_line.ros.run import run_line
+from folder_line.ros.signing import open_text
 
 NS = 1_000_000_000
 
@@ -124,8 +125,9 @@ def test_simulate_bag_is_the_live_bag(tmp_path: Path, scene: str, duration: floa
 
 
 def test_announcement_is_the_clocks() -> None:
+    """What line_clock announces, as the recorder records it: without the signature of the line's key."""
     expect = format_announcement(Announcement('lockstep', 7 * NS, tuple(KNOWN_PARTICIPANTS)))
-    assert announcement(7 * NS) == expect
+    assert announcement(7 * NS) == open_text(expect, 'announcement')
 
 
 def _ser(msg: Any, msgtype: str) -> bytes:

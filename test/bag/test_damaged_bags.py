@@ -26,6 +26,7 @@ from folder_line.analysis.report import analyze
 from folder_line.bag.gaps import KEY_GAPS, read_gaps
 from folder_line.bag.metadata import KEY_COMPLETE
 from folder_line.bag.reader import read_bag
+from folder_line.bag.repair import repair
 from folder_line.cli import main as cli
 from folder_line.core.line.events import event_kind
 from folder_line.interfaces import NS_PER_S
@@ -125,7 +126,20 @@ def test_a_repair_names_the_gap_and_analyze_judges_nothing_across_it(intact: Pat
 def test_gaps_that_are_not_gaps_are_refused_in_one_line(tmp_path: Path) -> None:
     from folder_line.errors import BagError
 
-    for text in ('[[2, 1]]', '[[1.5, 2]]', '{"a": 1}', '[[true, 2]]', 'nope'):
+    for text in ('[[2, 1]]', '[[1.5, 2]]', '{"a": 1}', '[[true, 2]]', 'nope', '[[1, 2, 3]]', '[5]', '[[-1, 2]]'):
         with pytest.raises(BagError, match=KEY_GAPS):
             read_gaps({KEY_GAPS: text})
     assert read_gaps({KEY_GAPS: json.dumps([[5, 9], [1, 2], [3, 4]])})[0].first_ns == 1
+
+
+def test_a_repair_names_recorded_gaps_it_cannot_read(intact: Path, tmp_path: Path) -> None:
+    """Gaps in the old metadata.yaml that are not gaps are not kept, and the repair says so."""
+    bag = tmp_path / 'bag'
+    shutil.copytree(intact, bag)
+    metadata = bag / 'metadata.yaml'
+    text = metadata.read_text()
+    assert '\n  custom_data:\n' in text
+    metadata.write_text(text.replace('\n  custom_data:\n', f"\n  custom_data:\n    {KEY_GAPS}: '[[2, 1]]'\n", 1))
+    result = repair(bag)
+    assert result.gaps == [] and result.unreadable.startswith(f'custom_data {KEY_GAPS}=')
+    assert 'the old gaps could not be read, and were not kept' in result.describe()

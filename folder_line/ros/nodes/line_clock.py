@@ -103,7 +103,7 @@ from folder_line.ros.lockstep import (
     participant_names,
     read_ack,
 )
-from folder_line.ros.parameters import ParamSpec, declare_parameters
+from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes
 from folder_line.ros.runtime import run_node
 from folder_line.ros.strangers import foreign_publishers
 from folder_line.ros.time_msg import ns_to_time_msg
@@ -235,6 +235,14 @@ class LineClock(Node):
     def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
         # use_sim_time is off by default; on, from the constructor or --ros-args, it is refused
         super().__init__(NODE_NAME, parameter_overrides=list(parameter_overrides or []), **kwargs)
+        try:  # a node refused here is torn down at once, in order (not left to the garbage collector)
+            self._make()
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    def _make(self) -> None:
+        """Check the parameters, then make the clock's entities (after ``Node.__init__``)."""
         if self.get_parameter('use_sim_time').value:
             raise ParameterError('use_sim_time', True, 'line_clock publishes /clock and runs on the wall clock')
         v = self.values = declare_parameters(self, SPECS, cross_check=_check)
@@ -286,6 +294,7 @@ class LineClock(Node):
         self._scan = self.create_timer(STRANGER_SCAN, self._look_for_strangers, clock=self._wall)
         self._next_lateness = self._start + NS_PER_S
         self.add_post_set_parameters_callback(self._apply)
+        self.signatures = guard_changes(self)  # on a keyed line, a change at run time must be signed
         rtf_text = 'no rtf ceiling' if self._rtf == 0.0 else f'rtf {self._rtf:g}'
         self.get_logger().info(
             f'{self.mode} /clock at {v["rate"]:g} Hz of sim time, {rtf_text}, from {v["start_time"]:g} s'

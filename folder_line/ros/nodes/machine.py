@@ -40,6 +40,7 @@ off: it is refused at start and at run time.
 from __future__ import annotations
 
 import math
+import time
 from array import array
 from collections.abc import Iterable, Mapping
 from typing import Any, Protocol
@@ -82,8 +83,9 @@ from folder_line.interfaces import (
     is_command_source,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
-from folder_line.ros.parameters import ParamSpec, declare_parameters
+from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes
 from folder_line.ros.runtime import run_node
+from folder_line.ros.signing import open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS, joint_states_topic
 
@@ -193,6 +195,14 @@ class MachineNode(Node):
     def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
         overrides = list(parameter_overrides or [])
         super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
+        try:  # a node refused here is torn down at once, in order (not left to the garbage collector)
+            self._make(overrides)
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    def _make(self, overrides: list[Parameter[Any]]) -> None:
+        """Check the parameters and the scene, then make the node's entities (after ``Node.__init__``)."""
         # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
         if self.get_parameter('use_sim_time').value is False and (
             any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides
@@ -235,6 +245,7 @@ class MachineNode(Node):
         self._event_pub = self.create_publisher(TimeReference, EVENTS_TOPIC, LINE_QOS)
         self.create_subscription(TimeReference, COMMANDS_TOPIC, self._on_command, COMMANDS_QOS)
         self._tune_pub = self.create_publisher(String, TUNE_TOPIC, TUNE_QOS) if self.tunables else None
+        self._tune_seq = 0
         if self.tunables:
             self.add_on_set_parameters_callback(self._screen_tunings)
         self.lockstep = Participant(
@@ -249,6 +260,7 @@ class MachineNode(Node):
             lost_timeout=self.values['lost_timeout'],
         )
         self.add_post_set_parameters_callback(self._apply)
+        self.signatures = guard_changes(self)  # on a keyed line, a change at run time must be signed
         self.setup()
         self.get_logger().info(
             f'scene {self.scene.name!r}, joints {list(self.joints)}, {self.values["rate"]:g} Hz of sim time'
@@ -375,7 +387,10 @@ class MachineNode(Node):
         key = TUNABLE_PARAMETERS[self.NODE_NAME][name]
         if self._tune_pub is None:
             return
-        self._tune_pub.publish(String(data=f'{self.NODE_NAME} {key}={float(value)!r}'))
+        # numbered (wall ns, rising) and signed: a tuning read off the network cannot be played again
+        self._tune_seq = max(self._tune_seq + 1, time.time_ns())
+        text = f'{self.NODE_NAME} {key}={float(value)!r} #{self._tune_seq}'
+        self._tune_pub.publish(String(data=sign_text(text, 'tune')))
         self.get_logger().info(
             f'{name} = {value!r} {TUNABLES[key].unit} asked of the supervisor: it takes effect at the next '
             'machine cycle boundary (see /line/supervisor/commands)'
@@ -399,18 +414,23 @@ class MachineNode(Node):
                 'command', f'from {msg.header.frame_id[:40]!r}: drive commands are taken from the supervisor only'
             )
             return
-        if not is_command_source(msg.source):
+        try:
+            source = open_text(msg.source, 'command', msg.header.frame_id, msg.header.stamp, msg.time_ref)
+        except ValueError as err:
+            self.reject('command', str(err))
+            return
+        if not is_command_source(source):
             self.reject(
                 'command',
-                f'unknown drive command {msg.source[:40]!r} (one of {", ".join(COMMAND_KINDS)}, or "set KEY=VALUE")',
+                f'unknown drive command {source[:40]!r} (one of {", ".join(COMMAND_KINDS)}, or "set KEY=VALUE")',
             )
             return
         try:
-            command = command_of(time_msg_to_ns(msg.time_ref) / NS_PER_S, msg.source)
+            command = command_of(time_msg_to_ns(msg.time_ref) / NS_PER_S, source)
             if isinstance(command, Tuning):
                 check_tuning(self.scene, command.key, command.value)
         except (ValueError, FolderLineError) as err:
-            self.reject('command', f'{msg.source[:60]!r}: {err}')
+            self.reject('command', f'{source[:60]!r}: {err}')
             return
         if command in self.commands:
             self.reject('command', f'{command.kind} at {command.t:.9f} s repeated')

@@ -62,6 +62,9 @@ Outputs
   later (hold, suspend, stop), or ``command_lead`` s later (start, unhold,
   unsuspend, abort). ``command_lead`` must exceed the clock's tick step (the machine
   nodes may already be one tick further); a command that cannot be timed so is refused.
+  On a keyed line a call is answered only after a signed request for it (the parameter
+  ``operator_command`` set with ``line_signature``, :mod:`folder_line.ros.signing`) within the
+  last ``REQUEST_WINDOW`` s, each used once; otherwise it is refused with the reason and counted.
 
 The scene's drive starts the line at t = 0, so the supervisor starts in STARTING
 and enters EXECUTE when the drive reaches speed. Acting states end on the check grid
@@ -74,11 +77,13 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String
@@ -126,6 +131,7 @@ from folder_line.ros.lockstep import LINE_QOS, Announcement
 from folder_line.ros.nodes.machine import FAST_WINDOW, MachineNode, node_exit_code
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node
+from folder_line.ros.signing import REQUEST_WINDOW, SIGNATURE_PARAMETER, open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, TUNE_QOS, joint_states_topic
 
@@ -202,6 +208,13 @@ class Supervisor(MachineNode):
             choices=('hold', 'abort'),
             read_only=True,
         ),
+        ParamSpec(
+            'operator_command',
+            '',
+            "On a keyed line, the operator command whose service call comes next, set with the line's "
+            'signature (folder-line hold and the other operator verbs do both)',
+            choices=('', *SERVICES),
+        ),
     )
 
     def setup(self) -> None:
@@ -227,6 +240,9 @@ class Supervisor(MachineNode):
         for name in SERVICES:
             self.create_service(Trigger, f'/line/supervisor/{name}', self._service(name))
         self.create_subscription(String, TUNE_TOPIC, self._on_tune, TUNE_QOS)
+        self._tune_numbers: dict[str, int] = {}
+        self._signed: dict[str, float] = {}  # operator command -> wall s its signed request came
+        self.add_post_set_parameters_callback(self._on_signed_command)
 
     def depends(self, a: Announcement) -> dict[str, tuple[str, ...]]:
         """Every machine participant, with its events."""
@@ -310,10 +326,33 @@ class Supervisor(MachineNode):
 
     def _service(self, name: str) -> Callable[[Trigger.Request, Trigger.Response], Trigger.Response]:
         def handle(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-            response.success, response.message = self.request(name)
+            why = self._unsigned(name)
+            if why:
+                response.success, response.message = False, why
+                self.reject('operator', why)
+            else:
+                response.success, response.message = self.request(name)
             return response
 
         return handle
+
+    def _on_signed_command(self, parameters: list[Parameter[Any]]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'operator_command' and parameter.value:
+                self._signed[parameter.value] = time.monotonic()
+
+    def _unsigned(self, name: str) -> str:
+        """On a keyed line, why the call of service ``name`` is refused ('' if a signed request of it came
+        within ``REQUEST_WINDOW`` s, which the call uses up)."""
+        if not self.signatures.signer.keyed:
+            return ''
+        signed = self._signed.pop(name, None)
+        if signed is not None and time.monotonic() - signed <= REQUEST_WINDOW:
+            return ''
+        return (
+            f'{name}: refused: this line is keyed, and a command must first be signed with its key '
+            f'(set operator_command={name} with {SIGNATURE_PARAMETER}); folder-line {name} does both'
+        )
 
     def _untimeable(self, name: str) -> str:
         """Why a command or tuning ``name`` cannot be timed now ('' if it can)."""
@@ -327,16 +366,27 @@ class Supervisor(MachineNode):
         return ''
 
     def _on_tune(self, msg: String) -> None:
-        """An operator's tuning forwarded by the machine node whose parameter was set (``'<node> <key>=<value>'``)."""
-        node, _, change = msg.data.partition(' ')
+        """An operator's tuning forwarded by the machine node whose parameter was set
+        (``'<node> <key>=<value> #<number>'``, signed on a keyed line; each node's numbers rise)."""
         try:
-            key, value = parse_tuning_text(SET_PREFIX + change)
+            text = open_text(msg.data, 'tune')
         except ValueError as err:
             self.reject('tuning', f'{msg.data[:60]!r}: {err}')
             return
-        if key not in TUNABLE_PARAMETERS.get(node, {}).values():
-            self.reject('tuning', f'{msg.data[:60]!r}: not a tunable of node {node[:40]!r}')
+        node, _, change = text.partition(' ')
+        change, _, seq = change.partition(' #')
+        try:
+            key, value = parse_tuning_text(SET_PREFIX + change)
+        except ValueError as err:
+            self.reject('tuning', f'{text[:60]!r}: {err}')
             return
+        if not seq.isdigit() or len(seq) > 19 or int(seq) <= self._tune_numbers.get(node, -1):
+            self.reject('tuning', f'{text[:60]!r}: not numbered after the previous tuning from {node[:40]!r}')
+            return
+        if key not in TUNABLE_PARAMETERS.get(node, {}).values():
+            self.reject('tuning', f'{text[:60]!r}: not a tunable of node {node[:40]!r}')
+            return
+        self._tune_numbers[node] = int(seq)
         logic = self.logic
         t = logic.now if math.isfinite(logic.now) else (logic.t_start or 0.0)
         why = self._untimeable(f'{key}={value!r}')
@@ -420,7 +470,7 @@ class Supervisor(MachineNode):
         msg.header.stamp = ns_to_time_msg(max(0, round(t * NS_PER_S)))
         msg.header.frame_id = self.NODE_NAME
         msg.time_ref = ns_to_time_msg(round(command.t * NS_PER_S))
-        msg.source = command.kind
+        msg.source = sign_text(command.kind, 'command', msg.header.frame_id, msg.header.stamp, msg.time_ref)
         self.publish(self._cmd_pub, msg, 'commands')  # also reaches this node's own subscription (its model)
         self.published_commands += 1
 

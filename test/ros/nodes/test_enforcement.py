@@ -53,6 +53,7 @@ from folder_line.ros.nodes.supervisor import STATE_QOS, Supervisor
 from folder_line.ros.time_msg import time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
+from .._signed import command_text, signed
 from .test_line_clock import FakeParticipant, grid
 from .test_supervisor import on_grid
 
@@ -92,7 +93,10 @@ def values(status: DiagnosticStatus) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values}
 
 
-def call(ros: Ros, client: Any) -> tuple[bool, str]:
+def call(ros: Ros, sup: Supervisor, client: Any) -> tuple[bool, str]:
+    """Call an operator service of ``sup``, its request signed first as ``folder-line`` does."""
+    name = client.srv_name.rsplit('/', 1)[-1]
+    assert sup.set_parameters_atomically(signed('supervisor', [Parameter('operator_command', value=name)])).successful
     future = client.call_async(Trigger.Request())
     assert ros.spin_until(future.done, timeout=20.0)
     return future.result().success, future.result().message
@@ -150,7 +154,7 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
 
     # ---- the late sheet of cycle 13: a timing fault -> HOLDING at its knife contact, HELD at standstill
     t1 = pause_when(lambda: sup.packml.state == 'HELD')
-    ok, message = call(ros, clients['unhold'])
+    ok, message = call(ros, sup, clients['unhold'])
     assert ok and message.startswith('unhold: UNHOLDING, drive unhold effective at'), message
     # ---- then the missing sheet of cycle 45: starvation -> SUSPENDED
     t2 = pause_when(lambda: sup.packml.state == 'SUSPENDED')
@@ -160,8 +164,8 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
     ros.remove(belt)
     t3 = pause_when(lambda: sup.packml.state == 'ABORTED')
     # ---- only clear leaves ABORTED
-    assert call(ros, clients['unhold']) == (False, "'unhold' refused in state ABORTED: legal only in HELD")
-    assert call(ros, clients['clear']) == (True, 'clear: CLEARING')
+    assert call(ros, sup, clients['unhold']) == (False, "'unhold' refused in state ABORTED: legal only in HELD")
+    assert call(ros, sup, clients['clear']) == (True, 'clear: CLEARING')
     hold.run_to(None)
     end = round(DURATION * NS_PER_S)
     live = [n for n in (*nodes.values(), sup) if n is not belt]
@@ -210,7 +214,7 @@ def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(r
         ('ABORTED', 'CLEARING'),
         ('CLEARING', 'STOPPED'),
     ]
-    published = [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, m.source) for m in commands.messages]
+    published = [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, command_text(m)) for m in commands.messages]
     assert [c.kind for c in published] == ['hold', 'unhold', 'hold', 'stop'] and published == list(logic.commands)
     assert nodes['crank_drive'].commands == tuple(published)
 

@@ -59,7 +59,10 @@ from folder_line.ros.lockstep import (
     read_ticks,
 )
 from folder_line.ros.nodes.line_clock import EXIT_LOST, MAX_BURST, SPECS, LineClock, parse_participants
-from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
+from folder_line.ros.signing import open_text, sign_text, without_signature
+from folder_line.ros.time_msg import time_msg_to_ns
+
+from .._signed import signed, time_reference
 
 if TYPE_CHECKING:
     from ..conftest import Ros
@@ -137,11 +140,7 @@ class FakeParticipant(Node):
 
     def ack(self, stamp: int) -> None:
         """Publish the acknowledgement of ``stamp`` now."""
-        msg = TimeReference()
-        msg.header.stamp = ns_to_time_msg(stamp)
-        msg.header.frame_id = self.get_name()
-        msg.time_ref = msg.header.stamp
-        msg.source = format_counts(self.counts)
+        msg = time_reference(self.get_name(), stamp, format_counts(self.counts), 'progress')
         self.acked_ns.setdefault(stamp, time.monotonic_ns())
         self._pub.publish(msg)
 
@@ -284,13 +283,20 @@ def test_announcement_round_trip(names: list[str], clock: str, end: int | None) 
         ('clock=lockstep end=none participants=jumper', 'must be distinct names among'),
         ('clock=lockstep end=none participants=supervisor,supervisor', 'must be distinct names'),
         ('clock=lockstep end=none participants=', 'must be distinct names'),
-        ('x' * 1001, 'announcement of 1001 characters'),
+        ('x' * 1001, 'characters (at most 1000)'),
     ],
 )
 def test_a_malformed_announcement_is_refused_with_the_reason(text: str, words: str) -> None:
     with pytest.raises(ValueError) as info:
-        parse_announcement(text)
+        parse_announcement(sign_text(text, 'announcement'))  # signed: the text itself is refused
     assert words in str(info.value)
+
+
+def test_an_announcement_not_signed_with_the_line_key_is_refused() -> None:
+    text = format_announcement(Announcement('lockstep', None, ('crank_drive',)))
+    for forged in (without_signature(text), text.replace('crank_drive', 'supervisor')):
+        with pytest.raises(ValueError, match='^announcement: (unsigned|signature does not match)'):
+            parse_announcement(forged)
 
 
 @given(
@@ -304,9 +310,7 @@ def test_an_acknowledgement_is_read_from_its_cdr_bytes_as_rclpy_wrote_them(
     frame: str, stamp: int, counts: dict[str, int]
 ) -> None:
     # read_ack decodes the raw bytes with rosbags: checked against rclpy's own serialization and deserialization
-    msg = TimeReference(source=format_counts(counts))
-    msg.header.frame_id = frame
-    msg.header.stamp = msg.time_ref = ns_to_time_msg(stamp)
+    msg = time_reference(frame, stamp, format_counts(counts), 'progress')
     data = serialize_message(msg)
     # a ROS string ends at its first NUL: rclpy reads '\x00' back as '' too
     assert deserialize_message(data, TimeReference).header.frame_id == frame.split('\x00', 1)[0]
@@ -319,19 +323,20 @@ def test_the_acknowledgements_of_several_ticks_are_read_from_one_message() -> No
     ticks = [
         (5_000_000 * k, {'messages': 3 * k, 'events': k // 2, 'commands': 0, '/line/events': k // 2}) for k in (1, 2, 3)
     ]
-    msg = TimeReference(source=format_ticks(ticks))
-    msg.header.frame_id = 'crank_drive'
-    msg.header.stamp = ns_to_time_msg(ticks[-1][0])
-    msg.time_ref = ns_to_time_msg(ticks[-1][0] + 7)
+    msg = time_reference('crank_drive', ticks[-1][0], format_ticks(ticks), 'tick_done', ticks[-1][0] + 7)
     assert read_ticks(serialize_message(msg)) == ('crank_drive', ticks, ticks[-1][0] + 7)
-    msg.source += ' | 99999999999 messages=1'  # a tick before 0
+    changed = without_signature(msg.source) + ' | 99999999999 messages=1'  # a tick before 0
+    with pytest.raises(ValueError, match='signature does not match'):
+        read_ticks(serialize_message(time_reference('crank_drive', 0, changed, 'progress', ticks[-1][0] + 7)))
     with pytest.raises(ValueError, match='tick gap'):
-        read_ticks(serialize_message(msg))
+        read_ticks(
+            serialize_message(time_reference('crank_drive', ticks[-1][0], changed, 'tick_done', ticks[-1][0] + 7))
+        )
 
 
 @given(data=st.binary(max_size=300))
 def test_bytes_that_are_no_acknowledgement_are_refused_with_a_reason(data: bytes) -> None:
-    good = TimeReference(source=format_counts({'messages': 1}))
+    good = time_reference('crank_drive', 0, format_counts({'messages': 1}), 'progress')
     try:
         read_ack(data)
     except ValueError as err:
@@ -341,7 +346,9 @@ def test_bytes_that_are_no_acknowledgement_are_refused_with_a_reason(data: bytes
     with pytest.raises(ValueError, match='not a sensor_msgs/TimeReference'):
         read_ack(serialize_message(good)[:-3])
     with pytest.raises(ValueError, match="unexpected item 'garbage'"):
-        read_ack(serialize_message(TimeReference(source='garbage')))
+        read_ack(serialize_message(time_reference('crank_drive', 0, 'garbage', 'progress')))
+    with pytest.raises(ValueError, match='unsigned, on a keyed line'):
+        read_ack(serialize_message(TimeReference(source=format_counts({'messages': 1}))))
 
 
 def test_topics_of_the_protocol() -> None:
@@ -370,7 +377,9 @@ def test_lockstep_publishes_every_tick_of_the_grid_up_to_the_end_exactly(
     ros.spin_for(0.2)  # stopped: nothing after the end
     assert fake.ticks == expected and clock.ticks == len(expected)
     assert ros.spin_until(lambda: len(announced) == 1, timeout=10.0)
-    assert [m.data for m in announced.messages] == [f'clock=lockstep end={end_ns} participants=line_recorder']
+    assert [open_text(m.data, 'announcement') for m in announced.messages] == [
+        f'clock=lockstep end={end_ns} participants=line_recorder'
+    ]
     assert clock.lost == {} and clock.rejected == 0
 
 
@@ -462,8 +471,10 @@ def test_rate_and_rtf_changes_apply_from_the_current_tick(ros: Ros) -> None:
     fake = ros.add(FakeParticipant(ros.context, hold_from=100 * MS))
     clock = make_clock(ros, rate=100.0, duration=0.3, rtf=0.0, lost_timeout=60.0, window=0.0)
     assert ros.spin_until(lambda: fake.held == 100 * MS, timeout=30.0)
-    results = clock.set_parameters([Parameter('rate', value=50.0), Parameter('rtf', value=0.5)])
-    assert all(r.successful for r in results)
+    result = clock.set_parameters_atomically(
+        signed('line_clock', [Parameter('rate', value=50.0), Parameter('rtf', value=0.5)])
+    )
+    assert result.successful, result.reason
     fake.run_to(None)
     assert ros.spin_until(clock.done.done, timeout=30.0)
     # 10 ms steps up to the change, then 20 ms from the tick current at the change, to the end exactly
@@ -552,10 +563,7 @@ def test_malformed_and_foreign_acknowledgements_are_rejected_and_counted(ros: Ro
         ('line_recorder', 'messages=-1 events=0 commands=0'),
         ('crank_drive', 'messages=0 events=0 commands=0'),
     ]:
-        msg = TimeReference(source=source)
-        msg.header.frame_id = frame
-        msg.header.stamp = ns_to_time_msg(50 * MS)
-        pub.publish(msg)
+        pub.publish(time_reference(frame, 50 * MS, source, 'progress'))
     assert ros.spin_until(lambda: clock.rejected == 4, timeout=10.0)
     assert clock.current == 50 * MS  # none of them counted as line_recorder's answer
     fake.run_to(None)
@@ -604,7 +612,7 @@ def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
         ('rate', 0.5, 'rate=0.5: must be a float in [1, 10000] Hz'),
         ('use_sim_time', True, 'use_sim_time=True rejected: use_sim_time=True: line_clock publishes /clock'),
     ]:
-        [result] = clock.set_parameters([Parameter(name, value=value)])
+        result = clock.set_parameters_atomically(signed('line_clock', [Parameter(name, value=value)]))
         assert (result.successful, result.reason[: len(reason)]) == (False, reason)
     for name, value in [
         ('clock', 'wall'),
@@ -615,11 +623,13 @@ def test_parameters_of_the_clock_are_validated(ros: Ros) -> None:
         ('startup_timeout', 2.0),
         ('window', 1.0),
     ]:
-        [result] = clock.set_parameters([Parameter(name, value=value)])
+        result = clock.set_parameters_atomically(signed('line_clock', [Parameter(name, value=value)]))
         assert not result.successful and 'read-only' in result.reason and name in result.reason
     assert clock.get_parameter('rtf').value == 1.0 and clock.get_parameter('rate').value == 200.0
     assert clock.get_parameter('use_sim_time').value is False
     [result] = clock.set_parameters([Parameter('rtf', value=0.0)])
+    assert not result.successful and 'must be signed' in result.reason  # a keyed line's change is signed
+    result = clock.set_parameters_atomically(signed('line_clock', [Parameter('rtf', value=0.0)]))
     assert result.successful  # 0: no ceiling, in lockstep
 
 

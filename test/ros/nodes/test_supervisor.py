@@ -48,9 +48,11 @@ from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter
 from folder_line.ros.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
+from folder_line.ros.signing import sign_text, without_signature
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
 
+from .._signed import command_text, signed, time_reference
 from .test_line_clock import FakeParticipant, grid
 
 if TYPE_CHECKING:
@@ -156,13 +158,18 @@ class Line:
         assert self.sup.logic.now == stamp / NS_PER_S
         return stamp / NS_PER_S
 
-    def call(self, name: str) -> tuple[bool, str]:
+    def call(self, name: str, sign: bool = True) -> tuple[bool, str]:
+        """Call the supervisor's service ``name``, its request first signed as ``folder-line`` does."""
+        if sign:
+            request = signed('supervisor', [Parameter('operator_command', value=name)])
+            assert self.sup.set_parameters_atomically(request).successful
         future = self.clients[name].call_async(Trigger.Request())
         assert self.ros.spin_until(future.done, timeout=20.0)
         response = future.result()
         return response.success, response.message
 
-    def run_to_end(self) -> None:
+    def run_to_end(self, rejected: dict[str, dict[str, int]] | None = None) -> None:
+        """Let the line run to its end: every tick, no input rejected but the ``rejected`` counts (per node)."""
         self.hold.run_to(None)
         assert self.ros.spin_until(
             lambda: (
@@ -174,7 +181,8 @@ class Line:
         )
         ticks = len(grid(0, self.end, STEP))
         assert self.clock.ticks == ticks and self.clock.lost == {}
-        assert all(n.lockstep.ticks == ticks and n.rejected == {} for n in self.nodes.values())
+        assert all(n.lockstep.ticks == ticks for n in self.nodes.values())
+        assert {name: n.rejected for name, n in self.nodes.items() if n.rejected} == (rejected or {})
 
 
 def effective_in_message(message: str) -> float:
@@ -201,12 +209,15 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert line.call('unhold') == (False, "'unhold' refused in state EXECUTE: legal only in HELD")
     assert len(line.commands) == 0 and sup.packml.state == 'EXECUTE'
 
+    # without the line's key (as ros2 service call would): refused with the reason, nothing done
+    ok, message = line.call('hold', sign=False)
+    assert not ok and message.startswith('hold: refused: this line is keyed') and sup.packml.state == 'EXECUTE'
     # hold at the watermark: effective at the first cycle boundary at least command_lead later
     ok, message = line.call('hold')
     assert ok and message.startswith('hold: HOLDING, drive hold effective at') and 'next cycle boundary' in message
     assert ros.spin_until(lambda: len(line.commands) == 1, timeout=20.0)
     hold = line.commands.messages[0]
-    assert hold.source == 'hold' and hold.header.frame_id == 'supervisor'
+    assert command_text(hold) == 'hold' and hold.header.frame_id == 'supervisor'
     assert time_msg_to_ns(hold.header.stamp) == round(t_request * NS_PER_S)  # decided at the watermark
     boundary = free.next_cycle_boundary(t_request + LEAD)
     t_hold_ns = time_msg_to_ns(hold.time_ref)
@@ -239,7 +250,7 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert ok and message.startswith('unhold: UNHOLDING, drive unhold effective at')
     assert ros.spin_until(lambda: len(line.commands) == 2, timeout=20.0)
     unhold = line.commands.messages[1]
-    assert unhold.source == 'unhold' and time_msg_to_ns(unhold.header.stamp) == round(t_request2 * NS_PER_S)
+    assert command_text(unhold) == 'unhold' and time_msg_to_ns(unhold.header.stamp) == round(t_request2 * NS_PER_S)
     assert time_msg_to_ns(unhold.time_ref) == round((t_request2 + LEAD) * NS_PER_S)
     t_unhold = time_msg_to_ns(unhold.time_ref) / NS_PER_S
     cmds = [Command(t_hold, 'hold'), Command(t_unhold, 'unhold')]
@@ -252,8 +263,8 @@ def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
     assert (back.source, back.target, back.cause, back.t) == ('UNHOLDING', 'EXECUTE', 'drive at speed', t_speed)
 
     # every crank joint state so far is the model with the commands the supervisor published, to the bit
-    line.run_to_end()
-    assert [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, m.source) for m in line.commands.messages] == cmds
+    line.run_to_end(rejected={'supervisor': {'operator': 1}})  # the unsigned hold, counted
+    assert [Command(time_msg_to_ns(m.time_ref) / NS_PER_S, command_text(m)) for m in line.commands.messages] == cmds
     stamps = np.array([time_msg_to_ns(m.header.stamp) for m in line.crank.messages])
     assert stamps.tolist() == grid(0, line.end, STEP)
     expect = model.sample(UNIT_OF_NODE['crank_drive'], stamps / NS_PER_S)
@@ -331,9 +342,9 @@ def test_stop_reset_start_abort_clear(ros: Ros) -> None:
         ('CLEARING', t5),
         ('STOPPED', t_cleared),
     ]
-    assert [(m.source, time_msg_to_ns(m.header.stamp), time_msg_to_ns(m.time_ref)) for m in line.commands.messages] == [
-        (c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds, strict=True)
-    ]
+    assert [
+        (command_text(m), time_msg_to_ns(m.header.stamp), time_msg_to_ns(m.time_ref)) for m in line.commands.messages
+    ] == [(c.kind, round(t * NS_PER_S), round(c.t * NS_PER_S)) for t, c in zip((t1, t3, t4), cmds, strict=True)]
     assert line.machines['crank_drive'].commands == tuple(cmds)
     assert [(b.state, b.ok) for b in sup.logic.balances] == [('STOPPED', True), ('ABORTED', True), ('STOPPED', True)]
 
@@ -470,19 +481,16 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
         for m in messages:
             pub.publish(m)
 
-    def ref(frame: str, source: str, t_ns: int = 0) -> TimeReference:
-        msg = TimeReference(source=source)
-        msg.header.frame_id = frame
-        msg.header.stamp = msg.time_ref = ns_to_time_msg(t_ns)
-        return msg
+    def ref(frame: str, source: str, t_ns: int = 0, kind: str = 'progress') -> TimeReference:
+        return time_reference(frame, t_ns, source, kind)  # signed: the intruder is an insider that errs
 
     counts = 'messages=0 events=0 commands=0'
     publish(
         TimeReference,
         COMMANDS_TOPIC,
         COMMANDS_QOS,
-        ref('intruder', 'hold', NS_PER_S),
-        ref('supervisor', 'jump', NS_PER_S),
+        ref('intruder', 'hold', NS_PER_S, 'command'),
+        ref('supervisor', 'jump', NS_PER_S, 'command'),
     )  # to every machine node
     publish(
         TimeReference,
@@ -496,7 +504,10 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
         TimeReference, progress_topic('crank_drive'), ACK_QOS, ref('crank_drive', 'messages=1'), readers=2
     )  # to the supervisor and the clock
     publish(
-        String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS, String(data='clock=banana end=none participants=crank_drive')
+        String,
+        PARTICIPANTS_TOPIC,
+        PARTICIPANTS_QOS,
+        String(data=sign_text('clock=banana end=none participants=crank_drive', 'announcement')),
     )  # to every participant
     publish(
         TimeReference,
@@ -532,7 +543,8 @@ def test_hostile_inputs_are_rejected_counted_and_the_line_runs_on(ros: Ros) -> N
     assert line.clock.ticks == 401 and line.clock.lost == {}
     assert all(n.lockstep.ticks == 401 for n in line.nodes.values())
     assert line.sup.packml.state == 'EXECUTE' and line.sup.logic.violations == []
-    assert line.sup.published_commands == 0 and [m.source for m in line.commands.messages] == ['hold', 'jump']
+    assert line.sup.published_commands == 0
+    assert [without_signature(m.source) for m in line.commands.messages] == ['hold', 'jump']
     assert all(n.commands == () for n in line.nodes.values())  # the intruder's hold changed nothing
     inputs = [
         d.status[-1]
