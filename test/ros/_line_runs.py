@@ -417,3 +417,34 @@ class LiveLine:
     def state(self) -> str:
         """The latest state heard ('' before the first)."""
         return str(self.states.messages[-1].data) if self.states.messages else ''
+
+
+def run_under_attack(script: str, env: dict[str, str], tmp_path: Path, duration: float) -> tuple[Any, dict[str, Any]]:
+    """A folder run of ``duration`` s at rtf 1, in this process, while the attacker ``test/ros/<script>``
+    runs in a process of its own with ``env``: once it is ready (``REPORT.ready``) until the run ends
+    (``REPORT.stop``). Returns the run's result and the attacker's JSON report (its exit code 0)."""
+    import io
+    import json
+
+    from folder_line.config.run_config import RunConfig
+    from folder_line.ros.run import run_line
+
+    report = tmp_path / f'{Path(script).stem}.json'
+    log = tmp_path / f'{Path(script).stem}.log'
+    with open(log, 'wb') as fh:
+        attacker = subprocess.Popen(
+            [sys.executable, str(Path(__file__).with_name(script)), str(report)],
+            env=env,
+            stdout=fh,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        assert wait_until(lambda: report.with_suffix('.ready').exists() or attacker.poll() is not None, 120)
+        assert attacker.poll() is None, log.read_text()
+        cfg = RunConfig(scene='folder', duration=duration, rtf=1.0, out=tmp_path / 'attacked')
+        result = run_line(cfg, io.StringIO())
+    finally:
+        report.with_suffix('.stop').touch()
+        attacker.wait(timeout=60)
+    assert attacker.returncode == 0, log.read_text()
+    return result, json.loads(report.read_text())

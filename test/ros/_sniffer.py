@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
+from _stranger import AHEAD_NS, _time_ref  # (run as a script: its folder is on the path)
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -49,24 +50,14 @@ from folder_line.interfaces import (
 )
 from folder_line.ros.lockstep import ACK_QOS, GRANT_QOS, PARTICIPANTS_QOS, TICK_QOS
 from folder_line.ros.signing import SIGNATURE_FIELD, SIGNATURE_PARAMETER
-from folder_line.ros.time_msg import ns_to_time_msg
 from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS
 
-AHEAD_NS = 100 * 10**9  # forged stamps: 100 s of line time ahead
 RETUNE = 'feed_transporter.V_tr=6.0'
 ROUND = 0.1  # wall s between two rounds of forgeries
 
 
 def _made_up(text: str) -> str:
     return f'{text}{SIGNATURE_FIELD}{secrets.token_hex(16)}'
-
-
-def _time_ref(frame: str, stamp_ns: int, source: str) -> TimeReference:
-    msg = TimeReference(source=source)
-    msg.header.frame_id = frame
-    msg.header.stamp = ns_to_time_msg(stamp_ns)
-    msg.time_ref = ns_to_time_msg(stamp_ns)
-    return msg
 
 
 def _signature() -> str:

@@ -11,24 +11,19 @@
 
 from __future__ import annotations
 
-import io
-import json
 import secrets
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from _ros_env import REPO, sniffer_environment
+from _ros_env import sniffer_environment
 
-from folder_line.config.run_config import RunConfig
 from folder_line.interfaces import DIAGNOSTICS_TOPIC
-from folder_line.ros.run import run_line
 from folder_line.ros.signing import REQUEST_WINDOW, RequestGuard, Signer, line_signer, sign_request, without_signature
 
-from ._line_runs import wait_until
+from ._line_runs import run_under_attack
 from .test_strangers import DURATION, line_records
+from .test_strangers import clean as clean  # noqa: F401 - the fixture: the run without attack
 
 KEY = bytes(range(16))
 
@@ -82,36 +77,12 @@ def test_a_request_is_taken_once_for_its_node_and_values_within_its_window() -> 
     assert guard.check(stale, values).startswith('line_signature: signed 60 s ago')
 
 
-@pytest.fixture(scope='module')
-def clean(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp('clean')
-    result = run_line(RunConfig(scene='folder', duration=DURATION, rtf=1.0, out=out), io.StringIO())
-    assert result.summary['outcome']['ok'], result.summary['outcome']
-    return out
-
-
 # rclpy warns when a service's answer cannot be sent in time (the sniffer reads its answers late, or its
 # client is not matched yet): the node goes on, as rclcpp's would; pytest would make the warning an error
 @pytest.mark.filterwarnings(r'ignore:failed to send response \(timeout\):RuntimeWarning')
 def test_without_the_key_the_partition_alone_steers_and_forges_nothing(clean: Path, tmp_path: Path) -> None:
-    report = tmp_path / 'sniffer.json'
-    with open(tmp_path / 'sniffer.log', 'wb') as log:
-        sniffer = subprocess.Popen(
-            [sys.executable, str(REPO / 'test' / 'ros' / '_sniffer.py'), str(report)],
-            env=sniffer_environment(),
-            stdout=log,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        assert wait_until(lambda: report.with_suffix('.ready').exists() or sniffer.poll() is not None, 120)
-        assert sniffer.poll() is None, (tmp_path / 'sniffer.log').read_text()
-        out = tmp_path / 'attacked'
-        result = run_line(RunConfig(scene='folder', duration=DURATION, rtf=1.0, out=out), io.StringIO())
-    finally:
-        report.with_suffix('.stop').touch()
-        sniffer.wait(timeout=60)
-    attack = json.loads(report.read_text())
-    assert sniffer.returncode == 0, (tmp_path / 'sniffer.log').read_text()
+    result, attack = run_under_attack('_sniffer.py', sniffer_environment(), tmp_path, DURATION)
+    out = tmp_path / 'attacked'
     assert attack['published'] >= 10 * attack['topics'] > 0  # ten rounds or more, while the line ran
     assert attack['replayed'] > 100  # it heard the line's signed messages, and played them again
     answers: dict[str, list[tuple[bool, str]]] = {}

@@ -18,13 +18,12 @@ from __future__ import annotations
 
 import collections
 import io
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from _ros_env import REPO, node_environment, stranger_environment
+from _ros_env import node_environment, stranger_environment
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
@@ -32,7 +31,7 @@ from folder_line.config.run_config import BAG_DIR, RunConfig
 from folder_line.interfaces import DIAGNOSTICS_TOPIC
 from folder_line.ros.run import run_line
 
-from ._line_runs import start_run, wait_until
+from ._line_runs import run_under_attack, start_run
 
 DURATION = 4.0  # s of line time: line_clock looks for strangers every 2 s of wall time, at rtf 1
 CLOCK_STATUS = 'folder_line/line_clock/'
@@ -80,24 +79,8 @@ def clean(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_a_stranger_without_the_key_cannot_feed_steer_or_falsify_the_line(clean: Path, tmp_path: Path) -> None:
-    report = tmp_path / 'stranger.json'
-    with open(tmp_path / 'stranger.log', 'wb') as log:
-        stranger = subprocess.Popen(
-            [sys.executable, str(REPO / 'test' / 'ros' / '_stranger.py'), str(report)],
-            env=stranger_environment(),
-            stdout=log,
-            stderr=subprocess.STDOUT,
-        )
-    try:
-        assert wait_until(lambda: report.with_suffix('.ready').exists() or stranger.poll() is not None, 120)
-        assert stranger.poll() is None, (tmp_path / 'stranger.log').read_text()
-        out = tmp_path / 'attacked'
-        result = run_line(RunConfig(scene='folder', duration=DURATION, rtf=1.0, out=out), io.StringIO())
-    finally:
-        report.with_suffix('.stop').touch()
-        stranger.wait(timeout=60)
-    attack = json.loads(report.read_text())
-    assert stranger.returncode == 0
+    result, attack = run_under_attack('_stranger.py', stranger_environment(), tmp_path, DURATION)
+    out = tmp_path / 'attacked'
     assert attack['published'] >= 10 * attack['topics'] > 0  # it flooded every topic, many times over
     assert attack['heard'].get('/clock', 0) > 0  # watching the line stays open to anyone
     assert attack['calls'] > 0 and attack['answers'] == []  # no service of the line answered it
