@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shlex
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePath
@@ -160,8 +161,8 @@ def _raw_of(
                 bag = path if path.is_dir() else path.parent
                 msg = (
                     f'{path}: cannot read on: {exc} '.replace('\n', ' ')
-                    + f'(the file is damaged; folder-line bag repair {bag} drops what cannot be read and records '
-                    'the line time lost)'
+                    + f'(the file is damaged; folder-line bag repair {shlex.quote(str(bag))} drops what cannot be '
+                    'read and records the line time lost)'
                 )
                 raise BagError(msg) from exc
             yield conn.topic, conn.msgtype, t_ns, raw
@@ -229,7 +230,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
     Raises
     ------
     BagError
-        Not a directory, no ``metadata.yaml`` (``folder-line bag repair DIR`` rebuilds
+        Not a directory, no ``metadata.yaml`` (``folder-line bag repair <directory>`` rebuilds
         it), metadata rosbags would not read, a missing or cut file, or a later
         folder_line wrote it (:func:`check_version`).
     """
@@ -239,7 +240,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
         raise BagError(msg)
     meta = directory / METADATA_FILE
     if not os.path.lexists(meta):
-        msg = f'{directory}: no {METADATA_FILE}; rebuild it with: folder-line bag repair {directory}'
+        msg = f'{directory}: no {METADATA_FILE}; rebuild it with: folder-line bag repair {shlex.quote(str(directory))}'
         raise BagError(msg)
     if not meta.is_file():
         msg = f'{meta}: {describe_path(meta)}, not a regular file'
@@ -248,7 +249,7 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
     if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'), dict):
         msg = (
             f'{meta}: line 1, column 1: not rosbag2 metadata (a mapping with rosbag2_bagfile_information); '
-            f'rebuild it with: folder-line bag repair {directory}'
+            f'rebuild it with: folder-line bag repair {shlex.quote(str(directory))}'
         )
         raise BagError(msg)
     contents = _summarise(directory, data['rosbag2_bagfile_information'])
@@ -294,7 +295,7 @@ def _summarise(directory: Path, info: dict[str, Any]) -> BagContents:
     meta = directory / METADATA_FILE
 
     def refuse(why: str) -> BagError:
-        return BagError(f'{meta}: {why}; rebuild it with: folder-line bag repair {directory}')
+        return BagError(f'{meta}: {why}; rebuild it with: folder-line bag repair {shlex.quote(str(directory))}')
 
     try:
         version = int(info['version'])
@@ -372,7 +373,7 @@ def _check_file(directory: Path, name: str) -> None:
     if size < 2 * len(MCAP_MAGIC) or tail != MCAP_MAGIC:
         msg = (
             f'{path}: cannot open the bag: the file is cut short (no closing MCAP magic); '
-            f'salvage what it holds with: folder-line bag repair {directory}'
+            f'salvage what it holds with: folder-line bag repair {shlex.quote(str(directory))}'
         )
         raise BagError(msg)
 
@@ -388,7 +389,7 @@ def bag_info_lines(contents: BagContents) -> list[str]:
     state_text = {
         'true': 'complete (closed by its writer)',
         'false': 'INCOMPLETE: its writer did not close it (killed, or a write failed); the files listed '
-        'are whole, the rest is salvaged by: folder-line bag repair DIR',
+        f'are whole, the rest is salvaged by: folder-line bag repair {shlex.quote(str(contents.path))}',
         'repaired': 'repaired after its writer stopped (see folder_line.repair)',
     }.get(state or '', 'not recorded (written before folder_line.complete existed)')
     gaps = contents.gaps

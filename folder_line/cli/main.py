@@ -32,7 +32,7 @@ from folder_line.cli import sweep as sweep_verb
 from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited, tuning_change
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
-from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig
+from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig, bag_of
 from folder_line.config.scenes import InputNames, parse_set
 from folder_line.core.limits import DURATION, LOST_TIMEOUT, RTF, Limit
 from folder_line.core.line.scene import parse_scene
@@ -290,11 +290,11 @@ def build_parser() -> argparse.ArgumentParser:
     bag = sub.add_parser('bag', help='rosbag2 bags of a run: info, play, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')
     bag_info = bag_sub.add_parser('info', help='topics, counts, line time and custom data of a bag')
-    bag_info.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    bag_info.add_argument('dir', metavar='DIR', help='a run folder (e.g. out) or its bag folder (out/bag)')
     play = bag_sub.add_parser(
         'play', help='republish a bag on its topics with /clock, as the line published it (Ctrl-C stops)'
     )
-    play.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    play.add_argument('dir', metavar='DIR', help='a run folder (e.g. out) or its bag folder (out/bag)')
     play.add_argument(
         '--rtf',
         type=_rtf,
@@ -313,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     bag_repair = bag_sub.add_parser(
         'repair', help='rebuild metadata.yaml from the MCAP files present, salvaging an unfinished last file'
     )
-    bag_repair.add_argument('dir', metavar='DIR', help='bag directory (e.g. out/bag)')
+    bag_repair.add_argument('dir', metavar='DIR', help='a run folder (e.g. out) or its bag folder (out/bag)')
 
     rep = sub.add_parser('report', help='kinematics, efficiency and cyclogram report of the defaults, with plots')
     _add_out(rep, 'out')
@@ -565,6 +565,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
 
 
 def _cmd_bag(args: argparse.Namespace) -> int:
+    args.dir = str(bag_of(args.dir))  # a run folder stands for its bag
     if args.bag_verb == 'repair':
         bag = Path(args.dir)
         check_output_dir(bag, 'DIR', files=(METADATA_FILE,))  # before any claim touches a folder

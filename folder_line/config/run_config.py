@@ -24,6 +24,7 @@ from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
     'BAG_DIR',
+    'bag_of',
     'MARKER_RATE',
     'MARKER_RATES',
     'RATE',
@@ -54,6 +55,12 @@ MARKER_RATES = Limit('marker rate', 0.0, 1000.0, 'Hz', 'marker arrays per second
 SUPERVISOR_DEFAULTS: Mapping[str, Any] = MappingProxyType(
     {'rate': RATE, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
 )
+
+
+def bag_of(path: str | os.PathLike[str]) -> Path:
+    """The bag of ``path``: its :data:`BAG_DIR` when ``path`` is a run folder that holds one, else ``path``."""
+    p = Path(path)
+    return p / BAG_DIR if (p / BAG_DIR).is_dir() else p
 
 
 def supervisor_logic(scene: Scene, settings: Mapping[str, Any]) -> Supervisor:

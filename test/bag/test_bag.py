@@ -383,10 +383,14 @@ def test_cli_bag_info_and_repair(tmp_path: Path, capsys: pytest.CaptureFixture[s
     out = capsys.readouterr().out
     assert f'{JOINTS}' in out and 'sensor_msgs/msg/JointState' in out and ' 300' in out
     assert 'folder_line.scene_name: test scene' in out and '0.000 .. 2.990 s' in out
+    assert cli_main(['bag', 'info', str(tmp_path)]) == 0  # the run folder that holds bag/ stands for it
+    assert capsys.readouterr().out == out
+    (tmp_path / 'notes').mkdir()
+    (tmp_path / 'notes' / 'a.txt').write_text('not a bag')
     for argv in (
         ['bag', 'repair', str(tmp_path / 'missing')],
         ['bag', 'info', str(tmp_path / 'missing')],
-        ['bag', 'repair', str(tmp_path)],
+        ['bag', 'repair', str(tmp_path / 'notes')],
     ):
         assert cli_main(argv) == 2
         captured = capsys.readouterr()

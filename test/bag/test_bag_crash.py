@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -181,7 +182,7 @@ def test_sigkill_while_writing_loses_at_most_the_open_segment(tmp_path: Path) ->
     assert len(steps) >= len(complete) and len(steps) > reported - SEGMENT_NS // DT_NS
 
 
-def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
+def test_sigkill_in_the_first_segment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bag = tmp_path / 'bag'
     proc = _start(bag, '--block-after', '60', chunk_size=1024 * 1024)  # the recorder's chunk size
     try:
@@ -196,10 +197,18 @@ def test_sigkill_in_the_first_segment(tmp_path: Path) -> None:
         line.startswith('state      INCOMPLETE') and 'folder-line bag repair' in line
         for line in bag_info_lines(contents)
     )
-    result = repair(bag)
+    # the run folder (tmp_path, which holds bag/) stands for its bag, and the command bag info advises works
+    assert cli_main(['bag', 'info', str(tmp_path)]) == 0
+    advised = re.search(r'folder-line (bag repair \S+)', capsys.readouterr().out)
+    assert advised is not None
+    assert cli_main(advised.group(1).split()) == 0
+    assert 'salvaged' in capsys.readouterr().out
     assert read_bag(bag).custom['folder_line.complete'] == 'repaired'
+    assert cli_main(['bag', 'repair', str(tmp_path)]) == 0  # again, through the run folder: nothing more
+    assert 'nothing dropped' in capsys.readouterr().out
+    assert cli_main(['bag', 'info', str(tmp_path)]) == 0
+    assert 'repaired' in capsys.readouterr().out
     steps = _joint_steps(bag)
-    assert result.salvaged.get('bag_0.mcap', 0) > 0
     # flushed every 0.1 s of line time: steps up to 0.5 s are on disk although no chunk was full
     assert steps == list(range(len(steps))) and 50 <= len(steps) < 60
 
