@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Any
 
 from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.tuning import SET_PREFIX
@@ -75,6 +76,7 @@ __all__ = [
     'MARKERS_TOPIC',
     'NODE_OF_UNIT',
     'NS_PER_S',
+    'stamp_ns',
     'OPERATOR_COMMANDS',
     'GRANT_TOPIC',
     'PARTICIPANTS_TOPIC',
@@ -214,6 +216,11 @@ best-effort); see :func:`progress_topic`."""
 COMMAND_KINDS: tuple[str, ...] = ('hold', 'unhold', 'stop', 'start')
 
 _NODE_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*$')  # ROS 2's rule for a node name (rcl_validate_node_name)
+
+
+def stamp_ns(stamp: Any) -> int:
+    """Integer ns of a ``builtin_interfaces/msg/Time`` (rclpy's message, rosbags' or mcap's decoded one)."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 def is_command_source(source: str) -> bool:

@@ -46,6 +46,7 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
     joint_states_node,
     parse_event_source,
+    stamp_ns,
 )
 
 __all__ = ['JOINT_SAMPLES', 'SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
@@ -238,10 +239,6 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
         except ValueError as exc:
             raise ParameterError('RUN_DIR|BAG', str(path), f'run.json cannot be read: {exc}') from None
     return bag, run
-
-
-def _time_ns(stamp: Any) -> int:
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 class _Grow:
@@ -461,42 +458,42 @@ def read_recording(
         if on_message is not None:
             on_message(topic, t_ns, msg)
         if topic == CLOCK_TOPIC:
-            clock_end = max(clock_end, _time_ns(msg.clock))
+            clock_end = max(clock_end, stamp_ns(msg.clock))
         elif topic == EVENTS_TOPIC:
             try:
                 kind, sheet, cycle, value = parse_event_source(msg.source)
             except ValueError:
                 bad_events += 1
                 continue
-            t_ev = _time_ns(msg.time_ref)
+            t_ev = stamp_ns(msg.time_ref)
             ev_ns.add(t_ev)
             ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set below, from the ns
         elif (node := node_of.get(topic)) is not None:
-            stamp_ns = _time_ns(msg.header.stamp)
+            t_ns = stamp_ns(msg.header.stamp)
             three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
-            if stamp_ns >= from_ns:
+            if t_ns >= from_ns:
                 acc = joints.get(node)
                 if acc is None:
                     acc = joints[node] = _Joints(node, msg.name, sampler)
-                acc.add(msg, stamp_ns, *three)
+                acc.add(msg, t_ns, *three)
             arrays = [a for a in three if a.size]
             # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
             if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
                 bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
                 if bad:
-                    bad_values.append((stamp_ns / NS_PER_S, topic, bad))
+                    bad_values.append((t_ns / NS_PER_S, topic, bad))
         elif topic == DIAGNOSTICS_TOPIC:
-            stamp_ns = _time_ns(msg.header.stamp)
-            diag_ns.add(stamp_ns)
+            t_ns = stamp_ns(msg.header.stamp)
+            diag_ns.add(t_ns)
             for st in msg.status:
                 if str(st.name).startswith(SUPERVISOR_STATUS_PREFIX):
-                    status.append((stamp_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
+                    status.append((t_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
         elif topic == SUPERVISOR_STATE_TOPIC:
             state = str(msg.data)
             if not states or states[-1][1] != state:
                 states.append((t_ns, state))
         elif topic == COMMANDS_TOPIC:
-            commands[(_time_ns(msg.time_ref), str(msg.source))] = None
+            commands[(stamp_ns(msg.time_ref), str(msg.source))] = None
         elif topic == SHEET_COUNT_TOPIC:
             sheet_count = int(msg.data)
         elif topic == LANDING_TOPIC:

@@ -64,7 +64,7 @@ from folder_line.bag.metadata import (
 from folder_line.bag.types import message_definition, msgtype_of, serialize
 from folder_line.errors import BagError
 from folder_line.files.atomic import write_text_atomic
-from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S
+from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S, stamp_ns
 
 __all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'start_mcap']
 
@@ -100,11 +100,6 @@ def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: 
     who = f'folder_line {__version__} {role}' if role else f'folder_line {__version__}'
     writer.start(profile='ros2', library=f'{who} (python mcap {mcap.__version__})')
     return writer
-
-
-def _time_ns(stamp: Any) -> int:
-    """ns of a ``builtin_interfaces/Time``."""
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
 class _PackedMessageIndex(MessageIndex):
@@ -665,9 +660,9 @@ class BagWriter:
         # a class is hashable; mypy checks type[...] against lru_cache's Hashable wrongly (python/typeshed#4638)
         self.add_topic(topic, msgtype_of(type(msg)))  # type: ignore[arg-type]  # declares a new topic, refuses another type
         if topic == self.clock_topic:
-            self._t_ns = max(self._t_ns, _time_ns(msg.clock))
+            self._t_ns = max(self._t_ns, stamp_ns(msg.clock))
         header = getattr(msg, 'header', None)
-        publish_ns = _time_ns(header.stamp) if header is not None else self._t_ns
+        publish_ns = stamp_ns(header.stamp) if header is not None else self._t_ns
         self.write_serialized(topic, serialize(msg, self.types[topic]), self._t_ns, publish_ns)
 
     def write_serialized(self, topic: str, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
@@ -773,8 +768,13 @@ class BagWriter:
     def __enter__(self) -> BagWriter:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        """Close the bag, or, when the block raised, :meth:`abandon` it: a bag whose writing failed is not
+        marked complete."""
+        if exc_type is None:
+            self.close()
+        else:
+            self.abandon()
 
     # ------------------------------------------------------------------ internals
 

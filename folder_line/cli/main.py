@@ -118,7 +118,8 @@ class _Parser(argparse.ArgumentParser):
 def _addlimited(
     parser: argparse.ArgumentParser, option: str, limit: Limit, default: float, metavar: str, help: str
 ) -> None:
-    """``option``: a number in ``limit`` (:func:`_limited`); ``help`` gets `` (default ...)`` appended."""
+    """``option``: a number in ``limit`` (:func:`folder_line.cli.arg_types.limited`); ``help`` gets
+    `` (default ...)`` appended."""
     parser.add_argument(
         option, type=limited(option, limit), default=default, metavar=metavar, help=f'{help} (default {default:g})'
     )

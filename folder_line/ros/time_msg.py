@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from builtin_interfaces.msg import Time as TimeMsg
 
-from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS
+from folder_line.interfaces import NS_PER_S, TIME_MSG_MAX_NS, stamp_ns
 
 __all__ = ['ns_to_time_msg', 'time_msg_to_ns']
 
@@ -30,6 +30,4 @@ def ns_to_time_msg(ns: int) -> TimeMsg:
 
 def time_msg_to_ns(stamp: TimeMsg) -> int:
     """Integer nanoseconds of a ``builtin_interfaces/msg/Time``."""
-    sec: int = stamp.sec  # builtin_interfaces has no type information
-    nanosec: int = stamp.nanosec
-    return sec * NS_PER_S + nanosec
+    return stamp_ns(stamp)

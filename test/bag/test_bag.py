@@ -217,6 +217,22 @@ def test_segments_roll_over_at_line_time_boundaries(tmp_path: Path) -> None:
     assert [len(list(make_reader(p.open('rb')).iter_messages())) for p in segment_files(half)] == [5, 5]
 
 
+def test_a_bag_whose_writing_raised_is_left_partial_not_complete(tmp_path: Path) -> None:
+    """Leaving ``with BagWriter(...)`` by an exception abandons the bag (marked partial), as a failed write
+    must; leaving it normally closes it (complete)."""
+    with (
+        pytest.raises(RuntimeError, match='the line failed'),
+        BagWriter(tmp_path / 'failed', scene_source=SCENE, effects=[]) as writer,
+    ):
+        writer.write('/clock', Clock(clock=stamp(0)))
+        raise RuntimeError('the line failed')
+    assert read_bag(tmp_path / 'failed').custom['folder_line.complete'] == 'false'
+    assert read_bag(tmp_path / 'failed').message_count == 1  # what it wrote is kept
+    with BagWriter(tmp_path / 'done', scene_source=SCENE, effects=[]) as writer:
+        writer.write('/clock', Clock(clock=stamp(0)))
+    assert read_bag(tmp_path / 'done').custom['folder_line.complete'] == 'true'
+
+
 def test_metadata_is_written_at_every_rollover(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
     writer = BagWriter(bag, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS)
