@@ -9,6 +9,10 @@ effect; or why the command is illegal now).
 
 ``folder-line tune KEY=VALUE`` sets the node parameter that tunes ``KEY``
 (:data:`folder_line.interfaces.TUNABLE_PARAMETERS`), as ``ros2 param set`` would.
+
+On a keyed line (``FOLDER_LINE_KEY``) both sign their request with the key
+(:mod:`folder_line.ros.signing`): the tuning is set together with its ``line_signature``, and a
+command's call is preceded by the supervisor's ``operator_command`` set so.
 """
 
 from __future__ import annotations

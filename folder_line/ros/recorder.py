@@ -160,6 +160,7 @@ class LineRecorder(Node):
         #: per topic, messages refused as unsigned on a keyed line (:mod:`folder_line.ros.signing`), not recorded
         self.refused: Counter[str] = Counter()
         self._commands_at: tuple[int, set[tuple[int, str]]] = (-1, set())  # the latest stamp of a command, its own
+        self._announced: str | None = None  # the announcement recorded
         #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
         self.write_error: OSError | None = None
         # the ERROR statuses seen (lost participants, violations, ...) and the operator's tunings
@@ -304,6 +305,10 @@ class LineRecorder(Node):
                 return bytes(serialize_message(msg))
             text = deserialize_message(data, String).data
             opened = open_text(text, 'announcement')
+            if opened == self._announced:  # played again: line_clock announces once
+                self.refused[topic] += 1
+                return None
+            self._announced = opened
             return data if opened == text else bytes(serialize_message(String(data=opened)))
         except ValueError:
             self.refused[topic] += 1

@@ -14,16 +14,26 @@ from __future__ import annotations
 import secrets
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from _ros_env import sniffer_environment
+from sensor_msgs.msg import TimeReference
+from std_msgs.msg import String
 
-from folder_line.interfaces import DIAGNOSTICS_TOPIC
+from folder_line.interfaces import COMMANDS_TOPIC, DIAGNOSTICS_TOPIC, NS_PER_S, PARTICIPANTS_TOPIC
+from folder_line.ros.lockstep import PARTICIPANTS_QOS, Announcement, format_announcement
+from folder_line.ros.recorder import LineRecorder
 from folder_line.ros.signing import REQUEST_WINDOW, RequestGuard, Signer, line_signer, sign_request, without_signature
+from folder_line.ros.topics import COMMANDS_QOS
 
 from ._line_runs import run_under_attack
+from ._signed import time_reference
 from .test_strangers import DURATION, line_records
 from .test_strangers import clean as clean  # noqa: F401 - the fixture: the run without attack
+
+if TYPE_CHECKING:
+    from .conftest import Ros
 
 KEY = bytes(range(16))
 
@@ -104,3 +114,26 @@ def test_without_the_key_the_partition_alone_steers_and_forges_nothing(clean: Pa
         r: n for r, n in reference.items() if r[0] != DIAGNOSTICS_TOPIC
     }
     assert not any('V_tr' in str(r[3]) for r in attacked)  # no retune reached the record
+
+
+def test_the_recorder_takes_each_signed_command_and_announcement_once(ros: Ros) -> None:
+    """A copy of a command or announcement (played again by someone who heard it) is refused, as is an
+    unsigned one: the supervisor publishes each command once, line_clock announces once."""
+    recorder = ros.add(LineRecorder(context=ros.context))
+    sender = ros.node('sender')
+    commands = sender.create_publisher(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS)
+    announce = sender.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
+    assert ros.spin_until(
+        lambda: commands.get_subscription_count() >= 1 and announce.get_subscription_count() >= 1, timeout=20.0
+    )
+    hold = time_reference('supervisor', NS_PER_S, 'hold', 'command', NS_PER_S + 5)
+    text = format_announcement(Announcement('lockstep', None, ('crank_drive', 'line_recorder')))
+    for msg in (hold, hold, time_reference('supervisor', NS_PER_S, 'stop', 'progress')):  # twice, then unsigned
+        commands.publish(msg)
+    for data in (text, text):
+        announce.publish(String(data=data))
+    assert ros.spin_until(lambda: recorder.refused == {COMMANDS_TOPIC: 2, PARTICIPANTS_TOPIC: 1}, timeout=20.0), (
+        recorder.refused
+    )
+    ros.spin_for(0.3)
+    assert recorder.refused == {COMMANDS_TOPIC: 2, PARTICIPANTS_TOPIC: 1}  # the first of each taken
