@@ -27,6 +27,8 @@ import rclpy
 from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import MessageInfo
@@ -43,6 +45,7 @@ from folder_line.interfaces import (
 from folder_line.ros.dds_profile import use_line_profile
 from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
+from folder_line.ros.signing import SIGNATURE_PARAMETER, line_signer, sign_request
 from folder_line.ros.topics import COMMANDS_QOS
 
 __all__ = [
@@ -211,6 +214,7 @@ class MonitorSession:
         self.node = node
         self.stop = stop
         self.clients: dict[str, Client[Trigger.Request, Trigger.Response]] = {}
+        self._parameters: AsyncParameterClient | None = None  # the supervisor's, to sign a command
 
     def command(self, name: str, on_answer: Callable[[bool, str], None]) -> bool:
         """Call the supervisor's operator service ``name`` without waiting; False if no supervisor offers it.
@@ -223,13 +227,31 @@ class MonitorSession:
             client = self.clients[name] = self.node.create_client(Trigger, f'/line/supervisor/{name}')
         if not client.service_is_ready():
             return False
-        future = client.call_async(Trigger.Request())
 
-        def done(f: Any) -> None:
+        def answered(f: Any) -> None:
             response = f.result()
             on_answer(bool(response.success), str(response.message))
 
-        future.add_done_callback(done)
+        def call() -> None:
+            client.call_async(Trigger.Request()).add_done_callback(answered)
+
+        if not line_signer().keyed:
+            call()
+            return True
+        # a keyed line takes a command whose request is signed first (as folder-line hold does)
+        if self._parameters is None:
+            self._parameters = AsyncParameterClient(self.node, 'supervisor')
+        request = [Parameter('operator_command', value=name)]
+        request.append(Parameter(SIGNATURE_PARAMETER, value=sign_request('supervisor', [('operator_command', name)])))
+
+        def signed(f: Any) -> None:
+            result = f.result().result
+            if result.successful:
+                call()
+            else:
+                on_answer(False, f'operator_command={name!r}: {result.reason}')
+
+        self._parameters.set_parameters_atomically(request).add_done_callback(signed)
         return True
 
     @property

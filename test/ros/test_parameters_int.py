@@ -26,6 +26,7 @@ from folder_line.errors import AssemblyError, ParameterError
 from folder_line.ros.parameters import ParamSpec, declare_parameters, parameter_values, sim_time_overrides
 
 from ._node_process import assert_clean_exit, executable, send, start, unique_name
+from ._signed import signed
 
 if TYPE_CHECKING:
     from .conftest import Ros
@@ -226,8 +227,9 @@ def test_a_node_process_started_with_integers_runs_on_floats(
     ros: Ros, node_env: dict[str, str], tmp_path: Path, node: str, ros_args: tuple[str, ...], expected: dict[str, float]
 ) -> None:
     """``ros2 run folder_line crank_drive --ros-args -p rate:=200``: the node runs, its rate 200.0; a
-    ``ros2 param set`` with an integer works on the running process; SIGINT ends it with 0."""
-    name = unique_name(node)
+    ``ros2 param set`` with an integer works on the running process (signed with the line's key, as
+    ``folder-line tune`` sends it; unsigned it is refused); SIGINT ends it with 0."""
+    target = name = unique_name(node)
     proc = start([*executable(node), '--ros-args', '-r', f'__node:={name}', *ros_args], node_env, tmp_path, node)
     try:
         caller = ros.node('int_process_caller')
@@ -236,8 +238,12 @@ def test_a_node_process_started_with_integers_runs_on_floats(
         assert proc.proc.poll() is None, proc.err()
         for name, value in expected.items():
             assert _parameter(ros, client, name) == (ParameterType.PARAMETER_DOUBLE, value)
-        # as `ros2 param set /NODE rate 300`
+        # as `ros2 param set /NODE rate 300`: refused on the keyed line (the test process's), for want of
+        # the signature; taken with it, as `folder-line tune` sends a change (an integer still)
         [result] = _answer(ros, lambda: client.set_parameters([Parameter('rate', value=300)])).results
+        assert not result.successful and 'must be signed with the line key' in result.reason
+        change = [Parameter('rate', value=300)]
+        result = _answer(ros, lambda: client.set_parameters_atomically(signed(target, change))).result
         assert result.successful, result.reason
         assert _parameter(ros, client, 'rate') == (ParameterType.PARAMETER_DOUBLE, 300.0)
         send(proc, signal.SIGINT)
