@@ -43,9 +43,10 @@ from folder_line.interfaces import (
     SUPERVISOR_STATE_TOPIC,
 )
 from folder_line.ros.dds_profile import use_line_profile
+from folder_line.ros.parameters import signed_change
 from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
-from folder_line.ros.signing import SIGNATURE_PARAMETER, line_signer, sign_request
+from folder_line.ros.signing import line_signer
 from folder_line.ros.topics import COMMANDS_QOS
 
 __all__ = [
@@ -241,8 +242,7 @@ class MonitorSession:
         # a keyed line takes a command whose request is signed first (as folder-line hold does)
         if self._parameters is None:
             self._parameters = AsyncParameterClient(self.node, 'supervisor')
-        request = [Parameter('operator_command', value=name)]
-        request.append(Parameter(SIGNATURE_PARAMETER, value=sign_request('supervisor', [('operator_command', name)])))
+        request = signed_change('supervisor', [Parameter('operator_command', value=name)])
 
         def signed(f: Any) -> None:
             result = f.result().result

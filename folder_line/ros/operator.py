@@ -37,7 +37,8 @@ from folder_line.core.line.tuning import TUNABLES
 from folder_line.errors import ParameterError
 from folder_line.interfaces import OPERATOR_COMMANDS, TUNABLE_PARAMETERS
 from folder_line.ros.dds_profile import use_line_profile
-from folder_line.ros.signing import SIGNATURE_PARAMETER, line_signer, sign_request
+from folder_line.ros.parameters import signed_change
+from folder_line.ros.signing import SIGNATURE_PARAMETER, line_signer
 
 __all__ = ['COMMANDS', 'Answer', 'call_command', 'call_tune', 'service_name', 'tunable_parameter']
 
@@ -111,9 +112,7 @@ def _set_signed(
     client = AsyncParameterClient(node, target)
     if not _until(executor, client.services_are_ready, timeout):
         return Answer(False, '')
-    if line_signer().keyed:
-        signature = sign_request(target, [(p.name, p.value) for p in parameters])
-        parameters = [*parameters, Parameter(SIGNATURE_PARAMETER, value=signature)]
+    parameters = signed_change(target, parameters)
     future = client.set_parameters_atomically(parameters)
     executor.spin_until_future_complete(future, timeout_sec=timeout)
     if not future.done():

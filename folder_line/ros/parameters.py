@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from folder_line.errors import FolderLineError, ParameterError
-from folder_line.ros.signing import SIGNATURE_PARAMETER, RequestGuard
+from folder_line.ros.signing import SIGNATURE_PARAMETER, RequestGuard, line_signer, sign_request
 
 __all__ = [
     'CrossCheck',
@@ -33,6 +33,7 @@ __all__ = [
     'make_validator',
     'parameter_values',
     'proposed_value',
+    'signed_change',
     'sim_time_overrides',
     'starting_values',
 ]
@@ -492,3 +493,12 @@ def guard_changes(node: Node) -> RequestGuard:
 
     node.add_on_set_parameters_callback(check)
     return guard
+
+
+def signed_change(node: str, parameters: list[Parameter[Any]]) -> list[Parameter[Any]]:
+    """``parameters`` for node ``node`` (its name), with :data:`SIGNATURE_PARAMETER` signing them on a keyed
+    line (unchanged on an open one): to set at once (``set_parameters_atomically``)."""
+    if not line_signer().keyed:
+        return parameters
+    signature = sign_request(node, [(p.name, p.value) for p in parameters])
+    return [*parameters, Parameter(SIGNATURE_PARAMETER, value=signature)]

@@ -8,7 +8,8 @@ from typing import Any
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import TimeReference
 
-from folder_line.ros.signing import SIGNATURE_PARAMETER, open_text, sign_request, sign_text
+from folder_line.ros.parameters import signed_change
+from folder_line.ros.signing import line_signer, open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg
 
 
@@ -26,9 +27,9 @@ def time_reference(frame: str, stamp_ns: int, source: str, kind: str, time_ref_n
 
 def signed(node: str, parameters: list[Parameter[Any]]) -> list[Parameter[Any]]:
     """``parameters`` for node ``node`` (its name) with the signature of the change, to set at once
-    (``set_parameters_atomically``), as ``folder-line tune`` does."""
-    signature = sign_request(node, [(p.name, p.value) for p in parameters])
-    return [*parameters, Parameter(SIGNATURE_PARAMETER, value=signature)]
+    (``set_parameters_atomically``), as ``folder-line tune`` does (the test process has a key)."""
+    assert line_signer().keyed
+    return signed_change(node, parameters)
 
 
 def command_text(msg: TimeReference) -> str:
