@@ -7,7 +7,7 @@ OUT    ?= out
 # strictly typed (mypy.ini): the whole package
 TYPED  := folder_line
 
-.PHONY: run report test bench accuracy clean
+.PHONY: run report test docs bench accuracy clean
 
 $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -28,6 +28,10 @@ test: $(STAMP)
 	$(BIN)/ruff check --quiet .
 	$(BIN)/mypy $(TYPED)
 	$(BIN)/python -m pytest
+
+# the manual (Sphinx, MyST Markdown, autodoc) into build/docs; warnings are errors
+docs: $(STAMP)
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs build/docs
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_layup.py

@@ -19,6 +19,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        ('share/' + package_name + '/config/foxglove', glob('config/foxglove/*.json')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     # The ROS 2 stack (rclpy, message packages) comes from the ROS install or, for

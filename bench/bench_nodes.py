@@ -1,7 +1,7 @@
 """Lockstep speed of the live line over real DDS, against the bare rclpy floor, in one run.
 
 Run: ``.venv/bin/python bench/bench_nodes.py`` (``--quick``: shorter spans). Prints a
-markdown table; the README quotes it with the machine it ran on.
+markdown table; docs/benchmarks.md quotes it with the machine it ran on.
 
 What is measured
 ----------------

@@ -50,8 +50,8 @@ waits likewise; in-process ``run`` starts the clock at once, and at a high real-
 factor the supervisor may then miss the first cycles' events and hold the line). The
 real-time factor is chosen per rate so that every node ticks
 :data:`TICKS_PER_WALL_S` times per wall second (``rtf = 200 / rate``), at most
-:data:`RTF_MAX` (the in-process line's highest sustainable rtf at 200 Hz, README
-"Speed of the nodes"; at 50 Hz and rtf 4 the supervisor was seen judging a cycle
+:data:`RTF_MAX` (the in-process line's highest sustainable rtf at 200 Hz, docs/benchmarks.md,
+"The nodes"; at 50 Hz and rtf 4 the supervisor was seen judging a cycle
 without its ``settled`` event and holding); the clock publishes ``rate x rtf``
 messages per wall second as ``folder-line run`` does, one per tick. The JointState
 messages each joint node published in the measured span are counted: fewer than

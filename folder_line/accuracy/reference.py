@@ -7,7 +7,7 @@ the unknowns are the link angles, the equations the vector loop closures
     loop 2 (O2-C-E-O3):  l3 e(θ3) + l4 e(θ4) - O3 - l5 e(θ5) = 0
 
 with ``e(x) = (cos x, sin x)``, O2 at the origin, O1 = (a, b), O3 = (O2O3, 0) (the
-project frame, README "Default parameters", L). Positions: a float start from the law of
+project frame, docs/machines.md, section L). Positions: a float start from the law of
 cosines (triangles O2-A-B and O3-C-E, on the assembly branches the layup model takes:
 ``(A - O2) × (B - O2) > 0`` and ``(C - O3) × (E - O3) > 0``), polished by Newton's
 method in mpmath at :data:`DPS` digits until the step is below ``10^-(DPS-5)``.

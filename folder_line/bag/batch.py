@@ -132,7 +132,7 @@ class BatchBag:
         The bag directory.
     counts : dict of str to int
         Messages per topic.
-    segments : int
+    files : int
         ``.mcap`` files.
     state : str
         The supervisor's state at the last tick.
@@ -142,7 +142,7 @@ class BatchBag:
 
     path: str
     counts: dict[str, int] = field(default_factory=dict)
-    segments: int = 0
+    files: int = 0
     state: str = ''
     commands: list[tuple[float, str]] = field(default_factory=list)
 
@@ -416,6 +416,8 @@ def write_batch_bag(
     progress: Callable[[float], None] | None = None,
     tunings: Sequence[Tuning] = (),
     marker_rate: float = MARKER_RATE,
+    max_duration_s: float = 0.0,
+    max_size: int = 0,
 ) -> BatchBag:
     """Write the bag of a live lockstep ``folder-line run`` of ``scene`` for ``duration`` s, without DDS.
 
@@ -438,6 +440,9 @@ def write_batch_bag(
         bag holds the tuning and its status as a live run's does.
     marker_rate : float, optional
         ``/line/markers`` per second of line time, as ``run --marker-rate`` (0: none).
+    max_duration_s, max_size : float, int, optional
+        Split the bag by line time (s) or size (bytes), as ``run --max-bag-duration`` and
+        ``--max-bag-size`` (0: one file; :class:`~folder_line.bag.writer.BagWriter`).
 
     Returns
     -------
@@ -470,6 +475,8 @@ def write_batch_bag(
         topics=LINE_TOPIC_TYPES,
         custom={'folder_line.mode': 'batch', 'folder_line.clock': 'lockstep', **(custom or {})},
         rewrite_metadata=False,
+        max_duration_s=max_duration_s,
+        max_size=max_size,
     )
     result = BatchBag(str(bag.path))
     writer = _Writer(bag, scene, line, sup, marker_rate)
@@ -512,7 +519,7 @@ def write_batch_bag(
         bag.abandon()  # what was written stays readable, marked partial (Ctrl-C, a full disk)
         raise
     result.counts = dict(bag.counts)
-    result.segments = len(bag.files)
+    result.files = len(bag.files)
     result.state = logic.state
     result.commands = [(c.t, c.kind) for c in logic.commands]
     return result

@@ -1,11 +1,11 @@
-"""A bag's ``metadata.yaml`` and file layout: summaries, the YAML text, the segment files.
+"""A bag's ``metadata.yaml`` and file layout: summaries, the YAML text, the ``.mcap`` files.
 
 A bag directory ``DIR`` is a rosbag2 bag, metadata version 9, storage ``mcap``::
 
     DIR/metadata.yaml    rosbag2 metadata: topics with types and counts, the files
                          (start, duration, count each), custom_data (see below)
-    DIR/DIR_0.mcap       messages of line time [0, segment_s)
-    DIR/DIR_1.mcap       the next segment of line time, and so on
+    DIR/DIR_0.mcap       the messages (all of them, unless the bag is split)
+    DIR/DIR_1.mcap       a split bag's next file, and so on
 
 Each ``.mcap`` file carries the bag's custom data again as an MCAP metadata record
 named ``folder_line`` (:data:`MCAP_METADATA_NAME`), so that
@@ -13,7 +13,8 @@ named ``folder_line`` (:data:`MCAP_METADATA_NAME`), so that
 
 ``custom_data`` (rosbag2 allows strings only): ``folder_line.scene`` (the complete
 scene as YAML), ``folder_line.scene_name``, ``folder_line.effects`` (JSON list),
-``folder_line.version``, ``folder_line.segment_s``, any extra keys given to the
+``folder_line.version``, ``folder_line.max_bag_duration`` (s) and
+``folder_line.max_bag_size`` (bytes; each 0 when the bag is not split so), any extra keys given to the
 writer, ``folder_line.published`` (JSON ``{topic: count}``, publisher-side counts,
 written at close when known), ``folder_line.repair`` (what
 :func:`~folder_line.bag.repair.repair` did) and ``folder_line.complete`` (``false`` while
@@ -42,7 +43,8 @@ __all__ = [
     'KEY_REPAIR',
     'KEY_SCENE',
     'KEY_SCENE_NAME',
-    'KEY_SEGMENT_S',
+    'KEY_MAX_BAG_DURATION',
+    'KEY_MAX_BAG_SIZE',
     'KEY_VERSION',
     'MCAP_METADATA_NAME',
     'METADATA_FILE',
@@ -64,7 +66,8 @@ KEY_SCENE = 'folder_line.scene'
 KEY_SCENE_NAME = 'folder_line.scene_name'
 KEY_EFFECTS = 'folder_line.effects'
 KEY_VERSION = 'folder_line.version'
-KEY_SEGMENT_S = 'folder_line.segment_s'
+KEY_MAX_BAG_DURATION = 'folder_line.max_bag_duration'
+KEY_MAX_BAG_SIZE = 'folder_line.max_bag_size'
 KEY_PUBLISHED = 'folder_line.published'
 KEY_REPAIR = 'folder_line.repair'
 #: ``'false'`` while the writer has the bag open, ``'true'`` once it closed it, ``'repaired'`` after repair

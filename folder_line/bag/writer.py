@@ -1,7 +1,8 @@
-"""The bag writer: the line's messages to a rosbag2 directory in MCAP storage, one file per segment.
+"""The bag writer: the line's messages to a rosbag2 directory in MCAP storage, one ``.mcap`` file.
 
-The bag is split by line time as ``ros2 bag record`` splits by size or duration
-(layout and ``custom_data``: :mod:`folder_line.bag.metadata`). Each ``.mcap`` file
+As ``ros2 bag record``, the writer makes one file unless told to split it, by line time
+(``max_duration_s``) or by size (``max_size``); layout and ``custom_data``:
+:mod:`folder_line.bag.metadata`. Each ``.mcap`` file
 uses the ``ros2`` MCAP profile (schemas ``ros2msg`` from the rosbags typestore of
 ROS 2 kilted, channels ``cdr``, zstd chunks, summary and footer).
 
@@ -16,12 +17,14 @@ one call; :meth:`BagWriter.write_ticks` records a whole window of ticks gathered
 (:class:`TickMessages`: the records built with numpy, straight into the open chunk), the same
 files byte for byte as :meth:`~BagWriter.write_many` tick by tick (``simulate --bag``).
 
-Crash safety. The writer rolls over to the next file when the line time reaches
-the next multiple of ``segment_s``: it finishes the open file (chunks, summary,
-footer), closes it and rewrites ``metadata.yaml`` (atomically) listing the finished
-files only. So after a SIGKILL of the writing process the directory opens with
-``rosbags`` as it is, with every message of every finished segment. Within the open
-segment the writer closes the current chunk and hands it to the operating system
+Splitting. With ``max_duration_s`` the next file starts at each multiple of it in line
+time (``--max-bag-duration``); with ``max_size`` a file that has reached that many bytes
+is finished at the next flush (below), and the next tick starts a new file
+(``--max-bag-size``); with both, whichever comes first. At each split the writer
+finishes the open file (chunks, summary, footer) and rewrites ``metadata.yaml``
+(atomically) listing the finished files.
+
+Crash safety. The writer closes the current chunk and hands it to the operating system
 every ``flush_s`` of line time (default 0.1 s), so :func:`folder_line.bag.repair.repair`
 salvages the open file up to its last flushed chunk: a SIGKILL loses at most ``flush_s``
 of line time plus the messages of the tick being written. Repair rebuilds
@@ -49,10 +52,11 @@ from folder_line import __version__
 from folder_line.bag.metadata import (
     KEY_COMPLETE,
     KEY_EFFECTS,
+    KEY_MAX_BAG_DURATION,
+    KEY_MAX_BAG_SIZE,
     KEY_PUBLISHED,
     KEY_SCENE,
     KEY_SCENE_NAME,
-    KEY_SEGMENT_S,
     KEY_VERSION,
     MCAP_METADATA_NAME,
     METADATA_FILE,
@@ -66,7 +70,7 @@ from folder_line.errors import BagError
 from folder_line.files.atomic import write_text_atomic
 from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S, stamp_ns
 
-__all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'start_mcap']
+__all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'files_text', 'start_mcap']
 
 #: an MCAP Message record's opcode, length, channel id, sequence, log time and publish time
 _MESSAGE_HEAD = struct.Struct('<BQHIQQ')
@@ -80,8 +84,15 @@ _HEAD = _MESSAGE_HEAD.size
 #: the rank of a message inside its tick (:class:`TickMessages`) is below this
 _SLOTS = 1 << 20
 
+#: a line time no bag reaches, ns: the split time of a bag not split by time
+_NEVER = 2**63 - 1
 #: uncompressed bytes per MCAP chunk unless told otherwise (python mcap's default too)
 DEFAULT_CHUNK_SIZE = 1024 * 1024
+
+
+def files_text(n: int) -> str:
+    """``'1 .mcap file'``, ``'3 .mcap files'``: how many files a bag has, for a line of output."""
+    return f'{n} .mcap file' + ('' if n == 1 else 's')
 
 
 def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: str = '') -> Writer:
@@ -346,7 +357,7 @@ class _Segment:
         self._records: Any = self._chunk.record_writer
         self._indices: dict[int, MessageIndex] = self._chunk.message_indices
         self.flush_ns = flush_ns
-        self._next_flush_ns: int | None = None
+        self.next_flush_ns: int | None = None
         self.writer.add_metadata(MCAP_METADATA_NAME, dict(custom))
         self.schemas: dict[str, int] = {}
         self.channels: dict[str, int] = {}
@@ -363,11 +374,11 @@ class _Segment:
         )
 
     def add(self, topic: str, log_ns: int, publish_ns: int, data: bytes, sequence: int) -> None:
-        if self._next_flush_ns is None:
-            self._next_flush_ns = log_ns + self.flush_ns
-        elif log_ns >= self._next_flush_ns:  # the messages before this tick go to disk (a SIGKILL keeps them)
+        if self.next_flush_ns is None:
+            self.next_flush_ns = log_ns + self.flush_ns
+        elif log_ns >= self.next_flush_ns:  # the messages before this tick go to disk (a SIGKILL keeps them)
             self.flush()
-            self._next_flush_ns = log_ns + self.flush_ns
+            self.next_flush_ns = log_ns + self.flush_ns
         self.writer.add_message(self.channels[topic], log_ns, data, publish_ns, sequence)
         if self.count == 0:
             self.start_ns = log_ns
@@ -380,11 +391,11 @@ class _Segment:
         ``Writer.add_message`` does, without a ``Message`` object and stream calls per message)."""
         if not items:
             return
-        if self._next_flush_ns is None:
-            self._next_flush_ns = log_ns + self.flush_ns
-        elif log_ns >= self._next_flush_ns:
+        if self.next_flush_ns is None:
+            self.next_flush_ns = log_ns + self.flush_ns
+        elif log_ns >= self.next_flush_ns:
             self.flush()
-            self._next_flush_ns = log_ns + self.flush_ns
+            self.next_flush_ns = log_ns + self.flush_ns
         buffer = self._records._buffer
         per_channel = self._stats.channel_message_counts
         chunk = self._chunk
@@ -426,12 +437,12 @@ class _Segment:
         starts = rec.starts
         while a < b:
             log_a = int(log[a])
-            if self._next_flush_ns is None:
-                self._next_flush_ns = log_a + self.flush_ns
-            elif log_a >= self._next_flush_ns:
+            if self.next_flush_ns is None:
+                self.next_flush_ns = log_a + self.flush_ns
+            elif log_a >= self.next_flush_ns:
                 self.flush()
-                self._next_flush_ns = log_a + self.flush_ns
-            g = min(b, int(np.searchsorted(log, self._next_flush_ns, side='left')))  # the ticks before the flush
+                self.next_flush_ns = log_a + self.flush_ns
+            g = min(b, int(np.searchsorted(log, self.next_flush_ns, side='left')))  # the ticks before the flush
             while a < g:
                 room = self.chunk_size - self._records.count
                 tick_ends = ends[np.searchsorted(ends, a, side='right') : np.searchsorted(ends, g, side='right')]
@@ -486,6 +497,19 @@ class _Segment:
         self.end_ns = hi
         self.count += k
 
+    def flush_due(self, log_ns: int) -> bool:
+        """A record at line time ``log_ns`` would flush the file first."""
+        return self.next_flush_ns is not None and log_ns >= self.next_flush_ns
+
+    def flush_at(self, log_ns: int) -> None:
+        """The flush a record at ``log_ns`` would make first, made now; the next is ``flush_s`` later."""
+        self.flush()
+        self.next_flush_ns = log_ns + self.flush_ns
+
+    def size(self) -> int:
+        """Bytes written to the file so far (up to the last flush, the open chunk not counted)."""
+        return self.stream.tell()
+
     def flush(self) -> None:
         """End the current chunk and hand the file's bytes to the operating system."""
         self._end_chunk()
@@ -498,7 +522,7 @@ class _Segment:
 
 
 class BagWriter:
-    """Writes the line's messages to a rosbag2 directory in MCAP storage, one file per segment.
+    """Writes the line's messages to a rosbag2 directory in MCAP storage: one file, or split on request.
 
     Usable as the :class:`folder_line.ros.recorder.LineRecorder` sink (``writer.write_serialized``)
     and as a context manager. See :mod:`folder_line.bag.writer` for the timestamps and
@@ -512,8 +536,11 @@ class BagWriter:
         The scene as YAML text (stored as ``folder_line.scene``).
     effects : list of str
         The scene's effects (stored as ``folder_line.effects``, JSON).
-    segment_s : float
-        Line time per file, s, in [1e-6, 1e6] (default 1).
+    max_duration_s : float
+        Line time per file, s: 0 (default) no split by time, else in [1e-6, 1e7].
+    max_size : int
+        Bytes per file: 0 (default) no split by size, else a file of at least this size is
+        finished at its next flush.
     flush_s : float
         Line time between two flushes of the open file, s, in [1e-6, 1e6] (default 0.1): a
         SIGKILL loses at most this much (and the tick being written), after
@@ -549,7 +576,8 @@ class BagWriter:
         *,
         scene_source: str,
         effects: Sequence[str],
-        segment_s: float = 1.0,
+        max_duration_s: float = 0.0,
+        max_size: int = 0,
         scene_name: str = '',
         topics: Mapping[str, type | str] | None = None,
         custom: Mapping[str, str] | None = None,
@@ -560,17 +588,23 @@ class BagWriter:
     ) -> None:
         self.path = Path(directory)
         self.rewrite_metadata = bool(rewrite_metadata)
-        for name, seconds in (('segment_s', segment_s), ('flush_s', flush_s)):
-            if not (isinstance(seconds, (int, float)) and 1e-6 <= seconds <= 1e6):
-                msg = f'{self.path}: {name}={seconds!r} must be in [1e-6, 1e6] s'
-                raise BagError(msg)
+        if not (isinstance(flush_s, (int, float)) and 1e-6 <= flush_s <= 1e6):
+            msg = f'{self.path}: flush_s={flush_s!r} must be in [1e-6, 1e6] s'
+            raise BagError(msg)
+        if not (isinstance(max_duration_s, (int, float)) and (max_duration_s == 0 or 1e-6 <= max_duration_s <= 1e7)):
+            msg = f'{self.path}: max_duration_s={max_duration_s!r} must be 0 (no split) or in [1e-6, 1e7] s'
+            raise BagError(msg)
+        if not (isinstance(max_size, int) and max_size >= 0):
+            msg = f'{self.path}: max_size={max_size!r} must be 0 (no split) or a positive whole number of bytes'
+            raise BagError(msg)
         if not (isinstance(chunk_size, int) and chunk_size > 0):
             msg = f'{self.path}: chunk_size={chunk_size!r} must be a positive whole number of bytes'
             raise BagError(msg)
         if self.path.exists() and (not self.path.is_dir() or any(self.path.iterdir())):
             msg = f'{self.path}: exists and is not an empty directory; a bag is written to a new one'
             raise BagError(msg)
-        self.segment_ns = round(float(segment_s) * NS_PER_S)
+        self.max_duration_ns = round(float(max_duration_s) * NS_PER_S)
+        self.max_size = max_size
         self.flush_ns = round(float(flush_s) * NS_PER_S)
         self.clock_topic = clock_topic
         self.chunk_size = chunk_size
@@ -579,7 +613,8 @@ class BagWriter:
             KEY_SCENE: str(scene_source),
             KEY_EFFECTS: json.dumps([str(e) for e in effects]),
             KEY_VERSION: __version__,
-            KEY_SEGMENT_S: repr(float(segment_s)),
+            KEY_MAX_BAG_DURATION: repr(float(max_duration_s)),
+            KEY_MAX_BAG_SIZE: str(max_size),
             KEY_COMPLETE: 'false',
         }
         for key, value in (custom or {}).items():
@@ -597,7 +632,7 @@ class BagWriter:
         self._complete: dict[str, int] = dict.fromkeys(declared, 0)  # messages per topic, finished files
         self._meta = MetadataBuilder()
         self._t_ns = 0
-        self._boundary_ns = self.segment_ns
+        self._boundary_ns = self.max_duration_ns or _NEVER
         self._closed = False
         self.path.mkdir(parents=True, exist_ok=True)
         self._write_metadata()
@@ -668,7 +703,7 @@ class BagWriter:
     def write_serialized(self, topic: str, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
         """Record one CDR-serialized message of a declared topic at line time ``log_ns``.
 
-        Reaching the next multiple of ``segment_s`` finishes the open file first; an
+        A split due (see :mod:`folder_line.bag.writer`) finishes the open file first; an
         earlier ``log_ns`` goes into the open file. ``publish_ns`` defaults to ``log_ns``.
         """
         self._check_declared((topic,))
@@ -687,11 +722,28 @@ class BagWriter:
                 raise BagError(msg)
 
     def _segment_at(self, log_ns: int) -> _Segment:
-        """The file a record at line time ``log_ns`` goes into: the next one from a segment boundary on."""
+        """The file a record at line time ``log_ns`` goes into: a new one when a split is due.
+
+        A split by size is judged at a flush (every ``flush_s``), on the bytes the file then has: the same
+        place whether the ticks come one at a time or many (:meth:`write_ticks` stops at each flush).
+        """
+        assert self._segment is not None
         if log_ns >= self._boundary_ns:
             self._roll(log_ns)
+        elif self.max_size and self._segment.flush_due(log_ns):
+            self._segment.flush_at(log_ns)
+            if self._segment.size() >= self.max_size:
+                self._roll(log_ns)
         assert self._segment is not None
         return self._segment
+
+    def _split_before(self, segment: _Segment, log_ns: int) -> int:
+        """Line time before which records from ``log_ns`` on go into ``segment``: its split by time, or with a
+        split by size its next flush (where the size is judged)."""
+        if not self.max_size:
+            return self._boundary_ns
+        flush_ns = segment.next_flush_ns if segment.next_flush_ns is not None else log_ns + segment.flush_ns
+        return min(self._boundary_ns, flush_ns)
 
     @contextlib.contextmanager
     def _naming_the_file(self) -> Iterator[None]:
@@ -730,8 +782,9 @@ class BagWriter:
         a = 0
         with self._naming_the_file():
             while a < m:
-                segment = self._segment_at(int(rec.log_ns[a]))
-                b = int(np.searchsorted(rec.log_ns, self._boundary_ns, side='left'))
+                log_a = int(rec.log_ns[a])
+                segment = self._segment_at(log_a)
+                b = max(a + 1, int(np.searchsorted(rec.log_ns, self._split_before(segment, log_a), side='left')))
                 channels = np.array([segment.channels[t] for t in rec.topics], dtype=np.int64)
                 rec.fill_heads(a, b, channels, sequence)
                 segment.add_records(rec, a, b)
@@ -806,7 +859,8 @@ class BagWriter:
         self._finish_segment()
         if self.rewrite_metadata:
             self._write_metadata()
-        self._boundary_ns = (log_ns // self.segment_ns + 1) * self.segment_ns
+        if self.max_duration_ns:
+            self._boundary_ns = (log_ns // self.max_duration_ns + 1) * self.max_duration_ns
         self._segment = self._open_segment(index)
 
     def _write_metadata(self) -> None:

@@ -15,7 +15,7 @@ from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import SCENE_KEYS, TUNABLES, Tuning, check_tuning
 from folder_line.errors import FolderLineError, ParameterError, bounded_repr
 
-__all__ = ['add_tune_argument', 'check_tunings', 'limited', 'number', 'tuning', 'tuning_change']
+__all__ = ['add_tune_argument', 'check_tunings', 'limited', 'number', 'split_limit', 'tuning', 'tuning_change']
 
 
 def limited(option: str, limit: Limit, *, also: str = '') -> Callable[[str], float]:
@@ -60,6 +60,27 @@ def number(
             inside = (lo < value) if open_lo else (lo <= value)
             if not inside or not value <= hi:  # NaN fails too
                 raise argparse.ArgumentTypeError(f'{option}={bounded_repr(text)}: must be in {left}{lo:g}, {hi:g}]')
+        return value
+
+    return parse
+
+
+def split_limit(option: str, lo: float, hi: float, unit: str, *, whole: bool = False) -> Callable[[str], float]:
+    """0 (no split) or a number in ``[lo, hi]`` ``unit`` (``whole``: an int): ``--max-bag-duration`` and
+    ``--max-bag-size``, which mean what rosbag2's options of those names mean."""
+    kind = 'a whole number' if whole else 'a number'
+
+    def parse(text: str) -> float:
+        try:
+            value: float = int(text) if whole else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'{option}={bounded_repr(text)}: must be {kind}: 0 (no split) or in [{lo:g}, {hi:g}] {unit}'
+            ) from None
+        if value != 0 and not lo <= value <= hi:  # NaN fails too
+            raise argparse.ArgumentTypeError(
+                f'{option}={bounded_repr(text)}: must be 0 (no split) or in [{lo:g}, {hi:g}] {unit}'
+            )
         return value
 
     return parse

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from folder_line.bag.batch import check_duration, write_batch_bag
+from folder_line.bag.writer import files_text
 from folder_line.config.run_config import MARKER_RATE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand, Tuning, command_of
@@ -62,6 +63,8 @@ def write_bag(
                     progress=bar.show,
                     tunings=tunings,
                     marker_rate=MARKER_RATE if args.marker_rate is None else args.marker_rate,
+                    max_duration_s=args.max_bag_duration or 0.0,
+                    max_size=int(args.max_bag_size or 0),
                 )
             except OSError as exc:  # a full disk: the folder was new or empty, and is left so
                 if isinstance(exc, OutputError):
@@ -81,7 +84,7 @@ def write_bag(
     )
     for topic, n in sorted(result.counts.items()):
         print(f'  {topic:<40} {n}')
-    print(f'wrote {result.path} ({result.segments} segments)')
+    print(f'wrote {result.path} ({files_text(result.files)})')
     return 0, tuple(command_of(t, kind) for t, kind in result.commands)
 
 

@@ -27,9 +27,10 @@ from folder_line.bag.repair import repair, repairable
 from folder_line.cli import animate as animate_cli
 from folder_line.cli import batch as batch_cli
 from folder_line.cli import keys, montecarlo, optimize, summary, tables
+from folder_line.cli import layout as layout_verb
 from folder_line.cli import solve as solve_verb
 from folder_line.cli import sweep as sweep_verb
-from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited, tuning_change
+from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited, split_limit, tuning_change
 from folder_line.cli.report import REPORT_FILES, add_report_arguments, report_params, write_report
 from folder_line.cli.study_options import NAMES, add_scene_arguments, source_from
 from folder_line.config.run_config import BAG_DIR, MARKER_RATE, MARKER_RATES, SCENE_FILE, RunConfig, bag_of
@@ -61,6 +62,7 @@ _OUTPUT_OPTION = {
     'sweep': '--out',
     'solve': '--json',
     'scenes': 'stdout',
+    'layout': '--out',
     'profile': 'stdout',
     'animate': '--out',
     **dict.fromkeys(OPERATOR_COMMANDS, 'stdout'),
@@ -152,6 +154,31 @@ def _add_marker_rate(parser: argparse.ArgumentParser, when: str, *, given_only: 
     )
 
 
+#: bounds of --max-bag-duration (s) and --max-bag-size (bytes) when not 0
+BAG_DURATION = (1e-3, 1e7)
+BAG_SIZE = (1024, 2**62)
+
+
+def _add_bag_split(parser: argparse.ArgumentParser, when: str) -> None:
+    """``--max-bag-duration S`` and ``--max-bag-size BYTES``: split the bag, as ``ros2 bag record`` does; None
+    unless given (a verb refuses them where they do nothing), 0 (one file) meant."""
+    parser.add_argument(
+        '--max-bag-duration',
+        type=split_limit('--max-bag-duration', *BAG_DURATION, 's'),
+        default=None,
+        metavar='S',
+        help=f'{when}start a new .mcap file every S s of line time (default 0: one file, as ros2 bag record)',
+    )
+    parser.add_argument(
+        '--max-bag-size',
+        type=split_limit('--max-bag-size', *BAG_SIZE, 'bytes', whole=True),
+        default=None,
+        metavar='BYTES',
+        help=f'{when}start a new .mcap file once one has BYTES bytes, at its next flush (every 0.1 s of '
+        'line time); with --max-bag-duration, whichever comes first (default 0: no split by size)',
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``folder-line`` argument parser: every verb and option, with its range checks."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
@@ -210,8 +237,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_tune_argument(sim)
     _add_marker_rate(sim, 'with --bag: ', given_only=True)
+    _add_bag_split(sim, 'with --bag: ')
     montecarlo.add_arguments(sim)
     sub.add_parser('scenes', help='list the shipped scenes with their machines, effects and descriptions')
+    layout_verb.add_arguments(sub.add_parser('layout', help=layout_verb.HELP))
     sub.add_parser(
         'profile',
         help="print the path of the line's Fast DDS profile for FOLDER_LINE_KEY (writing it if needed), for ros2 "
@@ -252,6 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
         'here, print the command for each node, and wait for them',
     )
     _add_marker_rate(run, '')
+    _add_bag_split(run, '')
 
     mon = sub.add_parser('monitor', help='live terminal view of the running line (q or Ctrl-C quits)')
     _addlimited(mon, '--rate', _MONITOR_RATE, 4.0, 'HZ', 'screen refreshes per second')
@@ -426,6 +456,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise ParameterError('--samples', args.samples, 'runs a Monte Carlo; --tune changes one run')
     if args.marker_rate is not None and args.bag is None:
         raise ParameterError('--marker-rate', args.marker_rate, 'draws the machine into a bag: only with --bag')
+    for option, value in (('--max-bag-duration', args.max_bag_duration), ('--max-bag-size', args.max_bag_size)):
+        if value is not None and args.bag is None:
+            raise ParameterError(option, value, 'splits a bag: only with --bag')
     if args.samples is None:
         for option, value, default in (
             ('--workers', args.workers, None),
@@ -505,6 +538,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         clock=args.clock,
         lost_timeout=args.lost_timeout,
         marker_rate=args.marker_rate,
+        max_bag_duration=args.max_bag_duration or 0.0,
+        max_bag_size=int(args.max_bag_size or 0),
     )
     from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
 
@@ -702,6 +737,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         'sweep': sweep_verb.run,
         'solve': solve_verb.run,
         'scenes': _cmd_scenes,
+        'layout': layout_verb.run,
         'profile': _cmd_profile,
         'animate': animate_cli.run,
         **dict.fromkeys(OPERATOR_COMMANDS, _cmd_operator),

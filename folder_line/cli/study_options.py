@@ -29,9 +29,12 @@ __all__ = [
 NAMES = InputNames(scene='--scene', overrides='--set')
 
 
-def add_scene_arguments(parser: argparse.ArgumentParser, duration: float, scene: str = 'folder', per: str = '') -> None:
+def add_scene_arguments(
+    parser: argparse.ArgumentParser, duration: float | None, scene: str = 'folder', per: str = ''
+) -> None:
     """``--scene`` (default ``scene``), ``--duration`` (default ``duration``; simulated ``per`` evaluation,
-    e.g. 'at every point') and the repeatable ``--set``: the options of every verb that runs a scene."""
+    e.g. 'at every point'; None: no ``--duration``) and the repeatable ``--set``: the options of every verb
+    that runs a scene."""
     each = f' {per}' if per else ''
     parser.add_argument(
         '--scene',
@@ -39,13 +42,14 @@ def add_scene_arguments(parser: argparse.ArgumentParser, duration: float, scene:
         metavar='NAME|FILE',
         help=f'a shipped scene (folder-line scenes lists them) or a scene YAML file (default {scene})',
     )
-    parser.add_argument(
-        '--duration',
-        type=limited('--duration', DURATION),
-        default=duration,
-        metavar='S',
-        help=f'line time simulated{each}, s (default {duration:g})',
-    )
+    if duration is not None:
+        parser.add_argument(
+            '--duration',
+            type=limited('--duration', DURATION),
+            default=duration,
+            metavar='S',
+            help=f'line time simulated{each}, s (default {duration:g})',
+        )
     parser.add_argument(
         '--set',
         dest='overrides',

@@ -45,7 +45,7 @@ SCENE_FILE = 'scene.yaml'
 #: default and ``run``'s
 RATE = 200.0
 #: rate of ``/line/markers`` (``sheet_counter``'s ``marker_rate``), Hz of sim time: 5 frames per second of
-#: line time (10 per crank turn of the layup) adds about 80 MB per hour of ``line`` to its bag (README)
+#: line time (10 per crank turn of the layup) adds about 80 MB per hour of ``line`` to its bag (docs/nodes.md)
 MARKER_RATE = 5.0
 #: the range of ``marker_rate`` (``run --marker-rate``, ``simulate --marker-rate``, the node's parameter)
 MARKER_RATES = Limit('marker rate', 0.0, 1000.0, 'Hz', 'marker arrays per second of line time; 0: none')
@@ -108,6 +108,10 @@ class RunConfig:
         Wall seconds a tick may wait for a participant before it is declared lost.
     marker_rate : float
         Rate of ``/line/markers``, Hz of sim time (0 = off).
+    max_bag_duration : float
+        Line time per ``.mcap`` file of the bag, s (0 = one file).
+    max_bag_size : int
+        Bytes at which a ``.mcap`` file is finished, at its next flush (0 = no split by size).
     """
 
     scene: str = 'folder'
@@ -121,6 +125,8 @@ class RunConfig:
     clock: str = 'lockstep'
     lost_timeout: float = 3.0
     marker_rate: float = MARKER_RATE
+    max_bag_duration: float = 0.0
+    max_bag_size: int = 0
 
 
 def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str] | None = None) -> dict[str, Any]:

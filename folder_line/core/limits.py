@@ -6,7 +6,7 @@ same everywhere. Each range is physical, not an open interval: no subnormal, no
 absurd value passes (``knife.n_k=1e-300`` would give one knife cycle in 10^296
 years; ``1e308`` a cycle of 10^-301 s).
 
-Every bound is inclusive. :data:`LIMITS` lists them for the README and the tests.
+Every bound is inclusive. :data:`LIMITS` lists them for docs/limits.md and the tests.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ class Limit:
     Attributes
     ----------
     what : str
-        What is limited, for the README (``'line time of a run'``).
+        What is limited, for the table of docs/limits.md (``'line time of a run'``).
     lo, hi : float
         The range, in ``unit``.
     unit : str
@@ -230,7 +230,7 @@ CARRIAGE_FORCE = Limit(
     'none, to a hundred tonnes',
 )
 
-#: every limit, for the README table and the tests
+#: every limit, for the table of docs/limits.md and the tests
 LIMITS: dict[str, Limit] = {
     'duration': DURATION,
     'rate': TICK_RATE,

@@ -8,7 +8,7 @@ the clock grants ticks up to ``window`` s of sim time ahead of the slowest
 participant's latest acknowledgement, and never faster than ``rtf``: when the
 machine or the network cannot keep up, sim time slows down instead of dropping a
 tick. In ``wall`` mode (hardware in the loop) it grants by the wall clock and counts
-late participants instead. The protocol and its safety argument are in the README
+late participants instead. The protocol and its safety argument are in docs/lockstep.md
 ("The protocol: lookahead, not a barrier per tick").
 
 Topics

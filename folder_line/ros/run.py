@@ -58,7 +58,7 @@ from rclpy.task import Future
 from std_msgs.msg import String
 
 from folder_line.bag.statuses import accepted_tunings
-from folder_line.bag.writer import BagWriter
+from folder_line.bag.writer import BagWriter, files_text
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
 from folder_line.core.line.margin_text import margin_at
@@ -326,6 +326,8 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
                 'folder_line.mode': 'processes' if cfg.processes else 'in-process',
                 'folder_line.clock': cfg.clock,
             },
+            max_duration_s=cfg.max_bag_duration,
+            max_size=cfg.max_bag_size,
         )
         recorder = LineRecorder(sink=bag.write_serialized, context=ctx, lost_timeout=cfg.lost_timeout)
         executor.add_node(recorder)
@@ -564,7 +566,7 @@ def _bag_summary(bag: Any, published: dict[str, int] | None, unrecorded: Mapping
     recorded = dict(sorted(bag.counts.items()))
     after = {t: n for t, n in sorted(unrecorded.items()) if n}
     out: dict[str, Any] = {
-        'bag': {'path': str(bag.path), 'segments': len(bag.files), 'messages': recorded},
+        'bag': {'path': str(bag.path), 'files': len(bag.files), 'messages': recorded},
         'published': None if published is None else {t: published.get(t, 0) for t in recorded},
         'lost': None
         if published is None
@@ -611,5 +613,5 @@ def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -
             print('lost messages: ' + ', '.join(f'{t} {n}' for t, n in lost.items() if n), file=stream)
         else:
             print('lost messages: 0 on every topic', file=stream)
-        print(f'wrote {summary["bag"]["path"]} ({summary["bag"]["segments"]} segments)', file=stream)
+        print(f'wrote {summary["bag"]["path"]} ({files_text(summary["bag"]["files"])})', file=stream)
     print(f'wrote {out_dir / "run.json"}', file=stream)

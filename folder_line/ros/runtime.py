@@ -36,6 +36,7 @@ from rclpy.task import Future
 
 from folder_line.errors import FolderLineError
 from folder_line.ros.dds_profile import use_line_profile
+from folder_line.ros.ros_args import command_line_values
 
 __all__ = [
     'EXIT_BAD_PARAMETER',
@@ -197,8 +198,13 @@ def run_node(
     process after ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
     stderr and the exit code it would have returned; if the hang holds the GIL (no Python
     thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
-    exit code 1. A node refused at start says so first, then its half-built node is torn down
-    under the same watchdog.
+    exit code 1.
+
+    Refusal. A node class with a ``refuse_start`` classmethod (the machine nodes) first judges the
+    start from the command line alone (:mod:`folder_line.ros.ros_args`), before any DDS participant
+    exists: a bad start is refused with its one line and exit code 2 without joining the network.
+    One the command line does not show is refused by the node as it is built; its half-built node
+    is then torn down under the same watchdog.
 
     Parameters
     ----------
@@ -262,6 +268,7 @@ def run_node(
             return EXIT_OK
         try:
             use_line_profile()  # the line's Fast DDS profile, before this process's first participant
+            _refuse_from_command_line(node_factory, name, sys.argv[1:] if args is None else args)
         except (FolderLineError, OSError) as err:  # a bad FOLDER_LINE_KEY, a profiles folder not private
             print(f'{name}: error: {err}', file=sys.stderr)
             return EXIT_BAD_PARAMETER
@@ -317,6 +324,19 @@ def _flush(node: Node) -> None:
         left = deadline - time.monotonic()
         if left <= 0.0 or not publisher.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
             return
+
+
+def _refuse_from_command_line(node_factory: Callable[[], Node], name: str, args: Sequence[str]) -> None:
+    """Raise what the node would refuse its start for, read from ``args`` alone, before any DDS participant
+    exists (:mod:`folder_line.ros.ros_args`; a node class with a ``refuse_start`` classmethod). A start
+    refused later, by the node, makes and tears down a participant: under a storm of discovery that
+    teardown now and then crashes inside Fast DDS."""
+    refuse = getattr(node_factory, 'refuse_start', None)
+    if refuse is None:
+        return
+    given = command_line_values(args, name)
+    if given is not None:
+        refuse(given)
 
 
 def _build(node_factory: Callable[[], Node], name: str, stop: _StopRequests) -> Node | int:

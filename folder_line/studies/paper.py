@@ -1,6 +1,6 @@
 """The papers' reference values of scene keys: the point a study marks as "paper" on its charts.
 
-From the papers (their physics in our words: the README's machine sections):
+From the papers (their physics in our words, and the papers cited: docs/machines.md):
 
 * F (paper 001): the ДАВР-62 folding cylinder, ``D_fc = 267.38 mm`` at ``n_c = 25000`` rev/h,
   the knife crank at twice that, ``n_k = 50000`` rev/h; the 2nd transporter at

@@ -5,7 +5,7 @@ top-level (picklable) function over them on a Dask cluster and returns the resul
 the order of the tasks, whatever order they finish in. By default a ``LocalCluster``
 of worker processes uses every core of this machine; ``scheduler`` sends the tasks to
 an existing cluster instead (``dask scheduler`` on one machine, ``dask worker ADDRESS``
-on each of the others: README, "Design studies"). Every task carries everything it
+on each of the others: docs/studies.md, "Several machines"). Every task carries everything it
 depends on (the scene, its seed), so a result never depends on the number of workers
 or on the order they run in.
 """

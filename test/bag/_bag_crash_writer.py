@@ -1,13 +1,14 @@
 """Writes a bag with a fake line clock until it is killed: the subject of test_bag_crash.py.
 
-``python test/bag/_bag_crash_writer.py DIR --dt-ns N --segment-s S --chunk-size B [--flush-s F] [--block-after STEPS]``
+``python test/bag/_bag_crash_writer.py DIR --dt-ns N --chunk-size B [--max-bag-duration S] [--flush-s F]
+[--block-after STEPS]``
 
 Step ``i`` (from 0) writes ``/clock`` at ``t_i = i * dt``, then a ``JointState`` on
 ``/line/crank_drive/joint_states`` with ``position = [i]`` stamped ``t_i``, and on every
 fifth step a ``TimeReference`` on ``/line/events`` with ``source = 'step i'``.
 
 With ``--block-after STEPS`` it writes that many steps, prints ``blocked STEPS`` and
-waits on stdin (so the test kills it at a known point, mid-segment). Without it, it
+waits on stdin (so the test kills it at a known point). Without it, it
 writes forever, printing ``step i`` every 50 steps, pacing itself at ~0.3 ms per step.
 """
 
@@ -36,7 +37,7 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument('dir')
     parser.add_argument('--dt-ns', type=int, required=True)
-    parser.add_argument('--segment-s', type=float, required=True)
+    parser.add_argument('--max-bag-duration', type=float, default=0.0)  # 0: one file, as by default
     parser.add_argument('--chunk-size', type=int, required=True)
     parser.add_argument('--flush-s', type=float, default=0.1)
     parser.add_argument('--block-after', type=int, default=0)
@@ -46,7 +47,7 @@ def main() -> int:
         scene_source='name: crash\n',
         effects=['faults'],
         scene_name='crash',
-        segment_s=args.segment_s,
+        max_duration_s=args.max_bag_duration,
         topics=LINE_TOPICS,
         chunk_size=args.chunk_size,
         flush_s=args.flush_s,

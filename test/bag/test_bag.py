@@ -32,7 +32,7 @@ from folder_line.bag.metadata import KEY_PUBLISHED, segment_files
 from folder_line.bag.reader import read_bag
 from folder_line.bag.repair import repair, repair_bag
 from folder_line.bag.types import serialize
-from folder_line.bag.writer import BagWriter
+from folder_line.bag.writer import BagWriter, TickMessages
 from folder_line.cli.main import main as cli_main
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel
@@ -153,7 +153,7 @@ def test_round_trip_every_line_type_with_rosbags_and_mcap(tmp_path: Path) -> Non
     assert got['/clock'][0][0] == 250_000_000
 
     # the independent reader: mcap + mcap_ros2's decoder (built from the schema text in the file)
-    assert [p.name for p in segment_files(bag)] == ['bag_0.mcap', 'bag_1.mcap']  # 0.25 s and 1.25 s
+    assert [p.name for p in segment_files(bag)] == ['bag_0.mcap']  # one file, as ros2 bag record writes
     decoded = {}
     for path in segment_files(bag):
         with path.open('rb') as fh:
@@ -189,10 +189,59 @@ def test_serialized_bytes_are_canonical_cdr(tmp_path: Path) -> None:
         assert plain(back, msg) == plain(msg, msg), topic
 
 
+def test_a_bag_is_one_file_unless_split_on_request(tmp_path: Path) -> None:
+    """By default one ``.mcap`` (as ``ros2 bag record``), whatever the line time; read whole by the independent
+    mcap reader and by rosbags."""
+    bag = tmp_path / 'one'
+    with BagWriter(bag, scene_source=SCENE, effects=[], topics=LINE_TOPICS) as writer:
+        for k in range(0, 3600, 7):  # an hour of line time, a message every 7 s
+            writer.write('/clock', Clock(clock=stamp(k * 10**9)))
+    assert segment_files(bag) == [bag / 'one_0.mcap']
+    with (bag / 'one_0.mcap').open('rb') as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        stamps = [ros.clock.sec for _, _, _, ros in reader.iter_decoded_messages(topics=['/clock'])]
+    assert stamps == list(range(0, 3600, 7))
+    with Reader(bag) as rosbags_reader:
+        assert rosbags_reader.message_count == len(stamps)
+    assert read_bag(bag).custom['folder_line.max_bag_duration'] == '0.0'
+
+
+def test_split_by_size_at_a_flush_the_same_tick_by_tick_as_in_windows(tmp_path: Path) -> None:
+    """``max_size``: a file that has reached the size is finished at its next flush (every 0.1 s of line
+    time), and the next tick starts a new file; ``write_many`` tick by tick and ``write_ticks`` in windows make
+    the same files, byte for byte."""
+    topic = '/line/sheet_counter/rate'
+    ticks = np.arange(0, 3_000_000_000, 5_000_000, dtype=np.int64)  # 3 s at 200 Hz
+    payload = [serialize(Float64(data=float(k)), 'std_msgs/msg/Float64') for k in range(len(ticks))]
+    one = tmp_path / 'one'
+    with BagWriter(one, scene_source=SCENE, effects=[], topics=LINE_TOPICS, max_size=4096, chunk_size=512) as w:
+        for t, data in zip(ticks.tolist(), payload, strict=True):
+            w.write_many(t, [(topic, data, t)])
+    many = tmp_path / 'many'
+    with BagWriter(many, scene_source=SCENE, effects=[], topics=LINE_TOPICS, max_size=4096, chunk_size=512) as w:
+        for lo in range(0, len(ticks), 137):  # windows that do not line up with the flushes
+            window = TickMessages(ticks[lo : lo + 137])
+            window.add_each(topic, 0, range(len(window.log_ns)), payload[lo : lo + 137])
+            w.write_ticks(window)
+    files = segment_files(one)
+    assert len(files) > 3
+    assert [p.name.replace('one', 'many') for p in files] == [p.name for p in segment_files(many)]
+    for a, b in zip(files, segment_files(many), strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    for path in files[:-1]:  # each file but the last reached the size; it was finished at a flush after that
+        size = path.stat().st_size
+        assert size >= 4096, (path.name, size)
+        with path.open('rb') as fh:
+            first = [m.log_time for _, _, m in make_reader(fh).iter_messages()][0]
+        assert first % 100_000_000 == 0 or path == files[0]
+    assert read_bag(one).message_count == len(ticks)
+
+
 def test_segments_roll_over_at_line_time_boundaries(tmp_path: Path) -> None:
+    """``max_duration_s`` (``--max-bag-duration``): a new file at each multiple of it in line time."""
     bag = tmp_path / 'run7'
     times = [0, 250_000_000, 999_999_999, 1_000_000_000, 1_500_000_000, 2_999_999_999, 7_200_000_000, 7_300_000_000]
-    with BagWriter(bag, scene_source=SCENE, effects=[], segment_s=1.0, topics=LINE_TOPICS) as writer:
+    with BagWriter(bag, scene_source=SCENE, effects=[], max_duration_s=1.0, topics=LINE_TOPICS) as writer:
         for t in times:
             writer.write('/clock', Clock(clock=stamp(t)))
             writer.write('/line/sheet_counter/rate', Float64(data=t / 1e9))
@@ -211,7 +260,7 @@ def test_segments_roll_over_at_line_time_boundaries(tmp_path: Path) -> None:
     assert (contents.start_ns, contents.end_ns) == (0, 7_300_000_000)
 
     half = tmp_path / 'half'
-    with BagWriter(half, scene_source=SCENE, effects=[], segment_s=0.5) as writer:
+    with BagWriter(half, scene_source=SCENE, effects=[], max_duration_s=0.5) as writer:
         for k in range(10):  # 0 .. 0.9 s every 0.1 s
             writer.write('/clock', Clock(clock=stamp(k * 100_000_000)))
     assert [len(list(make_reader(p.open('rb')).iter_messages())) for p in segment_files(half)] == [5, 5]
@@ -235,7 +284,9 @@ def test_a_bag_whose_writing_raised_is_left_partial_not_complete(tmp_path: Path)
 
 def test_metadata_is_written_at_every_rollover(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
-    writer = BagWriter(bag, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS)
+    writer = BagWriter(
+        bag, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS, max_duration_s=1.0
+    )
     empty = read_bag(bag)  # from the start: an empty, readable bag with its topics and custom data
     assert empty.files == () and empty.message_count == 0 and empty.scene_name == 'test scene'
     assert {t: s.count for t, s in empty.topics.items()} == dict.fromkeys(LINE_TOPICS, 0)
@@ -263,7 +314,8 @@ def test_custom_data_in_the_metadata(tmp_path: Path) -> None:
     assert contents.scene_name == 'test scene'
     assert contents.effects == ['faults', 'feed_slip']
     assert contents.custom['folder_line.version'] == __version__
-    assert contents.custom['folder_line.segment_s'] == '1.0'
+    assert contents.custom['folder_line.max_bag_duration'] == '0.0'
+    assert contents.custom['folder_line.max_bag_size'] == '0'
     assert contents.custom['folder_line.mode'] == 'in-process'
     # the same through rosbags' own reader and through the YAML file itself
     with Reader(bag) as reader:
@@ -283,9 +335,12 @@ def test_writer_rejects_bad_input(tmp_path: Path) -> None:
     (tmp_path / 'full' / 'x').write_text('x')
     with pytest.raises(BagError, match='not an empty directory'):
         BagWriter(tmp_path / 'full', scene_source='', effects=[])
-    for bad in (0.0, -1.0, float('nan')):
-        with pytest.raises(BagError, match='segment_s'):
-            BagWriter(tmp_path / f'seg{bad}', scene_source='', effects=[], segment_s=bad)
+    for bad in (1e-9, -1.0, float('nan'), 1e8):
+        with pytest.raises(BagError, match=r'max_duration_s=.* must be 0 \(no split\) or in'):
+            BagWriter(tmp_path / f'seg{bad}', scene_source='', effects=[], max_duration_s=bad)
+    for size in (-1, 1.5):
+        with pytest.raises(BagError, match=r'max_size=.* must be 0 \(no split\) or a positive whole number'):
+            BagWriter(tmp_path / f'size{size}', scene_source='', effects=[], max_size=size)  # type: ignore[arg-type]
     with pytest.raises(BagError, match='not in the rosbags'):
         BagWriter(tmp_path / 'unknown', scene_source='', effects=[], topics={'/y': 'nope_msgs/msg/Nothing'})
     assert not (tmp_path / 'unknown').exists()  # nothing half-made
@@ -303,8 +358,15 @@ def _copy(src: Path, dst: Path) -> Path:
 
 
 def _many_segments(path: Path) -> None:
+    """A bag split every second of line time (``--max-bag-duration 1``): three files."""
     with BagWriter(
-        path, scene_source=SCENE, effects=['faults'], scene_name='test scene', topics=LINE_TOPICS, chunk_size=512
+        path,
+        scene_source=SCENE,
+        effects=['faults'],
+        scene_name='test scene',
+        topics=LINE_TOPICS,
+        chunk_size=512,
+        max_duration_s=1.0,
     ) as writer:
         for k in range(300):  # 0 .. 2.99 s, 100 per segment
             writer.write('/clock', Clock(clock=stamp(k * 10_000_000)))
@@ -431,7 +493,7 @@ def test_run_line_records_every_message(tmp_path: Path) -> None:
     assert set(recorded) == set(LINE_TOPICS)
     assert {t: n for t, n in recorded.items() if n} == result.counts
     assert summary['bag']['messages'] == recorded
-    assert summary['bag']['segments'] == len(contents.files) >= 3  # [0,1) [1,2) and the last /clock at 2 s
+    assert summary['bag']['files'] == len(contents.files) == 1  # one file, as ros2 bag record writes
     assert summary['lost'] == {t: 0 for t in LINE_TOPICS}
     assert summary['published'] == recorded == contents.published
     assert recorded['/clock'] > 50 and recorded['/line/events'] > 0 and recorded['/diagnostics'] >= 2

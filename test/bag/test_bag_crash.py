@@ -2,10 +2,11 @@
 
 The subject is ``test/bag/_bag_crash_writer.py`` (a real process with a fake line clock,
 ``dt`` = 10 ms per step, three messages per five steps... see its docstring). What is
-promised: after SIGKILL the directory opens with rosbags as it is and every finished
-segment opens with the independent ``mcap`` reader, with every message of every
-finished segment; ``repair`` makes the rest readable, and what is missing is at most
-the open segment (<= ``segment_s`` of line time) -- here exactly a tail of it.
+promised: a bag is one ``.mcap`` file unless split on request; after SIGKILL ``repair`` makes
+the open file readable, in rosbags and in the independent ``mcap`` reader, and what is
+missing is at most the tail after its last flush (0.1 s of line time). A bag split on
+request (``--max-bag-duration 1``) opens with rosbags as it is, with every message of every
+finished file, each of which opens with the ``mcap`` reader.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ JOINTS = '/line/crank_drive/joint_states'
 EVENTS = '/line/events'
 
 
-def _start(bag: Path, *extra: str, chunk_size: int = 2048) -> subprocess.Popen[str]:
+def _start(bag: Path, *extra: str, chunk_size: int = 2048, split: bool = False) -> subprocess.Popen[str]:
+    """The writer in a process of its own; ``split``: a new file every :data:`SEGMENT_S` of line time."""
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO), env.get('PYTHONPATH', '')) if p)
     return subprocess.Popen(
@@ -48,8 +50,7 @@ def _start(bag: Path, *extra: str, chunk_size: int = 2048) -> subprocess.Popen[s
             str(bag),
             '--dt-ns',
             str(DT_NS),
-            '--segment-s',
-            str(SEGMENT_S),
+            *(('--max-bag-duration', str(SEGMENT_S)) if split else ()),
             '--chunk-size',
             str(chunk_size),
             *extra,
@@ -109,9 +110,10 @@ def _finished_with_mcap(path: Path) -> bool:
 
 
 def test_sigkill_mid_segment_keeps_every_finished_segment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A bag split every second: the files finished before the kill are whole as they are."""
     bag = tmp_path / 'bag'
     n_steps = 345  # t = 0 .. 3.44 s: segments [0,1), [1,2), [2,3) finished, [3,4) open
-    proc = _start(bag, '--block-after', str(n_steps))
+    proc = _start(bag, '--block-after', str(n_steps), split=True)
     try:
         assert _read_line(proc) == f'blocked {n_steps}'
     finally:
@@ -158,7 +160,7 @@ def test_sigkill_mid_segment_keeps_every_finished_segment(tmp_path: Path, capsys
 
 def test_sigkill_while_writing_loses_at_most_the_open_segment(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
-    proc = _start(bag)
+    proc = _start(bag, split=True)
     try:
         while True:
             reported = int(_read_line(proc).split()[1])  # the writer has written this step
@@ -218,6 +220,7 @@ GOAL_NS = 200_000_000  # at most 0.2 s of line time lost to a SIGKILL
 
 
 def test_sigkill_at_ten_random_moments_loses_at_most_the_flush_interval(tmp_path: Path) -> None:
+    """A one-file bag (the default), killed at ten moments: repaired, it lacks at most 0.2 s of line time."""
     rng = random.Random(20261124)  # fixed: the same ten moments in every run
     lost_ns = []
     for k in range(10):
@@ -234,6 +237,9 @@ def test_sigkill_at_ten_random_moments_loses_at_most_the_flush_interval(tmp_path
             steps = []
         else:
             steps = _joint_steps(bag)
+            # one file, as ros2 bag record writes it; repaired, it opens whole in the independent reader
+            assert segment_files(bag) == [bag / f'{bag.name}_0.mcap']
+            assert _mcap_steps(bag / f'{bag.name}_0.mcap') == steps
         assert steps == list(range(len(steps)))  # a prefix: nothing missing in between
         lost = (n_steps - len(steps)) * DT_NS  # line time written but not in the repaired bag
         assert 0 <= lost <= FLUSH_NS + DT_NS, (n_steps, steps[-1])
@@ -262,3 +268,24 @@ def test_repair_of_a_bag_with_nothing_to_salvage_changes_nothing(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and 'nothing was changed' in err
     assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
+
+
+def test_a_one_file_bag_killed_while_writing_fast_loses_at_most_the_flush_interval(tmp_path: Path) -> None:
+    """The writer at full speed (not blocked at a step), killed: one file, repaired to a prefix that ends
+    at most a flush interval (and the step being written) before the last step it reported."""
+    bag = tmp_path / 'bag'
+    proc = _start(bag, chunk_size=1024 * 1024)
+    try:
+        while True:
+            reported = int(_read_line(proc).split()[1])  # the writer has written this step
+            if reported >= 520:
+                break
+    finally:
+        _kill(proc)
+    assert [p.name for p in segment_files(bag)] == ['bag_0.mcap']
+    assert read_bag(bag).files == ()  # as it is: the file is open, the metadata lists no finished file
+    repair(bag)
+    steps = _joint_steps(bag)
+    assert steps == list(range(len(steps)))
+    assert (reported - len(steps) + 1) * DT_NS <= GOAL_NS
+    assert _mcap_steps(bag / 'bag_0.mcap') == steps

@@ -125,12 +125,15 @@ def test_a_bad_bag_is_one_line_exit_2_and_left_untouched(
 
 
 def test_a_bag_of_more_files_than_the_open_file_limit_is_read(tmp_path: Path) -> None:
-    """An hour's bag is 3601 files; the usual limit is 1024 open files. The files are opened one at a time,
-    so ``bag info`` and ``analyze`` read a bag of 81 files under a limit of 40 open files."""
+    """An hour's bag split every second (``--max-bag-duration 1``) is 3601 files; the usual limit is 1024 open
+    files. The files are opened one at a time, so ``bag info`` and ``analyze`` read a bag of 81 files under a
+    limit of 40 open files."""
     import resource
 
     bag = tmp_path / 'bag'
-    assert main(['simulate', '--scene', 'folder', '--duration', '80', '--bag', str(bag)]) == 0
+    assert (
+        main(['simulate', '--scene', 'folder', '--duration', '80', '--bag', str(bag), '--max-bag-duration', '1']) == 0
+    )
     assert len(segment_files(bag)) == 81
 
     def limit() -> None:

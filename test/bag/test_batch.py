@@ -222,7 +222,9 @@ def test_write_many_is_write_serialized(tmp_path: Path) -> None:
     bags = {}
     for how in ('one', 'many'):
         bag = tmp_path / how
-        with BagWriter(bag, scene_source='name: x\n', effects=[], topics=LINE_TOPIC_TYPES, chunk_size=4096) as writer:
+        with BagWriter(
+            bag, scene_source='name: x\n', effects=[], topics=LINE_TOPIC_TYPES, chunk_size=4096, max_duration_s=1.0
+        ) as writer:
             for stamp, items in ticks:
                 if how == 'many':
                     writer.write_many(stamp, items)

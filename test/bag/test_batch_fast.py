@@ -174,7 +174,12 @@ def test_write_ticks_is_write_many(tmp_path: Path, chunk_size: int) -> None:
     for how in ('many', 'ticks'):
         bag = tmp_path / how / 'bag'
         with BagWriter(
-            bag, scene_source='name: x\n', effects=[], topics=LINE_TOPIC_TYPES, chunk_size=chunk_size
+            bag,
+            scene_source='name: x\n',
+            effects=[],
+            topics=LINE_TOPIC_TYPES,
+            chunk_size=chunk_size,
+            max_duration_s=1.0,  # split every second of line time: the windows cross the splits
         ) as writer:
             writer.write_serialized('/line/participants', cdr.string_cdr('hello'), 0, 0)
             if how == 'many':

@@ -1,8 +1,8 @@
 """Bags that tell the truth after damage: a repair names the line time lost, ``analyze`` judges nothing across it.
 
-A bag of 6 s of line time (seven 1 s segments, each in chunks of 0.1 s) is damaged in its third
-segment in one of three ways: the segment deleted, the file cut in half, 16 bytes of a chunk
-flipped. Before the repair, reading the flipped chunk is refused in one line naming the repair.
+A bag of 6 s of line time, split every second (``--max-bag-duration 1``: seven files, each in chunks
+of 0.1 s), is damaged in its third file in one of three ways: the file deleted, the file cut in half,
+16 bytes of a chunk flipped. Before the repair, reading the flipped chunk is refused in one line naming the repair.
 ``bag repair`` then records the gap (``folder_line.gaps``; the bag is ``repaired``, never
 ``complete``), ``bag info`` names it, every file opens in the independent ``mcap`` reader
 with its checksums checked, and ``analyze`` reports no violation, leaves the cycles around
@@ -49,7 +49,22 @@ def folder_line(*args: str) -> subprocess.CompletedProcess[str]:
 @pytest.fixture(scope='module', params=['folder', 'line'])
 def intact(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
     bag = tmp_path_factory.mktemp(request.param) / 'bag'
-    assert cli.main(['simulate', '--scene', request.param, '--duration', str(DURATION), '--bag', str(bag)]) == 0
+    assert (
+        cli.main(
+            [
+                'simulate',
+                '--scene',
+                request.param,
+                '--duration',
+                str(DURATION),
+                '--bag',
+                str(bag),
+                '--max-bag-duration',
+                '1',
+            ]
+        )
+        == 0
+    )
     return bag
 
 

@@ -47,7 +47,7 @@ def mp_circle(x0: Any, y0: Any, r0: Any, x1: Any, y1: Any, r1: Any, branch: int)
 
 
 def mp_sixbar(p: LayupParams, phi: Any) -> dict[str, Any]:
-    """L six-bar at crank angle ``phi`` (mpmath), from the definitions of the README's layup section."""
+    """L six-bar at crank angle ``phi`` (mpmath), from the definitions of docs/machines.md, section L."""
     R, a, b, l2, q, l3, l4, l5, d0 = (mp.mpf(v) for v in (p.R_kr, p.a, p.b, p.l2, p.O2B, p.l3, p.l4, p.l5, p.O2O3))
     ax, ay = a + R * mp.cos(phi), b + R * mp.sin(phi)
     bx, by = mp_circle(0, 0, q, ax, ay, l2, 1)

@@ -23,7 +23,7 @@ from folder_line.interfaces import KNOWN_PARTICIPANTS, MACHINE_NODES
 from folder_line.ros.nodes.line_clock import SPECS as CLOCK_SPECS
 from folder_line.ros.nodes.machine import MACHINE_SPECS
 
-README = Path(__file__).resolve().parents[2] / 'README.md'
+LIMITS_PAGE = Path(__file__).resolve().parents[2] / 'docs' / 'limits.md'
 
 
 def _beyond(limit: L.Limit) -> list[float]:
@@ -192,7 +192,8 @@ def test_from_is_a_line_time_in_the_run_refused_in_one_line(value: str, capsys: 
     assert 'must be' in err or '10000001 s of line time; a run reaches at most 10000000 s' in err, err
 
 
-def test_the_readme_lists_every_limit() -> None:
-    text = README.read_text(encoding='utf-8')
+def test_the_limits_page_lists_every_limit() -> None:
+    """docs/limits.md has a row for every limit, with its range as the refusals print it."""
+    text = LIMITS_PAGE.read_text(encoding='utf-8')
     for limit in L.LIMITS.values():
         assert f'| {limit.what} | {limit.text()} |' in text, limit.what

@@ -5,23 +5,23 @@ Each effect is a small module of this package defining a frozen dataclass
 functions the simulator calls when, and only when, the scene lists the effect.
 The registry below says which machine sections an effect needs; a scene's effect
 parameters are built into the effect's ``Params`` by :func:`parse_effect_params`, with
-the one builder of validated parameters, :func:`folder_line.core.numerics.validate.build`.
+the one builder of validated parameters, :func:`folder_line.core.numerics.validate.build`::
 
-| effect | machines | what it adds |
-|---|---|---|
-| chute_belts | layup | belts along the chutes at v_tr: exit speed sqrt(v_C² + v_tr²) (paper 000 eq. 25) |
-| leaf_flight | layup, container | flight from the chute exit to the floor, landing x, histogram |
-| guide_friction | layup | without belts: the leaf slides on the guide (gravity, Coulomb friction, the chute's swing) |
-| leaf_damage | layup | leaves leaving at or above v_damage are counted as damaged |
-| motor_dynamics | (any) | the master drive from a motor torque-speed curve and inertia (an ODE) |
-| chain_friction | delivery | efficiency, rod and chain forces, sprocket torque (paper 002) |
-| feed_slip | feed_transporter | the signature accelerated from V_d to V_tr by friction |
-| stop_bounce | feed_transporter | restitution at the front stops, settle time and rebound |
-| faults | (any) | seeded missing, double and late sheets, belt slow-downs |
-| arrival_jitter | feed_transporter | per-sheet hand-over position error (normal/uniform, σ mm): travel L_feed + δ |
-| length_scatter | feed_transporter | per-sheet length scatter (σ mm): leading edge ΔL further on, travel L_feed - ΔL |
-| speed_ripple | (any) | master drive speed ripple locked to its phase (relative amplitude, Hz at nominal speed) |
-| property_scatter | feed_transporter | per-sheet scatter of stop_bounce's e and feed_slip's mu (relative σ) |
+    | effect | machines | what it adds |
+    |---|---|---|
+    | chute_belts | layup | belts along the chutes at v_tr: exit speed sqrt(v_C² + v_tr²) (paper 000 eq. 25) |
+    | leaf_flight | layup, container | flight from the chute exit to the floor, landing x, histogram |
+    | guide_friction | layup | without belts: the leaf slides on the guide (gravity, Coulomb friction, swing) |
+    | leaf_damage | layup | leaves leaving at or above v_damage are counted as damaged |
+    | motor_dynamics | (any) | the master drive from a motor torque-speed curve and inertia (an ODE) |
+    | chain_friction | delivery | efficiency, rod and chain forces, sprocket torque (paper 002) |
+    | feed_slip | feed_transporter | the signature accelerated from V_d to V_tr by friction |
+    | stop_bounce | feed_transporter | restitution at the front stops, settle time and rebound |
+    | faults | (any) | seeded missing, double and late sheets, belt slow-downs |
+    | arrival_jitter | feed_transporter | per-sheet hand-over position error (normal/uniform, σ mm): travel L_feed + δ |
+    | length_scatter | feed_transporter | per-sheet length scatter (σ mm): leading edge ΔL on, travel L_feed - ΔL |
+    | speed_ripple | (any) | master drive speed ripple locked to its phase (relative amplitude, Hz at nominal speed) |
+    | property_scatter | feed_transporter | per-sheet scatter of stop_bounce's e and feed_slip's mu (relative σ) |
 
 The four variation effects (the last rows) draw per sheet, from the scene seed's named
 streams: sheet k's draw depends only on (seed, k), never on the horizon, on other

@@ -1,7 +1,7 @@
 """Effect ``chain_friction``: efficiency, forces and sprocket torque of the delivery (D).
 
-Source: paper 002, eqs. (1)-(9) (the README, "The papers' results, recomputed"), as implemented (friction
-terms as losses, states instead of NaN) in :mod:`folder_line.core.mechanisms.delivery`::
+Source: paper 002, eqs. (1)-(9) (docs/machines.md, section D and "The papers' results, recomputed"), as
+implemented (friction terms as losses, states instead of NaN) in :mod:`folder_line.core.mechanisms.delivery`::
 
     P_AB = P_k / (cos a - f_Bp |sin a| - f_B r_B |sin b| / (K_v cos a))        (1)
     P_ch = P_AB (cos(a - b) + f_Ap |sin(a - b)| + f_A r_A |sin b| / cos a)      (4)

@@ -1,6 +1,6 @@
 """``chute_belts`` — belts along the chutes carry the leaves at v_tr (L).
 
-The paper's remedy (paper 000, after eq. 24; the README, "Scenes and the batch line simulation"): belts
+The paper's remedy (paper 000, after eq. 24; docs/machines.md, section L): belts
 on the guides O2C and O3E, driven synchronously at ``v_tr`` along the chutes, so that
 the absolute exit speed of a leaf
 

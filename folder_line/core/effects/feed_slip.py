@@ -1,6 +1,6 @@
 """``feed_slip`` — the signature is brought from V_d to V_tr by kinetic friction (F).
 
-Source: the papers (README), "Effects: suggested models", *feed_slip (F)*; section F (paper
+Source: ours (docs/scenes.md, "Effects", *feed_slip (F)*); docs/machines.md section F (paper
 001): the first transporter delivers the signature at the printing speed ``V_d``, the
 second (feed) transporter runs at ``V_tr`` (≈ 1.6 V_d) and carries it ``L_feed`` to
 the front stops. The paper treats the hand-over as instantaneous (eq. 1,

@@ -1,9 +1,9 @@
 """``guide_friction`` — a leaf slides down a swinging chute against Coulomb friction (L, no belts).
 
-Paper 000 (its results, recomputed in the README): at the swing extremes the exit speeds
+Paper 000 (its results recomputed in docs/machines.md, section L): at the swing extremes the exit speeds
 v_C, v_E vanish, "leaves lose speed, stay longer on the guides O2C, O3E, are braked
 by friction, and the container edges fill unevenly". This effect models that leaf
-on the guide (README, "Modelling choices where the papers are silent").
+on the guide (ours: docs/scenes.md, "Effects").
 
 Frame and equation
 ------------------
@@ -19,7 +19,7 @@ inertial frame ``r = s t̂`` has acceleration
 
 Gravity (0, −g) has components ``g cos θ'`` along t̂ and ``−g sin θ'`` along n̂. The
 guide's walls push with N (per unit mass) along n̂ — the chute is a channel, so N
-may take either sign — and Coulomb friction ``μ |N|`` acts along −sign(ṡ) t̂. Hence
+may take either sign — and Coulomb friction ``μ |N|`` acts along −sign(ṡ) t̂. Hence::
 
     N  = ε s + 2 ω ṡ + g sin θ'                                    (normal push)
     s̈ = g cos θ' + ω² s − μ |ε s + 2 ω ṡ + g sin θ'| sign(ṡ)      (sliding)
@@ -58,11 +58,11 @@ localised on the step's cubic Hermite interpolants (``s`` from s, ṡ at both en
   of the step fraction (every leaf exits once, so this is the bulk);
 * stop: ``ṡ = 0`` — :func:`folder_line.core.numerics.roots.brentq` per event.
 
-|N| has a kink where N changes sign; a step across it would drop RK4 to third order
-(a stage sampled a distance δ on the wrong side of the kink costs ~ h μ |N'| δ), so
+``|N|`` has a kink where N changes sign; a step across it would drop RK4 to third order
+(a stage sampled a distance δ on the wrong side of the kink costs ~ ``h μ |N'| δ``), so
 a step whose end has N of the other sign is shortened to end on the zero of N:
 Illinois (modified regula falsi) iterations on the step length, each a full RK4
-sub-step, until |N| <= 1e-11 m/s² there. A stuck leaf's σ(t) is scanned on a grid of
+sub-step, until ``|N| <= 1e-11`` m/s² there. A stuck leaf's σ(t) is scanned on a grid of
 step h (vectorised over the stuck leaves, in blocks of 64 samples); the first sample
 with σ > 0 brackets the slip. Documented limits: a σ > 0 window shorter than h, or an
 N that touches zero and turns back within one step, is not seen; a leaf whose first

@@ -1,6 +1,6 @@
 """``leaf_damage`` — leaves leaving a chute too fast are damaged (L).
 
-Model (the papers (README), "Effects: suggested models", leaf_damage; paper 000, last
+Model (ours: docs/scenes.md, "Effects", leaf_damage; paper 000, last
 section): a leaf is damaged when its absolute exit speed reaches the damage speed,
 
     damaged  ⇔  v_a >= v_damage ,        v_a = sqrt(v_C² + u²)            (paper eq. 25)

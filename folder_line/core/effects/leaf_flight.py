@@ -1,6 +1,6 @@
 """``leaf_flight`` — a leaf's flight from the chute exit to the container floor (L).
 
-Model (README, "Modelling choices where the papers are silent"; paper 000 is about the
+Model (ours: docs/scenes.md, "Effects"; paper 000, docs/machines.md section L, is about the
 uniformity of the layup across the container width, which this effect measures).
 Project frame: x toward O3, y up; gravity ``g = 9.80665 m/s²`` along −y. From the
 exit point (x0, y0) with the exit velocity (vx, vy), the leaf flies under gravity and
@@ -37,7 +37,7 @@ histogram of ``container.bins`` equal bins across the width, those outside spill
 The uniformity figure ``landing_cv`` is the coefficient of variation (population
 standard deviation over mean) of the bin counts.
 
-Suggested parameter: ``drag = 0.0`` (the drag-free picture of the README); a
+Suggested parameter: ``drag = 0.0`` (the drag-free picture of docs/scenes.md, "What the scenes show"); a
 tobacco leaf is light and broad, so ``drag`` of a few 1/s is defensible (terminal
 speed g/k ≈ 3.3 m/s at k = 3).
 """

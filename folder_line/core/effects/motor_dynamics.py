@@ -1,6 +1,6 @@
 """Effect ``motor_dynamics``: the master drive from a motor torque-speed curve and inertia.
 
-Source: the papers (README), "Effects: suggested models", ``motor_dynamics``
+Source: ours (docs/scenes.md, "Effects", ``motor_dynamics``)
 (``J dω/dt = T_m(ω) - T_load(φ, ω)``, linear ``T_m = T_0 (1 - ω/ω_0)`` near the
 operating point, load from ``chain_friction`` plus viscous ``b ω``, start from
 standstill, stop by a brake torque).
@@ -132,9 +132,9 @@ __all__ = [
 
 
 METHODS = ('rk4', 'dopri5')
-#: RK4 is stable for h·|λ| up to 2.785 on the negative real axis
+#: RK4 is stable for ``h·|λ|`` up to 2.785 on the negative real axis
 RK4_STABILITY = 2.785
-#: largest h·|λ| accepted for RK4: its dense output stays monotone on a linear start-up (z* = 2.2134)
+#: largest ``h·|λ|`` accepted for RK4: its dense output stays monotone on a linear start-up (z* = 2.2134)
 RK4_STEP_LIMIT = 2.21
 #: relative agreement of ω (and of the period) at three marks that counts as periodic
 PERIODIC_TOL = 1e-12

@@ -1,6 +1,6 @@
 """``stop_bounce`` — restitution at the front stops, settle time and rebound (F).
 
-Source: the papers (README), "Effects: suggested models", *stop_bounce (F)*; section F
+Source: ours (docs/scenes.md, "Effects", *stop_bounce (F)*); docs/machines.md section F
 (paper 001): "bounce of the signature off the front stops must be minimal (lowest
 impact force); it is damped mainly by fixed, pre-tensioned polymer strings over the
 signature". The paper gives no model; this one is ours.

@@ -64,7 +64,7 @@ checked in the summary). Sheets are numbered 0, 1, ... in slot order as their sl
 are drawn (a double fault feeds two with consecutive ids; a missing one takes no id).
 
 Joint samples per unit (on ``t_samples``; λ = ``drive.rate``, f the belt slow-down factor)
-----------------------------------------------------------------------------------------
+------------------------------------------------------------------------------------------
 * ``drive``: ``knife_crank`` (φ_k wrapped to [0, 2π), ω_k λ),
   ``knife`` (s(φ_k) m, v(φ_k) λ m/s);
 * ``belts``: ``first_transporter`` (V_d Θ m, V_d λ m/s);

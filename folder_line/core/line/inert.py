@@ -5,15 +5,15 @@ that scene is an error, not a silent no-op: :func:`inert_reason` says why a key 
 nothing in a scene with these machines and effects, and what to use instead. The loader
 (:mod:`folder_line.config.scenes`) asks it for every value the user gave that differs
 from the default (a merged scene written by ``run`` carries the defaults, and those stay
-harmless).
+harmless)::
 
-| key | read only with | otherwise |
-|---|---|---|
-| ``sheets.interval``, ``sheets.jitter`` | the layup (L) | F takes one signature per knife cycle |
-| ``drive.*`` | no ``motor_dynamics`` | the motor's ODE sets the speed and brakes |
-| ``delivery.f_*``, ``delivery.r_*`` | ``chain_friction`` | only the efficiency and forces use friction |
-| ``layup.v_tr`` | ``chute_belts`` | without belts a leaf leaves with the swing speed |
-| ``container.*`` | ``leaf_flight`` | no leaf reaches the container |
+    | key | read only with | otherwise |
+    |---|---|---|
+    | ``sheets.interval``, ``sheets.jitter`` | the layup (L) | F takes one signature per knife cycle |
+    | ``drive.*`` | no ``motor_dynamics`` | the motor's ODE sets the speed and brakes |
+    | ``delivery.f_*``, ``delivery.r_*`` | ``chain_friction`` | only the efficiency and forces use friction |
+    | ``layup.v_tr`` | ``chute_belts`` | without belts a leaf leaves with the swing speed |
+    | ``container.*`` | ``leaf_flight`` | no leaf reaches the container |
 """
 
 from __future__ import annotations

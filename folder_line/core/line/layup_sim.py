@@ -5,7 +5,7 @@ over ``[0, duration]`` in one window and keeps what it handed out.
 
 Leaves stream into the two chutes (transporter 3 with exit C, transporter 4 with
 exit E, alternating), leave the chute exits and, with ``leaf_flight``, fly to the
-container floor (paper 000; the papers (README) section L).
+container floor (paper 000; docs/machines.md, section L).
 
 Stream
 ------
@@ -46,7 +46,7 @@ Exit
   and no guide-friction code runs.
 * neither: the paper's picture — the leaf is dropped at the exit at its entry time,
   with the chute's swing velocity only, ``v_C n̂`` (no travel along the chute), so
-  its exit speed is |v_C|, zero at the swing extremes.
+  its exit speed is ``|v_C|``, zero at the swing extremes.
 
 Here t̂ is the unit vector along the chute from the pivot to the exit and
 n̂ = ẑ × t̂; ``v_C = ω3 l3`` (``v_E = ω5 l5`` for transporter 4), signed.

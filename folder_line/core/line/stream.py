@@ -15,7 +15,7 @@ Every event and row comes out of the same elementwise computation whatever the
 windows, so a run cut into windows anywhere (a cycle, a flight, a ramp cut mid-way)
 gives the events, samples, rows and summary of one window spanning the run, bit for
 bit. Memory does not grow with line time: what is carried is the state of what is in
-the machine (the README, *Streaming the line*).
+the machine (docs/architecture.md, *Streaming the line*).
 
 Commands and checkpoints
 ------------------------

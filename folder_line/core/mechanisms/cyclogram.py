@@ -1,7 +1,7 @@
 """F: cycle timing of the second-fold apparatus — feed versus knife (paper 001, Figs. 1-2).
 
-What the paper says (seed 001, OCR re-read; the papers (README) section F)
--------------------------------------------------------------------
+What the paper says (paper 001, read from its scan; docs/machines.md, section F)
+--------------------------------------------------------------------------------
 * Reference press ДАВР-62: folding cylinder ``D_fc = 267.38 mm``, ``n_c = 25000``
   rev/h, ``omega_c = 43.6 1/s``; printing speed ``V_d = omega_c R_fc`` ("5.829"
   and later "5.729 m/s" in the paper; ``43.633 * 0.13369 = 5.833 m/s``, used here).

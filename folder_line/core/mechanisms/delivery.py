@@ -6,8 +6,8 @@ straight guide. The carriage speed is ``v_k = K_v v_A``; where it is slowest the
 sheet is released onto the pile. The guide profile is ``y = y_max psi(xi)`` with
 ``xi = x / x_max`` in [0, 1] over one section.
 
-Model (the project spec, the papers (README) section D; equation numbers as there)
----------------------------------------------------------------------------
+Model (paper 002, docs/machines.md section D; equation numbers as in the paper)
+-------------------------------------------------------------------------------
 ::
 
     alpha = arcsin(psi sin alpha_m)          (sin alpha_m = y_max / l)

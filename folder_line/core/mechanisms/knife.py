@@ -1,4 +1,4 @@
-"""F: the crank-slider drive of the folding knife (paper 001, the papers (README) section F).
+"""F: the crank-slider drive of the folding knife (paper 001; docs/machines.md, section F).
 
 Geometry
 --------

@@ -1,6 +1,6 @@
 """L — the leaf layup six-bar: crank-rocker O1-A-B-O2 driving the double rocker O2-C-E-O3.
 
-Project frame (the papers (README), section L): O2 at the origin, x toward O3, y up;
+Project frame (docs/machines.md, section L): O2 at the origin, x toward O3, y up;
 O3 = (O2O3, 0); O1 = (a, b); crank pin ``A = O1 + R_kr (cos φ, sin φ)``, φ increasing
 (counter-clockwise) at ``ω = 2π n_kr / 60``.
 

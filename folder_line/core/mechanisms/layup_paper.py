@@ -1,6 +1,6 @@
 """The paper's projection-theorem velocities of the layup six-bar — a cross-check ONLY.
 
-the papers (README) section L, formulas (1)–(19) and (23)–(24) of paper 000, kept as
+Formulas (1)–(19) and (23)–(24) of paper 000 (docs/machines.md, section L), kept as
 written (``acos`` of cosine-theorem ratios, divisions by ``cos γ2`` and ``cos γ4``,
 a chosen root of a quadratic) so that the tests can compare them with the
 loop-closure kinematics of :mod:`folder_line.core.mechanisms.layup`. The simulator never uses
@@ -20,7 +20,7 @@ Then ``α1 = ψ + 180°`` (ψ the polar angle of O2A in the project frame),
 ``β = -θ3 - 90°`` (the chute's angle from the downward vertical, positive away from
 O3), and the paper's crank angle runs the other way (``dφ_p/dt = -ω``), so its
 speeds are the project's signed speeds times -1; :func:`paper_speeds` returns them
-in the project sign convention (``v_C = ω3 l3``). The spec's shorthand
+in the project sign convention (``v_C = ω3 l3``). The simpler reading
 ``φ_paper = -φ`` (y up, a_p = a, b_p = b) gives the same point A but makes
 ``β + 90°`` the wrong angle at O2, so eq. (13) would fail; the 180° turn is the
 mapping under which (6)–(13) hold.
@@ -33,7 +33,7 @@ Interpretation of the garbled scan
   ``a2 = 2 O2O3 l5 cos δ5 - 2 l3 l4``, ``a3 = l3² + l4² - O2O3² - l5²``, and (17)
   ``a2 cos δ3 + a3 = -a1 sin δ3``.
 * (24) ``γ4`` is the angle between v_E (perpendicular to O3E) and CE, i.e.
-  ``90° - δ1`` with δ1 the angle at E. the papers (README) writes ``90° - δ4`` (δ4 is the
+  ``90° - δ1`` with δ1 the angle at E. The paper's eq. (24) writes ``90° - δ4`` (δ4 is the
   angle at O3); that does not follow from the projection theorem and does not
   match, so the geometric reading is used.
 * Root of (19). Squaring (17) into (18) adds a spurious root; the true one is

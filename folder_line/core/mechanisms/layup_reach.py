@@ -26,7 +26,7 @@ _PI = math.pi
 
 class SwingExtreme(NamedTuple):
     """A rocker dead centre (ω3 = 0): ``kind`` is 'extended' (crank and rod in line,
-    |O1B| = l2 + R_kr) or 'folded' (|O1B| = l2 - R_kr); ``phi`` the crank angle, rad in
+    ``|O1B| = l2 + R_kr``) or 'folded' (``|O1B| = l2 - R_kr``); ``phi`` the crank angle, rad in
     [0, 2π); ``point`` the kinematics there."""
 
     kind: str
@@ -40,7 +40,7 @@ def swing_extremes(params: LayupParams) -> tuple[SwingExtreme, SwingExtreme]:
     Closed form: at a rocker dead centre O1, A and B are collinear, so B lies on
     circle(O1, l2 ± R_kr) and on circle(O2, O2B) (on the branch with
     ``(O1 - O2) × (B - O2) > 0``, the one that matches the assembly branch there),
-    and A = O1 ± R_kr (B - O1)/|B - O1|.
+    and ``A = O1 ± R_kr (B - O1)/|B - O1|``.
 
     Parameters
     ----------

@@ -56,7 +56,7 @@ __all__ = [
     'circle_point_acceleration',
 ]
 
-#: |normalised discriminant| at or below which two circles count as tangent (a toggle).
+#: ``|normalised discriminant|`` at or below which two circles count as tangent (a toggle).
 TOGGLE_TOL = 1e-10
 
 ArrayLike: TypeAlias = npt.ArrayLike

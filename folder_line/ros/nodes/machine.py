@@ -160,12 +160,27 @@ def node_scene(scene: str, overrides: str = '') -> Scene:
     return shared_scene(scene, parse_overrides(overrides), names=NODE_NAMES)
 
 
+#: why a line node refuses use_sim_time false
+SIM_TIME_REASON = "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+
+
 def _check_sim_time(values: Mapping[str, Any]) -> None:
     # the scene and the overrides are read-only: loaded once, at start (MachineNode.__init__)
     if values.get('use_sim_time') is False:
-        raise ParameterError(
-            'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
+        raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
+
+
+def _check_tunable_start(node: str, spec: ParamSpec, value: object, scene: Scene) -> None:
+    """A tunable starts at the scene's value: another start value belongs in the scene (``overrides``)."""
+    key = TUNABLE_PARAMETERS[node][spec.name]
+    if value != scene_value(scene, key):
+        where = (
+            f"the model's {scene_value(scene, key)!r} {spec.unit}; it has no scene key"
+            if key not in SCENE_KEYS
+            else f"the scene's {scene_value(scene, key)!r} {spec.unit}; to start at another value "
+            f'set "{key}=..." in the overrides parameter'
         )
+        raise ParameterError(spec.name, value, f'is changed on the running line; it starts at {where}')
 
 
 class MachineNode(Node):
@@ -207,9 +222,7 @@ class MachineNode(Node):
         if self.get_parameter('use_sim_time').value is False and (
             any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides
         ):
-            raise ParameterError(
-                'use_sim_time', False, "a line node runs on the line's simulated time (/clock); it cannot be turned off"
-            )
+            raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
         self.set_parameters([Parameter('use_sim_time', value=True)])
         self.tunables = self._tunable_specs()
         self.values = declare_parameters(
@@ -330,8 +343,7 @@ class MachineNode(Node):
         ``declare_parameters`` then checks): if they do not load, no tunable is declared
         and the declaration below names the fault.
         """
-        names = TUNABLE_PARAMETERS.get(self.NODE_NAME, {})
-        if not names:
+        if not TUNABLE_PARAMETERS.get(self.NODE_NAME):
             return ()
         given = self._parameter_overrides
         start = {spec.name: given[spec.name].value if spec.name in given else spec.default for spec in MACHINE_SPECS}
@@ -339,8 +351,13 @@ class MachineNode(Node):
             scene = node_scene(str(start['scene']), str(start['overrides']))
         except FolderLineError:
             return ()
+        return self.tunable_specs(scene)
+
+    @classmethod
+    def tunable_specs(cls, scene: Scene) -> tuple[ParamSpec, ...]:
+        """The parameters of this node's tunables ``scene`` can take, each starting at the scene's value."""
         specs = []
-        for param, key in names.items():
+        for param, key in TUNABLE_PARAMETERS.get(cls.NODE_NAME, {}).items():
             tunable = TUNABLES[key]
             if tunable.needs(scene):
                 continue
@@ -359,17 +376,29 @@ class MachineNode(Node):
     def _check_tunables_at_start(self) -> None:
         """A tunable starts at the scene's value: another start value belongs in the scene (``overrides``)."""
         for spec in self.tunables:
-            key = TUNABLE_PARAMETERS[self.NODE_NAME][spec.name]
-            if self.values[spec.name] != scene_value(self.scene, key):
-                where = (
-                    f"the model's {scene_value(self.scene, key)!r} {spec.unit}; it has no scene key"
-                    if key not in SCENE_KEYS
-                    else f"the scene's {scene_value(self.scene, key)!r} {spec.unit}; to start at another value "
-                    f'set "{key}=..." in the overrides parameter'
-                )
-                raise ParameterError(
-                    spec.name, self.values[spec.name], f'is changed on the running line; it starts at {where}'
-                )
+            _check_tunable_start(self.NODE_NAME, spec, self.values[spec.name], self.scene)
+
+    @classmethod
+    def refuse_start(cls, given: Mapping[str, object]) -> None:
+        """Refuse, before any node is made, a start this node would refuse, with the node's own words.
+
+        Parameters
+        ----------
+        given : mapping of str to object
+            The starting values the command line gives (:func:`folder_line.ros.ros_args.command_line_values`).
+
+        Raises
+        ------
+        FolderLineError
+            What the node's start would raise first: an explicit ``use_sim_time`` false, a value
+            its spec refuses, a scene that does not load, a tunable not at the scene's value.
+        """
+        if given.get('use_sim_time') is False:
+            raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
+        values = {spec.name: spec.check(given.get(spec.name, spec.default)) for spec in MACHINE_SPECS + cls.EXTRA_SPECS}
+        scene = node_scene(str(values['scene']), str(values['overrides']))
+        for spec in cls.tunable_specs(scene):
+            _check_tunable_start(cls.NODE_NAME, spec, spec.check(given.get(spec.name, spec.default)), scene)
 
     def _screen_tunings(self, parameters: list[Parameter[Any]]) -> SetParametersResult:
         """Refuse a tuning when no supervisor listens: nobody would time it, so it would never take effect."""
