@@ -156,7 +156,7 @@ def _add_marker_rate(parser: argparse.ArgumentParser, when: str, *, given_only: 
 
 #: bounds of --max-bag-duration (s) and --max-bag-size (bytes) when not 0
 BAG_DURATION = (1e-3, 1e7)
-BAG_SIZE = (1024, 2**62)
+BAG_SIZE = (1024, 10**15)
 
 
 def _add_bag_split(parser: argparse.ArgumentParser, when: str) -> None:

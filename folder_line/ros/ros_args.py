@@ -21,6 +21,8 @@ import math
 import re
 from collections.abc import Sequence
 
+from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
+
 __all__ = ['command_line_values']
 
 _TRUE = frozenset({'true', 'True', 'TRUE'})
@@ -79,8 +81,6 @@ def _value(text: str) -> object:
 
 def _file_values(path: str, node: str) -> dict[str, object]:
     """The values a parameter file gives ``node`` (rclpy's reader; raises _Unsure on a file it refuses)."""
-    from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
-
     try:
         found = parameter_dict_from_yaml_file(path, use_wildcard=True, target_nodes=[f'/{node}'])
     except Exception as exc:  # noqa: BLE001 - any fault (OSError, a YAML error, ...): rcl names it itself

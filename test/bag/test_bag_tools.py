@@ -151,3 +151,33 @@ def test_a_bag_of_more_files_than_the_open_file_limit_is_read(tmp_path: Path) ->
         )
         assert proc.returncode == 0, proc.stderr
     assert (tmp_path / 'a' / 'report.md').is_file()
+
+
+@pytest.mark.parametrize(
+    ('split', 'files'),
+    # by duration: [0, 0.5) .. [1.5, 2) and the last tick, at 2 s
+    [([], 1), (['--max-bag-duration', '0.5'], 5), (['--max-bag-size', '100000'], None)],
+    ids=['one file', 'by duration', 'by size'],
+)
+def test_simulate_bag_is_one_file_unless_split_and_both_readers_read_it_whole(
+    tmp_path: Path, split: list[str], files: int | None
+) -> None:
+    """``simulate --bag`` writes one ``.mcap`` as ``ros2 bag record`` does; split on request, the same messages
+    in more files. The independent mcap reader and rosbags each read every message."""
+    bag = tmp_path / 'bag'
+    assert main(['simulate', '--scene', 'folder', '--duration', '2', '--bag', str(bag), *split]) == 0
+    paths = segment_files(bag)
+    if files is not None:
+        assert len(paths) == files
+    else:
+        assert len(paths) > 1 and all(p.stat().st_size >= 100000 for p in paths[:-1])
+    per_topic: dict[str, int] = {}
+    for path in paths:
+        with path.open('rb') as fh:
+            for _, channel, _, _ in make_reader(fh, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+                per_topic[channel.topic] = per_topic.get(channel.topic, 0) + 1
+    with Reader(bag) as reader:
+        by_rosbags: dict[str, int] = {}
+        for connection, _, _ in reader.messages():
+            by_rosbags[connection.topic] = by_rosbags.get(connection.topic, 0) + 1
+    assert per_topic == by_rosbags and sum(per_topic.values()) > 1000

@@ -39,6 +39,14 @@ def test_rtf_0_means_no_ceiling_as_the_limits_table_and_the_node_parameter_say()
             ['--marker-rate', '5'],
             'folder-line: error: --marker-rate=5.0: draws the machine into a bag: only with --bag',
         ),
+        (
+            ['--max-bag-duration', '1'],
+            'folder-line: error: --max-bag-duration=1.0: splits a bag: only with --bag',
+        ),
+        (
+            ['--max-bag-size', '100000'],
+            'folder-line: error: --max-bag-size=100000: splits a bag: only with --bag',
+        ),
         (['--workers', '2'], 'folder-line: error: --workers=2: runs the samples of a Monte Carlo: only with --samples'),
         (['--threads', '3'], 'folder-line: error: --threads=3: runs the samples of a Monte Carlo: only with --samples'),
         (
@@ -55,6 +63,30 @@ def test_an_option_that_would_do_nothing_is_refused(
     argv = ['simulate', '--scene', 'folder', '--duration', '0.5', '--json', str(out), *extra]
     assert main(argv) == 2
     assert one_error_line(capsys) == expected
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ('option', 'value', 'expected'),
+    [
+        ('--max-bag-duration', '0.0001', "--max-bag-duration='0.0001': must be 0 (no split) or in [0.001, 1e+07] s"),
+        ('--max-bag-duration', 'nan', "--max-bag-duration='nan': must be 0 (no split) or in [0.001, 1e+07] s"),
+        ('--max-bag-duration', '-1', "--max-bag-duration='-1': must be 0 (no split) or in [0.001, 1e+07] s"),
+        ('--max-bag-size', '10', "--max-bag-size='10': must be 0 (no split) or in [1024, 1e+15] bytes"),
+        ('--max-bag-size', '1.5e6', "--max-bag-size='1.5e6': must be a whole number: 0 (no split) or in"),
+    ],
+)
+@pytest.mark.parametrize('verb', ['simulate', 'run'])
+def test_a_bag_split_out_of_range_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str, expected: str, verb: str
+) -> None:
+    out = tmp_path / 'out'
+    where = ['--bag', str(out)] if verb == 'simulate' else ['--out', str(out)]
+    with pytest.raises(SystemExit) as exited:
+        main([verb, '--scene', 'folder', '--duration', '0.5', *where, option, value])
+    assert exited.value.code == 2
+    line = one_error_line(capsys)
+    assert line.startswith('folder-line') and expected in line, line
     assert not out.exists()
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from _ros_env import node_environment
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rosbags.rosbag2 import Reader
 
 from folder_line.bag.reader import read_bag
 
@@ -47,7 +48,8 @@ def test_bag_verbs_take_the_run_folder_after_a_normal_end(tmp_path: Path) -> Non
     info = _cli('bag', 'info', str(out))
     assert info.returncode == 0, info.stderr
     assert 'complete' in info.stdout
-    assert _mcap_count(out / 'bag' / 'bag_0.mcap') == read_bag(out / 'bag').message_count
+    with Reader(out / 'bag') as reader:  # rosbags, and the independent mcap reader: every message, one file
+        assert _mcap_count(out / 'bag' / 'bag_0.mcap') == reader.message_count == read_bag(out / 'bag').message_count
     play = _cli('bag', 'play', str(out), '--rtf', 'max')
     assert play.returncode == 0, play.stderr
 
