@@ -54,9 +54,9 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.tuning import SET_PREFIX
 from folder_line.core.numerics.timebase import NS_PER_S, seconds_to_ns
+from folder_line.core.types.events import EVENT_KINDS
 
 __all__ = [
     'CLOCK_TOPIC',

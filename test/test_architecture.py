@@ -14,6 +14,17 @@ The parts of ``folder_line`` and what each may import (besides itself)::
     cli         the command line (everything)
 
 Imports inside functions count too: a dependency hidden in a function is still one.
+
+Inside ``core`` the layers run one way too, imports for annotations only (``if TYPE_CHECKING``)
+included, since a type named is a dependency of the design::
+
+    numerics     integrators, roots, validation, arrays (nothing of the core)
+    limits       the table of physical ranges (numerics)
+    types        events and joint samples, machine sections of no mechanism (the above)
+    mechanisms   the papers' machines; SceneView, what they read of a scene (the above)
+    effects      one module per effect (the above)
+    line         scenes, simulators, the streamed line, the batch model (the above)
+    supervision  the supervisor's logic (the above)
 """
 
 from __future__ import annotations
@@ -54,8 +65,9 @@ def _modules() -> dict[str, Path]:
     return {_module_name(p): p for p in sorted(PACKAGE.rglob('*.py'))}
 
 
-def _imports(path: Path) -> set[str]:
-    """folder_line modules imported by ``path``, inside functions too (not under ``if TYPE_CHECKING``)."""
+def _imports(path: Path, annotations: bool = False) -> set[str]:
+    """folder_line modules imported by ``path``, inside functions too; under ``if TYPE_CHECKING`` only with
+    ``annotations``."""
     tree = ast.parse(path.read_text(encoding='utf-8'))
     known = _modules()
     found: set[str] = set()
@@ -70,7 +82,12 @@ def _imports(path: Path) -> set[str]:
                     base = child.module or ''
                     names = [f'{base}.{a.name}' if f'{base}.{a.name}' in known else base for a in child.names]
                 found.update(n for n in names if n.split('.')[0] == 'folder_line')
-            elif isinstance(child, ast.If) and isinstance(child.test, ast.Name) and child.test.id == 'TYPE_CHECKING':
+            elif (
+                isinstance(child, ast.If)
+                and isinstance(child.test, ast.Name)
+                and child.test.id == 'TYPE_CHECKING'
+                and not annotations
+            ):
                 continue  # annotations only: no import at run time
             visit(child)
 
@@ -136,6 +153,39 @@ def test_no_import_cycles() -> None:
     modules = _modules()
     graph = {m: {d for d in _imports(p) if d in modules and d != m} for m, p in modules.items()}
     # a package's __init__ importing its own modules is not a cycle of the design
+    graph = {m: {d for d in deps if not m.startswith(d + '.')} for m, deps in graph.items()}
+    assert _cycles(graph) == []
+
+
+#: layer of folder_line.core -> the layers it may import
+CORE_LAYERS = ('numerics', 'limits', 'types', 'mechanisms', 'effects', 'line', 'supervision')
+CORE_MAY_IMPORT = {layer: set(CORE_LAYERS[:i]) for i, layer in enumerate(CORE_LAYERS)}
+
+
+def _core_layer(module: str) -> str:
+    """``folder_line.core.line.scene`` -> ``line``; the package ``folder_line.core`` itself -> ``''``."""
+    parts = module.split('.')
+    return parts[2] if len(parts) > 2 else ''
+
+
+def test_the_core_layers_run_one_way() -> None:
+    """Within ``core``, each layer imports only the layers below it, for annotations too."""
+    core = {m: p for m, p in _modules().items() if m.startswith('folder_line.core.')}
+    assert {_core_layer(m) for m in core} == set(CORE_LAYERS)
+    wrong = sorted(
+        f'{m} imports {dep}'
+        for m, p in core.items()
+        for dep in _imports(p, annotations=True)
+        if dep.startswith('folder_line.core')
+        and _core_layer(dep) != _core_layer(m)
+        and _core_layer(dep) not in CORE_MAY_IMPORT[_core_layer(m)]
+    )
+    assert wrong == []
+
+
+def test_the_core_has_no_import_cycle_even_for_annotations() -> None:
+    core = {m: p for m, p in _modules().items() if m.startswith('folder_line.core')}
+    graph = {m: {d for d in _imports(p, annotations=True) if d in core and d != m} for m, p in core.items()}
     graph = {m: {d for d in deps if not m.startswith(d + '.')} for m, deps in graph.items()}
     assert _cycles(graph) == []
 

@@ -98,13 +98,13 @@ from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chute_belts, leaf_flight
 from folder_line.core.line.drives import make_drive
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import FolderLine
 from folder_line.core.line.layup_sim import LayupLine
 from folder_line.core.mechanisms.drive import RampDrive
 from folder_line.core.numerics import roots
 from folder_line.core.numerics.arrays import BoolArray, FloatArray, IntArray
 from folder_line.core.numerics.constants import G
+from folder_line.core.types.events import event_kind
 from folder_line.errors import MeasurementError, ParameterError
 
 __all__ = [

@@ -26,10 +26,10 @@ from folder_line.analysis.replay import CYCLES_KEPT, Evaluation
 from folder_line.analysis.streaming import CHUNK, Thinned, event_chunks
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
-from folder_line.core.line.events import event_kind
 from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
+from folder_line.core.types.events import event_kind
 from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
 __all__ = [

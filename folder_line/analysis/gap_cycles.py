@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from folder_line.bag.gaps import Gap
-from folder_line.core.line.events import EVENT_KINDS
+from folder_line.core.types.events import EVENT_KINDS
 
 __all__ = ['Unjudged', 'unjudged', 'without_unjudged']
 

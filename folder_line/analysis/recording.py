@@ -28,9 +28,9 @@ from folder_line.analysis.streaming import stamp_priority
 from folder_line.bag.gaps import Gap
 from folder_line.bag.reader import read_bag
 from folder_line.config.run_config import BAG_DIR
-from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.tuning import LineCommand, command_of
+from folder_line.core.types.events import EVENT_DTYPE, event_kind
 from folder_line.errors import ParameterError
 from folder_line.files.atomic import describe_path
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
@@ -143,7 +143,7 @@ class Recording:
         commands is known up to there (an animation's axes may look that far).
     events : ndarray of EVENT_DTYPE
         The events of ``/line/events``, ``t`` = ``time_ref`` in s, sorted as
-        :func:`folder_line.core.line.events.merge_events` sorts (time, kind, sheet).
+        :func:`folder_line.core.types.events.merge_events` sorts (time, kind, sheet).
     event_ns : ndarray of int64
         The same events' ``time_ref`` in ns (exact).
     joints : dict of str to RecordedJoints

@@ -59,12 +59,12 @@ from folder_line.bag.statuses import accepted_tunings
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.drives import make_drive
-from folder_line.core.line.events import EVENT_KINDS, ConstraintSeries, empty_events, event_kind
 from folder_line.core.line.model import WINDOW as FAST_FORWARD
 from folder_line.core.line.stream import ConstraintTally, LineStream
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.supervision.offline import replay
+from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, empty_events, event_kind
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.interfaces import NS_PER_S
 

@@ -55,6 +55,7 @@ from folder_line.analysis.replay import (
     transitions_agree,
 )
 from folder_line.bag.gaps import Gap, describe_gaps
+from folder_line.bag.writer import files_text
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
@@ -120,7 +121,7 @@ def _report_lines(
     lines = [
         f'# Analysis of the run: scene `{scene.name}`',
         '',
-        f'- bag: `{bag.path}` ({len(bag.files)} files, {bag.message_count} messages)',
+        f'- bag: `{bag.path}` ({files_text(len(bag.files))}, {bag.message_count} messages)',
         f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
         f'- line time reached: {rec.t_end:.9g} s'
         + (f'; window analysed: {summary["t_from"]:.9g} .. {rec.t_end:.9g} s' if summary.get('t_from') else '')
@@ -159,7 +160,8 @@ def _report_lines(
     lines += ['', '## The recorded events and the line model', '']
     lines.append(
         'The streamed line model under the recorded drive commands and tunings, replayed window by window '
-        f'({check.windows} windows) and compared with the recorded events of each window: {check.text()}.'
+        f'({check.windows} window{"" if check.windows == 1 else "s"}) and compared with the recorded events of each '
+        f'window: {check.text()}.'
     )
     if check.differences:
         lines += ['', '| t, s | kind | sheet | cycle | recorded value | model value |', '|---|---|---|---|---|---|']

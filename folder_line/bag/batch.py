@@ -83,13 +83,13 @@ from folder_line.bag.statuses import (
 from folder_line.bag.writer import BagWriter, TickMessages
 from folder_line.config.run_config import MARKER_RATE, RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.scenery import Scenery
 from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.pile import counted_event
 from folder_line.core.supervision.supervisor import Supervisor
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.errors import ParameterError
 from folder_line.interfaces import (
     CLOCK_TOPIC,

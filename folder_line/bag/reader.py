@@ -240,6 +240,9 @@ def read_bag(path: str | os.PathLike[str]) -> BagContents:
         raise BagError(msg)
     meta = directory / METADATA_FILE
     if not os.path.lexists(meta):
+        if not any(directory.glob('*.mcap')):  # nothing a repair could rebuild the metadata from
+            msg = f'{directory}: not a bag: no {METADATA_FILE} and no .mcap files'
+            raise BagError(msg)
         msg = f'{directory}: no {METADATA_FILE}; rebuild it with: folder-line bag repair {shlex.quote(str(directory))}'
         raise BagError(msg)
     if not meta.is_file():

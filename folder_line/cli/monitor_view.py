@@ -178,7 +178,7 @@ class EventView:
     Attributes
     ----------
     kind : str
-        Event kind (``folder_line.core.line.events.EVENT_KINDS``), or the first word of an
+        Event kind (``folder_line.core.types.events.EVENT_KINDS``), or the first word of an
         unrecognised ``source``.
     count : int
         Events of this kind received so far.

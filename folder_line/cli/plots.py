@@ -67,7 +67,6 @@ from folder_line.config.run_config import RATE
 from folder_line.core.effects import chain_friction, leaf_flight
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
 from folder_line.core.line.delivery_plan import delivery_plan
-from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.line.margin_text import format_margin
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream, Window
@@ -76,6 +75,7 @@ from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
+from folder_line.core.types.events import ConstraintSeries, event_kind
 from folder_line.errors import OutputError
 from folder_line.files.atomic import check_output_dir, claim_output_dir
 from folder_line.interfaces import NS_PER_S

@@ -23,9 +23,9 @@ from folder_line.analysis.figures import exit_speed_curves, pyplot, save_figure,
 from folder_line.cli.tables import kinematics_table
 from folder_line.config.params import KINDS, load_container, load_params, read_yaml_mapping
 from folder_line.config.scenes import set_press
-from folder_line.core.line.machines import ContainerParams
 from folder_line.core.line.scene import MachineParams, check_press_speed
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
+from folder_line.core.types.machines import ContainerParams
 from folder_line.errors import ParameterError
 from folder_line.files.atomic import write_csv_atomic, write_text_atomic
 

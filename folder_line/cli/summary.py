@@ -26,11 +26,11 @@ import numpy as np
 from folder_line.core.effects import leaf_flight
 from folder_line.core.limits import DURATION
 from folder_line.core.line import model
-from folder_line.core.line.events import EVENT_KINDS, ConstraintSeries, event_kind
 from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream, Window
 from folder_line.core.line.tuning import LineCommand
+from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, event_kind
 from folder_line.errors import ParameterError
 
 __all__ = [
@@ -78,7 +78,7 @@ def tally_figures(
     tallies : iterable of ConstraintTally
         The rows, per constraint (margins in each constraint's unit).
     kinds : ndarray of int
-        Events per kind, indexed as :data:`folder_line.core.line.events.EVENT_KINDS`.
+        Events per kind, indexed as :data:`folder_line.core.types.events.EVENT_KINDS`.
     max_violations : int
         Violations listed per constraint, and in all.
     """

@@ -28,11 +28,11 @@ from folder_line.core.effects.arrival_jitter import DISTRIBUTIONS
 from folder_line.core.effects.motor_dynamics import METHODS
 from folder_line.core.limits import CYLINDER_SPEED, LIMITS, SAMPLE_RATE, Limit
 from folder_line.core.line.inert import inert_reason
-from folder_line.core.line.machines import StreamParams
 from folder_line.core.line.scene import MACHINES
 from folder_line.core.mechanisms.delivery import RETURN_SECTIONS
 from folder_line.core.mechanisms.delivery_laws import law_names
 from folder_line.core.mechanisms.drive import DRIVE_PROFILES, DriveSpec
+from folder_line.core.types.machines import StreamParams
 
 __all__ = ['KeyInfo', 'field_docs', 'inert_keys', 'scene_keys']
 

@@ -12,13 +12,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal, overload
 
-from folder_line.core.line.machines import ContainerParams
 from folder_line.core.line.scene import MACHINES, MachineParams
 from folder_line.core.mechanisms.cyclogram import CyclogramParams
 from folder_line.core.mechanisms.delivery import DeliveryParams
 from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.validate import build
+from folder_line.core.types.machines import ContainerParams
 from folder_line.errors import ParameterError
 from folder_line.files.yamlio import load_yaml_file
 

@@ -13,8 +13,8 @@ from folder_line.accuracy import events as E
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.drives import make_drive
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.layup_sim import LayupLine
+from folder_line.core.types.events import event_kind
 from folder_line.errors import MeasurementError
 
 EPS = float(np.finfo(float).eps)

@@ -26,9 +26,9 @@ from folder_line.bag.metadata import FileSummary, MetadataBuilder, _dump, segmen
 from folder_line.bag.types import typestore
 from folder_line.bag.writer import BagWriter, TickMessages
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.scenery import LINE_FRAME, Scenery
 from folder_line.core.line.stream import LineStream
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.interfaces import EVENT_KINDS, LINE_TOPIC_TYPES, NS_PER_S, event_source
 
 

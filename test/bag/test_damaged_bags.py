@@ -28,7 +28,7 @@ from folder_line.bag.metadata import KEY_COMPLETE
 from folder_line.bag.reader import read_bag
 from folder_line.bag.repair import repair
 from folder_line.cli import main as cli
-from folder_line.core.line.events import event_kind
+from folder_line.core.types.events import event_kind
 from folder_line.interfaces import NS_PER_S
 
 DURATION = 6.0

@@ -14,9 +14,9 @@ from folder_line.analysis.figures import FIGURES
 from folder_line.cli import plots
 from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.core.line.stream import LineStream
+from folder_line.core.types.events import event_kind
 
 _FOLDER = {'efficiency.png', 'cyclogram.png', 'margins.png'}
 

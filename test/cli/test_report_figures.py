@@ -12,7 +12,7 @@ from folder_line.analysis.figures import pyplot
 from folder_line.cli import report
 from folder_line.cli.main import main
 from folder_line.config.params import load_container, load_params
-from folder_line.core.line.machines import ContainerParams
+from folder_line.core.types.machines import ContainerParams
 
 
 def _empty_headings(lines: list[str]) -> list[str]:

@@ -16,10 +16,10 @@ from folder_line import progress
 from folder_line.cli import main as cli
 from folder_line.cli import summary as summary_cli
 from folder_line.config.scenes import list_scenes, load_scene
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import simulate
 from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import Tuning
+from folder_line.core.types.events import EVENT_KINDS
 
 SCENES = list_scenes()
 

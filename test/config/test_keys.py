@@ -11,8 +11,8 @@ from folder_line.config.keys import KeyInfo, field_docs, inert_keys, scene_keys
 from folder_line.config.scenes import apply_overrides, default_value, list_scenes, scene_mapping
 from folder_line.core.effects import EFFECTS
 from folder_line.core.limits import LIMITS
-from folder_line.core.line.machines import StreamParams
 from folder_line.core.line.scene import MACHINES, parse_scene
+from folder_line.core.types.machines import StreamParams
 from folder_line.errors import AssemblyError, ParameterError
 
 #: the knife turns twice per cylinder turn: a speed is accepted only with its partner at the matching value

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.tuning import Tuning, belt_steps, check_tuning, command_of, tuning_text
 from folder_line.core.mechanisms.belt import BeltPhase, combine_factors
@@ -15,6 +14,7 @@ from folder_line.core.mechanisms.pile import T_LOWER
 from folder_line.core.supervision.commands import ActingState
 from folder_line.core.supervision.grid import CheckGrid
 from folder_line.core.supervision.settings import SPEED_REACHED
+from folder_line.core.types.events import EVENT_KINDS
 from folder_line.errors import ParameterError
 
 T_E = 4.0

@@ -40,10 +40,10 @@ from folder_line.analysis.recording import Recording
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.core.line.cycles import MachineCycles
 from folder_line.core.line.drives import make_drive
-from folder_line.core.line.events import ConstraintSeries
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import LineCommand, Tuning
+from folder_line.core.types.events import ConstraintSeries
 from folder_line.errors import ParameterError
 from folder_line.interfaces import NS_PER_S
 

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -59,13 +59,11 @@ from folder_line.core.mechanisms.delivery import (
     evaluate_stroke,
     evaluate_stroke_point,
 )
+from folder_line.core.mechanisms.scene_view import SceneView
 from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
 from folder_line.core.numerics.validate import among, check_fields
 from folder_line.errors import ParameterError
-
-if TYPE_CHECKING:
-    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'ChainFrictionState',
@@ -168,19 +166,19 @@ def stroke_state(params: Params, delivery: DeliveryParams, u: npt.ArrayLike) -> 
 # --------------------------------------------------------------------------- torques
 
 
-def _params(scene: Scene) -> Params:
+def _params(scene: SceneView) -> Params:
     p: Params | None = scene.effect('chain_friction')
     if p is None:
         raise ParameterError('effects', 'chain_friction', f'scene {scene.name!r} does not list chain_friction')
     return p
 
 
-def sprocket_torque(scene: Scene, Theta: npt.ArrayLike) -> FloatArray:
+def sprocket_torque(scene: SceneView, Theta: npt.ArrayLike) -> FloatArray:
     """Sprocket torque M_1 (N m) of all carriages on the stroke at master phase Θ (vectorised).
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneView
         Lists ``chain_friction``; has the knife and the delivery.
     Theta : array_like of float
         Master phase, nominal s (any real; the load is periodic with period ``T``).
@@ -216,12 +214,12 @@ def _stroke_torque(
     return total
 
 
-def master_load_torque(scene: Scene, Theta: npt.ArrayLike, omega_nom: float | None = None) -> FloatArray:
+def master_load_torque(scene: SceneView, Theta: npt.ArrayLike, omega_nom: float | None = None) -> FloatArray:
     """Sprocket torque reflected to the master shaft, ``M_1 omega_sprocket / omega_nom`` (N m).
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneView
         As for :func:`sprocket_torque`.
     Theta : array_like of float
         Master phase, nominal s.
@@ -265,7 +263,7 @@ class MasterLoad:
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneView
         Lists ``chain_friction``.
     omega_nom : float
         Nominal master-shaft speed, rad/s.
@@ -292,7 +290,7 @@ class MasterLoad:
         other than ``'ok'``: there the model's forces are 0 but the real mechanism jams.
     """
 
-    def __init__(self, scene: Scene, omega_nom: float) -> None:
+    def __init__(self, scene: SceneView, omega_nom: float) -> None:
         self.params = _params(scene)
         self.delivery: DeliveryParams = scene.machine('delivery')
         self.schedule = schedule(scene)
@@ -415,7 +413,7 @@ class MasterLoad:
 _LOADS: dict[tuple[Any, ...], MasterLoad] = {}
 
 
-def master_load(scene: Scene, omega_nom: float | None = None) -> MasterLoad:
+def master_load(scene: SceneView, omega_nom: float | None = None) -> MasterLoad:
     """The scene's :class:`MasterLoad` (cached per parameters).
 
     ``omega_nom`` defaults to the scene's ``motor_dynamics.omega_nom``; without

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.line.events import make_events, merge_events
 from folder_line.core.numerics.validate import check_fields, non_negative, within
+from folder_line.core.types.events import make_events, merge_events
 
 __all__ = [
     'Params',

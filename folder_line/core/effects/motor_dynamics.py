@@ -98,7 +98,7 @@ import copy
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -106,15 +106,13 @@ import numpy.typing as npt
 from folder_line.core.effects import chain_friction
 from folder_line.core.limits import DURATION, LINE_DAMPING, MOTOR_INERTIA, MOTOR_SPEED, MOTOR_TORQUE
 from folder_line.core.mechanisms.drive import Command, check_commands
+from folder_line.core.mechanisms.scene_view import SceneView
 from folder_line.core.numerics import dense
 from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import among, check_fields, in_range, non_negative, positive, within
 from folder_line.errors import ParameterError
-
-if TYPE_CHECKING:
-    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'METHODS',
@@ -904,7 +902,7 @@ def _switches(t_stop: float, commands: Iterable[Command], duration: float = math
     return out
 
 
-def _params(scene: Scene) -> Params:
+def _params(scene: SceneView) -> Params:
     p: Params | None = scene.effect('motor_dynamics')
     if p is None:
         raise ParameterError('effects', 'motor_dynamics', f'scene {scene.name!r} does not list motor_dynamics')
@@ -939,7 +937,7 @@ def _check_work(p: Params, duration: float) -> None:
 
 
 def stream_drive(
-    scene: Scene,
+    scene: SceneView,
     commands: Iterable[Command] = (),
     previous: MotorDrive | None = None,
     *,
@@ -950,7 +948,7 @@ def stream_drive(
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneView
         Lists ``motor_dynamics`` (and possibly ``chain_friction``).
     commands : iterable of Command
         Sorted by time: ``hold``/``stop`` switch the motor off and apply the brake from their
@@ -984,7 +982,7 @@ def stream_drive(
 
 
 def build_drive(
-    scene: Scene, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()
+    scene: SceneView, duration: float, *, periodic: bool = True, commands: Iterable[Command] = ()
 ) -> MotorDrive:
     """The motor drive over ``[0, duration]``: :func:`stream_drive` integrated to ``duration``, its times
     clipped there (``theta_end`` is Θ at ``duration``; a phase beyond it maps to ``duration``).

@@ -1,7 +1,7 @@
 """F and D cyclogram constraints as pure functions of an event table.
 
 :func:`evaluate_folder_constraints` reads only the events (any table with the
-columns of :data:`folder_line.core.line.events.EVENT_DTYPE`; other kinds are ignored), the
+columns of :data:`folder_line.core.types.events.EVENT_DTYPE`; other kinds are ignored), the
 cycle timing and the scene's parameters. It does not care where the events came
 from, so the batch simulator (:func:`folder_line.core.line.folder_sim.simulate_folder`)
 and a live supervisor fed by an event stream evaluate the same code; a supervisor
@@ -59,10 +59,10 @@ import numpy as np
 
 from folder_line.core.effects import chute_belts, leaf_damage
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
-from folder_line.core.line.events import ConstraintSeries, event_kind
 from folder_line.core.mechanisms.cyclogram import CycleTiming
 from folder_line.core.mechanisms.delivery import evaluate_stroke
 from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.types.events import ConstraintSeries, event_kind
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.line.machines import ChainParams
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms import chain
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule
 from folder_line.core.mechanisms.cyclogram import CycleTiming
+from folder_line.core.types.machines import ChainParams
 
 __all__ = ['DeliveryPlan', 'delivery_plan']
 

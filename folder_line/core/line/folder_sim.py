@@ -88,10 +88,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.line.events import ConstraintSeries, JointSamples, LinePart, SubResult
 from folder_line.core.line.folder_stream import FolderStream
 from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.types.events import ConstraintSeries, JointSamples, LinePart, SubResult
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene

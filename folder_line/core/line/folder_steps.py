@@ -26,12 +26,12 @@ from folder_line.core.effects import (
     stop_bounce,
 )
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
-from folder_line.core.line.events import event_kind, make_events
 from folder_line.core.mechanisms.belt import BeltPhase, belt_intervals
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.delivery import stroke_minimum
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
+from folder_line.core.types.events import event_kind, make_events
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:

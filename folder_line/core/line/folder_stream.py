@@ -47,7 +47,13 @@ from folder_line.core.effects import (
 from folder_line.core.line import folder_steps
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan
-from folder_line.core.line.events import (
+from folder_line.core.line.tuning import Tuning, belt_steps
+from folder_line.core.mechanisms import delivery as dlv
+from folder_line.core.mechanisms import knife as knf
+from folder_line.core.mechanisms.belt import BeltStream
+from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.numerics.rng import stream
+from folder_line.core.types.events import (
     ConstraintSeries,
     JointSamples,
     empty_events,
@@ -55,12 +61,6 @@ from folder_line.core.line.events import (
     make_events,
     stack_samples,
 )
-from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms import delivery as dlv
-from folder_line.core.mechanisms import knife as knf
-from folder_line.core.mechanisms.belt import BeltStream
-from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.numerics.rng import stream
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene

@@ -83,14 +83,14 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.line.events import JointSamples, LinePart, SubResult
 from folder_line.core.line.folder_sim import join_rows
 from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
 from folder_line.core.line.layup_stream import LayupStream
-from folder_line.core.line.machines import StreamParams
 from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics import rng as rng_mod
+from folder_line.core.types.events import JointSamples, LinePart, SubResult
+from folder_line.core.types.machines import StreamParams
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene

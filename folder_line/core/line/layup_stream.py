@@ -34,14 +34,6 @@ import numpy.typing as npt
 
 from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
 from folder_line.core.line.constraints import chute_speed_series
-from folder_line.core.line.events import (
-    ConstraintSeries,
-    JointSamples,
-    empty_events,
-    event_kind,
-    make_events,
-    stack_samples,
-)
 from folder_line.core.line.folder_stream import due_bound
 from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
 from folder_line.core.line.running import BinnedSum, RunningStats
@@ -51,6 +43,14 @@ from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import TAU, LayupParams
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
 from folder_line.core.numerics import rng as rng_mod
+from folder_line.core.types.events import (
+    ConstraintSeries,
+    JointSamples,
+    empty_events,
+    event_kind,
+    make_events,
+    stack_samples,
+)
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:

@@ -31,11 +31,11 @@ import numpy.typing as npt
 
 from folder_line.core.limits import DURATION, SAMPLE_RATE
 from folder_line.core.line.cycles import MachineCycles
-from folder_line.core.line.events import EVENT_KINDS, ConstraintSeries, JointSamples
 from folder_line.core.line.folder_sim import join_rows
 from folder_line.core.line.stream import UNITS, LineStream, check_line_commands
 from folder_line.core.line.tuning import LineCommand, tunings_of
 from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, JointSamples
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:

@@ -18,13 +18,13 @@ from typing import Any, Literal, TypeAlias, overload
 from folder_line.core import effects as fx
 from folder_line.core.effects import EFFECTS, parse_effect_params
 from folder_line.core.limits import SAMPLE_RATE
-from folder_line.core.line.machines import ChainParams, ContainerParams, FeedTransporterParams, StreamParams
 from folder_line.core.mechanisms.cyclogram import KNIFE_PER_CYLINDER, CyclogramParams
 from folder_line.core.mechanisms.delivery import DeliveryParams
 from folder_line.core.mechanisms.drive import DriveSpec
 from folder_line.core.mechanisms.knife import KnifeParams
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.core.numerics.validate import build, check_keys
+from folder_line.core.types.machines import ChainParams, ContainerParams, FeedTransporterParams, StreamParams
 from folder_line.errors import ParameterError
 
 __all__ = ['MACHINES', 'SCENE_KEYS', 'MachineParams', 'Scene', 'check_press_speed', 'machine_class', 'parse_scene']

@@ -42,18 +42,18 @@ import numpy.typing as npt
 
 from folder_line.core.line import drives
 from folder_line.core.line.constraints import chute_speed_series
-from folder_line.core.line.events import (
+from folder_line.core.line.folder_stream import FolderStream
+from folder_line.core.line.layup_stream import LayupStream
+from folder_line.core.line.tuning import LineCommand, Tuning, check_tuning, tunings_of, values_from
+from folder_line.core.mechanisms.drive import Command, Drive, check_commands, theta_rate
+from folder_line.core.mechanisms.pile import T_LOWER, PileStream, counted_event
+from folder_line.core.types.events import (
     EVENT_KINDS,
     ConstraintSeries,
     JointSamples,
     empty_events,
     merge_events,
 )
-from folder_line.core.line.folder_stream import FolderStream
-from folder_line.core.line.layup_stream import LayupStream
-from folder_line.core.line.tuning import LineCommand, Tuning, check_tuning, tunings_of, values_from
-from folder_line.core.mechanisms.drive import Command, Drive, check_commands, theta_rate
-from folder_line.core.mechanisms.pile import T_LOWER, PileStream, counted_event
 
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene

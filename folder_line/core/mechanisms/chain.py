@@ -56,23 +56,20 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.limits import LINEAR_SPEED
-from folder_line.core.line.machines import ChainParams
 from folder_line.core.mechanisms import knife as knife_mod
 from folder_line.core.mechanisms.delivery import DeliveryParams
 from folder_line.core.mechanisms.delivery_laws import LAWS
+from folder_line.core.mechanisms.scene_view import SceneView
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
 from folder_line.core.numerics.validate import positive
+from folder_line.core.types.machines import ChainParams
 from folder_line.errors import ParameterError
-
-if TYPE_CHECKING:
-    from folder_line.core.line.scene import Scene
 
 __all__ = [
     'MAX_ON_STROKE',
@@ -213,7 +210,7 @@ def _path(delivery: DeliveryParams, chain: ChainParams) -> ChainPath:
     return ChainPath(delivery, chain.x_max)
 
 
-def chain_path(scene: Scene) -> ChainPath:
+def chain_path(scene: SceneView) -> ChainPath:
     """The scene's :class:`ChainPath` (cached per delivery and chain parameters)."""
     return _path(scene.machine('delivery'), scene.machine('delivery_chain'))
 
@@ -355,7 +352,7 @@ def _schedule(delivery: DeliveryParams, chain: ChainParams, knife: knife_mod.Kni
     )
 
 
-def schedule(scene: Scene) -> ChainSchedule:
+def schedule(scene: SceneView) -> ChainSchedule:
     """The scene's :class:`ChainSchedule` (needs the ``knife``, ``delivery``, ``delivery_chain`` sections).
 
     Raises
@@ -371,7 +368,7 @@ def schedule(scene: Scene) -> ChainSchedule:
 # --------------------------------------------------------------------------- chain <-> stroke
 
 
-def chain_to_stroke(scene: Scene) -> Callable[[npt.ArrayLike], FloatArray]:
+def chain_to_stroke(scene: SceneView) -> Callable[[npt.ArrayLike], FloatArray]:
     """Map chain travel since pickup (m) to stroke position ``u``.
 
     Returns
@@ -384,7 +381,7 @@ def chain_to_stroke(scene: Scene) -> Callable[[npt.ArrayLike], FloatArray]:
         ``ParameterError``.
     """
     path = chain_path(scene)
-    L = scene.machine('delivery_chain').L_transfer
+    L: float = scene.machine('delivery_chain').L_transfer
 
     def to_stroke(travel: npt.ArrayLike) -> FloatArray:
         tr = np.asarray(travel, dtype=float)
@@ -398,7 +395,7 @@ def chain_to_stroke(scene: Scene) -> Callable[[npt.ArrayLike], FloatArray]:
     return to_stroke
 
 
-def stroke_to_chain(scene: Scene, u: npt.ArrayLike) -> FloatArray:
+def stroke_to_chain(scene: SceneView, u: npt.ArrayLike) -> FloatArray:
     """Chain travel since pickup (m) at which the carriage is at stroke position ``u`` (in [0, 2])."""
     uu = np.asarray(u, dtype=float)
     if not np.all(np.isfinite(uu)) or np.any((uu < -1e-9) | (uu > 2.0 + 1e-9)):

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from folder_line.core.line.events import EVENT_KINDS, JointSamples, stack_samples
 from folder_line.core.numerics.validate import check_fields, positive
+from folder_line.core.types.events import EVENT_KINDS, JointSamples, stack_samples
 
 __all__ = ['T_LOWER', 'UNIT', 'PileStream', 'PileTable', 'SteppedPile', 'counted_event', 'pile_table']
 

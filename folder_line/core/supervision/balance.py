@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from folder_line.core.line.events import event_kind, kind_table, kinds_in
 from folder_line.core.line.scene import Scene
+from folder_line.core.types.events import event_kind, kind_table, kinds_in
 
 __all__ = ['Balance', 'SheetBalance']
 

@@ -27,10 +27,10 @@ import numpy as np
 
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
-from folder_line.core.line.events import EVENT_DTYPE, append_events, event_kind, kind_table, kinds_in
 from folder_line.core.line.scene import Scene
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
+from folder_line.core.types.events import EVENT_DTYPE, append_events, event_kind, kind_table, kinds_in
 
 __all__ = ['CycleEvaluation', 'Due']
 

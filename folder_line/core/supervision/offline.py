@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream
 from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.errors import ParameterError
 
 __all__ = ['REPLAY_WINDOW', 'replay', 'run_closed_loop']

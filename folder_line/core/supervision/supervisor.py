@@ -83,7 +83,6 @@ from typing import Any
 
 import numpy as np
 
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import TUNABLES, LineCommand, Tuning, check_tuning
@@ -104,6 +103,7 @@ from folder_line.core.supervision.liveness import Liveness
 from folder_line.core.supervision.packml import PackML, Transition
 from folder_line.core.supervision.records import ConstraintStats, Outcome, Violation
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED, STALE_PERIODS, Settings
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.errors import ParameterError, TransitionError
 
 __all__ = ['SHEET_UNIT', 'TIMING_CONSTRAINTS', 'Supervisor']

@@ -56,7 +56,6 @@ from std_msgs.msg import String
 from folder_line.config.run_config import RATE
 from folder_line.config.scenes import InputNames, parse_set, shared_scene
 from folder_line.core.limits import LOST_TIMEOUT, TICK_RATE
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import Checkpoint, LineStream
 from folder_line.core.line.tuning import (
@@ -68,6 +67,7 @@ from folder_line.core.line.tuning import (
     command_of,
     scene_value,
 )
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.interfaces import (
     COMMAND_KINDS,

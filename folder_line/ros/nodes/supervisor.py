@@ -102,13 +102,13 @@ from folder_line.bag.statuses import (
     violation_status,
 )
 from folder_line.config.run_config import SUPERVISOR_DEFAULTS, supervisor_logic
-from folder_line.core.line.events import EVENT_DTYPE
 from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.line.tuning import SET_PREFIX, LineCommand, parse_tuning_text
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
 from folder_line.core.supervision.records import Outcome, Violation
 from folder_line.core.supervision.settings import SPEED_REACHED
+from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,

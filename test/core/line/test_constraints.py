@@ -11,10 +11,10 @@ from numpy.testing import assert_allclose
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, RELEASE_KV_TOL, evaluate_folder_constraints
 from folder_line.core.line.delivery_plan import delivery_plan
-from folder_line.core.line.events import make_events, merge_events
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import RampDrive
+from folder_line.core.types.events import make_events, merge_events
 
 BOUNCE = {'e': 0.1, 'a_f': 400.0, 'tolerance': 0.002, 'v_rest': 0.05}
 

@@ -15,7 +15,6 @@ from scipy.integrate import quad
 from folder_line.config.params import config_dir, read_yaml_mapping
 from folder_line.core.effects import chain_friction, faults, feed_slip, stop_bounce
 from folder_line.core.line.delivery_plan import delivery_plan
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_sim import simulate_folder
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
@@ -26,6 +25,7 @@ from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.delivery import evaluate_stroke, stroke_minimum
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
 from folder_line.core.numerics.rng import stream
+from folder_line.core.types.events import event_kind
 from folder_line.interfaces import EVENT_KINDS
 
 HOUR = 3600.0

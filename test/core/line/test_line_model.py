@@ -18,7 +18,6 @@ from folder_line.config.scenes import load_scene
 from folder_line.core.effects import chain_friction
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.limits import DURATION as LINE_TIME
-from folder_line.core.line.events import event_kind
 from folder_line.core.line.folder_stream import FolderStream
 from folder_line.core.line.model import UNITS, LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
@@ -29,6 +28,7 @@ from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.mechanisms.layup import TAU, LayupModel
+from folder_line.core.types.events import event_kind
 from folder_line.errors import AssemblyError, ParameterError
 from folder_line.interfaces import EVENT_KINDS
 
@@ -57,7 +57,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def _rows(js: Any, i: Any) -> Any:
-    from folder_line.core.line.events import JointSamples
+    from folder_line.core.types.events import JointSamples
 
     return JointSamples(
         js.unit, js.names, js.t[i], js.position[i], js.velocity[i], None if js.effort is None else js.effort[i]

@@ -21,12 +21,12 @@ import yaml
 
 from folder_line.config.params import config_dir
 from folder_line.config.scenes import list_scenes, load_scene
-from folder_line.core.line.events import EVENT_KINDS
 from folder_line.core.line.model import LineModel, run_summary
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import LineCommand, Tuning
 from folder_line.core.mechanisms.drive import Command
+from folder_line.core.types.events import EVENT_KINDS
 
 FAULTS = {
     'p_missing': 0.05,

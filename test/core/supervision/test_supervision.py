@@ -19,7 +19,6 @@ from hypothesis import strategies as st
 
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
-from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
@@ -27,6 +26,7 @@ from folder_line.core.supervision.commands import DRIVE_COMMANDS, STOP_STATES
 from folder_line.core.supervision.offline import replay, run_closed_loop
 from folder_line.core.supervision.packml import ACTING, COMMANDS
 from folder_line.core.supervision.supervisor import SHEET_UNIT, TIMING_CONSTRAINTS, Supervisor
+from folder_line.core.types.events import EVENT_DTYPE, event_kind
 from folder_line.errors import ParameterError
 from folder_line.interfaces import NODE_OF_UNIT
 

@@ -28,12 +28,12 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.events import EVENT_DTYPE, event_kind
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.offline import replay
 from folder_line.core.supervision.settings import SPEED_REACHED
+from folder_line.core.types.events import EVENT_DTYPE, event_kind
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from folder_line.core.line.events import EVENT_DTYPE, EVENT_KINDS, append_events, kind_table, kinds_in
+from folder_line.core.types.events import EVENT_DTYPE, EVENT_KINDS, append_events, kind_table, kinds_in
 
 
 def test_kinds_in_is_isin_for_any_value() -> None:
