@@ -374,11 +374,7 @@ class _Segment:
         )
 
     def add(self, topic: str, log_ns: int, publish_ns: int, data: bytes, sequence: int) -> None:
-        if self.next_flush_ns is None:
-            self.next_flush_ns = log_ns + self.flush_ns
-        elif log_ns >= self.next_flush_ns:  # the messages before this tick go to disk (a SIGKILL keeps them)
-            self.flush()
-            self.next_flush_ns = log_ns + self.flush_ns
+        self._flush_before(log_ns)
         self.writer.add_message(self.channels[topic], log_ns, data, publish_ns, sequence)
         if self.count == 0:
             self.start_ns = log_ns
@@ -391,11 +387,7 @@ class _Segment:
         ``Writer.add_message`` does, without a ``Message`` object and stream calls per message)."""
         if not items:
             return
-        if self.next_flush_ns is None:
-            self.next_flush_ns = log_ns + self.flush_ns
-        elif log_ns >= self.next_flush_ns:
-            self.flush()
-            self.next_flush_ns = log_ns + self.flush_ns
+        self._flush_before(log_ns)
         buffer = self._records._buffer
         per_channel = self._stats.channel_message_counts
         chunk = self._chunk
@@ -437,12 +429,8 @@ class _Segment:
         starts = rec.starts
         while a < b:
             log_a = int(log[a])
-            if self.next_flush_ns is None:
-                self.next_flush_ns = log_a + self.flush_ns
-            elif log_a >= self.next_flush_ns:
-                self.flush()
-                self.next_flush_ns = log_a + self.flush_ns
-            g = min(b, int(np.searchsorted(log, self.next_flush_ns, side='left')))  # the ticks before the flush
+            next_flush_ns = self._flush_before(log_a)
+            g = min(b, int(np.searchsorted(log, next_flush_ns, side='left')))  # the ticks before the flush
             while a < g:
                 room = self.chunk_size - self._records.count
                 tick_ends = ends[np.searchsorted(ends, a, side='right') : np.searchsorted(ends, g, side='right')]
@@ -496,6 +484,15 @@ class _Segment:
             self.start_ns = lo
         self.end_ns = hi
         self.count += k
+
+    def _flush_before(self, log_ns: int) -> int:
+        """Make the flush due before a record at ``log_ns`` (the messages before it go to disk: a SIGKILL keeps
+        them; the first record sets the first flush time); return the next flush time, ns."""
+        if self.next_flush_ns is None:
+            self.next_flush_ns = log_ns + self.flush_ns
+        elif log_ns >= self.next_flush_ns:
+            self.flush_at(log_ns)
+        return self.next_flush_ns
 
     def flush_due(self, log_ns: int) -> bool:
         """A record at line time ``log_ns`` would flush the file first."""

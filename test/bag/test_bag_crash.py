@@ -78,6 +78,18 @@ def _read_line(proc: subprocess.Popen[str]) -> str:
     return line.strip()
 
 
+def _kill_after(proc: subprocess.Popen[str], step: int) -> int:
+    """SIGKILL the free-running writer once it reports a step at or after ``step``; return the step reported
+    (it went on writing after that)."""
+    try:
+        while True:
+            reported = int(_read_line(proc).split()[1])  # the writer has written this step
+            if reported >= step:
+                return reported
+    finally:
+        _kill(proc)
+
+
 def _expected(steps: range) -> dict[str, int]:
     return {'/clock': len(steps), JOINTS: len(steps), EVENTS: sum(1 for i in steps if i % 5 == 0)}
 
@@ -161,13 +173,7 @@ def test_sigkill_mid_segment_keeps_every_finished_segment(tmp_path: Path, capsys
 def test_sigkill_while_writing_loses_at_most_the_open_segment(tmp_path: Path) -> None:
     bag = tmp_path / 'bag'
     proc = _start(bag, split=True)
-    try:
-        while True:
-            reported = int(_read_line(proc).split()[1])  # the writer has written this step
-            if reported >= 520:
-                break
-    finally:
-        _kill(proc)
+    reported = _kill_after(proc, 520)
     # the writer went on after `reported`; every segment finished before its end must be whole
     contents = read_bag(bag)
     finished = len(contents.files)
@@ -275,13 +281,7 @@ def test_a_one_file_bag_killed_while_writing_fast_loses_at_most_the_flush_interv
     at most a flush interval (and the step being written) before the last step it reported."""
     bag = tmp_path / 'bag'
     proc = _start(bag, chunk_size=1024 * 1024)
-    try:
-        while True:
-            reported = int(_read_line(proc).split()[1])  # the writer has written this step
-            if reported >= 520:
-                break
-    finally:
-        _kill(proc)
+    reported = _kill_after(proc, 520)
     assert [p.name for p in segment_files(bag)] == ['bag_0.mcap']
     assert read_bag(bag).files == ()  # as it is: the file is open, the metadata lists no finished file
     repair(bag)
