@@ -4,15 +4,16 @@ before it makes a DDS participant (``folder_line.ros.runtime.run_node``).
 A participant made and torn down again at once, while other participants are discovering each
 other (a line of six processes started together with a bad parameter), now and then crashes
 inside Fast DDS's teardown (SIGSEGV in ``Node.destroy_node``). A start refused from the command
-line alone makes no participant. What this module cannot read with certainty -- a remapped node
-name, a list value, an integer written as rcl's ``strtol`` reads it but Python does not, an
-option it does not know -- makes it answer None, and the node refuses the start itself, with rcl's
-reading of the arguments.
+line alone makes no participant. What this module cannot read with certainty -- a node renamed
+or put in a namespace (``ros2 launch`` names a node by its own name: that is read), a list value,
+an integer written as rcl's ``strtol`` reads it but Python does not, an option it does not know --
+makes it answer None, and the node refuses the start itself, with rcl's reading of the arguments.
 
 The values are read as rcl reads a ``-p NAME:=VALUE`` rule (``rcl_yaml_param_parser``):
 quoted text is a string; then ``true`` or ``false``, a decimal integer, a float (``nan`` and
 ``inf`` too), else a string. A ``--params-file`` is read with rclpy's own
-:func:`rclpy.parameter.parameter_dict_from_yaml_file`; rules after it win, as in rcl.
+:func:`rclpy.parameter.parameter_dict_from_yaml_file`. As with rcl, the last rule or file that sets a
+parameter wins, in the order of the arguments.
 """
 
 from __future__ import annotations
@@ -138,8 +139,10 @@ def command_line_values(args: Sequence[str], node: str) -> dict[str, object] | N
                 if i >= len(words):
                     return None
                 rule, i = words[i], i + 1
-                if rule.split(':=', 1)[0].rsplit(':', 1)[-1] in ('__node', '__name', '__ns'):
-                    return None  # another name: its rules are not these
+                target, _, value = rule.partition(':=')
+                key = target.rsplit(':', 1)[-1]
+                if key == '__ns' or key in ('__node', '__name') and value != node:
+                    return None  # another name or namespace: the rules that apply are rcl's to find
             elif word in _WITH_ARGUMENT:
                 i += 1
             elif word not in _FLAGS:

@@ -39,6 +39,8 @@ def test_only_this_nodes_rules_and_only_inside_ros_args() -> None:
     assert got == {'b': 2, 'c': 3}
     assert values('--ros-args', '-p', 'a:=1', '--', '-p', 'b:=2') == {'a': 1}
     assert values('--ros-args', '--log-level', 'debug', '--disable-rosout-logs', '-p', 'a:=1') == {'a': 1}
+    # ros2 launch names the node by its own name and passes its parameters in a file
+    assert values('--ros-args', '-r', '__node:=crank_drive', '-p', 'a:=1') == {'a': 1}
     assert values() == {}
 
 
@@ -46,6 +48,7 @@ def test_only_this_nodes_rules_and_only_inside_ros_args() -> None:
     'words',
     [
         ('--ros-args', '-r', '__node:=other', '-p', 'a:=1'),  # another name
+        ('--ros-args', '-r', '__ns:=/plant', '-p', 'a:=1'),  # a namespace
         ('--ros-args', '-p', 'a:=[1, 2]'),  # a list
         ('--ros-args', '-p', 'a:=0x10'),  # strtol's base 16
         ('--ros-args', '-p', 'a:=010'),  # strtol's base 8
@@ -59,11 +62,19 @@ def test_what_is_not_read_for_sure_leaves_the_reading_to_rcl(words: tuple[str, .
     assert values(*words) is None
 
 
-def test_a_parameter_file_is_read_with_rclpys_reader_and_later_rules_win(tmp_path: Path) -> None:
+def test_a_parameter_file_is_read_with_rclpys_reader_and_the_last_setting_wins(tmp_path: Path) -> None:
+    """As with rcl (tried with rclpy: ``-p rate:=50.0 --params-file F`` gives F's 100.0, the other order 50.0)."""
     params = tmp_path / 'params.yaml'
     params.write_text('crank_drive:\n  ros__parameters:\n    scene: line\n    rate: 100.0\n')
     got = values('--ros-args', '--params-file', str(params), '-p', 'rate:=50.0')
     assert got == {'scene': 'line', 'rate': 50.0}
+    assert values('--ros-args', '-p', 'rate:=50.0', '--params-file', str(params)) == {'scene': 'line', 'rate': 100.0}
+    later = tmp_path / 'later.yaml'
+    later.write_text('/**:\n  ros__parameters:\n    scene: folder\n')
+    assert values('--ros-args', '--params-file', str(params), '--params-file', str(later)) == {
+        'scene': 'folder',
+        'rate': 100.0,
+    }
     (tmp_path / 'broken.yaml').write_text('crank_drive: [unclosed\n')
     assert values('--ros-args', '--params-file', str(tmp_path / 'broken.yaml')) is None
     assert values('--ros-args', '--params-file', str(tmp_path / 'missing.yaml')) is None

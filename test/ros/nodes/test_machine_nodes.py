@@ -540,11 +540,11 @@ def test_node_processes_refuse_a_bad_start_with_exit_code_2_before_joining_the_n
 
 
 def test_a_bad_start_the_command_line_does_not_show_is_refused_by_the_node(node_env: dict[str, str]) -> None:
-    """A start whose arguments are not read before rcl (here a remapped node name) is refused by the node
+    """A start whose arguments are not read before rcl (here the node renamed) is refused by the node
     itself, after it made its participant: the same line and exit code 2."""
     command = [
         *(sys.executable, '-m', 'folder_line.ros.nodes.crank_drive'),
-        *('--ros-args', '-r', '__node:=crank_drive', '-p', 'scene:=nope'),
+        *('--ros-args', '-r', '__node:=crank_drive_2', '-p', 'scene:=nope'),
     ]
     proc = subprocess.run(command, env=node_env, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2, proc.stderr
