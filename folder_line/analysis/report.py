@@ -55,7 +55,7 @@ from folder_line.analysis.replay import (
     transitions_agree,
 )
 from folder_line.bag.gaps import Gap, describe_gaps
-from folder_line.bag.writer import files_text
+from folder_line.bag.metadata import files_text
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic

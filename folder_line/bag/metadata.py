@@ -51,6 +51,7 @@ __all__ = [
     'FileSummary',
     'MetadataBuilder',
     'TopicSummary',
+    'files_text',
     'read_metadata',
     'segment_files',
     'segment_path',
@@ -217,6 +218,11 @@ def read_metadata(directory: Path) -> Any:
 def segment_path(directory: Path, index: int) -> Path:
     """The ``index``-th ``.mcap`` file of the bag ``directory``: ``DIR/DIR_<index>.mcap``."""
     return directory / f'{directory.name}_{index}.mcap'
+
+
+def files_text(n: int) -> str:
+    """``'1 .mcap file'``, ``'3 .mcap files'``: how many files a bag has, for a line of output."""
+    return f'{n} .mcap file' + ('' if n == 1 else 's')
 
 
 def segment_files(directory: str | os.PathLike[str]) -> list[Path]:

@@ -70,7 +70,7 @@ from folder_line.errors import BagError
 from folder_line.files.atomic import write_text_atomic
 from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S, stamp_ns
 
-__all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'files_text', 'start_mcap']
+__all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'start_mcap']
 
 #: an MCAP Message record's opcode, length, channel id, sequence, log time and publish time
 _MESSAGE_HEAD = struct.Struct('<BQHIQQ')
@@ -88,11 +88,6 @@ _SLOTS = 1 << 20
 _NEVER = 2**63 - 1
 #: uncompressed bytes per MCAP chunk unless told otherwise (python mcap's default too)
 DEFAULT_CHUNK_SIZE = 1024 * 1024
-
-
-def files_text(n: int) -> str:
-    """``'1 .mcap file'``, ``'3 .mcap files'``: how many files a bag has, for a line of output."""
-    return f'{n} .mcap file' + ('' if n == 1 else 's')
 
 
 def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: str = '') -> Writer:

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from folder_line.bag.batch import check_duration, write_batch_bag
-from folder_line.bag.writer import files_text
+from folder_line.bag.metadata import files_text
 from folder_line.config.run_config import MARKER_RATE
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.tuning import LineCommand, Tuning, command_of

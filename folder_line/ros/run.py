@@ -57,8 +57,9 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 from std_msgs.msg import String
 
+from folder_line.bag.metadata import files_text
 from folder_line.bag.statuses import accepted_tunings
-from folder_line.bag.writer import BagWriter, files_text
+from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import InputNames, load_scene, parse_set, write_scene
 from folder_line.core.line.margin_text import margin_at
