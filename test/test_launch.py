@@ -229,6 +229,6 @@ def test_an_exit_status_launch_lost_is_not_a_failure() -> None:
 
 def test_the_launch_waits_longer_than_a_node_can_take_to_end() -> None:
     from folder_line.ros.line_launch import END_GRACE
-    from folder_line.ros.runtime import LINGER, TEARDOWN_TIMEOUT
+    from folder_line.ros.runtime import HUNG_TEARDOWN_EXIT, LINGER, TEARDOWN_TIMEOUT
 
-    assert END_GRACE > LINGER + TEARDOWN_TIMEOUT + 2.0  # linger, teardown watchdog, faulthandler's 2 s
+    assert END_GRACE > LINGER + TEARDOWN_TIMEOUT + HUNG_TEARDOWN_EXIT  # linger, teardown watchdog, the C timer

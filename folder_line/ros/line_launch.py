@@ -55,10 +55,11 @@ ARGUMENTS: tuple[tuple[str, str, str], ...] = (
 END_GRACE = LINGER + TEARDOWN_TIMEOUT + 4.0
 """Wall time, s, the launch waits after ``line_clock`` ended the line for the other nodes to end by
 themselves (each lingers :data:`~folder_line.ros.runtime.LINGER` s after its last tick, and its
-teardown takes at most :data:`~folder_line.ros.runtime.TEARDOWN_TIMEOUT` s, or 2 s more when the
-middleware hangs), before it stops those still running. Signalling a node that is exiting anyway
-is what this avoids: launch's SIGINT to a process that has just exited can lose its exit status
-(launch's ``Popen.send_signal`` reaps it first; launch's process watcher then reports 255)."""
+teardown takes at most :data:`~folder_line.ros.runtime.TEARDOWN_TIMEOUT` s, or
+:data:`~folder_line.ros.runtime.HUNG_TEARDOWN_EXIT` s more when the middleware hangs), before it
+stops those still running. Signalling a node that is exiting anyway is what this avoids: launch's
+SIGINT to a process that has just exited can lose its exit status (launch's ``Popen.send_signal``
+reaps it first; launch's process watcher then reports 255)."""
 
 STATUS_LOST = 255
 """The exit code launch reports for a process whose exit status its process watcher could not read

@@ -36,11 +36,13 @@ from rclpy.task import Future
 
 from folder_line.errors import FolderLineError
 from folder_line.ros.dds_profile import use_line_profile
+from folder_line.ros.exit_timer import arm_exit
 from folder_line.ros.ros_args import command_line_values
 
 __all__ = [
     'EXIT_BAD_PARAMETER',
     'EXIT_OK',
+    'HUNG_TEARDOWN_EXIT',
     'LINGER',
     'SPIN_PERIOD',
     'STOP_GRACE',
@@ -68,6 +70,10 @@ FLUSH_TIMEOUT = 3.0
 
 TEARDOWN_TIMEOUT = 5.0
 """Wall time, s, that a node process allows the middleware to tear the node down (see :func:`run_node`)."""
+
+HUNG_TEARDOWN_EXIT = 2.5
+"""Wall time, s, after :data:`TEARDOWN_TIMEOUT` at which a C timer ends a process whose teardown hangs
+holding the GIL (the stacks are printed 0.5 s before)."""
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that stop a node: ``ros2 launch`` sends SIGINT, then SIGTERM after its ``sigterm_timeout`` (5 s)."""
@@ -197,8 +203,9 @@ def run_node(
     the node runs as a process of its own, its work is done by then, so a watchdog ends the
     process after ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
     stderr and the exit code it would have returned; if the hang holds the GIL (no Python
-    thread runs), ``faulthandler`` ends it 2 s later from C, with the threads' stacks and
-    exit code 1.
+    thread runs), ``faulthandler`` prints the threads' stacks 2 s later from C, and a C timer
+    (:func:`folder_line.ros.exit_timer.arm_exit`) ends the process :data:`HUNG_TEARDOWN_EXIT` s
+    after the timeout with the same exit code.
 
     Refusal. A node class with a ``refuse_start`` classmethod (the machine nodes) first judges the
     start from the command line alone (:mod:`folder_line.ros.ros_args`), before any DDS participant
@@ -235,9 +242,10 @@ def run_node(
     if teardown_timeout is None and own_process:
         teardown_timeout = TEARDOWN_TIMEOUT
     watchdog: threading.Timer | None = None
+    cancel_exit: Callable[[], None] | None = None
 
     def arm(code: int, quiet: bool = False) -> None:
-        nonlocal watchdog
+        nonlocal watchdog, cancel_exit
         if teardown_timeout is None or watchdog is not None:
             return
 
@@ -255,9 +263,10 @@ def run_node(
         watchdog = threading.Timer(teardown_timeout, expire)
         watchdog.daemon = True
         watchdog.start()
-        # the middleware can hang holding the GIL (a peer process stopped while it holds a shared-memory lock),
-        # and then no Python thread runs: faulthandler's C thread ends the process all the same, with the stacks
-        faulthandler.dump_traceback_later(teardown_timeout + 2.0, exit=True)
+        # the middleware can hang holding the GIL, and then no Python thread runs: faulthandler's C thread
+        # prints the stacks, and a C timer ends the process with its code (faulthandler's own exit is code 1)
+        cancel_exit = arm_exit(teardown_timeout + HUNG_TEARDOWN_EXIT, code)
+        faulthandler.dump_traceback_later(teardown_timeout + HUNG_TEARDOWN_EXIT - 0.5, exit=cancel_exit is None)
 
     previous: dict[signal.Signals, Any] = {}
     if in_main_thread:
@@ -304,6 +313,8 @@ def run_node(
         if watchdog is not None:
             watchdog.cancel()
             faulthandler.cancel_dump_traceback_later()
+        if cancel_exit is not None:
+            cancel_exit()
         stop.disarm()
         for signum, handler in previous.items():
             if own_process:

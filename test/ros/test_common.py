@@ -501,6 +501,49 @@ sys.exit(run_node(Hanging, teardown_timeout={timeout!r}))
 '''
 
 
+_GIL_HOLDING_TEARDOWN = '''
+import re, sys
+sys.path.insert(0, {repo!r})
+from rclpy.node import Node
+from rclpy.task import Future
+from folder_line.ros.runtime import run_node
+
+class Holding(Node):
+    """Done at once, with exit code 3; its teardown hangs in a C call that holds the GIL."""
+    NODE_NAME = 'holding'
+
+    def __init__(self):
+        super().__init__(self.NODE_NAME)
+        self.done = Future()
+        self.done.set_result(True)
+
+    def exit_code(self):
+        return 3
+
+    def destroy_node(self):
+        re.match(r'(a+)+$', 'a' * 60 + 'b')
+
+sys.exit(run_node(Holding, teardown_timeout=0.5))
+'''
+
+
+def test_a_node_process_whose_teardown_hangs_holding_the_gil_exits_with_its_own_code() -> None:
+    """No Python thread runs, so the Python watchdog cannot: faulthandler prints the stacks, and the C
+    timer ends the process with the node's code (3), not faulthandler's 1 (seen once in CI)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = str(Path(__file__).resolve().parents[2])
+    proc = subprocess.run(
+        [sys.executable, '-c', _GIL_HOLDING_TEARDOWN.format(repo=repo)], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 3, (proc.returncode, proc.stderr[-2000:])
+    assert 'Timeout (0:00:' in proc.stderr, proc.stderr[-2000:]  # faulthandler's report
+    assert 'in destroy_node' in proc.stderr  # the stacks say where it hung
+    assert 'did not finish tearing the node down' not in proc.stderr  # the Python watchdog never ran
+
+
 @pytest.mark.parametrize('timeout', [0.5, None])
 def test_a_node_process_whose_teardown_hangs_exits_after_the_timeout(timeout: float | None) -> None:
     """A node process (args from sys.argv) whose destroy_node hangs exits with 0 and one warning
