@@ -26,10 +26,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rosbags.rosbag2 import Reader  # noqa: E402
+from rosbags.rosbag2 import Reader
 
-from folder_line.analysis.recording import _resolve, read_recording  # noqa: E402
-from folder_line.bag.types import typestore  # noqa: E402
+from folder_line.analysis.recording import _resolve, read_recording
+from folder_line.bag.types import typestore
 
 
 def _analyze(path: str, extra: list[str]) -> tuple[float, float]:

@@ -36,9 +36,9 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer  # noqa: E402
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
-from folder_line.bag.types import typestore  # noqa: E402
+from folder_line.bag.types import typestore
 
 REPO = Path(__file__).resolve().parent.parent
 BATCH = 20_000  # messages deserialized (untimed) before they are serialized and written (timed)

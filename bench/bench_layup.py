@@ -23,11 +23,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from folder_line.config.params import load_params  # noqa: E402
-from folder_line.core.mechanisms.layup import TAU, LayupModel, layup_point  # noqa: E402
+from folder_line.config.params import load_params
+from folder_line.core.mechanisms.layup import TAU, LayupModel, layup_point
 
 
-def best_of(fn, repeats: int) -> float:  # noqa: ANN001
+def best_of(fn, repeats: int) -> float:
     """Smallest wall time of ``repeats`` calls, s."""
     best = math.inf
     for _ in range(repeats):

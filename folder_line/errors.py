@@ -10,22 +10,22 @@ from __future__ import annotations
 import reprlib
 
 __all__ = [
-    'FolderLineError',
-    'ParameterError',
-    'InputFileError',
-    'OutputError',
-    'BagError',
-    'path_repr',
+    'MESSAGE_VALUE_CHARS',
     'AssemblyError',
-    'RootFindingError',
-    'NotBracketedError',
-    'NonFiniteValueError',
-    'NoConvergenceError',
+    'BagError',
+    'FolderLineError',
+    'InputFileError',
     'IntegrationError',
     'MeasurementError',
+    'NoConvergenceError',
+    'NonFiniteValueError',
+    'NotBracketedError',
+    'OutputError',
+    'ParameterError',
+    'RootFindingError',
     'TransitionError',
-    'MESSAGE_VALUE_CHARS',
     'bounded_repr',
+    'path_repr',
     'shorten',
 ]
 

@@ -62,13 +62,11 @@ def test_one_picture_small_and_in_the_repository() -> None:
 
 def test_every_verb_is_toured() -> None:
     """The tour names every verb ``folder-line --help`` lists (each operator command at least by its range)."""
-    from folder_line.cli.main import build_parser
+    from folder_line.cli.main import verbs
 
     text = README.read_text(encoding='utf-8')
     tour = text.split('## A tour of the verbs', 1)[1].split('\n## ', 1)[0]
-    parser = build_parser()
-    verbs = next(a for a in parser._actions if a.dest == 'verb').choices  # argparse's subparsers
     operator = {'start', 'stop', 'hold', 'unhold', 'suspend', 'unsuspend', 'reset', 'clear', 'abort'}
-    missing = [v for v in verbs if v not in operator and f'`{v}' not in tour]
+    missing = [v for v in verbs() if v not in operator and f'`{v}' not in tour]
     assert not missing, missing
     assert '`hold` … `abort`' in tour

@@ -272,7 +272,7 @@ class ChainReference:
         for k in np.unique(idx):
             m = idx == k
             out[:, m] = self.sols[k](flat[m])
-        return out.reshape((2,) + tt.shape)
+        return out.reshape((2, *tt.shape))
 
     def theta(self, t: npt.ArrayLike) -> FloatArray:
         """Θ(t), nominal s."""

@@ -29,10 +29,11 @@ COMPARISONS: tuple[tuple[str, str, str], ...] = (
     ('fourbar', 'closed form (folder_line)', 'solve_ivp RK45'),
     ('fourbar', 'closed form (folder_line)', 'solve_ivp DOP853'),
     ('fourbar', 'closed form (folder_line)', 'solve_ivp LSODA'),
-) + tuple(
-    ('motor', f'{a} (folder_line) [{case}]', f'solve_ivp {b} [{case}]')
-    for case in ('start-up, no load', 'with chain load')
-    for a, b in (('DOPRI5', 'RK45'), ('DOPRI5', 'DOP853'), ('RK4', 'DOP853'))
+    *tuple(
+        ('motor', f'{a} (folder_line) [{case}]', f'solve_ivp {b} [{case}]')
+        for case in ('start-up, no load', 'with chain load')
+        for a, b in (('DOPRI5', 'RK45'), ('DOPRI5', 'DOP853'), ('RK4', 'DOP853'))
+    ),
 )
 
 

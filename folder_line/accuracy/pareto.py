@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -74,7 +75,7 @@ class EqualErrorRatio:
 
 def _loglog_cost(front: Sequence[Row], error: float) -> float:
     """CPU at ``error`` on a Pareto front (errors falling as cost rises), log-log interpolated."""
-    for lo, hi in zip(front, front[1:], strict=False):
+    for lo, hi in itertools.pairwise(front):
         if hi.error <= error <= lo.error:
             if hi.error == lo.error or hi.error <= 0.0:
                 return hi.cpu_s_per_sim_s

@@ -74,8 +74,8 @@ from folder_line.interfaces import NODE_OF_UNIT
 
 __all__ = [
     'COINCIDE_FRACTION',
-    'DPI',
     'DISPLAY_UNITS',
+    'DPI',
     'FIGURES',
     'OPERATIONS',
     'PHASE_COLOURS',

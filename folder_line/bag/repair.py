@@ -234,7 +234,7 @@ def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any], 
         }
         for m in messages:
             writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
-        writer.finish()  # type: ignore[no-untyped-call]  # mcap leaves Writer.finish unannotated (-> None)
+        writer.finish()
     keep = path.with_name(path.name + suffix)
     keep.unlink(missing_ok=True)
     try:

@@ -20,14 +20,14 @@ from folder_line.core.supervision.records import Violation
 __all__ = [
     'ERROR',
     'OK',
+    'TUNING_STATUS',
     'WARN',
     'Status',
+    'accepted_tunings',
     'balance_status',
     'constraint_statuses',
     'event_status',
     'status_stamp',
-    'TUNING_STATUS',
-    'accepted_tunings',
     'tuning_status',
     'violation_status',
 ]

@@ -38,7 +38,7 @@ import contextlib
 import json
 import os
 import struct
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -46,9 +46,9 @@ import mcap
 import numpy as np
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
-from mcap.writer import CompressionType, Writer
 
 from folder_line import __version__
+from folder_line.bag.mcap_file import McapFile
 from folder_line.bag.metadata import (
     KEY_COMPLETE,
     KEY_EFFECTS,
@@ -90,8 +90,8 @@ _NEVER = 2**63 - 1
 DEFAULT_CHUNK_SIZE = 1024 * 1024
 
 
-def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: str = '') -> Writer:
-    """A python mcap ``Writer`` on ``stream``, started: ``ros2`` profile, zstd chunks.
+def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: str = '') -> McapFile:
+    """An MCAP file on ``stream``, started: ``ros2`` profile, zstd chunks.
 
     Parameters
     ----------
@@ -102,10 +102,8 @@ def start_mcap(stream: BinaryIO, *, chunk_size: int = DEFAULT_CHUNK_SIZE, role: 
     role : str
         Added to the file's ``library`` after folder_line's version (``'repair'``), or ''.
     """
-    writer = Writer(stream, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     who = f'folder_line {__version__} {role}' if role else f'folder_line {__version__}'
-    writer.start(profile='ros2', library=f'{who} (python mcap {mcap.__version__})')
-    return writer
+    return McapFile(stream, chunk_size=chunk_size, profile='ros2', library=f'{who} (python mcap {mcap.__version__})')
 
 
 class _PackedMessageIndex(MessageIndex):
@@ -342,15 +340,6 @@ class _Segment:
         self.stream: BinaryIO = path.open('xb')
         self.chunk_size = chunk_size
         self.writer = start_mcap(self.stream, chunk_size=chunk_size)
-        # python mcap's Writer ends a chunk only by size or at finish(); its chunk-ending method is
-        # private (name-mangled). Checked here, so that a changed library fails at once, not at a crash.
-        self._end_chunk: Callable[[], None] = self.writer._Writer__finalize_chunk  # type: ignore[attr-defined]
-        # the same for the batched path (add_many): the open chunk and the file's statistics
-        self._chunk: Any = self.writer._Writer__chunk_builder  # type: ignore[attr-defined]
-        self._stats: Any = self.writer._Writer__statistics  # type: ignore[attr-defined]
-        self._maybe_end_chunk: Callable[[], None] = self.writer._Writer__maybe_finalize_chunk  # type: ignore[attr-defined]
-        self._records: Any = self._chunk.record_writer
-        self._indices: dict[int, MessageIndex] = self._chunk.message_indices
         self.flush_ns = flush_ns
         self.next_flush_ns: int | None = None
         self.writer.add_metadata(MCAP_METADATA_NAME, dict(custom))
@@ -383,34 +372,23 @@ class _Segment:
         if not items:
             return
         self._flush_before(log_ns)
-        buffer = self._records._buffer
-        per_channel = self._stats.channel_message_counts
-        chunk = self._chunk
+        out = self.writer
+        chunk = out.chunk
+        indices = out.indices
+        per_channel = out.statistics.channel_message_counts
         for topic, data, publish_ns in items:
             channel = self.channels[topic]
-            index = self._indices.get(channel)
+            index = indices.get(channel)
             if index is None:
-                index = self._indices[channel] = _PackedMessageIndex(channel_id=channel, records=[])
-            index.records.append((log_ns, buffer.tell()))
+                index = indices[channel] = _PackedMessageIndex(channel_id=channel, records=[])
+            index.records.append((log_ns, chunk.count))
             n = counts[topic]
             counts[topic] = n + 1
-            buffer.write(_MESSAGE_HEAD.pack(Opcode.MESSAGE, 22 + len(data), channel, n % 2**32, log_ns, publish_ns))
-            buffer.write(data)
+            chunk.write(_MESSAGE_HEAD.pack(Opcode.MESSAGE, 22 + len(data), channel, n % 2**32, log_ns, publish_ns))
+            chunk.write(data)
             per_channel[channel] += 1
-        stats = self._stats
-        if stats.message_count == 0:
-            stats.message_start_time = log_ns
-        else:
-            stats.message_start_time = min(stats.message_start_time, log_ns)
-        stats.message_end_time = max(stats.message_end_time, log_ns)
-        stats.message_count += len(items)
-        if chunk.num_messages == 0:
-            chunk.message_start_time = log_ns
-        else:
-            chunk.message_start_time = min(chunk.message_start_time, log_ns)
-        chunk.message_end_time = max(chunk.message_end_time, log_ns)
-        chunk.num_messages += len(items)
-        self._maybe_end_chunk()
+        out.took(len(items), log_ns, log_ns)
+        out.maybe_end_chunk()
         if self.count == 0:
             self.start_ns = log_ns
         self.end_ns = log_ns
@@ -427,20 +405,20 @@ class _Segment:
             next_flush_ns = self._flush_before(log_a)
             g = min(b, int(np.searchsorted(log, next_flush_ns, side='left')))  # the ticks before the flush
             while a < g:
-                room = self.chunk_size - self._records.count
+                room = self.chunk_size - self.writer.chunk.count
                 tick_ends = ends[np.searchsorted(ends, a, side='right') : np.searchsorted(ends, g, side='right')]
                 over = int(np.searchsorted(starts[tick_ends] - starts[a], room, side='right'))
                 e = int(tick_ends[over]) if over < len(tick_ends) else g
                 self._add_records(rec, a, e)
                 if over < len(tick_ends):
-                    self._end_chunk()
+                    self.writer.end_chunk()
                 a = e
 
     def _add_records(self, rec: _Records, a: int, b: int) -> None:
         """Records ``a:b`` into the open chunk: its bytes, its message indices and the statistics."""
-        buffer = self._records._buffer
-        base = buffer.tell() - int(rec.starts[a])
-        buffer.write(rec.buf[int(rec.starts[a]) : int(rec.starts[b])].data)
+        out = self.writer
+        base = out.chunk.count - int(rec.starts[a])
+        out.chunk.write(rec.buf[int(rec.starts[a]) : int(rec.starts[b])].data)
         channels = rec.channel[a:b]
         log = rec.log_ns[a:b]
         # the (log time, offset) pairs channel by channel, the channels in the order they come
@@ -453,28 +431,21 @@ class _Segment:
         heads = np.concatenate(([0], cut))
         ends = np.concatenate((cut, [b - a])).tolist()
         firsts = heads.tolist()
-        per_channel = self._stats.channel_message_counts
+        per_channel = out.statistics.channel_message_counts
         for j in np.argsort(by_channel[heads], kind='stable').tolist():
             channel = int(sorted_channels[firsts[j]])
             group = pairs[firsts[j] : ends[j]]
-            index = self._indices.get(channel)
+            index = out.indices.get(channel)
             if index is None:
-                index = self._indices[channel] = _PackedMessageIndex(channel_id=channel, records=[])
+                index = out.indices[channel] = _PackedMessageIndex(channel_id=channel, records=[])
             if isinstance(index, _PackedMessageIndex):
                 index.add_block(group)
-            else:  # made by Writer.add_message (write_serialized)
+            else:  # made by McapFile.add_message (write_serialized)
                 index.records.extend(map(tuple, group.tolist()))
             per_channel[channel] += len(group)
         k = b - a
         lo, hi = int(log[0]), int(log[-1])
-        stats = self._stats
-        stats.message_start_time = lo if stats.message_count == 0 else min(stats.message_start_time, lo)
-        stats.message_end_time = max(stats.message_end_time, hi)
-        stats.message_count += k
-        chunk = self._chunk
-        chunk.message_start_time = lo if chunk.num_messages == 0 else min(chunk.message_start_time, lo)
-        chunk.message_end_time = max(chunk.message_end_time, hi)
-        chunk.num_messages += k
+        out.took(k, lo, hi)
         if self.count == 0:
             self.start_ns = lo
         self.end_ns = hi
@@ -504,11 +475,10 @@ class _Segment:
 
     def flush(self) -> None:
         """End the current chunk and hand the file's bytes to the operating system."""
-        self._end_chunk()
-        self.stream.flush()
+        self.writer.flush()
 
     def finish(self) -> FileSummary:
-        self.writer.finish()  # type: ignore[no-untyped-call]  # mcap leaves Writer.finish unannotated (-> None)
+        self.writer.finish()
         self.stream.close()
         return FileSummary(self.path.name, self.start_ns, self.end_ns, self.count)
 

@@ -14,7 +14,7 @@ import argparse
 import contextlib
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NoReturn
 
@@ -71,7 +71,7 @@ _OUTPUT_OPTION = {
 #: longest error line printed, characters (each value in it is already cut to 80)
 _LINE_CHARS = 2000
 
-__all__ = ['build_parser', 'main']
+__all__ = ['build_parser', 'main', 'verbs']
 
 EXIT_USAGE = 2
 EXIT_RUN_FAILED = 1
@@ -181,6 +181,16 @@ def _add_bag_split(parser: argparse.ArgumentParser, when: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``folder-line`` argument parser: every verb and option, with its range checks."""
+    return _parser_and_verbs()[0]
+
+
+def verbs() -> tuple[str, ...]:
+    """The verbs ``folder-line`` takes, in the order ``folder-line --help`` lists them."""
+    return tuple(_parser_and_verbs()[1])
+
+
+def _parser_and_verbs() -> tuple[argparse.ArgumentParser, Mapping[str, argparse.ArgumentParser]]:
+    """The parser, and its verbs' parsers by name."""
     parser = _Parser(prog='folder-line', description='Simulate the folding/layup line.')
     sub = parser.add_subparsers(dest='verb', required=True, metavar='VERB')
 
@@ -388,7 +398,7 @@ def build_parser() -> argparse.ArgumentParser:
     solve_verb.add_parser(sub)
     optimize.add_parser(sub)
     animate_cli.add_parser(sub)
-    return parser
+    return parser, sub.choices
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:

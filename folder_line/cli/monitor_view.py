@@ -52,12 +52,12 @@ __all__ = [
     'MIN_HEIGHT',
     'MIN_WIDTH',
     'OPERATOR_KEYS',
-    'OperatorKeys',
     'WINDOW',
     'ConstraintView',
     'EventView',
     'JointView',
     'MonitorState',
+    'OperatorKeys',
     'TopicStats',
 ]
 
@@ -581,7 +581,7 @@ class MonitorState:
         lines = [(_fit(text, width), style) for text, style in lines]
         if height is not None and len(lines) > height:
             hidden = len(lines) - (height - 1)
-            lines = lines[: height - 1] + [(_fit(f'... {hidden} more lines: enlarge the terminal', width), 'title')]
+            lines = [*lines[: height - 1], (_fit(f'... {hidden} more lines: enlarge the terminal', width), 'title')]
         return lines
 
     def _header(self, now: float | None) -> list[tuple[str, str]]:

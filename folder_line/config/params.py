@@ -45,7 +45,7 @@ def config_dir() -> Path:
         from ament_index_python.packages import get_package_share_directory
 
         candidates.append(Path(get_package_share_directory('folder_line')) / 'config')
-    except Exception:  # noqa: BLE001 - ament index absent or package not installed there
+    except Exception:
         pass
     for c in candidates:
         if (c / 'layup.yaml').is_file():

@@ -24,16 +24,16 @@ from folder_line.core.supervision.supervisor import Supervisor
 
 __all__ = [
     'BAG_DIR',
-    'bag_of',
     'MARKER_RATE',
     'MARKER_RATES',
     'RATE',
     'SCENE_FILE',
     'SUPERVISOR_DEFAULTS',
     'RunConfig',
-    'supervisor_logic',
+    'bag_of',
     'clock_parameters',
     'node_parameters',
+    'supervisor_logic',
 ]
 
 #: the run's bag, under ``cfg.out``

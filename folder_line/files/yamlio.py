@@ -33,13 +33,13 @@ from folder_line.errors import InputFileError, bounded_repr, shorten
 from folder_line.files.atomic import file_kind
 
 __all__ = [
-    'BoundedLoader',
     'MAX_ALIASES',
     'MAX_DEPTH',
     'MAX_INT_DIGITS',
     'MAX_NODES',
     'METADATA_LIMIT',
     'TEXT_LIMIT',
+    'BoundedLoader',
     'load_yaml',
     'load_yaml_file',
     'read_text_bounded',

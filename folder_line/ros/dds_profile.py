@@ -38,13 +38,13 @@ from typing import Final
 from folder_line.ros.line_key import partition_name, read_key
 
 __all__ = [
+    'GRAPH_TOPIC',
     'HEARTBEAT_PERIOD',
     'LEASE_ANNOUNCEMENT',
     'LEASE_DURATION',
     'PROFILE',
     'PROFILES_FILE_VARIABLE',
     'PROFILE_FILE',
-    'GRAPH_TOPIC',
     'DdsProfile',
     'line_partition',
     'line_profile_text',

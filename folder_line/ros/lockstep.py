@@ -63,12 +63,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from rclpy.clock import Clock
+from rclpy.clock import Clock, ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+from rclpy.time_source import TimeSource
 from rosbags.typesys import Stores, get_typestore
-from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
@@ -261,7 +262,7 @@ _cached_counts = functools.lru_cache(maxsize=256)(parse_counts)
 def _decode(data: bytes) -> Any:
     try:
         return _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference')
-    except Exception as err:  # noqa: BLE001 - any decoding failure of foreign bytes is a rejection
+    except Exception as err:
         raise ValueError(f'not a sensor_msgs/TimeReference ({type(err).__name__}: {str(err)[:80]})') from None
 
 
@@ -402,14 +403,7 @@ class Participant:
         node.create_subscription(TimeReference, GRANT_TOPIC, self.on_grant, GRANT_QOS)
         # the node's sim clock (use_sim_time) is fed with the ticks it runs, never from /clock: rclpy's
         # TimeSource would take every /clock message, a foreign one too, through a subscription of its own
-        time_source = getattr(node, '_time_source', None)
-        own = getattr(time_source, '_clock_sub', None)
-        if time_source is not None and own is not None:
-            node.destroy_subscription(own)
-            time_source._clock_sub = None
-            self._time_source = time_source
-        else:
-            self._time_source = None
+        self._sim_clock = _stop_time_source(node)
         self._timer = node.create_timer(HEARTBEAT, self._check_lost, clock=_steady(node))
 
     # ------------------------------------------------------------------ publishing
@@ -565,9 +559,9 @@ class Participant:
                 if self._on_end is not None:
                     self._on_end(stamp)
                 return
-        if self._time_source is not None and self._unsaid:  # the node's sim clock: the latest tick it ran
+        if self._sim_clock is not None and self._unsaid:  # the node's sim clock: the latest tick it ran
             assert self.last_done is not None
-            self._time_source.clock_callback(ClockMsg(clock=ns_to_time_msg(self.last_done)))
+            self._sim_clock.set_ros_time_override(Time(nanoseconds=self.last_done, clock_type=ClockType.ROS_TIME))
         if self._unsaid and self._prompt:
             self._say()  # waiting now: say how far it got
 
@@ -715,6 +709,18 @@ class Participant:
     def destroy(self) -> None:
         """Cancel the wall timer (the node destroys its entities)."""
         self._timer.cancel()
+
+
+def _stop_time_source(node: Node) -> ROSClock | None:
+    """The clock of ``node`` if it runs on sim time, after destroying the ``/clock`` subscription of the
+    node's own ``TimeSource`` (found by its callback); None if it runs on the system clock."""
+    clock = node.get_clock()
+    if not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
+        return None
+    for subscription in list(node.subscriptions):
+        if isinstance(getattr(subscription.callback, '__self__', None), TimeSource):
+            node.destroy_subscription(subscription)
+    return clock
 
 
 def _steady(node: Node) -> Any:

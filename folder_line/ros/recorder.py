@@ -249,7 +249,8 @@ class LineRecorder(Node):
         whole = topic in _READ_WHOLE
         # CDR lays a struct's fields out in order, so a message whose first field is its std_msgs/Header
         # starts with that header's bytes: the header alone is read from them
-        has_header = not whole and 'header' in getattr(cls, '_fields_and_field_types', {})
+        fields: Mapping[str, str] = getattr(cls, 'get_fields_and_field_types', dict)()
+        has_header = not whole and 'header' in fields
 
         def on_message(data: bytes) -> None:
             msg: Any = deserialize_message(data, cls) if whole else None
@@ -279,7 +280,7 @@ class LineRecorder(Node):
             source = producer if producer else header.frame_id if producer is None and header is not None else ''
             publish_ns = time_msg_to_ns(header.stamp) if header is not None else -1
             counted = source in self._held and topic in self._held[source] and _could_publish(source, topic, msg)
-            if not counted or self.lockstep.ledger is not None and self.lockstep.ledger.is_lost(source):
+            if not counted or (self.lockstep.ledger is not None and self.lockstep.ledger.is_lost(source)):
                 self._sink(topic, data, publish_ns)  # not a participant's (line_clock's, a lost one's): as it comes
                 return
             if self.sink is not None:

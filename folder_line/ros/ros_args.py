@@ -84,7 +84,7 @@ def _file_values(path: str, node: str) -> dict[str, object]:
     """The values a parameter file gives ``node`` (rclpy's reader; raises _Unsure on a file it refuses)."""
     try:
         found = parameter_dict_from_yaml_file(path, use_wildcard=True, target_nodes=[f'/{node}'])
-    except Exception as exc:  # noqa: BLE001 - any fault (OSError, a YAML error, ...): rcl names it itself
+    except Exception as exc:
         raise _Unsure(path) from exc
     return {name: Parameter.from_parameter_msg(msg).value for name, msg in found.items()}
 
@@ -141,7 +141,7 @@ def command_line_values(args: Sequence[str], node: str) -> dict[str, object] | N
                 rule, i = words[i], i + 1
                 target, _, value = rule.partition(':=')
                 key = target.rsplit(':', 1)[-1]
-                if key == '__ns' or key in ('__node', '__name') and value != node:
+                if key == '__ns' or (key in ('__node', '__name') and value != node):
                     return None  # another name or namespace: the rules that apply are rcl's to find
             elif word in _WITH_ARGUMENT:
                 i += 1

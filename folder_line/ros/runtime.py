@@ -25,7 +25,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -281,7 +280,14 @@ def run_node(
         except (FolderLineError, OSError) as err:  # a bad FOLDER_LINE_KEY, a profiles folder not private
             print(f'{name}: error: {err}', file=sys.stderr)
             return EXIT_BAD_PARAMETER
-        with rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO):
+        try:
+            initialised = rclpy.init(
+                args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO
+            )
+        except RuntimeError as err:  # rcl's RCLError: a --ros-args rule it cannot parse
+            print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
+            return EXIT_BAD_PARAMETER
+        with initialised:
             node = _build(node_factory, name, stop)
             if isinstance(node, int):
                 arm(node, quiet=True)  # the half-built node's teardown is bounded as any other
@@ -305,9 +311,6 @@ def run_node(
         pass
     except (FolderLineError, ParameterException) as err:
         print(f'{name}: error: {err}', file=sys.stderr)
-        return EXIT_BAD_PARAMETER
-    except RCLError as err:  # e.g. a --ros-args rule rcl cannot parse
-        print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
         return EXIT_BAD_PARAMETER
     finally:
         if watchdog is not None:

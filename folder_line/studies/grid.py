@@ -56,7 +56,7 @@ class Vary:
         """The ``n`` values, linearly spaced from ``start`` to ``stop`` (both included), in the key's unit."""
         raw = np.array([self.start]) if self.n == 1 else np.linspace(self.start, self.stop, self.n)
         if self.whole:
-            return tuple(int(round(v)) for v in raw)
+            return tuple(round(v) for v in raw)
         return tuple(float(v) for v in raw)
 
 

@@ -41,19 +41,19 @@ from folder_line.errors import FolderLineError, ParameterError
 from folder_line.studies.grid import parse_bounds
 
 __all__ = [
-    'LINK_KEYS',
+    'CONSTRAINTS',
     'DEFAULT_KEYS',
     'DEFAULT_SPAN',
-    'CONSTRAINTS',
+    'LINK_KEYS',
     'Bound',
-    'parse_design_vary',
-    'default_bounds',
-    'OptimizeSettings',
     'Candidate',
-    'check_scene',
-    'evaluate',
     'OptimizeResult',
+    'OptimizeSettings',
+    'check_scene',
+    'default_bounds',
+    'evaluate',
     'optimize_layup',
+    'parse_design_vary',
 ]
 
 #: the layup's dimensions a study may vary (m); n_kr and v_tr are speeds, not geometry

@@ -10,7 +10,7 @@ from typing import Any
 from folder_line.analysis.figures import pyplot, save_figure
 from folder_line.studies.optimize import ACTIVE_TOL, CONSTRAINTS, Candidate, OptimizeResult
 
-__all__ = ['verdict', 'result_document', 'histogram_lines', 'landing_figure']
+__all__ = ['histogram_lines', 'landing_figure', 'result_document', 'verdict']
 
 #: width of the text histograms' bars, characters
 _BAR = 28

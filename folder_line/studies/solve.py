@@ -24,6 +24,7 @@ refuses (outside a key's physical limits, :mod:`folder_line.core.limits`) are sk
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Mapping
@@ -239,7 +240,7 @@ def solve_boundary(
     scanned = tuple(zip(xs, values, strict=True))
     evaluated = [(x, v) for x, v in scanned if v is not None]
     bracket: tuple[float, float] | None = None
-    for (xa, va), (xb, vb) in zip(evaluated, evaluated[1:], strict=False):
+    for (xa, va), (xb, vb) in itertools.pairwise(evaluated):
         if cond.holds(va) != cond.holds(vb):
             bracket, holds = (xa, xb), ('above' if cond.holds(vb) else 'below')
             break

@@ -111,7 +111,7 @@ SYNTH_A = [_row(A, 2e-16, 1e-3), _row(A, 1e-16, 1e-5)]  # batch 1 (dear), whole 
 
 
 def test_ratio_on_synthetic_rows_when_b_never_reaches_a() -> None:
-    rows = SYNTH_A + [_row(B, 1e-2, 1e-4), _row(B, 1e-6, 1e-3), _row(B, 1e-10, 1e-2)]
+    rows = [*SYNTH_A, _row(B, 0.01, 0.0001), _row(B, 1e-06, 0.001), _row(B, 1e-10, 0.01)]
     res = fourbar.ratio_at_equal_error(rows, A, B)
     assert not res.reached
     assert res.error == 1e-10  # b's best error
@@ -121,7 +121,7 @@ def test_ratio_on_synthetic_rows_when_b_never_reaches_a() -> None:
 
 
 def test_ratio_on_synthetic_rows_interpolates_log_log() -> None:
-    rows = SYNTH_A + [_row(B, 1e-2, 1e-4), _row(B, 1e-18, 1e-2), _row(B, 1e-17, 5e-2)]  # the last is dominated
+    rows = [*SYNTH_A, _row(B, 1e-2, 1e-4), _row(B, 1e-18, 1e-2), _row(B, 1e-17, 5e-2)]  # the last is dominated
     res = fourbar.ratio_at_equal_error(rows, A, B)
     assert res.reached
     assert res.error == 2e-16  # a's level: the largest error of its settings
@@ -136,7 +136,7 @@ def test_ratio_on_synthetic_rows_interpolates_log_log() -> None:
 
 
 def test_ratio_ignores_other_studies_and_names_missing_methods() -> None:
-    rows = SYNTH_A + [_row(B, 1e-10, 1e-2), Row('linkage', B, 'k', 1.0, 1e-20, 1e-9, 'q', 'rad', 'r')]
+    rows = [*SYNTH_A, _row(B, 1e-10, 0.01), Row('linkage', B, 'k', 1.0, 1e-20, 1e-09, 'q', 'rad', 'r')]
     assert fourbar.ratio_at_equal_error(rows, A, B).error == 1e-10
     with pytest.raises(KeyError):
         fourbar.ratio_at_equal_error(rows, A, 'solve_ivp Y')

@@ -448,8 +448,8 @@ def test_transitions_agree_allows_states_within_one_tick() -> None:
     assert transitions_agree(rep, [rec[0], rec[2]])  # HOLDING within one tick
     # a state entered twice (EXECUTE again after an unhold): each showing has its own transition
     again = [{'t': 2.5, 'to': 'UNHOLDING'}, {'t': 3.0, 'to': 'EXECUTE'}]
-    assert transitions_agree(rep + again, rec + [dict(again[0], t=2.505), dict(again[1], t=3.005)])
-    assert not transitions_agree(rep + again, rec + [dict(again[0], t=2.505), dict(again[1], t=2.9)])
+    assert transitions_agree(rep + again, [*rec, dict(again[0], t=2.505), dict(again[1], t=3.005)])
+    assert not transitions_agree(rep + again, [*rec, dict(again[0], t=2.505), dict(again[1], t=2.9)])
     assert recorded_transitions([(1, 'A'), (2, 'A'), (3_000_000_000, 'B')]) == [
         {'t': 1e-9, 'from': '', 'to': 'A'},
         {'t': 3.0, 'from': 'A', 'to': 'B'},

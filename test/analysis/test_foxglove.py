@@ -105,7 +105,7 @@ EXPECTED = {
 def test_every_path_of_the_line_layout_is_in_a_recorded_bag(line_bag: dict[str, tuple[str, list[Any]]]) -> None:
     layout = json.loads((LAYOUTS / 'line.json').read_text(encoding='utf-8'))
     config = layout['configById']
-    topics = list(config['3D!line']['topics']) + [config['RawMessages!events']['topicPath']]
+    topics = [*list(config['3D!line']['topics']), config['RawMessages!events']['topicPath']]
     for topic in topics:
         assert line_bag[topic][0] == EXPECTED[topic], topic
         assert line_bag[topic][1], topic  # messages to show

@@ -232,7 +232,7 @@ def test_split_by_size_at_a_flush_the_same_tick_by_tick_as_in_windows(tmp_path: 
         size = path.stat().st_size
         assert size >= 4096, (path.name, size)
         with path.open('rb') as fh:
-            first = [m.log_time for _, _, m in make_reader(fh).iter_messages()][0]
+            first = next(m.log_time for _, _, m in make_reader(fh).iter_messages())
         assert first % 100_000_000 == 0 or path == files[0]
     assert read_bag(one).message_count == len(ticks)
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 import os
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -43,8 +44,8 @@ NS = 1_000_000_000
 
 def plain(obj: Any) -> Any:
     """A decoded mcap_ros2 message as nested tuples of (field, value)."""
-    if hasattr(obj, '__slots__') and hasattr(obj, '_type'):
-        return (obj._type, tuple((k, plain(getattr(obj, k))) for k in obj.__slots__ if not k.startswith('_')))
+    if isinstance(obj, SimpleNamespace) and hasattr(obj, '__slots__'):
+        return (type(obj).__name__, tuple((k, plain(getattr(obj, k))) for k in obj.__slots__ if not k.startswith('_')))
     if isinstance(obj, (list, tuple)):
         return tuple(plain(x) for x in obj)
     return obj

@@ -46,12 +46,12 @@ def test_a_knife_speed_alone_is_refused_naming_both_keys() -> None:
         load_scene('folder', {'knife.n_k': 60000})
     text = str(info.value)
     assert text.startswith('knife.n_k=60000') and 'cyclogram.n_c=25000.0' in text and 'press.n_c' in text
-    with pytest.raises(ParameterError, match='knife.n_k=50000.0: must be 2 x cyclogram.n_c=30000'):
+    with pytest.raises(ParameterError, match=r'knife.n_k=50000.0: must be 2 x cyclogram.n_c=30000'):
         load_scene('folder', {'cyclogram.n_c': 30000})
     load_scene('folder', {'knife.n_k': 60000, 'cyclogram.n_c': 30000})  # a consistent pair is fine
     # rounding is not an inconsistency, a part in a million is
     load_scene('folder', {'knife.n_k': 50000 * (1 + 1e-12)})
-    with pytest.raises(ParameterError, match='knife.n_k'):
+    with pytest.raises(ParameterError, match=r'knife.n_k'):
         load_scene('folder', {'knife.n_k': 50000 * (1 + 1e-6)})
 
 
@@ -60,7 +60,7 @@ def test_press_speed_is_checked_and_needs_a_folder() -> None:
         with pytest.raises(ParameterError) as info:
             load_scene('folder', {'press.n_c': bad})
         assert info.value.key == 'press.n_c'
-    with pytest.raises(ParameterError, match="press.n_c=20000: scene 'layup' has no folder"):
+    with pytest.raises(ParameterError, match=r"press.n_c=20000: scene 'layup' has no folder"):
         load_scene('layup', {'press.n_c': 20000})
     with pytest.raises(ParameterError, match='unknown press key'):
         load_scene('folder', {'press.n_k': 20000})
@@ -83,9 +83,9 @@ def test_a_scene_file_may_give_the_press_speed_once(tmp_path: Path) -> None:
         == 40000.0
     )
     twice = FOLDER.replace('knife: {}', 'knife: {n_k: 60000}') + 'press: {n_c: 30000}\n'
-    with pytest.raises(ParameterError, match='knife.n_k=60000: the scene gives press.n_c=30000 as well'):
+    with pytest.raises(ParameterError, match=r'knife.n_k=60000: the scene gives press.n_c=30000 as well'):
         load_scene(_write(tmp_path, twice))
-    with pytest.raises(ParameterError, match='press.n_k=1: unknown press key'):
+    with pytest.raises(ParameterError, match=r'press.n_k=1: unknown press key'):
         load_scene(_write(tmp_path, FOLDER + 'press: {n_k: 1}\n'))
 
 
@@ -97,14 +97,14 @@ def test_sheet_jitter_on_the_folder_is_an_error_naming_what_to_use() -> None:
         load_scene('folder', {'sheets.jitter': 0.3})
     assert info.value.key == 'sheets.jitter' and info.value.value == 0.3
     assert "does nothing in scene 'folder'" in info.value.reason and 'arrival_jitter' in info.value.reason
-    with pytest.raises(ParameterError, match='sheets.interval=0.1: does nothing'):
+    with pytest.raises(ParameterError, match=r'sheets.interval=0.1: does nothing'):
         load_scene('folder', {'sheets.interval': 0.1})
     assert load_scene('layup', {'sheets.jitter': 0.3}).sheets.jitter == 0.3  # the layup reads it
     load_scene('folder', {'sheets.jitter': 0.5})  # the default: what the folder gets anyway
 
 
 def test_only_values_the_user_gave_count(tmp_path: Path) -> None:
-    with pytest.raises(ParameterError, match='sheets.jitter=0.3: does nothing'):
+    with pytest.raises(ParameterError, match=r'sheets.jitter=0.3: does nothing'):
         load_scene(_write(tmp_path, FOLDER + 'sheets: {jitter: 0.3}\n'))
     load_scene(_write(tmp_path, FOLDER))  # config/sheets.yaml's jitter is merged in and harmless
     # a merged scene written by run carries every default, and loads again

@@ -195,7 +195,7 @@ def test_brent_root_is_bracketed_and_within_tolerance(
     assert abs(res.root - r) <= xtol + RTOL * abs(r) + 4 * math.ulp(r)
     lo, hi = res.bracket
     assert lo <= res.root <= hi and a <= lo and hi <= b
-    assert res.f_root == 0.0 or (lo < hi and (f(lo) <= 0.0) != (f(hi) <= 0.0) or f(lo) == 0.0 or f(hi) == 0.0)
+    assert res.f_root == 0.0 or ((lo < hi and (f(lo) <= 0.0) != (f(hi) <= 0.0)) or f(lo) == 0.0 or f(hi) == 0.0)
     assert res.iterations <= 100 and res.f_root == f(res.root)
 
 

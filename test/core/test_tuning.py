@@ -103,7 +103,7 @@ def test_the_pile_lowers_each_sheet_over_the_time_in_force_at_its_count() -> Non
 def test_a_tuning_reads_back_from_its_text_and_the_scene_must_have_it() -> None:
     tu = Tuning(1.5, 'feed_transporter.V_tr', 9.123456789)
     assert command_of(1.5, tuning_text(tu.key, tu.value)) == tu
-    with pytest.raises(ParameterError, match='layup.v_tr=3.0: scene .folder. has no layup device'):
+    with pytest.raises(ParameterError, match=r'layup.v_tr=3.0: scene .folder. has no layup device'):
         check_tuning(load_scene('folder'), 'layup.v_tr', 3.0)
     with pytest.raises(ParameterError, match='is not tunable'):
         check_tuning(load_scene('folder'), 'knife.n_k', 3.0)

@@ -9,6 +9,7 @@ binomial bound and against the switch's own count of what it dropped.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import statistics
@@ -44,7 +45,7 @@ def _changes(net: Network, before: dict[str, PortCounters]) -> dict[str, PortCou
 
 
 def _inversions(order: list[int]) -> int:
-    return sum(1 for x, y in zip(order, order[1:], strict=False) if y < x)
+    return sum(1 for x, y in itertools.pairwise(order) if y < x)
 
 
 def test_udp_crosses_the_switch_with_the_delay_of_each_link(net: Network) -> None:

@@ -39,10 +39,10 @@ from typing import Any
 if not __package__:  # run as a script: the package ``net`` is test/net
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from folder_line.interfaces import MACHINE_NODES  # noqa: E402
-from folder_line.ros.run import ros_arg  # noqa: E402
-from net.netns import Network, available, build_switch  # noqa: E402
-from net.probes import PYTHON, domain_id, ros_environment  # noqa: E402
+from folder_line.interfaces import MACHINE_NODES
+from folder_line.ros.run import ros_arg
+from net.netns import Network, available, build_switch
+from net.probes import PYTHON, domain_id, ros_environment
 
 CLOCK = 'line_clock'
 NODES = (CLOCK, *MACHINE_NODES)

@@ -23,6 +23,7 @@ import uuid
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 from _ros_env import node_environment
@@ -220,8 +221,8 @@ def line_processes(out: Path, domain: int, since: int) -> dict[int, list[str]]:
 
 def plain(obj: Any) -> Any:
     """An mcap_ros2 message as nested tuples of (field, value); sequences as tuples."""
-    if hasattr(obj, '_type') and hasattr(obj, '__slots__'):
-        return (obj._type, tuple((k, plain(getattr(obj, k))) for k in obj.__slots__ if not k.startswith('_')))
+    if isinstance(obj, SimpleNamespace) and hasattr(obj, '__slots__'):
+        return (type(obj).__name__, tuple((k, plain(getattr(obj, k))) for k in obj.__slots__ if not k.startswith('_')))
     if isinstance(obj, (list, tuple)):
         return tuple(plain(x) for x in obj)
     return obj
@@ -390,8 +391,20 @@ def line_with_states(ros: Any, out: Path, duration: float, scene: str = 'folder'
     """A ``folder-line run`` of ``scene`` at rtf 1 into ``out`` (stderr piped), and the supervisor's state
     as a listener in ``ros`` hears it; the run is killed on the way out if it still runs."""
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'folder_line.cli.main', 'run', '--scene', scene, '--duration', str(duration)]
-        + ['--rtf', '1', '--out', str(out)],
+        [
+            sys.executable,
+            '-m',
+            'folder_line.cli.main',
+            'run',
+            '--scene',
+            scene,
+            '--duration',
+            str(duration),
+            '--rtf',
+            '1',
+            '--out',
+            str(out),
+        ],
         env=node_environment(),
         cwd=REPO,
         stdout=subprocess.DEVNULL,

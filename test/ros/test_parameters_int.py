@@ -134,7 +134,7 @@ def test_a_bad_start_value_is_refused_in_one_line(ros: Ros, override: Parameter[
 
 
 def test_an_integer_start_value_passes_the_cross_check_as_a_float(ros: Ros) -> None:
-    with pytest.raises(AssemblyError, match='lo=5.0 m must be below hi=1.0 m'):
+    with pytest.raises(AssemblyError, match=r'lo=5.0 m must be below hi=1.0 m'):
         Probe(context=ros.context, parameter_overrides=[Parameter('lo', value=5)])
 
 

@@ -30,7 +30,7 @@ from folder_line.ros.topics import COMMANDS_QOS
 from ._line_runs import run_under_attack
 from ._signed import time_reference
 from .test_strangers import DURATION, line_records
-from .test_strangers import clean as clean  # noqa: F401 - the fixture: the run without attack
+from .test_strangers import clean as clean
 
 if TYPE_CHECKING:
     from .conftest import Ros

@@ -56,9 +56,9 @@ def test_default_metrics_are_the_margins_and_the_violation_count() -> None:
     }
     assert resolve_metrics([], flat) == ('min_margin.a.margin', 'min_margin.b.margin', 'violations.count')
     assert resolve_metrics(['count', 'min_margin_s.a'], flat) == ('violations.count', 'min_margin_s.a')
-    with pytest.raises(ParameterError, match="^--metric='violations.count': is asked for twice"):
+    with pytest.raises(ParameterError, match=r"^--metric='violations.count': is asked for twice"):
         resolve_metrics(['count', 'violations.count'], flat)
-    with pytest.raises(ParameterError, match='^--metric=.margin.: is ambiguous'):
+    with pytest.raises(ParameterError, match=r'^--metric=.margin.: is ambiguous'):
         resolve_metrics(['margin'], flat)
 
 

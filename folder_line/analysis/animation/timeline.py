@@ -39,8 +39,8 @@ from folder_line.errors import ParameterError
 __all__ = [
     'DEFAULT_FPS',
     'DEFAULT_SLOWDOWN',
-    'FLAG_VIDEO_S',
     'FLAGS_SHOWN',
+    'FLAG_VIDEO_S',
     'FPS',
     'MAX_FRAMES',
     'SLOWDOWN',

@@ -41,6 +41,7 @@ so ``T_load omega_master = M_1 omega_sprocket`` (power) at any speed.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -311,9 +312,9 @@ class MasterLoad:
         grid = np.linspace(0.0, 2.0, 4001)
         st = evaluate_stroke(self.delivery, grid, return_section=self.params.return_section)
         self.locked_u = grid[st.state != STATE_OK]
-        ends = list(self.offsets) + [sch.T]
+        ends = [*list(self.offsets), sch.T]
         peak, area = 0.0, 0.0
-        for lo, hi in zip(ends[:-1], ends[1:], strict=True):
+        for lo, hi in itertools.pairwise(ends):
             th = self.theta0 + np.linspace(lo, hi, 20001)
             mid = 0.5 * (lo + hi) + self.theta0
             vals = self._torque_piece_vec(th, mid)

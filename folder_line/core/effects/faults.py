@@ -170,7 +170,7 @@ class SlowdownStream:
         if not self.enabled:
             return
         p, period = self.params, self.period
-        last = int(math.floor(t / period)) if t >= 0.0 else -1
+        last = math.floor(t / period) if t >= 0.0 else -1
         n = last + 1 - self.next_cycle
         if n > 0:
             u = self.rng.random((n, 2)).T  # cycle by cycle, as draw_slowdowns draws them

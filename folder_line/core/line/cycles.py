@@ -66,7 +66,7 @@ class MachineCycles:
         """The cycle running at line time ``t``: the last one started at or before ``t`` (-1 before the first)."""
         t = as_float('t', t)
         theta = float(np.asarray(drive.theta(np.array([max(t, 0.0)])), dtype=float)[0])
-        k = max(int(math.floor((theta - self.theta0) / self.period)), -1)
+        k = max(math.floor((theta - self.theta0) / self.period), -1)
         while self.start_time(drive, k + 1, theta_end) <= t:
             k += 1
         while k >= 0 and self.start_time(drive, k, theta_end) > t:

@@ -96,7 +96,7 @@ from folder_line.core.types.events import ConstraintSeries, JointSamples, LinePa
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
-__all__ = ['FolderLine', 'simulate_folder', 'join_rows']
+__all__ = ['FolderLine', 'join_rows', 'simulate_folder']
 
 
 def join_rows(

@@ -48,9 +48,9 @@ __all__ = [
     'fates',
     'fault_events',
     'feed',
+    'friction',
     'hand_overs',
     'knife_cycles',
-    'friction',
     'restitution',
     'setup',
     'sheet_events',
@@ -69,7 +69,7 @@ def _indices(first: float, step: float, last: float) -> np.ndarray:
     """k = 0, 1, ... with ``k step + first <= last`` (empty if first > last)."""
     if first > last:
         return np.zeros(0, dtype=np.int64)
-    n = int(math.floor((last - first) / step)) + 2
+    n = math.floor((last - first) / step) + 2
     k = np.arange(n, dtype=np.int64)
     return k[k * step + first <= last]
 

@@ -303,7 +303,7 @@ class FolderStream:
         T, first = s.timing.T, s.timing.knife.t_out + s.phase
         if first > bound:
             return
-        last = int(math.floor((bound - first) / T)) + 1
+        last = math.floor((bound - first) / T) + 1
         k = np.arange(st.slot_next, last + 1, dtype=np.int64)
         k = k[k * T + first <= bound]
         if k.size == 0:
@@ -503,7 +503,7 @@ class FolderStream:
         """Indices k >= k0 with ``k step + first`` due by ``c``, and their times (a prefix: times increase)."""
         if k0 * step + first > bound:
             return np.zeros(0, dtype=np.int64), np.zeros(0)
-        last = int(math.floor((bound - first) / step)) + 1
+        last = math.floor((bound - first) / step) + 1
         k = np.arange(k0, last + 1, dtype=np.int64)
         k = k[k * step + first <= bound]
         t = self._time_of(k * step + first)

@@ -126,7 +126,7 @@ def leaf_stream(stream: StreamParams, duration: float, seed: int) -> tuple[np.nd
         Their nominal entry times, s (some may lie outside [0, duration]).
     """
     span = duration - stream.phase + 0.5 * stream.jitter * stream.interval
-    n = int(math.floor(span / stream.interval)) + 1 if span >= 0.0 else 0
+    n = math.floor(span / stream.interval) + 1 if span >= 0.0 else 0
     j = np.arange(n, dtype=np.int64)
     u = rng_mod.stream(seed, 'layup.leaves').random(n) - 0.5
     t = stream.phase + j * stream.interval + stream.jitter * stream.interval * u

@@ -288,7 +288,7 @@ class LayupStream:
         half = 0.5 * sp.jitter * sp.interval
         if sp.phase - half > c:
             return
-        last = int(math.floor((c - sp.phase + half) / sp.interval))
+        last = math.floor((c - sp.phase + half) / sp.interval)
         n = last + 1 - st.slot_next
         if n <= 0:
             return
@@ -516,7 +516,7 @@ class LayupStream:
         edges = np.linspace(0.0, TAU, PHASE_BINS + 1)
         by_phase = fg.by_phase.means()
         out: dict[str, Any] = {
-            'crank_cycles': int(math.floor(theta_end * kin.turns_rate)),
+            'crank_cycles': math.floor(theta_end * kin.turns_rate),
             'leaves': fg.entered,
             'leaves_exited': fg.exited,
             'leaves_landed': fg.landed,

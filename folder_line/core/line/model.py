@@ -108,7 +108,7 @@ def sample_times(duration: float, rate: float) -> np.ndarray:
     """The sample grid ``i / rate`` for i = 0 .. floor(duration·rate), s (empty if rate = 0)."""
     if rate <= 0.0:
         return np.zeros(0)
-    n = int(math.floor(duration * rate * (1.0 + 1e-15))) + 1
+    n = math.floor(duration * rate * (1.0 + 1e-15)) + 1
     return np.arange(n, dtype=float) / rate
 
 

@@ -189,7 +189,7 @@ def _marks(a: np.ndarray, b: np.ndarray, travel: float) -> np.ndarray:
     if length <= 0.0:
         return np.zeros((0, 3))
     off = travel % _MARK
-    d = off + _MARK * np.arange(int(math.floor((length - off) / _MARK)) + 1)
+    d = off + _MARK * np.arange(math.floor((length - off) / _MARK) + 1)
     d = d[d <= length]
     return a + np.outer(d / length, ab)
 
@@ -203,7 +203,7 @@ def chain_loop(transfer: float, stroke: float, span: float, pitch: float) -> tup
     whole number of pitches, at least :data:`_MIN_ARC`.
     """
     base = 2.0 * transfer + stroke + span
-    n = max(1, int(math.ceil((base + 2.0 * math.pi * _MIN_ARC) / pitch)))
+    n = max(1, math.ceil((base + 2.0 * math.pi * _MIN_ARC) / pitch))
     radius = (n * pitch - base) / (2.0 * math.pi)
     return radius, n * pitch, n
 
@@ -381,7 +381,7 @@ class Scenery:
 
     def _folder_shapes(self, t: float, theta: float, sheets: np.ndarray) -> list[Shape]:
         fl = self._folder
-        _, _, oz = FOLDER_ORIGIN
+        _, _, _oz = FOLDER_ORIGIN
         a = fl.timing.omega_c * theta
         spoke = self._cyl_c + self._R_c * np.array([math.cos(-a), 0.0, math.sin(-a)])
         b_t = float(np.asarray(fl.belt.at(np.array([t]), np.array([theta]))).reshape(-1)[0])

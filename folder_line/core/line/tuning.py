@@ -51,8 +51,8 @@ if TYPE_CHECKING:
 __all__ = [
     'SCENE_KEYS',
     'SET_PREFIX',
-    'LineCommand',
     'TUNABLES',
+    'LineCommand',
     'Tunable',
     'Tuning',
     'belt_steps',

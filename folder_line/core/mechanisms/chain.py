@@ -258,7 +258,7 @@ class ChainSchedule:
     @property
     def max_on_stroke(self) -> int:
         """An upper bound on the carriages on the stroke at once, ``ceil(S / pitch) + 1``."""
-        return int(math.ceil(self.S / self.pitch)) + 1
+        return math.ceil(self.S / self.pitch) + 1
 
     def pickup_phase(self, cycle: npt.ArrayLike) -> FloatArray:
         """Θ at which carriage ``cycle`` takes sheet ``cycle``, nominal s."""

@@ -73,16 +73,16 @@ from folder_line.errors import ParameterError
 
 __all__ = [
     'KNIFE_PER_CYLINDER',
-    'CyclogramParams',
-    'Phase',
     'CycleTiming',
+    'CyclogramParams',
     'FeedCheck',
-    'cycle_timing',
-    'feed_time',
-    'feed_margin',
-    'min_feed_speed',
+    'Phase',
     'check_feed',
+    'cycle_timing',
     'cyclogram',
+    'feed_margin',
+    'feed_time',
+    'min_feed_speed',
 ]
 
 TWO_PI = 2.0 * math.pi

@@ -14,7 +14,7 @@ import numpy as np
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.errors import ParameterError
 
-__all__ = ['ProfileLaw', 'LAWS', 'law_names', 'register_law']
+__all__ = ['LAWS', 'ProfileLaw', 'law_names', 'register_law']
 
 ArrayOrFloat = FloatArray | float
 

@@ -60,18 +60,18 @@ from folder_line.core.numerics.validate import as_float, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
-    'KnifeParams',
     'DeadCentres',
-    'KnifeWindow',
+    'KnifeParams',
     'KnifeState',
+    'KnifeWindow',
+    'acceleration',
+    'dead_centres',
     'omega',
     'period',
-    'dead_centres',
     'position',
-    'velocity',
-    'acceleration',
     'state',
     'state_at_time',
+    'velocity',
     'window',
 ]
 

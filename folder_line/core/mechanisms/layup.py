@@ -66,21 +66,21 @@ from folder_line.core.numerics.validate import as_float, check_fields, non_negat
 from folder_line.errors import AssemblyError, ParameterError
 
 __all__ = [
-    'TAU',
+    'GRASHOF_REL_TOL',
     'LOOP1',
     'LOOP2',
-    'GRASHOF_REL_TOL',
-    'classify_fourbar',
-    'reduce_angle',
+    'TAU',
+    'AssemblyMargins',
+    'LayupModel',
     'LayupParams',
     'LayupPoint',
     'LayupState',
-    'LayupModel',
-    'AssemblyMargins',
+    'cached_model',
     'check_assembly',
+    'classify_fourbar',
     'layup_kinematics',
     'layup_point',
-    'cached_model',
+    'reduce_angle',
 ]
 
 TAU = 2.0 * math.pi

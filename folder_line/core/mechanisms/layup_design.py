@@ -40,14 +40,14 @@ from folder_line.core.mechanisms.layup_reach import sweep
 from folder_line.core.numerics.roots import golden_section
 
 __all__ = [
-    'LayupDimensions',
-    'crank_rocker_margin',
-    'fourbar_transmission_cos',
-    'transmission_cosines',
-    'TransmissionCheck',
-    'transmission_check',
     'ExitClearance',
+    'LayupDimensions',
+    'TransmissionCheck',
+    'crank_rocker_margin',
     'exit_clearance',
+    'fourbar_transmission_cos',
+    'transmission_check',
+    'transmission_cosines',
 ]
 
 

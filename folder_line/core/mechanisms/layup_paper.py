@@ -58,7 +58,7 @@ import numpy.typing as npt
 from folder_line.core.mechanisms.layup import LayupParams
 from folder_line.errors import ParameterError
 
-__all__ = ['PaperSpeeds', 'paper_frame', 'beta5', 'paper_speeds']
+__all__ = ['PaperSpeeds', 'beta5', 'paper_frame', 'paper_speeds']
 
 
 class PaperSpeeds(NamedTuple):

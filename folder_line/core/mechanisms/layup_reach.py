@@ -15,10 +15,10 @@ import numpy as np
 from folder_line.core.mechanisms.layup import ASSEMBLY_SAMPLES, TAU, LayupParams, LayupPoint, cached_model
 
 __all__ = [
-    'SwingExtreme',
-    'swing_extremes',
     'Sweep',
+    'SwingExtreme',
     'sweep',
+    'swing_extremes',
 ]
 
 _PI = math.pi

@@ -209,7 +209,7 @@ def pile_table(
     kind = EVENT_KINDS.index(counted_event(has_delivery))
     times = events['t'][events['kind'] == kind]
     joint = 'pile_table' if has_delivery else 'container_floor'
-    if not steps or len(steps) == 1 and steps[0][1] == t_lower:
+    if not steps or (len(steps) == 1 and steps[0][1] == t_lower):
         return PileTable(joint, times, thickness, t_lower if not steps else steps[0][1])
     starts = [t for t, _ in steps]
     cuts = np.searchsorted(times, starts[1:], side='left')  # a sheet at a change's time takes the new τ

@@ -16,6 +16,8 @@ vectorised over the targets, to ~1e-15 of the step. :func:`constant_solution` an
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import numpy.typing as npt
 
@@ -199,7 +201,7 @@ class DenseSolution:
         """
         tq, idx, x = self._locate(t)
         c = self.coef[:, idx, :]
-        return np.ascontiguousarray(horner(c, x).T).reshape((self.n_components,) + tq.shape)
+        return np.ascontiguousarray(horner(c, x).T).reshape((self.n_components, *tq.shape))
 
     def component(self, t: npt.ArrayLike, j: int) -> FloatArray:
         """Component ``j`` of the dense output at ``t``, shaped like ``t``."""
@@ -212,7 +214,7 @@ class DenseSolution:
         if j is not None:
             return (_horner_d(self.coef[:, idx, j], x) / self.h[idx]).reshape(tq.shape)
         d = _horner_d(self.coef[:, idx, :], x) / self.h[idx][:, None]
-        return np.ascontiguousarray(d.T).reshape((self.n_components,) + tq.shape)
+        return np.ascontiguousarray(d.T).reshape((self.n_components, *tq.shape))
 
     def inverse(self, targets: npt.ArrayLike, j: int) -> FloatArray:
         """Earliest times at which the non-decreasing component ``j`` equals each target.
@@ -283,7 +285,7 @@ def concatenate(parts: list[DenseSolution]) -> DenseSolution:
     """
     if not parts:
         raise ValueError('nothing to concatenate')
-    for a, b in zip(parts, parts[1:], strict=False):
+    for a, b in itertools.pairwise(parts):
         if a.t[-1] != b.t[0]:
             raise ValueError(f'parts do not join: one ends at t={a.t[-1]!r}, the next starts at t={b.t[0]!r}')
         if a.n_components != b.n_components:

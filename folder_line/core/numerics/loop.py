@@ -47,13 +47,13 @@ from folder_line.errors import AssemblyError
 __all__ = [
     'TOGGLE_TOL',
     'Intersection',
-    'normalised_discriminant',
     'circle_intersection',
     'circle_intersection_scalar',
-    'tracked_intersection',
-    'solve2x2',
-    'circle_point_velocity',
     'circle_point_acceleration',
+    'circle_point_velocity',
+    'normalised_discriminant',
+    'solve2x2',
+    'tracked_intersection',
 ]
 
 #: ``|normalised discriminant|`` at or below which two circles count as tangent (a toggle).

@@ -36,14 +36,14 @@ from folder_line.errors import (
 )
 
 __all__ = [
-    'XTOL',
-    'RTOL',
     'MAXITER',
-    'RootFindingError',
-    'NotBracketedError',
-    'NonFiniteValueError',
-    'NoConvergenceError',
+    'RTOL',
+    'XTOL',
     'GoldenSection',
+    'NoConvergenceError',
+    'NonFiniteValueError',
+    'NotBracketedError',
+    'RootFindingError',
     'RootResult',
     'SignChanges',
     'brent',

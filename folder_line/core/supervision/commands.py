@@ -149,7 +149,7 @@ class DriveSchedule:
 
     def issue(self, t: float, cmd: LineCommand) -> None:
         """Command ``cmd``, decided at ``t``, is issued."""
-        self.commands = tuple(sorted(self.commands + (cmd,), key=lambda c: c.t))
+        self.commands = tuple(sorted((*self.commands, cmd), key=lambda c: c.t))
         self.issued.append((t, cmd))
 
     def take(self) -> list[tuple[float, LineCommand]]:

@@ -139,7 +139,7 @@ class Liveness:
     def merge_clock(self) -> None:
         """Merge the clock stamps fed so far into the sorted clock array."""
         if self._clock_pending:
-            self._clock = np.unique(np.concatenate([self._clock] + self._clock_pending))
+            self._clock = np.unique(np.concatenate([self._clock, *self._clock_pending]))
             self._clock_pending = []
 
     def candidates(self, W: float) -> list[tuple[float, str, float]]:

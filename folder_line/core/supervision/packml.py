@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 from folder_line.errors import TransitionError
 
-__all__ = ['ACTING', 'COMMANDS', 'PackML', 'STATES', 'Transition']
+__all__ = ['ACTING', 'COMMANDS', 'STATES', 'PackML', 'Transition']
 
 STATES: tuple[str, ...] = (
     'STOPPED',

@@ -18,16 +18,16 @@ __all__ = [
     'EVENT_KINDS',
     'ConstraintSeries',
     'JointSamples',
-    'event_kind',
-    'empty_events',
+    'LinePart',
+    'SubResult',
     'append_events',
+    'empty_events',
+    'event_kind',
     'kind_table',
     'kinds_in',
     'make_events',
     'merge_events',
     'stack_samples',
-    'SubResult',
-    'LinePart',
 ]
 
 #: Every event kind; an event's ``kind`` field is the index in this tuple.

@@ -83,20 +83,20 @@ from folder_line.interfaces import (
     is_command_source,
 )
 from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
-from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes
+from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes, starting_values
 from folder_line.ros.runtime import run_node
 from folder_line.ros.signing import open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, TUNE_QOS, joint_states_topic
 
 __all__ = [
-    'EXIT_LOST',
-    'MACHINE_SPECS',
-    'NODE_NAMES',
     'CHUNK',
+    'EXIT_LOST',
     'FAST_FORWARD',
     'FAST_WINDOW',
     'KEEP',
+    'MACHINE_SPECS',
+    'NODE_NAMES',
     'MachineNode',
     'NodeMain',
     'machine_node',
@@ -208,22 +208,20 @@ class MachineNode(Node):
     JUDGES = False
 
     def __init__(self, *, parameter_overrides: Iterable[Parameter[Any]] | None = None, **kwargs: Any) -> None:
-        overrides = list(parameter_overrides or [])
-        super().__init__(self.NODE_NAME, parameter_overrides=overrides, **kwargs)
+        super().__init__(self.NODE_NAME, parameter_overrides=list(parameter_overrides or []), **kwargs)
         try:  # a node refused here is torn down at once, in order (not left to the garbage collector)
-            self._make(overrides)
+            self._make()
         except BaseException:
             self.destroy_node()
             raise
 
-    def _make(self, overrides: list[Parameter[Any]]) -> None:
+    def _make(self) -> None:
         """Check the parameters and the scene, then make the node's entities (after ``Node.__init__``)."""
-        # use_sim_time defaults to true here; an explicit false (constructor or --ros-args) is refused
-        if self.get_parameter('use_sim_time').value is False and (
-            any(p.name == 'use_sim_time' for p in overrides) or 'use_sim_time' in self._parameter_overrides
-        ):
+        # use_sim_time defaults to true here: rclpy's TimeSource declared it with false, so it is declared again
+        # with true, which takes a value given (constructor or --ros-args) as rclpy does; false is refused
+        self.undeclare_parameter('use_sim_time')
+        if self.declare_parameter('use_sim_time', True).value is False:
             raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
-        self.set_parameters([Parameter('use_sim_time', value=True)])
         self.tunables = self._tunable_specs()
         self.values = declare_parameters(
             self, MACHINE_SPECS + self.EXTRA_SPECS + self.tunables, cross_check=_check_sim_time
@@ -345,9 +343,8 @@ class MachineNode(Node):
         """
         if not TUNABLE_PARAMETERS.get(self.NODE_NAME):
             return ()
-        given = self._parameter_overrides
-        start = {spec.name: given[spec.name].value if spec.name in given else spec.default for spec in MACHINE_SPECS}
         try:
+            start = starting_values(self, [spec for spec in MACHINE_SPECS if spec.name in ('scene', 'overrides')])
             scene = node_scene(str(start['scene']), str(start['overrides']))
         except FolderLineError:
             return ()
@@ -471,7 +468,7 @@ class MachineNode(Node):
                 f'{self._last_ns / NS_PER_S:.9f} s was published',
             )
             return
-        self.commands = tuple(sorted(self.commands + (command,), key=lambda c: c.t))
+        self.commands = tuple(sorted((*self.commands, command), key=lambda c: c.t))
         self._take_commands(command.t)
         self.lockstep.received('supervisor', 'commands')
 

@@ -66,7 +66,7 @@ def test_bad_params_name_the_key(key: str, value: Any) -> None:
 
 
 def test_scene_rejects_an_unknown_or_missing_parameter() -> None:
-    with pytest.raises(ParameterError, match='effects.chain_friction.mu'):
+    with pytest.raises(ParameterError, match=r'effects.chain_friction.mu'):
         make_scene({'mu': 0.1})
 
 

@@ -40,7 +40,7 @@ def test_feed_slip_rejects_bad_values(key: str, value: float) -> None:
 
 
 def test_feed_slip_params_have_no_defaults() -> None:
-    with pytest.raises(ParameterError, match='effects.feed_slip.m'):
+    with pytest.raises(ParameterError, match=r'effects.feed_slip.m'):
         parse_effect_params('feed_slip', {'mu': 0.5, 'p': 40.0})
 
 

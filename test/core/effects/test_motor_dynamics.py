@@ -448,9 +448,9 @@ class TestStiffStartAndStepSizes:
         dense = drive.omega(t)
         assert np.all(np.isfinite(dense)) and dense.max() <= w_ss * (1 + 1e-12)
         assert dense.min() >= 0.0 and np.all(np.diff(dense) >= -4 * EPS * w_ss)
-        with pytest.raises(ParameterError, match='effects.motor_dynamics.h.*stalls and overshoots'):
+        with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h.*stalls and overshoots'):
             md.build_drive(motor_scene(**STIFF, method='rk4', h=2.25 * tau), 0.01)
-        with pytest.raises(ParameterError, match='effects.motor_dynamics.h.*unstable here'):
+        with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h.*unstable here'):
             md.build_drive(motor_scene(**STIFF, method='rk4', h=2.8 * tau), 0.01)
 
     def test_dopri5_stiff_start(self) -> None:
@@ -487,20 +487,20 @@ class TestStiffStartAndStepSizes:
             span = min(1.0, md.SETTLE_TAUS * md._params(motor_scene()).tau)
             assert f'asks for ~{span / 1e-9:.3g} steps' in str(info.value)
             assert f'at most max_steps={md.MAX_STEPS}' in str(info.value)
-            with pytest.raises(ParameterError, match='effects.motor_dynamics.h'):
+            with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h'):
                 md.stream_drive(motor_scene(method=method, h=1e-9))
         # the least h refused and the largest taken are one step apart in the steps they ask for
         tau = md._params(motor_scene()).tau
         h_ok = md.SETTLE_TAUS * tau / md.MAX_STEPS
         md.stream_drive(motor_scene(method='dopri5', h=h_ok * 1.0001))
-        with pytest.raises(ParameterError, match='effects.motor_dynamics.h'):
+        with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h'):
             md.stream_drive(motor_scene(method='dopri5', h=h_ok * 0.999))
 
     def test_huge_steps(self) -> None:
         """h = 1 s: RK4 is refused up front (ParameterError naming h) where h c/J > 2.21; on a
         gentle motor it is stable and equals the RK4 recurrence; DOPRI5 with max step 1 s matches
         the closed form to its tolerance."""
-        with pytest.raises(ParameterError, match='effects.motor_dynamics.h') as info:
+        with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h') as info:
             md.build_drive(motor_scene(method='rk4', h=1.0), 10.0)
         assert 'unstable' in str(info.value) and info.value.value == 1.0
         gentle = {'J': 20.0}

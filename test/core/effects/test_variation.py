@@ -85,9 +85,9 @@ def test_zero_sigma_is_the_nominal_run_bit_for_bit(nominal: LineResult) -> None:
 
 
 def test_a_jitter_as_long_as_the_feed_is_refused() -> None:
-    with pytest.raises(ParameterError, match='effects.arrival_jitter.sigma'):
+    with pytest.raises(ParameterError, match=r'effects.arrival_jitter.sigma'):
         simulate(_scene({'arrival_jitter': {'distribution': 'normal', 'sigma': 40.0}}), 1.0)  # 6σ = 240 mm > 230
-    with pytest.raises(ParameterError, match='effects.arrival_jitter.distribution'):
+    with pytest.raises(ParameterError, match=r'effects.arrival_jitter.distribution'):
         _scene({'arrival_jitter': {'distribution': 'cauchy', 'sigma': 1.0}})
 
 
@@ -156,7 +156,7 @@ def test_ripple_composes_with_the_supervisors_commands() -> None:
 
 
 def test_ripple_amplitude_is_bounded() -> None:
-    with pytest.raises(ParameterError, match='effects.speed_ripple.amplitude'):
+    with pytest.raises(ParameterError, match=r'effects.speed_ripple.amplitude'):
         _scene({'speed_ripple': {'amplitude': 0.9, 'frequency': 1.0}})
 
 

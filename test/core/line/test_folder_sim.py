@@ -279,7 +279,7 @@ def test_faults_at_a_seed_give_the_expected_counts() -> None:
     tm = _timing(scene)
     duration = 100.0
     res = simulate_folder(scene, ConstantDrive(), duration, np.zeros(0))
-    n_slots = int(math.floor((duration - tm.knife.t_out) / tm.T)) + 1
+    n_slots = math.floor((duration - tm.knife.t_out) / tm.T) + 1
     drawn = faults.draw_sheet_faults(faults.Params(**fa), n_slots, stream(11, 'folder.faults'))
     assert drawn.missing.sum() > 30 and drawn.double.sum() > 30
     s = res.summary

@@ -71,7 +71,7 @@ def scene(
     return parse_scene(data)
 
 
-def run(sc: Scene, duration: float, drive: Any = None, t_samples: np.ndarray | None = None):  # noqa: ANN201
+def run(sc: Scene, duration: float, drive: Any = None, t_samples: np.ndarray | None = None):
     return simulate_layup(sc, drive or ConstantDrive(), duration, np.zeros(0) if t_samples is None else t_samples)
 
 

@@ -148,7 +148,7 @@ def test_result_is_simulate(runs: dict[str, Any]) -> None:
 @given(name=st.sampled_from(sorted(DURATION)), ticks=st.lists(st.floats(0.0, 12.0), min_size=1, max_size=40))
 def test_events_between_partitions_the_table(runs: dict[str, Any], name: str, ticks: list[float]) -> None:
     model, _ = runs[name]
-    stamps = sorted(set(ticks)) + [DURATION[name]]
+    stamps = [*sorted(set(ticks)), DURATION[name]]
     prev = -math.inf
     got = []
     for s in stamps:

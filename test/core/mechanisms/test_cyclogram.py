@@ -87,7 +87,7 @@ def test_params_validation(params: CyclogramParams, kw, key) -> None:
 def test_load_params_rejects_unknown_and_bad_keys() -> None:
     with pytest.raises(ParameterError, match='unknown cyclogram parameter'):
         load_params('cyclogram', overrides={'V_tr': 9.3})
-    with pytest.raises(ParameterError, match='cyclogram.reserve'):
+    with pytest.raises(ParameterError, match=r'cyclogram.reserve'):
         load_params('cyclogram', overrides={'reserve': 1.5})
 
 

@@ -536,7 +536,7 @@ def test_scalar_path_matches_vector_path(p: DeliveryParams, u: float, mode: str)
     assume(abs(float(np.cos(v.alpha[0])) - dl.COS_ALPHA_TOL) > 1e-15)
     assert pt.state == int(v.state[0])
     assert pt.section == int(v.section[0])
-    for k in FLOAT_FIELDS + ('u', 'xi'):
+    for k in (*FLOAT_FIELDS, 'u', 'xi'):
         assert getattr(pt, k) == pytest.approx(float(getattr(v, k)[0]), rel=1e-9, abs=1e-300), k
 
 
@@ -707,7 +707,7 @@ class TestDeliveryLimits:
             s = dl.evaluate_stroke(p, STROKE, return_section=mode)
             assert all_finite(s) and non_ok_zeroed(s)
             end = np.abs(s.u - 1.0) < 1e-12  # psi = 1: alpha = alpha_m
-            assert np.all(s.state[end] == dl.STATE_SELF_LOCKING) or not friction and alpha_m == 89.9999
+            assert np.all(s.state[end] == dl.STATE_SELF_LOCKING) or (not friction and alpha_m == 89.9999)
             ok = s.state == dl.STATE_OK
             assert ok.any()  # most of the stroke still works
             with mp.workdps(40):

@@ -109,7 +109,7 @@ def test_validation_names_field_and_value(kw, key, words) -> None:
 
 
 def test_load_params_overrides_are_validated() -> None:
-    with pytest.raises(ParameterError, match='knife.s_clear'):
+    with pytest.raises(ParameterError, match=r'knife.s_clear'):
         load_params('knife', overrides={'s_clear': 0.3})
     p = load_params('knife', overrides={'e': 0.01})
     assert p.e == 0.01

@@ -133,7 +133,7 @@ def test_rejects_non_positive_lengths(field: str, bad: float) -> None:
 
 @pytest.mark.parametrize('bad', [0.0, -0.1, 5e-324, 1e-300, 6000.1, 1e308])
 def test_crank_speed_outside_its_physical_range_is_refused(bad: float) -> None:
-    with pytest.raises(ParameterError, match='layup.n_kr=') as err:
+    with pytest.raises(ParameterError, match=r'layup.n_kr=') as err:
         params(n_kr=bad)
     assert err.value.reason == f'must be in [{CRANK_SPEED.lo:g}, {CRANK_SPEED.hi:g}] rev/min'
     assert params(n_kr=CRANK_SPEED.lo).n_kr == CRANK_SPEED.lo and params(n_kr=CRANK_SPEED.hi).n_kr == CRANK_SPEED.hi
@@ -142,7 +142,7 @@ def test_crank_speed_outside_its_physical_range_is_refused(bad: float) -> None:
 def test_belt_speed_may_be_zero_not_negative() -> None:
     assert params(v_tr=0).v_tr == 0.0
     assert isinstance(params(v_tr=3).v_tr, float)
-    with pytest.raises(ParameterError, match='layup.v_tr=-0.1'):
+    with pytest.raises(ParameterError, match=r'layup.v_tr=-0.1'):
         params(v_tr=-0.1)
 
 
@@ -343,7 +343,7 @@ def test_shapes_and_optional_accelerations() -> None:
 
 
 # =========================================================================== velocities
-def _fd5(f, x: np.ndarray, h: float) -> np.ndarray:  # noqa: ANN001
+def _fd5(f, x: np.ndarray, h: float) -> np.ndarray:
     return (-f(x + 2 * h) + 8 * f(x + h) - 8 * f(x - h) + f(x - 2 * h)) / (12 * h)
 
 

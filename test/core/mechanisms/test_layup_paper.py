@@ -21,7 +21,7 @@ PHI = np.linspace(0.0, TAU, 3601)[:-1]
 RIGHT = LayupParams(**{**BASE, 'l5': math.sqrt(P.l3**2 + P.l4**2 - P.O2O3**2)})
 
 
-def delta3_true(s) -> np.ndarray:  # noqa: ANN001
+def delta3_true(s) -> np.ndarray:
     """Angle at C between C->O2 and C->E from the loop-closure positions, rad."""
     ux, uy = -s.xC, -s.yC
     vx, vy = s.xE - s.xC, s.yE - s.yC

@@ -63,7 +63,7 @@ def test_aborted_is_left_only_by_clear() -> None:
 
 
 @settings(max_examples=300)
-@given(st.lists(st.sampled_from(sorted(COMMANDS) + ['state_complete']), max_size=40))
+@given(st.lists(st.sampled_from([*sorted(COMMANDS), 'state_complete']), max_size=40))
 def test_random_sequences_follow_the_table(seq: list[str]) -> None:
     m = PackML()
     for i, cmd in enumerate(seq):

@@ -524,7 +524,7 @@ def test_with_motor_dynamics_held_when_the_motor_has_braked_to_rest() -> None:
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=list(HealthCheck))
-@given(st.lists(st.tuples(st.integers(1, 300), st.sampled_from(sorted(COMMANDS) + ['warp'])), max_size=12))
+@given(st.lists(st.tuples(st.integers(1, 300), st.sampled_from([*sorted(COMMANDS), 'warp'])), max_size=12))
 @example(seq=[(1, 'stop'), (104, 'stop'), (104, 'reset')])  # a refusal and an acceptance at the same time
 def test_operator_command_sequences_follow_the_packml_table(seq: list[tuple[int, str]]) -> None:
     scene = load_scene('folder')

@@ -295,7 +295,7 @@ def test_a_malformed_announcement_is_refused_with_the_reason(text: str, words: s
 def test_an_announcement_not_signed_with_the_line_key_is_refused() -> None:
     text = format_announcement(Announcement('lockstep', None, ('crank_drive',)))
     for forged in (without_signature(text), text.replace('crank_drive', 'supervisor')):
-        with pytest.raises(ValueError, match='^announcement: (unsigned|signature does not match)'):
+        with pytest.raises(ValueError, match=r'^announcement: (unsigned|signature does not match)'):
             parse_announcement(forged)
 
 

@@ -24,6 +24,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.time_source import TimeSource
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, UInt64
 
@@ -57,7 +59,7 @@ from folder_line.ros.nodes.machine import MACHINE_SPECS, MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter, counted_kind
 from folder_line.ros.nodes.supervisor import Supervisor
 from folder_line.ros.ros_args import command_line_values
-from folder_line.ros.time_msg import time_msg_to_ns
+from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import joint_states_topic
 
 from .._signed import signed
@@ -376,6 +378,14 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     assert ros.spin_until(
         lambda: hold.held == NS_PER_S // 2 and crank.lockstep.last_done == NS_PER_S // 2, timeout=30.0
     )
+    # the node's sim clock reads the last tick it ran; a /clock from anyone else does not move it
+    assert crank.get_clock().now().nanoseconds == NS_PER_S // 2
+    assert not [s for s in crank.subscriptions if isinstance(getattr(s.callback, '__self__', None), TimeSource)]
+    stranger = listener.create_publisher(ClockMsg, '/clock', 10)
+    for _ in range(5):
+        stranger.publish(ClockMsg(clock=ns_to_time_msg(100 * NS_PER_S)))
+        ros.spin_for(0.05)
+    assert crank.get_clock().now().nanoseconds == NS_PER_S // 2
     future = client.set_parameters_atomically(signed(crank.get_name(), [Parameter('rate', value=1.0)]))
     assert ros.spin_until(future.done, timeout=20.0)
     assert future.result().result.successful
@@ -392,7 +402,7 @@ def test_a_rate_change_on_a_machine_node_is_harmless(ros: Ros) -> None:
     )
     end = 2 * NS_PER_S
     stamps = [stamp_ns(m) for m in crank_js.messages]
-    assert stamps == grid(0, NS_PER_S // 2, STEP) + [3 * NS_PER_S // 2]  # then 1.5 s; 2.5 s is past the end
+    assert stamps == [*grid(0, NS_PER_S // 2, STEP), 3 * NS_PER_S // 2]  # then 1.5 s; 2.5 s is past the end
     model = LineModel(load_scene('folder'), 3.0)
     expect = model.sample(UNIT_OF_NODE['crank_drive'], np.array(stamps) / NS_PER_S)
     np.testing.assert_array_equal([m.position for m in crank_js.messages], expect.position)
@@ -539,6 +549,18 @@ def test_node_processes_refuse_a_bad_start_with_exit_code_2_before_joining_the_n
                     proc.wait()
 
 
+def test_a_rule_rcl_cannot_parse_is_refused_with_rcls_reason(node_env: dict[str, str]) -> None:
+    """``-p bad`` (no ``:=``) fails in ``rclpy.init``: rcl logs its own line, the node adds one naming the rule."""
+    command = [sys.executable, '-m', 'folder_line.ros.nodes.belt_conveyor', '--ros-args', '-p', 'bad']
+    env = {**node_env, 'ROS_DOMAIN_ID': NO_DOMAIN}
+    proc = subprocess.run(command, env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "belt_conveyor: error: failed to initialize rcl: Couldn't parse parameter override rule: '-p bad'" in (
+        proc.stderr
+    )
+    assert 'Traceback' not in proc.stderr
+
+
 def test_a_bad_start_the_command_line_does_not_show_is_refused_by_the_node(node_env: dict[str, str]) -> None:
     """A start whose arguments are not read before rcl (here the node renamed) is refused by the node
     itself, after it made its participant: the same line and exit code 2."""
@@ -556,7 +578,7 @@ def test_a_bad_start_the_command_line_does_not_show_is_refused_by_the_node(node_
 def test_the_command_line_check_refuses_as_the_node_does(ros: Ros, param: str, words: str) -> None:
     """``refuse_start`` on the values read from ``--ros-args`` raises the node's own first refusal, word for
     word, for every bad start; and a good start passes it."""
-    name, _, text = param.partition(':=')
+    name, _, _text = param.partition(':=')
     given = command_line_values(['--ros-args', '-p', param], 'crank_drive')
     assert given is not None and name in given
     with pytest.raises(FolderLineError) as by_command_line:
