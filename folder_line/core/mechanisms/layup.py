@@ -60,6 +60,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
+from folder_line.core.numerics.dyad import DyadLinks, heron, heron_into, joint, joint_into
 from folder_line.core.numerics.loop import TOGGLE_TOL
 from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import as_float, check_fields, non_negative, positive
@@ -419,41 +420,29 @@ class LayupModel:
         self._l5 = p.l5
         self._d0 = p.O2O3
         self._vt2 = p.v_tr * p.v_tr
-        # products, not **: a float ** that overflows raises OverflowError, a product gives inf (refused later)
-        self._P1 = (p.O2B + p.l2) * (p.O2B + p.l2)
-        self._M1 = (p.O2B - p.l2) * (p.O2B - p.l2)
-        self._g1 = 0.5 * (p.O2B * p.O2B - p.l2 * p.l2)
-        self._n1 = 1.0 / (2.0 * p.O2B * p.l2)
-        self._P2 = (p.l5 + p.l4) * (p.l5 + p.l4)
-        self._M2 = (p.l5 - p.l4) * (p.l5 - p.l4)
-        self._g2 = 0.5 * (p.l5 * p.l5 - p.l4 * p.l4)
-        self._n2 = 1.0 / (2.0 * p.l5 * p.l4)
+        self._loop1 = DyadLinks(p.O2B, p.l2)  # about O2: B from A
+        self._loop2 = DyadLinks(p.l5, p.l4)  # about O3: E from C
         self.point = self._make_point()
 
     # ------------------------------------------------------------------ scalar path
     def _make_point(self) -> _PointFn:
         R, a, b, w_default = self._R, self._a, self._b, self._omega
-        P1, M1, g1 = self._P1, self._M1, self._g1
-        P2, M2, g2 = self._P2, self._M2, self._g2
+        loop1, loop2 = self._loop1, self._loop2
         r3, l3, l5, d0, vt2 = self._r3, self._l3, self._l5, self._d0, self._vt2
         cos, sin, sqrt, atan2 = math.cos, math.sin, math.sqrt, math.atan2
         fail = self._fail_scalar
         Point = LayupPoint
         lo, hi = -_PI, _PI
 
-        def dyad(
-            px: float, py: float, P: float, M: float, g: float, phi: float, loop: int
-        ) -> tuple[float, float, float]:
-            # the joint X = k1 P + k2 P⊥ relative to the loop's pivot, and S (class notes)
+        def dyad(px: float, py: float, links: DyadLinks, phi: float, loop: int) -> tuple[float, float, float]:
+            # the joint relative to the loop's pivot, and S (the dyad kernel, class notes)
             d2 = px * px + py * py
-            e = (P - d2) * (d2 - M)
+            e = heron(d2, links.plus2, links.minus2)
             if not e > 0.0:
                 fail(phi, loop)
             sq = sqrt(e)
-            q = 1.0 / d2
-            k1 = 0.5 + g * q
-            k2 = 0.5 * sq * q
-            return k1 * px - k2 * py, k1 * py + k2 * px, sq
+            x, y = joint(px, py, d2, sq, links.half_diff)
+            return x, y, sq
 
         def point(phi: float, omega: float | None = None) -> LayupPoint:
             """Kinematics at one crank angle, pure ``math`` (a few µs).
@@ -481,12 +470,12 @@ class LayupModel:
             s = sin(phi)
             ax = a + R * c
             ay = b + R * s
-            bx, by, s1 = dyad(ax, ay, P1, M1, g1, phi, 1)
+            bx, by, s1 = dyad(ax, ay, loop1, phi, 1)
             w3 = 2.0 * w * R * ((by - ay) * c - (bx - ax) * s) / s1
             cx = r3 * bx
             cy = r3 * by
             dx = cx - d0
-            wx, wy, s2 = dyad(dx, cy, P2, M2, g2, phi, 2)
+            wx, wy, s2 = dyad(dx, cy, loop2, phi, 2)
             w5 = 2.0 * w3 * ((wy - cy) * cx - (wx - dx) * cy) / s2
             vc = w3 * l3
             ve = w5 * l5
@@ -541,19 +530,18 @@ class LayupModel:
     def _discriminants(self, xp: Any, maximum: Any, phi: Any) -> tuple[Any, Any]:
         """Both loops' normalised discriminants with the namespace ``xp`` (``math`` for a float,
         ``numpy`` for an array; ``maximum`` its elementwise max) at reduced crank angle(s)."""
+        loop1, loop2 = self._loop1, self._loop2
         ax = self._a + self._R * xp.cos(phi)
         ay = self._b + self._R * xp.sin(phi)
         d2 = ax * ax + ay * ay
-        e1 = (self._P1 - d2) * (d2 - self._M1)
-        q = 1.0 / d2
-        k1 = 0.5 + self._g1 * q
-        k2 = 0.5 * xp.sqrt(maximum(e1, 0.0)) * q
-        cx = self._r3 * (k1 * ax - k2 * ay)
-        cy = self._r3 * (k1 * ay + k2 * ax)
+        e1 = heron(d2, loop1.plus2, loop1.minus2)
+        bx, by = joint(ax, ay, d2, xp.sqrt(maximum(e1, 0.0)), loop1.half_diff)
+        cx = self._r3 * bx
+        cy = self._r3 * by
         dx = cx - self._d0
         e2 = dx * dx + cy * cy
-        f2 = (self._P2 - e2) * (e2 - self._M2)
-        return e1 * self._n1 * self._n1, f2 * self._n2 * self._n2
+        f2 = heron(e2, loop2.plus2, loop2.minus2)
+        return e1 * loop1.norm * loop1.norm, f2 * loop2.norm * loop2.norm
 
     def _fail_scalar(self, phi: float, loop: int) -> NoReturn:
         d1, d2 = self.discriminants_scalar(phi)
@@ -633,7 +621,7 @@ class LayupModel:
         mul(S, self._R, out=yA)
         add(yA, self._b, out=yA)
         # loop 1 about O2: G = S1 = sqrt(((p+l2)² - d²)(d² - (p-l2)²))
-        self._dyad(1, xA, yA, xB, yB, mg1, G, T, U, V, W, phi_given)
+        self._dyad(1, xA, yA, xB, yB, mg1, G, T, U, V, phi_given)
         # omega3 = 2 ω R ((B - A) · (cos, sin)⊥) / S1
         _cross_over(w3, xB, yB, xA, yA, Cc, S, G, U, V)
         mul(w3, 2.0 * w * self._R, out=w3)
@@ -642,7 +630,7 @@ class LayupModel:
         mul(yB, self._r3, out=yC)
         # loop 2 about O3: U = C - O3 (x), V = S2; (xE, yE) = E - O3
         sub(xC, self._d0, out=U)
-        self._dyad(2, U, yC, xE, yE, mg2, V, T, W, T, Z, phi_given)
+        self._dyad(2, U, yC, xE, yE, mg2, V, T, W, T, phi_given)
         np.arctan2(yE, xE, out=th5)
         # omega5 = 2 ω3 ((E - C) · C⊥) / S2 (x of E and C still relative to O3)
         _cross_over(w5, xE, yE, U, yC, xC, yC, V, W, Z)
@@ -670,42 +658,22 @@ class LayupModel:
         D: np.ndarray,
         K1: np.ndarray,
         K2: np.ndarray,
-        tmp: np.ndarray,
         phi_given: np.ndarray,
     ) -> None:
-        """Joint of loop ``loop`` for one chunk, in place: ``X = k1 P + k2 P⊥`` (class notes).
+        """Joint of loop ``loop`` for one chunk, in place, with the dyad kernel (:mod:`..numerics.dyad`).
 
         ``(px, py)`` is the moving centre P (A, or C - O3) relative to the loop's pivot. On
         return ``(ox, oy)`` is the joint (B, or E - O3) relative to the pivot, ``S`` the root
-        of Heron's discriminant (S1, S2) and ``mg`` the toggle margin. ``D``, ``K1``, ``K2``
-        and ``tmp`` are scratch; ``K2`` may be ``D``.
+        of Heron's discriminant (S1, S2) and ``mg`` the toggle margin. ``D``, ``K1`` and ``K2``
+        are scratch; ``K2`` may be ``D``.
         """
-        if loop == 1:
-            P, M, g, n = self._P1, self._M1, self._g1, self._n1
-        else:
-            P, M, g, n = self._P2, self._M2, self._g2, self._n2
-        mul, add, sub = np.multiply, np.add, np.subtract
-        mul(px, px, out=D)
-        mul(py, py, out=S)
-        add(D, S, out=D)  # d²
-        sub(P, D, out=S)
-        sub(D, M, out=K1)
-        mul(S, K1, out=S)
+        links = self._loop1 if loop == 1 else self._loop2
+        heron_into(px, py, links.plus2, links.minus2, D, S, K1)
         if not S.min() > 0.0:
             self._fail_array(phi_given, S, loop)
         np.sqrt(S, out=S)
-        mul(S, n, out=mg)
-        np.divide(1.0, D, out=D)  # q = 1/d²
-        mul(D, g, out=K1)
-        add(K1, 0.5, out=K1)  # k1
-        mul(S, D, out=K2)
-        mul(K2, 0.5, out=K2)  # k2
-        mul(K1, px, out=ox)
-        mul(K2, py, out=tmp)
-        sub(ox, tmp, out=ox)
-        mul(K1, py, out=oy)
-        mul(K2, px, out=tmp)
-        add(oy, tmp, out=oy)
+        np.multiply(S, links.norm, out=mg)
+        joint_into(px, py, D, S, links.half_diff, ox, oy, K1, K2)
 
     def _accel(self, o: np.ndarray, w: float, alpha: float) -> None:
         """ε3, ε5 for one chunk from the twice-differentiated loop equations."""

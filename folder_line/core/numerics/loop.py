@@ -42,6 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.numerics.arrays import FloatArray, FloatOrArray
+from folder_line.core.numerics.dyad import joint
 from folder_line.errors import AssemblyError
 
 __all__ = [
@@ -192,13 +193,10 @@ def circle_intersection(
         i = int(np.flatnonzero(~ok.reshape(-1))[0])
         flat = [float(v.reshape(-1)[i]) for v in (d2, r0a, r1a, disc, inp)]
         raise AssemblyError(mechanism, flat[4], _miss_reason(flat[0], flat[1], flat[2], flat[3], tol))
-    # along: distance of the chord's foot from c0, as a fraction of d;
-    # across: half-chord h as a fraction of d, h/d = sin(mu) r0 r1 / d².
-    along = 0.5 + (r0a * r0a - r1a * r1a) / (2.0 * d2)
-    across = np.sqrt(np.maximum(disc, 0.0)) * r0a * r1a / d2 * np.sign(br)
-    x = x0a + along * dx - across * dy
-    y = y0a + along * dy + across * dx
-    return Intersection(x=x, y=y, disc=disc, toggle=np.abs(disc) <= tol)
+    # the dyad kernel about c0, with s = ±sqrt(e) = ±2 r0 r1 sin(mu) (the tangent point at a toggle)
+    s = np.sqrt(np.maximum(disc, 0.0)) * (2.0 * r0a * r1a) * np.sign(br)
+    jx, jy = joint(dx, dy, d2, s, 0.5 * (r0a * r0a - r1a * r1a))
+    return Intersection(x=x0a + jx, y=y0a + jy, disc=disc, toggle=np.abs(disc) <= tol)
 
 
 def circle_intersection_scalar(
@@ -247,11 +245,9 @@ def circle_intersection_scalar(
     disc = ((r0 + r1) ** 2 - d2) * (d2 - (r0 - r1) ** 2) / (4.0 * r0 * r0 * r1 * r1)
     if not (disc >= -tol and d2 > 0.0):
         raise AssemblyError(mechanism, float(inputs), _miss_reason(d2, r0, r1, disc, tol))
-    along = 0.5 + (r0 * r0 - r1 * r1) / (2.0 * d2)
-    across = math.sqrt(disc) * r0 * r1 / d2 if disc > 0.0 else 0.0
-    if branch < 0:
-        across = -across
-    return x0 + along * dx - across * dy, y0 + along * dy + across * dx, disc
+    s = math.sqrt(disc) * (2.0 * r0 * r1) if disc > 0.0 else 0.0
+    jx, jy = joint(dx, dy, d2, -s if branch < 0 else s, 0.5 * (r0 * r0 - r1 * r1))
+    return x0 + jx, y0 + jy, disc
 
 
 def tracked_intersection(
