@@ -38,8 +38,10 @@ class DyadLinks:
 
     Attributes
     ----------
-    plus2, minus2 : float
-        ``(r0 + r1)²`` and ``(r0 - r1)²``, m² (products: an overflow gives inf, not an exception).
+    plus2 : float
+        ``(r0 + r1)²``, m² (products here: an overflow gives inf, not an exception).
+    minus2 : float
+        ``(r0 - r1)²``, m².
     half_diff : float
         ``(r0² - r1²) / 2``, m².
     norm : float
