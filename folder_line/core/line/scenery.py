@@ -381,7 +381,6 @@ class Scenery:
 
     def _folder_shapes(self, t: float, theta: float, sheets: np.ndarray) -> list[Shape]:
         fl = self._folder
-        _, _, _oz = FOLDER_ORIGIN
         a = fl.timing.omega_c * theta
         spoke = self._cyl_c + self._R_c * np.array([math.cos(-a), 0.0, math.sin(-a)])
         b_t = float(np.asarray(fl.belt.at(np.array([t]), np.array([theta]))).reshape(-1)[0])

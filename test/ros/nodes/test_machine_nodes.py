@@ -578,7 +578,7 @@ def test_a_bad_start_the_command_line_does_not_show_is_refused_by_the_node(node_
 def test_the_command_line_check_refuses_as_the_node_does(ros: Ros, param: str, words: str) -> None:
     """``refuse_start`` on the values read from ``--ros-args`` raises the node's own first refusal, word for
     word, for every bad start; and a good start passes it."""
-    name, _, _text = param.partition(':=')
+    name = param.partition(':=')[0]
     given = command_line_values(['--ros-args', '-p', param], 'crank_drive')
     assert given is not None and name in given
     with pytest.raises(FolderLineError) as by_command_line:
