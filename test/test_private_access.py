@@ -10,6 +10,7 @@ insides must not break the tool, and a reviewer must not have to ask whether it 
 from __future__ import annotations
 
 import ast
+import functools
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -33,6 +34,12 @@ def sources() -> list[Path]:
     return sorted(p for tree in TREES for p in (REPO / tree).rglob('*.py'))
 
 
+@functools.cache
+def parsed() -> tuple[tuple[Path, ast.Module], ...]:
+    """Every source with its syntax tree, parsed once for the whole module."""
+    return tuple((path, ast.parse(path.read_text(encoding='utf-8'))) for path in sources())
+
+
 def is_private(name: str) -> bool:
     return name.startswith('_') and not (name.startswith('__') and name.endswith('__'))
 
@@ -54,8 +61,8 @@ def defined_names(tree: ast.AST) -> Iterator[str]:
 
 def our_private_names() -> set[str]:
     names: set[str] = set()
-    for path in sources():
-        names.update(n for n in defined_names(ast.parse(path.read_text(encoding='utf-8'))) if is_private(n))
+    for _, tree in parsed():
+        names.update(n for n in defined_names(tree) if is_private(n))
     return names
 
 
@@ -106,9 +113,7 @@ def private_uses(tree: ast.AST, ours: set[str]) -> Iterator[tuple[int, str]]:
 def test_nothing_uses_another_librarys_private_names() -> None:
     ours = our_private_names()
     found = [
-        f'{path.relative_to(REPO)}:{line}: {what}'
-        for path in sources()
-        for line, what in private_uses(ast.parse(path.read_text(encoding='utf-8')), ours)
+        f'{path.relative_to(REPO)}:{line}: {what}' for path, tree in parsed() for line, what in private_uses(tree, ours)
     ]
     assert not found, '\n'.join(found)
 
