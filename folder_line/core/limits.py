@@ -167,7 +167,7 @@ SHEET_INTERVAL = Limit(
 )
 MACHINE_LENGTH = Limit(
     'a length of the folder or the delivery (`cyclogram.D_fc`, `cyclogram.L_feed`, `cyclogram.L_a`, '
-    '`delivery_chain.x_max`)',
+    "`delivery_chain.x_max`, `knife.r_k`; the knife's rod and the offset of its stroke axis at most as long)",
     1e-4,
     100.0,
     'm',

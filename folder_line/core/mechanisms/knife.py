@@ -54,7 +54,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from folder_line.core.limits import KNIFE_SPEED
+from folder_line.core.limits import KNIFE_SPEED, MACHINE_LENGTH
 from folder_line.core.numerics.roots import brent
 from folder_line.core.numerics.validate import as_float, positive
 from folder_line.errors import ParameterError
@@ -98,11 +98,11 @@ class KnifeParams:
     Parameters
     ----------
     r_k : float
-        Crank radius, m; > 0.
+        Crank radius, m; in [1e-4, 100] (:data:`folder_line.core.limits.MACHINE_LENGTH`).
     L_k : float
         Connecting rod length, m; > r_k + |e|.
     e : float
-        Offset of the stroke axis from the crank centre, m (any sign; 0 = central).
+        Offset of the stroke axis from the crank centre, m (any sign; 0 = central); in [-100, 100].
     n_k : float
         Crank speed, rev/h; > 0.
     s_clear : float
@@ -112,7 +112,8 @@ class KnifeParams:
     Raises
     ------
     ParameterError
-        A value out of range; the message names the field and the value.
+        A value out of range; the message names the field and the value. ``L_k``, like ``r_k``, is
+        at most 100 m (:data:`folder_line.core.limits.MACHINE_LENGTH`).
     """
 
     r_k: float
@@ -122,16 +123,18 @@ class KnifeParams:
     s_clear: float
 
     def __post_init__(self) -> None:
-        r = positive('knife.r_k', self.r_k)
-        L = positive('knife.L_k', self.L_k)
+        r = MACHINE_LENGTH.check('knife.r_k', self.r_k)
+        L = MACHINE_LENGTH.check('knife.L_k', positive('knife.L_k', self.L_k))
         e = as_float('knife.e', self.e)
+        if not abs(e) <= MACHINE_LENGTH.hi:
+            raise ParameterError('knife.e', self.e, f'must be in [-{MACHINE_LENGTH.hi:g}, {MACHINE_LENGTH.hi:g}] m')
         n = KNIFE_SPEED.check('knife.n_k', self.n_k)
         s_clear = as_float('knife.s_clear', self.s_clear)
         if not r + abs(e) < L:
             raise ParameterError(
                 'knife.L_k',
                 self.L_k,
-                f'must be > r_k + |e| = {r + abs(e)!r} m (r_k={r!r}, e={e!r}), otherwise '
+                f'must be > r_k + |e| = {r + abs(e)!r} m (knife.r_k={r!r}, knife.e={e!r}), otherwise '
                 'the crank-slider cannot be assembled for a full crank turn',
             )
         _, s_max, _, s_min = _extremes(r, L, e)

@@ -82,7 +82,12 @@ def test_omega_and_period(ref: KnifeParams) -> None:
 @pytest.mark.parametrize(
     ('kw', 'key', 'words'),
     [
-        ({'r_k': 0.0}, 'knife.r_k', '> 0'),
+        ({'r_k': 0.0}, 'knife.r_k', 'must be in [0.0001, 100] m'),
+        ({'r_k': 5e-324}, 'knife.r_k', 'must be in [0.0001, 100] m'),
+        ({'r_k': 1e308}, 'knife.r_k', 'must be in [0.0001, 100] m'),
+        ({'L_k': 1e308}, 'knife.L_k', 'must be in [0.0001, 100] m'),  # was an OverflowError
+        ({'e': 1e308}, 'knife.e', 'must be in [-100, 100] m'),
+        ({'e': -1.0}, 'knife.L_k', 'knife.e=-1.0'),  # the rule tying the three names the others too
         ({'L_k': -0.1}, 'knife.L_k', '> 0'),
         ({'L_k': 0.04}, 'knife.L_k', 'cannot be assembled'),  # L = r
         ({'e': 0.12}, 'knife.L_k', 'cannot be assembled'),  # L = r + |e| exactly
