@@ -131,6 +131,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     p.add_argument('--out', required=True, metavar='FILE.mp4|FILE.gif', help='the video to write')
     add_animation_options(p)
+    p.set_defaults(func=run, output_option='--out')
     return p
 
 

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from folder_line.analysis.foxglove import layout_text
 from folder_line.cli.study_options import add_scene_arguments, source_from
 from folder_line.core.line.scene import parse_scene
 from folder_line.files.atomic import check_output_file, write_text_atomic
 
-__all__ = ['HELP', 'add_arguments', 'run']
+__all__ = ['HELP', 'add_arguments', 'add_parser', 'run']
 
 HELP = "write a Foxglove layout of the scene's line: the machine in 3D, joint states, margins, state, events"
 
@@ -21,6 +22,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--out', metavar='FILE', help='write the layout (JSON) to FILE, replaced whole (default: print it)'
     )
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``layout`` verb to ``folder-line``'s sub-parsers."""
+    parser: argparse.ArgumentParser = subparsers.add_parser('layout', help=HELP)
+    add_arguments(parser)
+    parser.set_defaults(func=run, output_option='--out')
+    return parser
 
 
 def run(args: argparse.Namespace) -> int:

@@ -111,6 +111,23 @@ def _key(session: MonitorSession, operator: OperatorKeys, key: str) -> None:
         operator.no_service(command)
 
 
+def _read_keys(stdscr: Any, session: MonitorSession, operator: OperatorKeys) -> bool | None:
+    """Take the keys typed since the last look: None on ``q`` (quit, unless a command waits for its
+    confirmation), else whether the view must be drawn again (a key taken, or the terminal resized)."""
+    redraw = False
+    while True:
+        key = stdscr.getch()
+        if key == -1:
+            return redraw
+        if key in (ord('q'), ord('Q')) and operator.pending is None:
+            return None
+        if key == curses.KEY_RESIZE:
+            redraw = True
+        elif 0 <= key < 256:
+            _key(session, operator, chr(key))
+            redraw = True
+
+
 def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> int:
     operator = state.operator = OperatorKeys(keyed=bool(os.environ.get('FOLDER_LINE_KEY', '').strip()))
 
@@ -130,17 +147,11 @@ def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> i
             now = time.monotonic()
             if now >= next_key:
                 next_key = now + KEY_PERIOD
-                while True:
-                    key = stdscr.getch()
-                    if key == -1:
-                        break
-                    if key in (ord('q'), ord('Q')) and operator.pending is None:
-                        return 0
-                    if key == curses.KEY_RESIZE:
-                        next_draw = 0.0
-                    elif 0 <= key < 256:
-                        _key(session, operator, chr(key))
-                        next_draw = 0.0
+                keys = _read_keys(stdscr, session, operator)
+                if keys is None:
+                    return 0
+                if keys:
+                    next_draw = 0.0
             if now >= next_draw:
                 next_draw = now + period
                 _draw(stdscr, state, styles, time.time())  # the clock of the reception times

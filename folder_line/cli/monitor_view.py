@@ -429,73 +429,89 @@ class MonitorState:
         stats.latest = self._take(topic, msg, wall)
 
     def _take(self, topic: str, msg: Any, wall: float) -> str:
-        if topic == CLOCK_TOPIC:
-            t = _stamp_s(msg.clock)
-            self.sim_time = t  # the latest, not the largest: a line started again shows its new time
-            if self._clock_track and t < self._clock_track[-1][1]:  # time went back: a new line
-                self._clock_track.clear()
-            self._clock_track.append((wall, t))
-            while self._clock_track and self._clock_track[0][0] <= wall - self.window:
-                self._clock_track.popleft()
-            return f'{t:.3f} s'
         m = _JOINT_STATES.match(topic)
         if m is not None:
-            joint = JointView(
-                m['node'],
-                _stamp_s(msg.header.stamp),
-                tuple(msg.name),
-                tuple(float(x) for x in msg.position),
-                tuple(float(x) for x in msg.velocity),
-                tuple(float(x) for x in msg.effort),
-            )
-            self.joints[joint.node] = joint
-            return f'{len(joint.names)} joint{"" if len(joint.names) == 1 else "s"} at {joint.stamp:.3f} s'
-        if topic == EVENTS_TOPIC:
-            kind, sheet, cycle, value = _parse_event(msg.source)
-            previous = self.events.get(kind)
-            event = EventView(
-                kind,
-                1 if previous is None else previous.count + 1,
-                _stamp_s(msg.time_ref),
-                sheet,
-                cycle,
-                value,
-                msg.header.frame_id,
-            )
-            self.events[kind] = event
-            return f'{kind} at {event.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
-        if topic == DIAGNOSTICS_TOPIC:
-            return self._take_diagnostics(msg)
-        if topic == SUPERVISOR_STATE_TOPIC:
-            state: str = msg.data
-            if state != self.state:  # a change seen, not the state found on joining: since then
-                self.state_since = self.sim_time if self.state else None
-                self.state = state
-            return state
-        if topic == SHEET_COUNT_TOPIC:
-            self.sheet_count = int(msg.data)
-            return str(self.sheet_count)
-        if topic == SHEET_RATE_TOPIC:
-            self.sheet_rate = float(msg.data)
-            return f'{self.sheet_rate:.3f} /s'
-        if topic == LANDING_TOPIC:
-            self.landing_x = float(msg.data)
-            return f'{self.landing_x:.4f} m'
-        if topic == COMMANDS_TOPIC:
-            t = _stamp_s(msg.time_ref)
-            source = without_signature(msg.source)
-            self.commands.append((source, t))
-            del self.commands[:-8]
-            return f'{source} effective at {t:.3f} s'
-        if topic == PARTICIPANTS_TOPIC:  # 'clock=lockstep end=... participants=a,b'
-            fields = dict(item.partition('=')[::2] for item in without_signature(str(msg.data)).split())
-            names = [n for n in fields.get('participants', '').split(',') if n]
-            return f'{fields.get("clock", "?")} clock, {len(names)} participants'
-        if topic == MARKERS_TOPIC:  # the machine drawn: how many markers, of which stamp
-            markers = list(msg.markers)
-            at = f' at {_stamp_s(markers[-1].header.stamp):.3f} s' if markers else ''
-            return f'{len(markers)} marker{"" if len(markers) == 1 else "s"}{at}'
-        return type(msg).__name__
+            return self._take_joints(m['node'], msg)
+        take = _TAKERS.get(topic)
+        return type(msg).__name__ if take is None else take(self, msg, wall)
+
+    def _take_clock(self, msg: Any, wall: float) -> str:
+        t = _stamp_s(msg.clock)
+        self.sim_time = t  # the latest, not the largest: a line started again shows its new time
+        if self._clock_track and t < self._clock_track[-1][1]:  # time went back: a new line
+            self._clock_track.clear()
+        self._clock_track.append((wall, t))
+        while self._clock_track and self._clock_track[0][0] <= wall - self.window:
+            self._clock_track.popleft()
+        return f'{t:.3f} s'
+
+    def _take_joints(self, node: str, msg: Any) -> str:
+        joint = JointView(
+            node,
+            _stamp_s(msg.header.stamp),
+            tuple(msg.name),
+            tuple(float(x) for x in msg.position),
+            tuple(float(x) for x in msg.velocity),
+            tuple(float(x) for x in msg.effort),
+        )
+        self.joints[joint.node] = joint
+        return f'{len(joint.names)} joint{"" if len(joint.names) == 1 else "s"} at {joint.stamp:.3f} s'
+
+    def _take_event(self, msg: Any, wall: float) -> str:
+        kind, sheet, cycle, value = _parse_event(msg.source)
+        previous = self.events.get(kind)
+        event = EventView(
+            kind,
+            1 if previous is None else previous.count + 1,
+            _stamp_s(msg.time_ref),
+            sheet,
+            cycle,
+            value,
+            msg.header.frame_id,
+        )
+        self.events[kind] = event
+        return f'{kind} at {event.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
+
+    def _take_state(self, msg: Any, wall: float) -> str:
+        state: str = msg.data
+        if state != self.state:  # a change seen, not the state found on joining: since then
+            self.state_since = self.sim_time if self.state else None
+            self.state = state
+        return state
+
+    def _take_count(self, msg: Any, wall: float) -> str:
+        self.sheet_count = int(msg.data)
+        return str(self.sheet_count)
+
+    def _take_rate(self, msg: Any, wall: float) -> str:
+        self.sheet_rate = float(msg.data)
+        return f'{self.sheet_rate:.3f} /s'
+
+    def _take_landing(self, msg: Any, wall: float) -> str:
+        self.landing_x = float(msg.data)
+        return f'{self.landing_x:.4f} m'
+
+    def _take_command(self, msg: Any, wall: float) -> str:
+        t = _stamp_s(msg.time_ref)
+        source = without_signature(msg.source)
+        self.commands.append((source, t))
+        del self.commands[:-8]
+        return f'{source} effective at {t:.3f} s'
+
+    def _take_participants(self, msg: Any, wall: float) -> str:
+        # 'clock=lockstep end=... participants=a,b'
+        fields = dict(item.partition('=')[::2] for item in without_signature(str(msg.data)).split())
+        names = [n for n in fields.get('participants', '').split(',') if n]
+        return f'{fields.get("clock", "?")} clock, {len(names)} participants'
+
+    def _take_markers(self, msg: Any, wall: float) -> str:
+        # the machine drawn: how many markers, of which stamp
+        markers = list(msg.markers)
+        at = f' at {_stamp_s(markers[-1].header.stamp):.3f} s' if markers else ''
+        return f'{len(markers)} marker{"" if len(markers) == 1 else "s"}{at}'
+
+    def _take_diagnostics_at(self, msg: Any, wall: float) -> str:
+        return self._take_diagnostics(msg)
 
     def _take_diagnostics(self, msg: Any) -> str:
         stamp = _stamp_s(msg.header.stamp)
@@ -666,3 +682,18 @@ class MonitorState:
         if not self.commands:
             return []
         return [('DRIVE COMMANDS  ' + ', '.join(f'{c} at {t:.3f} s' for c, t in self.commands), 'title')]
+
+
+#: what the monitor takes of each topic's message (the joint states: by their pattern)
+_TAKERS: dict[str, Callable[[MonitorState, Any, float], str]] = {
+    CLOCK_TOPIC: MonitorState._take_clock,
+    EVENTS_TOPIC: MonitorState._take_event,
+    DIAGNOSTICS_TOPIC: MonitorState._take_diagnostics_at,
+    SUPERVISOR_STATE_TOPIC: MonitorState._take_state,
+    SHEET_COUNT_TOPIC: MonitorState._take_count,
+    SHEET_RATE_TOPIC: MonitorState._take_rate,
+    LANDING_TOPIC: MonitorState._take_landing,
+    COMMANDS_TOPIC: MonitorState._take_command,
+    PARTICIPANTS_TOPIC: MonitorState._take_participants,
+    MARKERS_TOPIC: MonitorState._take_markers,
+}

@@ -85,6 +85,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help=f'candidates per generation per design variable (default {_DEFAULTS.popsize})',
     )
     opt.add_argument('--out', default='out/optimize', metavar='DIR', help='output directory (default ./out/optimize)')
+    opt.set_defaults(func=run, output_option='--out')
     return opt
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,24 +22,27 @@ import numpy as np
 from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
 from folder_line.analysis.figures import exit_speed_curves, pyplot, save_figure, stroke_curves
 from folder_line.cli.tables import kinematics_table
+from folder_line.cli.verb_options import add_out
 from folder_line.config.params import KINDS, load_container, load_params, read_yaml_mapping
-from folder_line.config.scenes import set_press
+from folder_line.config.scenes import InputNames, parse_set, set_press
 from folder_line.core.line.scene import MachineParams, check_press_speed
 from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup_reach
 from folder_line.core.types.machines import ContainerParams
 from folder_line.errors import ParameterError
-from folder_line.files.atomic import write_csv_atomic, write_text_atomic
+from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_text_atomic
 
 __all__ = [
     'REPORT_FILES',
     'Check',
     'ReportParams',
+    'add_parser',
     'add_report_arguments',
     'delivery_figure',
     'layup_geometry_figure',
     'layup_speeds_figure',
     'published_checks',
     'report_params',
+    'run',
     'write_report',
 ]
 
@@ -166,6 +170,25 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
         metavar='SECTION.KEY=VALUE',
         help='override a value, e.g. press.n_c=30000 (cylinder and knife) or delivery.f_A=0.2 (repeatable)',
     )
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``report`` verb to ``folder-line``'s sub-parsers."""
+    rep: argparse.ArgumentParser = subparsers.add_parser(
+        'report', help='kinematics, efficiency and cyclogram report of the defaults, with plots'
+    )
+    add_out(rep, 'out')
+    add_report_arguments(rep)
+    rep.set_defaults(func=run, output_option='--out')
+    return rep
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the report at the values given into ``--out`` (claimed for the duration)."""
+    params = report_params(args.params, parse_set(args.overrides, InputNames(scene='--params', overrides='--set')))
+    with claim_output_dir(args.out, '--out', REPORT_FILES) as out:
+        write_report(out, sys.stdout, params)
+    return 0
 
 
 def _defaults() -> PaperParams:

@@ -75,6 +75,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument('--json', metavar='PATH', help='write the answer as JSON ({"value": ..., ...})')
     add_cluster_arguments(parser)
+    parser.set_defaults(func=run, output_option='--json')
     return parser
 
 

@@ -54,6 +54,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument('--out', default='out/sweep', metavar='DIR', help='output directory (default ./out/sweep)')
     add_samples_argument(parser, 'per point (the metrics are then means over them)')
     add_cluster_arguments(parser)
+    parser.set_defaults(func=run, output_option='--out')
     return parser
 
 

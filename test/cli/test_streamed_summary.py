@@ -14,6 +14,7 @@ import pytest
 
 from folder_line import progress
 from folder_line.cli import main as cli
+from folder_line.cli import simulate as simulate_cli
 from folder_line.cli import summary as summary_cli
 from folder_line.config.scenes import list_scenes, load_scene
 from folder_line.core.line.model import simulate
@@ -214,7 +215,7 @@ def test_a_long_run_on_a_terminal_shows_line_time_and_the_wall_time_left(
     terminal = _Terminal()
     monkeypatch.setattr('sys.stderr', terminal)
     monkeypatch.setattr(summary_cli, 'WINDOW', 10.0)
-    monkeypatch.setattr(cli, 'BAR_DELAY', 0.0)
+    monkeypatch.setattr(simulate_cli, 'BAR_DELAY', 0.0)
     monkeypatch.setattr(progress, 'ESTIMATE_AFTER', 0.0)
     drawn: list[str] = []
     real_show = progress.LineTimeProgress.show
