@@ -5,87 +5,23 @@ v_C, v_E vanish, "leaves lose speed, stay longer on the guides O2C, O3E, are bra
 by friction, and the container edges fill unevenly". This effect models that leaf
 on the guide (ours: docs/scenes.md, "Effects").
 
-Frame and equation
-------------------
-The chute turns about its pivot (O2 for transporter 3, O3 for transporter 4) with
-angle θ' measured counter-clockwise **from the downward vertical** (θ' = θ3 + π/2,
-resp. θ5 + π/2, in the project frame: x toward O3, y up), angular velocity
-ω = dθ'/dt and angular acceleration ε = dω/dt (from the six-bar, scaled by the
-master drive). The leaf is a point at distance s from the pivot along the unit
-vector t̂ = (sin θ', −cos θ') (pivot → exit); n̂ = ẑ × t̂ = (cos θ', sin θ'). In the
-inertial frame ``r = s t̂`` has acceleration
-
-    r̈ = (s̈ − ω² s) t̂ + (ε s + 2 ω ṡ) n̂ .
-
-Gravity (0, −g) has components ``g cos θ'`` along t̂ and ``−g sin θ'`` along n̂. The
-guide's walls push with N (per unit mass) along n̂ — the chute is a channel, so N
-may take either sign — and Coulomb friction ``μ |N|`` acts along −sign(ṡ) t̂. Hence::
+Equation
+--------
+The chute turns about its pivot by the angle θ' **from the downward vertical**
+(θ' = θ3 + π/2, resp. θ5 + π/2), with ω = dθ'/dt and ε = dω/dt (:class:`ChuteState`); the
+leaf is a point at distance s from the pivot along the chute. Per unit mass, with the walls'
+push N along the chute's normal (either sign: the chute is a channel)::
 
     N  = ε s + 2 ω ṡ + g sin θ'                                    (normal push)
     s̈ = g cos θ' + ω² s − μ |ε s + 2 ω ṡ + g sin θ'| sign(ṡ)      (sliding)
 
-— the equation with these signs exactly. The chute must point downward
-over its whole swing (cos θ' > 0; checked by the simulator), so the driving force
-``D = g cos θ' + ω² s`` is > 0 for s >= 0: a leaf never slides back up, ṡ >= 0
-throughout, and sign(ṡ) = +1 while it moves.
-
-Stick–slip
-----------
-Two modes per leaf:
-
-* sliding (ṡ > 0): ``s̈ = D − μ |N|``;
-* stuck (ṡ = 0, s fixed): while ``σ(t) = D − μ |N|₀ <= 0`` with ``|N|₀`` the wall
-  push at rest (ṡ = 0): static friction holds the leaf.
-
-A sliding leaf sticks when ṡ reaches 0 (then σ <= 0 since ṡ was falling); it slips
-again at the first t with σ(t) > 0. A leaf entering at rest (``v0 = 0``) is stuck
-from its entry if σ(t_enter) <= 0. Events: ``leaf_stick`` at the stick time, and
-``leaf_slip`` at the slip time; both are localised by root-finding
-(:func:`folder_line.core.numerics.roots.brentq`): the stick time on the step's dense
-interpolant of ṡ (ṡ = 0), the slip time on σ(t) itself with the exact kinematics, in
-the bracket of the scan below.
-
-Integrator
-----------
-Classical fixed-step RK4 on (s, ṡ), step ``h`` (a Params field), all leaves advancing
-in lockstep (vectorised, each at its own time): the chute kinematics are evaluated
-twice per step (at t + h/2 and t + h, shared by the stages), the acceleration at the
-step's end is reused as the next step's first stage. Events inside a step are
-localised on the step's cubic Hermite interpolants (``s`` from s, ṡ at both ends;
-``ṡ`` from ṡ, s̈ at both ends; both O(h⁴)):
-
-* exit: ``s = l`` — vectorised bisection of the interpolant to the float resolution
-  of the step fraction (every leaf exits once, so this is the bulk);
-* stop: ``ṡ = 0`` — :func:`folder_line.core.numerics.roots.brentq` per event.
-
-``|N|`` has a kink where N changes sign; a step across it would drop RK4 to third order
-(a stage sampled a distance δ on the wrong side of the kink costs ~ ``h μ |N'| δ``), so
-a step whose end has N of the other sign is shortened to end on the zero of N:
-Illinois (modified regula falsi) iterations on the step length, each a full RK4
-sub-step, until ``|N| <= 1e-11`` m/s² there. A stuck leaf's σ(t) is scanned on a grid of
-step h (vectorised over the stuck leaves, in blocks of 64 samples); the first sample
-with σ > 0 brackets the slip. Documented limits: a σ > 0 window shorter than h, or an
-N that touches zero and turns back within one step, is not seen; a leaf whose first
-step after a slip does not move (σ grazed 0) stays stuck without events (the pending
-slip is discarded and the scan resumes after that step).
-
-Accuracy and cost (default geometry): RK4 is fourth order here, with the kinks
-handled; at h = 2 ms exit times and exit speeds agree with
-``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-12) to ~1e-11 s and ~1e-10 m/s
-(tested). One hour of line time (57 600 leaves, ~200 lockstep steps) takes ~2 s.
-
-What the model shows (default geometry, μ = 0.5, v0 = 1 m/s; tested): leaves leaving
-within 5° of a swing extreme are slower than those leaving at mid-swing (4.03 vs
-4.15 m/s) and stayed longer on the guide (0.392 vs 0.375 s) — the paper's
-observation — because v_C → 0 and the centrifugal push ω² s fades there; friction
-itself brakes most where the chute swings fastest (the Coriolis push 2 ω ṡ on the
-wall), so the slowest leaves leave ~15–45° of crank *before* each extreme, after
-crossing mid-swing on the chute. The chutes hang within ±18.7° of the vertical, so
-gravity dominates: leaves stick only for μ >~ 1/tan(18.7°) ≈ 3 (or entering slowly).
-
-Suggested parameters: ``mu = 0.5`` (leaf on a steel guide), ``s0 = 0.0`` m (entry at
-the pivot, as with the belts), ``v0 = 1.0`` m/s (entry speed from the feeding belt),
-``h = 0.002`` s.
+The chutes point downward over their whole swing (cos θ' > 0), so ṡ >= 0 throughout. A leaf
+slides (ṡ > 0: :func:`acceleration`) or is stuck (ṡ = 0) while ``σ <= 0`` (:func:`switching`),
+with the events ``leaf_stick`` and ``leaf_slip``. All leaves advance in lockstep by fixed-step
+RK4 (:class:`GuideSlider`, :func:`slide`). The frame and the derivation, the stick–slip rules,
+the integrator (events on the steps' Hermite interpolants, steps cut at the kinks of ``|N|``,
+the scan of a stuck leaf) and its limits, its accuracy and cost, what the model shows and the
+suggested parameters: docs/machines.md, "Leaves sliding on the guides".
 """
 
 from __future__ import annotations
@@ -100,6 +36,7 @@ import numpy.typing as npt
 
 from folder_line.core.numerics.arrays import FloatArray, IntArray
 from folder_line.core.numerics.constants import G
+from folder_line.core.numerics.hermite import hermite, hermite_level
 from folder_line.core.numerics.roots import brent, brentq
 from folder_line.core.numerics.validate import check_fields, non_negative, within
 from folder_line.errors import ParameterError
@@ -248,18 +185,6 @@ def check_geometry(params: Params, l_min: float, cos_max_up: float) -> None:
         )
 
 
-def _hermite(theta: _F, y0: _F, d0: _F, y1: _F, d1: _F, h: _F) -> _F:
-    """Cubic Hermite interpolant on a step of length h at fraction theta in [0, 1] (one leaf or many)."""
-    t2 = theta * theta
-    t3 = t2 * theta
-    return (
-        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
-        + (t3 - 2.0 * t2 + theta) * h * d0
-        + (3.0 * t2 - 2.0 * t3) * y1
-        + (t3 - t2) * h * d1
-    )
-
-
 def _rk4(
     params: Params,
     kin: KinFn,
@@ -387,14 +312,7 @@ def _exit_fraction(
     s0: np.ndarray, v0: np.ndarray, s1: np.ndarray, v1: np.ndarray, hh: np.ndarray, length: np.ndarray
 ) -> np.ndarray:
     """Step fraction where the Hermite interpolant of s reaches ``length`` (s0 < length <= s1): bisection."""
-    lo = np.zeros(s0.size)
-    hi = np.ones(s0.size)
-    for _ in range(_EXIT_BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        above = _hermite(mid, s0, v0, s1, v1, hh) >= length
-        hi = np.where(above, mid, hi)
-        lo = np.where(above, lo, mid)
-    return hi
+    return hermite_level(s0, v0, s1, v1, hh, length, _EXIT_BISECTIONS)
 
 
 def _slip_time(params: Params, kin1: Kin1Fn, s: float, ch: int, lo: float, hi: float) -> float:
@@ -591,8 +509,8 @@ class GuideSlider:
         return Found(ex[0], ex[1], ex[2], st[0], st[1], sl[0], sl[1])
 
     def _step(self, rows: np.ndarray) -> None:
-        """One lockstep RK4 step of the sliding leaves ``rows`` (module docstring)."""
-        p, kin, kin1 = self.params, self.kin, self.kin1
+        """One lockstep RK4 step of the sliding leaves ``rows`` (docs/machines.md, "Leaves sliding on the guides")."""
+        p = self.params
         whole = self.act
         act = whole.take(rows)
         rest = np.ones(whole.size, dtype=bool)
@@ -600,55 +518,19 @@ class GuideSlider:
         waiting = whole.take(rest)
         self.steps += act.size
         hh = np.full(act.size, p.h)
-        s1, v1, a1, n1 = _rk4(p, kin, act.t, act.s, act.v, act.a, act.ch, hh)
+        s1, v1, a1, n1 = _rk4(p, self.kin, act.t, act.s, act.v, act.a, act.ch, hh)
         # split steps across a sign change of N (kink of |N|)
         cross = (act.n * n1 < 0.0) & (np.abs(act.n) > _KINK_NTOL) & (np.abs(n1) > _KINK_NTOL)
         if cross.any():
-            _split_at_kink(p, kin, act, cross, hh, s1, v1, a1, n1)
+            _split_at_kink(p, self.kin, act, cross, hh, s1, v1, a1, n1)
         t1 = act.t + hh
         halted = v1 <= 0.0
         failed = halted & act.fresh  # did not get moving after a slip / from rest
         stop = halted & ~act.fresh
         out_exit = (s1 >= act.length) & ~failed
         done = out_exit | halted
-        new_stuck: list[tuple[int, float, float]] = []  # (row, s, scan from)
-        restart: list[tuple[int, float, float]] = []  # (row, t, s): grazing stop, slide on from rest
-        th_exit: dict[int, float] = {}
-        if out_exit.any():
-            er = np.flatnonzero(out_exit)
-            th = _exit_fraction(act.s[er], act.v[er], s1[er], v1[er], hh[er], act.length[er])
-            tx = act.t[er] + th * hh[er]
-            vx = _hermite(th, act.v[er], act.a[er], v1[er], a1[er], hh[er])
-            ok = ~stop[er]
-            self._found.append(('exit', act.ids[er[ok]], tx[ok], vx[ok]))
-            th_exit = dict(zip(er[stop[er]].tolist(), th[stop[er]].tolist(), strict=True))
-        for row in np.flatnonzero(stop).tolist():
-            y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
-
-            def dv(x: float, y0: float = y0, d0: float = d0, y1: float = y1, d1: float = d1, hr: float = hr) -> float:
-                return _hermite(x, y0, d0, y1, d1, hr)  # speed along the step: zero at the stop
-
-            th_stop = brentq(dv, 0.0, 1.0)
-            t0 = float(act.t[row])
-            leaf = np.array([act.ids[row]], dtype=np.int64)
-            if row in th_exit and th_exit[row] <= th_stop:
-                self._found.append(
-                    (
-                        'exit',
-                        leaf,
-                        np.array([t0 + th_exit[row] * hr]),
-                        np.array([_hermite(th_exit[row], y0, d0, y1, d1, hr)]),
-                    )
-                )
-                continue
-            t_stop = t0 + th_stop * hr
-            s_stop = _hermite(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
-            ch = int(act.ch[row])
-            if float(switching(p, s_stop, kin1(t_stop, ch))) <= 0.0:
-                self._found.append(('stick', leaf, np.array([t_stop]), np.zeros(1)))
-                new_stuck.append((row, s_stop, t_stop))
-            else:
-                restart.append((row, t_stop, s_stop))
+        th_exit = self._exits(act, hh, s1, v1, a1, out_exit, stop)
+        new_stuck, restart = self._stops(act, hh, s1, v1, a1, stop, th_exit)
         for row in np.flatnonzero(failed).tolist():
             if act.pending[row] < 0.0:  # stuck from its entry / after a grazing stop
                 self._found.append(('stick', act.ids[row : row + 1], act.t[row : row + 1], np.zeros(1)))
@@ -670,23 +552,99 @@ class GuideSlider:
             rr = np.array([x[0] for x in restart], dtype=np.int64)
             tr = np.array([x[1] for x in restart])
             sr = np.array([x[2] for x in restart])
-            kr = kin(tr, act.ch[rr])
-            zr = np.zeros(rr.size)
-            parts.append(
-                _Active(
-                    act.ids[rr],
-                    tr,
-                    sr,
-                    zr,
-                    acceleration(p, sr, zr, kr),
-                    normal(sr, zr, kr),
-                    act.ch[rr],
-                    act.length[rr],
-                    np.ones(rr.size, dtype=bool),
-                    np.full(rr.size, -1.0),
-                )
-            )
+            parts.append(self._from_rest(act.ids[rr], tr, sr, act.ch[rr], act.length[rr], np.full(rr.size, -1.0)))
         self.act = _Active.concat(parts)
+
+    def _exits(
+        self,
+        act: _Active,
+        hh: np.ndarray,
+        s1: np.ndarray,
+        v1: np.ndarray,
+        a1: np.ndarray,
+        out_exit: np.ndarray,
+        stop: np.ndarray,
+    ) -> dict[int, float]:
+        """Record the exits of the step (leaves ``act`` stepped by ``hh`` to ``s1, v1, a1``) of the leaves
+        ``out_exit`` that do not also stop in it (``stop``); for those that do, their exit's step
+        fraction by row (:meth:`_stops` decides which comes first)."""
+        if not out_exit.any():
+            return {}
+        er = np.flatnonzero(out_exit)
+        th = _exit_fraction(act.s[er], act.v[er], s1[er], v1[er], hh[er], act.length[er])
+        tx = act.t[er] + th * hh[er]
+        vx = hermite(th, act.v[er], act.a[er], v1[er], a1[er], hh[er])
+        ok = ~stop[er]
+        self._found.append(('exit', act.ids[er[ok]], tx[ok], vx[ok]))
+        return dict(zip(er[stop[er]].tolist(), th[stop[er]].tolist(), strict=True))
+
+    def _stops(
+        self,
+        act: _Active,
+        hh: np.ndarray,
+        s1: np.ndarray,
+        v1: np.ndarray,
+        a1: np.ndarray,
+        stop: np.ndarray,
+        th_exit: dict[int, float],
+    ) -> tuple[list[tuple[int, float, float]], list[tuple[int, float, float]]]:
+        """The leaves whose speed reaches 0 in the step (``stop``; the step as for :meth:`_exits`): each
+        exits first (``th_exit``), sticks (recorded), or slides on from rest (a grazing stop).
+
+        Returns
+        -------
+        tuple of list
+            The new stuck leaves ``(row, s m, scan from s)`` and the restarts ``(row, t s, s m)``.
+        """
+        p, kin1 = self.params, self.kin1
+        new_stuck: list[tuple[int, float, float]] = []  # (row, s, scan from)
+        restart: list[tuple[int, float, float]] = []  # (row, t, s): grazing stop, slide on from rest
+        for row in np.flatnonzero(stop).tolist():
+            y0, d0, y1, d1, hr = (float(act.v[row]), float(act.a[row]), float(v1[row]), float(a1[row]), float(hh[row]))
+
+            def dv(x: float, y0: float = y0, d0: float = d0, y1: float = y1, d1: float = d1, hr: float = hr) -> float:
+                return hermite(x, y0, d0, y1, d1, hr)  # speed along the step: zero at the stop
+
+            th_stop = brentq(dv, 0.0, 1.0)
+            t0 = float(act.t[row])
+            leaf = np.array([act.ids[row]], dtype=np.int64)
+            if row in th_exit and th_exit[row] <= th_stop:
+                self._found.append(
+                    (
+                        'exit',
+                        leaf,
+                        np.array([t0 + th_exit[row] * hr]),
+                        np.array([hermite(th_exit[row], y0, d0, y1, d1, hr)]),
+                    )
+                )
+                continue
+            t_stop = t0 + th_stop * hr
+            s_stop = hermite(th_stop, float(act.s[row]), y0, float(s1[row]), y1, hr)
+            ch = int(act.ch[row])
+            if float(switching(p, s_stop, kin1(t_stop, ch))) <= 0.0:
+                self._found.append(('stick', leaf, np.array([t_stop]), np.zeros(1)))
+                new_stuck.append((row, s_stop, t_stop))
+            else:
+                restart.append((row, t_stop, s_stop))
+        return new_stuck, restart
+
+    def _from_rest(
+        self,
+        ids: np.ndarray,
+        t: np.ndarray,
+        s: np.ndarray,
+        ch: np.ndarray,
+        length: np.ndarray,
+        pending: np.ndarray,
+    ) -> _Active:
+        """Leaves starting to slide from rest at times ``t`` (s) and places ``s`` (m): fresh, with their
+        pending slip times ``pending`` (s; -1 for none)."""
+        p = self.params
+        k = self.kin(t, ch)
+        z = np.zeros(ids.size)
+        return _Active(
+            ids, t, s, z, acceleration(p, s, z, k), normal(s, z, k), ch, length, np.ones(ids.size, dtype=bool), pending
+        )
 
     def _scan(self, c: float) -> bool:
         """Scan the stuck leaves' switching function at their scan times up to ``c``, in blocks of
@@ -727,19 +685,6 @@ class GuideSlider:
         if ok.any():
             rs = np.flatnonzero(ok)
             tr = slip[rs]
-            kr = kin(tr, ch[rs])
-            zr = np.zeros(rs.size)
-            resumed = _Active(
-                ids[rs],
-                tr,
-                s[rs],
-                zr,
-                acceleration(p, s[rs], zr, kr),
-                normal(s[rs], zr, kr),
-                ch[rs],
-                length[rs],
-                np.ones(rs.size, dtype=bool),
-                tr.copy(),
-            )
+            resumed = self._from_rest(ids[rs], tr, s[rs], ch[rs], length[rs], tr.copy())
             self.act = _Active.concat([self.act, resumed]) if self.act.size else resumed
         return True

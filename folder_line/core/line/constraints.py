@@ -53,7 +53,7 @@ Constraints (margin >= 0 passes; every margin finite)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -207,13 +207,49 @@ def folder_evaluation(
     """
     ev = np.asarray(events)
     t_last = (float(ev['t'].max()) if ev.size else 0.0) if t_end is None else float(t_end)
+    j = _judged(ev, causal, t_last)
+    bouncing = scene.has('stop_bounce')
+    per_cycle, counts = _one_per_cycle(j)
+    out = [_feed_window(j, timing, drive), _settled_before_knife(ev, j, bouncing, causal), per_cycle]
+    if bouncing:
+        out.append(_rebound(ev, j, scene, causal))
+    if 'delivery' in scene.machines:
+        out.append(_release_at_min_speed(ev, timing, scene, drive, plan))
+    return FolderEvaluation(constraints=out, cycle=j.cc.astype(np.int64), signatures=counts, t=j.tc.copy())
 
-    def theta(t: np.ndarray) -> np.ndarray:
-        return np.asarray(t, dtype=float) if drive is None else np.asarray(drive.theta(t), dtype=float)
 
-    def time_of(th: np.ndarray) -> np.ndarray:
-        return np.asarray(th, dtype=float) if drive is None else np.asarray(drive.time_of(th), dtype=float)
+def _theta(drive: Drive | None, t: np.ndarray) -> np.ndarray:
+    """Master phase Θ at line times ``t`` (Θ = t without a drive), nominal s."""
+    return np.asarray(t, dtype=float) if drive is None else np.asarray(drive.theta(t), dtype=float)
 
+
+def _time_of(drive: Drive | None, th: np.ndarray) -> np.ndarray:
+    """Line time of the master phases ``th`` (t = Θ without a drive), s."""
+    return np.asarray(th, dtype=float) if drive is None else np.asarray(drive.time_of(th), dtype=float)
+
+
+class _Judged(NamedTuple):
+    """The signatures judged in a table: those handed over in a cycle with a knife contact.
+
+    ``cc``, ``tc``: the cycles with a knife contact (ascending) and its time, s; per judged
+    signature: ``ic`` its cycle's index into them, ``sheet``, ``cyc``, ``t_contact`` (s),
+    ``t_stop`` (s) and ``at_stops`` (known at the stops); ``late_bound``: the margin of one
+    not at the stops (it arrives after the table ends), s.
+    """
+
+    cc: np.ndarray
+    tc: np.ndarray
+    ic: np.ndarray
+    sheet: np.ndarray
+    cyc: np.ndarray
+    t_contact: np.ndarray
+    t_stop: np.ndarray
+    at_stops: np.ndarray
+    late_bound: np.ndarray
+
+
+def _judged(ev: np.ndarray, causal: bool, t_last: float) -> _Judged:
+    """The judged signatures of ``ev`` (``causal``: as known at each knife contact; the table ends at ``t_last``, s)."""
     contact = _rows(ev, 'knife_contact')
     cc, first = np.unique(contact['cycle'], return_index=True)
     tc = contact['t'][first]
@@ -238,111 +274,110 @@ def folder_evaluation(
     # a sheet not yet at the stops when the table ends arrives after t_last (>= its knife contact)
     t_known = t_contact if causal else t_last
     late_bound = np.minimum(t_contact - t_known, -np.spacing(np.abs(t_contact) + 1.0))
-    out: list[ConstraintSeries] = []
+    return _Judged(cc, tc, ic, sheet, cyc, t_contact, t_stop, at_stops, late_bound)
 
-    # feed_window
-    if sheet.size:
-        th_dead = theta(tc) - (timing.T - timing.t_knife - timing.t_allowed)
-        t_dead = time_of(th_dead)[ic]
-        margin = np.where(at_stops, t_dead - t_stop, (t_dead - t_contact) + late_bound)
+
+def _feed_window(j: _Judged, timing: CycleTiming, drive: Drive | None) -> ConstraintSeries:
+    """``feed_window``: each signature at the stops by its cycle's feed deadline, margin in s."""
+    if j.sheet.size:
+        th_dead = _theta(drive, j.tc) - (timing.T - timing.t_knife - timing.t_allowed)
+        t_dead = _time_of(drive, th_dead)[j.ic]
+        margin = np.where(j.at_stops, t_dead - j.t_stop, (t_dead - j.t_contact) + j.late_bound)
     else:
         margin = np.zeros(0)
-    c, m = _per_cycle_min(cyc, margin)
-    out.append(
-        ConstraintSeries(
-            'feed_window',
-            's',
-            c,
-            m,
-            'feed done within t_allowed of the knife exit: (window start + t_allowed) - t_at_stops',
-            t=_contact_time(cc, tc, c),
-        )
+    c, m = _per_cycle_min(j.cyc, margin)
+    return ConstraintSeries(
+        'feed_window',
+        's',
+        c,
+        m,
+        'feed done within t_allowed of the knife exit: (window start + t_allowed) - t_at_stops',
+        t=_contact_time(j.cc, j.tc, c),
     )
 
-    # settled_before_knife
-    bouncing = scene.has('stop_bounce')
+
+def _settled_before_knife(ev: np.ndarray, j: _Judged, bouncing: bool, causal: bool) -> ConstraintSeries:
+    """``settled_before_knife``: each signature at rest (``settled`` with ``stop_bounce``) before the knife, s."""
     if bouncing:
         settled = _rows(ev, 'settled')
-        t_set, is_set = _lookup(settled['sheet'], settled['t'], sheet)
+        t_set, is_set = _lookup(settled['sheet'], settled['t'], j.sheet)
         if causal:
-            is_set &= t_set <= t_contact
+            is_set &= t_set <= j.t_contact
     else:
-        t_set, is_set = t_stop, at_stops
-    margin = np.where(is_set, t_contact - t_set, late_bound)
-    c, m = _per_cycle_min(cyc, margin)
-    out.append(
-        ConstraintSeries(
-            'settled_before_knife',
-            's',
-            c,
-            m,
-            'signature at rest at the front stops before the knife contact: t_contact - t_settled',
-            t=_contact_time(cc, tc, c),
-        )
+        t_set, is_set = j.t_stop, j.at_stops
+    margin = np.where(is_set, j.t_contact - t_set, j.late_bound)
+    c, m = _per_cycle_min(j.cyc, margin)
+    return ConstraintSeries(
+        'settled_before_knife',
+        's',
+        c,
+        m,
+        'signature at rest at the front stops before the knife contact: t_contact - t_settled',
+        t=_contact_time(j.cc, j.tc, c),
     )
 
-    # one_per_cycle
-    in_time = at_stops & (t_stop <= t_contact)
-    counts = np.zeros(cc.size, dtype=np.int64)
-    if sheet.size:
-        np.add.at(counts, ic[in_time], 1)
-    out.append(
-        ConstraintSeries(
-            'one_per_cycle',
-            'sheets',
-            cc.astype(np.int64),
-            0.0 - np.abs(counts - 1).astype(float),
-            'exactly one signature at the stops at the knife contact: -|count - 1|',
-            t=tc.copy(),
-        )
+
+def _one_per_cycle(j: _Judged) -> tuple[ConstraintSeries, np.ndarray]:
+    """``one_per_cycle`` (margin ``-|count - 1|``), and the count of signatures at the stops per cycle."""
+    in_time = j.at_stops & (j.t_stop <= j.t_contact)
+    counts = np.zeros(j.cc.size, dtype=np.int64)
+    if j.sheet.size:
+        np.add.at(counts, j.ic[in_time], 1)
+    series = ConstraintSeries(
+        'one_per_cycle',
+        'sheets',
+        j.cc.astype(np.int64),
+        0.0 - np.abs(counts - 1).astype(float),
+        'exactly one signature at the stops at the knife contact: -|count - 1|',
+        t=j.tc.copy(),
+    )
+    return series, counts
+
+
+def _rebound(ev: np.ndarray, j: _Judged, scene: Scene, causal: bool) -> ConstraintSeries:
+    """``rebound`` (with ``stop_bounce``): the first rebound off the stops within the fold tolerance, m."""
+    tol = float(scene.effect_params('stop_bounce').tolerance)
+    bounce = _rows(ev, 'bounce')
+    if causal and bounce.size:  # only the rebounds before the sheet's knife contact
+        t_cut, known = _lookup(j.sheet, j.t_contact, bounce['sheet'])
+        bounce = bounce[known & (bounce['t'] <= t_cut)]
+    rb, _ = _lookup(bounce['sheet'], bounce['value'], j.sheet, reduce='max')
+    c, m = _per_cycle_min(j.cyc[j.at_stops], tol - rb[j.at_stops])
+    return ConstraintSeries(
+        'rebound',
+        'm',
+        c,
+        m,
+        'first rebound off the stops within the fold tolerance: tolerance - rebound',
+        t=_contact_time(j.cc, j.tc, c),
     )
 
-    # rebound
-    if bouncing:
-        tol = float(scene.effect_params('stop_bounce').tolerance)
-        bounce = _rows(ev, 'bounce')
-        if causal and bounce.size:  # only the rebounds before the sheet's knife contact
-            t_cut, known = _lookup(sheet, t_contact, bounce['sheet'])
-            bounce = bounce[known & (bounce['t'] <= t_cut)]
-        rb, _ = _lookup(bounce['sheet'], bounce['value'], sheet, reduce='max')
-        c, m = _per_cycle_min(cyc[at_stops], tol - rb[at_stops])
-        out.append(
-            ConstraintSeries(
-                'rebound',
-                'm',
-                c,
-                m,
-                'first rebound off the stops within the fold tolerance: tolerance - rebound',
-                t=_contact_time(cc, tc, c),
-            )
-        )
 
-    # release_at_min_speed
-    if 'delivery' in scene.machines:
-        if plan is None:
-            plan = delivery_plan(scene, timing)
-        assert plan is not None, 'delivery_plan is None only for a scene without a delivery'
-        rel = _rows(ev, 'released_on_pile')
-        if rel.size:
-            travel = plan.schedule.travel(theta(rel['t']), rel['cycle'])
-            u = plan.path.position(travel - plan.chain.L_transfer)
-            kv = evaluate_stroke(plan.params, u, return_section='geometric').K_v
-            c, m = _per_cycle_min(rel['cycle'], RELEASE_KV_TOL - (kv - plan.K_v_rel))
-            uc, first_rel = np.unique(rel['cycle'], return_index=True)
-            t_rel = rel['t'][first_rel][np.searchsorted(uc, c)]
-        else:
-            c, m, t_rel = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        out.append(
-            ConstraintSeries(
-                'release_at_min_speed',
-                '1',
-                c,
-                m,
-                'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)',
-                t=t_rel,
-            )
-        )
-    return FolderEvaluation(constraints=out, cycle=cc.astype(np.int64), signatures=counts, t=tc.copy())
+def _release_at_min_speed(
+    ev: np.ndarray, timing: CycleTiming, scene: Scene, drive: Drive | None, plan: DeliveryPlan | None
+) -> ConstraintSeries:
+    """``release_at_min_speed`` (with a delivery): each release where the carriage is slowest, dimensionless."""
+    if plan is None:
+        plan = delivery_plan(scene, timing)
+    assert plan is not None, 'delivery_plan is None only for a scene without a delivery'
+    rel = _rows(ev, 'released_on_pile')
+    if rel.size:
+        travel = plan.schedule.travel(_theta(drive, rel['t']), rel['cycle'])
+        u = plan.path.position(travel - plan.chain.L_transfer)
+        kv = evaluate_stroke(plan.params, u, return_section='geometric').K_v
+        c, m = _per_cycle_min(rel['cycle'], RELEASE_KV_TOL - (kv - plan.K_v_rel))
+        uc, first_rel = np.unique(rel['cycle'], return_index=True)
+        t_rel = rel['t'][first_rel][np.searchsorted(uc, c)]
+    else:
+        c, m, t_rel = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+    return ConstraintSeries(
+        'release_at_min_speed',
+        '1',
+        c,
+        m,
+        'sheet released where the carriage is slowest: tol - (K_v(u) - min K_v)',
+        t=t_rel,
+    )
 
 
 def chute_speed_series(

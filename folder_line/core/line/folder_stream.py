@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -37,20 +36,19 @@ import numpy.typing as npt
 
 from folder_line.core.effects import (
     arrival_jitter,
-    chain_friction,
     faults,
     feed_slip,
     length_scatter,
     property_scatter,
     stop_bounce,
 )
-from folder_line.core.line import folder_steps
+from folder_line.core.line import folder_joints, folder_steps
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan
+from folder_line.core.line.folder_state import _SLOT_DTYPE, SHEET_DTYPE, FolderState
 from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import knife as knf
-from folder_line.core.mechanisms.belt import BeltStream
+from folder_line.core.mechanisms.belt import BeltPhase, BeltStream
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.numerics.rng import stream
 from folder_line.core.types.events import (
@@ -59,7 +57,6 @@ from folder_line.core.types.events import (
     empty_events,
     event_kind,
     make_events,
-    stack_samples,
 )
 
 if TYPE_CHECKING:
@@ -67,42 +64,10 @@ if TYPE_CHECKING:
 
 __all__ = ['SHEET_DTYPE', 'FolderState', 'FolderStream', 'due_bound']
 
-TWO_PI = 2.0 * math.pi
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
 _LAMBDA_FLOOR = 1e-9
 #: signatures kept after they left the machine (what a view of the last ones needs)
 HISTORY = 32
-
-#: one signature in the machine: its draws, and each time once found (NaN before)
-SHEET_DTYPE = np.dtype(
-    [
-        ('id', 'i8'),
-        ('cycle', 'i8'),  # its slot: the cycle it is handed over, folded and taken in
-        ('theta_h', 'f8'),  # hand-over phase, nominal s
-        ('L', 'f8'),  # travel to the stops, m
-        ('mu', 'f8'),  # feed_slip friction (NaN: the effect's)
-        ('e', 'f8'),  # stop_bounce restitution (NaN: the effect's)
-        ('t_h', 'f8'),  # hand-over time, s
-        ('b_h', 'f8'),  # belt phase at the hand-over, nominal s
-        ('t_m', 'f8'),  # feed_slip: the time it reaches the belt speed, s
-        ('rest', 'f8'),  # feed_slip: belt travel left after the slip, m
-        ('b_a', 'f8'),  # belt phase at the arrival, nominal s
-        ('t_a', 'f8'),  # at the stops, s
-        ('v', 'f8'),  # impact speed, m/s
-        ('t_s', 'f8'),  # settled (t_a without stop_bounce), s
-        ('bounces', 'i8'),  # rebounds off the stops
-        ('settle', 'f8'),  # settle time after the impact, s
-        ('fate', 'i1'),  # -1 open, 0 jammed, 1 folded
-        ('t_c', 'f8'),  # its cycle's knife contact, s
-        ('t_x', 'f8'),  # its cycle's knife exit, s
-        ('t_r', 'f8'),  # released on the pile, s
-    ]
-)
-
-#: a slot whose nominal hand-over time has not come: the faults drawn for it
-_SLOT_DTYPE = np.dtype(
-    [('k', 'i8'), ('theta', 'f8'), ('missing', '?'), ('double', '?'), ('delay', 'f8'), ('first_id', 'i8')]
-)
 
 _K = {k: event_kind(k) for k in ('knife_contact', 'sheet_handover', 'at_stops', 'settled', 'bounce')}
 #: the kinds a cycle is judged on (the release is judged on its own row)
@@ -117,60 +82,6 @@ def due_bound(theta: float) -> float:
 
 def _nan(n: int) -> np.ndarray:
     return np.full(n, math.nan)
-
-
-@dataclass
-class _Counts:
-    """The running counts of the summary (of the events handed out)."""
-
-    contacts: int = 0
-    started: int = 0
-    fed: int = 0
-    at_stops: int = 0
-    folded: int = 0
-    jammed: int = 0
-    released: int = 0
-    missing: int = 0
-    double: int = 0
-    late: int = 0
-    slowdowns: int = 0
-    bounces_max: int = 0
-    settle_max: float = 0.0
-
-
-@dataclass
-class FolderState:
-    """What the folder carries from one window to the next (module docstring); copied whole by a checkpoint."""
-
-    belt: BeltStream
-    slowdowns: faults.SlowdownStream | None
-    rng_faults: np.random.Generator | None
-    rng_jitter: np.random.Generator | None
-    rng_length: np.random.Generator | None
-    rng_e: np.random.Generator | None
-    rng_mu: np.random.Generator | None
-    computed: float = -math.inf
-    emitted: float = -math.inf
-    slot_next: int = 0
-    sheet_next: int = 0
-    kc_next: int = 0
-    kx_next: int = 0
-    start0_found: bool = False
-    start0_t: float = math.nan
-    slots: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=_SLOT_DTYPE))
-    sheets: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=SHEET_DTYPE))
-    history: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=SHEET_DTYPE))
-    found: list[np.ndarray] = field(default_factory=list)  # events found, not handed out
-    judged_next: int = 0  # the first cycle not judged
-    # per cycle from judged_next on: signatures of its slot (-1: not drawn), settled so far, knife contact out
-    expected: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    settled: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    contacted: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
-    exit_base: int = 0  # the cycle of exit_t[0]
-    exit_t: np.ndarray = field(default_factory=lambda: np.zeros(0))  # knife exits from cycle judged_next - 1 on, s
-    rows: np.ndarray = field(default_factory=empty_events)  # the rows of the cycles not judged
-    t_last: float = -math.inf  # the latest event handed out, s
-    counts: _Counts = field(default_factory=_Counts)
 
 
 class FolderStream:
@@ -241,7 +152,7 @@ class FolderStream:
     # ------------------------------------------------------------------ commands
 
     @property
-    def belt(self) -> Any:
+    def belt(self) -> BeltPhase:
         """The feed belt's phase (:class:`folder_line.core.mechanisms.belt.BeltPhase`)."""
         return self.state.belt.phase
 
@@ -310,13 +221,7 @@ class FolderStream:
             return
         st.slot_next = int(k[-1]) + 1
         theta_nom = k * T + first
-        if st.rng_faults is not None:
-            sf = faults.draw_sheet_faults(s.faults, k.size, st.rng_faults)  # type: ignore[arg-type]
-            missing, double, delay = sf.missing, sf.double, np.asarray(sf.delay, dtype=float)
-        else:
-            missing = np.zeros(k.size, dtype=bool)
-            double = np.zeros(k.size, dtype=bool)
-            delay = np.zeros(k.size)
+        missing, double, delay = self._slot_faults(k.size)
         mult = np.where(missing, 0, np.where(double, 2, 1))
         # a slot before the line starts (a knife whose exit phase t_out + phase is negative) feeds nothing
         mult = np.where(theta_nom + delay < 0.0, 0, mult)
@@ -336,12 +241,29 @@ class FolderStream:
             st.slots = np.concatenate((st.slots, slots))
         if n == 0:
             return
+        st.sheets = np.concatenate(
+            (st.sheets, self._new_sheets(ids, np.repeat(k, mult), np.repeat(theta_nom + delay, mult)))
+        )
+
+    def _slot_faults(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The faults of ``n`` new slots: missing, double (bool) and the delay of a late one (s; 0 without faults)."""
+        st, s = self.state, self.setup
+        if st.rng_faults is None:
+            return np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n)
+        sf = faults.draw_sheet_faults(s.faults, n, st.rng_faults)  # type: ignore[arg-type]
+        return sf.missing, sf.double, np.asarray(sf.delay, dtype=float)
+
+    def _new_sheets(self, ids: np.ndarray, cycle: np.ndarray, theta_h: np.ndarray) -> np.ndarray:
+        """The signatures ``ids`` of the slots ``cycle``, handed over at the phases ``theta_h`` (nominal s),
+        with their draws: travel to the stops (m), friction and restitution (SHEET_DTYPE rows, times NaN)."""
+        st, s = self.state, self.setup
+        n = ids.size
         new = np.zeros(n, dtype=SHEET_DTYPE)
         for name in ('t_h', 'b_h', 't_m', 'rest', 'b_a', 't_a', 'v', 't_s', 'settle', 't_c', 't_x', 't_r', 'mu', 'e'):
             new[name] = _nan(n)
         new['id'] = ids
-        new['cycle'] = np.repeat(k, mult)
-        new['theta_h'] = np.repeat(theta_nom + delay, mult)
+        new['cycle'] = cycle
+        new['theta_h'] = theta_h
         new['fate'] = np.where(new['cycle'] < st.kc_next, 0, -1)  # its cycle's knife came first: jammed
         L = np.full(n, s.timing.L_feed)
         if s.jitter is not None and st.rng_jitter is not None:
@@ -353,7 +275,7 @@ class FolderStream:
             new['mu'] = property_scatter.friction_from(s.scatter, s.slip.mu, st.rng_mu, n)
         if s.scatter is not None and s.bounce is not None and st.rng_e is not None:
             new['e'] = property_scatter.restitution_from(s.scatter, s.bounce.e, st.rng_e, n)
-        st.sheets = np.concatenate((st.sheets, new))
+        return new
 
     def _slot_events(self, c: float) -> None:
         """The faults of the slots whose nominal time has come."""
@@ -726,90 +648,14 @@ class FolderStream:
     def sample_unit(self, unit: str, t: npt.ArrayLike, theta: np.ndarray, lam: np.ndarray) -> JointSamples:
         """Joint states of one unit (``drive``, ``belts``, ``feed``) at ``t`` (in the window the belt knows)."""
         t = np.asarray(t, dtype=float).reshape(-1)
-        timing = self.timing
-        wt = self.with_torque
         if unit == 'drive':
-            kp = self.knife
-            phi = np.mod(timing.omega_k * theta, TWO_PI)
-            pos = knf.position(kp, phi)
-            v = knf.velocity(kp, phi) * lam
-            zeros = np.zeros(t.size)
-            return stack_samples(
-                'drive',
-                ('knife_crank', 'knife'),
-                t,
-                [phi, pos],
-                [timing.omega_k * lam, v],
-                [zeros, zeros] if wt else None,
-            )
+            return folder_joints.drive_samples(self.timing, self.knife, t, theta, lam, self.with_torque)
         if unit == 'belts':
-            return stack_samples(
-                'belts',
-                ('first_transporter',),
-                t,
-                [timing.V_d * theta],
-                [timing.V_d * lam],
-                [np.zeros(t.size)] if wt else None,
-            )
+            return folder_joints.belts_samples(self.timing, t, theta, lam, self.with_torque)
         if unit == 'feed':
-            return self._feed_unit(t, theta, lam)
+            belt = self.state.belt.phase
+            return folder_joints.feed_samples(self.scene, self.plan, self.V_tr, belt, self.torque_params, t, theta, lam)
         raise KeyError(f'unit {unit!r} has no folder joints; units: {", ".join(self.units)}')
-
-    def _feed_unit(self, t: np.ndarray, theta: np.ndarray, lam: np.ndarray) -> JointSamples:
-        V_tr, belt, plan = self.V_tr, self.state.belt.phase, self.plan
-        zeros = np.zeros(t.size)
-        b = belt.at(t, theta)
-        names = ['feed_belt']
-        pos = [V_tr * b]
-        vel = [V_tr * lam * belt.factor(t)]
-        eff: list[np.ndarray] | None = [zeros] if self.with_torque else None
-        if plan is not None:
-            chain_pos = plan.v_A * theta
-            sch = plan.schedule
-            a0, slack = sch.stroke_travel(theta)  # the carriage that entered the stroke last
-            on = a0 <= sch.S + slack
-            car_x = np.zeros(t.size)
-            car_v = np.zeros(t.size)
-            st = None
-            u = None
-            if on.any():
-                u = plan.path.position(np.clip(a0[on], 0.0, sch.S))
-                st = dlv.evaluate_stroke(plan.params, u, return_section='geometric')
-                car_x[on] = u * plan.chain.x_max + plan.rod * (1.0 - np.cos(st.alpha))
-                car_v[on] = st.K_v * plan.v_A * lam[on]
-            names += ['chain', 'carriage']
-            pos += [chain_pos, car_x]
-            vel += [plan.v_A * lam, car_v]
-            if eff is not None:
-                if t.size == 1:  # a node's tick: reuse the carriage's stroke evaluation
-                    torque = self._sprocket_torque(a0, slack, on, u, st)
-                else:
-                    torque = np.asarray(chain_friction.sprocket_torque(self.scene, theta), dtype=float)
-                if torque.shape != t.shape or not np.all(np.isfinite(torque)):
-                    raise ValueError('chain_friction.sprocket_torque must return finite values shaped like Θ')
-                eff += [torque, zeros]
-        return stack_samples('feed', tuple(names), t, pos, vel, eff)
-
-    def _sprocket_torque(
-        self, a0: np.ndarray, slack: np.ndarray, on0: np.ndarray, u0: np.ndarray | None, st0: Any
-    ) -> np.ndarray:
-        """:func:`folder_line.core.effects.chain_friction.sprocket_torque` at the same Θ, bit for bit (the fast
-        path of a node's tick: the carriage joint's stroke evaluation reused where it is the same)."""
-        p = self.torque_params
-        plan = self.plan
-        assert p is not None and plan is not None
-        sch = plan.schedule
-        total = np.zeros(a0.shape)
-        for m in range(sch.max_on_stroke):  # carriages on the stroke at once
-            a = a0 + m * sch.pitch
-            on = (a >= -slack) & (a <= sch.S + slack)
-            if np.any(on):
-                if m == 0 and st0 is not None and p.return_section == 'geometric' and np.array_equal(on, on0):
-                    total[on] += st0.forces(p.P_k, p.r).M_1
-                else:
-                    u = plan.path.position(np.clip(a[on], 0.0, sch.S))
-                    total[on] += chain_friction.stroke_state(p, plan.params, u).M_1
-        return total
 
     # ------------------------------------------------------------------ a view of the signatures
 

@@ -38,7 +38,7 @@ from folder_line.core.line.folder_stream import due_bound
 from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
 from folder_line.core.line.running import BinnedSum, RunningStats
 from folder_line.core.line.tuning import Tuning, belt_steps
-from folder_line.core.mechanisms.belt import BeltStream
+from folder_line.core.mechanisms.belt import BeltPhase, BeltStream
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import TAU, LayupParams
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
@@ -223,7 +223,7 @@ class LayupStream:
     # ------------------------------------------------------------------ commands
 
     @property
-    def belt(self) -> Any:
+    def belt(self) -> BeltPhase | None:
         """The chute belts' phase (:class:`folder_line.core.mechanisms.belt.BeltPhase`), or None without belts."""
         return None if self.state.belt is None else self.state.belt.phase
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +39,8 @@ from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, JointSa
 from folder_line.errors import ParameterError
 
 if TYPE_CHECKING:
+    from folder_line.core.line.folder_stream import FolderStream
+    from folder_line.core.line.layup_stream import LayupStream
     from folder_line.core.line.scene import Scene
 
 __all__ = [
@@ -207,7 +209,13 @@ class LineModel:
         """Joint states of every unit at line times ``t`` (unit -> JointSamples)."""
         return self.stream.sample_all(t)
 
-    def part(self, name: str) -> Any:
+    @overload
+    def part(self, name: Literal['folder']) -> FolderStream: ...
+    @overload
+    def part(self, name: Literal['layup']) -> LayupStream: ...
+    @overload
+    def part(self, name: str) -> FolderStream | LayupStream: ...
+    def part(self, name: str) -> FolderStream | LayupStream:
         """The streamed part ``'folder'`` or ``'layup'`` of the scene (KeyError naming the parts)."""
         return self.stream.part(name)
 

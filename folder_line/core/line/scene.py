@@ -265,37 +265,8 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
     description = data.get('description', '')
     if not isinstance(description, str):
         raise ParameterError('description', description, 'must be a string')
-
-    sections = data.get('machines') or {}
-    if not isinstance(sections, Mapping) or not sections:
-        raise ParameterError('machines', sections, f'must map at least one machine; known: {", ".join(MACHINES)}')
-    machines: dict[str, MachineParams] = {
-        sec: build(machine_class(sec), values, sec, f'{sec} parameter') for sec, values in sections.items()
-    }
-    for sec in machines:
-        for need in _NEEDS.get(sec, ()):
-            if need not in machines:
-                raise ParameterError('machines', sec, f'needs machine {need!r} in the scene as well')
-    knife, cylinder = machines.get('knife'), machines.get('cyclogram')
-    if isinstance(knife, KnifeParams) and isinstance(cylinder, CyclogramParams):
-        check_press_speed(knife.n_k, cylinder.n_c)
-
-    effects_in = data.get('effects') or {}
-    if not isinstance(effects_in, Mapping):
-        raise ParameterError('effects', effects_in, 'must map effect names to their parameters')
-    effects: dict[str, Any] = {}
-    for ename, evalues in effects_in.items():
-        if ename not in EFFECTS:
-            raise ParameterError('effects', ename, f'unknown effect; known: {", ".join(EFFECTS)}')
-        for need in EFFECTS[ename].machines:
-            if need not in machines:
-                raise ParameterError(
-                    f'effects.{ename}',
-                    ename,
-                    f'needs machine {need!r}, which scene {name!r} does not have (it has {", ".join(machines)})',
-                )
-        effects[ename] = parse_effect_params(ename, evalues)
-
+    machines = _parse_machines(data.get('machines') or {})
+    effects = _parse_effects(data.get('effects') or {}, name, machines)
     drive = build(DriveSpec, data.get('drive') or {'profile': 'constant'}, 'drive', 'drive parameter')
     sheets = build(StreamParams, data.get('sheets') or {}, 'sheets', 'sheets parameter')
     seed = data.get('seed', 0)
@@ -313,3 +284,39 @@ def parse_scene(data: Mapping[str, Any]) -> Scene:
         sample_rate=rate,
         source=MappingProxyType(dict(data)),
     )
+
+
+def _parse_machines(sections: object) -> dict[str, MachineParams]:
+    """The scene's ``machines``: each section validated, each machine's companions present, the press speed one."""
+    if not isinstance(sections, Mapping) or not sections:
+        raise ParameterError('machines', sections, f'must map at least one machine; known: {", ".join(MACHINES)}')
+    machines: dict[str, MachineParams] = {
+        sec: build(machine_class(sec), values, sec, f'{sec} parameter') for sec, values in sections.items()
+    }
+    for sec in machines:
+        for need in _NEEDS.get(sec, ()):
+            if need not in machines:
+                raise ParameterError('machines', sec, f'needs machine {need!r} in the scene as well')
+    knife, cylinder = machines.get('knife'), machines.get('cyclogram')
+    if isinstance(knife, KnifeParams) and isinstance(cylinder, CyclogramParams):
+        check_press_speed(knife.n_k, cylinder.n_c)
+    return machines
+
+
+def _parse_effects(effects_in: object, name: str, machines: Mapping[str, MachineParams]) -> dict[str, Any]:
+    """The scene's ``effects``: each a known effect whose machines scene ``name`` has, its parameters validated."""
+    if not isinstance(effects_in, Mapping):
+        raise ParameterError('effects', effects_in, 'must map effect names to their parameters')
+    effects: dict[str, Any] = {}
+    for ename, evalues in effects_in.items():
+        if ename not in EFFECTS:
+            raise ParameterError('effects', ename, f'unknown effect; known: {", ".join(EFFECTS)}')
+        for need in EFFECTS[ename].machines:
+            if need not in machines:
+                raise ParameterError(
+                    f'effects.{ename}',
+                    ename,
+                    f'needs machine {need!r}, which scene {name!r} does not have (it has {", ".join(machines)})',
+                )
+        effects[ename] = parse_effect_params(ename, evalues)
+    return effects

@@ -76,6 +76,8 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.effects import leaf_flight
+from folder_line.core.line.folder_stream import FolderStream
+from folder_line.core.line.layup_stream import LayupStream
 from folder_line.core.line.model import LineModel
 from folder_line.core.line.stream import LineStream
 from folder_line.core.mechanisms import knife as knf
@@ -222,16 +224,30 @@ class Scenery:
         self.line: LineStream = line.stream if isinstance(line, LineModel) else line
         scene = self.line.scene
         self._static: dict[str, Shape] = {}
-        self._layup: Any = self.line.part('layup') if scene.has_layup else None
-        self._folder: Any = self.line.part('folder') if scene.has_folder else None
+        self._layup = self.line.part('layup') if scene.has_layup else None
+        self._folder = self.line.part('folder') if scene.has_folder else None
         if self._layup is not None:
             self._init_layup()
         if self._folder is not None:
             self._init_folder()
-            if self._folder.plan is not None:
+            if self.folder_part.plan is not None:
                 self._init_delivery()
 
     # ------------------------------------------------------------------ layup
+
+    @property
+    def layup_part(self) -> LayupStream:
+        """The layup's stream (a scene with a layup only)."""
+        if self._layup is None:
+            raise KeyError(f'scene {self.line.scene.name!r} has no layup')
+        return self._layup
+
+    @property
+    def folder_part(self) -> FolderStream:
+        """The folder's stream (a scene with a folder only)."""
+        if self._folder is None:
+            raise KeyError(f'scene {self.line.scene.name!r} has no folder')
+        return self._folder
 
     @property
     def _pile(self) -> PileStream:
@@ -249,7 +265,7 @@ class Scenery:
             'layup', 'pivot', 'points', _xz([lp.a, 0.0, lp.O2O3], [lp.b, 0.0, 0.0], o), 0.05, _DARK
         )
         self._belts = scene.has('chute_belts')
-        self._container = self._layup.flight_on and 'container' in scene.machines
+        self._container = self.layup_part.flight_on and 'container' in scene.machines
         if self._container:
             c = scene.machine('container')
             top = 0.6 * c.y_floor
@@ -268,7 +284,7 @@ class Scenery:
             self._drag: leaf_flight.Params = scene.effect_params('leaf_flight')
 
     def _layup_joints(self, theta: float) -> dict[str, np.ndarray]:
-        kin = self._layup.kinematics
+        kin = self.layup_part.kinematics
         phi = kin.wrap(np.array([theta * kin.turns_rate]))
         st = kin.model.arrays(phi, accelerations=False)
         lp = self._lp
@@ -292,7 +308,8 @@ class Scenery:
         marks = []
         travel = 0.0
         if self._belts:
-            pr = self._layup.profile
+            pr = self.layup_part.profile
+            assert pr is not None  # chute_belts, so a belt profile
             travel = float(pr.v_tr * np.asarray(pr.phase.at(np.array([t]), np.array([theta]))).reshape(-1)[0])
         for pivot, tip in ((j['O2'], j['C']), (j['O3'], j['E'])):
             d = tip - pivot
@@ -313,7 +330,7 @@ class Scenery:
     def _leaves(self, t: float, views: dict[str, np.ndarray]) -> list[Shape]:
         f = views.get('flights')
         if f is None:
-            f = views['flights'] = self._layup.flights_view()
+            f = views['flights'] = self.layup_part.flights_view()
         air = (f['t_exit'] <= t) & (f['t_land'] > t)
         x, y, _, _ = leaf_flight.state(
             self._drag, f['x0'][air], f['y0'][air], f['vx'][air], f['vy'][air], t - f['t_exit'][air]
@@ -332,7 +349,7 @@ class Scenery:
 
     def _init_folder(self) -> None:
         scene = self.line.scene
-        fl = self._folder
+        fl = self.folder_part
         kp: knf.KnifeParams = fl.knife
         cg = scene.machine('cyclogram')
         self._kp = kp
@@ -372,7 +389,7 @@ class Scenery:
 
     def _knife(self, theta: float) -> dict[str, np.ndarray]:
         kp = self._kp
-        phi = float(np.mod(self._folder.timing.omega_k * theta, TAU))
+        phi = float(np.mod(self.folder_part.timing.omega_k * theta, TAU))
         s = float(knf.position(kp, phi))
         o = self._knife_o
         pin = o + np.array([kp.r_k * math.sin(phi), 0.0, -kp.r_k * math.cos(phi)])
@@ -380,7 +397,7 @@ class Scenery:
         return {'knife_centre': o, 'knife_pin': pin, 'knife_tip': tip}
 
     def _folder_shapes(self, t: float, theta: float, sheets: np.ndarray) -> list[Shape]:
-        fl = self._folder
+        fl = self.folder_part
         a = fl.timing.omega_c * theta
         spoke = self._cyl_c + self._R_c * np.array([math.cos(-a), 0.0, math.sin(-a)])
         b_t = float(np.asarray(fl.belt.at(np.array([t]), np.array([theta]))).reshape(-1)[0])
@@ -412,7 +429,7 @@ class Scenery:
         """The last :data:`_SHEETS_SHOWN` signatures handed over by ``t``, each time not yet come ``inf``."""
         view = views.get('sheets')
         if view is None:
-            view = views['sheets'] = self._folder.sheets_view()
+            view = views['sheets'] = self.folder_part.sheets_view()
         sh: np.ndarray = view[~np.isnan(view['t_h']) & (view['t_h'] <= t)][-_SHEETS_SHOWN:].copy()
         for name in ('t_a', 't_c', 't_x', 't_r'):
             sh[name] = np.where(np.isnan(sh[name]) | (sh[name] > t), math.inf, sh[name])
@@ -425,7 +442,7 @@ class Scenery:
         columns = (sheets[name].tolist() for name in ('t_a', 't_c', 't_x', 'b_h', 'L'))
         for t_a, t_c, t_x, b_h, length in zip(*columns, strict=True):
             if t < t_a:  # on the feed belt: where the belt has carried it since the hand-over
-                done = min(max(self._folder.V_tr * (b_t - float(b_h)), 0.0), float(length))
+                done = min(max(self.folder_part.V_tr * (b_t - float(b_h)), 0.0), float(length))
                 lead = self._stops_x - float(length) + done
                 out += [[lead - self._L_a, 0.0, z], [lead, 0.0, z]]
             elif t < t_c or t_a > t_c:  # at the stops (a jammed one stays there)
@@ -438,7 +455,8 @@ class Scenery:
     # ------------------------------------------------------------------ delivery
 
     def _init_delivery(self) -> None:
-        plan = self._folder.plan
+        plan = self.folder_part.plan
+        assert plan is not None  # called for a scene with a delivery only
         sch = plan.schedule
         self._plan = plan
         self._psi = LAWS[plan.params.law].psi
@@ -586,7 +604,7 @@ class Scenery:
         if self._folder is not None:
             live = self._sheets_live(t, views)
             out += self._folder_shapes(t, theta, live)
-            if self._folder.plan is not None:
+            if self.folder_part.plan is not None:
                 out += self._delivery_shapes(t, theta, live)
         return tuple(out)
 
@@ -605,7 +623,7 @@ class Scenery:
             out.update({f'layup/{k}': v for k, v in self._layup_joints(theta).items()})
         if self._folder is not None:
             out.update({f'folder/{k}': v for k, v in self._knife(theta).items()})
-            if self._folder.plan is not None:
+            if self.folder_part.plan is not None:
                 pins = self._chain_point(self._carriage_travel(theta))
                 out.update({f'delivery/carriage_{j}': p for j, p in enumerate(pins)})
         return out

@@ -35,7 +35,7 @@ import copy
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -274,16 +274,22 @@ class LineStream:
         return {unit: units[unit] for unit in UNITS if unit in units}
 
     @property
-    def parts(self) -> dict[str, Any]:
+    def parts(self) -> dict[str, FolderStream | LayupStream]:
         """Part name -> its stream (``'folder'``, ``'layup'``)."""
-        out: dict[str, Any] = {}
+        out: dict[str, FolderStream | LayupStream] = {}
         if self.folder is not None:
             out['folder'] = self.folder
         if self.layup is not None:
             out['layup'] = self.layup
         return out
 
-    def part(self, name: str) -> Any:
+    @overload
+    def part(self, name: Literal['folder']) -> FolderStream: ...
+    @overload
+    def part(self, name: Literal['layup']) -> LayupStream: ...
+    @overload
+    def part(self, name: str) -> FolderStream | LayupStream: ...
+    def part(self, name: str) -> FolderStream | LayupStream:
         """The part ``'folder'`` or ``'layup'`` (KeyError naming the parts)."""
         try:
             return self.parts[name]

@@ -481,56 +481,72 @@ def ramp_generator(
     speed = 1.0
     hi = max([1.0] + [c[3] for c in changes if c[1] == 1])
     lam0 = min(max(float(lam0), 0.0), hi)
-    ts, ths, lams, accs = [float(t0)], [float(theta0)], [lam0], [0.0]
-    targets = [speed if running else 0.0]
-
-    def acc_for(lam: float, target: float) -> float:
-        return a_up if lam < target else (-a_down if lam > target else 0.0)
-
-    def knot(t: float, lam: float | None, acc_next: float, target: float) -> None:
-        """Close the current segment at t (Θ, λ from its own formula, or λ given) and open the next."""
-        tau = t - ts[-1]
-        theta = ths[-1] + tau * (lams[-1] + 0.5 * accs[-1] * tau)
-        lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), hi) if lam is None else lam
-        ts.append(t)
-        ths.append(theta)
-        lams.append(lam_t)
-        accs.append(acc_next)
-        targets.append(target)
-
-    def reach_before(t_limit: float) -> None:
-        """Add the knot where λ reaches its target, if that is before t_limit."""
-        a = accs[-1]
-        if a == 0.0:
-            return
-        target = targets[-1]
-        t_r = ts[-1] + (target - lams[-1]) / a
-        if t_r < t_limit and t_r > ts[-1]:
-            knot(t_r, target, 0.0, target)
-
-    accs[0] = acc_for(lam0, targets[0])
+    ramp = _Ramp(a_up, a_down, hi, float(t0), float(theta0), lam0, speed if running else 0.0)
     for t, what, run, value in changes:
-        if t < ts[-1]:
-            raise ParameterError('commands', t, f'a switch at {t!r} s is before the generator start {ts[-1]!r} s')
-        reach_before(t)
+        if t < ramp.ts[-1]:
+            raise ParameterError('commands', t, f'a switch at {t!r} s is before the generator start {ramp.ts[-1]!r} s')
+        ramp.reach_before(t)
         if what == 0:
             if run == running:
                 continue
             running = run
         else:
             speed = value
-        target = speed if running else 0.0
-        if target == targets[-1]:
-            continue
-        if t > ts[-1]:
-            tau = t - ts[-1]
-            lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), hi)
-            knot(t, lam_t, acc_for(lam_t, target), target)
+        ramp.head_for(t, speed if running else 0.0)
+    ramp.reach_before(math.inf)
+    return PiecewiseLinearDrive(ramp.ts, ramp.ths, ramp.lams, ramp.accs, ramp.targets)
+
+
+class _Ramp:
+    """The knots of :func:`ramp_generator` so far: times ``ts`` (s), Θ ``ths`` (nominal s), λ ``lams``, and each
+    segment's slope ``accs`` (1/s) and target ``targets``; λ ramps up at ``a_up`` and down at ``a_down`` (1/s)
+    and stays in ``[0, hi]``."""
+
+    def __init__(
+        self, a_up: float, a_down: float, hi: float, t0: float, theta0: float, lam0: float, target: float
+    ) -> None:
+        self.a_up, self.a_down, self.hi = a_up, a_down, hi
+        self.ts, self.ths, self.lams, self.accs = [t0], [theta0], [lam0], [0.0]
+        self.targets = [target]
+        self.accs[0] = self.acc_for(lam0, target)
+
+    def acc_for(self, lam: float, target: float) -> float:
+        """The slope of λ from ``lam`` towards ``target``, 1/s."""
+        return self.a_up if lam < target else (-self.a_down if lam > target else 0.0)
+
+    def knot(self, t: float, lam: float | None, acc_next: float, target: float) -> None:
+        """Close the current segment at t (Θ, λ from its own formula, or λ given) and open the next."""
+        ts, ths, lams, accs = self.ts, self.ths, self.lams, self.accs
+        tau = t - ts[-1]
+        theta = ths[-1] + tau * (lams[-1] + 0.5 * accs[-1] * tau)
+        lam_t = min(max(lams[-1] + accs[-1] * tau, 0.0), self.hi) if lam is None else lam
+        ts.append(t)
+        ths.append(theta)
+        lams.append(lam_t)
+        accs.append(acc_next)
+        self.targets.append(target)
+
+    def reach_before(self, t_limit: float) -> None:
+        """Add the knot where λ reaches its target, if that is before t_limit."""
+        a = self.accs[-1]
+        if a == 0.0:
+            return
+        target = self.targets[-1]
+        t_r = self.ts[-1] + (target - self.lams[-1]) / a
+        if t_r < t_limit and t_r > self.ts[-1]:
+            self.knot(t_r, target, 0.0, target)
+
+    def head_for(self, t: float, target: float) -> None:
+        """From ``t`` (s, at or after the last knot) on, λ heads for ``target``."""
+        if target == self.targets[-1]:
+            return
+        if t > self.ts[-1]:
+            tau = t - self.ts[-1]
+            lam_t = min(max(self.lams[-1] + self.accs[-1] * tau, 0.0), self.hi)
+            self.knot(t, lam_t, self.acc_for(lam_t, target), target)
         else:  # a switch at the current knot: only the segment's slope (and target) change
-            accs[-1] = acc_for(lams[-1], target)
-            targets[-1] = target
-    reach_before(math.inf)
-    return PiecewiseLinearDrive(ts, ths, lams, accs, targets)
+            self.accs[-1] = self.acc_for(self.lams[-1], target)
+            self.targets[-1] = target
 
 
 def target_rate(drive: Drive, t: npt.ArrayLike) -> np.ndarray:

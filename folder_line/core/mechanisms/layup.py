@@ -12,11 +12,7 @@ Loop 2 (O2-C-E-O3)
     E is the intersection of circle(C, l4) and circle(O3, l5) with
     ``(O3 - C) × (E - C) < 0`` (branch +1 of the pair (O3, C)).
 
-Outputs: θ3, θ5 (angles of O2C and O3E from +x, rad, in (-π, π]); ω3, ω5 (rad/s) and
-ε3, ε5 (rad/s²) from the differentiated loop equations; the exit speeds across the
-chutes ``v_C = ω3 l3``, ``v_E = ω5 l5`` (signed, m/s) and, with the belt speed
-``v_tr`` along the chutes, the absolute exit speeds ``v_aC = sqrt(v_C² + v_tr²)``,
-``v_aE = sqrt(v_E² + v_tr²)`` (paper eq. 25).
+Outputs: :mod:`folder_line.core.mechanisms.layup_state`.
 
 Method. Positions are closed-form circle–circle intersections (Heron's discriminant,
 see :mod:`folder_line.core.numerics.loop`). Velocities come from differentiating
@@ -33,12 +29,7 @@ crank-rocker with the crank the shortest link, and runs :func:`check_assembly`: 
 loops must assemble, away from toggles, over a whole crank turn. So every accepted
 parameter set has finite kinematics at every crank angle.
 
-Crank-angle range. Every entry point reduces φ to [-π, π] with the IEEE remainder by
-the float ``TAU = 2π`` (:func:`reduce_angle`; exact, no rounding), so results are
-exactly periodic in ``TAU``. Precision is that of the input: a float φ of magnitude
-``|φ|`` carries an absolute error up to ``ulp(|φ|)/2`` (5.8e-11 rad at 1e6 rad,
-4.8e-7 rad at 6.3e9 rad ≈ 1e9 turns), so callers that run for long keep the phase
-as an integer number of turns plus a fraction and pass the fraction · TAU.
+Crank-angle range: every entry point reduces φ to [-π, π] exactly (:mod:`~.layup_angles`).
 
 Speed. :meth:`LayupModel.point` is a pure-``math`` scalar path for node ticks;
 :meth:`LayupModel.arrays` is vectorised, processes the angles in cache-sized chunks
@@ -54,12 +45,21 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple, NoReturn, Protocol, overload
+from typing import Any, NoReturn, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
+from folder_line.core.mechanisms.layup_angles import (
+    _PI,
+    GRASHOF_REL_TOL,
+    TAU,
+    _reduce_chunk,
+    classify_fourbar,
+    reduce_angle,
+)
+from folder_line.core.mechanisms.layup_state import _ROWS, AssemblyMargins, LayupPoint, LayupState
 from folder_line.core.numerics.dyad import DyadLinks, heron, heron_into, joint, joint_into
 from folder_line.core.numerics.loop import TOGGLE_TOL
 from folder_line.core.numerics.roots import golden_section
@@ -84,114 +84,13 @@ __all__ = [
     'reduce_angle',
 ]
 
-TAU = 2.0 * math.pi
-_PI = math.pi
 #: mechanism names used in AssemblyError
 LOOP1 = 'layup loop O1-A-B-O2'
 LOOP2 = 'layup loop O2-C-E-O3'
-#: relative tolerance of the Grashof boundary s + l = p + q (a change-point linkage)
-GRASHOF_REL_TOL = 1e-12
 #: crank angles sampled per turn by check_assembly before refinement
 ASSEMBLY_SAMPLES = 4096
 #: angles per chunk in LayupModel.arrays (keeps the scratch arrays in L2 cache)
 CHUNK = 16384
-
-
-def classify_fourbar(
-    ground: float, crank: float, coupler: float, rocker: float, *, rel_tol: float = GRASHOF_REL_TOL
-) -> str:
-    """Grashof class of a planar four-bar, seen from its input link ``crank``.
-
-    Parameters
-    ----------
-    ground : float
-        Fixed link (distance between the two ground pivots), m.
-    crank : float
-        Input link, pivoted on the ground, m.
-    coupler : float
-        Link opposite the ground, m.
-    rocker : float
-        Output link, pivoted on the ground, m.
-    rel_tol : float, optional
-        ``s + l`` and ``p + q`` closer than ``rel_tol · (s + l + p + q)`` count as equal.
-
-    Returns
-    -------
-    str
-        With ``s``, ``l`` the shortest and longest links and ``p``, ``q`` the others:
-        ``'change-point'`` if ``s + l = p + q`` (within ``rel_tol``; the links can
-        all line up and the linkage can switch branch there); ``'non-Grashof'``
-        (triple rocker) if ``s + l > p + q``; otherwise, by which link is the unique
-        shortest: ``'crank-rocker'`` (the input), ``'rocker-crank'`` (the output),
-        ``'double-crank'`` (the ground; a drag link), ``'double-rocker'`` (the coupler).
-    """
-    links = (ground, crank, coupler, rocker)
-    srt = sorted(links)
-    shortest, p, q, longest = srt
-    excess = (shortest + longest) - (p + q)
-    if abs(excess) <= rel_tol * (shortest + longest + p + q):
-        return 'change-point'
-    if excess > 0.0:
-        return 'non-Grashof'
-    # Grashof: strictly s + l < p + q, hence s is unique (s = p would force l < q).
-    return {0: 'double-crank', 1: 'crank-rocker', 2: 'double-rocker', 3: 'rocker-crank'}[links.index(shortest)]
-
-
-@overload
-def reduce_angle(phi: float) -> float: ...
-@overload
-def reduce_angle(phi: npt.NDArray[Any]) -> npt.NDArray[np.float64]: ...
-@overload
-def reduce_angle(phi: npt.ArrayLike) -> float | npt.NDArray[np.float64]: ...
-def reduce_angle(phi: npt.ArrayLike) -> float | npt.NDArray[np.float64]:
-    """Reduce crank angles to [-π, π] exactly: the IEEE remainder by the float ``TAU``.
-
-    Parameters
-    ----------
-    phi : float or array_like
-        Crank angle(s), rad; must be finite.
-
-    Returns
-    -------
-    float or ndarray
-        ``math.remainder(phi, TAU)`` elementwise (exact; at a tie ±π the sign of the
-        array result follows ``phi``). Values already in [-π, π] come back unchanged.
-
-    Raises
-    ------
-    ParameterError
-        A crank angle is NaN or infinite.
-    """
-    if isinstance(phi, (float, int)) and not isinstance(phi, bool):
-        x = float(phi)
-        if -_PI <= x <= _PI:
-            return x
-        if not math.isfinite(x):
-            raise ParameterError('phi', phi, 'crank angle must be finite')
-        return math.remainder(x, TAU)
-    arr = np.asarray(phi, dtype=np.float64)
-    if arr.size == 0 or (arr.min() >= -_PI and arr.max() <= _PI):
-        return arr
-    if not np.isfinite(arr).all():
-        bad = arr.reshape(-1)[np.flatnonzero(~np.isfinite(arr.reshape(-1)))[0]]
-        raise ParameterError('phi', float(bad), 'crank angle must be finite')
-    r = np.fmod(arr, TAU)  # exact
-    r = np.where(r > _PI, r - TAU, r)  # exact (Sterbenz)
-    reduced: npt.NDArray[np.float64] = np.where(r < -_PI, r + TAU, r)
-    return reduced
-
-
-def _reduce_chunk(ph: np.ndarray, r: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """:func:`reduce_angle` of a 1-D array into the buffer ``r`` (same results, no allocation)."""
-    if not (math.isfinite(ph.min()) and math.isfinite(ph.max())):  # NaN propagates into min
-        bad = ph[np.flatnonzero(~np.isfinite(ph))[0]]
-        raise ParameterError('phi', float(bad), 'crank angle must be finite')
-    np.fmod(ph, TAU, out=r)
-    np.greater(r, _PI, out=mask)
-    np.subtract(r, TAU, out=r, where=mask)
-    np.less(r, -_PI, out=mask)
-    np.add(r, TAU, out=r, where=mask)
-    return r
 
 
 def _belt_speed(key: str, value: object) -> float:
@@ -283,100 +182,6 @@ class LayupParams:
     def omega(self) -> float:
         """Crank angular velocity ``2π n_kr / 60``, rad/s."""
         return TAU * self.n_kr / 60.0
-
-
-class LayupPoint(NamedTuple):
-    """One crank position from the scalar path (:meth:`LayupModel.point`).
-
-    Fields: exits ``xC, yC, xE, yE`` (m); chute angles ``theta3, theta5`` (rad, from +x);
-    ``omega3, omega5`` (rad/s, signed); exit speeds across the chutes ``vC, vE`` (m/s,
-    signed); absolute exit speeds with the belts ``vaC, vaE`` (m/s).
-    """
-
-    xC: float
-    yC: float
-    xE: float
-    yE: float
-    theta3: float
-    theta5: float
-    omega3: float
-    omega5: float
-    vC: float
-    vE: float
-    vaC: float
-    vaE: float
-
-
-@dataclass(frozen=True)
-class LayupState:
-    """Vectorised kinematics (:meth:`LayupModel.arrays`); every array has the shape of ``phi``.
-
-    Attributes
-    ----------
-    phi : ndarray
-        Crank angles as given, rad.
-    xA, yA, xB, yB, xC, yC, xE, yE : ndarray
-        Joints A (crank pin), B (rod on chute 3), C and E (chute exits), m.
-    theta3, theta5 : ndarray
-        Angles of O2C and O3E from +x, rad, in (-π, π].
-    omega3, omega5 : ndarray
-        Their angular velocities, rad/s.
-    eps3, eps5 : ndarray or None
-        Their angular accelerations, rad/s² (None when not requested).
-    vC, vE : ndarray
-        Exit speeds across the chutes ``ω3 l3``, ``ω5 l5``, m/s (signed).
-    vaC, vaE : ndarray
-        Absolute exit speeds with the belts, ``sqrt(v² + v_tr²)``, m/s.
-    margin1, margin2 : ndarray
-        Toggle margins of the loops: sine of the transmission angle (at B between
-        BA and BO2; at E between EC and EO3), in (0, 1]; 0 would be a toggle.
-    """
-
-    phi: np.ndarray
-    xA: np.ndarray
-    yA: np.ndarray
-    xB: np.ndarray
-    yB: np.ndarray
-    xC: np.ndarray
-    yC: np.ndarray
-    xE: np.ndarray
-    yE: np.ndarray
-    theta3: np.ndarray
-    theta5: np.ndarray
-    omega3: np.ndarray
-    omega5: np.ndarray
-    eps3: np.ndarray | None
-    eps5: np.ndarray | None
-    vC: np.ndarray
-    vE: np.ndarray
-    vaC: np.ndarray
-    vaE: np.ndarray
-    margin1: np.ndarray
-    margin2: np.ndarray
-
-
-_ROWS = (
-    'xA',
-    'yA',
-    'xB',
-    'yB',
-    'xC',
-    'yC',
-    'xE',
-    'yE',
-    'theta3',
-    'theta5',
-    'omega3',
-    'omega5',
-    'vC',
-    'vE',
-    'vaC',
-    'vaE',
-    'margin1',
-    'margin2',
-    'eps3',
-    'eps5',
-)
 
 
 class _PointFn(Protocol):
@@ -746,20 +551,6 @@ def _crossing_reason(dmin: float, phimin: float) -> str:
         f'the circles stop meeting here: the normalised discriminant changes sign '
         f'(turning forward; it falls to {dmin:.3g} near phi={phimin % TAU:.6g} rad)'
     )
-
-
-class AssemblyMargins(NamedTuple):
-    """Toggle margins over a crank turn (:func:`check_assembly`).
-
-    Fields: ``margin1``, ``margin2`` — smallest sine of the transmission angle of
-    loops O1-A-B-O2 and O2-C-E-O3 (dimensionless); ``phi1``, ``phi2`` — crank angles
-    where they occur, rad in [0, 2π).
-    """
-
-    margin1: float
-    phi1: float
-    margin2: float
-    phi2: float
 
 
 def _first_crossing(f: Callable[[float], float], lo: float, hi: float) -> float:

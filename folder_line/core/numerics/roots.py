@@ -132,6 +132,32 @@ def _value(f: Callable[[float], float], x: float) -> float:
     return fx
 
 
+def _brent_step(
+    xpre: float,
+    xcur: float,
+    xblk: float,
+    fpre: float,
+    fcur: float,
+    fblk: float,
+    spre: float,
+    scur: float,
+    sbis: float,
+    delta: float,
+) -> tuple[float, float]:
+    """The new ``(spre, scur)`` of brentq.c: an interpolation step (secant, or inverse quadratic
+    extrapolation) if it is short enough, else bisection (``sbis``)."""
+    if abs(spre) > delta and abs(fcur) < abs(fpre):
+        if xpre == xblk:  # secant (linear interpolation)
+            stry = -fcur * (xcur - xpre) / (fcur - fpre)
+        else:  # inverse quadratic extrapolation
+            dpre = (fpre - fcur) / (xpre - xcur)
+            dblk = (fblk - fcur) / (xblk - xcur)
+            stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+        if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+            return scur, stry  # good short step
+    return sbis, sbis  # bisect
+
+
 def _brent_core(
     f: Callable[[float], float],
     xa: float,
@@ -167,19 +193,7 @@ def _brent_core(
             if fcur == 0.0:
                 lo = hi = xcur
             return RootResult(xcur, fcur, i, calls, (lo, hi))
-        if abs(spre) > delta and abs(fcur) < abs(fpre):
-            if xpre == xblk:  # secant (linear interpolation)
-                stry = -fcur * (xcur - xpre) / (fcur - fpre)
-            else:  # inverse quadratic extrapolation
-                dpre = (fpre - fcur) / (xpre - xcur)
-                dblk = (fblk - fcur) / (xblk - xcur)
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
-            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
-                spre, scur = scur, stry  # good short step
-            else:
-                spre = scur = sbis  # bisect
-        else:
-            spre = scur = sbis  # bisect
+        spre, scur = _brent_step(xpre, xcur, xblk, fpre, fcur, fblk, spre, scur, sbis, delta)
         xpre, fpre = xcur, fcur
         if abs(scur) > delta:
             xcur += scur
@@ -350,6 +364,21 @@ def find_sign_changes(
         From the refinement.
     """
     xt, rt, mi = _check_tolerances(xtol, rtol, maxiter)
+    x, ft = _check_scan(grid, ftol, left_sign)
+    g, calls = _sample(f, x, values)
+    sg = np.where(np.abs(g) <= ft, 0, np.sign(g)).astype(int).tolist()
+    found, refine_calls = _crossings(f, x.tolist(), g.tolist(), sg, left_sign or 0, xt, rt, mi)
+    kept = _drop_split_touches(found, xt, rt)
+    xr = np.array([k[0] for k in kept], dtype=float)
+    dr = np.array([k[1] for k in kept], dtype=np.int8)
+    sr = np.array([k[2] for k in kept], dtype=bool)
+    for arr in (xr, dr, sr):
+        arr.flags.writeable = False
+    return SignChanges(xr, dr, sr, calls + refine_calls)
+
+
+def _check_scan(grid: ArrayLike, ftol: float, left_sign: int | None) -> tuple[NDArray[np.float64], float]:
+    """The grid as a float array and ``ftol`` as a float, checked (:func:`find_sign_changes`)."""
     x = np.asarray(grid, dtype=float)
     if x.ndim != 1 or x.size < 2:
         raise ParameterError('grid', grid, 'must be a 1-D array of at least 2 points')
@@ -362,25 +391,43 @@ def find_sign_changes(
         raise ParameterError('ftol', ftol, 'must be finite and >= 0')
     if left_sign not in (None, -1, 0, 1):
         raise ParameterError('left_sign', left_sign, 'must be -1, 0, 1 or None')
-    calls = 0
+    return x, ft
+
+
+def _sample(
+    f: Callable[[float], float], x: NDArray[np.float64], values: ArrayLike | None
+) -> tuple[NDArray[np.float64], int]:
+    """``f`` on the grid ``x`` (``values`` if given, checked) and the evaluations it took."""
     if values is None:
         g = np.empty_like(x)
         for i, xi in enumerate(x.tolist()):
             g[i] = _value(f, xi)
-        calls += x.size
-    else:
-        g = np.array(values, dtype=float)
-        if g.shape != x.shape:
-            raise ParameterError('values', values, f'must have the shape of grid {x.shape}, got {g.shape}')
-        if not np.all(np.isfinite(g)):
-            bad = int(np.flatnonzero(~np.isfinite(g))[0])
-            raise NonFiniteValueError(float(x[bad]), float(g[bad]))
-    sg = np.where(np.abs(g) <= ft, 0, np.sign(g)).astype(int).tolist()
-    xs = x.tolist()
-    gs = g.tolist()
+        return g, x.size
+    g = np.array(values, dtype=float)
+    if g.shape != x.shape:
+        raise ParameterError('values', values, f'must have the shape of grid {x.shape}, got {g.shape}')
+    if not np.all(np.isfinite(g)):
+        bad = int(np.flatnonzero(~np.isfinite(g))[0])
+        raise NonFiniteValueError(float(x[bad]), float(g[bad]))
+    return g, 0
+
+
+def _crossings(
+    f: Callable[[float], float],
+    xs: list[float],
+    gs: list[float],
+    sg: list[int],
+    left_sign: int,
+    xt: float,
+    rt: float,
+    mi: int,
+) -> tuple[list[tuple[float, int, bool]], int]:
+    """The crossings ``(x, direction, on_sample)`` of rules 2-4 of :func:`find_sign_changes` (samples
+    ``xs``, values ``gs``, signs ``sg`` with zeros within ``ftol``) and the evaluations of the refinement."""
+    calls = 0
     found: list[tuple[float, int, bool]] = []
     n = len(xs)
-    prev_sign = left_sign or 0  # last non-zero sign seen to the left
+    prev_sign = left_sign  # last non-zero sign seen to the left
     i = 0
     while i < n:
         if sg[i] != 0:
@@ -398,7 +445,11 @@ def find_sign_changes(
         if prev_sign != 0 and right_sign != 0 and prev_sign != right_sign:
             found.append((xs[i], right_sign, True))
         i = j + 1
-    # rule 5: drop opposite pairs closer than the refinement tolerance
+    return found, calls
+
+
+def _drop_split_touches(found: list[tuple[float, int, bool]], xt: float, rt: float) -> list[tuple[float, int, bool]]:
+    """Rule 5 of :func:`find_sign_changes`: drop opposite pairs closer than the refinement tolerance."""
     kept: list[tuple[float, int, bool]] = []
     for item in found:
         if kept:
@@ -407,12 +458,7 @@ def find_sign_changes(
                 kept.pop()
                 continue
         kept.append(item)
-    xr = np.array([k[0] for k in kept], dtype=float)
-    dr = np.array([k[1] for k in kept], dtype=np.int8)
-    sr = np.array([k[2] for k in kept], dtype=bool)
-    for arr in (xr, dr, sr):
-        arr.flags.writeable = False
-    return SignChanges(xr, dr, sr, calls)
+    return kept
 
 
 class GoldenSection(NamedTuple):

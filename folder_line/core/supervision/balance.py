@@ -200,13 +200,7 @@ class SheetBalance:
             rows['t'].tolist(), rows['kind'].tolist(), rows['sheet'].tolist(), rows['cycle'].tolist(), strict=True
         ):
             if kind == _HAND:
-                if c.first_sheet is None:
-                    c.first_sheet = sheet
-                if sheet in c.sheets or sheet < c.first_sheet:
-                    c.ok = False  # counted twice
-                    continue
-                c.fed += 1
-                c.sheets[sheet] = _Signature(cycle)
+                _hand_over(c, sheet, cycle)
             elif kind == _STOPS:
                 sig = c.sheets.get(sheet)
                 if sig is not None and sig.t_a is None:
@@ -214,21 +208,9 @@ class SheetBalance:
             elif kind == _CONTACT:
                 self._contact(c, cycle, t)
             elif kind == _RELEASE:
-                sig = c.sheets.get(sheet)
-                if sig is not None and sig.folded:
-                    del c.sheets[sheet]
-                    c.delivered += 1
-                elif c.first_sheet is not None and sheet >= c.first_sheet:
-                    c.ok = False  # released, never folded (or twice)
-            elif kind == _ENTER:
-                if c.first_leaf is None:
-                    c.first_leaf = sheet
-                c.entered += int(sheet >= c.first_leaf)
-            elif c.first_leaf is not None and sheet >= c.first_leaf:
-                if kind == _EXIT:
-                    c.exited += 1
-                else:  # landed or spilled
-                    c.down += 1
+                _release(c, sheet)
+            else:
+                _leaf(c, kind, sheet)
 
     def _contact(self, c: _Counter, cycle: int, t: float) -> None:
         """The knife at ``t``: the signatures of ``cycle`` at the stops by then are folded."""
@@ -244,3 +226,37 @@ class SheetBalance:
         low = min([sig.cycle for sig in c.sheets.values()] + [cycle - _CONTACTS_KEPT])
         for k in [k for k in c.contacts if k < low]:
             del c.contacts[k]
+
+
+def _hand_over(c: _Counter, sheet: int, cycle: int) -> None:
+    """A signature handed over: fed (a second hand-over of it, or one before the first, spoils the count)."""
+    if c.first_sheet is None:
+        c.first_sheet = sheet
+    if sheet in c.sheets or sheet < c.first_sheet:
+        c.ok = False  # counted twice
+        return
+    c.fed += 1
+    c.sheets[sheet] = _Signature(cycle)
+
+
+def _release(c: _Counter, sheet: int) -> None:
+    """A signature released on the pile: delivered if it was folded (else the count is spoilt)."""
+    sig = c.sheets.get(sheet)
+    if sig is not None and sig.folded:
+        del c.sheets[sheet]
+        c.delivered += 1
+    elif c.first_sheet is not None and sheet >= c.first_sheet:
+        c.ok = False  # released, never folded (or twice)
+
+
+def _leaf(c: _Counter, kind: int, sheet: int) -> None:
+    """A leaf event of kind ``kind``: entered, exited, or down (landed or spilled)."""
+    if kind == _ENTER:
+        if c.first_leaf is None:
+            c.first_leaf = sheet
+        c.entered += int(sheet >= c.first_leaf)
+    elif c.first_leaf is not None and sheet >= c.first_leaf:
+        if kind == _EXIT:
+            c.exited += 1
+        else:  # landed or spilled
+            c.down += 1

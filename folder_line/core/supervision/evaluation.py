@@ -197,43 +197,55 @@ class CycleEvaluation:
         ``drive_before()`` gives the drive that is right before ``W``; it is called (a
         line model may have to be built) only if a folder cycle or a release is due.
         """
-        items: list[Due] = []
         if self.next_due() > W:
-            return items
-        drive = None
+            return []
+        items, drive = self._folder_due(W, drive_before)
+        items += self._releases_due(W, drive, drive_before)
+        items += self._exits_due(W)
+        items.sort(key=lambda it: (it.t, it.order, it.cycle))
+        return items
+
+    def _folder_due(self, W: float, drive_before: Callable[[], Drive]) -> tuple[list[Due], Drive | None]:
+        """The folder cycles whose knife contact is due by ``W`` (s), and the drive if it was needed."""
         fb = self._folder
-        if self.timing is not None and fb.size and self.first_cycle is not None:
-            contact = (fb['kind'] == _CONTACT) & (fb['t'] <= W) & (fb['cycle'] > self.folder_done)
-            if contact.any():
-                drive = drive_before()
-                last = int(fb['cycle'][contact].max())
-                ahead = [self._ahead.get(c) for c in range(self.folder_done + 1, last + 1)]
-                if drive is self._ahead_drive and None not in ahead:
-                    items += [it for it in ahead if it is not None]
-                else:
-                    sub = fb[
-                        (fb['cycle'] > self.folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)
-                    ]
-                    items += self._folder_items(sub, drive)
+        if self.timing is None or not fb.size or self.first_cycle is None:
+            return [], None
+        contact = (fb['kind'] == _CONTACT) & (fb['t'] <= W) & (fb['cycle'] > self.folder_done)
+        if not contact.any():
+            return [], None
+        drive = drive_before()
+        last = int(fb['cycle'][contact].max())
+        ahead = [self._ahead.get(c) for c in range(self.folder_done + 1, last + 1)]
+        if drive is self._ahead_drive and None not in ahead:
+            return [it for it in ahead if it is not None], drive
+        sub = fb[(fb['cycle'] > self.folder_done) & (fb['cycle'] <= last) & ((fb['kind'] != _CONTACT) | contact)]
+        return self._folder_items(sub, drive), drive
+
+    def _releases_due(self, W: float, drive: Drive | None, drive_before: Callable[[], Drive]) -> list[Due]:
+        """The releases due by ``W`` (s); ``drive``: the drive before ``W`` if already at hand."""
         rb = self._releases
-        if self.timing is not None and rb.size:
-            due = (rb['t'] <= W) & (rb['t'] > self._release_done)
-            if due.any():
-                drive = drive_before() if drive is None else drive
-                keys = list(zip(rb['t'][due].tolist(), rb['cycle'][due].tolist(), strict=True))
-                known = [self._ahead_releases.get(k) for k in keys]
-                if drive is self._ahead_drive and None not in known:
-                    items += [it for it in known if it is not None]
-                else:
-                    items += self._release_items(rb[due], drive)
+        if self.timing is None or not rb.size:
+            return []
+        due = (rb['t'] <= W) & (rb['t'] > self._release_done)
+        if not due.any():
+            return []
+        drive = drive_before() if drive is None else drive
+        keys = list(zip(rb['t'][due].tolist(), rb['cycle'][due].tolist(), strict=True))
+        known = [self._ahead_releases.get(k) for k in keys]
+        if drive is self._ahead_drive and None not in known:
+            return [it for it in known if it is not None]
+        return self._release_items(rb[due], drive)
+
+    def _exits_due(self, W: float) -> list[Due]:
+        """The leaf exits due by ``W`` (s)."""
         xb = self._exits
+        items: list[Due] = []
         if xb.size:
             due = (xb['t'] <= W) & (xb['t'] > self._exit_done)
             if due.any():
                 for s in evaluate_layup_constraints(xb[due], self.scene):
                     for c, m, tx in zip(s.cycle.tolist(), s.margin.tolist(), s.t.tolist(), strict=True):
                         items.append(Due(float(tx), 2, int(c), ((s.name, s.unit, float(m)),), 1, 'layup'))
-        items.sort(key=lambda it: (it.t, it.order, it.cycle))
         return items
 
     def taken(self, it: Due) -> None:

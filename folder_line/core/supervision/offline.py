@@ -16,6 +16,7 @@ import numpy as np
 
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream
+from folder_line.core.line.tuning import LineCommand
 from folder_line.core.supervision.settings import CHECK_PERIOD
 from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.core.types.events import EVENT_DTYPE
@@ -96,52 +97,74 @@ def replay(
     times += [g[0] for g in gone]
     times += [float(clk[-1])] if clk.size else []
     end = float(until) if until is not None else (max(times) if times else 0.0)
-    i_ev = i_c = 0
-    i_h = dict.fromkeys(hd, 0)
-    i_b = i_g = 0
-
-    def feed_to(t: float) -> None:
-        nonlocal i_ev, i_b, i_c, i_g
-        j = int(np.searchsorted(ev['t'], t, side='right'))
-        sup.feed(ev[i_ev:j])
-        i_ev = max(i_ev, j)
-        for n, a in hd.items():
-            j = int(np.searchsorted(a, t, side='right'))
-            sup.heard(n, a[i_h[n] : j])
-            i_h[n] = max(i_h[n], j)
-        j = int(np.searchsorted(clk, t, side='right'))
-        sup.clock(clk[i_c:j])
-        i_c = max(i_c, j)
-        while i_b < len(bad) and bad[i_b][0] <= t:
-            sup.bad_value(bad[i_b][1], bad[i_b][0], bad[i_b][2])
-            i_b += 1
-        while i_g < len(gone) and gone[i_g][0] <= t:
-            sup.lost(gone[i_g][1], gone[i_g][0], gone[i_g][2])
-            i_g += 1
-
-    ticked = 0  # the windows ticked, from 0
-
-    def tick_to(t: float) -> None:
-        """Feed and tick every window's end before ``t``, then ``t``."""
-        nonlocal ticked
-        while (ticked + 1) * window < t:
-            ticked += 1
-            feed_to(ticked * window)
-            sup.tick(ticked * window)
-        feed_to(t)
-        sup.tick(t)
-
+    feeder = _Feeder(sup, window, ev, hd, clk, bad, gone)
     if sup.t_start is None:
         raise ParameterError('t_start', None, "replay needs the live run's t_start")
-    ticked = math.floor(max(sup.t_start, 0.0) / window)  # no tick before the live one's first
+    feeder.ticked = math.floor(max(sup.t_start, 0.0) / window)  # no tick before the live one's first
     for t_op, name, tuning in ops:
-        tick_to(t_op)
+        feeder.tick_to(t_op)
         if tuning is None:
             sup.command(name, t_op)
         else:
             sup.tune(tuning[0], tuning[1], t_op, effective=tuning[2])
-    tick_to(end)
+    feeder.tick_to(end)
     return sup
+
+
+class _Feeder:
+    """What :func:`replay` feeds a supervisor, in time order, with a cursor into each input.
+
+    ``ev`` the events (sorted by time), ``hd`` node -> the stamps it was heard at, ``clk`` the
+    clock stamps, ``bad`` the ``(stamp, topic, count)`` of bad values and ``gone`` the
+    ``(t, node, waited wall s)`` of lost participants, all sorted; ``window`` the line time fed
+    and ticked at once, s; ``ticked`` the windows ticked, from 0.
+    """
+
+    def __init__(
+        self,
+        sup: Supervisor,
+        window: float,
+        ev: np.ndarray,
+        hd: dict[str, np.ndarray],
+        clk: np.ndarray,
+        bad: list[tuple[float, str, int]],
+        gone: list[tuple[float, str, float]],
+    ) -> None:
+        self.sup, self.window = sup, window
+        self.ev, self.hd, self.clk, self.bad, self.gone = ev, hd, clk, bad, gone
+        self.i_ev = self.i_c = self.i_b = self.i_g = 0
+        self.i_h = dict.fromkeys(hd, 0)
+        self.ticked = 0
+
+    def feed_to(self, t: float) -> None:
+        """Feed every input up to line time ``t`` (s) not fed yet."""
+        sup = self.sup
+        j = int(np.searchsorted(self.ev['t'], t, side='right'))
+        sup.feed(self.ev[self.i_ev : j])
+        self.i_ev = max(self.i_ev, j)
+        for n, a in self.hd.items():
+            j = int(np.searchsorted(a, t, side='right'))
+            sup.heard(n, a[self.i_h[n] : j])
+            self.i_h[n] = max(self.i_h[n], j)
+        j = int(np.searchsorted(self.clk, t, side='right'))
+        sup.clock(self.clk[self.i_c : j])
+        self.i_c = max(self.i_c, j)
+        bad, gone = self.bad, self.gone
+        while self.i_b < len(bad) and bad[self.i_b][0] <= t:
+            sup.bad_value(bad[self.i_b][1], bad[self.i_b][0], bad[self.i_b][2])
+            self.i_b += 1
+        while self.i_g < len(gone) and gone[self.i_g][0] <= t:
+            sup.lost(gone[self.i_g][1], gone[self.i_g][0], gone[self.i_g][2])
+            self.i_g += 1
+
+    def tick_to(self, t: float) -> None:
+        """Feed and tick every window's end before ``t`` (s), then ``t``."""
+        while (self.ticked + 1) * self.window < t:
+            self.ticked += 1
+            self.feed_to(self.ticked * self.window)
+            self.sup.tick(self.ticked * self.window)
+        self.feed_to(t)
+        self.sup.tick(t)
 
 
 def run_closed_loop(
@@ -206,9 +229,7 @@ def run_closed_loop(
         sup.feed(rows)
         fed.append(rows)
         for node, period in sup.watched.items():
-            lo = 0 if not math.isfinite(prev) else math.floor(prev / period) + 1
-            ticks = np.arange(lo, math.floor(W / period + 1e-9) + 1, dtype=float) * period
-            ticks = ticks[(ticks > prev) & (ticks <= W) & (ticks < silent.get(node, math.inf))]
+            ticks = _node_ticks(prev, W, period, silent.get(node, math.inf))
             sup.heard(node, ticks)
             heard[node] += ticks.tolist()
         if sup.clock_ticks:  # the clock publishes every step
@@ -225,14 +246,7 @@ def run_closed_loop(
             given.append((W, name))
             if out.command is not None:
                 new.append(out.command)
-        for c in new:
-            if c.t <= W:
-                raise ParameterError(
-                    'lead',
-                    sup.settings.lead,
-                    f'command {c.kind} effective at {c.t!r} s, not after the '
-                    f'events already fed up to {W!r} s: use lead >= step',
-                )
+        _check_lead(sup, new, W)
         if new:
             stream.set_commands(sup.commands)
         prev = W
@@ -245,3 +259,23 @@ def run_closed_loop(
         'until': prev,
     }
     return sup, stream, inputs
+
+
+def _node_ticks(prev: float, W: float, period: float, silent_from: float) -> np.ndarray:
+    """A node's ticks (multiples of its ``period``, s) after ``prev`` up to ``W`` and before ``silent_from``, s."""
+    lo = 0 if not math.isfinite(prev) else math.floor(prev / period) + 1
+    ticks = np.arange(lo, math.floor(W / period + 1e-9) + 1, dtype=float) * period
+    ticks_heard: np.ndarray = ticks[(ticks > prev) & (ticks <= W) & (ticks < silent_from)]
+    return ticks_heard
+
+
+def _check_lead(sup: Supervisor, new: Iterable[LineCommand], W: float) -> None:
+    """Refuse a command issued at the step ``W`` (s) that would rewrite the events already fed."""
+    for c in new:
+        if c.t <= W:
+            raise ParameterError(
+                'lead',
+                sup.settings.lead,
+                f'command {c.kind} effective at {c.t!r} s, not after the '
+                f'events already fed up to {W!r} s: use lead >= step',
+            )
