@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -392,6 +393,94 @@ def fd_error(model: LayupModel, ref: ReferenceArrays, h: float) -> float:
     return _vel_error(w3, w5, ref)
 
 
+@dataclass(frozen=True, eq=False)
+class _Setup:
+    """What every method of :func:`run` is measured on: the six-bar, its reference, one turn of crank
+    angles (``period`` s of line at :data:`RATE`) and the timing batches."""
+
+    params: LayupParams
+    model: LayupModel
+    ref: ReferenceArrays
+    phi_turn: np.ndarray
+    period: float
+    quick: bool
+    min_s: float
+    repeats: int
+
+    def cpu(self, call: Callable[[], object]) -> float:
+        """CPU s per call of ``call`` (:func:`~folder_line.accuracy.measure.cpu_per_call`)."""
+        return cpu_per_call(call, min_s=self.min_s, repeats=self.repeats)
+
+
+def _row(method: str, value: float, error: float, cpu: float, kind: tuple[str, str]) -> Row:
+    """A row of the study: ``kind`` is the quantity and its unit (:data:`POSITION`, :data:`VELOCITY`)."""
+    return Row(STUDY, method, _KNOB[method], float(value), error, cpu, kind[0], kind[1], REFERENCE)
+
+
+def _closed_form_rows(su: _Setup) -> list[Row]:
+    """The vectorised closed form, positions and rates, per batch size."""
+    rows: list[Row] = []
+    for batch in knob_settings('closed form', su.quick)[1]:
+        nb = int(batch)
+        chunk = np.resize(su.phi_turn, nb)
+
+        def batch_call(c: np.ndarray = chunk) -> object:
+            return su.model.arrays(c, accelerations=False)
+
+        cpu = su.cpu(batch_call)
+        err = closed_form_errors(su.model, su.ref, nb)
+        rows.append(_row('closed form', nb, err.position, cpu / nb * RATE, POSITION))
+        rows.append(_row('closed form velocity', nb, err.velocity, cpu / nb * RATE, VELOCITY))
+    return rows
+
+
+def _scalar_rows(su: _Setup) -> list[Row]:
+    """The closed form called angle by angle, per batch size."""
+    rows: list[Row] = []
+    scalar_err = _scalar_errors(su.model, su.ref)
+    point = su.model.point
+    for batch in knob_settings('closed form, scalar', su.quick)[1]:
+        nb = int(batch)
+        chunk_list = np.resize(su.phi_turn, nb).tolist()
+
+        def scalar_call(xs: list[float] = chunk_list) -> None:
+            for x in xs:
+                point(x)
+
+        cpu = su.cpu(scalar_call)
+        rows.append(_row('closed form, scalar', nb, scalar_err.position, cpu / nb * RATE, POSITION))
+    return rows
+
+
+def _newton_rows(su: _Setup) -> list[Row]:
+    """Newton's loop closure over a turn, per residual tolerance."""
+    rows: list[Row] = []
+    for tol in knob_settings('Newton loop closure', su.quick)[1]:
+
+        def newton_call(x: float = tol) -> object:
+            return newton_turn(su.params, x, su.phi_turn)
+
+        cpu = su.cpu(newton_call)
+        rows.append(_row('Newton loop closure', tol, newton_error(su.params, tol), cpu / su.period, POSITION))
+    return rows
+
+
+def _fd_rows(su: _Setup) -> list[Row]:
+    """Central differences of the closed-form positions, per crank-angle step."""
+    rows: list[Row] = []
+    fd_phi = np.resize(su.phi_turn, FD_BATCH)
+    for h in knob_settings('finite difference velocity', su.quick)[1]:
+
+        def fd_call(x: float = h) -> object:
+            return fd_velocities(su.model, fd_phi, x)
+
+        cpu = su.cpu(fd_call)
+        rows.append(
+            _row('finite difference velocity', h, fd_error(su.model, su.ref, h), cpu / FD_BATCH * RATE, VELOCITY)
+        )
+    return rows
+
+
 def run(quick: bool = False) -> list[Row]:
     """Measure every method at every knob setting.
 
@@ -412,54 +501,8 @@ def run(quick: bool = False) -> list[Row]:
     phi_turn = step_angles(params)
     period = phi_turn.size / RATE
     min_s, repeats = cpu_budget(quick)
-    rows: list[Row] = []
-
-    def row(method: str, value: float, error: float, cpu: float, kind: tuple[str, str]) -> None:
-        rows.append(Row(STUDY, method, _KNOB[method], float(value), error, cpu, kind[0], kind[1], REFERENCE))
-
-    _, batches = knob_settings('closed form', quick)
-    for batch in batches:
-        nb = int(batch)
-        chunk = np.resize(phi_turn, nb)
-
-        def batch_call(c: np.ndarray = chunk) -> object:
-            return model.arrays(c, accelerations=False)
-
-        cpu = cpu_per_call(batch_call, min_s=min_s, repeats=repeats)
-        err = closed_form_errors(model, ref, nb)
-        row('closed form', nb, err.position, cpu / nb * RATE, POSITION)
-        row('closed form velocity', nb, err.velocity, cpu / nb * RATE, VELOCITY)
-
-    scalar_err = _scalar_errors(model, ref)
-    point = model.point
-    for batch in knob_settings('closed form, scalar', quick)[1]:
-        nb = int(batch)
-        chunk_list = np.resize(phi_turn, nb).tolist()
-
-        def scalar_call(xs: list[float] = chunk_list) -> None:
-            for x in xs:
-                point(x)
-
-        cpu = cpu_per_call(scalar_call, min_s=min_s, repeats=repeats)
-        row('closed form, scalar', nb, scalar_err.position, cpu / nb * RATE, POSITION)
-
-    for tol in knob_settings('Newton loop closure', quick)[1]:
-
-        def newton_call(x: float = tol) -> object:
-            return newton_turn(params, x, phi_turn)
-
-        cpu = cpu_per_call(newton_call, min_s=min_s, repeats=repeats)
-        row('Newton loop closure', tol, newton_error(params, tol), cpu / period, POSITION)
-
-    fd_phi = np.resize(phi_turn, FD_BATCH)
-    for h in knob_settings('finite difference velocity', quick)[1]:
-
-        def fd_call(x: float = h) -> object:
-            return fd_velocities(model, fd_phi, x)
-
-        cpu = cpu_per_call(fd_call, min_s=min_s, repeats=repeats)
-        row('finite difference velocity', h, fd_error(model, ref, h), cpu / FD_BATCH * RATE, VELOCITY)
-    return rows
+    su = _Setup(params, model, ref, phi_turn, period, quick, min_s, repeats)
+    return [*_closed_form_rows(su), *_scalar_rows(su), *_newton_rows(su), *_fd_rows(su)]
 
 
 if __name__ == '__main__':  # pragma: no cover - a developer's look at the numbers

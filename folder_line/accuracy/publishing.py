@@ -72,6 +72,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -80,6 +81,7 @@ import numpy as np
 import rclpy
 import yaml
 from numpy.typing import NDArray
+from rclpy.executors import Executor
 from rclpy.parameter import Parameter
 
 from folder_line.accuracy.measure import Row
@@ -92,6 +94,7 @@ from folder_line.core.line.scene import parse_scene
 from folder_line.errors import MeasurementError, ParameterError
 from folder_line.interfaces import JOINT_NODES, KNOWN_PARTICIPANTS, NODE_OF_UNIT, NS_PER_S
 from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
 from folder_line.ros.run import add_machine_nodes
 from folder_line.ros.runtime import events_executor
@@ -417,6 +420,35 @@ def live_cost(
     LiveCost
         The measurement; see :func:`check_published` for its validity.
     """
+    rtf = _checked_rtf(rate, rtf, span_ticks, warmup_wall)
+    warmup = warmup_wall * rtf
+    duration = warmup + span_ticks / rate
+    cfg = RunConfig(scene=scene, duration=duration, rtf=rtf, rate=float(rate))
+    clock_rate = float(rate) if clock_rate is None else float(clock_rate)
+    start, end, state, joint_nodes = _run_live_line(cfg, scene, clock_rate, warmup)
+    period_ns = round(NS_PER_S / float(rate))
+    if start is None or end is None or end[0] <= start[0]:
+        msg = (
+            f'the live line at {rate:g} Hz (rtf {rtf:g}) did not reach {duration:.3f} s of sim time '
+            f'within {3.0 * duration / rtf + 30.0:.0f} s of wall time'
+        )
+        raise MeasurementError(msg)
+    return LiveCost(
+        rate=float(rate),
+        rtf=rtf,
+        clock_rate=clock_rate,
+        t_start=start[0],
+        t_end=end[0],
+        cpu_s=end[1] - start[1],
+        wall_s=end[2] - start[2],
+        published={n: end[3][n][0] - start[3][n][0] for n in joint_nodes},
+        supervisor_state=state,
+        owed={n: end[3][n][1] // period_ns - start[3][n][1] // period_ns for n in joint_nodes},
+    )
+
+
+def _checked_rtf(rate: float, rtf: float | None, span_ticks: int, warmup_wall: float) -> float:
+    """The real-time factor of :func:`live_cost` (:func:`default_rtf` if None), its arguments checked."""
     TICK_RATE.check('rate', rate)
     rtf = default_rtf(rate) if rtf is None else float(rtf)
     if not (isinstance(span_ticks, int) and span_ticks >= 10):
@@ -425,10 +457,28 @@ def live_cost(
         raise ParameterError('warmup_wall', warmup_wall, 'must be a finite wall time >= 0 s')
     if not (math.isfinite(rtf) and rtf > 0.0):
         raise ParameterError('rtf', rtf, 'must be a finite real-time factor > 0')
-    warmup = warmup_wall * rtf
-    duration = warmup + span_ticks / rate
-    cfg = RunConfig(scene=scene, duration=duration, rtf=rtf, rate=float(rate))
-    clock_rate = float(rate) if clock_rate is None else float(clock_rate)
+    return rtf
+
+
+#: a point of the measured span: (sim time s, process CPU s, wall s, each joint node's :func:`_progress`)
+_Mark = tuple[float, float, float, dict[str, tuple[int, int]]]
+
+
+def _run_live_line(
+    cfg: RunConfig, scene: str, clock_rate: float, warmup: float
+) -> tuple[_Mark | None, _Mark | None, str, list[str]]:
+    """Run the in-process live line of :func:`live_cost` (``cfg``, the clock at ``clock_rate`` per s of sim
+    time) and take its marks at ``warmup`` s of sim time and when the clock is done.
+
+    Returns
+    -------
+    start, end : tuple or None
+        The marks (None if not reached within the wall-time deadline).
+    state : str
+        The supervisor's PackML state at the end.
+    joint_nodes : list of str
+        The joint nodes measured.
+    """
     mapping = scene_mapping(scene)
     parsed = parse_scene(mapping)
     ctx = rclpy.Context()
@@ -458,31 +508,8 @@ def live_cost(
             clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], context=ctx)
             nodes.append(clock)
             executor.add_node(clock)
-            deadline = time.monotonic() + 30.0 + 3.0 * duration / rtf
-            start: tuple[float, float, float, dict[str, tuple[int, int]]] | None = None
-            end: tuple[float, float, float, dict[str, tuple[int, int]]] | None = None
-            while end is None and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-                sim = recorder.sim_time
-                if start is None and sim >= warmup:
-                    start = (
-                        sim,
-                        time.process_time(),
-                        time.monotonic(),
-                        {n: _progress(node) for n, node in joint_nodes.items()},
-                    )
-                elif (
-                    start is not None
-                    and clock.done.done()
-                    and (stop_ns := clock.done.result()) is not None
-                    and sim >= stop_ns / 1e9
-                ):
-                    end = (
-                        sim,
-                        time.process_time(),
-                        time.monotonic(),
-                        {n: _progress(node) for n, node in joint_nodes.items()},
-                    )
+            deadline = time.monotonic() + 30.0 + 3.0 * cfg.duration / cfg.rtf
+            start, end = _spin_span(executor, recorder, clock, joint_nodes, warmup, deadline)
             state = recorder.state
         finally:
             executor.shutdown()
@@ -490,28 +517,42 @@ def live_cost(
             for node in nodes:
                 node.destroy_node()
             ctx.try_shutdown()
-    period_ns = round(NS_PER_S / float(rate))
-    if start is None or end is None or end[0] <= start[0]:
-        msg = (
-            f'the live line at {rate:g} Hz (rtf {rtf:g}) did not reach {duration:.3f} s of sim time '
-            f'within {3.0 * duration / rtf + 30.0:.0f} s of wall time'
-        )
-        raise MeasurementError(msg)
-    return LiveCost(
-        rate=float(rate),
-        rtf=rtf,
-        clock_rate=clock_rate,
-        t_start=start[0],
-        t_end=end[0],
-        cpu_s=end[1] - start[1],
-        wall_s=end[2] - start[2],
-        published={n: end[3][n][0] - start[3][n][0] for n in joint_nodes},
-        supervisor_state=state,
-        owed={n: end[3][n][1] // period_ns - start[3][n][1] // period_ns for n in joint_nodes},
-    )
+    return start, end, state, list(joint_nodes)
 
 
-def _progress(node: Any) -> tuple[int, int]:
+def _spin_span(
+    executor: Executor,
+    recorder: LineRecorder,
+    clock: LineClock,
+    joint_nodes: Mapping[str, Any],
+    warmup: float,
+    deadline: float,
+) -> tuple[_Mark | None, _Mark | None]:
+    """Spin until the clock is done (or the wall-clock ``deadline``, s of ``time.monotonic``): the marks at
+    ``warmup`` s of sim time and at the clock's stop."""
+    start: _Mark | None = None
+    end: _Mark | None = None
+    while end is None and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+        sim = recorder.sim_time
+        if start is None and sim >= warmup:
+            start = _mark(sim, joint_nodes)
+        elif (
+            start is not None
+            and clock.done.done()
+            and (stop_ns := clock.done.result()) is not None
+            and sim >= stop_ns / 1e9
+        ):
+            end = _mark(sim, joint_nodes)
+    return start, end
+
+
+def _mark(sim: float, joint_nodes: Mapping[str, Any]) -> _Mark:
+    """The mark at ``sim`` s of sim time: the process's CPU time, the wall time, the nodes' progress."""
+    return (sim, time.process_time(), time.monotonic(), {n: _progress(node) for n, node in joint_nodes.items()})
+
+
+def _progress(node: MachineNode) -> tuple[int, int]:
     """A joint node's JointState messages so far and the last tick it did, ns (it has published every
     grid point up to that tick)."""
     last = node.lockstep.last_done

@@ -66,39 +66,48 @@ def _seconds(stamp: Any) -> float:
 
 
 def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
+    """Add ``value``'s columns, named under ``prefix``, to ``out`` (see :func:`flatten_message`)."""
     if _is_message(value):
-        mt = value.__msgtype__
-        if mt == _TIME:
-            out[prefix or 'stamp'] = _seconds(value)
-            return
-        if mt == 'sensor_msgs/msg/JointState':
-            joints = [str(n) for n in value.name]
-            for name in _field_names(mt):
-                data = getattr(value, name)
-                if name == 'name':
-                    continue
-                if name in ('position', 'velocity', 'effort') and joints and len(data) == len(joints):
-                    for joint, x in zip(joints, np.asarray(data).tolist(), strict=True):
-                        out[_join(_join(prefix, name), joint)] = x
-                else:
-                    _flatten(data, _join(prefix, name), out)
-            return
-        for name in _field_names(mt):
-            _flatten(getattr(value, name), _join(prefix, name), out)
-        return
-    if isinstance(value, np.ndarray):
+        _flatten_message(value, prefix, out)
+    elif isinstance(value, np.ndarray):
         for i, x in enumerate(value.reshape(-1).tolist()):
             out[f'{prefix}[{i}]'] = x
+    elif isinstance(value, (list, tuple)):
+        _flatten_sequence(value, prefix, out)
+    else:
+        out[prefix or 'data'] = value
+
+
+def _flatten_message(value: Any, prefix: str, out: dict[str, Any]) -> None:
+    """A message's columns: a time in seconds, a joint state's by joint, any other's field by field."""
+    mt = value.__msgtype__
+    if mt == _TIME:
+        out[prefix or 'stamp'] = _seconds(value)
         return
-    if isinstance(value, (list, tuple)):
-        if value and all(_is_message(v) and v.__msgtype__ == 'diagnostic_msgs/msg/KeyValue' for v in value):
-            for kv in value:
-                out[_join(prefix, str(kv.key))] = kv.value
-            return
-        for i, v in enumerate(value):
-            _flatten(v, f'{prefix}[{i}]', out)
+    if mt == 'sensor_msgs/msg/JointState':
+        joints = [str(n) for n in value.name]
+        for name in _field_names(mt):
+            data = getattr(value, name)
+            if name == 'name':
+                continue
+            if name in ('position', 'velocity', 'effort') and joints and len(data) == len(joints):
+                for joint, x in zip(joints, np.asarray(data).tolist(), strict=True):
+                    out[_join(_join(prefix, name), joint)] = x
+            else:
+                _flatten(data, _join(prefix, name), out)
         return
-    out[prefix or 'data'] = value
+    for name in _field_names(mt):
+        _flatten(getattr(value, name), _join(prefix, name), out)
+
+
+def _flatten_sequence(value: list[Any] | tuple[Any, ...], prefix: str, out: dict[str, Any]) -> None:
+    """A sequence's columns: a ``diagnostic_msgs/KeyValue`` list by key, any other item by item."""
+    if value and all(_is_message(v) and v.__msgtype__ == 'diagnostic_msgs/msg/KeyValue' for v in value):
+        for kv in value:
+            out[_join(prefix, str(kv.key))] = kv.value
+        return
+    for i, v in enumerate(value):
+        _flatten(v, f'{prefix}[{i}]', out)
 
 
 def flatten_message(msg: Any) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ import numpy as np
 from folder_line.analysis.gap_cycles import Unjudged, unjudged, without_unjudged
 from folder_line.analysis.streaming import stamp_priority
 from folder_line.bag.gaps import Gap
-from folder_line.bag.reader import read_bag
+from folder_line.bag.reader import BagContents, read_bag
 from folder_line.config.run_config import BAG_DIR
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.tuning import LineCommand, command_of
@@ -176,7 +176,7 @@ class Recording:
         out of ``events`` (:mod:`folder_line.analysis.gap_cycles`).
     """
 
-    bag: Any
+    bag: BagContents
     run: dict[str, Any] | None
     scene: Scene
     t_end: float
@@ -391,6 +391,108 @@ class _Joints:
         )
 
 
+class _Decoder:
+    """What :func:`read_recording` keeps of each message, in one pass over a bag."""
+
+    def __init__(self, topics: Iterable[str], t_from: float, joint_samples: int) -> None:
+        self.clock_end = -1  # the latest /clock, ns
+        self.diag_ns = _Grow(np.int64)
+        self.status: list[tuple[int, str, dict[str, str]]] = []
+        self.bad_values: list[tuple[float, str, int]] = []
+        self.ev_ns = _Grow(np.int64)
+        self.ev_rows = _Grow(EVENT_DTYPE)
+        self.bad_events = 0
+        self.joints: dict[str, _Joints] = {}
+        self.sampler = _Sampler(joint_samples)
+        self.from_ns = round(t_from * NS_PER_S)
+        # topic -> the node whose joint states it carries (looked up once per topic, not per message)
+        self.node_of = {topic: node for topic in topics if (node := joint_states_node(topic)) is not None}
+        self.states: list[tuple[int, str]] = []
+        self.commands: dict[tuple[int, str], None] = {}
+        self.sheet_count: int | None = None
+        self.landing = _Grow(float)
+
+    def message(self, topic: str, t_ns: int, msg: Any) -> None:
+        """Keep what the analysis needs of one message (logged at ``t_ns``)."""
+        if topic == CLOCK_TOPIC:
+            self.clock_end = max(self.clock_end, stamp_ns(msg.clock))
+        elif topic == EVENTS_TOPIC:
+            self._event(msg)
+        elif (node := self.node_of.get(topic)) is not None:
+            self._joint_states(topic, node, msg)
+        elif topic == DIAGNOSTICS_TOPIC:
+            self._diagnostics(msg)
+        elif topic == SUPERVISOR_STATE_TOPIC:
+            state = str(msg.data)
+            if not self.states or self.states[-1][1] != state:
+                self.states.append((t_ns, state))
+        elif topic == COMMANDS_TOPIC:
+            self.commands[(stamp_ns(msg.time_ref), str(msg.source))] = None
+        elif topic == SHEET_COUNT_TOPIC:
+            self.sheet_count = int(msg.data)
+        elif topic == LANDING_TOPIC:
+            self.landing.add(float(msg.data))
+
+    def _event(self, msg: Any) -> None:
+        """An event of ``/line/events`` (counted in ``bad_events`` if its source is not one)."""
+        try:
+            kind, sheet, cycle, value = parse_event_source(msg.source)
+        except ValueError:
+            self.bad_events += 1
+            return
+        t_ev = stamp_ns(msg.time_ref)
+        self.ev_ns.add(t_ev)
+        self.ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set later, from the ns
+
+    def _joint_states(self, topic: str, node: str, msg: Any) -> None:
+        """A node's joint states: sampled from ``t_from`` on, their NaN and inf counted."""
+        t_ns = stamp_ns(msg.header.stamp)
+        three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
+        if t_ns >= self.from_ns:
+            acc = self.joints.get(node)
+            if acc is None:
+                acc = self.joints[node] = _Joints(node, msg.name, self.sampler)
+            acc.add(msg, t_ns, *three)
+        arrays = [a for a in three if a.size]
+        # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
+        if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
+            bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
+            if bad:
+                self.bad_values.append((t_ns / NS_PER_S, topic, bad))
+
+    def _diagnostics(self, msg: Any) -> None:
+        """A ``/diagnostics`` message: its stamp, and the supervisor's statuses in it."""
+        t_ns = stamp_ns(msg.header.stamp)
+        self.diag_ns.add(t_ns)
+        for st in msg.status:
+            if str(st.name).startswith(SUPERVISOR_STATUS_PREFIX):
+                self.status.append((t_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
+
+    def events(self, gaps: Sequence[Gap]) -> tuple[np.ndarray, np.ndarray, Unjudged]:
+        """The events sorted (time, kind, sheet), those of the cycles and leaves a gap took events from left
+        out: (events, their times in ns, what was left out)."""
+        ns = self.ev_ns.done()
+        events = self.ev_rows.done()
+        events['t'] = ns / NS_PER_S
+        order = np.lexsort((events['sheet'], events['kind'], ns))
+        events, ns = events[order], ns[order]
+        skip = unjudged(events, ns, gaps)
+        if skip:  # the events of cycles and leaves a gap took events from are not judged at all
+            keep = without_unjudged(events, skip)
+            events, ns = events[keep], ns[keep]
+        return events, ns, skip
+
+
+def _bag_scene(contents: BagContents, path: str | os.PathLike[str]) -> Scene:
+    """The scene stored in a bag (``path`` named in the errors)."""
+    if not contents.scene_source:
+        raise ParameterError('RUN_DIR|BAG', str(path), 'the bag holds no scene (custom data folder_line.scene)')
+    mapping = load_yaml(contents.scene_source, 'RUN_DIR|BAG', f'{path} (its scene, custom data folder_line.scene)')
+    if not isinstance(mapping, dict):
+        raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
+    return parse_scene(mapping)
+
+
 def read_recording(
     path: str | os.PathLike[str],
     on_message: Callable[[str, int, Any], None] | None = None,
@@ -430,88 +532,19 @@ def read_recording(
     """
     bag_dir, run = _resolve(path)
     contents = read_bag(bag_dir)
-    if not contents.scene_source:
-        raise ParameterError('RUN_DIR|BAG', str(path), 'the bag holds no scene (custom data folder_line.scene)')
-    mapping = load_yaml(contents.scene_source, 'RUN_DIR|BAG', f'{path} (its scene, custom data folder_line.scene)')
-    if not isinstance(mapping, dict):
-        raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
-    scene = parse_scene(mapping)
-
-    clock_end = -1  # the latest /clock, ns
-    diag_ns = _Grow(np.int64)
-    status: list[tuple[int, str, dict[str, str]]] = []
-    bad_values: list[tuple[float, str, int]] = []
-    ev_ns = _Grow(np.int64)
-    ev_rows = _Grow(EVENT_DTYPE)
-    bad_events = 0
-    joints: dict[str, _Joints] = {}
-    sampler = _Sampler(joint_samples)
-    from_ns = round(t_from * NS_PER_S)
-    # topic -> the node whose joint states it carries (looked up once per topic, not per message)
-    node_of = {topic: node for topic in contents.topics if (node := joint_states_node(topic)) is not None}
-    states: list[tuple[int, str]] = []
-    commands: dict[tuple[int, str], None] = {}
-    sheet_count: int | None = None
-    landing = _Grow(float)
+    scene = _bag_scene(contents, path)
+    dec = _Decoder(contents.topics, t_from, joint_samples)
     stop_ns = None if t_to is None else round(t_to * NS_PER_S) + 1
     for topic, t_ns, msg in contents.messages(stop_ns=stop_ns):
         if on_message is not None:
             on_message(topic, t_ns, msg)
-        if topic == CLOCK_TOPIC:
-            clock_end = max(clock_end, stamp_ns(msg.clock))
-        elif topic == EVENTS_TOPIC:
-            try:
-                kind, sheet, cycle, value = parse_event_source(msg.source)
-            except ValueError:
-                bad_events += 1
-                continue
-            t_ev = stamp_ns(msg.time_ref)
-            ev_ns.add(t_ev)
-            ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set below, from the ns
-        elif (node := node_of.get(topic)) is not None:
-            t_ns = stamp_ns(msg.header.stamp)
-            three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
-            if t_ns >= from_ns:
-                acc = joints.get(node)
-                if acc is None:
-                    acc = joints[node] = _Joints(node, msg.name, sampler)
-                acc.add(msg, t_ns, *three)
-            arrays = [a for a in three if a.size]
-            # a finite sum (the usual case) means no NaN or inf; a non-finite one may be an overflow, so count
-            if arrays and not math.isfinite(sum(float(a.sum()) for a in arrays)):
-                bad = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays)
-                if bad:
-                    bad_values.append((t_ns / NS_PER_S, topic, bad))
-        elif topic == DIAGNOSTICS_TOPIC:
-            t_ns = stamp_ns(msg.header.stamp)
-            diag_ns.add(t_ns)
-            for st in msg.status:
-                if str(st.name).startswith(SUPERVISOR_STATUS_PREFIX):
-                    status.append((t_ns, str(st.name), {str(kv.key): str(kv.value) for kv in st.values}))
-        elif topic == SUPERVISOR_STATE_TOPIC:
-            state = str(msg.data)
-            if not states or states[-1][1] != state:
-                states.append((t_ns, state))
-        elif topic == COMMANDS_TOPIC:
-            commands[(stamp_ns(msg.time_ref), str(msg.source))] = None
-        elif topic == SHEET_COUNT_TOPIC:
-            sheet_count = int(msg.data)
-        elif topic == LANDING_TOPIC:
-            landing.add(float(msg.data))
+        dec.message(topic, t_ns, msg)
 
-    ns = ev_ns.done()
-    events = ev_rows.done()
-    events['t'] = ns / NS_PER_S
-    order = np.lexsort((events['sheet'], events['kind'], ns))
-    cmds = tuple(sorted((command_of(t / NS_PER_S, k) for t, k in commands), key=lambda c: c.t))
+    cmds = tuple(sorted((command_of(t / NS_PER_S, k) for t, k in dec.commands), key=lambda c: c.t))
     end_ns = contents.end_ns if t_to is None else min(contents.end_ns, round(t_to * NS_PER_S))
-    t_end = (clock_end if clock_end >= 0 else end_ns) / NS_PER_S
-    events, ns = events[order], ns[order]
+    t_end = (dec.clock_end if dec.clock_end >= 0 else end_ns) / NS_PER_S
     gaps = tuple(contents.gaps)
-    skip = unjudged(events, ns, gaps)
-    if skip:  # the events of cycles and leaves a gap took events from are not judged at all
-        keep = without_unjudged(events, skip)
-        events, ns = events[keep], ns[keep]
+    events, ns, skip = dec.events(gaps)
     return Recording(
         bag=contents,
         run=run,
@@ -522,13 +555,13 @@ def read_recording(
         event_ns=ns,
         gaps=gaps,
         unjudged=skip,
-        joints=sampler.finish(joints),
-        states=states,
+        joints=dec.sampler.finish(dec.joints),
+        states=dec.states,
         commands=cmds,
-        sheet_count=sheet_count,
-        landing_x=landing.done(),
-        bad_events=bad_events,
-        diagnostics_ns=diag_ns.done(),
-        supervisor_status=status,
-        bad_values=bad_values,
+        sheet_count=dec.sheet_count,
+        landing_x=dec.landing.done(),
+        bad_events=dec.bad_events,
+        diagnostics_ns=dec.diag_ns.done(),
+        supervisor_status=dec.status,
+        bad_values=dec.bad_values,
     )

@@ -2,13 +2,13 @@
 
 :func:`analyze` reads a run's bag (:func:`folder_line.analysis.recording.read_recording`),
 judges it (:func:`folder_line.analysis.replay.evaluate`), replays the supervisor
-(:func:`folder_line.analysis.replay.replay_transitions`) and writes to ``--out``
+(:func:`folder_line.analysis.supervisor_replay.replay_transitions`) and writes to ``--out``
 (default ``RUN_DIR/analysis``)
 
 ``report.md``
     the run's numbers -- cycles, sheets counted, per-constraint minimum margins, the
     violations (cycle, constraint, margin), whether the recorded events are the line
-    model's (:func:`folder_line.analysis.replay.compare_events`), the supervisor's state
+    model's (:func:`folder_line.analysis.event_check.compare_events`), the supervisor's state
     transitions (replayed, and whether they agree with the recorded ones), the messages
     recorded and lost -- and the figures;
 the figures
@@ -37,23 +37,17 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from folder_line.analysis.csv_export import CsvCollector
+from folder_line.analysis.event_check import EventCheck, compare_events
 from folder_line.analysis.figure_data import GANTT_CYCLES
 from folder_line.analysis.figures import FIGURES, draw_figures
 from folder_line.analysis.recording import Recording, read_recording
-from folder_line.analysis.replay import (
-    Evaluation,
-    EventCheck,
-    compare_events,
-    evaluate,
-    recorded_transitions,
-    replay_transitions,
-    transitions_agree,
-)
+from folder_line.analysis.replay import Evaluation, evaluate
+from folder_line.analysis.supervisor_replay import recorded_transitions, replay_transitions, transitions_agree
 from folder_line.bag.gaps import Gap, describe_gaps
 from folder_line.bag.metadata import files_text
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
@@ -84,7 +78,7 @@ class AnalysisResult:
         ``margin``, ``unit``, ``cycle``, ``evaluations``, ``violations``),
         ``violations`` (count and every one), ``events`` (count per kind),
         ``transitions``, ``transitions_source``, ``replay_matches``, ``events_check``
-        (:meth:`~folder_line.analysis.replay.EventCheck.as_dict`), ``messages``, ``lost``.
+        (:meth:`~folder_line.analysis.event_check.EventCheck.as_dict`), ``messages``, ``lost``.
     recording : Recording
     evaluation : Evaluation
         The recorded events judged (:func:`folder_line.analysis.replay.evaluate`): every
@@ -116,6 +110,20 @@ def _report_lines(
     figures: Mapping[str, Path],
     csv_files: Mapping[str, Path],
 ) -> list[str]:
+    """The lines of ``report.md``, section by section."""
+    return [
+        *_head_lines(rec, check, summary),
+        *_model_lines(check),
+        *_constraint_lines(summary),
+        *_violation_lines(ev, summary),
+        *_transition_lines(summary),
+        *_message_lines(rec, summary),
+        *_file_lines(figures, csv_files),
+    ]
+
+
+def _head_lines(rec: Recording, check: EventCheck, summary: Mapping[str, Any]) -> list[str]:
+    """The title, the run's description and the summary table."""
     scene = rec.scene
     bag = rec.bag
     lines = [
@@ -157,7 +165,12 @@ def _report_lines(
     ]
     if rec.bad_events:
         lines.append(f'| /line/events messages that are not events | {rec.bad_events} |')
-    lines += ['', '## The recorded events and the line model', '']
+    return lines
+
+
+def _model_lines(check: EventCheck) -> list[str]:
+    """The section on the recorded events against the line model, with the first differences."""
+    lines = ['', '## The recorded events and the line model', '']
     lines.append(
         'The streamed line model under the recorded drive commands and tunings, replayed window by window '
         f'({check.windows} window{"" if check.windows == 1 else "s"}) and compared with the recorded events of each '
@@ -174,7 +187,12 @@ def _report_lines(
         more = check.values_differ + check.recorded_only + check.model_only - len(check.differences)
         if more > 0:
             lines += ['', f'... and {more} more.']
-    lines += ['', '## Events', '', '| kind | count |', '|---|---|']
+    return lines
+
+
+def _constraint_lines(summary: Mapping[str, Any]) -> list[str]:
+    """The events counted by kind and every constraint's smallest margin, with what the margins mean."""
+    lines = ['', '## Events', '', '| kind | count |', '|---|---|']
     lines += [f'| {k} | {n} |' for k, n in summary['events'].items()]
     lines += [
         '',
@@ -195,7 +213,12 @@ def _report_lines(
     else:
         lines += ['', 'What the margins mean:', '']
         lines += [f'- `{name}`: {MARGIN_MEANINGS[name]}' for name in summary['min_margin'] if name in MARGIN_MEANINGS]
-    lines += ['', '## Violations', '']
+    return lines
+
+
+def _violation_lines(ev: Evaluation, summary: Mapping[str, Any]) -> list[str]:
+    """Every violated row, with its decision time."""
+    lines = ['', '## Violations', '']
     viol = summary['violations']['first']
     if viol:
         decided = {(v.constraint, v.cycle): v.t for v in ev.violations}
@@ -208,7 +231,12 @@ def _report_lines(
         ]
     else:
         lines.append('No constraint was violated.')
-    lines += ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
+    return lines
+
+
+def _transition_lines(summary: Mapping[str, Any]) -> list[str]:
+    """The supervisor's state transitions, the recorded states and the violations as the replay decided them."""
+    lines = ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
     recorded = summary.get('recorded_transitions', [])
     shown: dict[str, float] = {}
     for tr in recorded:
@@ -242,7 +270,12 @@ def _report_lines(
             f'{_margin(v["constraint"], v["margin"], v["unit"])} | {v["action"]} | {v["state"]} |'
             for v in replayed
         ]
-    lines += ['', '## Messages', '']
+    return lines
+
+
+def _message_lines(rec: Recording, summary: Mapping[str, Any]) -> list[str]:
+    """The messages recorded, published and lost per topic."""
+    lines = ['', '## Messages', '']
     published = rec.bag.published
     lost = summary.get('lost')
     lines += ['| topic | type | recorded | published | lost |', '|---|---|---|---|---|']
@@ -254,6 +287,12 @@ def _report_lines(
         lines += ['', f'Loss accounting (run.json): {rec.run["loss_accounting"]}.']
     elif rec.run is None:
         lines += ['', 'No run.json: lost messages unknown.']
+    return lines
+
+
+def _file_lines(figures: Mapping[str, Path], csv_files: Mapping[str, Path]) -> list[str]:
+    """The CSV files written and the figures, drawn or not."""
+    lines: list[str] = []
     if csv_files:
         lines += [
             '',
@@ -418,7 +457,7 @@ def _write_analysis(
     )
 
 
-def print_analysis(result: AnalysisResult, stream: Any) -> None:
+def print_analysis(result: AnalysisResult, stream: IO[str]) -> None:
     """What ``folder-line analyze`` prints: the headline numbers, whether the recorded events are the line
     model's, and the files written."""
     s = result.summary

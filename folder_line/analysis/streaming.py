@@ -26,7 +26,8 @@ fixed-edge histograms
     container's own bins, added up window by window: exact).
 
 :func:`event_chunks` hands out a recording's event table in slices of :data:`CHUNK` rows (views,
-no copy), for the scans that pick a few rows out of a long run.
+no copy), for the scans that pick a few rows out of a long run; :func:`window_ends` cuts a span of
+line time into the replay's windows (:data:`WINDOW`).
 """
 
 from __future__ import annotations
@@ -36,7 +37,21 @@ from collections.abc import Iterator
 
 import numpy as np
 
-__all__ = ['CHUNK', 'GRID_BINS', 'MarginHistogram', 'Thinned', 'event_chunks', 'stamp_priority']
+from folder_line.errors import ParameterError
+
+__all__ = [
+    'CHUNK',
+    'GRID_BINS',
+    'WINDOW',
+    'MarginHistogram',
+    'Thinned',
+    'event_chunks',
+    'stamp_priority',
+    'window_ends',
+]
+
+#: line time per window of the replay, s (a minute of the ``line`` scene is about 10 000 events)
+WINDOW = 60.0
 
 #: largest number of bins of a :class:`MarginHistogram`'s grid
 GRID_BINS = 4096
@@ -44,6 +59,32 @@ GRID_BINS = 4096
 CHUNK = 1 << 16
 #: largest |margin| / bin width: the bin index of a float stays exact
 _INDEX_LIMIT = 2.0**52
+
+
+def window_ends(start: float, end: float, window: float) -> list[float]:
+    """Window ends after ``start``: the whole multiples of ``window`` before ``end``, then ``end``.
+
+    Parameters
+    ----------
+    start, end : float
+        The span of line time, s.
+    window : float
+        Line time per window, s (> 0).
+
+    Returns
+    -------
+    list of float
+        The ends of the windows, s; the last is ``end``.
+    """
+    if not (math.isfinite(window) and window > 0.0):
+        raise ParameterError('window', window, 'must be a positive number of seconds')
+    k = math.floor(start / window) + 1
+    cuts = []
+    while k * window < end:
+        cuts.append(k * window)
+        k += 1
+    cuts.append(end)
+    return cuts
 
 
 def stamp_priority(stamp_ns: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -242,6 +242,64 @@ def _length_text(metres: float) -> str:
 
 
 @dataclass
+class _Gathered:
+    """One frame's shapes in one panel, sorted by how they are drawn (a collection each).
+
+    Attributes
+    ----------
+    segs, seg_rgba, seg_lw
+        The lines (strips and segments, m), their colours and widths (pt).
+    under, under_lw
+        The dark lines under the pale ones (m) and their widths (pt).
+    dots, dot_rgba, dot_edge, dot_size
+        The points (m), their colours, edge colours and sizes (pt²).
+    boxes, box_rgba
+        The boxes (lower-left and upper-right corners, m) and their colours.
+    """
+
+    segs: list[np.ndarray] = field(default_factory=list)
+    seg_rgba: list[Sequence[float]] = field(default_factory=list)
+    seg_lw: list[float] = field(default_factory=list)
+    under: list[np.ndarray] = field(default_factory=list)
+    under_lw: list[float] = field(default_factory=list)
+    dots: list[np.ndarray] = field(default_factory=list)
+    dot_rgba: list[Sequence[float]] = field(default_factory=list)
+    dot_edge: list[Sequence[float]] = field(default_factory=list)
+    dot_size: list[float] = field(default_factory=list)
+    boxes: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    box_rgba: list[Sequence[float]] = field(default_factory=list)
+
+
+def _gather(shapes: Sequence[ShapeLike], pt_per_m: float) -> _Gathered:
+    """Sort one frame's shapes by kind, with their colours and widths at ``pt_per_m`` (pt per m)."""
+    g = _Gathered()
+    for s in shapes:
+        xz = _xz(s)
+        if not xz.size:
+            continue
+        lw = max(float(s.width) * pt_per_m, MIN_LINE_PT)
+        rgba = tuple(float(c) for c in s.rgba)
+        pale = _pale(rgba)
+        if s.kind in ('strip', 'segments'):
+            lines = [xz] if s.kind == 'strip' else list(xz[: len(xz) // 2 * 2].reshape(-1, 2, 2))
+            g.segs.extend(lines)
+            g.seg_rgba.extend([rgba] * len(lines))
+            g.seg_lw.extend([lw] * len(lines))
+            if pale:
+                g.under.extend(lines)
+                g.under_lw.extend([lw + 1.6] * len(lines))
+        elif s.kind == 'points':
+            g.dots.append(xz)
+            g.dot_rgba.extend([rgba] * len(xz))
+            g.dot_edge.extend([_OUTLINE if pale else rgba] * len(xz))
+            g.dot_size.extend([max(lw, MIN_DOT_PT) ** 2] * len(xz))
+        elif s.kind == 'box':
+            g.boxes.append((xz.min(axis=0), xz.max(axis=0)))
+            g.box_rgba.append(rgba)
+    return g
+
+
+@dataclass
 class _Panel:
     """One axes of a frame: its limits and scale, and the moving artists it holds now."""
 
@@ -410,60 +468,27 @@ class FrameDrawer:
     def _shapes(self, panel: _Panel, shapes: Sequence[ShapeLike]) -> list[Any]:
         """The moving artists of one frame in one panel: one collection per kind of shape (a pale line over a
         dark one)."""
-        segs: list[np.ndarray] = []
-        seg_rgba: list[Sequence[float]] = []
-        seg_lw: list[float] = []
-        under: list[np.ndarray] = []
-        under_lw: list[float] = []
-        dots: list[np.ndarray] = []
-        dot_rgba: list[Sequence[float]] = []
-        dot_edge: list[Sequence[float]] = []
-        dot_size: list[float] = []
-        boxes: list[Any] = []
-        box_rgba: list[Sequence[float]] = []
-        for s in shapes:
-            xz = _xz(s)
-            if not xz.size:
-                continue
-            lw = max(float(s.width) * panel.pt_per_m, MIN_LINE_PT)
-            rgba = tuple(float(c) for c in s.rgba)
-            pale = _pale(rgba)
-            if s.kind in ('strip', 'segments'):
-                lines = [xz] if s.kind == 'strip' else list(xz[: len(xz) // 2 * 2].reshape(-1, 2, 2))
-                segs.extend(lines)
-                seg_rgba.extend([rgba] * len(lines))
-                seg_lw.extend([lw] * len(lines))
-                if pale:
-                    under.extend(lines)
-                    under_lw.extend([lw + 1.6] * len(lines))
-            elif s.kind == 'points':
-                dots.append(xz)
-                dot_rgba.extend([rgba] * len(xz))
-                dot_edge.extend([_OUTLINE if pale else rgba] * len(xz))
-                dot_size.extend([max(lw, MIN_DOT_PT) ** 2] * len(xz))
-            elif s.kind == 'box':
-                lo, hi = xz.min(axis=0), xz.max(axis=0)
-                boxes.append(self._rectangle((lo[0], lo[1]), hi[0] - lo[0], hi[1] - lo[1]))
-                box_rgba.append(rgba)
+        g = _gather(shapes, panel.pt_per_m)
         out: list[Any] = []
         ax = panel.ax
-        if boxes:
-            faces = [(r, g, b, (1.0 if _pale((r, g, b)) else 0.25) * a) for r, g, b, a in box_rgba]
-            edges = [_OUTLINE if _pale(c) else c for c in box_rgba]
+        if g.boxes:
+            boxes = [self._rectangle((lo[0], lo[1]), hi[0] - lo[0], hi[1] - lo[1]) for lo, hi in g.boxes]
+            faces = [(r, gr, b, (1.0 if _pale((r, gr, b)) else 0.25) * a) for r, gr, b, a in g.box_rgba]
+            edges = [_OUTLINE if _pale(c) else c for c in g.box_rgba]
             pc = self._patch_collection(boxes, facecolors=faces, edgecolors=edges, linewidths=1.0, animated=True)
             out.append(ax.add_collection(pc))
-        if under:
-            lc = self._line_collection(under, colors=[_OUTLINE], linewidths=under_lw, animated=True)
+        if g.under:
+            lc = self._line_collection(g.under, colors=[_OUTLINE], linewidths=g.under_lw, animated=True)
             out.append(ax.add_collection(lc))
-        if segs:
+        if g.segs:
             lc = self._line_collection(
-                segs, colors=seg_rgba, linewidths=seg_lw, capstyle='round', joinstyle='round', animated=True
+                g.segs, colors=g.seg_rgba, linewidths=g.seg_lw, capstyle='round', joinstyle='round', animated=True
             )
             out.append(ax.add_collection(lc))
-        if dots:
-            xy = np.vstack(dots)
+        if g.dots:
+            xy = np.vstack(g.dots)
             sc = ax.scatter(
-                xy[:, 0], xy[:, 1], s=dot_size, c=dot_rgba, edgecolors=dot_edge, linewidths=0.6, animated=True
+                xy[:, 0], xy[:, 1], s=g.dot_size, c=g.dot_rgba, edgecolors=g.dot_edge, linewidths=0.6, animated=True
             )
             sc.set_zorder(3)
             out.append(sc)

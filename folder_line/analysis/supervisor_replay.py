@@ -1,0 +1,174 @@
+"""The supervisor replayed on a recording's inputs, and its state transitions against the recorded ones.
+
+The recorded inputs of the live supervisor -- the events, the joint-state stamps
+(liveness), the ``/clock`` messages, the operator's commands -- are replayed through
+:func:`folder_line.core.supervision.offline.replay`, the logic the live node runs
+(:func:`replay_transitions`): the transitions with their decision times and causes, and
+the violations as the supervisor decided them (causal, with the action taken).
+:func:`transitions_agree` says whether they agree with the states recorded on
+``/line/supervisor/state`` (:func:`recorded_transitions`). The node's parameters are
+read from the bag's custom data ``folder_line.supervisor`` (JSON) if it is there, else
+they are the ones ``folder-line run`` starts the node with (:data:`SUPERVISOR_DEFAULTS`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from folder_line.analysis.recording import Recording
+from folder_line.bag.statuses import accepted_tunings
+from folder_line.core.supervision.offline import replay
+from folder_line.interfaces import NS_PER_S
+
+__all__ = [
+    'KEY_SUPERVISOR',
+    'SUPERVISOR_DEFAULTS',
+    'recorded_transitions',
+    'replay_transitions',
+    'supervisor_parameters',
+    'transitions_agree',
+]
+
+
+def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[dict[str, Any]]:
+    """The state changes of a ``/line/supervisor/state`` sequence.
+
+    Returns
+    -------
+    list of dict
+        ``{'t': log time of the first message in the new state (s), 'from': ..., 'to': ...}``;
+        the first state is reported as a change from ``''``.
+    """
+    out: list[dict[str, Any]] = []
+    prev = ''
+    for t_ns, state in states:
+        if state != prev:
+            out.append({'t': t_ns / NS_PER_S, 'from': prev, 'to': state})
+            prev = state
+    return out
+
+
+#: the live supervisor node's parameters as ``folder-line run`` starts it (its defaults, and the
+#: rate of :class:`folder_line.ros.run.RunConfig`); a bag's custom data ``folder_line.supervisor``
+#: (JSON) overrides them. test/test_analysis.py keeps them equal to the node's.
+SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
+#: custom data key of the supervisor's parameters in a bag
+KEY_SUPERVISOR = 'folder_line.supervisor'
+
+
+def supervisor_parameters(rec: Recording) -> dict[str, Any]:
+    """The live supervisor's parameters: :data:`SUPERVISOR_DEFAULTS`, updated from the bag if it has them."""
+    params = dict(SUPERVISOR_DEFAULTS)
+    text = rec.bag.custom.get(KEY_SUPERVISOR)
+    if text:
+        try:
+            stored = json.loads(text)
+        except ValueError:
+            stored = None
+        if isinstance(stored, dict):
+            params.update({k: v for k, v in stored.items() if k in params})
+    return params
+
+
+def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) -> tuple[list[dict[str, Any]], Any]:
+    """Replay the recorded inputs through :func:`folder_line.core.supervision.offline.replay`.
+
+    The live supervisor node runs in lockstep: at every tick it is fed the events up to
+    that tick (all of them: it waits until every machine node's tick is complete), the
+    NaN/inf values found and the operator's commands, and decides exactly at the tick.
+    All of these are in the bag (the operator's commands, lost participants and the
+    first watermark in the supervisor's ``/diagnostics`` statuses). Its parameters:
+    :func:`supervisor_parameters`, updated from ``params``. The logic needs no line model:
+    it keeps the drive under the commands it issues.
+
+    A bag with gaps (:mod:`folder_line.bag.gaps`) is replayed up to its first gap: what the
+    supervisor decided after it depends on what it saw in it.
+
+    Returns
+    -------
+    (list of dict, Supervisor)
+        The transitions ``{'t', 'from', 'to', 'cause'}`` (decision time, s) and the
+        replayed supervisor (its ``violations``, ``commands``, ``balances``).
+    """
+    p = supervisor_parameters(rec)
+    p.update(params or {})
+    period = 1.0 / float(p['rate'])
+    starts = [float(v['t_start']) for _, _, v in rec.supervisor_status if 't_start' in v]
+    if starts:
+        t_start = starts[0]
+    elif rec.diagnostics_ns.size:  # the first tick published the first /diagnostics, stamped with its time
+        t_start = int(rec.diagnostics_ns.min()) / NS_PER_S  # the first watermark
+    else:
+        t_start = 0.0
+    operator = [
+        (float(v['t']), v['command'])
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/operator') and 't' in v and 'command' in v
+    ]
+    tunings = accepted_tunings((name, v) for _, name, v in rec.supervisor_status)
+    lost = [
+        (float(v['t']), str(v['constraint']).split(':', 1)[1], -float(v['margin']))
+        for _, name, v in rec.supervisor_status
+        if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')
+    ]
+    kwargs: dict[str, Any] = {
+        'periods': {},
+        'lead': float(p['command_lead']),
+        'check_period': period,
+        'enforce': bool(p['enforce']),
+        'double': str(p['double_sheet']),
+        'state': 'STARTING',
+        't_start': t_start,
+    }
+    events, until = rec.events, max(rec.t_end, t_start)
+    if rec.gaps:  # what the supervisor did after a gap depends on what it saw in it: replayed up to the first
+        until = min(until, max(rec.gaps[0].first_ns / NS_PER_S, t_start))
+        events = events[rec.event_ns < rec.gaps[0].first_ns]
+    sup = replay(
+        rec.scene,
+        events,
+        bad_values=[b for b in rec.bad_values if b[0] <= until],
+        operator=[o for o in operator if o[0] <= until],
+        lost=[x for x in lost if x[0] <= until],
+        tunings=[x for x in tunings if x[0] <= until],
+        until=until,
+        **kwargs,
+    )
+    out = [
+        {'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
+        for tr in sup.transitions
+    ]
+    return out, sup
+
+
+def transitions_agree(
+    replayed: Sequence[Mapping[str, Any]], recorded: Sequence[Mapping[str, Any]], initial: str = 'STARTING'
+) -> bool:
+    """Whether the recorded state sequence is the replayed one, as the state topic can show it.
+
+    The supervisor publishes its state once per tick: states it passes through within
+    one tick do not appear on the topic. So the recorded sequence of states must be
+    the replayed one (``initial`` then each transition's target) with at most such
+    states left out, ending in the same state; and each state shown must have been
+    decided no later than it is shown, each showing paired with its own transition (a
+    state the line enters twice, EXECUTE after an unhold, is two transitions).
+    """
+    full = [initial] + [str(t['to']) for t in replayed]
+    decided = [-math.inf] + [float(t['t']) for t in replayed]
+    seen = [str(t['to']) for t in recorded]
+    if not seen:
+        return not replayed
+    if seen[-1] != full[-1]:
+        return False
+    i = 0
+    for shown in recorded:  # a subsequence of full, each shown no earlier than it was decided
+        state = str(shown['to'])
+        while i < len(full) and full[i] != state:
+            i += 1
+        if i == len(full) or decided[i] > float(shown['t']):
+            return False
+        i += 1
+    return True
