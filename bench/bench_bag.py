@@ -157,6 +157,20 @@ def main(argv: list[str]) -> None:
                 for p in (bag, Path(tmp) / f'floor{r}'):
                     for f in p.iterdir():
                         f.unlink()
+    _print_table(args, load_before, ours, base, alone, peak, size, n)
+
+
+def _print_table(
+    args: argparse.Namespace,
+    load_before: str,
+    ours: list[tuple[float, float]],
+    base: list[tuple[float, float]],
+    alone: list[tuple[float, float]],
+    peak: float,
+    size: float,
+    n: int,
+) -> None:
+    """The benchmark's table: the fastest of each (wall s, CPU s) and their ratio to the goal."""
     (o_wall, o_cpu), (b_wall, b_cpu) = (
         (min(x[0] for x in ours), min(x[1] for x in ours)),
         (

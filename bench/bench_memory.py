@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -61,6 +62,59 @@ def simulate_peak(scene: str, duration: float) -> tuple[int, float]:
     return usage.ru_maxrss * 1024, wall
 
 
+class _Nodes:
+    """Node processes started for :func:`node_peaks`, each reaped with ``os.wait4`` (its ``ru_maxrss``)."""
+
+    def __init__(self, start: float, env: dict[str, str], logs: Path) -> None:
+        self.start, self.env, self.logs = start, env, logs
+        self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self.ended: dict[str, tuple[int, int]] = {}  # name -> (exit code, peak RSS bytes)
+
+    def log_of(self, name: str) -> Path:
+        return self.logs / f'{name}-{self.start:g}.log'
+
+    def start_node(self, name: str, params: dict[str, str]) -> None:
+        cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
+        for key, value in params.items():
+            cmd += ['-p', f'{key}:={value}']
+        with open(self.log_of(name), 'wb') as log:
+            self.procs[name] = subprocess.Popen(cmd, cwd=REPO, env=self.env, stdout=subprocess.DEVNULL, stderr=log)
+
+    def reap(self, name: str, block: bool) -> bool:
+        """Whether ``name`` has ended (reaped now or before); waits for it if ``block``."""
+        if name not in self.ended:
+            pid, status, usage = os.wait4(self.procs[name].pid, 0 if block else os.WNOHANG)
+            if pid == 0:
+                return False
+            self.ended[name] = (os.waitstatus_to_exitcode(status), usage.ru_maxrss * 1024)
+            self.procs[name].returncode = self.ended[name][0]  # reaped here: Popen must not wait for it again
+        return True
+
+    def wait_for(self, clock: str, others: Sequence[str]) -> None:
+        """Until ``clock`` ends; ``RuntimeError`` if one of ``others`` ends first."""
+        while not self.reap(clock, block=False):
+            for name in others:
+                if self.reap(name, block=False):
+                    raise RuntimeError(f'{name} ended before the clock: see {self.log_of(name)}')
+            time.sleep(0.2)
+
+    def end(self, names: Sequence[str], within: float) -> None:
+        """Let ``names`` end by themselves within ``within`` s; SIGINT those that do not, and reap them."""
+        deadline = time.monotonic() + within
+        while not all(self.reap(name, block=False) for name in names) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        for name in names:
+            if name not in self.ended:
+                os.kill(self.procs[name].pid, signal.SIGINT)  # not Popen.send_signal: it would reap the process
+                self.reap(name, block=True)
+
+    def kill_rest(self) -> None:
+        for name, proc in self.procs.items():
+            if name not in self.ended:
+                os.kill(proc.pid, signal.SIGKILL)
+                self.reap(name, block=True)
+
+
 def node_peaks(scene: str, start: float, env: dict[str, str], logs: Path) -> tuple[dict[str, int], float]:
     """({node: peak RSS bytes}, wall s) of the machine nodes of ``scene`` when the line is joined at ``start``.
 
@@ -68,63 +122,29 @@ def node_peaks(scene: str, start: float, env: dict[str, str], logs: Path) -> tup
     """
     from folder_line.interfaces import LINE_CLOCK, MACHINE_NODES
 
-    procs: dict[str, subprocess.Popen[bytes]] = {}
-    ended: dict[str, tuple[int, int]] = {}  # name -> (exit code, peak RSS bytes)
-
-    def start_node(name: str, params: dict[str, str]) -> None:
-        cmd = [sys.executable, '-m', f'folder_line.ros.nodes.{name}', '--ros-args']
-        for key, value in params.items():
-            cmd += ['-p', f'{key}:={value}']
-        with open(logs / f'{name}-{start:g}.log', 'wb') as log:
-            procs[name] = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=log)
-
-    def reap(name: str, block: bool) -> bool:
-        if name not in ended:
-            pid, status, usage = os.wait4(procs[name].pid, 0 if block else os.WNOHANG)
-            if pid == 0:
-                return False
-            ended[name] = (os.waitstatus_to_exitcode(status), usage.ru_maxrss * 1024)
-            procs[name].returncode = ended[name][0]  # reaped here: Popen must not wait for it again
-        return True
-
-    def log_of(name: str) -> Path:
-        return logs / f'{name}-{start:g}.log'
-
+    nodes = _Nodes(start, env, logs)
     t0 = time.perf_counter()
     try:
         for name in MACHINE_NODES:
-            start_node(name, {'scene': scene})
+            nodes.start_node(name, {'scene': scene})
         clock = {
             'rtf': '0.0',
             'start_time': f'{start:.1f}',
             'duration': f'{NODE_SPAN:.1f}',
             'participants': ','.join(MACHINE_NODES),
         }
-        start_node(LINE_CLOCK, clock)
-        while not reap(LINE_CLOCK, block=False):
-            for name in MACHINE_NODES:
-                if reap(name, block=False):
-                    raise RuntimeError(f'{name} ended before the clock: see {log_of(name)}')
-            time.sleep(0.2)
+        nodes.start_node(LINE_CLOCK, clock)
+        nodes.wait_for(LINE_CLOCK, MACHINE_NODES)
         wall = time.perf_counter() - t0
-        if ended[LINE_CLOCK][0] != 0:
-            raise RuntimeError(f'line_clock exited {ended[LINE_CLOCK][0]}: see {log_of(LINE_CLOCK)}')
-        deadline = time.monotonic() + 10.0  # the nodes end with the line; SIGINT those that do not
-        while not all(reap(name, block=False) for name in MACHINE_NODES) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        for name in MACHINE_NODES:
-            if name not in ended:
-                os.kill(procs[name].pid, signal.SIGINT)  # not Popen.send_signal: it would reap the process
-                reap(name, block=True)
-        failed = [name for name in MACHINE_NODES if ended[name][0] != 0]
+        if nodes.ended[LINE_CLOCK][0] != 0:
+            raise RuntimeError(f'line_clock exited {nodes.ended[LINE_CLOCK][0]}: see {nodes.log_of(LINE_CLOCK)}')
+        nodes.end(MACHINE_NODES, 10.0)  # the nodes end with the line; SIGINT those that do not
+        failed = [name for name in MACHINE_NODES if nodes.ended[name][0] != 0]
         if failed:
             raise RuntimeError(f'{", ".join(failed)} exited non-zero: see {logs}')
-        return {name: ended[name][1] for name in MACHINE_NODES}, wall
+        return {name: nodes.ended[name][1] for name in MACHINE_NODES}, wall
     finally:
-        for name, proc in procs.items():
-            if name not in ended:
-                os.kill(proc.pid, signal.SIGKILL)
-                reap(name, block=True)
+        nodes.kill_rest()
 
 
 def main() -> int:

@@ -302,7 +302,6 @@ class _Writer:
         per node its events, joint states and the counter's outputs and markers; the supervisor's
         outputs, state and diagnostics), as a tick-by-tick write would order them.
         """
-        line = self.line
         n = len(stamps)
         t = stamps / NS_PER_S
         out = TickMessages(stamps)
@@ -324,16 +323,7 @@ class _Writer:
             if mine.any():
                 rows, at = events[mine], tick_of[mine]
                 out.add_packed(EVENTS_TOPIC, slot, at, *_event_cdrs(node, stamps[at], rows))
-            unit = self.units[node]
-            if unit in line.units:
-                js = line.sample(unit, t)
-                layout = self.layouts.get(node)
-                if layout is None:
-                    effort = 0 if js.effort is None else js.effort.shape[1]
-                    width = js.position.shape[1]
-                    layout = self.layouts[node] = JointStateLayout.of(node, list(js.names), (width, width, effort))
-                rows_js = layout.rows(stamps, js.position, js.velocity, js.effort)
-                out.add_rows(joint_states_topic(node), slot + 1, rows_js)
+            self._joint_states(out, node, stamps, slot + 1)
             if node == 'sheet_counter':
                 out.add_rows(SHEET_COUNT_TOPIC, slot + 2, uint64_rows(count))
                 out.add_rows(SHEET_RATE_TOPIC, slot + 3, float64_rows(rate))
@@ -342,7 +332,25 @@ class _Writer:
                     values = events['value'][landed].tolist()
                     out.add_each(LANDING_TOPIC, slot + 4, tick_of[landed], [float64_cdr(v) for v in values])
                 self._markers(out, stamps, slot + 5)
-        outs = [(i, item) for i, tk in enumerate(ticks[:n]) for item in tk.outs]
+        self._supervisor(out, stamps, ticks[:n])
+        self.bag.write_ticks(out)
+
+    def _joint_states(self, out: TickMessages, node: str, stamps: np.ndarray, slot: int) -> None:
+        """``node``'s joint states at the ticks ``stamps`` (none if the scene has not its unit)."""
+        unit = self.units[node]
+        if unit not in self.line.units:
+            return
+        js = self.line.sample(unit, stamps / NS_PER_S)
+        layout = self.layouts.get(node)
+        if layout is None:
+            effort = 0 if js.effort is None else js.effort.shape[1]
+            width = js.position.shape[1]
+            layout = self.layouts[node] = JointStateLayout.of(node, list(js.names), (width, width, effort))
+        out.add_rows(joint_states_topic(node), slot, layout.rows(stamps, js.position, js.velocity, js.effort))
+
+    def _supervisor(self, out: TickMessages, stamps: np.ndarray, ticks: list[_Tick]) -> None:
+        """The supervisor's outputs (its commands and tunings), state and diagnostics of ``ticks``."""
+        outs = [(i, item) for i, tk in enumerate(ticks) for item in tk.outs]
         if outs:
             out.add_each(
                 [topic for _, (topic, _, _) in outs],
@@ -351,17 +359,16 @@ class _Writer:
                 [cdr for _, (_, cdr, _) in outs],
                 [publish for _, (_, _, publish) in outs],
             )
-        states = [tk.state for tk in ticks[:n]]
+        states = [tk.state for tk in ticks]
         for state in dict.fromkeys(states):
             if state not in self.states:
                 self.states[state] = np.frombuffer(string_cdr(state), dtype=np.uint8)
             at = np.flatnonzero([s == state for s in states])
             row = self.states[state]
             out.add_rows(SUPERVISOR_STATE_TOPIC, 101, np.broadcast_to(row, (len(at), len(row))), at)
-        diag = [i for i, tk in enumerate(ticks[:n]) if tk.diag]
+        diag = [i for i, tk in enumerate(ticks) if tk.diag]
         if diag:
-            out.add_each(DIAGNOSTICS_TOPIC, 102, diag, [self.sup.diagnostics(line, int(stamps[i])) for i in diag])
-        self.bag.write_ticks(out)
+            out.add_each(DIAGNOSTICS_TOPIC, 102, diag, [self.sup.diagnostics(self.line, int(stamps[i])) for i in diag])
 
     def _markers(self, out: TickMessages, stamps: np.ndarray, slot: int) -> None:
         """The marker arrays due in the ticks ``stamps``: each grid point at the first tick at or after it."""
@@ -405,6 +412,42 @@ def _heard(events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     heard = events[owned].astype(EVENT_DTYPE)
     heard['t'] = np.maximum(0, np.round(events['t'][owned] * NS_PER_S).astype(np.int64)) / NS_PER_S
     return heard, events['t'][owned]
+
+
+def _run_window(
+    line: LineStream, sup: _SupervisorOut, pending: list[tuple[int, Tuning]], k: int, end: int
+) -> tuple[np.ndarray, np.ndarray, list[_Tick]]:
+    """Run ticks ``k`` to ``end - 1`` (of :data:`RATE`) of the line under the supervisor: ``(stamps ns, the
+    line's events, the supervisor's ticks)``. A command cuts the window after its tick: the line is run
+    again from the window's start under it, and the stamps end there. The ``pending`` tunings due
+    (``(tick, tuning)``, in order) are asked and removed."""
+    logic = sup.logic
+    step_ns = round(NS_PER_S / RATE)
+    diag_step = round(NS_PER_S / DIAG_RATE)
+    start = line.checkpoint()
+    window = line.advance((end - 1) * step_ns / NS_PER_S)
+    heard, heard_t = _heard(window.events)
+    logic.preview(heard)  # the window's cycles evaluated at once (the decisions are the same)
+    stamps = np.arange(k, end, dtype=np.int64) * step_ns
+    t = stamps / NS_PER_S
+    bounds = np.searchsorted(heard_t, np.concatenate(([window.t0], t)), side='right')
+    ticks: list[_Tick] = []
+    n_commands = len(logic.commands)
+    # per tick as Python numbers (the same values: the loop runs 200 times a second of line time)
+    cuts, times, diags = bounds.tolist(), t.tolist(), (stamps % diag_step == 0).tolist()
+    for i in range(end - k):
+        if cuts[i + 1] > cuts[i]:
+            logic.feed(heard[cuts[i] : cuts[i + 1]])
+        logic.tick(times[i])
+        while pending and pending[0][0] == k + i:
+            sup.tune(times[i], pending.pop(0)[1])
+        ticks.append(_Tick(logic.state, sup.outputs(), diags[i]))
+        if len(logic.commands) != n_commands:  # the line runs under it from the next tick on
+            line.restore(start, logic.commands)
+            window = line.advance(times[i])
+            stamps = stamps[: i + 1]
+            break
+    return stamps, window.events, ticks
 
 
 def write_batch_bag(
@@ -486,32 +529,9 @@ def write_batch_bag(
         while k < n_ticks:
             # a window ends at a diagnostics stamp (the tallies are read there), or at the last tick
             next_diag = -(-(k * step_ns) // diag_step) * diag_step
-            end = min(n_ticks, next_diag // step_ns + 1)
-            start = line.checkpoint()
-            window = line.advance((end - 1) * step_ns / NS_PER_S)
-            heard, heard_t = _heard(window.events)
-            logic.preview(heard)  # the window's cycles evaluated at once (the decisions are the same)
-            stamps = np.arange(k, end, dtype=np.int64) * step_ns
-            t = stamps / NS_PER_S
-            bounds = np.searchsorted(heard_t, np.concatenate(([window.t0], t)), side='right')
-            ticks: list[_Tick] = []
-            n_commands = len(logic.commands)
-            # per tick as Python numbers (the same values: the loop runs 200 times a second of line time)
-            cuts, times, diags = bounds.tolist(), t.tolist(), (stamps % diag_step == 0).tolist()
-            for i in range(end - k):
-                if cuts[i + 1] > cuts[i]:
-                    logic.feed(heard[cuts[i] : cuts[i + 1]])
-                logic.tick(times[i])
-                while pending and pending[0][0] == k + i:
-                    sup.tune(times[i], pending.pop(0)[1])
-                ticks.append(_Tick(logic.state, sup.outputs(), diags[i]))
-                if len(logic.commands) != n_commands:  # the line runs under it from the next tick on
-                    line.restore(start, logic.commands)
-                    window = line.advance(times[i])
-                    stamps, end = stamps[: i + 1], k + i + 1
-                    break
-            writer.write(stamps, window.events, ticks)
-            k = end
+            stamps, events, ticks = _run_window(line, sup, pending, k, min(n_ticks, next_diag // step_ns + 1))
+            writer.write(stamps, events, ticks)
+            k += len(stamps)
             if progress is not None:
                 progress(float(stamps[-1]) / NS_PER_S)
         bag.close(published=dict(bag.counts))

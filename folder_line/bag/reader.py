@@ -9,7 +9,7 @@ import contextlib
 import json
 import os
 import shlex
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any
@@ -284,6 +284,23 @@ def open_each(directory: Path) -> None:
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 
 
+def _topics(entries: list[Any], refuse: Callable[[str], BagError]) -> dict[str, TopicSummary]:
+    """The topics of ``metadata.yaml``'s ``topics_with_message_count`` (a topic listed twice: counts added);
+    ``refuse(why)`` for a serialization other than CDR."""
+    topics: dict[str, TopicSummary] = {}
+    for entry in entries:
+        tm = entry['topic_metadata']
+        if str(tm.get('serialization_format', 'cdr')) != 'cdr':
+            raise refuse(f'topic {tm["name"]}: serialization {tm["serialization_format"]!r}, not cdr')
+        old = topics.get(str(tm['name']))
+        topics[str(tm['name'])] = TopicSummary(
+            old.type if old else str(tm['type']),
+            (old.count if old else 0) + int(entry['message_count']),
+            old.type_hash if old else str(tm.get('type_description_hash', '') or ''),
+        )
+    return topics
+
+
 def _summarise(directory: Path, info: dict[str, Any]) -> BagContents:
     """:class:`BagContents` from the ``rosbag2_bagfile_information`` of ``metadata.yaml``.
 
@@ -305,17 +322,7 @@ def _summarise(directory: Path, info: dict[str, Any]) -> BagContents:
         storage = str(info['storage_identifier'])
         mode = str(info.get('compression_mode') or '').lower()
         names = tuple(PurePath(str(x)).name for x in info['relative_file_paths'] or [])
-        topics: dict[str, TopicSummary] = {}
-        for entry in info['topics_with_message_count'] or []:
-            tm = entry['topic_metadata']
-            if str(tm.get('serialization_format', 'cdr')) != 'cdr':
-                raise refuse(f'topic {tm["name"]}: serialization {tm["serialization_format"]!r}, not cdr')
-            old = topics.get(str(tm['name']))
-            topics[str(tm['name'])] = TopicSummary(
-                old.type if old else str(tm['type']),
-                (old.count if old else 0) + int(entry['message_count']),
-                old.type_hash if old else str(tm.get('type_description_hash', '') or ''),
-            )
+        topics = _topics(info['topics_with_message_count'] or [], refuse)
         count = int(info['message_count'])
         start = int(info['starting_time']['nanoseconds_since_epoch'])
         duration = int(info['duration']['nanoseconds'])

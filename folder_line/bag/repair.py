@@ -19,10 +19,9 @@ import shutil
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.records import Channel, Chunk, Footer, McapRecord, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from folder_line.bag.gaps import KEY_GAPS, Gap, describe_gaps, format_gaps, merge_gaps, read_gaps
@@ -128,8 +127,8 @@ class RepairResult:
 class _Scan:
     """Schemas, channels, counts and times of one ``.mcap`` file."""
 
-    schemas: dict[int, Any] = field(default_factory=dict)
-    channels: dict[int, Any] = field(default_factory=dict)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
     counts: dict[int, int] = field(default_factory=dict)
     start_ns: int = 0
     end_ns: int = 0
@@ -139,7 +138,7 @@ class _Scan:
     def count(self) -> int:
         return sum(self.counts.values())
 
-    def note_metadata(self, record: Any) -> None:
+    def note_metadata(self, record: Metadata) -> None:
         """Keep the bag's custom data if ``record`` (an MCAP metadata record) is folder_line's."""
         if record.name == MCAP_METADATA_NAME:
             self.custom = dict(record.metadata)
@@ -150,8 +149,8 @@ class _Read:
     """One ``.mcap`` file read record by record, each chunk checked against its CRC."""
 
     scan: _Scan
-    messages: list[Any]
-    metadata: list[Any]
+    messages: list[Message]
+    metadata: list[Metadata]
     good: int  # bytes read before the first record that could not be read
     finished: bool  # its footer was read
     lost: list[Gap]  # the log-time spans of the chunks whose checksum fails
@@ -161,65 +160,82 @@ class _Read:
         return not self.finished or bool(self.lost)
 
 
+@dataclass
+class _Tally:
+    """What :func:`_read` takes of a file's records, one at a time (:meth:`take`)."""
+
+    keep: bool
+    scan: _Scan = field(default_factory=lambda: _Scan())
+    messages: list[Message] = field(default_factory=list)
+    metadata: list[Metadata] = field(default_factory=list)
+    counts: dict[int, int] = field(default_factory=dict)
+    spans: dict[int, tuple[int, int]] = field(default_factory=dict)  # channel id -> first and last log time
+
+    def take(self, record: McapRecord) -> None:
+        """Note a schema, channel or metadata record; count a message (kept if :attr:`keep`)."""
+        if isinstance(record, Schema):
+            self.scan.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self.scan.channels[record.id] = record
+        elif isinstance(record, Message):
+            cid, t = record.channel_id, record.log_time
+            self.counts[cid] = self.counts.get(cid, 0) + 1
+            first, last = self.spans.get(cid, (t, t))
+            self.spans[cid] = (min(first, t), max(last, t))
+            if self.keep:
+                self.messages.append(record)
+        elif isinstance(record, Metadata):
+            self.metadata.append(record)
+            self.scan.note_metadata(record)
+
+    def result(self, good: int, finished: bool, lost: list[Gap]) -> _Read:
+        """The file's :class:`_Read`: only what belongs to a channel it declares."""
+        scan = self.scan
+        messages = [m for m in self.messages if m.channel_id in scan.channels]
+        scan.counts = {cid: n for cid, n in self.counts.items() if cid in scan.channels}
+        known = [span for cid, span in self.spans.items() if cid in scan.channels]
+        if known:
+            scan.start_ns = min(first for first, _ in known)
+            scan.end_ns = max(last for _, last in known)
+        return _Read(scan, messages, self.metadata, good, finished, lost)
+
+
+def _chunk_records(chunk: Chunk, lost: list[Gap]) -> list[McapRecord]:
+    """The records of ``chunk``; none if its CRC fails, and then its log-time span is added to ``lost``."""
+    try:
+        return breakup_chunk(chunk, validate_crc=True)
+    except _READ_ERRORS:
+        lost.append(Gap(chunk.message_start_time, max(chunk.message_end_time, chunk.message_start_time)))
+        return []
+
+
 def _read(path: Path, keep: bool = False) -> _Read:
     """Every readable record of ``path`` up to its first unreadable one; a chunk whose CRC fails is
     skipped (its span noted), the records after it are read on. The messages are kept only if ``keep``
     (to rewrite a damaged file): an intact file is only counted, chunk by chunk."""
-    scan = _Scan()
-    messages: list[Any] = []
-    metadata: list[Any] = []
+    tally = _Tally(keep)
     lost: list[Gap] = []
-    counts: dict[int, int] = {}
-    spans: dict[int, tuple[int, int]] = {}  # channel id -> first and last log time of its messages
     good = 0
     finished = footer = False
-
-    def take(record: Any) -> None:
-        if isinstance(record, Schema):
-            scan.schemas[record.id] = record
-        elif isinstance(record, Channel):
-            scan.channels[record.id] = record
-        elif isinstance(record, Message):
-            cid, t = record.channel_id, record.log_time
-            counts[cid] = counts.get(cid, 0) + 1
-            first, last = spans.get(cid, (t, t))
-            spans[cid] = (min(first, t), max(last, t))
-            if keep:
-                messages.append(record)
-        elif isinstance(record, Metadata):
-            metadata.append(record)
-            scan.note_metadata(record)
-
     with path.open('rb') as fh:
         try:
             for record in StreamReader(fh, emit_chunks=True).records:
                 if isinstance(record, Chunk):
-                    try:
-                        inner = breakup_chunk(record, validate_crc=True)
-                    except _READ_ERRORS:
-                        lost.append(
-                            Gap(record.message_start_time, max(record.message_end_time, record.message_start_time))
-                        )
-                        inner = []
-                    for r in inner:
-                        take(r)
+                    for r in _chunk_records(record, lost):
+                        tally.take(r)
                 else:
-                    take(record)
+                    tally.take(record)
                     footer = footer or isinstance(record, Footer)
                 good = fh.tell()
             finished = footer  # and the magic after it read: the stream ended where it should
         except _READ_ERRORS:
             pass
-    messages = [m for m in messages if m.channel_id in scan.channels]
-    scan.counts = {cid: n for cid, n in counts.items() if cid in scan.channels}
-    known = [span for cid, span in spans.items() if cid in scan.channels]
-    if known:
-        scan.start_ns = min(first for first, _ in known)
-        scan.end_ns = max(last for _, last in known)
-    return _Read(scan, messages, metadata, good, finished, lost)
+    return tally.result(good, finished, lost)
 
 
-def _rewrite(path: Path, scan: _Scan, messages: list[Any], metadata: list[Any], suffix: str = TRUNCATED_SUFFIX) -> None:
+def _rewrite(
+    path: Path, scan: _Scan, messages: list[Message], metadata: list[Metadata], suffix: str = TRUNCATED_SUFFIX
+) -> None:
     """Write the salvaged records as a finished file in place of ``path``; keep the original
     as ``<path><suffix>`` (hard link first, so that a crash in between loses nothing)."""
     tmp = path.with_name(f'.{path.name}.salvage.tmp')
@@ -321,6 +337,43 @@ def repairable(directory: str | os.PathLike[str]) -> list[Path]:
     return paths
 
 
+def _salvage(reads: list[tuple[Path, _Read]], result: RepairResult) -> list[tuple[Path, _Scan]]:
+    """Rewrite each damaged file from what is whole (one with nothing whole is set aside), noting it in
+    ``result``; the scans of the files the bag keeps, in order."""
+    scans: list[tuple[Path, _Scan]] = []
+    for path, r in reads:
+        if r.damaged:
+            if not r.finished:
+                result.dropped[path.name] = path.stat().st_size - r.good
+            if r.lost:
+                result.bad_chunks[path.name] = len(r.lost)
+            if not r.messages:
+                os.replace(path, path.with_name(path.name + TRUNCATED_SUFFIX))
+                result.removed.append(path.name)
+                continue
+            _rewrite(path, r.scan, r.messages, r.metadata, TRUNCATED_SUFFIX if not r.finished else DAMAGED_SUFFIX)
+            result.salvaged[path.name] = len(r.messages)
+        scans.append((path, r.scan))
+    return scans
+
+
+def _summaries(scans: list[tuple[Path, _Scan]]) -> tuple[dict[str, TopicSummary], MetadataBuilder]:
+    """The topics of the files ``scans`` (their types and counts) and the files, for ``metadata.yaml``."""
+    topics: dict[str, TopicSummary] = {}
+    meta = MetadataBuilder()
+    for path, scan in scans:
+        for cid, channel in scan.channels.items():
+            schema = scan.schemas.get(channel.schema_id)
+            msgtype = schema.name if schema is not None else ''
+            old = topics.get(channel.topic)
+            type_hash = dict(channel.metadata).get('topic_type_hash', '') or (old.type_hash if old else '')
+            topics[channel.topic] = TopicSummary(
+                msgtype, (old.count if old else 0) + scan.counts.get(cid, 0), type_hash
+            )
+        meta.add_file(FileSummary(path.name, scan.start_ns, scan.end_ns, scan.count))
+    return topics, meta
+
+
 def repair(directory: str | os.PathLike[str]) -> RepairResult:
     """Rebuild a bag's ``metadata.yaml`` from the ``.mcap`` files present; record what is lost.
 
@@ -358,35 +411,10 @@ def repair(directory: str | os.PathLike[str]) -> RepairResult:
     except BagError as err:  # named in folder_line.repair, not kept
         recorded, result.unreadable = [], str(err)
     result.gaps = _gaps(reads, result.missing, listed, recorded)
-    scans: list[tuple[Path, _Scan]] = []
-    for path, r in reads:
-        if r.damaged:
-            if not r.finished:
-                result.dropped[path.name] = path.stat().st_size - r.good
-            if r.lost:
-                result.bad_chunks[path.name] = len(r.lost)
-            if not r.messages:
-                os.replace(path, path.with_name(path.name + TRUNCATED_SUFFIX))
-                result.removed.append(path.name)
-                continue
-            _rewrite(path, r.scan, r.messages, r.metadata, TRUNCATED_SUFFIX if not r.finished else DAMAGED_SUFFIX)
-            result.salvaged[path.name] = len(r.messages)
-        scans.append((path, r.scan))
-
+    scans = _salvage(reads, result)
     if custom is None:
         custom = next((dict(s.custom) for _, s in scans if s.custom is not None), {})
-    topics: dict[str, TopicSummary] = {}
-    meta = MetadataBuilder()
-    for path, scan in scans:
-        for cid, channel in scan.channels.items():
-            schema = scan.schemas.get(channel.schema_id)
-            msgtype = schema.name if schema is not None else ''
-            old = topics.get(channel.topic)
-            type_hash = dict(channel.metadata).get('topic_type_hash', '') or (old.type_hash if old else '')
-            topics[channel.topic] = TopicSummary(
-                msgtype, (old.count if old else 0) + scan.counts.get(cid, 0), type_hash
-            )
-        meta.add_file(FileSummary(path.name, scan.start_ns, scan.end_ns, scan.count))
+    topics, meta = _summaries(scans)
     result.files = list(meta.files)
     lossless = not (result.gaps or result.missing or result.bad_chunks)
     if not (custom.get(KEY_COMPLETE) == 'true' and lossless):

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 
@@ -119,34 +119,49 @@ def command_line_values(args: Sequence[str], node: str) -> dict[str, object] | N
                 inside = False
             elif not inside:
                 continue
-            elif word in ('-p', '--param'):
-                if i >= len(words):
-                    return None
-                rule, i = words[i], i + 1
-                name, sep, text = rule.partition(':=')
-                if not sep:
-                    return None
-                target, colon, param = name.rpartition(':')
-                if colon and target not in (node, f'/{node}', '*', '/**'):
-                    continue
-                values[param] = _value(text)
-            elif word == '--params-file':
-                if i >= len(words):
-                    return None
-                values.update(_file_values(words[i], node))
-                i += 1
-            elif word in ('-r', '--remap'):
-                if i >= len(words):
-                    return None
-                rule, i = words[i], i + 1
-                target, _, value = rule.partition(':=')
-                key = target.rsplit(':', 1)[-1]
-                if key == '__ns' or (key in ('__node', '__name') and value != node):
-                    return None  # another name or namespace: the rules that apply are rcl's to find
             elif word in _WITH_ARGUMENT:
                 i += 1
-            elif word not in _FLAGS:
+            elif word in _FLAGS:
+                continue
+            elif word not in _RULES or i >= len(words) or not _RULES[word](words[i], node, values):
                 return None
+            else:
+                i += 1
     except _Unsure:
         return None
     return values
+
+
+def _param_rule(rule: str, node: str, values: dict[str, object]) -> bool:
+    """``-p [node:]name:=value``: the value into ``values`` if the rule is this node's; False if unsure."""
+    name, sep, text = rule.partition(':=')
+    if not sep:
+        return False
+    target, colon, param = name.rpartition(':')
+    if not colon or target in (node, f'/{node}', '*', '/**'):
+        values[param] = _value(text)
+    return True
+
+
+def _params_file(path: str, node: str, values: dict[str, object]) -> bool:
+    """``--params-file PATH``: the file's values for this node into ``values``."""
+    values.update(_file_values(path, node))
+    return True
+
+
+def _remap_rule(rule: str, node: str, values: dict[str, object]) -> bool:
+    """``-r RULE``: False when it gives the node another name or a namespace (the rules that apply are rcl's
+    to find); any other remapping changes no parameter."""
+    target, _, value = rule.partition(':=')
+    key = target.rsplit(':', 1)[-1]
+    return not (key == '__ns' or (key in ('__node', '__name') and value != node))
+
+
+#: the options that take an argument and may set the node's parameters or name: each reads its argument
+_RULES: dict[str, Callable[[str, str, dict[str, object]], bool]] = {
+    '-p': _param_rule,
+    '--param': _param_rule,
+    '--params-file': _params_file,
+    '-r': _remap_rule,
+    '--remap': _remap_rule,
+}

@@ -45,14 +45,17 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from subprocess import Popen
 from typing import IO, TYPE_CHECKING, Any
 
 import rclpy
 from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
+from rclpy.executors import Executor
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from std_msgs.msg import String
@@ -74,6 +77,7 @@ from folder_line.ros.line_key import KEY_VARIABLE, ensure_key
 from folder_line.ros.lockstep import PARTICIPANTS_QOS, parse_announcement
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
+from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
 from folder_line.ros.runtime import events_executor
 from folder_line.ros.strangers import UNKNOWN_NODE
@@ -129,7 +133,7 @@ def _end_lost(proc: subprocess.Popen[bytes] | None) -> None:
         proc.send_signal(signal.SIGINT)
 
 
-def _published_counts(nodes: list[Any]) -> dict[str, int]:
+def _published_counts(nodes: Sequence[MachineNode | LineClock]) -> dict[str, int]:
     counts: dict[str, int] = {}
     for node in nodes:
         for topic, n in node.published_counts().items():
@@ -138,8 +142,12 @@ def _published_counts(nodes: list[Any]) -> dict[str, int]:
 
 
 def add_machine_nodes(
-    cfg: RunConfig, context: Any, executor: Any, *, scene_file: str | os.PathLike[str] | None = None
-) -> list[Any]:
+    cfg: RunConfig,
+    context: rclpy.Context,
+    executor: Executor,
+    *,
+    scene_file: str | os.PathLike[str] | None = None,
+) -> list[MachineNode]:
     """Build the five machine nodes of :data:`MACHINE_NODES` in ``context`` with the run's parameters
     (:func:`folder_line.config.run_config.node_parameters`: the merged ``scene_file`` if given, else the
     scene and overrides of ``cfg``) and add them to ``executor``; returns them in that order."""
@@ -184,7 +192,7 @@ WATCH = 0.2  # wall s between two looks at the bar, a foreign clock, the bag, lo
 _NAME_WAIT = 1.0  # wall s to learn the node of a publisher found (DDS discovery reports its endpoint first)
 
 
-def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
+def other_line(node: Node, executor: Executor, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line on this domain, in words, or None: a ``/clock`` or ``/line/participants`` publisher that
     is not ours, seen within ``wait`` s of discovery. For an open line (no partition: every line's
     publishers reach it)."""
@@ -208,7 +216,7 @@ def other_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str |
         executor.spin_once(timeout_sec=0.05)
 
 
-def same_key_line(node: Any, executor: Any, wait: float = OTHER_LINE_WAIT) -> str | None:
+def same_key_line(node: Node, executor: Executor, wait: float = OTHER_LINE_WAIT) -> str | None:
     """Another line with this line's key, in words, or None: its ``line_clock``'s announcement on
     ``/line/participants`` (transient-local: a running line's reaches every late joiner), signed with the
     key, heard within ``wait`` s. Lines with other keys are in other partitions: they neither reach this
@@ -252,6 +260,226 @@ def _print_external(cfg: RunConfig, stream: IO[str]) -> None:
     stream.flush()
 
 
+def _line_key(stream: IO[str]) -> tuple[bool, str | None]:
+    """This line's key and profile, before the first participant of this process: ``(made here, partition)``
+    (partition None: the user's own profiles file, an open line). A key made here is printed for the operators."""
+    _, made = ensure_key(os.environ)  # this line's key: its nodes and its operators share it
+    use_line_profile()  # before the first participant of this process (and its node processes)
+    partition = line_partition()
+    made = made and partition is not None
+    if made:
+        print(
+            f"line key (the operators' folder-line hold/tune/monitor and the nodes on other hosts need it): "
+            f'{KEY_VARIABLE}={os.environ[KEY_VARIABLE]}',
+            file=stream,
+        )
+    return made, partition
+
+
+def _refuse_other_line(ctx: rclpy.Context, executor: Executor, made: bool, partition: str | None) -> None:
+    """Raise ``FolderLineError`` if another line runs where this one would (a key made here is this line's
+    alone; a line with a key given may meet another with the same; an open line meets every open line)."""
+    probe = rclpy.create_node('folder_line_run_probe', context=ctx)
+    executor.add_node(probe)
+    other = None if made else other_line(probe, executor) if partition is None else same_key_line(probe, executor)
+    executor.remove_node(probe)
+    probe.destroy_node()
+    if other is not None:
+        cure = (
+            'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)'
+            if partition is None
+            else f'{KEY_VARIABLE} (unset it, and run makes one)'
+        )
+        raise FolderLineError(f'another line is running: {other}; stop it, or give this run its own {cure}')
+
+
+def _open_bag(cfg: RunConfig, scene: Scene, scene_file: Path) -> BagWriter:
+    """Make ``cfg.out``, write the merged scene to ``scene_file`` and open the run's bag (a previous run's
+    bag is replaced; anything else at its place is refused)."""
+    cfg.out.mkdir(parents=True, exist_ok=True)
+    bag_path = cfg.out / BAG_DIR
+    _clear_previous_bag(bag_path)
+    scene_source = write_scene(scene_file, scene)
+    return BagWriter(
+        bag_path,
+        scene_source=scene_source,
+        effects=list(scene.effects),
+        scene_name=scene.name,
+        topics=LINE_TOPICS,
+        custom={
+            'folder_line.scene_arg': str(cfg.scene),
+            'folder_line.overrides': json.dumps(cfg.overrides),
+            'folder_line.mode': 'processes' if cfg.processes else 'in-process',
+            'folder_line.clock': cfg.clock,
+        },
+        max_duration_s=cfg.max_bag_duration,
+        max_size=cfg.max_bag_size,
+    )
+
+
+def _start_processes(cfg: RunConfig, scene_file: Path, clock_params: Mapping[str, Any]) -> dict[str, Popen[bytes]]:
+    """Start one process per node (the machines, then ``line_clock``), each logging to ``<out>/logs/<name>.log``."""
+    logs = cfg.out / 'logs'  # each process's stderr
+    logs.mkdir(exist_ok=True)
+    commands = {
+        name: [ros_arg(k, v) for k, v in node_parameters(cfg, name, scene_file).items()] for name in MACHINE_NODES
+    }
+    commands['line_clock'] = [ros_arg(k, v) for k, v in clock_params.items()]
+    procs: dict[str, Popen[bytes]] = {}
+    for name, args in commands.items():
+        # through the light entry module: a stop while the node imports is a clean exit
+        cmd = [sys.executable, '-m', 'folder_line.ros.entry', name, '--ros-args']
+        for a in args:
+            cmd += ['-p', a]
+        # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
+        with open(logs / f'{name}.log', 'wb') as log:
+            procs[name] = subprocess.Popen(
+                cmd, env=dict(os.environ), stdout=subprocess.DEVNULL, stderr=log, preexec_fn=_die_with_parent
+            )
+    return procs
+
+
+@dataclass
+class _LineRun:
+    """One run of :func:`run_line` in progress: what its steps share."""
+
+    cfg: RunConfig
+    stream: IO[str]
+    ctx: rclpy.Context
+    executor: Executor
+    result: RunResult = field(default_factory=RunResult)
+    procs: dict[str, Popen[bytes]] = field(default_factory=dict)
+    nodes: list[MachineNode | LineClock] = field(default_factory=list)
+    bag: BagWriter | None = None
+    recorder: LineRecorder | None = None
+    clock: LineClock | None = None
+    ended_lost: set[str] = field(default_factory=set)  # lost participants whose process was ended
+    interrupted: list[str] = field(default_factory=list)  # the reasons to stop early (a signal, a silent clock)
+
+    def done(self) -> bool:
+        """Whether the line's clock has ended (its process, or the in-process ``line_clock``)."""
+        if self.clock is None:
+            return self.procs['line_clock'].poll() is not None
+        return self.clock.done.done()
+
+    def start(self, scene_file: Path) -> None:
+        """Start the recorder and the nodes: as processes, in-process, or (``--external-nodes``) the clock only."""
+        cfg = self.cfg
+        assert self.bag is not None
+        self.recorder = LineRecorder(sink=self.bag.write_serialized, context=self.ctx, lost_timeout=cfg.lost_timeout)
+        self.executor.add_node(self.recorder)
+        clock_params = clock_parameters(cfg, KNOWN_PARTICIPANTS)
+        if cfg.processes:
+            self.procs.update(_start_processes(cfg, scene_file, clock_params))
+            return
+        if cfg.external:
+            _print_external(cfg, self.stream)
+        else:
+            self.nodes += add_machine_nodes(cfg, self.ctx, self.executor, scene_file=scene_file)
+        overrides = [Parameter(k, value=v) for k, v in clock_params.items()]
+        self.clock = LineClock(parameter_overrides=overrides, context=self.ctx)
+        self.nodes.append(self.clock)
+        self.executor.add_node(self.clock)
+
+    def watch(self, progress: LineTimeProgress, stop: Future[None]) -> None:
+        """Every :data:`WATCH` s of wall time: draw the bar, look for what stops the run."""
+        recorder = self.recorder
+        assert recorder is not None
+        progress.show(recorder.sim_time)
+        # a foreign /clock changes nothing here: line_clock refuses and names it, the nodes take time
+        # only from its grants. A silent clock that also left the graph will not come back
+        if recorder.lockstep.clock_silent and recorder.count_publishers(GRANT_TOPIC) == 0:
+            self.interrupted.append(f'line_clock silent for {recorder.lockstep.clock_silent:.1f} s and gone')
+        if recorder.write_error is not None:
+            self.interrupted.append('the bag could not be written')
+        for name in set(recorder.lost) - self.ended_lost:  # once each
+            self.ended_lost.add(name)
+            _end_lost(self.procs.get(name))
+        if (self.done() or self.interrupted) and not stop.done():
+            stop.set_result(None)
+
+    def spin(self) -> None:
+        """Spin until the line ends or is stopped, then drain what its last tick still carries."""
+        recorder = self.recorder
+        assert recorder is not None
+        progress = LineTimeProgress(self.stream, self.cfg.duration)
+        stop: Future[None] = Future()  # the run's end: the clock done, or a reason to stop in ``interrupted``
+        # a timer, not a spin's timeout: rclpy's EventsExecutor did not return from
+        # spin_until_future_complete(timeout_sec=0.2) for a whole 30 s run of this line (and without a
+        # timeout it ran no callback at all)
+        watcher = recorder.create_timer(
+            WATCH, lambda: self.watch(progress, stop), clock=Clock(clock_type=ClockType.STEADY_TIME)
+        )
+        with logs_above(progress):  # the nodes' log lines (rcutils, fd 2) above the bar, never through it
+            while not (stop.done() or self.done() or self.interrupted):
+                self.executor.spin_until_future_complete(stop, timeout_sec=WATCH)
+            recorder.destroy_timer(watcher)
+            if self.interrupted and self.clock is not None:
+                self.executor.remove_node(self.clock)  # sim time stops: nothing more is published while draining
+            # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
+            deadline = time.perf_counter() + (1.0 if self.interrupted or self.cfg.clock == 'wall' else 0.2)
+            while time.perf_counter() < deadline:
+                self.executor.spin_once(timeout_sec=0.02)
+            progress.show(recorder.sim_time, force=True)
+            progress.close()
+
+    def finish(self, scene: Scene, wall_s: float, partition: str | None) -> None:
+        """Close the bag and build the run's summary (a bag write error is raised: the bag stays partial)."""
+        recorder, bag, clock = self.recorder, self.bag, self.clock
+        assert recorder is not None and bag is not None
+        recorder.flush()
+        if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
+            raise recorder.write_error
+        self.result.counts = dict(recorder.counts)
+        published = None if self.cfg.processes or self.cfg.external else _published_counts(self.nodes)
+        bag.close(published)
+        lost = dict(recorder.lost)
+        if clock is not None:
+            lost.update({n: t for n, t in clock.lost.items() if n not in lost})
+        rtf = None if clock is None else clock.rtf_achieved
+        summary = _summary(self.cfg, scene, recorder, wall_s, self.interrupted, lost, rtf)
+        summary.update(_bag_summary(bag, published, recorder.unrecorded))
+        summary['partition'] = partition  # None: an open line (the user's own profiles file)
+        self.result.summary = summary
+
+    def end_processes(self) -> None:
+        """Let the node processes end by themselves after a normal end (a lost one is ended at once), stop
+        the rest with SIGINT, and collect every exit code (a process still there after 15 s is killed)."""
+        procs = self.procs
+        if procs and not self.interrupted and procs['line_clock'].poll() is not None:
+            # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
+            # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
+            lost_nodes = set(self.result.summary.get('lost_participants') or ())
+            for name in (lost_nodes & set(procs)) - self.ended_lost:  # a stopped node holds shared-memory locks
+                _end_lost(procs[name])
+            deadline = time.monotonic() + 15.0
+            for name, proc in procs.items():
+                if name not in lost_nodes:
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+                proc.send_signal(signal.SIGCONT)  # a stopped child (SIGSTOP, Ctrl-Z) ends now, not in 15 s
+        for name, proc in procs.items():
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            self.result.exit_codes[name] = proc.returncode
+
+    def tear_down(self) -> None:
+        """End the processes, the executor, the bag (if an error left it open) and the nodes."""
+        self.end_processes()
+        self.executor.shutdown()
+        if self.bag is not None and (self.recorder is None or self.recorder.write_error is None):
+            self.bag.close()  # no-op after a normal end; after an error, finishes what was recorded
+        for node in self.nodes:
+            node.destroy_node()
+        self.ctx.try_shutdown()
+
+
 def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | None = None) -> RunResult:
     """Run the line for ``cfg.duration`` s of sim time; record ``<out>/bag/``; write ``run.json`` to ``cfg.out``.
 
@@ -269,186 +497,29 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
     """
     names = names or InputNames()
     scene = load_scene(cfg.scene, parse_set(cfg.overrides, names), names=names)  # fail early, before any node
-    _, made = ensure_key(os.environ)  # this line's key: its nodes and its operators share it
-    use_line_profile()  # before the first participant of this process (and its node processes)
-    partition = line_partition()  # None: the user's own profiles file, an open line
-    made = made and partition is not None
-    if made:
-        print(
-            f"line key (the operators' folder-line hold/tune/monitor and the nodes on other hosts need it): "
-            f'{KEY_VARIABLE}={os.environ[KEY_VARIABLE]}',
-            file=stream,
-        )
+    made, partition = _line_key(stream)
     ctx = rclpy.Context()
     rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    executor = events_executor(ctx)
-    result = RunResult()
-    procs: dict[str, subprocess.Popen[bytes]] = {}
-    nodes: list[Any] = []
-    bag = None
-    recorder: Any = None
-    ended_lost: set[str] = set()  # lost participants whose process was ended
-    interrupted: list[str] = []
-    participants = KNOWN_PARTICIPANTS
+    run = _LineRun(cfg, stream, ctx, events_executor(ctx))
 
     def on_signal(signum: int, frame: object) -> None:
-        interrupted.append(signal.Signals(signum).name)
+        run.interrupted.append(signal.Signals(signum).name)
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall = time.perf_counter()
     try:
-        probe = rclpy.create_node('folder_line_run_probe', context=ctx)
-        executor.add_node(probe)
-        # a key made here is this line's alone; a line with a key given may meet another with the same
-        other = None if made else other_line(probe, executor) if partition is None else same_key_line(probe, executor)
-        executor.remove_node(probe)
-        probe.destroy_node()
-        if other is not None:
-            cure = (
-                'ROS_DOMAIN_ID (e.g. ROS_DOMAIN_ID=17 folder-line run ...)'
-                if partition is None
-                else f'{KEY_VARIABLE} (unset it, and run makes one)'
-            )
-            raise FolderLineError(f'another line is running: {other}; stop it, or give this run its own {cure}')
-        cfg.out.mkdir(parents=True, exist_ok=True)
-        bag_path = cfg.out / BAG_DIR
-        _clear_previous_bag(bag_path)
+        _refuse_other_line(ctx, run.executor, made, partition)
         scene_file = (cfg.out / SCENE_FILE).absolute()  # the nodes' processes may not share our cwd
-        scene_source = write_scene(scene_file, scene)
-        bag = BagWriter(
-            bag_path,
-            scene_source=scene_source,
-            effects=list(scene.effects),
-            scene_name=scene.name,
-            topics=LINE_TOPICS,
-            custom={
-                'folder_line.scene_arg': str(cfg.scene),
-                'folder_line.overrides': json.dumps(cfg.overrides),
-                'folder_line.mode': 'processes' if cfg.processes else 'in-process',
-                'folder_line.clock': cfg.clock,
-            },
-            max_duration_s=cfg.max_bag_duration,
-            max_size=cfg.max_bag_size,
-        )
-        recorder = LineRecorder(sink=bag.write_serialized, context=ctx, lost_timeout=cfg.lost_timeout)
-        executor.add_node(recorder)
-        clock_params = clock_parameters(cfg, participants)
-        if cfg.processes:
-            env = dict(os.environ)
-            logs = cfg.out / 'logs'  # each process's stderr
-            logs.mkdir(exist_ok=True)
-            commands = {
-                name: [ros_arg(k, v) for k, v in node_parameters(cfg, name, scene_file).items()]
-                for name in MACHINE_NODES
-            }
-            commands['line_clock'] = [ros_arg(k, v) for k, v in clock_params.items()]
-            for name, args in commands.items():
-                # through the light entry module: a stop while the node imports is a clean exit
-                cmd = [sys.executable, '-m', 'folder_line.ros.entry', name, '--ros-args']
-                for a in args:
-                    cmd += ['-p', a]
-                # a file, not a pipe nobody reads: a node that logs a lot would block on a full pipe
-                with open(logs / f'{name}.log', 'wb') as log:
-                    procs[name] = subprocess.Popen(
-                        cmd, env=env, stdout=subprocess.DEVNULL, stderr=log, preexec_fn=_die_with_parent
-                    )
-            clock = None
-            done: Callable[[], bool] = lambda: procs['line_clock'].poll() is not None  # noqa: E731
-        else:
-            if cfg.external:
-                _print_external(cfg, stream)
-            else:
-                nodes += add_machine_nodes(cfg, ctx, executor, scene_file=scene_file)
-            clock = LineClock(parameter_overrides=[Parameter(k, value=v) for k, v in clock_params.items()], context=ctx)
-            nodes.append(clock)
-            executor.add_node(clock)
-            done = clock.done.done
-        progress = LineTimeProgress(stream, cfg.duration)
-        stop: Future[None] = Future()  # the run's end: the clock done, or a reason to stop in ``interrupted``
-
-        def watch() -> None:
-            """In the executor, every :data:`WATCH` s of wall time: draw the bar, look for what stops the run."""
-            progress.show(recorder.sim_time)
-            # a foreign /clock changes nothing here: line_clock refuses and names it, the nodes take time
-            # only from its grants. A silent clock that also left the graph will not come back
-            if recorder.lockstep.clock_silent and recorder.count_publishers(GRANT_TOPIC) == 0:
-                interrupted.append(f'line_clock silent for {recorder.lockstep.clock_silent:.1f} s and gone')
-            if recorder.write_error is not None:
-                interrupted.append('the bag could not be written')
-            for name in set(recorder.lost) - ended_lost:  # once each
-                ended_lost.add(name)
-                _end_lost(procs.get(name))
-            if (done() or interrupted) and not stop.done():
-                stop.set_result(None)
-
-        # a timer, not a spin's timeout: rclpy's EventsExecutor did not return from
-        # spin_until_future_complete(timeout_sec=0.2) for a whole 30 s run of this line (and without a
-        # timeout it ran no callback at all)
-        watcher = recorder.create_timer(WATCH, watch, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        with logs_above(progress):  # the nodes' log lines (rcutils, fd 2) above the bar, never through it
-            while not (stop.done() or done() or interrupted):
-                executor.spin_until_future_complete(stop, timeout_sec=WATCH)
-            recorder.destroy_timer(watcher)
-            if interrupted and clock is not None:
-                executor.remove_node(clock)  # sim time stops, so nothing more is published while draining
-            # in lockstep every acknowledged message is recorded by now; drain what the last tick still carries
-            deadline = time.perf_counter() + (1.0 if interrupted or cfg.clock == 'wall' else 0.2)
-            while time.perf_counter() < deadline:
-                executor.spin_once(timeout_sec=0.02)
-            progress.show(recorder.sim_time, force=True)
-            progress.close()
-        recorder.flush()
-        if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
-            raise recorder.write_error
-        result.counts = dict(recorder.counts)
-        published = None if cfg.processes or cfg.external else _published_counts(nodes)
-        bag.close(published)
-        lost = dict(recorder.lost)
-        if clock is not None:
-            lost.update({n: t for n, t in clock.lost.items() if n not in lost})
-        result.summary = _summary(
-            cfg,
-            scene,
-            recorder,
-            time.perf_counter() - t_wall,
-            interrupted,
-            lost,
-            None if clock is None else clock.rtf_achieved,
-        )
-        result.summary.update(_bag_summary(bag, published, recorder.unrecorded))
-        result.summary['partition'] = partition  # None: an open line (the user's own profiles file)
+        run.bag = _open_bag(cfg, scene, scene_file)
+        run.start(scene_file)
+        run.spin()
+        run.finish(scene, time.perf_counter() - t_wall, partition)
     finally:
-        if procs and not interrupted and procs['line_clock'].poll() is not None:
-            # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
-            # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
-            lost_nodes = set(result.summary.get('lost_participants') or ())
-            for name in (lost_nodes & set(procs)) - ended_lost:  # a stopped node holds shared-memory locks
-                _end_lost(procs[name])
-            deadline = time.monotonic() + 15.0
-            for name, proc in procs.items():
-                if name not in lost_nodes:
-                    with contextlib.suppress(subprocess.TimeoutExpired):
-                        proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                proc.send_signal(signal.SIGCONT)  # a stopped child (SIGSTOP, Ctrl-Z) ends now, not in 15 s
-        for name, proc in procs.items():
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-            result.exit_codes[name] = proc.returncode
-        executor.shutdown()
-        if bag is not None and (recorder is None or recorder.write_error is None):
-            bag.close()  # no-op after a normal end; after an error, finishes what was recorded
-        for node in nodes:
-            node.destroy_node()
-        ctx.try_shutdown()
+        run.tear_down()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if procs:
+    result = run.result
+    if run.procs:
         result.summary['exit_codes'] = result.exit_codes
         clock_code = result.exit_codes.get('line_clock')
         if clock_code not in (0, None) and not result.summary.get('lost_participants'):
@@ -516,7 +587,7 @@ def _where(constraint: str, cycle: str | None) -> str:
 def _summary(
     cfg: RunConfig,
     scene: Scene,
-    recorder: Any,
+    recorder: LineRecorder,
     wall: float,
     interrupted: list[str],
     lost: dict[str, float],
@@ -562,7 +633,7 @@ def _summary(
     }
 
 
-def _bag_summary(bag: Any, published: dict[str, int] | None, unrecorded: Mapping[str, int]) -> dict[str, Any]:
+def _bag_summary(bag: BagWriter, published: dict[str, int] | None, unrecorded: Mapping[str, int]) -> dict[str, Any]:
     """``unrecorded``: per topic, messages of ticks after the last one recorded (a stopped line), not lost."""
     recorded = dict(sorted(bag.counts.items()))
     after = {t: n for t, n in sorted(unrecorded.items()) if n}

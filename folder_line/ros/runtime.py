@@ -27,7 +27,7 @@ from typing import Any
 import rclpy
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -152,6 +152,54 @@ class _StopRequests:
         os._exit(code)
 
 
+class _TeardownWatchdog:
+    """Ends the process with its exit code when the middleware hangs tearing the node down.
+
+    Armed once (:meth:`arm`), as the teardown begins: after ``timeout`` s a Python timer exits with the
+    code; if the hang holds the GIL (no Python thread runs), ``faulthandler`` prints the stacks from C
+    and a C timer ends the process :data:`HUNG_TEARDOWN_EXIT` s after the timeout with the same code
+    (``faulthandler``'s own exit is code 1). ``timeout`` None: never armed.
+    """
+
+    def __init__(self, name: str, timeout: float | None) -> None:
+        self.name = name
+        self.timeout = timeout
+        self._timer: threading.Timer | None = None
+        self._cancel_exit: Callable[[], None] | None = None
+
+    def arm(self, code: int, quiet: bool = False) -> None:
+        """Start the timers for exit code ``code`` (``quiet``: without the warning line); once only."""
+        timeout = self.timeout
+        if timeout is None or self._timer is not None:
+            return
+        name = self.name
+
+        def expire() -> None:
+            if not quiet:  # (a refused node has said all it has to say in its one line)
+                print(
+                    f'{name}: the middleware did not finish tearing the node down in {timeout:g} s; '
+                    'exiting anyway (the node had stopped)',
+                    file=sys.stderr,
+                    flush=True,
+                )
+            sys.stdout.flush()
+            os._exit(code)
+
+        self._timer = threading.Timer(timeout, expire)
+        self._timer.daemon = True
+        self._timer.start()
+        self._cancel_exit = arm_exit(timeout + HUNG_TEARDOWN_EXIT, code)
+        faulthandler.dump_traceback_later(timeout + HUNG_TEARDOWN_EXIT - 0.5, exit=self._cancel_exit is None)
+
+    def cancel(self) -> None:
+        """Stop every timer armed (the teardown finished)."""
+        if self._timer is not None:
+            self._timer.cancel()
+            faulthandler.cancel_dump_traceback_later()
+        if self._cancel_exit is not None:
+            self._cancel_exit()
+
+
 def run_node(
     node_factory: Callable[[], Node],
     args: Sequence[str] | None = None,
@@ -161,56 +209,21 @@ def run_node(
 ) -> int:
     """Body of a node's ``main(args=None)``: init, spin, clean up, exit code.
 
-    The node is built by ``node_factory()`` in the default context and spun by a
-    events executor (:func:`events_executor`) until SIGINT or SIGTERM, until the context is shut
-    down from elsewhere, or, if the node has a ``done`` attribute holding an
-    ``rclpy.task.Future``, until that future completes (a node that finishes on its
-    own, like ``line_clock`` with a ``duration``) and :data:`LINGER` s more.
+    The node is built by ``node_factory()`` in the default context and spun by an events executor
+    (:func:`events_executor`) until SIGINT or SIGTERM, until the context is shut down from elsewhere, or,
+    if the node has a ``done`` attribute holding an ``rclpy.task.Future``, until that future completes
+    and :data:`LINGER` s more. The manual's "How a node ends" says what a stop, a repeated stop and a
+    hung teardown do; in short:
 
-    Stopping. A node that is stopped (SIGINT or SIGTERM, at any moment) exits with its
-    exit code, 0 unless the node asks for another (``exit_code``), and no traceback:
-
-    * Signals are handled synchronously, in the spinning thread: rclpy's own handlers are
-      not installed (``SignalHandlerOptions.NO``); a Python handler records the request and
-      the spin, which never waits longer than :data:`SPIN_PERIOD`, stops between two
-      callbacks. rclpy's handlers would shut the context down from another thread while a
-      callback may be using it, which ends in ``RCLError: publisher's context is invalid``
-      tracebacks (about one Ctrl-C in three on a 1 kHz publisher here) and occasionally a
-      crash under load. A request before ``rclpy.init`` skips it; one while the node is
-      being built lets the build finish and skips the spin.
-    * A repeated SIGINT is the same request: a Ctrl-C in the terminal of ``ros2 launch``
-      reaches each node twice, from the terminal and from launch. A SIGTERM after a request
-      (``ros2 launch`` sends it ``sigterm_timeout``, 5 s, after its SIGINT, to a node still
-      running) is a request to stop now. While the node is being built it raises into the
-      constructor, and the half-built node is collected. While the node spins, the process, if
-      the node is its own, exits at once :data:`STOP_GRACE` s later with one line on stderr,
-      unless the node's teardown has begun by then: a callback that does not return cannot be
-      cut short without rclpy's executor logging the exception as a fatal error, with its
-      frames. During the teardown requests are only recorded (see the watchdog below).
-      Python runs signal handlers in the main thread, between bytecodes: code blocked in a C
-      call (a middleware call that hangs) hears no request until it returns; SIGKILL ends it.
-    * When the node runs as a process of its own (``args`` None, the main thread), SIGINT and
-      SIGTERM are ignored once this returns, through the interpreter's exit: Python's default
-      handlers would turn a late request (launch signals every node still running when the
-      line's clock exits, nodes that are exiting too) into a death by signal, exit code -2,
-      which launch reports as an ERROR. Otherwise the previous handlers are restored.
-      Called from another thread, it installs no signal handler at all.
-
-    Teardown. Destroying the node can hang inside the middleware: with both cores
-    busy, one of 20 runs of ``folder-line run --processes`` (120 node stops) hung in
-    ``Node.destroy_node`` (rcl's node finalisation with Fast DDS) until killed. When
-    the node runs as a process of its own, its work is done by then, so a watchdog ends the
-    process after ``teardown_timeout`` s (default :data:`TEARDOWN_TIMEOUT`) with one warning line on
-    stderr and the exit code it would have returned; if the hang holds the GIL (no Python
-    thread runs), ``faulthandler`` prints the threads' stacks 2 s later from C, and a C timer
-    (:func:`folder_line.ros.exit_timer.arm_exit`) ends the process :data:`HUNG_TEARDOWN_EXIT` s
-    after the timeout with the same exit code.
-
-    Refusal. A node class with a ``refuse_start`` classmethod (the machine nodes) first judges the
-    start from the command line alone (:mod:`folder_line.ros.ros_args`), before any DDS participant
-    exists: a bad start is refused with its one line and exit code 2 without joining the network.
-    One the command line does not show is refused by the node as it is built; its half-built node
-    is then torn down under the same watchdog.
+    * signals are handled in the spinning thread, between two callbacks (rclpy's handlers are not
+      installed); a SIGTERM after a request stops the node :data:`STOP_GRACE` s later at the latest;
+    * a node running as a process of its own (``args`` None, the main thread) ignores SIGINT and SIGTERM
+      once this returns, so a late request from ``ros2 launch`` cannot turn its exit into a death by signal;
+    * its teardown is bounded: after ``teardown_timeout`` s a watchdog ends the process with the code it
+      would have returned, a C timer (:func:`folder_line.ros.exit_timer.arm_exit`) even when the hang holds
+      the GIL;
+    * a node class with a ``refuse_start`` classmethod judges its command line before any DDS
+      participant exists (:mod:`folder_line.ros.ros_args`): a bad start is one line and exit code 2.
 
     Parameters
     ----------
@@ -240,32 +253,7 @@ def run_node(
     stop = _StopRequests(name, own_process)
     if teardown_timeout is None and own_process:
         teardown_timeout = TEARDOWN_TIMEOUT
-    watchdog: threading.Timer | None = None
-    cancel_exit: Callable[[], None] | None = None
-
-    def arm(code: int, quiet: bool = False) -> None:
-        nonlocal watchdog, cancel_exit
-        if teardown_timeout is None or watchdog is not None:
-            return
-
-        def expire() -> None:
-            if not quiet:  # (a refused node has said all it has to say in its one line)
-                print(
-                    f'{name}: the middleware did not finish tearing the node down in {teardown_timeout:g} s; '
-                    'exiting anyway (the node had stopped)',
-                    file=sys.stderr,
-                    flush=True,
-                )
-            sys.stdout.flush()
-            os._exit(code)
-
-        watchdog = threading.Timer(teardown_timeout, expire)
-        watchdog.daemon = True
-        watchdog.start()
-        # the middleware can hang holding the GIL, and then no Python thread runs: faulthandler's C thread
-        # prints the stacks, and a C timer ends the process with its code (faulthandler's own exit is code 1)
-        cancel_exit = arm_exit(teardown_timeout + HUNG_TEARDOWN_EXIT, code)
-        faulthandler.dump_traceback_later(teardown_timeout + HUNG_TEARDOWN_EXIT - 0.5, exit=cancel_exit is None)
+    watchdog = _TeardownWatchdog(name, teardown_timeout)
 
     previous: dict[signal.Signals, Any] = {}
     if in_main_thread:
@@ -274,57 +262,72 @@ def run_node(
     try:
         if stop.is_set():
             return EXIT_OK
-        try:
-            use_line_profile()  # the line's Fast DDS profile, before this process's first participant
-            _refuse_from_command_line(node_factory, name, sys.argv[1:] if args is None else args)
-        except (FolderLineError, OSError) as err:  # a bad FOLDER_LINE_KEY, a profiles folder not private
-            print(f'{name}: error: {err}', file=sys.stderr)
-            return EXIT_BAD_PARAMETER
-        try:
-            initialised = rclpy.init(
-                args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO
-            )
-        except RuntimeError as err:  # rcl's RCLError: a --ros-args rule it cannot parse
-            print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
-            return EXIT_BAD_PARAMETER
+        initialised = _init(node_factory, name, args)
+        if isinstance(initialised, int):
+            return initialised
         with initialised:
             node = _build(node_factory, name, stop)
             if isinstance(node, int):
-                arm(node, quiet=True)  # the half-built node's teardown is bounded as any other
+                watchdog.arm(node, quiet=True)  # the half-built node's teardown is bounded as any other
                 # it hung off the traceback, which is gone now: collect it while the context is alive
                 # (finalised after rclpy's shutdown: the likely cause of a SIGSEGV seen once in CI)
                 gc.collect()
                 return node
-            code = EXIT_OK
-            stop.code = lambda: _exit_code(node, exit_code)
-            try:
-                stop.enter('spinning')
-                _spin(node, stop)
-                code = _exit_code(node, exit_code)
-            finally:
-                stop.enter('teardown')
-                arm(code)
-                _flush(node)
-                node.destroy_node()
-            return code
+            return _spin_and_tear_down(node, stop, watchdog, exit_code)
     except (KeyboardInterrupt, ExternalShutdownException, _StopNow):
         pass
     except (FolderLineError, ParameterException) as err:
         print(f'{name}: error: {err}', file=sys.stderr)
         return EXIT_BAD_PARAMETER
     finally:
-        if watchdog is not None:
-            watchdog.cancel()
-            faulthandler.cancel_dump_traceback_later()
-        if cancel_exit is not None:
-            cancel_exit()
+        watchdog.cancel()
         stop.disarm()
-        for signum, handler in previous.items():
-            if own_process:
-                signal.signal(signum, signal.SIG_IGN)
-            else:
-                signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+        _restore_signals(previous, own_process)
     return EXIT_OK
+
+
+def _restore_signals(previous: dict[signal.Signals, Any], own_process: bool) -> None:
+    """Put back the handlers ``previous`` replaced; a node's own process ignores the stop signals instead
+    (a late request from launch must not turn its exit into a death by signal)."""
+    for signum, handler in previous.items():
+        if own_process:
+            signal.signal(signum, signal.SIG_IGN)
+        else:
+            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+
+
+def _init(node_factory: Callable[[], Node], name: str, args: Sequence[str] | None) -> rclpy.InitContextManager | int:
+    """Judge the start from the command line, then ``rclpy.init``: the initialised context manager, or
+    :data:`EXIT_BAD_PARAMETER` after one line on stderr."""
+    try:
+        use_line_profile()  # the line's Fast DDS profile, before this process's first participant
+        _refuse_from_command_line(node_factory, name, sys.argv[1:] if args is None else args)
+    except (FolderLineError, OSError) as err:  # a bad FOLDER_LINE_KEY, a profiles folder not private
+        print(f'{name}: error: {err}', file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+    try:
+        return rclpy.init(args=None if args is None else list(args), signal_handler_options=SignalHandlerOptions.NO)
+    except RuntimeError as err:  # rcl's RCLError: a --ros-args rule it cannot parse
+        print(f'{name}: error: {str(err).splitlines()[0]}', file=sys.stderr)
+        return EXIT_BAD_PARAMETER
+
+
+def _spin_and_tear_down(
+    node: Node, stop: _StopRequests, watchdog: _TeardownWatchdog, exit_code: Callable[[Node], int] | None
+) -> int:
+    """Spin ``node`` until it is stopped or done, then tear it down under ``watchdog``; its exit code."""
+    code = EXIT_OK
+    stop.code = lambda: _exit_code(node, exit_code)
+    try:
+        stop.enter('spinning')
+        _spin(node, stop)
+        code = _exit_code(node, exit_code)
+    finally:
+        stop.enter('teardown')
+        watchdog.arm(code)
+        _flush(node)
+        node.destroy_node()
+    return code
 
 
 def _flush(node: Node) -> None:
@@ -377,7 +380,7 @@ def _exit_code(node: Node, exit_code: Callable[[Node], int] | None) -> int:
     return int(own()) if callable(own) else EXIT_OK
 
 
-def events_executor(context: Any) -> Any:
+def events_executor(context: rclpy.Context) -> Executor:
     """An ``rclpy.experimental.EventsExecutor`` for ``context``: the line's executor.
 
     It costs a third of ``SingleThreadedExecutor``'s CPU per message here (``bench/bench_nodes.py``).

@@ -467,54 +467,14 @@ def optimize_layup(
     layup = mapping['machines']['layup']
     x_start = np.array([float(layup[k]) for k in keys])
     start = evaluate(mapping, dict(zip(keys, x_start.tolist(), strict=True)), settings, scene=scene)
-    mu_min = math.radians(settings.min_transmission_deg)
-    seen: dict[tuple[float, ...], Candidate] = {}
-    geometries: dict[tuple[float, ...], _Geometry] = {}  # of the constraint function, reused by the objective
-    counts = {'candidates': 0, 'geometry_ok': 0, 'simulated': 0, 'spill_or_damage': 0}
-
-    def values_of(x: np.ndarray) -> dict[str, float]:
-        return dict(zip(keys, (float(v) for v in x), strict=True))
-
-    def geometry(x: np.ndarray) -> np.ndarray:
-        counts['candidates'] += 1
-        key = tuple(float(v) for v in x)
-        found = geometries.get(key)
-        if found is None:
-            found = geometries[key] = _geometry(mapping, values_of(x), mu_min)
-        cons, _, ok = found
-        counts['geometry_ok'] += ok
-        return np.array([cons[k] for k in ACTIVE_TOL])
-
-    def objective(x: np.ndarray) -> float:
-        key = tuple(float(v) for v in x)
-        cand = seen.get(key)
-        if cand is None:
-            cand = evaluate(mapping, values_of(x), settings, geometry=geometries.get(key))
-            seen[key] = cand
-            if cand.summary is not None:
-                counts['simulated'] += 1
-                counts['spill_or_damage'] += cand.constraints['no_spill_or_damage'] < 0.0
-        return cand.objective
-
-    generation = [0]
-
-    def report(intermediate_result: Any) -> None:
-        generation[0] += 1
-        if progress is not None:
-            fun = float(intermediate_result.fun)
-            text = f'{fun:.4f}' if fun < PENALTY else 'none feasible yet'
-            progress.write(
-                f'generation {generation[0]}/{settings.maxiter}: best landing cv {text}  '
-                f'({counts["simulated"]} simulated of {counts["candidates"]} candidates)\n'
-            )
-            progress.flush()
+    search = _Search(mapping, keys, settings, progress)
 
     from scipy.optimize import NonlinearConstraint, differential_evolution
 
     inside = bool(np.all((x_start >= lows) & (x_start <= highs)))
     t0 = clock()
     res = differential_evolution(
-        objective,
+        search.objective,
         list(zip(lows, highs, strict=True)),
         maxiter=settings.maxiter,
         popsize=settings.popsize,
@@ -523,12 +483,12 @@ def optimize_layup(
         polish=False,
         init='latinhypercube',
         x0=x_start if inside else None,
-        constraints=NonlinearConstraint(geometry, 0.0, np.inf),
-        callback=report,
+        constraints=NonlinearConstraint(search.geometry, 0.0, np.inf),
+        callback=search.report,
         updating='immediate',
     )
     seconds = clock() - t0
-    found = seen.get(tuple(float(v) for v in res.x))
+    found = search.seen.get(tuple(float(v) for v in res.x))
     best = start
     if found is not None and found.feasible and (not start.feasible or found.objective < start.objective):
         best = found
@@ -547,12 +507,70 @@ def optimize_layup(
         best=best,
         scene=scene if best is start else parse_scene(best_mapping),
         mapping=best_mapping,
-        evaluations=counts,
+        evaluations=search.counts,
         message=str(res.message),
         nit=int(res.nit),
         nfev=int(res.nfev),
         seconds=seconds,
     )
+
+
+class _Search:
+    """The functions :func:`optimize_layup` hands to ``differential_evolution`` (the constraint, the objective
+    and the progress callback), with the candidates they have seen and what they counted."""
+
+    def __init__(
+        self, mapping: Mapping[str, Any], keys: list[str], settings: OptimizeSettings, progress: IO[str] | None
+    ) -> None:
+        self.mapping = mapping
+        self.keys = keys
+        self.settings = settings
+        self.progress = progress
+        self.mu_min = math.radians(settings.min_transmission_deg)
+        self.seen: dict[tuple[float, ...], Candidate] = {}
+        # of the constraint function, reused by the objective
+        self.geometries: dict[tuple[float, ...], _Geometry] = {}
+        self.counts = {'candidates': 0, 'geometry_ok': 0, 'simulated': 0, 'spill_or_damage': 0}
+        self.generation = 0
+
+    def values_of(self, x: np.ndarray) -> dict[str, float]:
+        """The design variables ``x`` by key."""
+        return dict(zip(self.keys, (float(v) for v in x), strict=True))
+
+    def geometry(self, x: np.ndarray) -> np.ndarray:
+        """The geometric constraints of ``x`` (each >= 0 when met), in the order of ``ACTIVE_TOL``."""
+        self.counts['candidates'] += 1
+        key = tuple(float(v) for v in x)
+        found = self.geometries.get(key)
+        if found is None:
+            found = self.geometries[key] = _geometry(self.mapping, self.values_of(x), self.mu_min)
+        cons, _, ok = found
+        self.counts['geometry_ok'] += ok
+        return np.array([cons[k] for k in ACTIVE_TOL])
+
+    def objective(self, x: np.ndarray) -> float:
+        """The landing CV of ``x`` (a penalty where it is infeasible), each candidate simulated once."""
+        key = tuple(float(v) for v in x)
+        cand = self.seen.get(key)
+        if cand is None:
+            cand = evaluate(self.mapping, self.values_of(x), self.settings, geometry=self.geometries.get(key))
+            self.seen[key] = cand
+            if cand.summary is not None:
+                self.counts['simulated'] += 1
+                self.counts['spill_or_damage'] += cand.constraints['no_spill_or_damage'] < 0.0
+        return cand.objective
+
+    def report(self, intermediate_result: Any) -> None:
+        """One line per generation on the progress stream: the best CV so far."""
+        self.generation += 1
+        if self.progress is not None:
+            fun = float(intermediate_result.fun)
+            text = f'{fun:.4f}' if fun < PENALTY else 'none feasible yet'
+            self.progress.write(
+                f'generation {self.generation}/{self.settings.maxiter}: best landing cv {text}  '
+                f'({self.counts["simulated"]} simulated of {self.counts["candidates"]} candidates)\n'
+            )
+            self.progress.flush()
 
 
 def _cv_text(c: Candidate) -> str:

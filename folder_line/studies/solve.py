@@ -177,6 +177,65 @@ def _fmt(value: float | None) -> str:
     return 'refused' if value is None else f'{value:.6g}'
 
 
+def _bracket(
+    evaluated: list[tuple[float, float]], cond: Condition, key: str, between: tuple[float, float], scan: int
+) -> tuple[tuple[float, float], str]:
+    """The first pair of neighbours of the scan ``evaluated`` ((value of ``key``, metric)) across which
+    ``cond`` changes, and whether it holds ``'above'`` or ``'below'`` it; ``ParameterError`` naming
+    ``--between`` when there is none."""
+    for (xa, va), (xb, vb) in itertools.pairwise(evaluated):
+        if cond.holds(va) != cond.holds(vb):
+            return (xa, xb), ('above' if cond.holds(vb) else 'below')
+    path = cond.metric
+    ends = (
+        f'{path} = {_fmt(evaluated[0][1])} at {evaluated[0][0]:.6g} and {_fmt(evaluated[-1][1])} at '
+        f'{evaluated[-1][0]:.6g}'
+        if evaluated
+        else 'the model refused every value'
+    )
+    where = 'everywhere' if evaluated and cond.holds(evaluated[0][1]) else 'nowhere'
+    lo, hi = between
+    raise ParameterError(
+        '--between',
+        f'{lo:.6g}:{hi:.6g}',
+        f'{cond.text} holds {where} in the range of {key} ({scan} values scanned): {ends}; no boundary to find'
+        if evaluated
+        else f'no boundary of {cond.text} in the range of {key}: {ends}',
+    )
+
+
+class _SignedDistance:
+    """The function whose root :func:`solve_boundary` finds: the condition's distance, positive where it
+    holds, at a value of the key; each value simulated once (``known`` seeds it), counted in :attr:`count`."""
+
+    def __init__(
+        self, source: Mapping[str, Any], key: str, duration: float, cond: Condition, known: dict[float, float]
+    ) -> None:
+        self.source = source
+        self.key = key
+        self.duration = duration
+        self.cond = cond
+        self.known = known
+        self.count = 0
+
+    def __call__(self, x: float) -> float:
+        got = self.known.get(x)
+        if got is None:
+            self.count += 1
+            path = self.cond.metric
+            try:
+                summary = simulate_summary(apply_overrides(self.source, {self.key: x}), self.duration)
+                got = flatten_metrics(summary).get(path)
+            except FolderLineError as exc:
+                raise ParameterError(self.key, x, f'refused by the model while refining the boundary: {exc}') from None
+            if got is None:
+                raise ParameterError(self.key, x, f'the summary has no {path} here')
+            self.known[x] = got
+        d = self.cond.distance(got)
+        ok = self.cond.holds(got)
+        return d if (d > 0.0) == ok and d != 0.0 else (_TINY if ok else -_TINY)
+
+
 def solve_boundary(
     source: Mapping[str, Any],
     key: str,
@@ -239,46 +298,10 @@ def solve_boundary(
     values = [r.values[0] if r.status == OK else None for r in results]
     scanned = tuple(zip(xs, values, strict=True))
     evaluated = [(x, v) for x, v in scanned if v is not None]
-    bracket: tuple[float, float] | None = None
-    for (xa, va), (xb, vb) in itertools.pairwise(evaluated):
-        if cond.holds(va) != cond.holds(vb):
-            bracket, holds = (xa, xb), ('above' if cond.holds(vb) else 'below')
-            break
-    if bracket is None:
-        ends = (
-            f'{path} = {_fmt(evaluated[0][1])} at {evaluated[0][0]:.6g} and {_fmt(evaluated[-1][1])} at '
-            f'{evaluated[-1][0]:.6g}'
-            if evaluated
-            else 'the model refused every value'
-        )
-        where = 'everywhere' if evaluated and cond.holds(evaluated[0][1]) else 'nowhere'
-        raise ParameterError(
-            '--between',
-            f'{lo:.6g}:{hi:.6g}',
-            f'{cond.text} holds {where} in the range of {key} ({scan} values scanned): {ends}; no boundary to find'
-            if evaluated
-            else f'no boundary of {cond.text} in the range of {key}: {ends}',
-        )
+    bracket, holds = _bracket(evaluated, cond, key, (lo, hi), scan)
     # the metric by the exact value of the key: the scan's values seed it, so brentq's first two
     # calls (the bracket's ends) are not simulated again
-    known: dict[float, float] = dict(evaluated)
-    count = 0
-
-    def signed(x: float) -> float:
-        nonlocal count
-        got = known.get(x)
-        if got is None:
-            count += 1
-            try:
-                got = flatten_metrics(simulate_summary(apply_overrides(source, {key: x}), duration)).get(path)
-            except FolderLineError as exc:
-                raise ParameterError(key, x, f'refused by the model while refining the boundary: {exc}') from None
-            if got is None:
-                raise ParameterError(key, x, f'the summary has no {path} here')
-            known[x] = got
-        d = cond.distance(got)
-        ok = cond.holds(got)
-        return d if (d > 0.0) == ok and d != 0.0 else (_TINY if ok else -_TINY)
+    signed = _SignedDistance(source, key, duration, cond, dict(evaluated))
 
     from scipy.optimize import brentq
 
@@ -294,5 +317,5 @@ def solve_boundary(
         bracket=bracket,
         between=(lo, hi),
         scan=scanned,
-        evaluations=1 + len(xs) + count,
+        evaluations=1 + len(xs) + signed.count,
     )

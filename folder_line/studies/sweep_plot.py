@@ -24,7 +24,7 @@ from folder_line.analysis.figures import pyplot, save_figure
 from folder_line.core.line.margin_text import MARGIN_AXIS_NOTES, margin_constraint, shown_unit
 from folder_line.studies.paper import PAPER_NOTES, paper_rule
 from folder_line.studies.points import OK
-from folder_line.studies.sweep import SweepResult
+from folder_line.studies.sweep import SweepPlan, SweepResult
 
 __all__ = ['plot_sweep', 'plotted_keys']
 
@@ -172,7 +172,7 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _pair(result_plan: Any, keys: Sequence[str], values: Mapping[str, Any]) -> str:
+def _pair(result_plan: SweepPlan, keys: Sequence[str], values: Mapping[str, Any]) -> str:
     """``'V_tr 9.3 m/s, n_k 50000 rev/h'``: a point's two values by the keys' short names."""
     return ', '.join(f'{k.rpartition(".")[2]} {values[k]:.6g} {result_plan.units[k]}'.rstrip() for k in keys)
 
@@ -192,6 +192,61 @@ def _grid(result: SweepResult, keys: Sequence[str], values: np.ndarray) -> tuple
     for p, v in zip(plan.points, values, strict=True):
         z[np.searchsorted(ys, float(p[keys[1]])), np.searchsorted(xs, float(p[keys[0]]))] = v
     return xs, ys, z
+
+
+def _marks(ax: Any, result: SweepResult, keys: Sequence[str], xs: np.ndarray, ys: np.ndarray) -> list[Any]:
+    """Drawn over the heat map: the points where a swept constraint is violated and the paper's rule;
+    their legend handles."""
+    plan = result.plan
+    handles: list[Any] = []
+    feasible = _feasible(result)
+    if feasible is not None:
+        bad = [p for p, f, r in zip(plan.points, feasible, result.results, strict=True) if f < 0.5 and r.status == OK]
+        if bad:
+            handles.append(
+                ax.plot(
+                    [p[keys[0]] for p in bad],
+                    [p[keys[1]] for p in bad],
+                    'x',
+                    ms=4,
+                    color='k',
+                    alpha=0.6,
+                    label='a swept constraint is violated here',
+                )[0]
+            )
+    rule = paper_rule(keys[0], keys[1])
+    if rule is not None:
+        text, fn = rule
+        y_line = np.linspace(_edges(ys)[0], _edges(ys)[-1], 50)
+        handles.append(ax.plot(fn(y_line), y_line, ':', color='tab:purple', lw=2.0, label=text)[0])
+        ax.set_xlim(_edges(xs)[0], _edges(xs)[-1])
+    return handles
+
+
+def _points(ax: Any, plan: SweepPlan, keys: Sequence[str]) -> list[Any]:
+    """The scene's point and the paper's, drawn over the heat map; their legend handles."""
+    handles: list[Any] = []
+    scene = plan.scene_point
+    if all(isinstance(scene.get(k), int | float) for k in keys):
+        handles.append(
+            ax.plot(
+                scene[keys[0]],
+                scene[keys[1]],
+                '*',
+                ms=16,
+                mfc='tab:green',
+                mec='k',
+                label=f'scene: {_pair(plan, keys, scene)}',
+            )[0]
+        )
+    if plan.paper_point is not None:
+        pp = plan.paper_point
+        handles.append(
+            ax.plot(
+                pp[keys[0]], pp[keys[1]], 'D', ms=9, mfc='tab:purple', mec='k', label=f'paper: {_pair(plan, keys, pp)}'
+            )[0]
+        )
+    return handles
 
 
 def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
@@ -230,49 +285,10 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
                 label=f'{metric} = 0 (feasible side: >= 0)' if _is_margin(metric) else f'{metric} = 0',
             )
         )
-    feasible = _feasible(result)
-    if feasible is not None:
-        bad = [p for p, f, r in zip(plan.points, feasible, result.results, strict=True) if f < 0.5 and r.status == OK]
-        if bad:
-            handles.append(
-                ax.plot(
-                    [p[keys[0]] for p in bad],
-                    [p[keys[1]] for p in bad],
-                    'x',
-                    ms=4,
-                    color='k',
-                    alpha=0.6,
-                    label='a swept constraint is violated here',
-                )[0]
-            )
-    rule = paper_rule(keys[0], keys[1])
-    if rule is not None:
-        text, fn = rule
-        y_line = np.linspace(_edges(ys)[0], _edges(ys)[-1], 50)
-        handles.append(ax.plot(fn(y_line), y_line, ':', color='tab:purple', lw=2.0, label=text)[0])
-        ax.set_xlim(_edges(xs)[0], _edges(xs)[-1])
+    handles += _marks(ax, result, keys, xs, ys)
     if np.isnan(z).any():
         handles.append(plt.matplotlib.patches.Patch(color='lightgrey', label='refused by the model'))
-    scene = plan.scene_point
-    if all(isinstance(scene.get(k), int | float) for k in keys):
-        handles.append(
-            ax.plot(
-                scene[keys[0]],
-                scene[keys[1]],
-                '*',
-                ms=16,
-                mfc='tab:green',
-                mec='k',
-                label=f'scene: {_pair(plan, keys, scene)}',
-            )[0]
-        )
-    if plan.paper_point is not None:
-        pp = plan.paper_point
-        handles.append(
-            ax.plot(
-                pp[keys[0]], pp[keys[1]], 'D', ms=9, mfc='tab:purple', mec='k', label=f'paper: {_pair(plan, keys, pp)}'
-            )[0]
-        )
+    handles += _points(ax, plan, keys)
     ax.set_xlabel(_label(keys[0], plan.units[keys[0]]))
     ax.set_ylabel(_label(keys[1], plan.units[keys[1]]))
     ax.set_title(

@@ -271,11 +271,11 @@ def test_packed_message_index_is_mcaps() -> None:
     from mcap.data_stream import RecordBuilder
     from mcap.records import MessageIndex
 
-    from folder_line.bag.writer import _PackedMessageIndex
+    from folder_line.bag.tick_messages import PackedMessageIndex
 
     records = [(5_000_000 * k, 97 * k + 3) for k in range(50)] + [(2**63 + 1, 2**40)]
     out = []
-    for cls in (MessageIndex, _PackedMessageIndex):
+    for cls in (MessageIndex, PackedMessageIndex):
         builder = RecordBuilder()
         cls(channel_id=7, records=records).write(builder)
         out.append(builder.end())

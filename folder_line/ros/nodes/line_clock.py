@@ -57,7 +57,7 @@ import math
 import sys
 import time
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -246,6 +246,29 @@ class LineClock(Node):
         if self.get_parameter('use_sim_time').value:
             raise ParameterError('use_sim_time', True, 'line_clock publishes /clock and runs on the wall clock')
         v = self.values = declare_parameters(self, SPECS, cross_check=_check)
+        self._init_state(v)
+        self._pub = self.create_publisher(ClockMsg, CLOCK_TOPIC, CLOCK_QOS)
+        self._grant_pub = self.create_publisher(TimeReference, GRANT_TOPIC, GRANT_QOS)
+        self._diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
+        announce = self.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
+        self.announcement = Announcement(self.mode, self._end, self.participants)
+        announce.publish(String(data=format_announcement(self.announcement)))
+        for name in self.participants:
+            self.create_subscription(TimeReference, progress_topic(name), self._on_ack(name), ACK_QOS, raw=True)
+        self.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS, raw=True)
+        self._pacer = self.create_timer(1.0, self._pump, clock=self._wall)
+        self._pacer.cancel()
+        self._watch = self.create_timer(HEARTBEAT, self._on_watch, clock=self._wall)
+        self._scan = self.create_timer(STRANGER_SCAN, self._look_for_strangers, clock=self._wall)
+        self._next_lateness = self._start + NS_PER_S
+        self.add_post_set_parameters_callback(self._apply)
+        self.signatures = guard_changes(self)  # on a keyed line, a change at run time must be signed
+        self._say_start(v)
+        self._publish_tick(self._start)
+        self._grant()
+
+    def _init_state(self, v: Mapping[str, Any]) -> None:
+        """The clock's state from its parameter values ``v``, before its first tick."""
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.mode: str = v['clock']
         self.participants = parse_participants(v['participants'])
@@ -279,22 +302,9 @@ class LineClock(Node):
         self._ledger = TickLedger(self.participants)
         self._heard: dict[str, float] = dict.fromkeys(self.participants, time.monotonic())
         self._reported: dict[str, float] = {}
-        self._pub = self.create_publisher(ClockMsg, CLOCK_TOPIC, CLOCK_QOS)
-        self._grant_pub = self.create_publisher(TimeReference, GRANT_TOPIC, GRANT_QOS)
-        self._diag = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS)
-        announce = self.create_publisher(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS)
-        self.announcement = Announcement(self.mode, self._end, self.participants)
-        announce.publish(String(data=format_announcement(self.announcement)))
-        for name in self.participants:
-            self.create_subscription(TimeReference, progress_topic(name), self._on_ack(name), ACK_QOS, raw=True)
-        self.create_subscription(ClockMsg, CLOCK_TOPIC, self._on_clock, CLOCK_SUB_QOS, raw=True)
-        self._pacer = self.create_timer(1.0, self._pump, clock=self._wall)
-        self._pacer.cancel()
-        self._watch = self.create_timer(HEARTBEAT, self._on_watch, clock=self._wall)
-        self._scan = self.create_timer(STRANGER_SCAN, self._look_for_strangers, clock=self._wall)
-        self._next_lateness = self._start + NS_PER_S
-        self.add_post_set_parameters_callback(self._apply)
-        self.signatures = guard_changes(self)  # on a keyed line, a change at run time must be signed
+
+    def _say_start(self, v: Mapping[str, Any]) -> None:
+        """Log what the clock does, and warn if the line is open."""
         rtf_text = 'no rtf ceiling' if self._rtf == 0.0 else f'rtf {self._rtf:g}'
         self.get_logger().info(
             f'{self.mode} /clock at {v["rate"]:g} Hz of sim time, {rtf_text}, from {v["start_time"]:g} s'
@@ -306,8 +316,6 @@ class LineClock(Node):
                 f'an open line: any node on this ROS domain can feed it; start every node of the line with '
                 f'the same {KEY_VARIABLE} (and no profiles file of your own) to close it'
             )
-        self._publish_tick(self._start)
-        self._grant()
 
     # ------------------------------------------------------------------ state
 
@@ -336,7 +344,7 @@ class LineClock(Node):
                 if self.current is not None:
                     self._first = self.current + self._step  # the new step starts with the next tick
 
-    def _on_ack(self, name: str) -> Any:
+    def _on_ack(self, name: str) -> Callable[[bytes], None]:
         def on_ack(data: bytes) -> None:
             try:
                 frame_id, stamp, counts, promise = read_ack(data)

@@ -106,6 +106,7 @@ from folder_line.core.line.margin_text import format_margin, margin_at
 from folder_line.core.line.tuning import SET_PREFIX, LineCommand, parse_tuning_text
 from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
+from folder_line.core.supervision.packml import PackML
 from folder_line.core.supervision.records import Outcome, Violation
 from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.core.types.events import EVENT_DTYPE
@@ -266,7 +267,7 @@ class Supervisor(MachineNode):
         self.logic.lost(producer, t, waited)
 
     @property
-    def packml(self) -> Any:
+    def packml(self) -> PackML:
         """The PackML state machine (state and history) of the logic."""
         return self.logic.packml
 
