@@ -114,39 +114,49 @@ def test_parts_import_only_what_lies_below() -> None:
     assert wrong == []
 
 
-def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Strongly connected components with more than one module (Tarjan)."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    on_stack: set[str] = set()
-    out: list[list[str]] = []
+class _Tarjan:
+    """Tarjan's strongly connected components of ``graph``, those of more than one module in :attr:`out`."""
 
-    def strong(v: str) -> None:
+    def __init__(self, graph: dict[str, set[str]]) -> None:
+        self.graph = graph
+        self.index: dict[str, int] = {}
+        self.low: dict[str, int] = {}
+        self.stack: list[str] = []
+        self.on_stack: set[str] = set()
+        self.out: list[list[str]] = []
+        for v in sorted(graph):
+            if v not in self.index:
+                self.strong(v)
+
+    def strong(self, v: str) -> None:
+        index, low = self.index, self.low
         index[v] = low[v] = len(index)
-        stack.append(v)
-        on_stack.add(v)
-        for w in graph.get(v, ()):
+        self.stack.append(v)
+        self.on_stack.add(v)
+        for w in self.graph.get(v, ()):
             if w not in index:
-                strong(w)
+                self.strong(w)
                 low[v] = min(low[v], low[w])
-            elif w in on_stack:
+            elif w in self.on_stack:
                 low[v] = min(low[v], index[w])
         if low[v] == index[v]:
-            comp = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                comp.append(w)
-                if w == v:
-                    break
-            if len(comp) > 1:
-                out.append(sorted(comp))
+            self.pop_component(v)
 
-    for v in sorted(graph):
-        if v not in index:
-            strong(v)
-    return out
+    def pop_component(self, v: str) -> None:
+        comp = []
+        while True:
+            w = self.stack.pop()
+            self.on_stack.discard(w)
+            comp.append(w)
+            if w == v:
+                break
+        if len(comp) > 1:
+            self.out.append(sorted(comp))
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    return _Tarjan(graph).out
 
 
 def test_no_import_cycles() -> None:
@@ -204,12 +214,15 @@ def test_layers_below_ros_do_not_load_rclpy(module: str) -> None:
 
 #: (module file, imported module) -> why that import stands inside a function (every other import is at the top)
 FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
-    ('cli/main.py', 'folder_line.ros'): 'loads rclpy: only `folder-line run` and `bag play` need DDS',
-    ('cli/main.py', 'folder_line.cli.monitor'): 'loads rclpy: only `folder-line monitor` needs DDS',
-    ('cli/main.py', 'folder_line.ros.operator'): 'loads rclpy: only the operator commands need DDS',
-    ('cli/main.py', 'folder_line.ros.dds_profile'): 'the ros package: only `folder-line profile` needs it',
-    ('cli/main.py', 'folder_line.ros.line_key'): 'the ros package: only `profile` and the operators need it',
-    ('cli/main.py', 'folder_line.cli.plots'): 'the analysis and the batch bag writer: only `simulate --plots` draws',
+    ('cli/run.py', 'folder_line.ros'): 'loads rclpy: only `folder-line run` and `bag play` need DDS',
+    ('cli/bag.py', 'folder_line.ros'): 'loads rclpy: only `folder-line run` and `bag play` need DDS',
+    ('cli/monitor_verb.py', 'folder_line.cli.monitor'): 'loads rclpy: only `folder-line monitor` needs DDS',
+    ('cli/operator.py', 'folder_line.ros.operator'): 'loads rclpy: only the operator commands need DDS',
+    ('cli/tune.py', 'folder_line.ros.operator'): 'loads rclpy: only the operator commands need DDS',
+    ('cli/profile.py', 'folder_line.ros.dds_profile'): 'the ros package: only `folder-line profile` needs it',
+    ('cli/profile.py', 'folder_line.ros.line_key'): 'the ros package: only `profile` and the operators need it',
+    ('cli/operator.py', 'folder_line.ros.line_key'): 'the ros package: only `profile` and the operators need it',
+    ('cli/simulate.py', 'folder_line.cli.plots'): 'the figures and the batch bag writer: only `simulate --plots` draws',
     ('analysis/figures.py', 'matplotlib'): 'slow to import, and the back end must be chosen before pyplot',
     ('analysis/figures.py', 'matplotlib.pyplot'): 'imported after matplotlib.use("Agg")',
     ('analysis/animation/frames.py', 'matplotlib.collections'): 'imported after pyplot() chose the Agg back end',

@@ -81,29 +81,37 @@ def foreign(module: str | None, level: int) -> bool:
     return level == 0 and module is not None and module.split('.')[0] not in MODULES
 
 
+def _reflective_use(node: ast.Call, ours: set[str]) -> str | None:
+    """``getattr(x, '_name')`` and its kin with a private name the project does not define, in words."""
+    if not (isinstance(node.func, ast.Name) and node.func.id in {'getattr', 'hasattr', 'setattr', 'delattr'}):
+        return None
+    if len(node.args) < 2 or not isinstance(node.args[1], ast.Constant) or not isinstance(node.args[1].value, str):
+        return None
+    name = node.args[1].value
+    return f'{node.func.id}(..., {name!r})' if is_private(name) and name not in ours | DOCUMENTED else None
+
+
+def _import_from_uses(node: ast.ImportFrom) -> Iterator[str]:
+    """A private module or name imported from another library, in words."""
+    if not foreign(node.module, node.level):
+        return
+    assert node.module is not None
+    if any(is_private(part) for part in node.module.split('.')):
+        yield f'from {node.module} import'
+    for alias in node.names:
+        if is_private(alias.name) and alias.name not in DOCUMENTED:
+            yield f'from {node.module} import {alias.name}'
+
+
 def private_uses(tree: ast.AST, ours: set[str]) -> Iterator[tuple[int, str]]:
     """``(line, what)`` of each use of a private name the project does not define."""
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and is_private(node.attr) and node.attr not in ours | DOCUMENTED:
             yield node.lineno, f'.{node.attr}'
-        elif (
-            isinstance(node, ast.Call)
-            and isinstance(node.func, ast.Name)
-            and node.func.id in {'getattr', 'hasattr', 'setattr', 'delattr'}
-            and len(node.args) >= 2
-            and isinstance(node.args[1], ast.Constant)
-            and isinstance(node.args[1].value, str)
-            and is_private(node.args[1].value)
-            and node.args[1].value not in ours | DOCUMENTED
-        ):
-            yield node.lineno, f'{node.func.id}(..., {node.args[1].value!r})'
-        elif isinstance(node, ast.ImportFrom) and foreign(node.module, node.level):
-            assert node.module is not None
-            if any(is_private(part) for part in node.module.split('.')):
-                yield node.lineno, f'from {node.module} import'
-            for alias in node.names:
-                if is_private(alias.name) and alias.name not in DOCUMENTED:
-                    yield node.lineno, f'from {node.module} import {alias.name}'
+        elif isinstance(node, ast.Call) and (what := _reflective_use(node, ours)) is not None:
+            yield node.lineno, what
+        elif isinstance(node, ast.ImportFrom):
+            yield from ((node.lineno, what) for what in _import_from_uses(node))
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.split('.')[0] not in MODULES and any(is_private(p) for p in alias.name.split('.')):

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from _ros_env import node_environment
 from mcap.reader import make_reader
@@ -33,6 +33,9 @@ from std_msgs.msg import String
 
 from folder_line.interfaces import SUPERVISOR_STATE_TOPIC
 from folder_line.ros.nodes.supervisor import STATE_QOS
+
+if TYPE_CHECKING:
+    from folder_line.core.line.model import LineModel
 
 REPO = Path(__file__).resolve().parents[2]
 TAG = 'FOLDER_LINE_TEST_TAG'
@@ -301,19 +304,9 @@ def assert_bag_is_model(
     ``rejected``). Records of other publishers (a fuzzer's) are not looked at, nor, if ``rejected``,
     events under a node's name that the node cannot have published.
     """
-    import numpy as np
 
     from folder_line.config.scenes import load_scene
     from folder_line.core.line.model import LineModel
-    from folder_line.core.mechanisms.pile import counted_event
-    from folder_line.interfaces import (
-        COMMAND_KINDS,
-        EVENT_KINDS,
-        EVENT_OWNER,
-        MACHINE_NODES,
-        NODE_OF_UNIT,
-        parse_event_source,
-    )
 
     ns = 1_000_000_000
     step = round(ns / rate)
@@ -325,12 +318,27 @@ def assert_bag_is_model(
     assert [r.msg.clock.sec * ns + r.msg.clock.nanosec for r in clock] == ticks
     assert [r.log_ns for r in clock] == ticks
 
+    _assert_joint_states_are_model(records, model, ticks)
+    _assert_events_are_model(records, model, ticks, duration, rejected)
+    _assert_count_is_model(records, model, ticks)
+    _assert_supervisor_quiet(records, n_ticks, duration, rejected)
+
+
+def _assert_joint_states_are_model(
+    records: dict[tuple[str, str], list[Record]], model: LineModel, ticks: list[int]
+) -> None:
+    """Every node's joint states at each tick are the model's (:func:`assert_bag_is_model`)."""
+    import numpy as np
+
+    from folder_line.interfaces import MACHINE_NODES, NODE_OF_UNIT
+
+    ns = 1_000_000_000
     nodes = {NODE_OF_UNIT[unit]: (unit, joints) for unit, joints in model.units.items()}
     assert set(nodes) <= set(MACHINE_NODES) and nodes
     for node, (unit, joints) in nodes.items():
         recs = records[(f'/line/{node}/joint_states', node)]
         stamps = [stamp_ns(r.msg) for r in recs]
-        assert stamps == ticks, (node, len(stamps), n_ticks)
+        assert stamps == ticks, (node, len(stamps), len(ticks))
         assert [r.log_ns for r in recs] == ticks and [r.publish_ns for r in recs] == ticks, node
         assert all(tuple(r.msg.name) == joints for r in recs), node
         expect = model.sample(unit, np.array(stamps) / ns)
@@ -341,6 +349,15 @@ def assert_bag_is_model(
         else:
             np.testing.assert_allclose([r.msg.effort for r in recs], expect.effort, rtol=1e-9, atol=1e-9)
 
+
+def _assert_events_are_model(
+    records: dict[tuple[str, str], list[Record]], model: LineModel, ticks: list[int], duration: float, rejected: bool
+) -> None:
+    """The events are the model's, once each, in the tick that contains them (:func:`assert_bag_is_model`)."""
+    from folder_line.interfaces import EVENT_KINDS, EVENT_OWNER, MACHINE_NODES, parse_event_source
+
+    ns = 1_000_000_000
+    step = ticks[1] - ticks[0]
     got = []
     for node in MACHINE_NODES:
         for r in records.get(('/line/events', node), []):
@@ -364,6 +381,15 @@ def assert_bag_is_model(
     assert sorted(got) == expect_rows
     assert len(got) > 100
 
+
+def _assert_count_is_model(records: dict[tuple[str, str], list[Record]], model: LineModel, ticks: list[int]) -> None:
+    """The count at each tick is the model's counted events so far; a rate at each tick."""
+    import numpy as np
+
+    from folder_line.core.mechanisms.pile import counted_event
+    from folder_line.interfaces import EVENT_KINDS
+
+    ns = 1_000_000_000
     counted = model.events[model.events['kind'] == EVENT_KINDS.index(counted_event(model.scene.has_delivery))]['t']
     count = records[('/line/sheet_counter/count', '')]
     assert [r.log_ns for r in count] == ticks
@@ -371,6 +397,14 @@ def assert_bag_is_model(
     assert count[-1].msg.data > 0
     assert [r.log_ns for r in records[('/line/sheet_counter/rate', '')]] == ticks
 
+
+def _assert_supervisor_quiet(
+    records: dict[tuple[str, str], list[Record]], n_ticks: int, duration: float, rejected: bool
+) -> None:
+    """The supervisor is in EXECUTE after STARTING, commands nothing and reports nothing above OK."""
+    from folder_line.interfaces import COMMAND_KINDS
+
+    ns = 1_000_000_000
     states = [r.msg.data for r in records[('/line/supervisor/state', '')]]
     assert len(states) == n_ticks and states[-1] == 'EXECUTE'
     first = states.index('EXECUTE')

@@ -64,12 +64,10 @@ def _signature() -> str:
     return f'{time.time_ns()}.{secrets.token_hex(8)}.{secrets.token_hex(16)}'
 
 
-def main(report: Path) -> None:
-    rclpy.init()
-    node = rclpy.create_node('sniffer')
+def _forgeries(node: Any) -> list[tuple[Any, Any]]:
+    """``(publisher, message)`` of every forgery, once unsigned and once with a made-up signature."""
     pub = node.create_publisher
     forged: list[tuple[Any, Any]] = []
-    replays: list[tuple[Any, Any]] = []
     for sign in (str, _made_up):
         forged += [
             (pub(TimeReference, GRANT_TOPIC, GRANT_QOS), _time_ref('line_clock', AHEAD_NS, sign('step=5000000'))),
@@ -84,7 +82,50 @@ def main(report: Path) -> None:
             ack = _time_ref(p, AHEAD_NS, sign('messages=9999 events=0 commands=0'))
             forged += [(pub(TimeReference, tick_done_topic(p), TICK_QOS), ack)]
             forged += [(pub(TimeReference, progress_topic(p), ACK_QOS), ack)]
-    heard = {'replayed': 0}
+    return forged
+
+
+class _Requests:
+    """The parameter requests and the abort call, each answer noted in :attr:`answers`."""
+
+    def __init__(self, node: Any) -> None:
+        self.feed = AsyncParameterClient(node, 'feed_transporter')
+        self.clock = AsyncParameterClient(node, 'line_clock')
+        self.supervisor = AsyncParameterClient(node, 'supervisor')
+        self.abort = node.create_client(Trigger, '/line/supervisor/abort')
+        self.answers: list[list[object]] = []
+        self.calls = 0
+
+    def ready(self) -> bool:
+        return bool(self.abort.service_is_ready() and self.feed.services_are_ready())
+
+    def answer(self, what: str) -> Any:
+        def done(future: Any) -> None:
+            result = future.result()
+            if hasattr(result, 'results'):  # set_parameters: one result per parameter
+                self.answers.extend([what, r.successful, r.reason] for r in result.results)
+            elif hasattr(result, 'result'):  # set_parameters_atomically
+                self.answers.append([what, result.result.successful, result.result.reason])
+            else:  # Trigger
+                self.answers.append([what, result.success, result.message])
+
+        return done
+
+    def send(self) -> None:
+        v_tr = Parameter('V_tr', value=6.0)
+        self.feed.set_parameters([v_tr]).add_done_callback(self.answer('V_tr unsigned'))
+        signed = [v_tr, Parameter(SIGNATURE_PARAMETER, value=_signature())]
+        self.feed.set_parameters_atomically(signed).add_done_callback(self.answer('V_tr made-up'))
+        self.clock.set_parameters([Parameter('rtf', value=0.25)]).add_done_callback(self.answer('rtf unsigned'))
+        command = [Parameter('operator_command', value='abort'), Parameter(SIGNATURE_PARAMETER, value=_signature())]
+        self.supervisor.set_parameters_atomically(command).add_done_callback(self.answer('operator_command made-up'))
+        self.abort.call_async(Trigger.Request()).add_done_callback(self.answer('abort'))
+        self.calls += 1
+
+
+def _listen_for_replays(node: Any, forged: list[tuple[Any, Any]], replays: list[tuple[Any, Any]]) -> None:
+    """Subscribe to what the line publishes: each message heard goes to ``replays`` with the sniffer's own
+    publisher of its topic (it hears the line's writers)."""
 
     def replay(publisher: Any) -> Any:
         def again(msg: Any) -> None:
@@ -92,7 +133,6 @@ def main(report: Path) -> None:
 
         return again
 
-    # what the line publishes, played again (the sniffer's own publishers: it hears the line's writers)
     for cls, topic, qos in (
         (TimeReference, GRANT_TOPIC, GRANT_QOS),
         (TimeReference, COMMANDS_TOPIC, COMMANDS_QOS),
@@ -101,29 +141,21 @@ def main(report: Path) -> None:
         *((TimeReference, progress_topic(p), ACK_QOS) for p in KNOWN_PARTICIPANTS),
         *((TimeReference, tick_done_topic(p), TICK_QOS) for p in KNOWN_PARTICIPANTS),
     ):
-        again = next((p for p, _ in forged if p.topic_name == topic), None) or pub(cls, topic, qos)
+        again = next((p for p, _ in forged if p.topic_name == topic), None) or node.create_publisher(cls, topic, qos)
         node.create_subscription(cls, topic, replay(again), qos)
-    feed = AsyncParameterClient(node, 'feed_transporter')
-    clock = AsyncParameterClient(node, 'line_clock')
-    supervisor = AsyncParameterClient(node, 'supervisor')
-    abort = node.create_client(Trigger, '/line/supervisor/abort')
-    answers: list[list[object]] = []
 
-    def answer(what: str) -> Any:
-        def done(future: Any) -> None:
-            result = future.result()
-            if hasattr(result, 'results'):  # set_parameters: one result per parameter
-                answers.extend([what, r.successful, r.reason] for r in result.results)
-            elif hasattr(result, 'result'):  # set_parameters_atomically
-                answers.append([what, result.result.successful, result.result.reason])
-            else:  # Trigger
-                answers.append([what, result.success, result.message])
 
-        return done
-
+def main(report: Path) -> None:
+    rclpy.init()
+    node = rclpy.create_node('sniffer')
+    forged = _forgeries(node)
+    replays: list[tuple[Any, Any]] = []
+    replayed = 0
+    _listen_for_replays(node, forged, replays)
+    requests = _Requests(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    published = calls = 0
+    published = 0
     next_call = 0.0
     ready, stop = report.with_suffix('.ready'), report.with_suffix('.stop')
     next_round = 0.0
@@ -135,25 +167,16 @@ def main(report: Path) -> None:
             next_round = time.monotonic() + ROUND
         for publisher, msg in replays:
             publisher.publish(msg)
-        heard['replayed'] += len(replays)
+        replayed += len(replays)
         replays.clear()
         if not ready.exists():
             ready.touch()
-        if time.monotonic() >= next_call and abort.service_is_ready() and feed.services_are_ready():
-            v_tr = Parameter('V_tr', value=6.0)
-            feed.set_parameters([v_tr]).add_done_callback(answer('V_tr unsigned'))
-            signed = [v_tr, Parameter(SIGNATURE_PARAMETER, value=_signature())]
-            feed.set_parameters_atomically(signed).add_done_callback(answer('V_tr made-up'))
-            clock.set_parameters([Parameter('rtf', value=0.25)]).add_done_callback(answer('rtf unsigned'))
-            command = [Parameter('operator_command', value='abort'), Parameter(SIGNATURE_PARAMETER, value=_signature())]
-            supervisor.set_parameters_atomically(command).add_done_callback(answer('operator_command made-up'))
-            abort.call_async(Trigger.Request()).add_done_callback(answer('abort'))
-            calls += 1
+        if time.monotonic() >= next_call and requests.ready():
+            requests.send()
             next_call = time.monotonic() + 0.5
         executor.spin_once(timeout_sec=0.01)
-    report.write_text(
-        json.dumps({'published': published, 'topics': len(forged), 'calls': calls, 'answers': answers, **heard})
-    )
+    summary = {'published': published, 'topics': len(forged), 'calls': requests.calls, 'answers': requests.answers}
+    report.write_text(json.dumps({**summary, 'replayed': replayed}))
     executor.shutdown()
     rclpy.try_shutdown()
 

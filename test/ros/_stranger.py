@@ -18,10 +18,13 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import Float64, String, UInt64
@@ -59,39 +62,45 @@ def _time_ref(frame: str, stamp_ns: int, source: str) -> TimeReference:
     return msg
 
 
+def _attacks(node: Node) -> list[tuple[Publisher[Any], object]]:
+    """``(publisher, message)`` of every attack published by ``node``: NaN data, a retune, forged state,
+    announcement, command, event, grant, clock, diagnostics and acknowledgements (ahead, then out of order)."""
+    nan = float('nan')
+    joint = JointState(name=['q'], position=[nan], velocity=[nan], effort=[nan])
+    pub = node.create_publisher
+    attacks: list[tuple[Publisher[Any], object]] = [
+        (pub(JointState, joint_states_topic(name), LINE_QOS), joint) for name in JOINT_NODES
+    ]
+    attacks += [
+        (pub(Float64, SHEET_RATE_TOPIC, LINE_QOS), Float64(data=nan)),
+        (pub(Float64, LANDING_TOPIC, LINE_QOS), Float64(data=nan)),
+        (pub(UInt64, SHEET_COUNT_TOPIC, LINE_QOS), UInt64(data=2**63)),
+        (pub(String, TUNE_TOPIC, TUNE_QOS), String(data='feed_transporter feed_transporter.V_tr=6.0')),
+        (pub(String, SUPERVISOR_STATE_TOPIC, LINE_QOS), String(data='ABORTED')),
+        (pub(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS), String(data='clock=lockstep end=none participants=x')),
+        (pub(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS), _time_ref('supervisor', 10**9, 'stop')),
+        (pub(TimeReference, EVENTS_TOPIC, LINE_QOS), _time_ref('knife', 10**9, 'jam sheet=1 cycle=1 value=nan')),
+        (pub(TimeReference, GRANT_TOPIC, GRANT_QOS), _time_ref('line_clock', AHEAD_NS, 'step=5000000')),
+        (pub(Clock, '/clock', CLOCK_QOS), Clock(clock=ns_to_time_msg(AHEAD_NS))),
+        (
+            pub(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS),
+            DiagnosticArray(status=[DiagnosticStatus(level=DiagnosticStatus.ERROR, name='forged')]),
+        ),
+    ]
+    for p in KNOWN_PARTICIPANTS:
+        for k, when in enumerate((AHEAD_NS, AHEAD_NS // 2, 1)):  # ahead, then out of order
+            forged = _time_ref(p, when, 'messages=9999 events=0 commands=0')
+            attacks.append((pub(TimeReference, tick_done_topic(p), TICK_QOS), forged))
+            if k == 0:
+                attacks.append((pub(TimeReference, progress_topic(p), ACK_QOS), forged))
+    return attacks
+
+
 def main(report: Path) -> None:
     rclpy.init()
     stranger = rclpy.create_node('stranger')
     impostor = rclpy.create_node('supervisor')  # a node named as one of the line's
-    nan = float('nan')
-    joint = JointState(name=['q'], position=[nan], velocity=[nan], effort=[nan])
-    attacks: list[tuple[object, object]] = []
-    for node in (stranger, impostor):
-        pub = node.create_publisher
-        for name in JOINT_NODES:
-            attacks.append((pub(JointState, joint_states_topic(name), LINE_QOS), joint))
-        attacks += [
-            (pub(Float64, SHEET_RATE_TOPIC, LINE_QOS), Float64(data=nan)),
-            (pub(Float64, LANDING_TOPIC, LINE_QOS), Float64(data=nan)),
-            (pub(UInt64, SHEET_COUNT_TOPIC, LINE_QOS), UInt64(data=2**63)),
-            (pub(String, TUNE_TOPIC, TUNE_QOS), String(data='feed_transporter feed_transporter.V_tr=6.0')),
-            (pub(String, SUPERVISOR_STATE_TOPIC, LINE_QOS), String(data='ABORTED')),
-            (pub(String, PARTICIPANTS_TOPIC, PARTICIPANTS_QOS), String(data='clock=lockstep end=none participants=x')),
-            (pub(TimeReference, COMMANDS_TOPIC, COMMANDS_QOS), _time_ref('supervisor', 10**9, 'stop')),
-            (pub(TimeReference, EVENTS_TOPIC, LINE_QOS), _time_ref('knife', 10**9, 'jam sheet=1 cycle=1 value=nan')),
-            (pub(TimeReference, GRANT_TOPIC, GRANT_QOS), _time_ref('line_clock', AHEAD_NS, 'step=5000000')),
-            (pub(Clock, '/clock', CLOCK_QOS), Clock(clock=ns_to_time_msg(AHEAD_NS))),
-            (
-                pub(DiagnosticArray, DIAGNOSTICS_TOPIC, LINE_QOS),
-                DiagnosticArray(status=[DiagnosticStatus(level=DiagnosticStatus.ERROR, name='forged')]),
-            ),
-        ]
-        for p in KNOWN_PARTICIPANTS:
-            for k, when in enumerate((AHEAD_NS, AHEAD_NS // 2, 1)):  # ahead, then out of order
-                forged = _time_ref(p, when, 'messages=9999 events=0 commands=0')
-                attacks.append((pub(TimeReference, tick_done_topic(p), TICK_QOS), forged))
-                if k == 0:
-                    attacks.append((pub(TimeReference, progress_topic(p), ACK_QOS), forged))
+    attacks = _attacks(stranger) + _attacks(impostor)
     heard: dict[str, int] = {}
     for topic, cls, qos in (('/clock', Clock, CLOCK_SUB_QOS), (SUPERVISOR_STATE_TOPIC, String, LINE_QOS)):
         stranger.create_subscription(cls, topic, lambda _m, t=topic: heard.__setitem__(t, heard.get(t, 0) + 1), qos)
@@ -106,7 +115,7 @@ def main(report: Path) -> None:
     ready, stop = report.with_suffix('.ready'), report.with_suffix('.stop')
     while not stop.exists():
         for publisher, msg in attacks:
-            publisher.publish(msg)  # type: ignore[attr-defined]
+            publisher.publish(msg)
         published += len(attacks)
         if not ready.exists():
             ready.touch()

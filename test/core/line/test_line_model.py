@@ -525,6 +525,97 @@ DEFAULTS = _defaults()
 FACTOR = st.floats(0.5, 2.0)
 
 
+def _draw_layup(draw: Callable[..., Any], machines: dict[str, Any], effects: dict[str, Any]) -> None:
+    """The layup, its container and its effects, drawn into ``machines`` and ``effects``."""
+    lp = {k: v * draw(st.floats(0.7, 1.4)) for k, v in DEFAULTS['layup'].items()}
+    lp['n_kr'] = draw(st.floats(5.0, 120.0))
+    lp['v_tr'] = draw(st.floats(0.0, 8.0))
+    machines['layup'] = lp
+    machines['container'] = {
+        'x_left': draw(st.floats(-2.0, -0.2)),
+        'x_right': draw(st.floats(0.9, 3.0)),
+        'y_floor': draw(st.floats(-3.0, -0.9)),
+        'bins': draw(st.integers(2, 200)),
+    }
+    if draw(st.booleans()):
+        effects['chute_belts'] = {'v_min': draw(st.floats(0.0, 5.0))}
+    elif draw(st.booleans()):
+        effects['guide_friction'] = {
+            'mu': draw(st.floats(0.0, 2.0)),
+            's0': draw(st.floats(0.0, 0.6)),
+            'v0': draw(st.floats(0.0, 5.0)),
+            'h': draw(st.floats(2e-3, 0.05)),
+        }
+    if draw(st.booleans()):
+        effects['leaf_flight'] = {'drag': draw(st.floats(0.0, 10.0))}
+    if draw(st.booleans()):
+        effects['leaf_damage'] = {'v_damage': draw(st.floats(0.1, 10.0))}
+
+
+def _draw_folder(draw: Callable[..., Any], machines: dict[str, Any], effects: dict[str, Any]) -> None:
+    """The knife folder (knife, cyclogram, feed transporter), maybe a delivery, and its effects."""
+    kd = DEFAULTS['knife']
+    r_k = kd['r_k'] * draw(FACTOR)
+    e = draw(st.floats(-0.05, 0.05))
+    L_k = (r_k + abs(e)) * draw(st.floats(0.95, 6.0))  # may fail L_k > r_k + |e|
+    lo = math.sqrt(max((L_k - r_k) ** 2 - e * e, 0.0))
+    hi = math.sqrt(max((L_k + r_k) ** 2 - e * e, 0.0))
+    machines['knife'] = {
+        'r_k': r_k,
+        'L_k': L_k,
+        'e': e,
+        'n_k': draw(st.floats(2e3, 2e5)),
+        's_clear': lo + (hi - lo) * draw(st.floats(-0.05, 1.05)),
+    }
+    cy = {k: v * draw(FACTOR) for k, v in DEFAULTS['cyclogram'].items() if k not in ('reserve', 'dwell_frac')}
+    cy['reserve'] = draw(st.floats(0.0, 0.99))
+    cy['dwell_frac'] = draw(st.floats(0.0, 0.99))
+    cy['n_c'] = machines['knife']['n_k'] / 2.0  # the knife turns twice per cylinder turn
+    machines['cyclogram'] = cy
+    machines['feed_transporter'] = {'V_tr': draw(st.floats(0.5, 40.0))}
+    if draw(st.booleans()):
+        _draw_delivery(draw, machines, effects)
+    if draw(st.booleans()):
+        effects['stop_bounce'] = {
+            'e': draw(st.floats(0.0, 0.95)),
+            'a_f': draw(st.floats(10.0, 2000.0)),
+            'tolerance': draw(st.floats(1e-4, 0.01)),
+            'v_rest': draw(st.floats(0.01, 1.0)),
+        }
+    if draw(st.booleans()):
+        effects['feed_slip'] = {
+            'mu': draw(st.floats(0.05, 2.0)),
+            'p': draw(st.floats(0.0, 100.0)),
+            'm': draw(st.floats(0.005, 0.1)),
+        }
+
+
+def _draw_delivery(draw: Callable[..., Any], machines: dict[str, Any], effects: dict[str, Any]) -> None:
+    """The delivery transporter and its chain, maybe with chain friction."""
+    dd = dict(DEFAULTS['delivery'])
+    dd.update(
+        {
+            'Lambda': draw(st.floats(0.05, 3.0)),
+            'alpha_m_deg': draw(st.floats(1.0, 89.999)),
+            'law': draw(st.sampled_from(delivery_laws.law_names())),
+        }
+    )
+    for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
+        dd[key] = draw(st.floats(0.0, 0.4))
+    machines['delivery'] = dd
+    machines['delivery_chain'] = {
+        'x_max': draw(st.floats(0.05, 1.0)),
+        'pitch': draw(st.floats(0.2, 3.0)),
+        'L_transfer': draw(st.floats(0.0, 2.0)),
+    }
+    if draw(st.booleans()):
+        effects['chain_friction'] = {
+            'P_k': draw(st.floats(0.0, 100.0)),
+            'r': draw(st.floats(0.01, 0.5)),
+            'return_section': draw(st.sampled_from(dlv.RETURN_SECTIONS)),
+        }
+
+
 @st.composite
 def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
     """A scene mapping with every value inside its documented type and range (combinations may
@@ -534,85 +625,9 @@ def scenes(draw: Callable[..., Any]) -> dict[str, Any]:
     has_folder = draw(st.booleans()) or not has_layup
     effects: dict[str, Any] = {}
     if has_layup:
-        lp = {k: v * draw(st.floats(0.7, 1.4)) for k, v in DEFAULTS['layup'].items()}
-        lp['n_kr'] = draw(st.floats(5.0, 120.0))
-        lp['v_tr'] = draw(st.floats(0.0, 8.0))
-        machines['layup'] = lp
-        machines['container'] = {
-            'x_left': draw(st.floats(-2.0, -0.2)),
-            'x_right': draw(st.floats(0.9, 3.0)),
-            'y_floor': draw(st.floats(-3.0, -0.9)),
-            'bins': draw(st.integers(2, 200)),
-        }
-        if draw(st.booleans()):
-            effects['chute_belts'] = {'v_min': draw(st.floats(0.0, 5.0))}
-        elif draw(st.booleans()):
-            effects['guide_friction'] = {
-                'mu': draw(st.floats(0.0, 2.0)),
-                's0': draw(st.floats(0.0, 0.6)),
-                'v0': draw(st.floats(0.0, 5.0)),
-                'h': draw(st.floats(2e-3, 0.05)),
-            }
-        if draw(st.booleans()):
-            effects['leaf_flight'] = {'drag': draw(st.floats(0.0, 10.0))}
-        if draw(st.booleans()):
-            effects['leaf_damage'] = {'v_damage': draw(st.floats(0.1, 10.0))}
+        _draw_layup(draw, machines, effects)
     if has_folder:
-        kd = DEFAULTS['knife']
-        r_k = kd['r_k'] * draw(FACTOR)
-        e = draw(st.floats(-0.05, 0.05))
-        L_k = (r_k + abs(e)) * draw(st.floats(0.95, 6.0))  # may fail L_k > r_k + |e|
-        lo = math.sqrt(max((L_k - r_k) ** 2 - e * e, 0.0))
-        hi = math.sqrt(max((L_k + r_k) ** 2 - e * e, 0.0))
-        machines['knife'] = {
-            'r_k': r_k,
-            'L_k': L_k,
-            'e': e,
-            'n_k': draw(st.floats(2e3, 2e5)),
-            's_clear': lo + (hi - lo) * draw(st.floats(-0.05, 1.05)),
-        }
-        cy = {k: v * draw(FACTOR) for k, v in DEFAULTS['cyclogram'].items() if k not in ('reserve', 'dwell_frac')}
-        cy['reserve'] = draw(st.floats(0.0, 0.99))
-        cy['dwell_frac'] = draw(st.floats(0.0, 0.99))
-        cy['n_c'] = machines['knife']['n_k'] / 2.0  # the knife turns twice per cylinder turn
-        machines['cyclogram'] = cy
-        machines['feed_transporter'] = {'V_tr': draw(st.floats(0.5, 40.0))}
-        if draw(st.booleans()):
-            dd = dict(DEFAULTS['delivery'])
-            dd.update(
-                {
-                    'Lambda': draw(st.floats(0.05, 3.0)),
-                    'alpha_m_deg': draw(st.floats(1.0, 89.999)),
-                    'law': draw(st.sampled_from(delivery_laws.law_names())),
-                }
-            )
-            for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A', 'r_B', 'r_O'):
-                dd[key] = draw(st.floats(0.0, 0.4))
-            machines['delivery'] = dd
-            machines['delivery_chain'] = {
-                'x_max': draw(st.floats(0.05, 1.0)),
-                'pitch': draw(st.floats(0.2, 3.0)),
-                'L_transfer': draw(st.floats(0.0, 2.0)),
-            }
-            if draw(st.booleans()):
-                effects['chain_friction'] = {
-                    'P_k': draw(st.floats(0.0, 100.0)),
-                    'r': draw(st.floats(0.01, 0.5)),
-                    'return_section': draw(st.sampled_from(dlv.RETURN_SECTIONS)),
-                }
-        if draw(st.booleans()):
-            effects['stop_bounce'] = {
-                'e': draw(st.floats(0.0, 0.95)),
-                'a_f': draw(st.floats(10.0, 2000.0)),
-                'tolerance': draw(st.floats(1e-4, 0.01)),
-                'v_rest': draw(st.floats(0.01, 1.0)),
-            }
-        if draw(st.booleans()):
-            effects['feed_slip'] = {
-                'mu': draw(st.floats(0.05, 2.0)),
-                'p': draw(st.floats(0.0, 100.0)),
-                'm': draw(st.floats(0.005, 0.1)),
-            }
+        _draw_folder(draw, machines, effects)
     if draw(st.booleans()):
         effects['faults'] = {
             'p_missing': draw(st.floats(0.0, 1.0)),

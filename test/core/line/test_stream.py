@@ -255,6 +255,22 @@ def _size(obj: Any, seen: set[int] | None = None) -> int:
     return 8
 
 
+def _carried_sizes(stream: LineStream) -> dict[str, int]:
+    """The length of every array and dict a stream carries between windows, and its bytes in all."""
+    out: dict[str, int] = {}
+    for part, st in (('folder', stream.folder), ('layup', stream.layup)):
+        if st is None:
+            continue
+        for key, value in vars(st.state).items():
+            if isinstance(value, np.ndarray):
+                out[f'{part}.{key}'] = value.size
+            elif isinstance(value, dict):
+                out[f'{part}.{key}'] = len(value)
+    out['pile'] = stream.pile._t.size
+    out['bytes'] = _size(stream.checkpoint().parts) + _size(stream.drive)
+    return out
+
+
 @pytest.mark.parametrize(
     ('name', 'judge'),
     [('folder_faults', True), ('line', True), ('layup', True), ('folder_faults', False), ('line', False)],
@@ -266,27 +282,13 @@ def test_the_state_carried_does_not_grow_with_line_time(name: str, judge: bool) 
     scene = load_scene(name)
     stream = LineStream(scene, [Command(100.0, 'hold'), Command(103.0, 'unhold')], judge=judge)
 
-    def sizes() -> dict[str, int]:
-        out: dict[str, int] = {}
-        for part, st in (('folder', stream.folder), ('layup', stream.layup)):
-            if st is None:
-                continue
-            for key, value in vars(st.state).items():
-                if isinstance(value, np.ndarray):
-                    out[f'{part}.{key}'] = value.size
-                elif isinstance(value, dict):
-                    out[f'{part}.{key}'] = len(value)
-        out['pile'] = stream.pile._t.size
-        out['bytes'] = _size(stream.checkpoint().parts) + _size(stream.drive)
-        return out
-
     t = 0.0
     seen = []
     for stop in (600.0, 3600.0):
         while t < stop:
             t += 60.0
             stream.advance(t)
-        seen.append(sizes())
+        seen.append(_carried_sizes(stream))
     ten, hour = seen
     for key in ten:
         if key != 'bytes':

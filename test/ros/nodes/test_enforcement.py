@@ -102,7 +102,10 @@ def call(ros: Ros, sup: Supervisor, client: Any) -> tuple[bool, str]:
     return future.result().success, future.result().message
 
 
-def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(ros: Ros) -> None:
+def test_the_fault_scene_is_held_suspended_aborted_for_a_lost_node_and_cleared(ros: Ros) -> None:  # noqa: PLR0915
+    """One run of the fault scene, judged section by section against the model (long on purpose: each
+    section reads the state the previous one left, as the run does; split, it would carry a dozen
+    values from helper to helper)."""
     scene = load_scene(SCENE)
     free = LineModel(scene, SPAN)
     T = cycle_timing(scene.machines['cyclogram'], scene.machines['knife']).T

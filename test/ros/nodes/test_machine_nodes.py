@@ -180,12 +180,12 @@ EXPECTED_JOINTS = {
 @pytest.mark.parametrize(
     ('scene_name', 'clock_rate'), [('folder', 200.0), ('layup', 200.0), ('line', 200.0), ('folder', 1.0)]
 )
-def test_machine_nodes_publish_the_line_model_at_their_grid_points(
+def test_machine_nodes_publish_the_line_model_at_their_grid_points(  # noqa: PLR0915
     ros: Ros, scene_name: str, clock_rate: float
 ) -> None:
     """At 1 tick per second of sim time the nodes publish exactly what they publish at 200: the same
     messages at the same grid points (200 Hz, their own rate), only the events' header stamps (their
-    tick) differ."""
+    tick) differ. (Long on purpose: one run, every topic of it checked against the model in turn.)"""
     duration = 2.0
     horizon = duration + 1.0
     scene = load_scene(scene_name)

@@ -194,7 +194,9 @@ def effective_in_message(message: str) -> float:
 # --------------------------------------------------------------------------- hold and unhold
 
 
-def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:
+def test_hold_at_the_next_cycle_boundary_then_unhold(ros: Ros) -> None:  # noqa: PLR0915
+    """An operator's hold and unhold through the services, judged step by step against the model (long on
+    purpose: each step reads the state the previous one left)."""
     scene = load_scene('folder')
     free = LineModel(scene, SPAN)
     line = Line(ros, duration=3.0)
