@@ -75,11 +75,11 @@ def without_writing(seconds: float, scene: str, out: Path) -> tuple[float, float
 
 
 def _no_writing(seconds: float, scene: str, out: Path) -> None:
-    """``write_batch_bag`` of ``scene`` with its per-window writing (``_Writer.write``) doing nothing."""
+    """``write_batch_bag`` of ``scene`` with its per-window writing (``WindowWriter.write``) doing nothing."""
     from folder_line.bag import batch
     from folder_line.config.scenes import load_scene
 
-    batch._Writer.write = lambda self, stamps, events, ticks: None  # type: ignore[method-assign]
+    batch.WindowWriter.write = lambda self, stamps, events, ticks: None  # type: ignore[method-assign]
     batch.write_batch_bag(out, load_scene(scene), seconds)
 
 

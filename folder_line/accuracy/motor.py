@@ -111,6 +111,7 @@ __all__ = [
     'error_of',
     'knob_settings',
     'make_scene',
+    'motor_params',
     'run',
     'run_core',
     'run_scipy',
@@ -185,7 +186,8 @@ def make_scene(chain: bool, **motor: Any) -> Scene:
     return parse_scene(data)
 
 
-def _params(scene: Scene) -> md.Params:
+def motor_params(scene: Scene) -> md.Params:
+    """The ``motor_dynamics`` parameters of ``scene`` (a scene of :func:`make_scene`)."""
     p: md.Params = scene.effect('motor_dynamics')
     return p
 
@@ -210,7 +212,7 @@ def closed_form(p: md.Params, t: npt.ArrayLike) -> tuple[FloatArray, FloatArray]
 
 def _scalar_load(scene: Scene) -> Callable[[float], float]:
     """The master-shaft load torque at one Θ (N m): the piece's smooth formula on the piece holding Θ."""
-    load = cf.master_load(scene, _params(scene).omega_nom)
+    load = cf.master_load(scene, motor_params(scene).omega_nom)
     torque_piece, next_break = load.torque_piece, load.next_break
 
     def torque(theta: float) -> float:
@@ -227,7 +229,7 @@ def user_rhs(scene: Scene) -> Callable[[float, FloatArray], FloatArray]:
     ``(Θ, next break)``: the piece that holds Θ, a break itself counting as the start of the
     next piece -- the same torque the core integrates), or 0 without ``chain_friction``.
     """
-    p = _params(scene)
+    p = motor_params(scene)
     J, T0, w0, b, wn = p.J, p.T_0, p.omega_0, p.b, p.omega_nom
     if not scene.has('chain_friction'):
 
@@ -318,7 +320,7 @@ def chain_reference(
     IntegrationError
         ``solve_ivp`` failed on a piece.
     """
-    p = _params(scene)
+    p = motor_params(scene)
     J, T0, w0, b, wn = p.J, p.T_0, p.omega_0, p.b, p.omega_nom
     load = cf.master_load(scene, wn)
     t, y = 0.0, np.zeros(2)
@@ -420,7 +422,7 @@ def error_of(
 def _reference_theta(chain: bool, t: FloatArray) -> FloatArray:
     if chain:
         return chain_reference(make_scene(True)).theta(t)
-    return closed_form(_params(make_scene(False)), t)[0]
+    return closed_form(motor_params(make_scene(False)), t)[0]
 
 
 # ------------------------------------------------------------------------------ run
@@ -462,7 +464,7 @@ def run(quick: bool = False) -> list[Row]:
                 'checked against the core DOPRI5 at rtol 1e-13'
             )
         else:
-            ref = closed_form(_params(make_scene(False)), t)[0]
+            ref = closed_form(motor_params(make_scene(False)), t)[0]
             reference = 'closed form (expm1); checked against mpmath.odefun at 40 digits'
         for method in METHODS:
             knob = 'h' if method == RK4 else 'rtol'

@@ -114,7 +114,17 @@ from folder_line.interfaces import (
     seconds_to_ns,
 )
 
-__all__ = ['DIAG_RATE', 'RATE_WINDOW', 'BatchBag', 'SheetRate', 'announcement', 'check_duration', 'write_batch_bag']
+__all__ = [
+    'DIAG_RATE',
+    'RATE_WINDOW',
+    'BatchBag',
+    'SheetRate',
+    'WindowWriter',
+    'announcement',
+    'check_duration',
+    'event_cdrs',
+    'write_batch_bag',
+]
 
 #: the supervisor's ``diag_rate`` default, Hz of line time
 DIAG_RATE = 1.0
@@ -274,7 +284,7 @@ class _Tick:
     diag: bool
 
 
-class _Writer:
+class WindowWriter:
     """One window of ticks at a time: the machines' messages from the stream, the supervisor's from its logic."""
 
     def __init__(self, bag: BagWriter, scene: Scene, line: LineStream, sup: _SupervisorOut, marker_rate: float) -> None:
@@ -322,7 +332,7 @@ class _Writer:
             mine = sent & (owner == j)
             if mine.any():
                 rows, at = events[mine], tick_of[mine]
-                out.add_packed(EVENTS_TOPIC, slot, at, *_event_cdrs(node, stamps[at], rows))
+                out.add_packed(EVENTS_TOPIC, slot, at, *event_cdrs(node, stamps[at], rows))
             self._joint_states(out, node, stamps, slot + 1)
             if node == 'sheet_counter':
                 out.add_rows(SHEET_COUNT_TOPIC, slot + 2, uint64_rows(count))
@@ -384,7 +394,7 @@ class _Writer:
         out.add_each(MARKERS_TOPIC, slot, np.searchsorted(stamps, grid, side='left'), blobs)
 
 
-def _event_cdrs(node: str, stamps: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def event_cdrs(node: str, stamps: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The ``/line/events`` ``TimeReference`` of each event ``rows`` of ``node``, sent at ``stamps`` (ns):
     their CDR one after the other and the length of each (:func:`~folder_line.bag.cdr.time_references`).
 
@@ -522,7 +532,7 @@ def write_batch_bag(
         max_size=max_size,
     )
     result = BatchBag(str(bag.path))
-    writer = _Writer(bag, scene, line, sup, marker_rate)
+    writer = WindowWriter(bag, scene, line, sup, marker_rate)
     try:
         bag.write_serialized(PARTICIPANTS_TOPIC, string_cdr(announcement(duration_ns)), 0, 0)
         k = 0

@@ -26,7 +26,7 @@ import re
 from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 from folder_line.core.line.margin_text import format_margin
 from folder_line.interfaces import (
@@ -432,7 +432,7 @@ class MonitorState:
         m = _JOINT_STATES.match(topic)
         if m is not None:
             return self._take_joints(m['node'], msg)
-        take = _TAKERS.get(topic)
+        take = self._TAKERS.get(topic)
         return type(msg).__name__ if take is None else take(self, msg, wall)
 
     def _take_clock(self, msg: Any, wall: float) -> str:
@@ -512,6 +512,20 @@ class MonitorState:
 
     def _take_diagnostics_at(self, msg: Any, wall: float) -> str:
         return self._take_diagnostics(msg)
+
+    #: what the monitor takes of each topic's message (the joint states: by their pattern)
+    _TAKERS: ClassVar[dict[str, Callable[[MonitorState, Any, float], str]]] = {
+        CLOCK_TOPIC: _take_clock,
+        EVENTS_TOPIC: _take_event,
+        DIAGNOSTICS_TOPIC: _take_diagnostics_at,
+        SUPERVISOR_STATE_TOPIC: _take_state,
+        SHEET_COUNT_TOPIC: _take_count,
+        SHEET_RATE_TOPIC: _take_rate,
+        LANDING_TOPIC: _take_landing,
+        COMMANDS_TOPIC: _take_command,
+        PARTICIPANTS_TOPIC: _take_participants,
+        MARKERS_TOPIC: _take_markers,
+    }
 
     def _take_diagnostics(self, msg: Any) -> str:
         stamp = _stamp_s(msg.header.stamp)
@@ -682,18 +696,3 @@ class MonitorState:
         if not self.commands:
             return []
         return [('DRIVE COMMANDS  ' + ', '.join(f'{c} at {t:.3f} s' for c, t in self.commands), 'title')]
-
-
-#: what the monitor takes of each topic's message (the joint states: by their pattern)
-_TAKERS: dict[str, Callable[[MonitorState, Any, float], str]] = {
-    CLOCK_TOPIC: MonitorState._take_clock,
-    EVENTS_TOPIC: MonitorState._take_event,
-    DIAGNOSTICS_TOPIC: MonitorState._take_diagnostics_at,
-    SUPERVISOR_STATE_TOPIC: MonitorState._take_state,
-    SHEET_COUNT_TOPIC: MonitorState._take_count,
-    SHEET_RATE_TOPIC: MonitorState._take_rate,
-    LANDING_TOPIC: MonitorState._take_landing,
-    COMMANDS_TOPIC: MonitorState._take_command,
-    PARTICIPANTS_TOPIC: MonitorState._take_participants,
-    MARKERS_TOPIC: MonitorState._take_markers,
-}

@@ -78,6 +78,7 @@ __all__ = [
     'PLOT_WINDOW',
     'FigureData',
     'StreamedHistogram',
+    'TickGrid',
     'check_plots',
     'collect',
     'draw',
@@ -242,7 +243,7 @@ class _Sample:
 
 
 @dataclass
-class _Ticks:
+class TickGrid:
     """The ticks of the 200 Hz grid in ``[start, end]`` drawn: those whose hash is in the lowest ``1 / 2**level``."""
 
     start: float
@@ -443,7 +444,7 @@ class FigureData:
 
     def __init__(self, scene: Scene, start: float, end: float) -> None:
         self.scene, self.start, self.end = scene, start, end
-        self.ticks = _Ticks(start, end, JOINT_SAMPLES)
+        self.ticks = TickGrid(start, end, JOINT_SAMPLES)
         self.layup = scene.has_layup
         self.belts = scene.has('chute_belts')
         self.delivery = scene.has_delivery

@@ -29,7 +29,7 @@ def _slope(hs: tuple[float, ...], errs: list[float]) -> float:
 
 
 def test_closed_form_against_mpmath_at_40_digits() -> None:
-    p = M._params(M.make_scene(False))
+    p = M.motor_params(M.make_scene(False))
     with mpmath.workdps(40):
         J, T0, w0, b, wn = (mpmath.mpf(v) for v in (p.J, p.T_0, p.omega_0, p.b, p.omega_nom))
         # the ODE itself, by mpmath's Taylor-series integrator from standstill
@@ -75,7 +75,7 @@ def test_chain_reference_is_checked(chain_ref: M.ChainReference) -> None:
     load = cf.master_load(sc)
     n_breaks = sum(1 for _ in _breaks_below(load, float(ref[0, -1])))
     assert len(chain_ref.sols) == n_breaks + 1
-    free = M.closed_form(M._params(M.make_scene(False)), t)[0]
+    free = M.closed_form(M.motor_params(M.make_scene(False)), t)[0]
     assert free[-1] - ref[0, -1] > 1e-3
 
 
@@ -89,7 +89,7 @@ def _breaks_below(load: cf.MasterLoad, theta_end: float) -> list[float]:
 
 def test_user_rhs_is_the_documented_ode() -> None:
     sc = M.make_scene(True)
-    p = M._params(sc)
+    p = M.motor_params(sc)
     f = M.user_rhs(sc)
     f_free = M.user_rhs(M.make_scene(False))
     rng = np.random.default_rng(3)
@@ -114,7 +114,7 @@ def test_rk4_is_fourth_order(chain_ref: M.ChainReference) -> None:
     assert abs(_slope(hs_c, errs_c) - 4.0) < 0.5, errs_c
     assert errs_c[-1] > 1e-10  # well above the reference's checked accuracy
     # beyond RK4's stability limit the core refuses
-    p = M._params(M.make_scene(False))
+    p = M.motor_params(M.make_scene(False))
     with pytest.raises(ParameterError, match='unstable'):
         M.run_core(M.make_scene(False, method='rk4', h=1.01 * md.RK4_STABILITY * p.tau))
 

@@ -250,7 +250,7 @@ def test_an_interrupted_bag_is_marked_partial(tmp_path: Path, monkeypatch: pytes
     from folder_line.config.scenes import load_scene
 
     calls = []
-    original = batch._Writer.write
+    original = batch.WindowWriter.write
 
     def interrupted(*args: Any) -> None:
         calls.append(1)
@@ -258,7 +258,7 @@ def test_an_interrupted_bag_is_marked_partial(tmp_path: Path, monkeypatch: pytes
             raise KeyboardInterrupt
         original(*args)
 
-    monkeypatch.setattr(batch._Writer, 'write', interrupted)
+    monkeypatch.setattr(batch.WindowWriter, 'write', interrupted)
     with pytest.raises(KeyboardInterrupt):
         batch.write_batch_bag(tmp_path / 'bag', load_scene('folder'), 20.0)
     assert custom_data(tmp_path / 'bag')['folder_line.complete'] == 'false'

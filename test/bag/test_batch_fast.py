@@ -2,7 +2,7 @@
 
 * ``/line/markers`` CDR (:func:`folder_line.bag.markers.markers_cdr`, packed with :mod:`struct`) is
   byte for byte what the rosbags typestore serializes from the same fields;
-* the ``/line/events`` CDR of a window (``batch._event_cdrs``, numpy) is
+* the ``/line/events`` CDR of a window (``batch.event_cdrs``, numpy) is
   :func:`~folder_line.bag.cdr.time_reference_cdr` of :func:`~folder_line.interfaces.event_source`;
   the per-window columns of ``/clock``, counts and rates are the per-message CDR;
 * a window of ticks written at once (:meth:`folder_line.bag.writer.BagWriter.write_ticks`) makes
@@ -206,7 +206,7 @@ def test_event_cdrs_are_time_reference_cdrs() -> None:
     rows['cycle'] = rng.integers(-1, 10**6, n)
     stamps = np.sort(rng.integers(0, 3600 * NS_PER_S, n))
     for node in ('crank_drive', 'belt_conveyor', 'feed_transporter', 'sheet_counter', 'x'):
-        data, lens = batch._event_cdrs(node, stamps, rows)
+        data, lens = batch.event_cdrs(node, stamps, rows)
         want = [
             cdr.time_reference_cdr(
                 int(s),
@@ -242,8 +242,9 @@ def test_metadata_entries_are_yamls() -> None:
                 summary = FileSummary(path, start, end, count)
                 builder = MetadataBuilder()
                 builder.add_file(summary)
-                assert builder._paths == [_dump([path], 2)], path
-                assert builder._entries == [_dump([summary.entry()], 2)], path
+                text = builder.render({}, {})
+                assert text.count(_dump([path], 2)) == 1, path  # the file's path, as yaml writes it
+                assert text.count(_dump([summary.entry()], 2)) == 1, path  # and its entry
 
 
 @pytest.mark.parametrize('scene', ['folder', 'line', 'folder_faults'])

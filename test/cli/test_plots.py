@@ -96,14 +96,14 @@ def test_the_joint_states_drawn_are_the_line_s_at_those_ticks(line_long: tuple) 
 
 
 def test_the_ticks_drawn_are_a_pseudo_random_nested_fraction_of_the_grid() -> None:
-    every, drawn = plots._Ticks(0.0, 100.0, 1000).between(-math.inf, 100.0)
+    every, drawn = plots.TickGrid(0.0, 100.0, 1000).between(-math.inf, 100.0)
     assert every.size == 20001 and drawn.size < 1.5 * 1000
-    coarser = plots._Ticks(0.0, 100.0, 500).between(-math.inf, 100.0)[1]
+    coarser = plots.TickGrid(0.0, 100.0, 500).between(-math.inf, 100.0)[1]
     assert set(coarser.tolist()) <= set(drawn.tolist())  # a level higher keeps a subset
     gaps = np.diff(np.round(drawn * 200).astype(int))
     assert len(set(gaps.tolist())) > 5  # no period: nothing to alias with a machine's
     # windows cut anywhere draw the same ticks
-    ticks = plots._Ticks(0.0, 100.0, 1000)
+    ticks = plots.TickGrid(0.0, 100.0, 1000)
     parts = [ticks.between(a, b)[1] for a, b in [(-math.inf, 13.333), (13.333, 60.0), (60.0, 100.0)]]
     assert np.array_equal(np.concatenate(parts), drawn)
 

@@ -195,7 +195,7 @@ class Host:
         It is stopped with its group when the network closes, and killed if the thread that
         started it ends first (``PR_SET_PDEATHSIG``). ``kwargs`` go to :class:`subprocess.Popen`.
         """
-        return self.network._popen(self, argv, env, kwargs)
+        return self.network.popen_in(self, argv, env, kwargs)
 
     def run(self, argv: Sequence[str], *, timeout: float = 30.0, **kwargs: Any) -> subprocess.CompletedProcess[str]:
         """Run ``argv`` in this host to its end; its output as text."""
@@ -362,7 +362,7 @@ class Network:
 
     # ------------------------------------------------------------------ processes
 
-    def _popen(
+    def popen_in(
         self, host: Host, argv: Sequence[str], env: Mapping[str, str] | None, kwargs: dict[str, Any]
     ) -> subprocess.Popen[Any]:
         if self._switch is None:

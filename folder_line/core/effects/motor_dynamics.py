@@ -65,6 +65,7 @@ __all__ = [
     'Params',
     'PeriodicTail',
     'build_drive',
+    'motor_params',
     'stall_torque_for',
     'steady_speed',
 ]
@@ -581,7 +582,9 @@ def _switches(t_stop: float, commands: Iterable[Command], duration: float = math
     return out
 
 
-def _params(scene: SceneView) -> Params:
+def motor_params(scene: SceneView) -> Params:
+    """The scene's ``motor_dynamics`` parameters, checked for the method's step (``ParameterError`` naming
+    the key when the scene does not list the effect or the step cannot settle)."""
     p: Params | None = scene.effect('motor_dynamics')
     if p is None:
         raise ParameterError('effects', 'motor_dynamics', f'scene {scene.name!r} does not list motor_dynamics')
@@ -648,11 +651,11 @@ def stream_drive(
         torque not above the peak chain load; a self-locking delivery; commands not sorted.
     """
     commands = check_commands(commands)
-    switches = _switches(_params(scene).t_stop, commands, duration)
+    switches = _switches(motor_params(scene).t_stop, commands, duration)
     if previous is not None and previous.periodic == periodic and math.isinf(previous.duration):
         previous.set_switches(switches, bool(commands))
         return previous
-    p = _params(scene)
+    p = motor_params(scene)
     _check_work(p, duration)
     load = chain_friction.master_load(scene, p.omega_nom) if scene.has('chain_friction') else None
     if load is not None:

@@ -464,8 +464,8 @@ class Scenery:
         ox, _, oz = FOLDER_ORIGIN
         self._p0 = np.array([ox, 0.0, oz - PICKUP_DROP])
         self._span = 2.0 * plan.chain.x_max
-        self._radius, self._loop, self._n_car = chain_loop(sch.L_transfer, sch.S, self._span, sch.pitch)
-        s = np.linspace(0.0, self._loop, 161)
+        self._radius, self.loop, self._n_car = chain_loop(sch.L_transfer, sch.S, self._span, sch.pitch)
+        s = np.linspace(0.0, self.loop, 161)
         path = self._chain_point(s)
         self._static['chain_path'] = _shape(
             'delivery', 'chain_path', 'strip', np.concatenate([path, path[:1]]), 0.01, _DARK
@@ -528,16 +528,16 @@ class Scenery:
         alpha = np.arcsin(np.clip((z - self._p0[2]) / rod, -1.0, 1.0))
         return np.stack([x - rod * np.cos(alpha), np.zeros(x.shape), np.full(x.shape, self._p0[2])], axis=1)
 
-    def _carriage_travel(self, theta: float) -> np.ndarray:
+    def carriage_travel(self, theta: float) -> np.ndarray:
         """Chain travel since the pickup of the carriages of the loop, slot j = carriage k mod n, in [0, loop)."""
         sch = self._plan.schedule
         base = sch.v_A * (theta - sch.theta_pick0)
-        travel: np.ndarray = np.mod(base - sch.pitch * np.arange(self._n_car), self._loop)
+        travel: np.ndarray = np.mod(base - sch.pitch * np.arange(self._n_car), self.loop)
         return travel
 
     def _delivery_shapes(self, t: float, theta: float, live: np.ndarray) -> list[Shape]:
         sch = self._plan.schedule
-        d = self._carriage_travel(theta)
+        d = self.carriage_travel(theta)
         on = (d >= sch.L_transfer) & (d < sch.L_transfer + sch.S)  # the carriages on the stroke
         u = self._plan.path.position(d[on] - sch.L_transfer) if on.any() else np.zeros(0)
         stroke = self._stroke_xz(u) if u.size else None  # their chain pins, computed once for both
@@ -624,6 +624,6 @@ class Scenery:
         if self._folder is not None:
             out.update({f'folder/{k}': v for k, v in self._knife(theta).items()})
             if self.folder_part.plan is not None:
-                pins = self._chain_point(self._carriage_travel(theta))
+                pins = self._chain_point(self.carriage_travel(theta))
                 out.update({f'delivery/carriage_{j}': p for j, p in enumerate(pins)})
         return out

@@ -114,7 +114,7 @@ import numpy.typing as npt
 
 from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms.delivery_results import (
-    _SAMPLE_FIELDS,  # noqa: F401  (the tests read delivery._SAMPLE_FIELDS)
+    SAMPLE_FIELDS,
     SECTION_ACCELERATION,
     SECTION_DECELERATION,
     SECTION_NAMES,
@@ -139,6 +139,7 @@ __all__ = [
     'ETA_TOL',
     'KV_TOL',
     'RETURN_SECTIONS',
+    'SAMPLE_FIELDS',
     'SECTION_ACCELERATION',
     'SECTION_DECELERATION',
     'SECTION_NAMES',

@@ -18,6 +18,7 @@ from folder_line.core.numerics.validate import as_float, non_negative, positive
 from folder_line.errors import ParameterError
 
 __all__ = [
+    'SAMPLE_FIELDS',
     'SECTION_ACCELERATION',
     'SECTION_DECELERATION',
     'SECTION_NAMES',
@@ -178,13 +179,13 @@ class DeliverySamples(StateCoded):
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat 1-D columns for a CSV writer, including ``state_name`` and ``section_name``."""
-        cols: dict[str, np.ndarray] = {name: np.ravel(getattr(self, name)) for name in _SAMPLE_FIELDS}
+        cols: dict[str, np.ndarray] = {name: np.ravel(getattr(self, name)) for name in SAMPLE_FIELDS}
         cols['state_name'] = np.ravel(self.state_names())
         cols['section_name'] = np.ravel(np.asarray(SECTION_NAMES)[self.section])
         return cols
 
 
-_SAMPLE_FIELDS: tuple[str, ...] = tuple(DeliverySamples.__dataclass_fields__)
+SAMPLE_FIELDS: tuple[str, ...] = tuple(DeliverySamples.__dataclass_fields__)
 
 
 @dataclass(frozen=True)

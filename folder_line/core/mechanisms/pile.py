@@ -277,6 +277,11 @@ class PileStream:
             self.lowered += n
             self._t, self._tau = self._t[n:], self._tau[n:]
 
+    @property
+    def kept(self) -> int:
+        """How many counted sheets' count times are kept (those whose table step may still be running)."""
+        return int(self._t.size)
+
     def count(self, t: npt.ArrayLike) -> np.ndarray:
         """Sheets counted at or before line times ``t``."""
         tt = np.asarray(t, dtype=float)

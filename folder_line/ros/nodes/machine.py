@@ -311,6 +311,16 @@ class MachineNode(Node):
     def publish_extra(self, stamp_ns: int, t: float, events: np.ndarray) -> None:
         """Subclass hook: called every tick with this node's events of ``(t_prev, t]`` (after the samples)."""
 
+    @property
+    def period_ns(self) -> int:
+        """The node's own grid step (its ``rate``), ns."""
+        return int(self._period_ns)
+
+    @property
+    def publishes_joint_states(self) -> bool:
+        """Whether the node has joint states in this scene (a layup has no feed transporter's)."""
+        return self._joint_pub is not None
+
     def published_counts(self) -> dict[str, int]:
         """Messages this node has published so far, per topic (the recorder's loss accounting).
 

@@ -484,13 +484,13 @@ class TestStiffStartAndStepSizes:
             with pytest.raises(ParameterError) as info:
                 md.build_drive(motor_scene(method=method, h=1e-9), 1.0, periodic=False)
             assert info.value.key == 'effects.motor_dynamics.h' and info.value.value == 1e-9
-            span = min(1.0, md.SETTLE_TAUS * md._params(motor_scene()).tau)
+            span = min(1.0, md.SETTLE_TAUS * md.motor_params(motor_scene()).tau)
             assert f'asks for ~{span / 1e-9:.3g} steps' in str(info.value)
             assert f'at most max_steps={md.MAX_STEPS}' in str(info.value)
             with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h'):
                 md.stream_drive(motor_scene(method=method, h=1e-9))
         # the least h refused and the largest taken are one step apart in the steps they ask for
-        tau = md._params(motor_scene()).tau
+        tau = md.motor_params(motor_scene()).tau
         h_ok = md.SETTLE_TAUS * tau / md.MAX_STEPS
         md.stream_drive(motor_scene(method='dopri5', h=h_ok * 1.0001))
         with pytest.raises(ParameterError, match=r'effects.motor_dynamics.h'):

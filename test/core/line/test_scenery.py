@@ -150,13 +150,13 @@ def test_carriages_lie_on_the_chain_path(line: Scenery) -> None:
 
 def test_carriages_are_a_pitch_apart_along_the_loop(line: Scenery) -> None:
     sch = schedule(line.line.scene)
-    travel = line._carriage_travel(_theta(line, 5.0))
-    gaps = np.mod(np.diff(np.sort(travel)), line._loop)
+    travel = line.carriage_travel(_theta(line, 5.0))
+    gaps = np.mod(np.diff(np.sort(travel)), line.loop)
     assert_allclose(gaps, sch.pitch, rtol=1e-12)
 
 
 def test_leaves_in_the_air_lie_on_their_flight_paths(line: Scenery) -> None:
-    f = line._layup.flights_view()
+    f = line.layup_part.flights_view()
     lp_floor = line.line.scene.machine('container').y_floor
     ox, _, oz = LAYUP_ORIGIN
     seen = 0

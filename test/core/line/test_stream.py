@@ -266,7 +266,7 @@ def _carried_sizes(stream: LineStream) -> dict[str, int]:
                 out[f'{part}.{key}'] = value.size
             elif isinstance(value, dict):
                 out[f'{part}.{key}'] = len(value)
-    out['pile'] = stream.pile._t.size
+    out['pile'] = stream.pile.kept
     out['bytes'] = _size(stream.checkpoint().parts) + _size(stream.drive)
     return out
 

@@ -565,14 +565,14 @@ def test_positions_outside_the_section_are_errors_rounding_is_clipped() -> None:
 def test_shapes_sections_and_names() -> None:
     u = np.linspace(0.0, 2.0, 12).reshape(3, 4)
     s = evaluate_stroke(ref(), u)
-    for name in dl._SAMPLE_FIELDS:
+    for name in dl.SAMPLE_FIELDS:
         assert getattr(s, name).shape == (3, 4), name
     assert s.state.dtype == np.int8 and s.section.dtype == np.int8
     np.testing.assert_array_equal(s.section, (u > 1.0).astype(np.int8))
     np.testing.assert_array_equal(s.xi, np.where(u <= 1.0, u, 2.0 - u))
     assert np.all(s.beta[u > 1.0] <= 0.0) and np.all(s.beta[u <= 1.0] >= 0.0)
     cols = s.columns()
-    assert set(cols) == set(dl._SAMPLE_FIELDS) | {'state_name', 'section_name'}
+    assert set(cols) == set(dl.SAMPLE_FIELDS) | {'state_name', 'section_name'}
     assert all(c.shape == (12,) for c in cols.values())
     assert set(cols['section_name']) == {'deceleration', 'acceleration'}
     assert (

@@ -250,7 +250,7 @@ def test_machine_nodes_publish_the_line_model_at_their_grid_points(  # noqa: PLR
         assert graph.get(topic) == [type_name], (topic, graph.get(topic))
     missing = set(CLASSES) - set(joints)  # layup: no feed transporter, no topic
     assert not {joint_states_topic(n) for n in missing} & set(graph)
-    assert all(nodes[n]._joint_pub is None and nodes[n].published_joint_states == 0 for n in missing)
+    assert all(not nodes[n].publishes_joint_states and nodes[n].published_joint_states == 0 for n in missing)
 
     # joint states: at every grid point, exactly the model there
     for name, (received, _) in states.items():
@@ -448,10 +448,10 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
 
     for node in nodes:
         name = node.get_name()
-        assert node._period_ns == STEP
+        assert node.period_ns == STEP
         for value, reason in BAD_RATES:
             assert call(name, Parameter('rate', value=value)) == (False, reason)
-            assert node.get_parameter('rate').value == 200.0 and node._period_ns == STEP
+            assert node.get_parameter('rate').value == 200.0 and node.period_ns == STEP
         for read_only, value in (('scene', 'layup'), ('overrides', 'seed=3'), ('lost_timeout', 1.0)):
             ok, reason = call(name, Parameter(read_only, value=value))
             assert not ok and 'read-only' in reason and read_only in reason
@@ -463,7 +463,7 @@ def test_machine_parameters_are_validated_through_the_parameter_service(ros: Ros
         ok, reason = call(name, Parameter('rate', value=400.0), sign=False)  # as ros2 param set would
         assert not ok and reason.startswith('this line is keyed: a change at run time must be signed')
         assert call(name, Parameter('rate', value=400.0)) == (True, '')
-        assert node._period_ns == 2_500_000
+        assert node.period_ns == 2_500_000
     ok, reason = call('sheet_counter', Parameter('rate_window', value=-1.0))
     assert not ok and reason.startswith('rate_window=-1.0: must be a float in ')
     assert nodes[3].values['rate_window'] == 5.0
