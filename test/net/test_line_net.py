@@ -27,7 +27,7 @@ import pytest
 
 from folder_line.config.run_config import RunConfig
 from folder_line.interfaces import MACHINE_NODES
-from folder_line.ros.dds_profile import LEASE_DURATION
+from folder_line.ros.dds_profile import LEASE_DURATION, PROFILE
 
 from ._line import HOSTS, LineRun, bag_messages, clock_status, run_line
 from .netns import Network
@@ -105,12 +105,15 @@ def test_5_percent_loss_on_every_link_loses_no_node_and_no_message(
 
 
 def taken_back(logs: Path, host: str, timeout: float = 60.0) -> None:
-    """Wait until every node that said it waits for ``host`` has taken it back (or ``timeout`` s).
+    """Wait until every node that said it waits for ``host`` has taken it back (or ``timeout`` s), then two
+    DDS announcement periods more.
 
-    Each cut is then one outage of 5 s. Cut the next host before then, and a pair of hosts may have
-    heard nothing of each other for two cuts in a row, 10.5 s: longer than the DDS lease, after which
-    a participant is gone from the other's graph and rightly lost (CI saw it once, the supervisor
-    and sheet_counter).
+    Each cut is then one outage of 5 s for every pair of hosts. Cut the next host before then, and a pair
+    may have heard nothing of each other for two cuts in a row, 10.5 s: longer than the DDS lease, after
+    which a participant is gone from the other's graph and rightly lost. Taken back is not enough: a
+    participant's lease is renewed by its announcements, every ``lease_announcement`` (1 s), so a restored
+    host and the next one cut may not have exchanged one 0.5 s after the restore (CI saw both, the
+    supervisor and sheet_counter: sheet_counter lost the supervisor 10.1 s after its own cut began).
     """
     waits = re.compile(rf'\[(\w+)\]: waiting for {host}: silent')
     back = re.compile(rf'\[(\w+)\]: participant {host} answers again')
@@ -118,8 +121,9 @@ def taken_back(logs: Path, host: str, timeout: float = 60.0) -> None:
     while time.monotonic() < deadline:
         text = '\n'.join(p.read_text(errors='replace') for p in logs.glob('*.log'))
         if set(waits.findall(text)) <= set(back.findall(text)):
-            return
+            break
         time.sleep(0.1)
+    time.sleep(2 * PROFILE.lease_announcement)
 
 
 def test_each_machine_host_cut_off_for_5_s_in_turn_is_waited_out(
@@ -138,7 +142,9 @@ def test_each_machine_host_cut_off_for_5_s_in_turn_is_waited_out(
             taken_back(tmp_path / 'logs', host)
 
     line_net.clear()
-    run = run_line(line_net, config(tmp_path, rtf=1.0, duration=DURATION), during=cut_each)
+    # at rtf 0.25 the waits between the cuts (taken_back) take a quarter of their wall time off the line's
+    # DURATION, so every host is cut before the line ends
+    run = run_line(line_net, config(tmp_path, rtf=0.25, duration=DURATION), during=cut_each)
     assert [c[0] for c in cuts] == list(MACHINE_NODES)
     assert_ended_as_expected(run)
     # every node was waited for (silent longer than lost_timeout), named, and taken back
