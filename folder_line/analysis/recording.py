@@ -31,7 +31,7 @@ from folder_line.config.run_config import BAG_DIR
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.tuning import LineCommand, command_of
 from folder_line.core.types.events import EVENT_DTYPE, event_kind
-from folder_line.errors import ParameterError
+from folder_line.errors import InputFileError
 from folder_line.files.atomic import describe_path
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
 from folder_line.interfaces import (
@@ -220,7 +220,7 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
             if not os.path.lexists(p)
             else f'{describe_path(p)}, not a run directory or a bag directory'
         )
-        raise ParameterError('RUN_DIR|BAG', str(path), what)
+        raise InputFileError('RUN_DIR|BAG', str(path), what)
     run_dir: Path | None
     if (p / bag_dir).is_dir():
         bag, run_dir = p / bag_dir, p
@@ -228,7 +228,7 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
         bag = p
         run_dir = p.parent if p.name == bag_dir else None
     else:
-        raise ParameterError(
+        raise InputFileError(
             'RUN_DIR|BAG', str(path), f'neither a run directory (with {bag_dir}/) nor a bag (with metadata.yaml)'
         )
     run = None
@@ -237,7 +237,7 @@ def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]
         try:
             run = json.loads(text)
         except ValueError as exc:
-            raise ParameterError('RUN_DIR|BAG', str(path), f'run.json cannot be read: {exc}') from None
+            raise InputFileError('RUN_DIR|BAG', str(path), f'run.json cannot be read: {exc}') from None
     return bag, run
 
 
@@ -486,10 +486,10 @@ class _Decoder:
 def _bag_scene(contents: BagContents, path: str | os.PathLike[str]) -> Scene:
     """The scene stored in a bag (``path`` named in the errors)."""
     if not contents.scene_source:
-        raise ParameterError('RUN_DIR|BAG', str(path), 'the bag holds no scene (custom data folder_line.scene)')
+        raise InputFileError('RUN_DIR|BAG', str(path), 'the bag holds no scene (custom data folder_line.scene)')
     mapping = load_yaml(contents.scene_source, 'RUN_DIR|BAG', f'{path} (its scene, custom data folder_line.scene)')
     if not isinstance(mapping, dict):
-        raise ParameterError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
+        raise InputFileError('RUN_DIR|BAG', str(path), 'the scene stored in the bag is not a mapping')
     return parse_scene(mapping)
 
 

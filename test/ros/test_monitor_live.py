@@ -178,7 +178,8 @@ class Tmux:
 
     def __init__(self, env: dict[str, str], width: int, height: int, command: str) -> None:
         self.socket = f'folder-line-monitor-{os.getpid()}-{uuid.uuid4().hex[:8]}'
-        self.env = env
+        # curses takes LINES and COLUMNS over the terminal's size (pytest-xdist's workers set 24 x 80)
+        self.env = {k: v for k, v in env.items() if k not in ('LINES', 'COLUMNS')}
         self.run('new-session', '-d', '-s', 'mon', '-x', str(width), '-y', str(height), command)
 
     def run(self, *args: str) -> str:
