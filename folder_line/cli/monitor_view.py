@@ -429,11 +429,11 @@ class MonitorState:
         stats.latest = self._take(topic, msg, wall)
 
     def _take(self, topic: str, msg: Any, wall: float) -> str:
-        m = _JOINT_STATES.match(topic)
-        if m is not None:
-            return self._take_joints(m['node'], msg)
         take = self._TAKERS.get(topic)
-        return type(msg).__name__ if take is None else take(self, msg, wall)
+        if take is not None:
+            return take(self, msg, wall)
+        m = _JOINT_STATES.match(topic)
+        return type(msg).__name__ if m is None else self._take_joints(m['node'], msg)
 
     def _take_clock(self, msg: Any, wall: float) -> str:
         t = _stamp_s(msg.clock)
