@@ -80,7 +80,8 @@ from folder_line.bag.statuses import (
     tuning_status,
     violation_status,
 )
-from folder_line.bag.writer import BagWriter, TickMessages
+from folder_line.bag.tick_messages import TickMessages
+from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import MARKER_RATE, RATE, SUPERVISOR_DEFAULTS, supervisor_logic
 from folder_line.config.scenes import scene_text
 from folder_line.core.line.scene import Scene
@@ -307,7 +308,7 @@ class WindowWriter:
     def write(self, stamps: np.ndarray, events: np.ndarray, ticks: list[_Tick]) -> None:
         """Write the ticks ``stamps`` (ns): per tick ``/clock``, then node by node what it publishes.
 
-        The window is written at once (:class:`~folder_line.bag.writer.TickMessages`): each topic's
+        The window is written at once (:class:`~folder_line.bag.tick_messages.TickMessages`): each topic's
         messages of every tick as one column, put in the tick's order by their slot (``/clock``;
         per node its events, joint states and the counter's outputs and markers; the supervisor's
         outputs, state and diagnostics), as a tick-by-tick write would order them.

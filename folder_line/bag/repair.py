@@ -37,7 +37,7 @@ from folder_line.bag.metadata import (
     segment_files,
 )
 from folder_line.bag.reader import open_each
-from folder_line.bag.writer import start_mcap
+from folder_line.bag.segment import start_mcap
 from folder_line.errors import BagError, FolderLineError
 from folder_line.files.atomic import write_text_atomic
 

@@ -14,8 +14,8 @@ not stored. The MCAP ``sequence`` of a message is its index on its topic in the 
 
 Many messages at once. :meth:`BagWriter.write_many` records one tick's serialized messages in
 one call; :meth:`BagWriter.write_ticks` records a whole window of ticks gathered column by column
-(:class:`TickMessages`: the records built with numpy, straight into the open chunk), the same
-files byte for byte as :meth:`~BagWriter.write_many` tick by tick (``simulate --bag``).
+(:class:`~folder_line.bag.tick_messages.TickMessages`: the records built with numpy, straight into the
+open chunk), the same files byte for byte as :meth:`~BagWriter.write_many` tick by tick (``simulate --bag``).
 
 Splitting. With ``max_duration_s`` the next file starts at each multiple of it in line
 time (``--max-bag-duration``); with ``max_size`` a file that has reached that many bytes
@@ -59,14 +59,14 @@ from folder_line.bag.metadata import (
     TopicSummary,
     segment_path,
 )
-from folder_line.bag.segment import DEFAULT_CHUNK_SIZE, Segment, start_mcap
+from folder_line.bag.segment import DEFAULT_CHUNK_SIZE, Segment
 from folder_line.bag.tick_messages import TickMessages
 from folder_line.bag.types import message_definition, msgtype_of, serialize
 from folder_line.errors import BagError
 from folder_line.files.atomic import write_text_atomic
 from folder_line.interfaces import CLOCK_TOPIC, NS_PER_S, stamp_ns
 
-__all__ = ['DEFAULT_CHUNK_SIZE', 'BagWriter', 'TickMessages', 'start_mcap']
+__all__ = ['BagWriter']
 
 #: a line time no bag reaches, ns: the split time of a bag not split by time
 _NEVER = 2**63 - 1

@@ -54,14 +54,9 @@ from folder_line.interfaces import (
     tick_done_topic,
 )
 from folder_line.ros.lockstep_messages import (
-    CLOCK_MODES,
-    MAX_GRANT,
     Announcement,
-    format_announcement,
-    format_grant,
     grant_ticks,
     parse_announcement,
-    participant_names,
     read_ack,
     read_ticks,
     sign_ack,
@@ -71,25 +66,14 @@ from folder_line.ros.topics import PUBLISH_DEPTH
 
 __all__ = [
     'ACK_QOS',
-    'CLOCK_MODES',
     'DEFAULT_PARTICIPANTS',
     'GRANT_QOS',
     'HEARTBEAT',
     'LINE_QOS',
-    'MAX_GRANT',
     'PARTICIPANTS_QOS',
     'TICK_QOS',
     'WAIT_REPORT',
-    'Announcement',
     'Participant',
-    'format_announcement',
-    'format_grant',
-    'grant_ticks',
-    'parse_announcement',
-    'participant_names',
-    'read_ack',
-    'read_ticks',
-    'sign_ack',
 ]
 
 HEARTBEAT = 0.05  # wall s: a participant that waits repeats its latest acknowledgement this often

@@ -53,7 +53,8 @@ from folder_line.interfaces import (
     is_command_source,
     parse_event_source,
 )
-from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
+from folder_line.ros.lockstep import LINE_QOS, Participant
+from folder_line.ros.lockstep_messages import Announcement
 from folder_line.ros.nodes.supervisor import STATE_QOS
 from folder_line.ros.signing import open_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns

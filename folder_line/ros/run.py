@@ -74,7 +74,8 @@ from folder_line.interfaces import CLOCK_TOPIC, GRANT_TOPIC, KNOWN_PARTICIPANTS,
 from folder_line.progress import LineTimeProgress, logs_above
 from folder_line.ros.dds_profile import line_partition, use_line_profile
 from folder_line.ros.line_key import KEY_VARIABLE, ensure_key
-from folder_line.ros.lockstep import PARTICIPANTS_QOS, parse_announcement
+from folder_line.ros.lockstep import PARTICIPANTS_QOS
+from folder_line.ros.lockstep_messages import parse_announcement
 from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, sheet_counter, supervisor
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MachineNode

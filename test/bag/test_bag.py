@@ -31,8 +31,9 @@ from folder_line.bag.markers import marker_specs
 from folder_line.bag.metadata import KEY_PUBLISHED, segment_files
 from folder_line.bag.reader import read_bag
 from folder_line.bag.repair import repair, repair_bag
+from folder_line.bag.tick_messages import TickMessages
 from folder_line.bag.types import serialize
-from folder_line.bag.writer import BagWriter, TickMessages
+from folder_line.bag.writer import BagWriter
 from folder_line.cli.main import main as cli_main
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel

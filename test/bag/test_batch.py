@@ -35,7 +35,7 @@ from folder_line.bag.types import typestore
 from folder_line.cli.main import main as cli_main
 from folder_line.config.run_config import RunConfig
 from folder_line.interfaces import KNOWN_PARTICIPANTS, LINE_TOPIC_TYPES
-from folder_line.ros.lockstep import Announcement, format_announcement
+from folder_line.ros.lockstep_messages import Announcement, format_announcement
 from folder_line.ros.run import run_line
 from folder_line.ros.signing import open_text
 

@@ -23,8 +23,9 @@ import pytest
 from folder_line.bag import batch, cdr
 from folder_line.bag.markers import ACTION_DELETEALL, MARKERS_TYPE, MarkerSpec, marker_specs, markers_cdr
 from folder_line.bag.metadata import FileSummary, MetadataBuilder, _dump, segment_files
+from folder_line.bag.tick_messages import TickMessages
 from folder_line.bag.types import typestore
-from folder_line.bag.writer import BagWriter, TickMessages
+from folder_line.bag.writer import BagWriter
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.scenery import LINE_FRAME, Scenery
 from folder_line.core.line.stream import LineStream

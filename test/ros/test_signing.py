@@ -22,7 +22,8 @@ from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
 from folder_line.interfaces import COMMANDS_TOPIC, DIAGNOSTICS_TOPIC, NS_PER_S, PARTICIPANTS_TOPIC
-from folder_line.ros.lockstep import PARTICIPANTS_QOS, Announcement, format_announcement
+from folder_line.ros.lockstep import PARTICIPANTS_QOS
+from folder_line.ros.lockstep_messages import Announcement, format_announcement
 from folder_line.ros.recorder import LineRecorder
 from folder_line.ros.signing import REQUEST_WINDOW, RequestGuard, Signer, line_signer, sign_request, without_signature
 from folder_line.ros.topics import COMMANDS_QOS

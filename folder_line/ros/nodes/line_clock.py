@@ -89,7 +89,6 @@ from folder_line.ros.dds_profile import line_partition
 from folder_line.ros.line_key import KEY_VARIABLE
 from folder_line.ros.lockstep import (
     ACK_QOS,
-    CLOCK_MODES,
     CLOCK_SUB_QOS,
     DEFAULT_PARTICIPANTS,
     GRANT_QOS,
@@ -97,6 +96,9 @@ from folder_line.ros.lockstep import (
     LINE_QOS,
     PARTICIPANTS_QOS,
     WAIT_REPORT,
+)
+from folder_line.ros.lockstep_messages import (
+    CLOCK_MODES,
     Announcement,
     format_announcement,
     format_grant,

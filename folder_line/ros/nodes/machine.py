@@ -82,7 +82,8 @@ from folder_line.interfaces import (
     event_source,
     is_command_source,
 )
-from folder_line.ros.lockstep import LINE_QOS, Announcement, Participant
+from folder_line.ros.lockstep import LINE_QOS, Participant
+from folder_line.ros.lockstep_messages import Announcement
 from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes, starting_values
 from folder_line.ros.runtime import run_node
 from folder_line.ros.signing import open_text, sign_text

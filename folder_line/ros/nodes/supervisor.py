@@ -128,7 +128,8 @@ from folder_line.interfaces import (
     parse_event_source,
     seconds_to_ns,
 )
-from folder_line.ros.lockstep import LINE_QOS, Announcement
+from folder_line.ros.lockstep import LINE_QOS
+from folder_line.ros.lockstep_messages import Announcement
 from folder_line.ros.nodes.machine import FAST_WINDOW, MachineNode, node_exit_code
 from folder_line.ros.parameters import ParamSpec
 from folder_line.ros.runtime import run_node

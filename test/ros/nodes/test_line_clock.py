@@ -46,11 +46,8 @@ from folder_line.interfaces import (
     progress_topic,
     tick_done_topic,
 )
-from folder_line.ros.lockstep import (
-    ACK_QOS,
-    GRANT_QOS,
-    LINE_QOS,
-    PARTICIPANTS_QOS,
+from folder_line.ros.lockstep import ACK_QOS, GRANT_QOS, LINE_QOS, PARTICIPANTS_QOS
+from folder_line.ros.lockstep_messages import (
     Announcement,
     format_announcement,
     grant_ticks,
