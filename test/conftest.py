@@ -12,6 +12,12 @@ import os
 
 import pytest
 from _ros_env import node_environment, use_ros_environment
+from hypothesis import settings
+
+# no per-example deadline: how long an example takes depends on the machine's load (and on a first call's
+# caches); speed is measured by bench/, not judged by a test
+settings.register_profile('folder_line', deadline=None)
+settings.load_profile('folder_line')
 
 # read by rclpy when it is imported: before any test module (or test/ros/conftest.py) imports it
 use_ros_environment(os.environ)
