@@ -27,7 +27,7 @@ test: $(STAMP)
 	$(BIN)/ruff format --check --quiet .
 	$(BIN)/ruff check --quiet .
 	$(BIN)/mypy $(TYPED)
-	$(BIN)/python -m pytest -n 2
+	$(BIN)/python -m pytest
 
 # the manual (Sphinx, MyST Markdown, autodoc) into build/docs; warnings are errors
 docs: $(STAMP)
