@@ -524,30 +524,32 @@ def _spin_span(
     executor: Executor,
     recorder: LineRecorder,
     clock: LineClock,
-    joint_nodes: Mapping[str, Any],
+    joint_nodes: Mapping[str, MachineNode],
     warmup: float,
     deadline: float,
 ) -> tuple[_Mark | None, _Mark | None]:
     """Spin until the clock is done (or the wall-clock ``deadline``, s of ``time.monotonic``): the marks at
-    ``warmup`` s of sim time and at the clock's stop."""
-    start: _Mark | None = None
+    the first tick of ``warmup`` s of sim time or later, taken as the recorder records it (one callback
+    can record several ticks: a mark polled after it would start the span late), and at the clock's stop."""
+    marks: list[_Mark] = []
+    warmup_ns = round(warmup * NS_PER_S)
+
+    def at_tick(stamp: int) -> None:
+        if not marks and stamp >= warmup_ns:
+            marks.append(_mark(stamp / NS_PER_S, joint_nodes))
+
+    recorder.tick_observer = at_tick
     end: _Mark | None = None
     while end is None and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
+        executor.spin_once(timeout_sec=0.01)
         sim = recorder.sim_time
-        if start is None and sim >= warmup:
-            start = _mark(sim, joint_nodes)
-        elif (
-            start is not None
-            and clock.done.done()
-            and (stop_ns := clock.done.result()) is not None
-            and sim >= stop_ns / 1e9
-        ):
+        if marks and clock.done.done() and (stop_ns := clock.done.result()) is not None and sim >= stop_ns / 1e9:
             end = _mark(sim, joint_nodes)
-    return start, end
+    recorder.tick_observer = None
+    return (marks[0] if marks else None), end
 
 
-def _mark(sim: float, joint_nodes: Mapping[str, Any]) -> _Mark:
+def _mark(sim: float, joint_nodes: Mapping[str, MachineNode]) -> _Mark:
     """The mark at ``sim`` s of sim time: the process's CPU time, the wall time, the nodes' progress."""
     return (sim, time.process_time(), time.monotonic(), {n: _progress(node) for n, node in joint_nodes.items()})
 

@@ -174,6 +174,8 @@ class LineRecorder(Node):
         }
         self._done: dict[tuple[str, str], int] = {}  # (producer, topic) -> its messages recorded (or counted)
         self._sim_origin = 0.0
+        #: called with each tick's stamp (ns) once the tick is recorded, in tick order (a measurement's marks)
+        self.tick_observer: Callable[[int], None] | None = None
         for topic, cls in LINE_TOPICS.items():
             if topic == CLOCK_TOPIC:
                 continue  # recorded from the ticks line_clock grants
@@ -233,6 +235,8 @@ class LineRecorder(Node):
                 counts = acks.popleft()[1]
             if counts is not None:
                 self._place(producer, counts)
+        if self.tick_observer is not None:
+            self.tick_observer(stamp)
 
     def _place(self, producer: str, counts: Mapping[str, int]) -> None:
         """Record ``producer``'s messages that ``counts`` (its acknowledged per-topic totals) covers."""
