@@ -27,7 +27,7 @@ test: $(STAMP)
 	$(BIN)/ruff format --check --quiet .
 	$(BIN)/ruff check --quiet .
 	$(BIN)/mypy $(TYPED)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadfile
 
 # the manual (Sphinx, MyST Markdown, autodoc) into build/docs; warnings are errors
 docs: $(STAMP)

@@ -21,8 +21,19 @@ from folder_line.ros.line_key import KEY_VARIABLE, new_key
 
 REPO = Path(__file__).resolve().parent.parent
 
-#: 1..100 from the pid: one domain per test process, never 0 (the default of any other ROS graph)
-DOMAIN_ID = 1 + os.getpid() % 100
+
+def _domain_id() -> int:
+    """1..100, never 0 (the default of any other ROS graph): for a worker of ``pytest -n`` (pytest-xdist) one
+    of four from the run's controller (its parent) and the worker's number, so the run's workers never share
+    one; for a lone test process one from its pid."""
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    if worker.startswith('gw') and worker[2:].isdigit():
+        return 1 + (os.getppid() % 25) * 4 + int(worker[2:]) % 4
+    return 1 + os.getpid() % 100
+
+
+#: one domain per test process (:func:`_domain_id`)
+DOMAIN_ID = _domain_id()
 
 
 def use_ros_environment(env: MutableMapping[str, str]) -> None:
