@@ -20,8 +20,9 @@ Draws, per signature id k (0, 1, ... in feed order) from the scene seed's stream
 variate per signature, taken in order: signature k's ``δ_k`` depends only on (seed,
 k), never on the horizon or on other effects.
 
-* ``normal``: ``δ = σ z``, z standard normal truncated at ±:data:`TRUNCATE` (clipped;
-  the mass beyond, 2e-9, is put on the bound);
+* ``normal``: ``δ = σ z``, z standard normal truncated at
+  ±:data:`folder_line.core.numerics.rng.TRUNCATE` (clipped; the mass beyond, 2e-9, is
+  put on the bound);
 * ``uniform``: ``δ`` uniform on ``[-√3 σ, √3 σ)`` (the same σ).
 
 Only F: the layup's leaf stream has its own timing scatter (``sheets.jitter``).
@@ -36,27 +37,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.core.numerics.rng import stream
+from folder_line.core.numerics.rng import TRUNCATE, draws_from, standard_draws
 from folder_line.core.numerics.validate import among, check_fields, non_negative
 from folder_line.errors import ParameterError
 
 __all__ = [
     'DISTRIBUTIONS',
     'STREAM',
-    'TRUNCATE',
     'Params',
     'check_travel',
     'draw_offsets',
-    'draws_from',
     'half_width',
     'offsets_from',
-    'standard_draws',
 ]
 
 #: the distributions of δ
 DISTRIBUTIONS = ('normal', 'uniform')
-#: a normal δ is clipped at this many σ
-TRUNCATE = 6.0
 #: name of the seeded stream
 STREAM = 'folder.arrival_jitter'
 
@@ -93,23 +89,6 @@ def check_travel(params: Params, L_feed: float) -> None:
             params.sigma,
             f'the largest offset {half_width(params):g} mm must be below the feed travel {L_feed * 1e3:g} mm',
         )
-
-
-def standard_draws(distribution: str, seed: int, name: str, n: int) -> np.ndarray:
-    """``n`` unit-σ variates of ``distribution`` from stream ``name`` of ``seed``, item by item.
-
-    Item k depends only on (seed, name, k): the generators fill their output in order,
-    so the first m of n draws are the m draws. Normal: clipped at ±:data:`TRUNCATE`;
-    uniform: on ``[-√3, √3)``.
-    """
-    return draws_from(distribution, stream(seed, name), n)
-
-
-def draws_from(distribution: str, rng: np.random.Generator, n: int) -> np.ndarray:
-    """The next ``n`` unit-σ variates of ``distribution`` from ``rng`` (:func:`standard_draws`, streamed)."""
-    if distribution == 'normal':
-        return np.clip(rng.standard_normal(n), -TRUNCATE, TRUNCATE)
-    return (2.0 * rng.random(n) - 1.0) * math.sqrt(3.0)
 
 
 def offsets_from(params: Params, rng: np.random.Generator, n: int) -> np.ndarray:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.core.effects.arrival_jitter import TRUNCATE, draws_from, standard_draws
+from folder_line.core.numerics.rng import TRUNCATE, draws_from, standard_draws
 from folder_line.core.numerics.validate import check_fields, non_negative
 from folder_line.errors import ParameterError
 
