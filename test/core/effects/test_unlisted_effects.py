@@ -33,7 +33,7 @@ FAULTS = {
     'slowdown_duration': 0.15,
 }
 #: the effects the shipped ``line`` scene does not list, with parameters that make each do something
-EXTRA: dict[str, dict[str, object]] = {
+EXTRA: dict[str, Mapping[str, object]] = {
     'faults': FAULTS,
     'speed_ripple': {'amplitude': 0.05, 'frequency': 3.0},
     'arrival_jitter': {'distribution': 'uniform', 'sigma': 0.3},
@@ -97,7 +97,9 @@ def _scene(effects: Mapping[str, object]) -> Scene:
 
 
 def _every_effect() -> dict[str, object]:
-    return {**load_scene('line').source['effects'], **EXTRA}
+    listed = load_scene('line').source['effects']
+    assert isinstance(listed, Mapping)
+    return {**listed, **EXTRA}
 
 
 def _files_run(scene: Scene) -> tuple[set[Path], int]:
