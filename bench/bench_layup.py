@@ -24,7 +24,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from folder_line.config.params import load_params
-from folder_line.core.mechanisms.layup import TAU, LayupModel, layup_point
+from folder_line.core.mechanisms.layup import LayupModel, layup_point
+from folder_line.core.mechanisms.layup_angles import TAU
 
 
 def best_of(fn, repeats: int) -> float:

@@ -119,7 +119,7 @@ RECORDER = 'line_recorder'
 #: every node that can take part in the lockstep
 KNOWN_PARTICIPANTS: tuple[str, ...] = (*MACHINE_NODES, RECORDER)
 
-#: the core's machine units (:data:`folder_line.core.line.model.UNITS`) -> the node that runs each
+#: the core's machine units (:data:`folder_line.core.line.stream.UNITS`) -> the node that runs each
 NODE_OF_UNIT: dict[str, str] = {
     'drive': 'crank_drive',
     'belts': 'belt_conveyor',

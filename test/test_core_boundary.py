@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from folder_line.config.scenes import load_scene
-from folder_line.core.line.model import UNITS
+from folder_line.core.line.stream import UNITS
 from folder_line.interfaces import (
     EVENT_KINDS,
     EVENT_OWNER,
@@ -66,7 +66,7 @@ def test_the_check_catches_a_forbidden_import(tmp_path: Path) -> None:
 
 # --------------------------------------------------------------------------- units, not ROS node names
 
-#: every ROS node name of the line; the core names its machine units instead (core.line.model.UNITS)
+#: every ROS node name of the line; the core names its machine units instead (core.line.stream.UNITS)
 NODE_NAMES = frozenset({*KNOWN_PARTICIPANTS, LINE_CLOCK})
 #: node names that are also the name of a scene's machine section (user input: ``--set
 #: feed_transporter.V_tr=...``); the core may use them where they name that section

@@ -61,19 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from folder_line.accuracy.event_cases import (
-    DPS,
-    DRAG,
-    SPAN_FOLDER,
-    SPAN_LAYUP,
-    T_RAMP,
-    EventCase,
-    build_case,
-    exit_states,
-    front_stops_case,
-    leaf_landing_case,
-    reference_roots,
-)
+from folder_line.accuracy.event_cases import DPS, EventCase, front_stops_case, leaf_landing_case
 from folder_line.accuracy.measure import Row, cpu_budget, cpu_per_call
 from folder_line.core.numerics import roots
 from folder_line.core.numerics.arrays import FloatArray, IntArray
@@ -84,33 +72,22 @@ __all__ = [
     'CASES',
     'CHUNK_S',
     'COARSE_RATE',
-    'DPS',
-    'DRAG',
     'EXACT',
     'INTERP',
     'METHODS',
     'ROOT',
     'SAMPLING',
-    'SPAN_FOLDER',
-    'SPAN_LAYUP',
     'STUDY',
-    'T_RAMP',
     'Detection',
-    'EventCase',
-    'build_case',
     'check_counts',
     'detect',
     'detect_exact',
     'detect_root',
     'detect_sampling',
     'errors',
-    'exit_states',
-    'front_stops_case',
     'knob_settings',
-    'leaf_landing_case',
     'max_error',
     'measure_rows',
-    'reference_roots',
     'run',
 ]
 

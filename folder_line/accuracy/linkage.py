@@ -5,7 +5,7 @@ What is measured
 The L six-bar of ``config/layup.yaml`` (crank-rocker O1-A-B-O2 driving the double rocker
 O2-C-E-O3, docs/machines.md, "Default parameters"), crank at its nominal speed ``ω = params.omega``
 (π rad/s: one turn per ``PERIOD`` = 2 s). The outputs are the chute angles θ3 (O2C) and
-θ5 (O3E) and their rates ω3, ω5 (the joint outputs of :class:`~folder_line.core.mechanisms.layup.LayupPoint`).
+θ5 (O3E) and their rates ω3, ω5 (the joint outputs of :class:`~folder_line.core.mechanisms.layup_state.LayupPoint`).
 
 Convention of a simulated second: the line publishes the linkage at ``RATE`` = 1000 Hz,
 so one simulated second is 1000 evaluations at crank angles ``φ_k = ω k / RATE``; one

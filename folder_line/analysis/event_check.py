@@ -5,13 +5,12 @@
 once) window by window (:data:`~folder_line.analysis.streaming.WINDOW`) and compares its events
 with the recorded ones of the same window: the time to the ns (as a node publishes it), the kind,
 the sheet, the cycle and the value (:class:`EventCheck`). With ``t_from`` the stream is first
-fast-forwarded to ``t_from`` in windows of :data:`FAST_FORWARD` s, keeping nothing.
+fast-forwarded to ``t_from`` in windows of :data:`~folder_line.core.line.model.WINDOW` s, keeping nothing.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -22,14 +21,48 @@ from folder_line.core.line.model import WINDOW as FAST_FORWARD
 from folder_line.core.line.stream import LineStream
 from folder_line.core.types.events import EVENT_KINDS
 from folder_line.errors import FolderLineError
+from folder_line.files.json_types import JsonObject
 from folder_line.interfaces import NS_PER_S
 
-__all__ = ['FAST_FORWARD', 'MAX_DIFFERENCES', 'EventCheck', 'compare_events']
+__all__ = ['MAX_DIFFERENCES', 'EventCheck', 'EventDifference', 'compare_events']
 
 #: the differences between the recorded events and the model's listed at most
 MAX_DIFFERENCES = 10
 #: an event this close (ns) before a window's end may round into the next window: compared there too
 _CARRY_NS = 1000
+
+
+@dataclass(frozen=True)
+class EventDifference:
+    """A recorded event the line model has not, or with another value (or the model's the recording has not).
+
+    Attributes
+    ----------
+    t : float
+        The event's time, s (its ns).
+    kind : str
+    sheet, cycle : int
+    recorded, model : float or None
+        The event's value on each side; None where the event is missing.
+    """
+
+    t: float
+    kind: str
+    sheet: int
+    cycle: int
+    recorded: float | None
+    model: float | None
+
+    def as_json(self) -> JsonObject:
+        """``{'t', 'kind', 'sheet', 'cycle', 'recorded', 'model'}``."""
+        return {
+            't': self.t,
+            'kind': self.kind,
+            'sheet': self.sheet,
+            'cycle': self.cycle,
+            'recorded': self.recorded,
+            'model': self.model,
+        }
 
 
 @dataclass
@@ -51,9 +84,8 @@ class EventCheck:
         (0 if none).
     recorded_only, model_only : int
         Events with no counterpart on the other side.
-    differences : list of dict
-        The first :data:`MAX_DIFFERENCES` differences: ``t`` (s), ``kind``, ``sheet``, ``cycle``,
-        ``recorded``, ``model`` (the values; None where the event is missing).
+    differences : list of EventDifference
+        The first :data:`MAX_DIFFERENCES` differences.
     windows : int
         Windows of the model compared.
     error : str or None
@@ -69,7 +101,7 @@ class EventCheck:
     largest_difference: float = 0.0
     recorded_only: int = 0
     model_only: int = 0
-    differences: list[dict[str, Any]] = field(default_factory=list)
+    differences: list[EventDifference] = field(default_factory=list)
     windows: int = 0
     error: str | None = None
 
@@ -78,7 +110,7 @@ class EventCheck:
         """Every recorded event is the model's, value bit for bit, and none is missing."""
         return self.error is None and self.values_differ == 0 and self.recorded_only == 0 and self.model_only == 0
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_json(self) -> JsonObject:
         """JSON-ready, with :meth:`text` as ``text``."""
         return {
             'agree': self.agree,
@@ -92,7 +124,7 @@ class EventCheck:
             'largest_difference': self.largest_difference,
             'recorded_only': self.recorded_only,
             'model_only': self.model_only,
-            'differences': list(self.differences),
+            'differences': [d.as_json() for d in self.differences],
             'windows': self.windows,
             'error': self.error,
         }
@@ -141,18 +173,18 @@ class _Comparison:
         self.rec_carry = np.zeros(0, dtype=_KEY)
         self.mod_carry = np.zeros(0, dtype=_KEY)
 
-    def _differ(self, row: Any, recorded: float | None, model: float | None) -> None:
+    def _differ(self, row: np.void, recorded: float | None, model: float | None) -> None:
         ck = self.check
         if len(ck.differences) < MAX_DIFFERENCES:
             ck.differences.append(
-                {
-                    't': int(row['ns']) / NS_PER_S,
-                    'kind': EVENT_KINDS[int(row['kind'])],
-                    'sheet': int(row['sheet']),
-                    'cycle': int(row['cycle']),
-                    'recorded': recorded,
-                    'model': model,
-                }
+                EventDifference(
+                    int(row['ns']) / NS_PER_S,
+                    EVENT_KINDS[int(row['kind'])],
+                    int(row['sheet']),
+                    int(row['cycle']),
+                    recorded,
+                    model,
+                )
             )
 
     def window(self, recorded: np.ndarray, model: np.ndarray, end_ns: int | None) -> None:

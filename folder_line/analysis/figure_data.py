@@ -17,7 +17,7 @@ event, and the points drawn one per event (the leaves' exits and landings) are k
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,11 +30,17 @@ from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
 from folder_line.core.types.events import event_kind
+from folder_line.files.json_types import JsonObject
 from folder_line.interfaces import NODE_OF_UNIT, NS_PER_S
 
 __all__ = [
     'GANTT_CYCLES',
     'LEAF_POINTS',
+    'CycleRow',
+    'ExitCount',
+    'Landings',
+    'LeafExits',
+    'SheetTimes',
     'at_speed_time',
     'cycle_rows',
     'efficiency_data',
@@ -51,6 +57,164 @@ LEAF_POINTS = 5000
 
 #: the supervisor's state of a line running at speed
 _AT_SPEED_STATE = 'EXECUTE'
+
+
+@dataclass(frozen=True)
+class SheetTimes:
+    """A signature's operations in a cycle of the cyclogram, s (None where not recorded).
+
+    Attributes
+    ----------
+    sheet : int
+    handover : float
+        Handed over to the folder.
+    at_stops, settled : float or None
+        At the stops; settled there (``at_stops`` without ``stop_bounce``).
+    release : float or None
+        Released on the pile.
+    """
+
+    sheet: int
+    handover: float
+    at_stops: float | None
+    settled: float | None
+    release: float | None
+
+    def as_json(self) -> JsonObject:
+        """``{'sheet', 'handover', 'at_stops', 'settled', 'release'}``."""
+        return {
+            'sheet': self.sheet,
+            'handover': self.handover,
+            'at_stops': self.at_stops,
+            'settled': self.settled,
+            'release': self.release,
+        }
+
+
+@dataclass(frozen=True)
+class CycleRow:
+    """A folder cycle of the cyclogram: its operations' times and its margins.
+
+    Attributes
+    ----------
+    cycle : int
+    start : float
+        The knife exit that opens the cycle's feed window, s.
+    contact : float
+        Its knife's contact, s.
+    exit : float or None
+        Its knife's exit, s (None if not recorded).
+    deadline : float
+        End of the allowed feed time, s.
+    sheets : list of SheetTimes
+        Its signatures.
+    margins : dict of str to float
+        Folder constraint -> margin of the cycle (SI units), in the line's order.
+    """
+
+    cycle: int
+    start: float
+    contact: float
+    exit: float | None
+    deadline: float
+    sheets: list[SheetTimes]
+    margins: dict[str, float]
+
+    def as_json(self) -> JsonObject:
+        """``{'cycle', 'start', 'contact', 'exit', 'deadline', 'sheets', 'margins'}``."""
+        return {
+            'cycle': self.cycle,
+            'start': self.start,
+            'contact': self.contact,
+            'exit': self.exit,
+            'deadline': self.deadline,
+            'sheets': [s.as_json() for s in self.sheets],
+            'margins': dict(self.margins),
+        }
+
+
+@dataclass(frozen=True)
+class ExitCount:
+    """The exits of a chute's leaves, counted.
+
+    Attributes
+    ----------
+    count : int
+        Every exit.
+    off_speed : int
+        Those where the line was not at speed (the start-up, holds and stops; :func:`off_speed`).
+    start_up : int
+        Of those, the ones before the drive first reached speed.
+    """
+
+    count: int = 0
+    off_speed: int = 0
+    start_up: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class LeafExits:
+    """The leaves' exits from the chutes (:func:`leaf_exit_data`): every one counted, some drawn.
+
+    Attributes
+    ----------
+    tally : dict of str to ExitCount
+        ``'C'`` and ``'E'`` (the exits of odd and even leaves) -> their exits counted.
+    t : ndarray
+        The exits drawn, s.
+    deg : ndarray
+        Their crank angles, degrees in [0, 360).
+    value : ndarray
+        Their absolute exit speeds, m/s.
+    at_e, off : ndarray of bool
+        At E (an even leaf); off speed.
+    fraction : float
+        Of the exits drawn (1: every one).
+    """
+
+    tally: dict[str, ExitCount]
+    t: np.ndarray
+    deg: np.ndarray
+    value: np.ndarray
+    at_e: np.ndarray
+    off: np.ndarray
+    fraction: float
+
+
+@dataclass(frozen=True, eq=False)
+class Landings:
+    """The leaves' landing positions (:func:`landing_data`): the histogram of every one, some drawn.
+
+    Attributes
+    ----------
+    x : ndarray
+        The landing positions drawn, m.
+    spilled : ndarray
+        The positions drawn of the leaves spilled over a wall, m.
+    landed, spilled_count : int
+        Every leaf landed, spilled.
+    fraction : float
+        Of the leaves drawn (1: every one).
+    edges : ndarray
+        The histogram's bin edges across the container, m.
+    counts : ndarray
+        Leaves landed per bin.
+    cv : float or None
+        std/mean of the counts (None if no leaf landed).
+    x_left, x_right : float
+        The container's walls, m.
+    """
+
+    x: np.ndarray
+    spilled: np.ndarray
+    landed: int
+    spilled_count: int
+    fraction: float
+    edges: np.ndarray
+    counts: np.ndarray
+    cv: float | None
+    x_left: float
+    x_right: float
 
 
 def at_speed_time(rec: Recording, ev: Evaluation) -> float:
@@ -209,7 +373,7 @@ def _cycle_events(rec: Recording, cycles: np.ndarray) -> np.ndarray:
     return np.concatenate(parts) if parts else rec.events[:0]
 
 
-def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[dict[str, Any]]:
+def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[CycleRow]:
     """The first ``n`` judged folder cycles (and the first violated one with its neighbours): the
     operations' times and the margins.
 
@@ -224,12 +388,8 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
 
     Returns
     -------
-    list of dict
-        Per cycle: ``cycle``, ``start`` (knife exit that opens the cycle's feed window,
-        s), ``contact``, ``exit`` (its knife, s; ``exit`` None if not recorded),
-        ``deadline`` (end of the allowed feed time, s), ``sheets`` (list of dicts
-        ``sheet``, ``handover``, ``at_stops``, ``settled``, ``release``, None where
-        absent) and ``margins`` (constraint -> margin of the cycle).
+    list of CycleRow
+        Per cycle, ascending.
 
     Raises
     ------
@@ -263,7 +423,7 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
     contact, exits, hand = of('knife_contact'), of('knife_exit'), of('sheet_handover')
     stops, settled, release = of('at_stops'), of('settled'), of('released_on_pile')
     bouncing = rec.scene.has('stop_bounce')
-    out = []
+    out: list[CycleRow] = []
     for k, t0 in zip(cycles.tolist(), t_start.tolist(), strict=True):
         tc = first_time(contact, 'cycle', k)
         if tc is None:  # a neighbour decided before the span shown
@@ -274,30 +434,30 @@ def cycle_rows(rec: Recording, ev: Evaluation, n: int = GANTT_CYCLES) -> list[di
             sid = int(s['sheet'])
             t_a = first_time(stops, 'sheet', sid)
             sheets.append(
-                {
-                    'sheet': sid,
-                    'handover': float(s['t']),
-                    'at_stops': t_a,
-                    'settled': first_time(settled, 'sheet', sid) if bouncing else t_a,
-                    'release': first_time(release, 'sheet', sid),
-                }
+                SheetTimes(
+                    sid,
+                    float(s['t']),
+                    t_a,
+                    first_time(settled, 'sheet', sid) if bouncing else t_a,
+                    first_time(release, 'sheet', sid),
+                )
             )
         margins = ev.cycle_margins.get(k, {})
         out.append(
-            {
-                'cycle': k,
-                'start': t0,
-                'contact': tc,
-                'exit': first_time(exits, 'cycle', k),
-                'deadline': float(np.asarray(drive.time_of(np.asarray(th_dead)))),
-                'sheets': sheets,
-                'margins': {name: margins[name] for name in FOLDER_CONSTRAINTS if name in margins},
-            }
+            CycleRow(
+                cycle=k,
+                start=t0,
+                contact=tc,
+                exit=first_time(exits, 'cycle', k),
+                deadline=float(np.asarray(drive.time_of(np.asarray(th_dead)))),
+                sheets=sheets,
+                margins={name: margins[name] for name in FOLDER_CONSTRAINTS if name in margins},
+            )
         )
     return out
 
 
-def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> dict[str, Any] | None:
+def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> LeafExits | None:
     """The leaves' exits from the chutes (``leaf_exit`` events), counted, and at most ``cap`` of them to draw.
 
     Parameters
@@ -310,11 +470,7 @@ def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> di
 
     Returns
     -------
-    dict or None
-        ``C`` and ``E`` (the exits of odd and even leaves): dicts of ``count``, ``off_speed`` (the
-        start-up, holds and stops) and ``start_up`` (before the drive reached speed), over every exit;
-        ``t`` (s), ``deg`` (crank angle, degrees in [0, 360)), ``value`` (absolute exit speed, m/s),
-        ``at_e`` and ``off`` (booleans) of the exits drawn; ``fraction`` drawn (1: every exit).
+    LeafExits or None
         None if no leaf left a chute.
     """
     kind = event_kind('leaf_exit')
@@ -324,7 +480,7 @@ def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> di
     t_speed = at_speed_time(rec, ev)
     dtype = np.dtype([('t', 'f8'), ('deg', 'f8'), ('value', 'f8'), ('at_e', '?'), ('off', '?')])
     kept = Thinned(cap, dtype)
-    tally = {name: {'count': 0, 'off_speed': 0, 'start_up': 0} for name in ('C', 'E')}
+    tally = {name: ExitCount() for name in ('C', 'E')}
     for part, ns in event_chunks(rec.events, rec.event_ns):
         mine = part['kind'] == kind
         exits = part[mine]
@@ -339,25 +495,20 @@ def leaf_exit_data(rec: Recording, ev: Evaluation, cap: int = LEAF_POINTS) -> di
         start_up = exits['t'] < t_speed
         for name, at_e in (('C', False), ('E', True)):
             m = rows['at_e'] == at_e
-            tally[name]['count'] += int(np.count_nonzero(m))
-            tally[name]['off_speed'] += int(np.count_nonzero(m & rows['off']))
-            tally[name]['start_up'] += int(np.count_nonzero(m & rows['off'] & start_up))
+            was = tally[name]
+            tally[name] = ExitCount(
+                was.count + int(np.count_nonzero(m)),
+                was.off_speed + int(np.count_nonzero(m & rows['off'])),
+                was.start_up + int(np.count_nonzero(m & rows['off'] & start_up)),
+            )
         kept.add(ns[mine], rows)
     if kept.seen == 0:
         return None
     r = kept.rows
-    return {
-        **tally,
-        't': r['t'],
-        'deg': r['deg'],
-        'value': r['value'],
-        'at_e': r['at_e'],
-        'off': r['off'],
-        'fraction': kept.fraction,
-    }
+    return LeafExits(tally, r['t'], r['deg'], r['value'], r['at_e'], r['off'], kept.fraction)
 
 
-def landing_data(rec: Recording, cap: int = LEAF_POINTS) -> dict[str, Any] | None:
+def landing_data(rec: Recording, cap: int = LEAF_POINTS) -> Landings | None:
     """The leaves' landing positions, or None without ``leaf_flight``.
 
     The histogram is the simulator's (:func:`folder_line.core.effects.leaf_flight.histogram`: the
@@ -366,10 +517,7 @@ def landing_data(rec: Recording, cap: int = LEAF_POINTS) -> dict[str, Any] | Non
 
     Returns
     -------
-    dict or None
-        ``x`` (landed, drawn, m), ``spilled`` (drawn, m), ``landed`` and ``spilled_count`` (every
-        leaf), ``fraction`` (of the leaves drawn; 1: every one), ``edges``, ``counts`` and ``cv`` of the
-        histogram across the container, ``x_left``, ``x_right`` (walls, m).
+    Landings or None
     """
     scene = rec.scene
     if not scene.has('leaf_flight') or 'container' not in scene.machines:
@@ -387,15 +535,15 @@ def landing_data(rec: Recording, cap: int = LEAF_POINTS) -> dict[str, Any] | Non
         s = part['kind'] == spilled_kind
         spilled.add(ns[s], part['value'][s])
     hist = leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right)
-    return {
-        'x': landed.rows,
-        'spilled': spilled.rows,
-        'landed': landed.seen,
-        'spilled_count': spilled.seen,
-        'fraction': min(landed.fraction, spilled.fraction),
-        'edges': np.asarray(hist.edges),
-        'counts': np.asarray(hist.counts),
-        'cv': hist.cv,
-        'x_left': float(cont.x_left),
-        'x_right': float(cont.x_right),
-    }
+    return Landings(
+        x=landed.rows,
+        spilled=spilled.rows,
+        landed=landed.seen,
+        spilled_count=spilled.seen,
+        fraction=min(landed.fraction, spilled.fraction),
+        edges=np.asarray(hist.edges),
+        counts=np.asarray(hist.counts),
+        cv=hist.cv,
+        x_left=float(cont.x_left),
+        x_right=float(cont.x_right),
+    )

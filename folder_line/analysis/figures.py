@@ -5,8 +5,8 @@ The papers' figures are drawn once -- the layup's exit speeds against the crank
 angle (paper L, figs. 4-5, :func:`~folder_line.analysis.paper_curves.exit_speed_curves`), the
 delivery's efficiency and carriage speed along the stroke (paper D, fig. 2,
 :func:`~folder_line.analysis.paper_curves.stroke_curves`; both in
-:mod:`folder_line.analysis.paper_curves`, re-exported here), the colours of the cyclogram's
-phases (paper F, figs. 1-2, :data:`PHASE_COLOURS`) -- so that the model curves of the report
+:mod:`folder_line.analysis.paper_curves`), the colours of the cyclogram's phases (paper F,
+figs. 1-2, :data:`~folder_line.analysis.colours.PHASE_COLOURS`) -- so that the model curves of the report
 of the defaults (:mod:`folder_line.cli.report`) and the curves the recorded points of a run are
 drawn against are the same.
 
@@ -56,8 +56,10 @@ from typing import Any
 import numpy as np
 
 from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
+from folder_line.analysis.exit_speed_points import ExitSpeedPoints, ExitSpeedText, draw_exit_speeds
 from folder_line.analysis.figure_data import (
     GANTT_CYCLES,
+    CycleRow,
     at_speed_time,
     cycle_rows,
     efficiency_data,
@@ -66,33 +68,28 @@ from folder_line.analysis.figure_data import (
     leaf_exit_data,
     off_speed,
 )
-from folder_line.analysis.paper_curves import COINCIDE_FRACTION, coincidence, exit_speed_curves, stroke_curves
+from folder_line.analysis.paper_curves import stroke_curves
 from folder_line.analysis.recording import RecordedJoints, Recording
 from folder_line.analysis.replay import ConstraintMargins, Evaluation
 from folder_line.core.effects import chain_friction
 from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
 from folder_line.core.mechanisms import delivery
+from folder_line.core.mechanisms.cyclogram import CycleTiming
 from folder_line.files.atomic import write_bytes_atomic
 from folder_line.interfaces import NODE_OF_UNIT
 
 __all__ = [
-    'COINCIDE_FRACTION',
     'DISPLAY_UNITS',
     'DPI',
     'FIGURES',
     'OPERATIONS',
-    'PHASE_COLOURS',
-    'QUANTITY_COLOURS',
-    'coincidence',
     'cyclogram_figure',
     'draw_figures',
     'efficiency_figure',
-    'exit_speed_curves',
     'exit_speeds_figure',
     'margin_bars',
     'pyplot',
     'save_figure',
-    'stroke_curves',
 ]
 
 #: figure file -> what it shows (the captions of report.md)
@@ -151,34 +148,6 @@ def _sampling(joints: RecordedJoints, drawn: int | None = None) -> str:
     return text
 
 
-def _recorded_exit_speeds(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, names: tuple[str, str]) -> None:
-    """Recorded exit speeds at speed: E as hollow squares under C's smaller dots (both visible where equal)."""
-    ax.plot(deg, v_c, 'o', ms=2.5, color=QUANTITY_COLOURS['vC'], alpha=0.8, zorder=3, label=f'recorded {names[0]}')
-    ax.plot(deg, v_e, 's', ms=4.5, color=QUANTITY_COLOURS['vE'], mfc='none', alpha=0.8, label=f'recorded {names[1]}')
-
-
-def _start_up_samples(
-    ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, t_speed: float, later: int = 0
-) -> None:
-    """Samples off speed: before the drive reached speed (t < ``t_speed``) and ``later`` ones of holds and
-    stops after it: grey crosses, one legend entry."""
-    if deg.size == 0:
-        return
-    colour = QUANTITY_COLOURS['start_up']
-    first = deg.size - later
-    if first and later:
-        label = (
-            f'start-up (before the drive reached speed, t < {t_speed:.3g} s) and {later} ticks of holds/stops after it'
-        )
-    elif first:
-        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s)'
-    else:
-        label = 'holds/stops (the drive ramping down or standing still)'
-    label += f': {deg.size} ticks'
-    ax.plot(deg, v_c, 'x', ms=3.5, color=colour, alpha=0.8, label=label)
-    ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
-
-
 def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation) -> None:
     """The leaves' exit speeds at their crank angles; those off speed (start-up, holds) hollow
     (:func:`~folder_line.analysis.figure_data.leaf_exit_data`: every exit counted, at most
@@ -186,21 +155,21 @@ def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation) -> None:
     data = leaf_exit_data(rec, ev)
     if data is None:
         return
-    drawn = '' if data['fraction'] >= 1.0 else f'; a pseudo-random 1/{round(1 / data["fraction"])} drawn'
+    drawn = '' if data.fraction >= 1.0 else f'; a pseudo-random 1/{round(1 / data.fraction)} drawn'
     for at_e, exit_name, marker in ((False, 'C', 'v'), (True, 'E', '^')):
-        tally = data[exit_name]
-        mine = data['at_e'] == at_e
-        early = data['off']
+        tally = data.tally[exit_name]
+        mine = data.at_e == at_e
+        early = data.off
         colour = QUANTITY_COLOURS[f'leaf_exit_{exit_name}']
-        n_early, n_start = tally['off_speed'], tally['start_up']
+        n_early, n_start = tally.off_speed, tally.start_up
         where = [f'{n_start} in the start-up'] if n_start else []
         where += [f'{n_early - n_start} in holds/stops'] if n_early > n_start else []
-        label = f'leaf exits at {exit_name} ({tally["count"]}'
+        label = f'leaf exits at {exit_name} ({tally.count}'
         label += f'; hollow: {", ".join(where)}' if n_early else ''
         label += drawn + ')'
-        ax.plot(data['deg'][mine & ~early], data['value'][mine & ~early], marker, ms=6, color=colour, label=label)
+        ax.plot(data.deg[mine & ~early], data.value[mine & ~early], marker, ms=6, color=colour, label=label)
         if n_early:
-            ax.plot(data['deg'][mine & early], data['value'][mine & early], marker, ms=6, color=colour, mfc='none')
+            ax.plot(data.deg[mine & early], data.value[mine & early], marker, ms=6, color=colour, mfc='none')
 
 
 def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
@@ -217,44 +186,22 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
     data = exit_speed_data(rec)
     if data is None:
         return None
-    plt = pyplot()
-    scene = rec.scene
-    crank = rec.joints[NODE_OF_UNIT['drive']]
-    lp = scene.machine('layup')
-    v_tr = float(lp.v_tr) if scene.has('chute_belts') else 0.0
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True)
-    exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
     t_speed = at_speed_time(rec, ev)
     early = off_speed(rec, ev, data['t'])
     later = int(np.count_nonzero(early & (data['t'] >= t_speed)))
-    deg = np.degrees(data['phi'])
-    for ax, c, e, names in (
-        (ax1, 'vC', 'vE', (r'$\omega_3 l_3$', r'$\omega_5 l_5$')),
-        (ax2, 'vaC', 'vaE', ('$v_{aC}$', '$v_{aE}$')),
-    ):
-        _recorded_exit_speeds(ax, deg[~early], data[c][~early], data[e][~early], names)
-        _start_up_samples(ax, deg[early], data[c][early], data[e][early], t_speed, later)
-    _leaf_exits(ax2, rec, ev)
-    if scene.has('chute_belts'):
-        vmin = float(scene.effect('chute_belts').v_min)
-        ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
-    ax1.set_ylabel('swing speed across the chute, m/s')
-    ax1.set_title(
-        'L: exit speeds (lines: model at nominal speed; paper Fig. 4)\n'
-        f'{_sampling(crank, data["t"].size)} over {rec.t_end:.3f} s',
-        fontsize=10,
+    points = ExitSpeedPoints(
+        np.degrees(data['phi']), data['vC'], data['vE'], data['vaC'], data['vaE'], early, later, t_speed
     )
-    ax1.legend(loc='best', fontsize=7.5)
-    ax2.set_ylabel('absolute exit speed, m/s')
-    ax2.set_xlabel(r'crank angle $\varphi$, deg')
     belts = rec.joints.get(NODE_OF_UNIT['belts'])
-    if scene.has('chute_belts') and belts is not None and 'chute_belts' in belts.names and belts.count:
+    if rec.scene.has('chute_belts') and belts is not None and 'chute_belts' in belts.names and belts.count:
         lo, hi = belts.extent('chute_belts', 'velocity')  # over every recorded sample, not only those drawn
         belt = f'recorded belt speed {lo:.3f}..{hi:.3f} m/s'
     else:
         belt = 'no belts'
-    ax2.set_title(f'L: absolute exit speeds with the belts ({belt}; paper Fig. 5)', fontsize=10)
-    ax2.legend(loc='best', fontsize=7.5, ncol=2)
+    sampling = f'{_sampling(rec.joints[NODE_OF_UNIT["drive"]], data["t"].size)} over {rec.t_end:.3f} s'
+    text = ExitSpeedText('recorded', sampling, belt, holds_after=' after it')
+    fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 8), sharex=True)
+    draw_exit_speeds((ax1, ax2), rec.scene, points, text, lambda ax: _leaf_exits(ax, rec, ev))
     fig.tight_layout()
     return fig
 
@@ -368,7 +315,7 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
         return None
     shown = (
         f'the first {len(rows)}'
-        if [r['cycle'] for r in rows] == list(range(len(rows)))
+        if [r.cycle for r in rows] == list(range(len(rows)))
         else f'the first {n} and the first violated'
     )
     title = (
@@ -378,7 +325,7 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
     return save_figure(cyclogram_figure(rows, timing, title), out / 'cyclogram.png')
 
 
-def cyclogram_figure(rows: Sequence[Mapping[str, Any]], timing: Any, title: str, unjudged: str = '') -> Any:
+def cyclogram_figure(rows: Sequence[CycleRow], timing: CycleTiming, title: str, unjudged: str = '') -> Any:
     """The cyclogram of the cycles ``rows`` (:func:`~folder_line.analysis.figure_data.cycle_rows`'s) under
     the nominal cycle of ``timing`` (a :class:`~folder_line.core.mechanisms.cyclogram.CycleTiming`), titled
     ``title``; ``unjudged`` is written for a cycle without margins."""
@@ -399,15 +346,15 @@ def cyclogram_figure(rows: Sequence[Mapping[str, Any]], timing: Any, title: str,
         x_max = max(x_max, _cycle_bars(ax, i, row, colours))
     text_x = x_max * 1.03
     for i, row in enumerate(rows):
-        bad = any(m < 0.0 for m in row['margins'].values())
-        text = _margin_text(row['margins']) or unjudged
+        bad = any(m < 0.0 for m in row.margins.values())
+        text = _margin_text(row.margins) or unjudged
         ax.text(text_x, i, text, va='center', fontsize=7.5, color='r' if bad else 'k')
     ax.text(text_x, -1, 'margins of the cycle', va='center', fontsize=8, style='italic')
-    ax.set_yticks([-1, *range(len(rows))], ['nominal'] + [f'cycle {r["cycle"]}' for r in rows])
+    ax.set_yticks([-1, *range(len(rows))], ['nominal'] + [f'cycle {r.cycle}' for r in rows])
     for i, (label, row) in enumerate(zip(ax.get_yticklabels()[1:], rows, strict=True)):
-        if any(m < 0.0 for m in row['margins'].values()):
+        if any(m < 0.0 for m in row.margins.values()):
             label.set_color('r')
-        if i and row['cycle'] != rows[i - 1]['cycle'] + 1:  # cycles left out
+        if i and row.cycle != rows[i - 1].cycle + 1:  # cycles left out
             ax.axhline(i - 0.5, color='grey', ls='--', lw=0.8)
     ax.invert_yaxis()
     ax.set_xlim(0, x_max * 1.9)
@@ -426,22 +373,22 @@ def cyclogram_figure(rows: Sequence[Mapping[str, Any]], timing: Any, title: str,
     return fig
 
 
-def _cycle_bars(ax: Any, i: int, row: Mapping[str, Any], colours: Mapping[str, str]) -> float:
+def _cycle_bars(ax: Any, i: int, row: CycleRow, colours: Mapping[str, str]) -> float:
     """The operations of one cycle drawn on row ``i``; the latest time drawn, ms from the cycle's start."""
     ms = 1e3
-    t0 = row['start']
+    t0 = row.start
     x_max = 0.0
-    h = 0.6 / max(len(row['sheets']), 1)
-    for j, s in enumerate(row['sheets']):
+    h = 0.6 / max(len(row.sheets), 1)
+    for j, s in enumerate(row.sheets):
         y = i - 0.3 + h * (j + 0.5)
-        settled = s['settled'] if s['settled'] is not None and s['settled'] <= row['contact'] else None
-        segs = [
-            ('А', s['handover'], s['at_stops'], None),
-            ('Б', s['at_stops'], s['settled'], '////'),
-            ('Б', s['settled'], row['contact'] if settled is not None else None, None),
+        settled = s.settled if s.settled is not None and s.settled <= row.contact else None
+        segs: list[tuple[str, float | None, float | None, str | None]] = [
+            ('А', s.handover, s.at_stops, None),
+            ('Б', s.at_stops, s.settled, '////'),
+            ('Б', s.settled, row.contact if settled is not None else None, None),
         ]
-        if s['release'] is not None and row['exit'] is not None:
-            segs.append(('Г', row['exit'], s['release'], None))
+        if s.release is not None and row.exit is not None:
+            segs.append(('Г', row.exit, s.release, None))
         for letter, a, b, hatch in segs:
             if a is None or b is None or b < a:
                 continue
@@ -456,20 +403,20 @@ def _cycle_bars(ax: Any, i: int, row: Mapping[str, Any], colours: Mapping[str, s
                 edgecolor='white' if hatch else None,
             )
             x_max = max(x_max, (b - t0) * ms)
-    if not row['sheets']:
+    if not row.sheets:
         ax.text(1.0, i, 'no signature (missing)', va='center', fontsize=8, color='r')
-    if row['exit'] is not None:
+    if row.exit is not None:
         ax.barh(
             i,
-            (row['exit'] - row['contact']) * ms,
-            left=(row['contact'] - t0) * ms,
+            (row.exit - row.contact) * ms,
+            left=(row.contact - t0) * ms,
             height=0.6,
             color=colours['В'],
             alpha=0.8,
         )
-        x_max = max(x_max, (row['exit'] - t0) * ms)
-    ax.plot([(row['deadline'] - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
-    return max(x_max, float((row['deadline'] - t0) * ms))
+        x_max = max(x_max, (row.exit - t0) * ms)
+    ax.plot([(row.deadline - t0) * ms] * 2, [i - 0.38, i + 0.38], color='k', lw=2)
+    return max(x_max, float((row.deadline - t0) * ms))
 
 
 #: a quantity's display scale and unit, by its SI unit
@@ -558,8 +505,8 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
         return None
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 4.5))
-    edges, counts = data['edges'], data['counts']
-    thinned = data['fraction'] < 1.0
+    edges, counts = data.edges, data.counts
+    thinned = data.fraction < 1.0
     ax.bar(
         edges[:-1],
         counts,
@@ -569,31 +516,31 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
         edgecolor='white',
         label=f'landed ({int(counts.sum())})',
     )
-    if data['spilled'].size:
+    if data.spilled.size:
         ax.plot(
-            data['spilled'],
-            np.zeros(data['spilled'].size),
+            data.spilled,
+            np.zeros(data.spilled.size),
             'x',
             color='tab:red',
             ms=8,
             mew=2,
-            label=f'spilled over a wall ({data["spilled_count"]})',
+            label=f'spilled over a wall ({data.spilled_count})',
         )
     ax.plot(
-        data['x'],
-        np.full(data['x'].size, -0.04 * max(counts.max(initial=1), 1)),
+        data.x,
+        np.full(data.x.size, -0.04 * max(counts.max(initial=1), 1)),
         '|',
         color='k',
         ms=10,
-        label=f'landing x of a pseudo-random 1/{round(1 / data["fraction"])} of the leaves'
+        label=f'landing x of a pseudo-random 1/{round(1 / data.fraction)} of the leaves'
         if thinned
         else 'landing x of each leaf',
     )
-    for wall in (data['x_left'], data['x_right']):
+    for wall in (data.x_left, data.x_right):
         ax.axvline(wall, color='k', lw=3)
-    width = data['x_right'] - data['x_left']
-    ax.set_xlim(data['x_left'] - 0.1 * width, data['x_right'] + 0.1 * width)
-    cv = 'n/a' if data['cv'] is None else f'{data["cv"]:.3f}'
+    width = data.x_right - data.x_left
+    ax.set_xlim(data.x_left - 0.1 * width, data.x_right + 0.1 * width)
+    cv = 'n/a' if data.cv is None else f'{data.cv:.3f}'
     ax.set_title(
         f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}) over {rec.t_end:.3f} s',
         fontsize=10,

@@ -26,8 +26,7 @@ The recorded events against the model, the supervisor replayed
 :mod:`folder_line.analysis.event_check` compares the recorded events with the streamed line
 model's (:func:`~folder_line.analysis.event_check.compare_events`);
 :mod:`folder_line.analysis.supervisor_replay` replays the supervisor on the recorded inputs
-(:func:`~folder_line.analysis.supervisor_replay.replay_transitions`). This module re-exports
-their names.
+(:func:`~folder_line.analysis.supervisor_replay.replay_transitions`).
 """
 
 from __future__ import annotations
@@ -35,24 +34,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from folder_line.analysis.event_check import FAST_FORWARD, EventCheck, compare_events
 from folder_line.analysis.recording import Recording
 from folder_line.analysis.streaming import CHUNK, WINDOW, MarginHistogram, window_ends
-from folder_line.analysis.supervisor_replay import (
-    KEY_SUPERVISOR,
-    SUPERVISOR_DEFAULTS,
-    recorded_transitions,
-    replay_transitions,
-    supervisor_parameters,
-    transitions_agree,
-)
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
 from folder_line.core.line.drives import make_drive
+from folder_line.core.line.line_summary import MarginFigures, SpanSummary, ViolationRecord, Violations
 from folder_line.core.line.stream import ConstraintTally
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.drive import Drive
@@ -62,20 +52,10 @@ from folder_line.interfaces import NS_PER_S
 
 __all__ = [
     'CYCLES_KEPT',
-    'FAST_FORWARD',
-    'KEY_SUPERVISOR',
-    'SUPERVISOR_DEFAULTS',
-    'WINDOW',
     'ConstraintMargins',
     'Evaluation',
-    'EventCheck',
     'Violation',
-    'compare_events',
     'evaluate',
-    'recorded_transitions',
-    'replay_transitions',
-    'supervisor_parameters',
-    'transitions_agree',
 ]
 
 #: folder cycles whose margins :func:`evaluate` keeps by default (the first ones, for the cyclogram)
@@ -234,10 +214,8 @@ class Evaluation:
     cycle_margins : dict of int to dict of str to float
         The folder constraints' margins of the cycles of ``first_cycles`` and ``around_violated``.
     cycles, sheets_counted : int
-    summary : dict
-        The ``simulate``-style summary of the recorded events (as
-        :meth:`folder_line.core.line.stream.LineStream.summary` words it, without the parts'
-        figures), every violation listed.
+    summary : SpanSummary
+        The ``simulate``-style summary of the recorded events, every violation listed.
     keep_cycles : int
         The first folder cycles whose margins were kept (``evaluate``'s ``keep_cycles``).
     windows : int
@@ -255,7 +233,7 @@ class Evaluation:
     cycle_margins: dict[int, dict[str, float]]
     cycles: int
     sheets_counted: int
-    summary: dict[str, Any]
+    summary: SpanSummary
     keep_cycles: int = CYCLES_KEPT
     windows: int = 0
 
@@ -427,9 +405,7 @@ def evaluate(
     violations.sort(key=lambda v: (v.cycle, v.constraint))
     counts = dict(zip(EVENT_KINDS, judge.kinds.tolist(), strict=True))
     cycles, sheets = judge.cycles_and_sheets(rec, t_from, counts)
-    summary = _summary(rec, t_from, judge.margins, violations, counts)
-    summary['cycles'] = cycles
-    summary['sheets_counted'] = sheets
+    summary = _summary(rec, t_from, judge.margins, violations, counts, (cycles, sheets))
     shown = judge.shown
     return Evaluation(
         drive=judge.drive,
@@ -455,34 +431,25 @@ def _summary(
     margins: Mapping[str, ConstraintMargins],
     violations: Sequence[Violation],
     counts: Mapping[str, int],
-) -> dict[str, Any]:
-    """The ``simulate`` summary's words for the recorded events (every violation listed)."""
+    cycles_and_sheets: tuple[int, int],
+) -> SpanSummary:
+    """The ``simulate`` summary's numbers for the recorded events (every violation listed)."""
     scene = rec.scene
-    min_margin: dict[str, dict[str, Any]] = {}
-    for name, cm in margins.items():
-        tl = cm.tally
-        if tl.evaluations:
-            min_margin[name] = {
-                'margin': tl.min_margin,
-                'unit': tl.unit,
-                'cycle': tl.min_cycle,
-                'evaluations': tl.evaluations,
-                'violations': tl.violations,
-            }
-    return {
-        'scene': scene.name,
-        'duration_s': max(rec.t_end - t_from, 1e-9),
-        'seed': scene.seed,
-        'effects': list(scene.effects),
-        'cycles': 0,
-        'sheets_counted': 0,
-        'violations': {
-            'count': len(violations),
-            'first': [
-                {'cycle': v.cycle, 'constraint': v.constraint, 'margin': v.margin, 'unit': v.unit} for v in violations
-            ],
-        },
-        'min_margin_s': {k: v['margin'] for k, v in min_margin.items() if v['unit'] == 's'},
-        'min_margin': min_margin,
-        'events': {k: n for k, n in counts.items() if n},
+    min_margin = {
+        name: MarginFigures(tl.min_margin, tl.unit, tl.min_cycle, tl.evaluations, tl.violations)
+        for name, tl in ((name, cm.tally) for name, cm in margins.items())
+        if tl.evaluations
     }
+    return SpanSummary(
+        scene=scene.name,
+        duration_s=max(rec.t_end - t_from, 1e-9),
+        seed=scene.seed,
+        effects=list(scene.effects),
+        cycles=cycles_and_sheets[0],
+        sheets_counted=cycles_and_sheets[1],
+        violations=Violations(
+            len(violations), [ViolationRecord(v.cycle, v.constraint, v.margin, v.unit) for v in violations]
+        ),
+        min_margin=min_margin,
+        events={k: n for k, n in counts.items() if n},
+    )

@@ -47,10 +47,17 @@ from folder_line.analysis.figure_data import GANTT_CYCLES
 from folder_line.analysis.figures import FIGURES, draw_figures
 from folder_line.analysis.recording import Recording, read_recording
 from folder_line.analysis.replay import Evaluation, evaluate
-from folder_line.analysis.supervisor_replay import recorded_transitions, replay_transitions, transitions_agree
-from folder_line.bag.gaps import Gap, describe_gaps
+from folder_line.analysis.summary import AnalysisSummary
+from folder_line.analysis.supervisor_replay import (
+    StateTransition,
+    recorded_transitions,
+    replay_transitions,
+    transitions_agree,
+)
+from folder_line.bag.gaps import describe_gaps
 from folder_line.bag.metadata import files_text
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, margin_at, margin_text
+from folder_line.core.supervision.records import Violation as SupervisorViolation
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.files.atomic import claim_output_dir, write_text_atomic
 from folder_line.interfaces import NS_PER_S
@@ -72,13 +79,8 @@ class AnalysisResult:
         Figure file name -> path, for the figures the scene has.
     csv : dict of str to Path
         Topic -> its CSV (empty without ``csv=True``).
-    summary : dict
-        The numbers of the report: ``scene``, ``t_end``, ``cycles``,
-        ``sheets_counted``, ``sheet_counter``, ``min_margin`` (per constraint:
-        ``margin``, ``unit``, ``cycle``, ``evaluations``, ``violations``),
-        ``violations`` (count and every one), ``events`` (count per kind),
-        ``transitions``, ``transitions_source``, ``replay_matches``, ``events_check``
-        (:meth:`~folder_line.analysis.event_check.EventCheck.as_dict`), ``messages``, ``lost``.
+    summary : AnalysisSummary
+        The numbers of the report.
     recording : Recording
     evaluation : Evaluation
         The recorded events judged (:func:`folder_line.analysis.replay.evaluate`): every
@@ -91,7 +93,7 @@ class AnalysisResult:
     report: Path
     figures: dict[str, Path]
     csv: dict[str, Path]
-    summary: dict[str, Any]
+    summary: AnalysisSummary
     recording: Recording
     evaluation: Evaluation
     events_check: EventCheck
@@ -106,7 +108,7 @@ def _report_lines(
     rec: Recording,
     ev: Evaluation,
     check: EventCheck,
-    summary: dict[str, Any],
+    summary: AnalysisSummary,
     figures: Mapping[str, Path],
     csv_files: Mapping[str, Path],
 ) -> list[str]:
@@ -122,7 +124,7 @@ def _report_lines(
     ]
 
 
-def _head_lines(rec: Recording, check: EventCheck, summary: Mapping[str, Any]) -> list[str]:
+def _head_lines(rec: Recording, check: EventCheck, summary: AnalysisSummary) -> list[str]:
     """The title, the run's description and the summary table."""
     scene = rec.scene
     bag = rec.bag
@@ -132,7 +134,7 @@ def _head_lines(rec: Recording, check: EventCheck, summary: Mapping[str, Any]) -
         f'- bag: `{bag.path}` ({files_text(len(bag.files))}, {bag.message_count} messages)',
         f'- effects: {", ".join(scene.effects) or "none"}; seed {scene.seed}',
         f'- line time reached: {rec.t_end:.9g} s'
-        + (f'; window analysed: {summary["t_from"]:.9g} .. {rec.t_end:.9g} s' if summary.get('t_from') else '')
+        + (f'; window analysed: {summary.t_from:.9g} .. {rec.t_end:.9g} s' if summary.t_from else '')
         + '; drive commands and tunings recorded: '
         + (', '.join(f'{c.kind} at {c.t:.9g} s' for c in rec.commands) or 'none'),
         (
@@ -153,14 +155,14 @@ def _head_lines(rec: Recording, check: EventCheck, summary: Mapping[str, Any]) -
         '',
         '| quantity | value |',
         '|---|---|',
-        f'| cycles | {summary["cycles"]} |',
-        f'| sheets counted | {summary["sheets_counted"]} |',
+        f'| cycles | {summary.cycles} |',
+        f'| sheets counted | {summary.sheets_counted} |',
         (
             f'| sheets counted by sheet_counter (last /line/sheet_counter/count) | '
             f'{"-" if rec.sheet_count is None else rec.sheet_count} |'
         ),
         f'| events | {int(rec.events.size)} |',
-        f'| violations | {summary["violations"]["count"]} |',
+        f'| violations | {summary.violations.count} |',
         f"| recorded events equal to the line model's | {'yes' if check.agree else 'no'} |",
     ]
     if rec.bad_events:
@@ -179,9 +181,9 @@ def _model_lines(check: EventCheck) -> list[str]:
     if check.differences:
         lines += ['', '| t, s | kind | sheet | cycle | recorded value | model value |', '|---|---|---|---|---|---|']
         lines += [
-            f'| {d["t"]:.9f} | {d["kind"]} | {d["sheet"]} | {d["cycle"]} | '
-            f'{"-" if d["recorded"] is None else repr(d["recorded"])} | '
-            f'{"-" if d["model"] is None else repr(d["model"])} |'
+            f'| {d.t:.9f} | {d.kind} | {d.sheet} | {d.cycle} | '
+            f'{"-" if d.recorded is None else repr(d.recorded)} | '
+            f'{"-" if d.model is None else repr(d.model)} |'
             for d in check.differences
         ]
         more = check.values_differ + check.recorded_only + check.model_only - len(check.differences)
@@ -190,10 +192,10 @@ def _model_lines(check: EventCheck) -> list[str]:
     return lines
 
 
-def _constraint_lines(summary: Mapping[str, Any]) -> list[str]:
+def _constraint_lines(summary: AnalysisSummary) -> list[str]:
     """The events counted by kind and every constraint's smallest margin, with what the margins mean."""
     lines = ['', '## Events', '', '| kind | count |', '|---|---|']
-    lines += [f'| {k} | {n} |' for k, n in summary['events'].items()]
+    lines += [f'| {k} | {n} |' for k, n in summary.events.items()]
     lines += [
         '',
         '## Constraints',
@@ -203,30 +205,30 @@ def _constraint_lines(summary: Mapping[str, Any]) -> list[str]:
         '| constraint | evaluations | smallest margin | at | violations |',
         '|---|---|---|---|---|',
     ]
-    for name, m in summary['min_margin'].items():
+    for name, m in summary.min_margin.items():
         lines.append(
-            f'| {name} | {m["evaluations"]} | {_margin(name, m["margin"], m["unit"])} | {margin_at(name, m["cycle"])} '
-            f'| {m["violations"]} |'
+            f'| {name} | {m.evaluations} | {_margin(name, m.margin, m.unit)} | {margin_at(name, m.cycle)} '
+            f'| {m.violations} |'
         )
-    if not summary['min_margin']:
+    if not summary.min_margin:
         lines.append('| (none evaluated) | | | | |')
     else:
         lines += ['', 'What the margins mean:', '']
-        lines += [f'- `{name}`: {MARGIN_MEANINGS[name]}' for name in summary['min_margin'] if name in MARGIN_MEANINGS]
+        lines += [f'- `{name}`: {MARGIN_MEANINGS[name]}' for name in summary.min_margin if name in MARGIN_MEANINGS]
     return lines
 
 
-def _violation_lines(ev: Evaluation, summary: Mapping[str, Any]) -> list[str]:
+def _violation_lines(ev: Evaluation, summary: AnalysisSummary) -> list[str]:
     """Every violated row, with its decision time."""
     lines = ['', '## Violations', '']
-    viol = summary['violations']['first']
+    viol = summary.violations.first
     if viol:
         decided = {(v.constraint, v.cycle): v.t for v in ev.violations}
         lines += ['| cycle or leaf | constraint | margin | decided at t, s |', '|---|---|---|---|']
         lines += [
-            f'| {margin_at(v["constraint"], v["cycle"])} | {v["constraint"]} | '
-            f'{_margin(v["constraint"], v["margin"], v["unit"])} | '
-            f'{decided.get((v["constraint"], v["cycle"]), float("nan")):.9g} |'
+            f'| {margin_at(v.constraint, v.cycle)} | {v.constraint} | '
+            f'{_margin(v.constraint, v.margin, v.unit)} | '
+            f'{decided.get((v.constraint, v.cycle), float("nan")):.9g} |'
             for v in viol
         ]
     else:
@@ -234,29 +236,28 @@ def _violation_lines(ev: Evaluation, summary: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def _transition_lines(summary: Mapping[str, Any]) -> list[str]:
+def _transition_lines(summary: AnalysisSummary) -> list[str]:
     """The supervisor's state transitions, the recorded states and the violations as the replay decided them."""
-    lines = ['', '## State transitions', '', f'Source: {summary["transitions_source"]}.', '']
-    recorded = summary.get('recorded_transitions', [])
+    lines = ['', '## State transitions', '', f'Source: {summary.transitions_source}.', '']
+    recorded = summary.recorded_transitions
     shown: dict[str, float] = {}
     for tr in recorded:
-        shown.setdefault(tr['to'], tr['t'])
-    if summary['transitions']:
+        shown.setdefault(tr.target, tr.t)
+    if summary.transitions:
         lines += ['| t, s | from | to | cause | first recorded on /line/supervisor/state, s |', '|---|---|---|---|---|']
         lines += [
-            f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | '
-            f'{shown[tr["to"]]:.9g} |'
-            if tr['to'] in shown
-            else f'| {tr["t"]:.9g} | {tr["from"] or "(first state)"} | {tr["to"]} | {tr.get("cause", "")} | - |'
-            for tr in summary['transitions']
+            f'| {tr.t:.9g} | {tr.source or "(first state)"} | {tr.target} | {tr.cause or ""} | {shown[tr.target]:.9g} |'
+            if tr.target in shown
+            else f'| {tr.t:.9g} | {tr.source or "(first state)"} | {tr.target} | {tr.cause or ""} | - |'
+            for tr in summary.transitions
         ]
     else:
         lines.append('No state transition.')
     lines += [
         '',
-        'Recorded states: ' + (' -> '.join(f'{tr["to"]} ({tr["t"]:.3f} s)' for tr in recorded) or 'none') + '.',
+        'Recorded states: ' + (' -> '.join(f'{tr.target} ({tr.t:.3f} s)' for tr in recorded) or 'none') + '.',
     ]
-    replayed = summary.get('replay_violations')
+    replayed = summary.replay_violations
     if replayed:
         lines += [
             '',
@@ -266,18 +267,18 @@ def _transition_lines(summary: Mapping[str, Any]) -> list[str]:
             '|---|---|---|---|---|---|',
         ]
         lines += [
-            f'| {v["t"]:.9g} | {margin_at(v["constraint"], v["cycle"])} | {v["constraint"]} | '
-            f'{_margin(v["constraint"], v["margin"], v["unit"])} | {v["action"]} | {v["state"]} |'
+            f'| {v.t:.9g} | {margin_at(v.constraint, v.cycle)} | {v.constraint} | '
+            f'{_margin(v.constraint, v.margin, v.unit)} | {v.action} | {v.state} |'
             for v in replayed
         ]
     return lines
 
 
-def _message_lines(rec: Recording, summary: Mapping[str, Any]) -> list[str]:
+def _message_lines(rec: Recording, summary: AnalysisSummary) -> list[str]:
     """The messages recorded, published and lost per topic."""
     lines = ['', '## Messages', '']
     published = rec.bag.published
-    lost = summary.get('lost')
+    lost = summary.lost
     lines += ['| topic | type | recorded | published | lost |', '|---|---|---|---|---|']
     for topic, info in rec.bag.topics.items():
         pub = '-' if published is None else published.get(topic, '-')
@@ -396,50 +397,7 @@ def _write_analysis(
         collector.check(out_dir / 'csv', list(rec.bag.topics), '--out')
     ev = evaluate(rec, t_from, keep_cycles=gantt_cycles)
     check = compare_events(rec, t_from)
-
-    summary = dict(ev.summary)
-    summary['t_end'] = rec.t_end
-    summary['t_from'] = t_from
-    summary['sheet_counter'] = rec.sheet_count
-    summary['messages'] = {t: s.count for t, s in rec.bag.topics.items()}
-    summary['lost'] = None if rec.run is None else rec.run.get('lost')
-    summary['events_check'] = check.as_dict()
-    recorded = recorded_transitions(rec.states)
-    summary['recorded_transitions'] = recorded
-    summary['gaps'] = [[g.first_ns / NS_PER_S, g.last_ns / NS_PER_S] for g in rec.gaps]
-    summary['unjudged'] = rec.unjudged.text()
-    if rec.gaps:  # the replay stops at the first gap: compared with what was recorded before it
-        recorded = [t for t in recorded if t['t'] * NS_PER_S < rec.gaps[0].first_ns]
-    try:
-        replayed, sup = replay_transitions(rec)
-    except (FolderLineError, ValueError, TypeError) as exc:  # a stream the logic rejects: say so, keep the record
-        replayed, sup = None, None
-        why = f'{type(exc).__name__}: {exc}'
-    if replayed is None:
-        summary['transitions'] = recorded
-        summary['replay_matches'] = None
-        summary['transitions_source'] = (
-            'the states published on /line/supervisor/state (the replay through '
-            f'folder_line.core.supervision.offline.replay failed: {why})'
-        )
-    else:
-        summary['transitions'] = replayed
-        summary['replay_matches'] = transitions_agree(replayed, recorded)
-        summary['replay_violations'] = [dataclasses.asdict(v) for v in sup.violations]
-        summary['transitions_source'] = (
-            'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
-            'through '
-            'folder_line.core.supervision.offline.replay (decision times'
-            + (f'; up to the first gap, at {rec.gaps[0].first_ns / NS_PER_S:.3f} s' if rec.gaps else '')
-            + '); '
-            + (
-                'they agree with the states recorded on /line/supervisor/state'
-                if summary['replay_matches']
-                else 'they do NOT agree with the states recorded on /line/supervisor/state: '
-                + ' -> '.join(t['to'] for t in recorded)
-            )
-        )
-
+    summary = _summary(rec, ev, check, t_from)
     figures = draw_figures(_window(rec, t_from), ev, out_dir, gantt_cycles)
     csv_files = collector.write(out_dir / 'csv', list(rec.bag.topics)) if collector is not None else {}
     report = write_text_atomic(
@@ -457,33 +415,89 @@ def _write_analysis(
     )
 
 
+def _summary(rec: Recording, ev: Evaluation, check: EventCheck, t_from: float) -> AnalysisSummary:
+    """The numbers of the report: the recorded events judged (``ev``), the run's, the supervisor replayed."""
+    recorded = recorded_transitions(rec.states)
+    transitions, matches, violations, source = _replayed(rec, recorded)
+    judged = ev.summary
+    return AnalysisSummary(
+        **{f.name: getattr(judged, f.name) for f in dataclasses.fields(judged)},
+        t_end=rec.t_end,
+        t_from=t_from,
+        sheet_counter=rec.sheet_count,
+        messages={t: s.count for t, s in rec.bag.topics.items()},
+        lost=None if rec.run is None else rec.run.get('lost'),
+        events_check=check,
+        recorded_transitions=recorded,
+        gaps=list(rec.gaps),
+        unjudged=rec.unjudged.text(),
+        transitions=transitions,
+        replay_matches=matches,
+        replay_violations=violations,
+        transitions_source=source,
+    )
+
+
+def _replayed(
+    rec: Recording, recorded: list[StateTransition]
+) -> tuple[list[StateTransition], bool | None, list[SupervisorViolation] | None, str]:
+    """The supervisor's transitions of the report (replayed, or ``recorded`` if the replay fails), whether they
+    agree with ``recorded``, the violations as the replay decided them and where the transitions come from
+    (:class:`~folder_line.analysis.summary.AnalysisSummary`'s ``transitions`` .. ``transitions_source``)."""
+    if rec.gaps:  # the replay stops at the first gap: compared with what was recorded before it
+        recorded = [t for t in recorded if t.t * NS_PER_S < rec.gaps[0].first_ns]
+    try:
+        replayed, sup = replay_transitions(rec)
+    except (FolderLineError, ValueError, TypeError) as exc:  # a stream the logic rejects: say so, keep the record
+        return (
+            recorded,
+            None,
+            None,
+            'the states published on /line/supervisor/state (the replay through '
+            f'folder_line.core.supervision.offline.replay failed: {type(exc).__name__}: {exc})',
+        )
+    matches = transitions_agree(replayed, recorded)
+    source = (
+        'the recorded events, NaN/inf values, lost participants and operator commands replayed in lockstep '
+        'through '
+        'folder_line.core.supervision.offline.replay (decision times'
+        + (f'; up to the first gap, at {rec.gaps[0].first_ns / NS_PER_S:.3f} s' if rec.gaps else '')
+        + '); '
+        + (
+            'they agree with the states recorded on /line/supervisor/state'
+            if matches
+            else 'they do NOT agree with the states recorded on /line/supervisor/state: '
+            + ' -> '.join(t.target for t in recorded)
+        )
+    )
+    return replayed, matches, list(sup.violations), source
+
+
 def print_analysis(result: AnalysisResult, stream: IO[str]) -> None:
     """What ``folder-line analyze`` prints: the headline numbers, whether the recorded events are the line
     model's, and the files written."""
     s = result.summary
-    judged = ' judged' if s.get('gaps') else ''
+    judged = ' judged' if s.gaps else ''
     print(
-        f'scene {s["scene"]}: {s["t_end"]:.3f} s of line time, {s["cycles"]} cycles{judged}, '
-        f'{s["sheets_counted"]} sheets counted, {s["violations"]["count"]} violations',
+        f'scene {s.scene}: {s.t_end:.3f} s of line time, {s.cycles} cycles{judged}, '
+        f'{s.sheets_counted} sheets counted, {s.violations.count} violations',
         file=stream,
     )
-    for name, m in s['min_margin'].items():
+    for name, m in s.min_margin.items():
         print(
-            f'  {name:<24} min margin {margin_text(m["margin"], m["unit"], name)}, at {margin_at(name, m["cycle"])}, '
-            f'{m["violations"]} of {m["evaluations"]} violated',
+            f'  {name:<24} min margin {margin_text(m.margin, m.unit, name)}, at {margin_at(name, m.cycle)}, '
+            f'{m.violations} of {m.evaluations} violated',
             file=stream,
         )
-    if s.get('gaps'):
-        gaps = describe_gaps(Gap(round(a * NS_PER_S), round(b * NS_PER_S)) for a, b in s['gaps'])
+    if s.gaps:
         print(
-            f'repaired bag with {gaps}: {s["unjudged"] or "no cycle"} not judged (events may be lost there); '
-            f'states replayed up to {s["gaps"][0][0]:.3f} s',
+            f'repaired bag with {describe_gaps(s.gaps)}: {s.unjudged or "no cycle"} not judged (events may be lost '
+            f'there); states replayed up to {s.gaps[0].first_ns / NS_PER_S:.3f} s',
             file=stream,
         )
-    if s['transitions']:
-        print('states: ' + ' -> '.join(t['to'] for t in s['transitions']), file=stream)
-    if 'events_check' in s:
-        print(f'against the line model: {s["events_check"]["text"]}', file=stream)
+    if s.transitions:
+        print('states: ' + ' -> '.join(t.target for t in s.transitions), file=stream)
+    print(f'against the line model: {s.events_check.text()}', file=stream)
     print(f'wrote {result.report}', file=stream)
     for path in result.figures.values():
         print(f'wrote {path}', file=stream)

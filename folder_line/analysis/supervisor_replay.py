@@ -16,16 +16,20 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from folder_line.analysis.recording import Recording
 from folder_line.bag.statuses import accepted_tunings
 from folder_line.core.supervision.offline import replay
+from folder_line.core.supervision.supervisor import Supervisor
+from folder_line.files.json_types import JsonObject
 from folder_line.interfaces import NS_PER_S
 
 __all__ = [
     'KEY_SUPERVISOR',
     'SUPERVISOR_DEFAULTS',
+    'StateTransition',
     'recorded_transitions',
     'replay_transitions',
     'supervisor_parameters',
@@ -33,20 +37,49 @@ __all__ = [
 ]
 
 
-def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[dict[str, Any]]:
+@dataclass(frozen=True)
+class StateTransition:
+    """A change of the supervisor's state, recorded or replayed.
+
+    Attributes
+    ----------
+    t : float
+        s: a recorded one's log time of the first message in the new state, a replayed one's
+        decision time.
+    source : str
+        The state left (``''``: the first state recorded).
+    target : str
+        The state entered.
+    cause : str or None
+        Why (a replayed one's); None for a recorded one (the state topic gives no cause).
+    """
+
+    t: float
+    source: str
+    target: str
+    cause: str | None = None
+
+    def as_json(self) -> JsonObject:
+        """``{'t', 'from', 'to'}``, and ``'cause'`` if it has one."""
+        out: JsonObject = {'t': self.t, 'from': self.source, 'to': self.target}
+        if self.cause is not None:
+            out['cause'] = self.cause
+        return out
+
+
+def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[StateTransition]:
     """The state changes of a ``/line/supervisor/state`` sequence.
 
     Returns
     -------
-    list of dict
-        ``{'t': log time of the first message in the new state (s), 'from': ..., 'to': ...}``;
-        the first state is reported as a change from ``''``.
+    list of StateTransition
+        Without causes; the first state is reported as a change from ``''``.
     """
-    out: list[dict[str, Any]] = []
+    out: list[StateTransition] = []
     prev = ''
     for t_ns, state in states:
         if state != prev:
-            out.append({'t': t_ns / NS_PER_S, 'from': prev, 'to': state})
+            out.append(StateTransition(t_ns / NS_PER_S, prev, state))
             prev = state
     return out
 
@@ -73,7 +106,9 @@ def supervisor_parameters(rec: Recording) -> dict[str, Any]:
     return params
 
 
-def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) -> tuple[list[dict[str, Any]], Any]:
+def replay_transitions(
+    rec: Recording, params: Mapping[str, Any] | None = None
+) -> tuple[list[StateTransition], Supervisor]:
     """Replay the recorded inputs through :func:`folder_line.core.supervision.offline.replay`.
 
     The live supervisor node runs in lockstep: at every tick it is fed the events up to
@@ -89,9 +124,9 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
 
     Returns
     -------
-    (list of dict, Supervisor)
-        The transitions ``{'t', 'from', 'to', 'cause'}`` (decision time, s) and the
-        replayed supervisor (its ``violations``, ``commands``, ``balances``).
+    (list of StateTransition, Supervisor)
+        The transitions (decision time, s; with their causes) and the replayed supervisor
+        (its ``violations``, ``commands``, ``balances``).
     """
     p = supervisor_parameters(rec)
     p.update(params or {})
@@ -137,15 +172,12 @@ def replay_transitions(rec: Recording, params: Mapping[str, Any] | None = None) 
         until=until,
         **kwargs,
     )
-    out = [
-        {'t': float(tr.t), 'from': tr.source, 'to': tr.target, 'cause': getattr(tr, 'cause', '')}
-        for tr in sup.transitions
-    ]
+    out = [StateTransition(float(tr.t), tr.source, tr.target, tr.cause) for tr in sup.transitions]
     return out, sup
 
 
 def transitions_agree(
-    replayed: Sequence[Mapping[str, Any]], recorded: Sequence[Mapping[str, Any]], initial: str = 'STARTING'
+    replayed: Sequence[StateTransition], recorded: Sequence[StateTransition], initial: str = 'STARTING'
 ) -> bool:
     """Whether the recorded state sequence is the replayed one, as the state topic can show it.
 
@@ -156,19 +188,19 @@ def transitions_agree(
     decided no later than it is shown, each showing paired with its own transition (a
     state the line enters twice, EXECUTE after an unhold, is two transitions).
     """
-    full = [initial] + [str(t['to']) for t in replayed]
-    decided = [-math.inf] + [float(t['t']) for t in replayed]
-    seen = [str(t['to']) for t in recorded]
+    full = [initial] + [t.target for t in replayed]
+    decided = [-math.inf] + [t.t for t in replayed]
+    seen = [t.target for t in recorded]
     if not seen:
         return not replayed
     if seen[-1] != full[-1]:
         return False
     i = 0
     for shown in recorded:  # a subsequence of full, each shown no earlier than it was decided
-        state = str(shown['to'])
+        state = shown.target
         while i < len(full) and full[i] != state:
             i += 1
-        if i == len(full) or decided[i] > float(shown['t']):
+        if i == len(full) or decided[i] > shown.t:
             return False
         i += 1
     return True

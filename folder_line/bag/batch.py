@@ -55,7 +55,6 @@ import math
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -215,7 +214,7 @@ class _SupervisorOut:
         self.hardware_id = hardware_id
         self._tunings: list[tuple[str, bytes, int]] = []
 
-    def _event(self, what: str, said: tuple[bool, str, dict[str, Any]], t: float) -> tuple[str, bytes, int]:
+    def _event(self, what: str, said: tuple[bool, str, dict[str, object]], t: float) -> tuple[str, bytes, int]:
         ok, message, values = said
         logic = self.logic
         status = event_status(

@@ -34,6 +34,7 @@ from typing import Any
 import yaml
 
 from folder_line.bag.types import ROS_DISTRO
+from folder_line.files.json_types import JsonObject
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml_file
 
 __all__ = [
@@ -98,7 +99,7 @@ class FileSummary:
     end_ns: int
     count: int
 
-    def entry(self) -> dict[str, Any]:
+    def entry(self) -> JsonObject:
         """The file's entry of ``files`` in ``metadata.yaml``."""
         return {
             'path': self.path,
@@ -128,7 +129,7 @@ def _str_representer(dumper: yaml.SafeDumper, data: str) -> yaml.Node:
 _Dumper.add_representer(str, _str_representer)
 
 
-def _dump(document: Any, indent: int) -> str:
+def _dump(document: object, indent: int) -> str:
     text = yaml.dump(document, Dumper=_Dumper, sort_keys=False, default_flow_style=False, allow_unicode=True)
     pad = ' ' * indent
     return ''.join(pad + line if line.strip() else line for line in text.splitlines(keepends=True))
@@ -201,7 +202,7 @@ class MetadataBuilder:
         return ''.join(parts)
 
 
-def read_metadata(directory: Path) -> Any:
+def read_metadata(directory: Path) -> Any:  # Any: the document as read, judged where it is used
     """``metadata.yaml`` of the bag ``directory``, parsed.
 
     Read by :func:`folder_line.files.yamlio.load_yaml_file` (size, aliases, tags and

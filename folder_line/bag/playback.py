@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from folder_line.bag.metadata import read_metadata
 from folder_line.bag.reader import BagContents, read_bag
@@ -54,7 +53,7 @@ _POLICY_NAMES: dict[str, dict[int, str]] = {
 }
 
 
-def _policy(entry: Mapping[str, Any], key: str, default: str) -> str:
+def _policy(entry: Mapping[str, object], key: str, default: str) -> str:
     value = entry.get(key, default)
     if isinstance(value, int):
         return _POLICY_NAMES[key].get(value, default)

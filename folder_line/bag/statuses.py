@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from folder_line.core.line.margin_text import margin_at
 from folder_line.core.line.stream import ConstraintTally
@@ -52,7 +51,7 @@ def status_stamp(t: float) -> int:
     return max(0, round(t * 1_000_000_000)) if math.isfinite(t) else 0
 
 
-def _text(v: Any) -> str:
+def _text(v: object) -> str:
     return repr(v) if isinstance(v, float) else str(v)
 
 
@@ -60,7 +59,7 @@ def event_status(
     what: str,
     ok: bool,
     message: str,
-    values: Mapping[str, Any],
+    values: Mapping[str, object],
     hardware_id: str,
     *,
     t_start: float | None,
@@ -79,7 +78,7 @@ def event_status(
     )
 
 
-def violation_status(v: Violation) -> tuple[bool, str, dict[str, Any]]:
+def violation_status(v: Violation) -> tuple[bool, str, dict[str, object]]:
     """``(ok, message, values)`` of the ``violation`` status of ``v`` (stamped with ``v.t``)."""
     values = {
         't': v.t,
@@ -109,7 +108,7 @@ def accepted_tunings(statuses: Iterable[tuple[str, Mapping[str, str]]]) -> list[
 
 def tuning_status(
     t: float, key: str, value: object, effective: float, message: str
-) -> tuple[bool, str, dict[str, Any]]:
+) -> tuple[bool, str, dict[str, object]]:
     """``(ok, message, values)`` of the ``tuning`` status of an operator's tuning asked for at ``t``
     (stamped with ``t``; ``effective`` NaN if refused, ``message`` then the reason)."""
     ok = math.isfinite(effective)
@@ -117,7 +116,7 @@ def tuning_status(
     return ok, message, values
 
 
-def balance_status(b: Balance) -> tuple[bool, str, dict[str, Any]]:
+def balance_status(b: Balance) -> tuple[bool, str, dict[str, object]]:
     """``(ok, message, values)`` of the ``balance`` status of ``b`` (stamped with ``b.t``)."""
     if b.missing:  # a participant was lost: no number is judged on what never arrived
         return (

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
+from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import MessageIndex
 
@@ -47,7 +47,7 @@ class PackedMessageIndex(MessageIndex):
             self.records.clear()
         self.blocks.append(pairs)
 
-    def write(self, stream: Any) -> None:
+    def write(self, stream: RecordBuilder) -> None:
         data = b''.join(block.astype('<u8', copy=False).tobytes() for block in self.blocks)
         if self.records:
             data += np.asarray(self.records, dtype='<u8').tobytes()
@@ -94,7 +94,15 @@ class TickMessages:
             raise ValueError(msg)
         return out
 
-    def _add(self, ticks: np.ndarray, slot: int, topic: np.ndarray, lens: np.ndarray, publish: Any, data: Any) -> None:
+    def _add(
+        self,
+        ticks: np.ndarray,
+        slot: int,
+        topic: np.ndarray,
+        lens: np.ndarray,
+        publish: np.ndarray | Sequence[int] | None,
+        data: np.ndarray,
+    ) -> None:
         if not 0 <= slot < SLOTS:
             msg = f'slot {slot} is not in [0, {SLOTS})'
             raise ValueError(msg)

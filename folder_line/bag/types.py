@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
 
 from folder_line.errors import BagError
 
@@ -35,7 +36,7 @@ ROS_DISTRO = 'kilted'
 
 
 @functools.lru_cache(maxsize=1)
-def typestore() -> Any:
+def typestore() -> Typestore:
     """The rosbags typestore of ROS 2 kilted (built once)."""
     return get_typestore(Stores.ROS2_KILTED)
 
@@ -64,6 +65,10 @@ def msgtype_of(cls: type) -> str:
     return f'{package}/{kind}/{cls.__name__}'
 
 
+#: an rclpy message's field value -> the typestore's (``Any``: rclpy's messages are untyped, and the typestore's
+#: classes take their fields' own types)
+_Converter = Callable[[Any], Any]
+
 _NUMPY_DTYPES: dict[str, str] = {
     'bool': 'bool',
     'byte': 'uint8',
@@ -82,7 +87,7 @@ _NUMPY_DTYPES: dict[str, str] = {
 }
 
 
-def _base_converter(name: str) -> Callable[[Any], Any]:
+def _base_converter(name: str) -> _Converter:
     if name in ('string', 'wstring'):
         return str
     if name in ('byte', 'char', 'octet'):  # rclpy gives a byte as bytes of length 1
@@ -94,7 +99,7 @@ def _base_converter(name: str) -> Callable[[Any], Any]:
     return int
 
 
-def _field_converter(desc: tuple[Any, Any]) -> Callable[[Any], Any]:
+def _field_converter(desc: tuple[Any, Any]) -> _Converter:  # rosbags' FieldDesc, read by its kind
     kind, detail = desc
     if kind == Nodetype.BASE:
         return _base_converter(detail[0])
@@ -117,19 +122,19 @@ def _field_converter(desc: tuple[Any, Any]) -> Callable[[Any], Any]:
 
 
 @functools.lru_cache(maxsize=64)
-def _converter(msgtype: str) -> Callable[[Any], Any]:
+def _converter(msgtype: str) -> _Converter:
     """rclpy message of ``msgtype`` -> the rosbags typestore's message (same field values)."""
     store = typestore()
     cls = store.types[msgtype]
     fields = [(name, _field_converter(desc)) for name, desc in store.fielddefs[msgtype][1]]
 
-    def convert(msg: Any) -> Any:
+    def convert(msg: object) -> object:
         return cls(**{name: conv(getattr(msg, name)) for name, conv in fields})
 
     return convert
 
 
-def serialize(msg: Any, msgtype: str) -> bytes:
+def serialize(msg: object, msgtype: str) -> bytes:
     """CDR (little endian) of an rclpy message, serialized by the rosbags typestore as ``msgtype``.
 
     Raises

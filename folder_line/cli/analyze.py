@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.analysis.report import analyze, print_analysis
 from folder_line.cli import animate as animate_cli
 from folder_line.cli.arg_types import limited
-from folder_line.cli.verb_options import BAG_TIME
+from folder_line.cli.verb_options import BAG_TIME, Subparsers
 
 __all__ = ['add_parser', 'run']
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``analyze`` verb to ``folder-line``'s sub-parsers."""
     ana: argparse.ArgumentParser = subparsers.add_parser(
         'analyze', help='replay analysis of a recorded run: report.md and plots (no ROS needed)'

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import IO, Any
+from typing import IO
 
 from folder_line.analysis.animation import (
     DEFAULT_FPS,
@@ -37,6 +37,7 @@ from folder_line.analysis.animation import batch_run as batch_animation
 from folder_line.analysis.recording import Recording
 from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited
 from folder_line.cli.study_options import add_scene_arguments, source_from
+from folder_line.cli.verb_options import Subparsers
 from folder_line.core.limits import DURATION, Limit
 from folder_line.core.line.scene import parse_scene
 from folder_line.errors import ParameterError
@@ -100,7 +101,7 @@ def add_animation_options(parser: argparse.ArgumentParser, *, defaults: bool = T
     )
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``animate`` verb to ``folder-line``'s sub-parsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         'animate',

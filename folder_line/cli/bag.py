@@ -6,13 +6,12 @@ import argparse
 import contextlib
 import sys
 from pathlib import Path
-from typing import Any
 
 from folder_line.bag.metadata import METADATA_FILE
 from folder_line.bag.reader import bag_info_lines, read_bag
 from folder_line.bag.repair import repair, repairable
 from folder_line.cli.arg_types import limited
-from folder_line.cli.verb_options import BAG_TIME, rtf_ceiling
+from folder_line.cli.verb_options import BAG_TIME, Subparsers, rtf_ceiling
 from folder_line.config.run_config import BAG_DIR, bag_of
 from folder_line.core.limits import Limit
 from folder_line.files.atomic import check_output_dir, claim_output_dir
@@ -23,7 +22,7 @@ _BAG_SPAN = Limit('line time to play', 1e-9, 604800.0, 's', 'a week of line time
 _DIR_HELP = 'a run folder (e.g. out) or its bag folder (out/bag)'
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``bag`` verb and its ``info``, ``play`` and ``repair`` to ``folder-line``'s sub-parsers."""
     bag: argparse.ArgumentParser = subparsers.add_parser('bag', help='rosbag2 bags of a run: info, play, repair')
     bag_sub = bag.add_subparsers(dest='bag_verb', required=True, metavar='BAG_VERB')

@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.accuracy.bench import STUDIES, run_benchmark
 from folder_line.accuracy.output import write_outputs
-from folder_line.cli.verb_options import add_out
+from folder_line.cli.verb_options import Subparsers, add_out
 from folder_line.files.atomic import claim_output_dir
 
 __all__ = ['add_parser', 'run']
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``bench`` verb and its ``accuracy`` to ``folder-line``'s sub-parsers."""
     bench: argparse.ArgumentParser = subparsers.add_parser('bench', help='benchmarks: what accuracy costs in CPU time')
     bench_sub = bench.add_subparsers(dest='bench_verb', required=True, metavar='BENCH_VERB')

@@ -4,24 +4,24 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import IO, Any
+from typing import IO
 
 from folder_line.config.keys import inert_keys, scene_keys
 from folder_line.config.params import config_dir, read_yaml_mapping
-from folder_line.config.scenes import list_scenes
+from folder_line.config.scenes import SceneMapping, list_scenes
 from folder_line.core.line.metric_units import metric_unit
 from folder_line.core.line.metrics import flatten_metrics
 
 __all__ = ['print_keys', 'print_metrics', 'print_scenes']
 
 
-def _value_text(value: Any) -> str:
+def _value_text(value: object) -> str:
     if isinstance(value, float):
         return f'{value:.10g}'
     return str(value)
 
 
-def print_keys(data: Mapping[str, Any], out: IO[str]) -> None:
+def print_keys(data: Mapping[str, object], out: IO[str]) -> None:
     """Print every ``--set`` key of the merged scene ``data``: key, unit, the scene's value, the allowed
     range, what it is; then the keys of its sections it never reads, with why."""
     rows = [(k.key, k.unit or '-', _value_text(k.value), k.range_text(), k.note) for k in scene_keys(data)]
@@ -37,7 +37,7 @@ def print_keys(data: Mapping[str, Any], out: IO[str]) -> None:
             print(f'  {key}: {why}', file=out)
 
 
-def print_metrics(summary: Mapping[str, Any], out: IO[str]) -> None:
+def print_metrics(summary: Mapping[str, object], out: IO[str]) -> None:
     """Print every metric of a simulation summary: dotted path, value, unit."""
     metrics = flatten_metrics(summary)
     width = max((len(p) for p in metrics), default=0)
@@ -59,7 +59,7 @@ def print_metrics(summary: Mapping[str, Any], out: IO[str]) -> None:
 def print_scenes(out: IO[str]) -> None:
     """Print the shipped scenes: name, machines, effects and description."""
     for name in list_scenes():
-        data = read_yaml_mapping(config_dir() / 'scenes' / f'{name}.yaml', f'scene {name}')
+        data: SceneMapping = read_yaml_mapping(config_dir() / 'scenes' / f'{name}.yaml', f'scene {name}')
         machines = ', '.join(map(str, data.get('machines') or {}))
         effects_in = data.get('effects') or {}
         effects = ', '.join(

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.cli import tables
+from folder_line.cli.verb_options import Subparsers
 from folder_line.errors import bounded_repr
 from folder_line.files.atomic import check_output_file, write_csv_atomic
 
@@ -23,7 +23,7 @@ def _samples(text: str) -> int:
     return n
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``kinematics`` verb to ``folder-line``'s sub-parsers."""
     kin: argparse.ArgumentParser = subparsers.add_parser(
         'kinematics', help='table of one mechanism over a crank turn (or the delivery stroke)'

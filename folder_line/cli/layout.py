@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.analysis.foxglove import layout_text
 from folder_line.cli.study_options import add_scene_arguments, source_from
+from folder_line.cli.verb_options import Subparsers
 from folder_line.core.line.scene import parse_scene
 from folder_line.files.atomic import check_output_file, write_text_atomic
 
@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``layout`` verb to ``folder-line``'s sub-parsers."""
     parser: argparse.ArgumentParser = subparsers.add_parser('layout', help=HELP)
     add_arguments(parser)

@@ -20,7 +20,7 @@ import contextlib
 import os
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, NoReturn
+from typing import NoReturn
 
 from folder_line.cli import (
     analyze,
@@ -42,12 +42,13 @@ from folder_line.cli import (
     tune,
 )
 from folder_line.cli.exits import EXIT_BROKEN_PIPE, EXIT_USAGE, LINE_CHARS, print_error
+from folder_line.cli.verb_options import Subparsers
 from folder_line.errors import FolderLineError, OutputError, path_repr, shorten
 
 __all__ = ['build_parser', 'main', 'verbs']
 
 #: each verb module's ``add_parser``, in the order ``folder-line --help`` lists the verbs
-_VERBS: tuple[Callable[[Any], object], ...] = (
+_VERBS: tuple[Callable[[Subparsers], object], ...] = (
     kinematics.add_parser,
     simulate.add_parser,
     scenes.add_parser,

@@ -6,7 +6,7 @@ the subscriptions that feed it (:func:`folder_line.ros.monitor.monitor_session`)
 module joins them: :func:`run_monitor` either prints one plain-text snapshot
 (``--once``) or runs a ``curses`` screen redrawn at ``--rate`` Hz until ``q`` or
 Ctrl-C (exit code 0 either way, the terminal restored). In the live view the keys of
-:data:`folder_line.cli.monitor_view.OPERATOR_KEYS` send the supervisor's operator
+:data:`folder_line.cli.operator_keys.OPERATOR_KEYS` send the supervisor's operator
 commands (``x`` stop and ``a`` abort ask ``y`` first); the answer shows on the
 operator row.
 
@@ -23,9 +23,10 @@ import shutil
 import sys
 import time
 from collections.abc import Sequence
-from typing import IO, Any
+from typing import IO
 
-from folder_line.cli.monitor_view import MIN_WIDTH, WINDOW, MonitorState, OperatorKeys
+from folder_line.cli.monitor_view import MIN_WIDTH, WINDOW, MonitorState
+from folder_line.cli.operator_keys import OperatorKeys
 from folder_line.ros.monitor import BATCH, KEY_PERIOD, MonitorSession, monitor_session
 from folder_line.ros.recorder import LINE_TOPICS
 
@@ -111,7 +112,7 @@ def _key(session: MonitorSession, operator: OperatorKeys, key: str) -> None:
         operator.no_service(command)
 
 
-def _read_keys(stdscr: Any, session: MonitorSession, operator: OperatorKeys) -> bool | None:
+def _read_keys(stdscr: curses.window, session: MonitorSession, operator: OperatorKeys) -> bool | None:
     """Take the keys typed since the last look: None on ``q`` (quit, unless a command waits for its
     confirmation), else whether the view must be drawn again (a key taken, or the terminal resized)."""
     redraw = False
@@ -131,7 +132,7 @@ def _read_keys(stdscr: Any, session: MonitorSession, operator: OperatorKeys) -> 
 def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> int:
     operator = state.operator = OperatorKeys(keyed=bool(os.environ.get('FOLDER_LINE_KEY', '').strip()))
 
-    def loop(stdscr: Any) -> int:
+    def loop(stdscr: curses.window) -> int:
         with contextlib.suppress(curses.error):  # a terminal that cannot hide the cursor
             curses.curs_set(0)
         stdscr.nodelay(True)
@@ -166,7 +167,7 @@ def _curses_view(session: MonitorSession, state: MonitorState, rate: float) -> i
         return 2
 
 
-def _draw(stdscr: Any, state: MonitorState, styles: dict[str, int], now: float) -> None:
+def _draw(stdscr: curses.window, state: MonitorState, styles: dict[str, int], now: float) -> None:
     height, width = stdscr.getmaxyx()
     stdscr.erase()
     for y, (text, style) in enumerate(state.render_styled(width, height, now)[:height]):

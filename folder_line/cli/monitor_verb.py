@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
-from folder_line.cli.verb_options import add_limited
+from folder_line.cli.verb_options import Subparsers, add_limited
 from folder_line.core.limits import Limit
 
 __all__ = ['add_parser', 'run']
@@ -16,7 +15,7 @@ _MONITOR_WINDOW = Limit('monitor rate window', 0.01, 600.0, 's', 'sim time the r
 _MONITOR_TIMEOUT = Limit('monitor wait for the line', 0.1, 3600.0, 's', 'wall time')
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``monitor`` verb to ``folder-line``'s sub-parsers."""
     mon: argparse.ArgumentParser = subparsers.add_parser(
         'monitor', help='live terminal view of the running line (q or Ctrl-C quits)'

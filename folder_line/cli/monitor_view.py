@@ -28,6 +28,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
+from folder_line.cli.operator_keys import OperatorKeys
 from folder_line.core.line.margin_text import format_margin
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -44,20 +45,26 @@ from folder_line.interfaces import (
     SHEET_RATE_TOPIC,
     SUPERVISOR_STATE_TOPIC,
 )
+from folder_line.ros.message_fields import (
+    ClockLike,
+    DataLike,
+    DiagnosticArrayLike,
+    JointStateLike,
+    MarkerArrayLike,
+    StampLike,
+    TimeReferenceLike,
+)
 from folder_line.ros.signing import without_signature
 
 __all__ = [
-    'CONFIRM',
     'LEVELS',
     'MIN_HEIGHT',
     'MIN_WIDTH',
-    'OPERATOR_KEYS',
     'WINDOW',
     'ConstraintView',
     'EventView',
     'JointView',
     'MonitorState',
-    'OperatorKeys',
     'TopicStats',
 ]
 
@@ -243,7 +250,7 @@ class ConstraintView:
 _N = TypeVar('_N', int, float)
 
 
-def _stamp_s(stamp: Any) -> float:
+def _stamp_s(stamp: StampLike) -> float:
     # folder_line.ros.time_msg.time_msg_to_ns, on any object with sec and nanosec
     sec: int = stamp.sec
     nanosec: int = stamp.nanosec
@@ -260,7 +267,7 @@ def _number(text: str | None, kind: Callable[[str], _N]) -> _N | None:
         return None
 
 
-def _level(level: Any) -> str:
+def _level(level: int | bytes | bytearray) -> str:
     if isinstance(level, (bytes, bytearray)):
         level = level[0] if level else 0
     return LEVELS.get(int(level), str(level))
@@ -289,79 +296,6 @@ def _fit(text: str, width: int) -> str:
     if len(text) <= width:
         return text
     return text[: width - 1] + '~' if width > 0 else ''
-
-
-#: the live view's keys for the supervisor's operator commands
-OPERATOR_KEYS: dict[str, str] = {
-    'h': 'hold',
-    'u': 'unhold',
-    's': 'start',
-    'x': 'stop',
-    'r': 'reset',
-    'c': 'clear',
-    'a': 'abort',
-}
-#: commands the operator confirms with ``y`` first (they take the line down)
-CONFIRM = frozenset({'stop', 'abort'})
-
-
-class OperatorKeys:
-    """The operator keys of the live view: a key -> a command to send, ``stop`` and ``abort`` confirmed first.
-
-    Attributes
-    ----------
-    line : str
-        What the view shows of it: the keys, a confirmation question, or the latest answer.
-    pending : str or None
-        A command waiting for its confirmation.
-    keyed : bool
-        The monitor has the line's key: a closed line answers only then (:mod:`folder_line.ros.line_key`).
-    """
-
-    def __init__(self, keyed: bool = True) -> None:
-        self.pending: str | None = None
-        self.line = ''
-        self.keyed = keyed
-
-    @staticmethod
-    def keys() -> str:
-        """``h hold  u unhold ...``."""
-        return '  '.join(f'{k} {c}' for k, c in OPERATOR_KEYS.items())
-
-    def press(self, key: str) -> str | None:
-        """The command to send now for ``key``, or None (not a command key, or waiting for / refused a confirmation)."""
-        if self.pending is not None:
-            asked = self.pending
-            self.pending = None
-            if key in ('y', 'Y'):
-                return asked
-            self.line = f'{asked}: cancelled'
-            return None
-        command = OPERATOR_KEYS.get(key)
-        if command is not None and command in CONFIRM:
-            self.pending = command
-            self.line = f'{command} the line? y: yes, any other key: no'
-            return None
-        return command
-
-    def sent(self, command: str) -> None:
-        """``command`` went out."""
-        self.line = f'{command}: sent, waiting for the supervisor' + (
-            '' if self.keyed else " (a closed line answers only a monitor started with the line's FOLDER_LINE_KEY)"
-        )
-
-    def answer(self, command: str, accepted: bool, message: str) -> None:
-        """The supervisor answered ``command``."""
-        self.line = f'{command}: {"accepted" if accepted else "refused"}: {message}'
-
-    def no_service(self, command: str) -> None:
-        """No supervisor offers ``command`` on this domain (yet)."""
-        self.line = f'{command}: no supervisor service on this ROS domain; nothing sent'
-
-    def styled(self) -> tuple[str, str]:
-        """The operator row of the screen, with its style."""
-        text = (f'operator: {self.line} | ' if self.line else 'operator keys: ') + self.keys()
-        return text, 'alert' if self.pending is not None or ': refused:' in self.line else ''
 
 
 class MonitorState:
@@ -409,7 +343,7 @@ class MonitorState:
         """Messages received on all topics."""
         return self._total
 
-    def ingest(self, topic: str, msg: Any, wall: float) -> None:
+    def ingest(self, topic: str, msg: object, wall: float) -> None:
         """Take one message of ``topic`` written (or received) at wall time ``wall`` (s).
 
         Messages are read by their fields (duck typing): ``rosgraph_msgs/Clock``,
@@ -428,14 +362,14 @@ class MonitorState:
         self.last_wall = wall if self.last_wall is None else max(self.last_wall, wall)
         stats.latest = self._take(topic, msg, wall)
 
-    def _take(self, topic: str, msg: Any, wall: float) -> str:
+    def _take(self, topic: str, msg: Any, wall: float) -> str:  # Any: the message of ``topic`` (its type)
         take = self._TAKERS.get(topic)
         if take is not None:
             return take(self, msg, wall)
         m = _JOINT_STATES.match(topic)
         return type(msg).__name__ if m is None else self._take_joints(m['node'], msg)
 
-    def _take_clock(self, msg: Any, wall: float) -> str:
+    def _take_clock(self, msg: ClockLike, wall: float) -> str:
         t = _stamp_s(msg.clock)
         self.sim_time = t  # the latest, not the largest: a line started again shows its new time
         if self._clock_track and t < self._clock_track[-1][1]:  # time went back: a new line
@@ -445,7 +379,7 @@ class MonitorState:
             self._clock_track.popleft()
         return f'{t:.3f} s'
 
-    def _take_joints(self, node: str, msg: Any) -> str:
+    def _take_joints(self, node: str, msg: JointStateLike) -> str:
         joint = JointView(
             node,
             _stamp_s(msg.header.stamp),
@@ -457,7 +391,7 @@ class MonitorState:
         self.joints[joint.node] = joint
         return f'{len(joint.names)} joint{"" if len(joint.names) == 1 else "s"} at {joint.stamp:.3f} s'
 
-    def _take_event(self, msg: Any, wall: float) -> str:
+    def _take_event(self, msg: TimeReferenceLike, wall: float) -> str:
         kind, sheet, cycle, value = _parse_event(msg.source)
         previous = self.events.get(kind)
         event = EventView(
@@ -472,48 +406,49 @@ class MonitorState:
         self.events[kind] = event
         return f'{kind} at {event.t:.3f} s' + ('' if sheet is None else f' (sheet {sheet})')
 
-    def _take_state(self, msg: Any, wall: float) -> str:
+    def _take_state(self, msg: DataLike[str], wall: float) -> str:
         state: str = msg.data
         if state != self.state:  # a change seen, not the state found on joining: since then
             self.state_since = self.sim_time if self.state else None
             self.state = state
         return state
 
-    def _take_count(self, msg: Any, wall: float) -> str:
+    def _take_count(self, msg: DataLike[int], wall: float) -> str:
         self.sheet_count = int(msg.data)
         return str(self.sheet_count)
 
-    def _take_rate(self, msg: Any, wall: float) -> str:
+    def _take_rate(self, msg: DataLike[float], wall: float) -> str:
         self.sheet_rate = float(msg.data)
         return f'{self.sheet_rate:.3f} /s'
 
-    def _take_landing(self, msg: Any, wall: float) -> str:
+    def _take_landing(self, msg: DataLike[float], wall: float) -> str:
         self.landing_x = float(msg.data)
         return f'{self.landing_x:.4f} m'
 
-    def _take_command(self, msg: Any, wall: float) -> str:
+    def _take_command(self, msg: TimeReferenceLike, wall: float) -> str:
         t = _stamp_s(msg.time_ref)
         source = without_signature(msg.source)
         self.commands.append((source, t))
         del self.commands[:-8]
         return f'{source} effective at {t:.3f} s'
 
-    def _take_participants(self, msg: Any, wall: float) -> str:
+    def _take_participants(self, msg: DataLike[str], wall: float) -> str:
         # 'clock=lockstep end=... participants=a,b'
         fields = dict(item.partition('=')[::2] for item in without_signature(str(msg.data)).split())
         names = [n for n in fields.get('participants', '').split(',') if n]
         return f'{fields.get("clock", "?")} clock, {len(names)} participants'
 
-    def _take_markers(self, msg: Any, wall: float) -> str:
+    def _take_markers(self, msg: MarkerArrayLike, wall: float) -> str:
         # the machine drawn: how many markers, of which stamp
         markers = list(msg.markers)
         at = f' at {_stamp_s(markers[-1].header.stamp):.3f} s' if markers else ''
         return f'{len(markers)} marker{"" if len(markers) == 1 else "s"}{at}'
 
-    def _take_diagnostics_at(self, msg: Any, wall: float) -> str:
+    def _take_diagnostics_at(self, msg: DiagnosticArrayLike, wall: float) -> str:
         return self._take_diagnostics(msg)
 
-    #: what the monitor takes of each topic's message (the joint states: by their pattern)
+    #: what the monitor takes of each topic's message (the joint states: by their pattern); ``Any``: each
+    #: taker reads the message type of its topic
     _TAKERS: ClassVar[dict[str, Callable[[MonitorState, Any, float], str]]] = {
         CLOCK_TOPIC: _take_clock,
         EVENTS_TOPIC: _take_event,
@@ -527,7 +462,7 @@ class MonitorState:
         MARKERS_TOPIC: _take_markers,
     }
 
-    def _take_diagnostics(self, msg: Any) -> str:
+    def _take_diagnostics(self, msg: DiagnosticArrayLike) -> str:
         stamp = _stamp_s(msg.header.stamp)
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}

@@ -13,6 +13,7 @@ import sys
 from typing import IO, Any
 
 from folder_line.cli.study_options import add_cluster_arguments, add_samples_argument, cluster_from, scheduler_reached
+from folder_line.config.scenes import SceneMapping
 from folder_line.core.line.margin_text import format_margin, margin_legend
 from folder_line.files.atomic import write_json_atomic
 from folder_line.studies.montecarlo import monte_carlo
@@ -61,7 +62,7 @@ def print_table(result: dict[str, Any], out: IO[str]) -> None:
         print(line, file=out)
 
 
-def simulate_samples(args: argparse.Namespace, source: dict[str, Any]) -> int:
+def simulate_samples(args: argparse.Namespace, source: SceneMapping) -> int:
     """``simulate --samples N`` of the merged scene ``source`` (``--json`` already checked): run, print, write."""
     cluster = cluster_from(args)
     with scheduler_reached(cluster):

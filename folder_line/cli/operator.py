@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 import os
-from typing import Any
 
 from folder_line.cli.exits import EXIT_NO_ANSWER, EXIT_REFUSED, print_error
-from folder_line.cli.verb_options import add_limited
+from folder_line.cli.verb_options import Subparsers, add_limited
 from folder_line.core.limits import Limit
 from folder_line.interfaces import OPERATOR_COMMANDS
 
@@ -16,7 +15,7 @@ __all__ = ['OPERATOR_TIMEOUT', 'add_parsers', 'key_hint', 'run']
 OPERATOR_TIMEOUT = Limit('operator wait for the supervisor', 0.1, 3600.0, 's', 'wall time')
 
 
-def add_parsers(subparsers: Any) -> None:
+def add_parsers(subparsers: Subparsers) -> None:
     """Add one verb per operator command (:data:`folder_line.interfaces.OPERATOR_COMMANDS`) to the sub-parsers."""
     for command in OPERATOR_COMMANDS:
         op: argparse.ArgumentParser = subparsers.add_parser(

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.cli.arg_types import number
 from folder_line.cli.study_options import add_scene_arguments
+from folder_line.cli.verb_options import Subparsers
 from folder_line.config.scenes import InputNames, parse_set, scene_mapping, write_scene
 from folder_line.files.atomic import claim_output_dir, write_json_atomic
 from folder_line.studies.optimize import (
@@ -36,7 +36,7 @@ OUTPUT_FILES = ('scene.yaml', 'optimize.json', 'landing.png')
 _DEFAULTS = OptimizeSettings()
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``optimize`` verb to ``folder-line``'s subparsers; returns its parser."""
     opt: argparse.ArgumentParser = subparsers.add_parser(
         'optimize',

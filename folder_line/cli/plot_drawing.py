@@ -12,14 +12,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from folder_line.analysis.colours import QUANTITY_COLOURS
+from folder_line.analysis.exit_speed_points import ExitSpeedPoints, ExitSpeedText, draw_exit_speeds
 from folder_line.analysis.figures import (
     DISPLAY_UNITS,
     cyclogram_figure,
-    exit_speed_curves,
     pyplot,
     save_figure,
-    stroke_curves,
 )
+from folder_line.analysis.paper_curves import stroke_curves
 from folder_line.core.effects import chain_friction, leaf_flight
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.margin_text import format_margin
@@ -40,80 +40,28 @@ def _exit_speeds(data: FigureData, out: Path) -> Path | None:
     t = data.joint('t')
     if not data.layup or t.size == 0:
         return None
-    plt = pyplot()
-    scene = data.scene
-    lp = scene.machine('layup')
-    v_tr = float(lp.v_tr) if data.belts else 0.0
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 9.5), sharex=True)
-    exit_speed_curves(ax1, ax2, lp, v_tr, show_swing_on_abs=False)
+    lp = data.scene.machine('layup')
     off = data.joint('off').astype(bool)
     t_speed = data.start if data.t_speed is None else data.t_speed
-    later = int(np.count_nonzero(off & (t >= t_speed)))
-    deg = np.degrees(data.joint('phi'))
     v_c, v_e = data.joint('w3') * lp.l3, data.joint('w5') * lp.l5
     belt = data.joint('v_belt')
-    va_c, va_e = np.sqrt(v_c * v_c + belt * belt), np.sqrt(v_e * v_e + belt * belt)
-    for ax, c, e, names in (
-        (ax1, v_c, v_e, (r'$\omega_3 l_3$', r'$\omega_5 l_5$')),
-        (ax2, va_c, va_e, ('$v_{aC}$', '$v_{aE}$')),
-    ):
-        ax.plot(
-            deg[~off],
-            c[~off],
-            'o',
-            ms=2.5,
-            color=QUANTITY_COLOURS['vC'],
-            alpha=0.8,
-            zorder=3,
-            label=f'simulated {names[0]}',
-        )
-        ax.plot(
-            deg[~off],
-            e[~off],
-            's',
-            ms=4.5,
-            color=QUANTITY_COLOURS['vE'],
-            mfc='none',
-            alpha=0.8,
-            label=f'simulated {names[1]}',
-        )
-        _off_speed(ax, deg[off], c[off], e[off], data, later)
-    _leaf_exits(ax2, data)
-    if data.belts:
-        vmin = float(scene.effect('chute_belts').v_min)
-        ax2.axhline(vmin, color='r', ls='--', lw=1, label=f'v_min = {vmin:g} m/s')
-    ax1.set_ylabel('swing speed across the chute, m/s')
-    ax1.set_title(
-        'L: exit speeds (lines: model at nominal speed; paper Fig. 4)\n'
-        f'simulated at {data.ticks.text(int(t.size))}; {_span(data)}',
-        fontsize=10,
+    points = ExitSpeedPoints(
+        np.degrees(data.joint('phi')),
+        v_c,
+        v_e,
+        np.sqrt(v_c * v_c + belt * belt),
+        np.sqrt(v_e * v_e + belt * belt),
+        off,
+        int(np.count_nonzero(off & (t >= t_speed))),
+        math.inf if data.t_speed is None else data.t_speed,
     )
-    ax1.legend(loc='best', fontsize=7.5)
-    ax2.set_ylabel('absolute exit speed, m/s')
-    ax2.set_xlabel(r'crank angle $\varphi$, deg')
     belt_text = f'belt speed {data.belt_low:.3f}..{data.belt_high:.3f} m/s at every tick' if data.belts else 'no belts'
-    ax2.set_title(f'L: absolute exit speeds with the belts ({belt_text}; paper Fig. 5)', fontsize=10)
-    ax2.legend(loc='upper center', bbox_to_anchor=(0.5, -0.11), fontsize=7.5, ncol=2)  # below: it hides no point
+    sampling = f'simulated at {data.ticks.text(int(t.size))}; {_span(data)}'
+    text = ExitSpeedText('simulated', sampling, belt_text, ticks_drawn=' drawn', legend_below=True)
+    fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 9.5), sharex=True)
+    draw_exit_speeds((ax1, ax2), data.scene, points, text, lambda ax: _leaf_exits(ax, data))
     fig.tight_layout()
     return save_figure(fig, out / 'exit_speeds.png')
-
-
-def _off_speed(ax: Any, deg: np.ndarray, v_c: np.ndarray, v_e: np.ndarray, data: FigureData, later: int) -> None:
-    """The ticks drawn off speed: the start-up before the drive reached speed, holds and stops after: grey."""
-    if deg.size == 0:
-        return
-    colour = QUANTITY_COLOURS['start_up']
-    first = deg.size - later
-    t_speed = math.inf if data.t_speed is None else data.t_speed
-    if first and later:
-        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s) and {later} ticks of holds/stops'
-    elif first:
-        label = f'start-up (before the drive reached speed, t < {t_speed:.3g} s)'
-    else:
-        label = 'holds/stops (the drive ramping down or standing still)'
-    label += f': {deg.size} ticks drawn'
-    ax.plot(deg, v_c, 'x', ms=3.5, color=colour, alpha=0.8, label=label)
-    ax.plot(deg, v_e, '+', ms=4, color=colour, alpha=0.8)
 
 
 def _leaf_exits(ax: Any, data: FigureData) -> None:
@@ -202,7 +150,7 @@ def _cyclogram(data: FigureData, out: Path) -> Path | None:
     if cg is None:
         return None
     rows = cg.done()
-    firsts = [r for r in rows if r['cycle'] in cg.first]
+    firsts = [r for r in rows if r.cycle in cg.first]
     shown = f'the first {len(firsts)}' + (' and the first violated' if len(firsts) < len(rows) else '')
     if not rows:
         shown = 'no cycle'

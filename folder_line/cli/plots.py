@@ -51,13 +51,14 @@ from typing import Any
 
 import numpy as np
 
-from folder_line.analysis.figure_data import GANTT_CYCLES
+from folder_line.analysis.figure_data import GANTT_CYCLES, CycleRow, SheetTimes
 from folder_line.analysis.figures import FIGURES
 from folder_line.analysis.streaming import stamp_priority
 from folder_line.cli import summary as summary_cli
 from folder_line.cli.plot_drawing import draw
 from folder_line.config.run_config import RATE
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS
+from folder_line.core.line.line_summary import LineSummary, WindowSummary
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.stream import LineStream, Window
 from folder_line.core.line.tuning import LineCommand
@@ -81,7 +82,6 @@ __all__ = [
     'TickGrid',
     'check_plots',
     'collect',
-    'draw',
     'write_figures',
 ]
 
@@ -413,22 +413,27 @@ class _Cyclogram:
             'sheets': sheets,
         }
 
-    def done(self) -> list[dict[str, Any]]:
+    def done(self) -> list[CycleRow]:
         """The rows drawn, by cycle: with each sheet's release (None if not released in the span) and the margins."""
         out = []
         for c in self.wanted:
             if c not in self.rows:
                 continue
-            row = dict(self.rows[c])
-            row['sheets'] = [
-                {
-                    **s,
-                    'release': None if math.isnan(self.release.get(s['sheet'], math.nan)) else self.release[s['sheet']],
-                }
+            row = self.rows[c]
+            sheets = [
+                SheetTimes(
+                    s['sheet'],
+                    s['handover'],
+                    s['at_stops'],
+                    s['settled'],
+                    None if math.isnan(self.release.get(s['sheet'], math.nan)) else self.release[s['sheet']],
+                )
                 for s in row['sheets']
             ]
-            row['margins'] = dict(self.margins.get(c, {}))
-            out.append(row)
+            margins = dict(self.margins.get(c, {}))
+            out.append(
+                CycleRow(row['cycle'], row['start'], row['contact'], row['exit'], row['deadline'], sheets, margins)
+            )
         return out
 
 
@@ -573,12 +578,12 @@ def collect(
     start: float | None = None,
     commands: Sequence[LineCommand] = (),
     progress: Any = None,
-) -> tuple[FigureData, dict[str, Any]]:
+) -> tuple[FigureData, LineSummary | WindowSummary]:
     """Stream the line over ``duration`` s (from ``start`` on: ``--from``) keeping the figures' data.
 
     Returns
     -------
-    (FigureData, dict)
+    (FigureData, LineSummary or WindowSummary)
         The figures' data and the run's summary (:func:`folder_line.cli.summary.line_summary`'s:
         ``simulate(...).summary()`` bit for bit, or the window's with ``start``).
     """

@@ -15,14 +15,15 @@ import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, TypedDict
+from typing import IO, TYPE_CHECKING, TypedDict
 
 import numpy as np
 
 from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
-from folder_line.analysis.figures import exit_speed_curves, pyplot, save_figure, stroke_curves
+from folder_line.analysis.figures import pyplot, save_figure
+from folder_line.analysis.paper_curves import exit_speed_curves, stroke_curves
 from folder_line.cli.tables import kinematics_table
-from folder_line.cli.verb_options import add_out
+from folder_line.cli.verb_options import Subparsers, add_out
 from folder_line.config.params import KINDS, load_container, load_params, read_yaml_mapping
 from folder_line.config.scenes import InputNames, parse_set, set_press
 from folder_line.core.line.scene import MachineParams, check_press_speed
@@ -30,6 +31,10 @@ from folder_line.core.mechanisms import cyclogram, delivery, knife, layup, layup
 from folder_line.core.types.machines import ContainerParams
 from folder_line.errors import ParameterError
 from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_text_atomic
+
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (folder_line.analysis.figures.pyplot)
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = [
     'REPORT_FILES',
@@ -99,11 +104,11 @@ class ReportParams:
     container: ContainerParams = field(default_factory=load_container)
 
 
-def _file_values(path: str | None) -> list[tuple[str, Any]]:
+def _file_values(path: str | None) -> list[tuple[str, object]]:
     """``--params FILE``: section -> mapping of key: value, flattened to (``section.key``, value) in file order."""
     if path is None:
         return []
-    out: list[tuple[str, Any]] = []
+    out: list[tuple[str, object]] = []
     for section, values in read_yaml_mapping(Path(path), '--params').items():
         if not isinstance(values, Mapping):
             raise ParameterError(f'{section}', values, 'must be a mapping of key: value')
@@ -111,7 +116,7 @@ def _file_values(path: str | None) -> list[tuple[str, Any]]:
     return out
 
 
-def report_params(path: str | None = None, overrides: Mapping[str, Any] | None = None) -> ReportParams:
+def report_params(path: str | None = None, overrides: Mapping[str, object] | None = None) -> ReportParams:
     """The report's parameters: the defaults, then a ``--params`` file's values, then the ``--set`` overrides.
 
     Parameters
@@ -130,7 +135,7 @@ def report_params(path: str | None = None, overrides: Mapping[str, Any] | None =
         not twice the cylinder's.
     """
     given = [*_file_values(path), *(overrides or {}).items()]
-    sections: dict[str, dict[str, Any]] = {kind: {} for kind in (*KINDS, 'container')}
+    sections: dict[str, dict[str, object]] = {kind: {} for kind in (*KINDS, 'container')}
     for key, value in given:
         head, sep, name = key.partition('.')
         if head == 'press':
@@ -172,7 +177,7 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``report`` verb to ``folder-line``'s sub-parsers."""
     rep: argparse.ArgumentParser = subparsers.add_parser(
         'report', help='kinematics, efficiency and cyclogram report of the defaults, with plots'
@@ -276,9 +281,10 @@ def published_checks(p: PaperParams | None = None) -> list[Check]:
     return checks
 
 
-def layup_speeds_figure(lay: layup.LayupParams) -> Any:
+def layup_speeds_figure(lay: layup.LayupParams) -> Figure:
     """The figure of ``layup_speeds.png``: the exit speeds without and with belts (paper L, figs. 4-5)."""
     plt = pyplot()
+    fig: Figure
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     exit_speed_curves(ax1, ax2, lay, lay.v_tr)
     ax1.set_ylabel('swing speed, m/s')
@@ -292,7 +298,7 @@ def layup_speeds_figure(lay: layup.LayupParams) -> Any:
     return fig
 
 
-def _container(ax: Any, cont: ContainerParams, top: float) -> None:
+def _container(ax: Axes, cont: ContainerParams, top: float) -> None:
     """The container's inner walls (from the floor up to ``top``, m) and floor, labelled with their values."""
     xs = (cont.x_left, cont.x_left, cont.x_right, cont.x_right)
     ys = (top, cont.y_floor, cont.y_floor, top)
@@ -315,7 +321,7 @@ def _container(ax: Any, cont: ContainerParams, top: float) -> None:
     )
 
 
-def layup_geometry_figure(lay: layup.LayupParams, cont: ContainerParams) -> Any:
+def layup_geometry_figure(lay: layup.LayupParams, cont: ContainerParams) -> Figure:
     """The figure of ``layup_geometry.png``: the six-bar at both swing extremes over the container.
 
     Parameters
@@ -329,6 +335,7 @@ def layup_geometry_figure(lay: layup.LayupParams, cont: ContainerParams) -> Any:
     plt = pyplot()
     ext = layup_reach.swing_extremes(lay)
     st = layup.LayupModel(lay).arrays(np.linspace(0.0, 2.0 * math.pi, 721), accelerations=False)
+    fig: Figure
     fig, ax = plt.subplots(figsize=(7.5, 8))
     ax.plot(st.xC, st.yC, color=QUANTITY_COLOURS['vC'], lw=2, label='path of exit C')
     ax.plot(st.xE, st.yE, color=QUANTITY_COLOURS['vE'], lw=2, label='path of exit E')
@@ -409,9 +416,10 @@ def _plot_knife(kn: knife.KnifeParams, cy: cyclogram.CyclogramParams, out: Path)
     return save_figure(fig, out / 'knife_cyclogram.png')
 
 
-def delivery_figure(dl: delivery.DeliveryParams) -> Any:
+def delivery_figure(dl: delivery.DeliveryParams) -> Figure:
     """The figure of ``delivery_efficiency.png``: efficiency and carriage speed along the stroke (paper D, fig. 2)."""
     plt = pyplot()
+    fig: Figure
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     stroke_curves(ax1, ax2, dl, ('paper_mirror', 'geometric'))
     ax1.set_ylabel('instantaneous efficiency')

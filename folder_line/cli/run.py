@@ -5,11 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from folder_line.cli.exits import EXIT_RUN_FAILED
 from folder_line.cli.study_options import NAMES, add_scene_arguments
-from folder_line.cli.verb_options import add_bag_split, add_limited, add_marker_rate, add_out, rtf_ceiling
+from folder_line.cli.verb_options import (
+    Subparsers,
+    add_bag_split,
+    add_limited,
+    add_marker_rate,
+    add_out,
+    rtf_ceiling,
+)
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig
 from folder_line.core.limits import LOST_TIMEOUT
 from folder_line.errors import ParameterError
@@ -18,7 +24,7 @@ from folder_line.files.atomic import claim_output_dir
 __all__ = ['add_parser', 'run']
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``run`` verb to ``folder-line``'s sub-parsers."""
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'run', help='run the line as ROS 2 nodes over DDS for a while, then report'
@@ -85,12 +91,13 @@ def run(args: argparse.Namespace) -> int:
     """Run the line into ``--out``, print its summary; exit 1 if the run failed."""
     cfg = _config(args)
     from folder_line.ros import run as ros_run  # loads rclpy: only the run and monitor verbs need DDS
+    from folder_line.ros import run_summary
 
     with claim_output_dir(cfg.out, '--out', files=('run.json', SCENE_FILE), dirs=(BAG_DIR, 'logs')):
         result = ros_run.run_line(cfg, sys.stdout, NAMES)
-    ros_run.print_run_summary(result.summary, cfg.out, sys.stdout)
-    verdict = result.summary['outcome']
-    if not verdict['ok']:
-        print(f'folder-line: run failed: {verdict["message"]}', file=sys.stderr)
+    run_summary.print_run_summary(result.summary, cfg.out, sys.stdout)
+    verdict = result.summary.outcome
+    if not verdict.ok:
+        print(f'folder-line: run failed: {verdict.message}', file=sys.stderr)
         return EXIT_RUN_FAILED
     return 0

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from folder_line.cli import keys
+from folder_line.cli.verb_options import Subparsers
 
 __all__ = ['add_parser', 'run']
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``scenes`` verb to ``folder-line``'s sub-parsers."""
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'scenes', help='list the shipped scenes with their machines, effects and descriptions'

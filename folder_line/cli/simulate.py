@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import sys
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from folder_line.cli import batch as batch_cli
@@ -14,6 +15,7 @@ from folder_line.cli.arg_types import add_tune_argument, check_tunings, limited
 from folder_line.cli.study_options import add_scene_arguments, source_from
 from folder_line.cli.verb_options import add_bag_split, add_marker_rate
 from folder_line.core.limits import DURATION, Limit
+from folder_line.core.line.line_summary import LineSummary, TuningRecord, WindowSummary
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.tuning import TUNABLES, Tuning
 from folder_line.errors import ParameterError
@@ -198,7 +200,7 @@ def _write_bag(args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning]
 
 def _stream(
     args: argparse.Namespace, scene: Scene, tunings: Sequence[Tuning], end: float
-) -> tuple[FigureData | None, dict[str, Any]]:
+) -> tuple[FigureData | None, LineSummary | WindowSummary]:
     """Stream the line to ``end`` s: the figures' data (with ``--plots``, else None) and the summary."""
     figures = None
     with _progress(end) as bar:
@@ -234,15 +236,14 @@ def run(args: argparse.Namespace) -> int:
         return 0
     figures, result_summary = _stream(args, scene, tunings, end)
     if tunings:
-        result_summary['tunings'] = [
-            {'t': tu.t, 'key': tu.key, 'value': tu.value, 'unit': TUNABLES[tu.key].unit} for tu in tunings
-        ]
+        records = [TuningRecord(tu.t, tu.key, tu.value, TUNABLES[tu.key].unit) for tu in tunings]
+        result_summary = replace(result_summary, tunings=records)
     if args.list_metrics:
-        keys.print_metrics(result_summary, sys.stdout)
+        keys.print_metrics(result_summary.as_json(), sys.stdout)
         return 0
     summary.print_summary(result_summary, sys.stdout)
     if args.json:
-        dest = write_json_atomic(args.json, result_summary)
+        dest = write_json_atomic(args.json, result_summary.as_json())
         print(f'wrote {dest}')
     if figures is not None:
         import folder_line.cli.plots as plots

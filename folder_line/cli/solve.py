@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from collections.abc import Callable
 
 from folder_line.cli.study_options import (
     add_cluster_arguments,
@@ -13,6 +13,7 @@ from folder_line.cli.study_options import (
     scheduler_reached,
     source_from,
 )
+from folder_line.cli.verb_options import Subparsers
 from folder_line.errors import bounded_repr
 from folder_line.files.atomic import check_output_file, write_json_atomic
 from folder_line.studies.grid import parse_bounds
@@ -21,7 +22,7 @@ from folder_line.studies.solve import DEFAULT_SCAN, parse_condition, solve_bound
 __all__ = ['add_parser', 'run']
 
 
-def _positive(option: str) -> Any:
+def _positive(option: str) -> Callable[[str], float]:
     def parse(text: str) -> float:
         try:
             value = float(text)
@@ -44,7 +45,7 @@ def _scan(text: str) -> int:
     return value
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``solve`` verb to ``folder-line``'s sub-parsers."""
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'solve', help='the value of a scene key where a condition on a metric starts to hold (scan, then brentq)'

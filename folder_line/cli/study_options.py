@@ -6,10 +6,9 @@ import argparse
 import contextlib
 import shlex
 from collections.abc import Iterable, Iterator
-from typing import Any
 
 from folder_line.cli.arg_types import limited, number
-from folder_line.config.scenes import InputNames, parse_set, scene_mapping
+from folder_line.config.scenes import InputNames, SceneMapping, parse_set, scene_mapping
 from folder_line.core.limits import DURATION
 from folder_line.errors import OutputError, ParameterError
 from folder_line.studies.montecarlo import MARGIN_SAMPLE, MAX_SAMPLES
@@ -115,7 +114,7 @@ def scheduler_reached(cluster: Cluster) -> Iterator[None]:
         raise ParameterError('--scheduler', cluster.scheduler, f'cannot reach it: {exc}') from None
 
 
-def source_from(args: argparse.Namespace) -> dict[str, Any]:
+def source_from(args: argparse.Namespace) -> SceneMapping:
     """The complete scene mapping of ``--scene`` with ``--set`` applied (not yet validated)."""
     return scene_mapping(args.scene, parse_set(args.overrides, NAMES), names=NAMES)
 

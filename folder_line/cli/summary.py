@@ -19,16 +19,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from typing import IO, Any, Protocol
+from typing import IO, Protocol
 
 import numpy as np
 
 from folder_line.core.effects import leaf_flight
 from folder_line.core.limits import DURATION
 from folder_line.core.line import model
+from folder_line.core.line.folder_figures import FolderFigures
+from folder_line.core.line.layup_figures import LandingHistogram
+from folder_line.core.line.line_summary import LineSummary, MarginFigures, WindowSummary
 from folder_line.core.line.margin_text import best_possible, format_margin, margin_at, margin_legend
 from folder_line.core.line.scene import Scene
-from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream, Window
+from folder_line.core.line.stream import MAX_VIOLATIONS, ConstraintTally, LineStream, Window, judged_figures
 from folder_line.core.line.tuning import LineCommand
 from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, event_kind
 from folder_line.errors import ParameterError
@@ -43,7 +46,6 @@ __all__ = [
     'print_margins',
     'print_summary',
     'span_text',
-    'tally_figures',
     'window_summary',
 ]
 
@@ -65,47 +67,6 @@ def fast_forward(
         stream.advance(min(start, max(stream.t, 0.0) + window))
         if progress is not None:
             progress(stream.t)
-
-
-def tally_figures(
-    tallies: Iterable[ConstraintTally], kinds: np.ndarray, max_violations: int = MAX_VIOLATIONS
-) -> dict[str, Any]:
-    """The summary's ``violations``, ``min_margin_s``, ``min_margin`` and ``events`` of some constraint rows
-    and event counts, as :meth:`folder_line.core.line.stream.LineStream.summary` makes them of its own.
-
-    Parameters
-    ----------
-    tallies : iterable of ConstraintTally
-        The rows, per constraint (margins in each constraint's unit).
-    kinds : ndarray of int
-        Events per kind, indexed as :data:`folder_line.core.types.events.EVENT_KINDS`.
-    max_violations : int
-        Violations listed per constraint, and in all.
-    """
-    violations: list[dict[str, Any]] = []
-    count = 0
-    min_margin: dict[str, dict[str, Any]] = {}
-    for tally in tallies:
-        count += tally.violations
-        violations += [
-            {'cycle': cyc, 'constraint': tally.name, 'margin': m, 'unit': tally.unit}
-            for cyc, m in tally.first[:max_violations]
-        ]
-        if tally.evaluations:
-            min_margin[tally.name] = {
-                'margin': tally.min_margin,
-                'unit': tally.unit,
-                'cycle': tally.min_cycle,
-                'evaluations': tally.evaluations,
-                'violations': tally.violations,
-            }
-    violations.sort(key=lambda v: (v['cycle'], v['constraint']))
-    return {
-        'violations': {'count': count, 'first': violations[:max_violations]},
-        'min_margin_s': {k: v['margin'] for k, v in min_margin.items() if v['unit'] == 's'},
-        'min_margin': min_margin,
-        'events': {k: int(n) for k, n in zip(EVENT_KINDS, kinds.tolist(), strict=True) if n},
-    }
 
 
 def check_window(start: float, duration: float) -> float:
@@ -170,7 +131,7 @@ def window_summary(
     max_violations: int = MAX_VIOLATIONS,
     keep: float = 0.0,
     observers: Sequence[Observer] = (),
-) -> dict[str, Any]:
+) -> WindowSummary:
     """The summary of the window ``(start, start + duration]`` of a run from 0 (see the module docstring).
 
     Parameters
@@ -195,11 +156,9 @@ def window_summary(
 
     Returns
     -------
-    dict
-        ``scene``, ``from_s``, ``to_s``, ``duration_s``, ``seed``, ``effects``, ``cycles`` (folder cycles
-        judged at the knife, else layup crank turns completed, in the window), ``sheets_counted``,
-        ``violations``, ``min_margin_s``, ``min_margin``, ``events`` of the window; with ``leaf_flight``
-        ``landing_cv`` and ``landing_histogram`` of the leaves landed in it.
+    WindowSummary
+        The cycles (folder cycles judged at the knife, else layup crank turns completed), sheets counted,
+        violations, smallest margins and events of the window; with ``leaf_flight`` the landings in it.
     """
     duration = DURATION.check('--duration', duration)
     if not (math.isfinite(start) and start >= 0.0):
@@ -210,7 +169,7 @@ def window_summary(
     before = stream.summary()
     tallies = {name: ConstraintTally(name, tl.unit, tl.description) for name, tl in stream.tallies.constraints.items()}
     kinds = np.zeros(len(EVENT_KINDS), dtype=np.int64)
-    cont = scene.machine('container') if 'landing_cv' in before else None
+    cont = scene.machine('container') if before.layup is not None and before.layup.landing is not None else None
     counts = np.zeros(cont.bins if cont is not None else 0, dtype=np.int64)
     landed = event_kind('leaf_landed')
     for w in _windows(stream, start, end, WINDOW if window is None else window, progress, observers):
@@ -224,22 +183,24 @@ def window_summary(
     for rows in _finish(stream, observers):
         tallies[rows.name].add(rows)
     after = stream.summary()
-    out: dict[str, Any] = {
-        'scene': scene.name,
-        'from_s': start,
-        'to_s': end,
-        'duration_s': duration,
-        'seed': scene.seed,
-        'effects': list(scene.effects),
-        'cycles': after['cycles'] - before['cycles'],
-        'sheets_counted': after['sheets_counted'] - before['sheets_counted'],
-    }
-    out.update(tally_figures(tallies.values(), kinds, max_violations))
+    judged = judged_figures(tallies.values(), kinds, max_violations)
+    landing = None
     if cont is not None:
-        hist = leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right)
-        out['landing_cv'] = hist.cv
-        out['landing_histogram'] = {'edges': [float(e) for e in hist.edges], 'counts': [int(c) for c in hist.counts]}
-    return out
+        landing = LandingHistogram.of(leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right))
+    return WindowSummary(
+        scene=scene.name,
+        from_s=start,
+        to_s=end,
+        duration_s=duration,
+        seed=scene.seed,
+        effects=list(scene.effects),
+        cycles=after.cycles - before.cycles,
+        sheets_counted=after.sheets_counted - before.sheets_counted,
+        violations=judged.violations,
+        min_margin=judged.min_margin,
+        events=judged.events,
+        landing=landing,
+    )
 
 
 def line_summary(
@@ -252,7 +213,7 @@ def line_summary(
     window: float | None = None,
     keep: float = 0.0,
     observers: Sequence[Observer] = (),
-) -> dict[str, Any]:
+) -> LineSummary | WindowSummary:
     """The ``simulate`` verb's summary, streamed in windows of ``window`` s (default :data:`WINDOW`).
 
     Without ``start``: the summary of ``duration`` s from 0, ``simulate(...).summary()`` bit for bit
@@ -275,16 +236,16 @@ def line_summary(
     return stream.summary()
 
 
-def print_margins(min_margin: Mapping[str, Mapping[str, Any]], out: IO[str]) -> None:
-    """The smallest margin of each constraint (``summary['min_margin']``), where it was judged, and a legend."""
+def print_margins(min_margin: Mapping[str, MarginFigures], out: IO[str]) -> None:
+    """The smallest margin of each constraint (a summary's ``min_margin``), where it was judged, and a legend."""
     if not min_margin:
         return
     print('smallest margin per constraint (>= 0 passes):', file=out)
     for name, m in min_margin.items():
-        best = '; best possible' if best_possible(name, m['margin']) else ''
+        best = '; best possible' if best_possible(name, m.margin) else ''
         print(
-            f'  {name:<22} {format_margin(m["margin"], m["unit"], name):>17}  at {margin_at(name, m["cycle"]):<10} '
-            f'{m["violations"]} of {m["evaluations"]} violated{best}',
+            f'  {name:<22} {format_margin(m.margin, m.unit, name):>17}  at {margin_at(name, m.cycle):<10} '
+            f'{m.violations} of {m.evaluations} violated{best}',
             file=out,
         )
     print('what the margins mean:', file=out)
@@ -292,84 +253,102 @@ def print_margins(min_margin: Mapping[str, Mapping[str, Any]], out: IO[str]) -> 
         print(line, file=out)
 
 
-def _print_folder(folder: dict[str, Any] | None, out: IO[str]) -> None:
+def _print_folder(folder: FolderFigures | None, out: IO[str]) -> None:
     """The folder's design figures: the feed speed it needs, the knife window, the delivery's efficiency."""
-    if not folder:
+    if folder is None:
         return
     print(
-        f'V_tr min = {folder["V_tr_min"]:.4f} m/s = {folder["V_tr_min_over_V_d"]:.4f} V_d '
-        f'(V_d = {folder["V_d"]:.4f} m/s; V_tr = {folder["V_tr"]:g} m/s)',
+        f'V_tr min = {folder.V_tr_min:.4f} m/s = {folder.V_tr_min_over_V_d:.4f} V_d '
+        f'(V_d = {folder.V_d:.4f} m/s; V_tr = {folder.V_tr:g} m/s)',
         file=out,
     )
     print(
-        f'knife window: {folder["knife_window_s"] * 1e3:.4f} ms, {folder["knife_window_deg"]:.3f} deg of crank '
-        f'({folder["knife_in_deg"]:+.3f}..{folder["knife_out_deg"]:+.3f} deg)',
+        f'knife window: {folder.knife_window_s * 1e3:.4f} ms, {folder.knife_window_deg:.3f} deg of crank '
+        f'({folder.knife_in_deg:+.3f}..{folder.knife_out_deg:+.3f} deg)',
         file=out,
     )
-    dlv = folder.get('delivery')
-    if dlv:
+    dlv = folder.delivery
+    if dlv is not None:
         print(
-            f'delivery: efficiency minimum {dlv["eta_min"]:.4f} at stroke position u = {dlv["eta_min_u"]:.4f} '
-            f'({dlv["eta_min_travel_m"]:.4f} m of chain from the stroke start); '
-            f'sprocket torque peak {dlv["sprocket_torque_peak_Nm"]:.4g} N m, '
-            f'mean {dlv["sprocket_torque_mean_Nm"]:.4g} N m',
+            f'delivery: efficiency minimum {dlv.eta_min:.4f} at stroke position u = {dlv.eta_min_u:.4f} '
+            f'({dlv.eta_min_travel_m:.4f} m of chain from the stroke start); '
+            f'sprocket torque peak {dlv.sprocket_torque_peak_Nm:.4g} N m, '
+            f'mean {dlv.sprocket_torque_mean_Nm:.4g} N m',
             file=out,
         )
 
 
-def span_text(summary: Mapping[str, Any]) -> str:
+def span_text(summary: LineSummary | WindowSummary) -> str:
     """``'60 s of line time'``, or for a window (``--from``) ``'line time 3600..3660 s (60 s from --from 3600)'``."""
-    if 'from_s' in summary:
+    if isinstance(summary, WindowSummary):
         return (
-            f'line time {summary["from_s"]:g}..{summary["to_s"]:g} s '
-            f'({summary["duration_s"]:g} s from --from {summary["from_s"]:g})'
+            f'line time {summary.from_s:g}..{summary.to_s:g} s '
+            f'({summary.duration_s:g} s from --from {summary.from_s:g})'
         )
-    return f'{summary["duration_s"]:g} s of line time'
+    return f'{summary.duration_s:g} s of line time'
 
 
-def print_summary(summary: dict[str, Any], out: IO[str]) -> None:
+def _print_landing(hist: LandingHistogram, out: IO[str]) -> None:
+    """The landings across the container: one bar per bin."""
+    counts = hist.counts
+    top = max(counts) or 1
+    cv_text = 'n/a: no leaf landed' if hist.cv is None else f'{hist.cv:.3f}'
+    print(f'landing across the container (cv {cv_text}):', file=out)
+    edges = hist.edges
+    for i, c in enumerate(counts):
+        print(f'  {edges[i]:+.3f}..{edges[i + 1]:+.3f} m {"#" * round(40 * c / top):<40} {c}', file=out)
+
+
+def _landing_of(summary: LineSummary | WindowSummary) -> LandingHistogram | None:
+    """The landings of a summary (None without ``leaf_flight``)."""
+    if isinstance(summary, WindowSummary):
+        return summary.landing
+    landing = summary.layup.landing if summary.layup is not None else None
+    return None if landing is None else landing.histogram
+
+
+def print_summary(summary: LineSummary | WindowSummary, out: IO[str]) -> None:
     """Print a summary of :func:`line_summary` (``simulate(...).summary()``, or a window's)."""
     print(
-        f'scene {summary["scene"]}: {span_text(summary)}, seed {summary["seed"]}, '
-        f'effects: {", ".join(summary["effects"]) or "none"}',
+        f'scene {summary.scene}: {span_text(summary)}, seed {summary.seed}, '
+        f'effects: {", ".join(summary.effects) or "none"}',
         file=out,
     )
-    if 'from_s' in summary:
+    if isinstance(summary, WindowSummary):
         print(
-            f'  (the line ran from 0 s; counted from {summary["from_s"]:g} s on: cycles, sheets, events, '
+            f'  (the line ran from 0 s; counted from {summary.from_s:g} s on: cycles, sheets, events, '
             'constraints judged; the design figures: simulate without --from)',
             file=out,
         )
-    for tu in summary.get('tunings', []):
-        print(f'tuned: {tu["key"]} = {tu["value"]:g} {tu["unit"]} from {tu["t"]:.9g} s (--tune)', file=out)
-    print(f'cycles: {summary["cycles"]}   sheets counted: {summary["sheets_counted"]}', file=out)
-    if 'v_tr_over_v_d' in summary:
-        print(f'V_tr / V_d = {summary["v_tr_over_v_d"]:.4f}', file=out)
-    _print_folder(summary.get('folder'), out)
-    layup = summary.get('layup')
-    if layup:
+    for tu in summary.tunings or []:
+        print(f'tuned: {tu.key} = {tu.value:g} {tu.unit} from {tu.t:.9g} s (--tune)', file=out)
+    print(f'cycles: {summary.cycles}   sheets counted: {summary.sheets_counted}', file=out)
+    if isinstance(summary, LineSummary):
+        _print_parts(summary, out)
+    v = summary.violations
+    print(f'violations: {v.count}', file=out)
+    for item in v.first:
+        name = item.constraint
         print(
-            f'leaves: {layup["leaves"]} entered, {layup["leaves_landed"]} landed, {layup["leaves_spilled"]} spilled, '
-            f'{layup["leaves_damaged"]} damaged',
+            f'  {margin_at(name, item.cycle)}: {name} margin {format_margin(item.margin, item.unit, name)}',
             file=out,
         )
-    v = summary['violations']
-    print(f'violations: {v["count"]}', file=out)
-    for item in v['first']:
-        name = item['constraint']
+    print_margins(summary.min_margin, out)
+    hist = _landing_of(summary)
+    if hist is not None:
+        _print_landing(hist, out)
+    print('events: ' + ', '.join(f'{k} {n}' for k, n in summary.events.items()), file=out)
+
+
+def _print_parts(summary: LineSummary, out: IO[str]) -> None:
+    """The parts' figures of a run from 0: the folder's speed ratio and design figures, the leaves."""
+    if summary.folder is not None:
+        print(f'V_tr / V_d = {summary.folder.v_tr_over_v_d:.4f}', file=out)
+    _print_folder(summary.folder, out)
+    layup = summary.layup
+    if layup is not None:
         print(
-            f'  {margin_at(name, item["cycle"])}: {name} margin {format_margin(item["margin"], item["unit"], name)}',
+            f'leaves: {layup.leaves} entered, {layup.leaves_landed} landed, {layup.leaves_spilled} spilled, '
+            f'{layup.leaves_damaged} damaged',
             file=out,
         )
-    print_margins(summary['min_margin'], out)
-    if 'landing_cv' in summary and summary.get('landing_histogram'):
-        hist = summary['landing_histogram']
-        counts = hist['counts']
-        top = max(counts) or 1
-        cv = summary['landing_cv']
-        cv_text = 'n/a: no leaf landed' if cv is None else f'{cv:.3f}'
-        print(f'landing across the container (cv {cv_text}):', file=out)
-        edges = hist['edges']
-        for i, c in enumerate(counts):
-            print(f'  {edges[i]:+.3f}..{edges[i + 1]:+.3f} m {"#" * round(40 * c / top):<40} {c}', file=out)
-    print('events: ' + ', '.join(f'{k} {n}' for k, n in summary['events'].items()), file=out)

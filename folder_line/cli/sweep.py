@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 import numpy as np
 
@@ -17,6 +16,7 @@ from folder_line.cli.study_options import (
     scheduler_reached,
     source_from,
 )
+from folder_line.cli.verb_options import Subparsers
 from folder_line.core.line.margin_text import format_margin, margin_constraint
 from folder_line.files.atomic import claim_output_dir, write_csv_atomic, write_json_atomic
 from folder_line.studies.grid import parse_vary
@@ -30,7 +30,7 @@ __all__ = ['FILES', 'add_parser', 'run']
 FILES = ('sweep.csv', 'sweep.json', 'sweep.png')
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``sweep`` verb to ``folder-line``'s sub-parsers."""
     parser: argparse.ArgumentParser = subparsers.add_parser(
         'sweep', help='metrics of a scene over a grid of key values (curves or a heat map), on Dask'

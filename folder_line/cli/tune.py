@@ -4,19 +4,18 @@ from __future__ import annotations
 
 import argparse
 import os
-from typing import Any
 
 from folder_line.cli.arg_types import tuning_change
 from folder_line.cli.exits import EXIT_NO_ANSWER, EXIT_REFUSED, print_error
 from folder_line.cli.operator import OPERATOR_TIMEOUT, key_hint
-from folder_line.cli.verb_options import add_limited
+from folder_line.cli.verb_options import Subparsers, add_limited
 from folder_line.core.line.tuning import TUNABLES
 from folder_line.interfaces import TUNABLE_PARAMETERS
 
 __all__ = ['add_parser', 'run']
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Subparsers) -> argparse.ArgumentParser:
     """Add the ``tune`` verb to ``folder-line``'s sub-parsers."""
     tune: argparse.ArgumentParser = subparsers.add_parser(
         'tune',

@@ -1,8 +1,10 @@
-"""Options several verbs share: a number in a range, ``--out``, ``--rtf``, and the marker rate and split of a bag."""
+"""Options several verbs share: a number in a range, ``--out``, ``--rtf``, and the marker rate and split of a bag;
+and what a verb's ``add_parser`` is given (:class:`Subparsers`)."""
 
 from __future__ import annotations
 
 import argparse
+from typing import Protocol
 
 from folder_line.cli.arg_types import limited, split_limit
 from folder_line.config.run_config import MARKER_RATE, MARKER_RATES
@@ -12,6 +14,7 @@ __all__ = [
     'BAG_DURATION',
     'BAG_SIZE',
     'BAG_TIME',
+    'Subparsers',
     'add_bag_split',
     'add_limited',
     'add_marker_rate',
@@ -26,6 +29,14 @@ BAG_DURATION = (1e-3, 1e7)
 BAG_SIZE = (1024, 10**15)
 #: ``--rtf``: a ceiling in the RTF range, or ``max`` (0.0: as fast as the line allows)
 rtf_ceiling = limited('--rtf', RTF, also='max')
+
+
+class Subparsers(Protocol):
+    """What a verb's ``add_parser`` uses of ``ArgumentParser.add_subparsers()``: adding a verb's parser."""
+
+    def add_parser(
+        self, name: str, *, help: str | None = ..., description: str | None = ..., epilog: str | None = ...
+    ) -> argparse.ArgumentParser: ...
 
 
 def add_limited(

@@ -102,7 +102,7 @@ class KeyInfo:
 
     key: str
     unit: str
-    value: Any
+    value: object
     lo: float
     hi: float
     lo_open: bool = False
@@ -128,7 +128,7 @@ class KeyInfo:
         return f'{left}{self.lo:.10g}, {self.hi:.10g}{right}'
 
 
-def field_docs(cls: type[Any]) -> dict[str, str]:
+def field_docs(cls: type) -> dict[str, str]:
     """Field name -> its description in the numpydoc ``Attributes``/``Parameters`` section of ``cls``.
 
     A line ``a, b : float`` documents both fields. Fields without an entry are absent.
@@ -204,7 +204,7 @@ def _rule(doc: str) -> str:
     return rest
 
 
-def _info(key: str, cls: type[Any], field: dataclasses.Field[Any], value: Any, docs: Mapping[str, str]) -> KeyInfo:
+def _info(key: str, cls: type, field: dataclasses.Field[object], value: object, docs: Mapping[str, str]) -> KeyInfo:
     doc = docs.get(field.name, '')
     whole = field.type in ('int', int)
     limit = _limit_of(key)
@@ -229,7 +229,7 @@ def _info(key: str, cls: type[Any], field: dataclasses.Field[Any], value: Any, d
     )
 
 
-def _section_keys(prefix: str, cls: type[Any], values: Mapping[str, Any]) -> Iterator[KeyInfo]:
+def _section_keys(prefix: str, cls: type, values: Mapping[str, object]) -> Iterator[KeyInfo]:
     docs = field_docs(cls)
     for field in dataclasses.fields(cls):
         if field.init:

@@ -10,7 +10,7 @@ import os
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, overload
+from typing import Literal, overload
 
 from folder_line.core.line.scene import MACHINES, MachineParams
 from folder_line.core.mechanisms.cyclogram import CyclogramParams
@@ -54,7 +54,7 @@ def config_dir() -> Path:
     raise FileNotFoundError(msg)
 
 
-def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
+def read_yaml_mapping(path: Path, what: str) -> dict[str, object]:
     """Read a YAML file that must hold a mapping (an empty file is an empty mapping).
 
     Read by :func:`folder_line.files.yamlio.load_yaml_file`: a regular UTF-8 file of at most
@@ -70,28 +70,30 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
 
 @overload
 def load_params(
-    kind: Literal['layup'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: Literal['layup'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, object] | None = None
 ) -> LayupParams: ...
 @overload
 def load_params(
-    kind: Literal['knife'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: Literal['knife'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, object] | None = None
 ) -> KnifeParams: ...
 @overload
 def load_params(
-    kind: Literal['delivery'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: Literal['delivery'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, object] | None = None
 ) -> DeliveryParams: ...
 @overload
 def load_params(
-    kind: Literal['cyclogram'], path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: Literal['cyclogram'],
+    path: str | os.PathLike[str] | None = None,
+    overrides: Mapping[str, object] | None = None,
 ) -> CyclogramParams: ...
 @overload
 def load_params(
-    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, object] | None = None
 ) -> MachineParams: ...
 
 
 def load_params(
-    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, Any] | None = None
+    kind: str, path: str | os.PathLike[str] | None = None, overrides: Mapping[str, object] | None = None
 ) -> MachineParams:
     """Validated parameters of one mechanism.
 
@@ -117,7 +119,7 @@ def load_params(
     return build(MACHINES[kind], values, kind, f'{kind} parameter')
 
 
-def load_container(overrides: Mapping[str, Any] | None = None) -> ContainerParams:
+def load_container(overrides: Mapping[str, object] | None = None) -> ContainerParams:
     """The container the layup lays the leaves into (``config/container.yaml``; the layup's frame),
     with ``overrides`` (``{'x_left': 0.1}``) applied last.
 

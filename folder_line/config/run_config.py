@@ -129,7 +129,9 @@ class RunConfig:
     max_bag_size: int = 0
 
 
-def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+def node_parameters(
+    cfg: RunConfig, name: str, scene_file: str | os.PathLike[str] | None = None
+) -> dict[str, str | float]:
     """The parameters ``run`` gives machine node ``name`` (every machine node gets the same).
 
     Parameters
@@ -148,7 +150,7 @@ def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str
         ``scene`` (and ``overrides``), ``rate``, ``lost_timeout``; ``sheet_counter`` also
         ``marker_rate``.
     """
-    params: dict[str, Any] = {'scene': str(cfg.scene if scene_file is None else scene_file)}
+    params: dict[str, str | float] = {'scene': str(cfg.scene if scene_file is None else scene_file)}
     if scene_file is None and cfg.overrides:  # rcl cannot parse an empty '-p overrides:=' rule
         params['overrides'] = ';'.join(cfg.overrides)
     params.update({'rate': cfg.rate, 'lost_timeout': cfg.lost_timeout})
@@ -157,7 +159,7 @@ def node_parameters(cfg: RunConfig, name: str, scene_file: str | os.PathLike[str
     return params
 
 
-def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, Any]:
+def clock_parameters(cfg: RunConfig, participants: tuple[str, ...]) -> dict[str, str | float]:
     """The parameters ``run`` gives ``line_clock`` (its tick rate is the nodes' ``cfg.rate``)."""
     return {
         'rate': cfg.rate,

@@ -32,7 +32,7 @@ import os
 from collections.abc import Hashable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 import yaml
 
@@ -52,6 +52,7 @@ __all__ = [
     'PRESS_KEYS',
     'SET_VALUE_CHARS',
     'InputNames',
+    'SceneMapping',
     'apply_overrides',
     'default_value',
     'list_scenes',
@@ -70,8 +71,12 @@ SET_VALUE_CHARS = 100
 #: the keys of the ``press`` section: ``press.n_c``, the folding cylinder's speed, rev/h, sets ``cyclogram.n_c``
 #: and ``knife.n_k`` = :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times it
 PRESS_KEYS = ('n_c',)
+#: a complete scene mapping before :func:`~folder_line.core.line.scene.parse_scene` judges it: the user's YAML
+#: with the defaults merged in (``Any``: the merge made ``machines``, ``effects``, ``sheets`` dicts, and any
+#: other value is as the user typed it, for the parser to refuse)
+SceneMapping: TypeAlias = dict[str, Any]
 #: the ``drive`` section of a scene that gives none, with every field at its default
-DRIVE_DEFAULT: dict[str, Any] = {
+DRIVE_DEFAULT: dict[str, object] = {
     'profile': 'constant',
     **{f.name: f.default for f in dataclasses.fields(DriveSpec) if f.default is not dataclasses.MISSING},
 }
@@ -122,12 +127,12 @@ def resolve_scene(name_or_path: str | os.PathLike[str], names: InputNames = Inpu
     return shipped
 
 
-def parse_set(items: Iterable[str], names: InputNames = InputNames()) -> dict[str, Any]:
+def parse_set(items: Iterable[str], names: InputNames = InputNames()) -> dict[str, object]:
     """``['feed_transporter.V_tr=5.833', ...]`` -> ``{'feed_transporter.V_tr': 5.833}`` (values as YAML scalars).
 
     An item that is not ``KEY=VALUE`` is refused naming ``names.overrides``; a bad value, naming its key.
     """
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for item in items:
         key, sep, raw = item.partition('=')
         key = key.strip()
@@ -150,18 +155,18 @@ def parse_set(items: Iterable[str], names: InputNames = InputNames()) -> dict[st
     return out
 
 
-def _section(values: Any) -> Any:
+def _section(values: object) -> object:
     """A section's mapping, copied (None: empty); anything else as given, for the builder to refuse."""
     if values is None:
         return {}
     return dict(values) if isinstance(values, Mapping) else values
 
 
-def _effects_mapping(raw: Any) -> dict[str, Any]:
+def _effects_mapping(raw: object) -> dict[str, object]:
     if raw is None:
         return {}
     if isinstance(raw, list):  # effects: [name, {name: params}, ...]
-        out: dict[str, Any] = {}
+        out: dict[str, object] = {}
         for item in raw:
             if isinstance(item, str):
                 out[item] = {}
@@ -177,10 +182,10 @@ def _effects_mapping(raw: Any) -> dict[str, Any]:
 
 def scene_mapping(
     name_or_path: str | os.PathLike[str],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     *,
     names: InputNames = InputNames(),
-) -> dict[str, Any]:
+) -> SceneMapping:
     """The complete mapping of a scene: file, defaults and overrides merged (not yet validated).
 
     Merging places values and checks only what it must to place them (the file holds a
@@ -190,15 +195,15 @@ def scene_mapping(
     return _merge(resolve_scene(name_or_path, names), overrides, names)
 
 
-def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -> dict[str, Any]:
-    data = copy.deepcopy(read_yaml_mapping(path, names.scene))
+def _merge(path: Path, overrides: Mapping[str, object] | None, names: InputNames) -> SceneMapping:
+    data: SceneMapping = copy.deepcopy(read_yaml_mapping(path, names.scene))
     data.setdefault('name', path.stem)
     press = _press_section(data)
     given = _given_keys(data)
     machines_in = data.get('machines')
     if not isinstance(machines_in, Mapping) or not machines_in:
         raise ParameterError('machines', machines_in, f'scene {path} must list its machines: {", ".join(MACHINES)}')
-    machines: dict[Any, Any] = {}
+    machines: dict[object, object] = {}
     for section, values in machines_in.items():
         if section not in MACHINES:  # refused by parse_scene, naming the known ones
             machines[section] = values
@@ -225,7 +230,7 @@ def _merge(path: Path, overrides: Mapping[str, Any] | None, names: InputNames) -
     return data
 
 
-def _press_section(data: dict[str, Any]) -> dict[str, Any]:
+def _press_section(data: dict[str, object]) -> dict[str, object]:
     """The scene file's ``press`` section, taken out of ``data`` (it is applied as ``press.<key>`` overrides).
 
     The file must not give the speeds it sets a second time (``knife.n_k``, ``cyclogram.n_c``).
@@ -250,7 +255,7 @@ def _press_section(data: dict[str, Any]) -> dict[str, Any]:
     return dict(press)
 
 
-def _given_keys(data: Mapping[str, Any]) -> list[str]:
+def _given_keys(data: Mapping[str, object]) -> list[str]:
     """The dotted keys a scene file gives values for itself (machine sections, sheets, drive)."""
     keys: list[str] = []
     machines = data.get('machines')
@@ -265,7 +270,7 @@ def _given_keys(data: Mapping[str, Any]) -> list[str]:
     return keys
 
 
-def default_value(key: str) -> Any:
+def default_value(key: str) -> object:
     """The default of a dotted machine, ``sheets`` or ``drive`` key (``config/<section>.yaml``,
     :data:`DRIVE_DEFAULT`), or None if it has none (an effect's parameters have no defaults)."""
     section, _, field = key.partition('.')
@@ -276,13 +281,13 @@ def default_value(key: str) -> Any:
     return None
 
 
-def _section_value(data: Mapping[str, Any], key: str) -> Any:
+def _section_value(data: SceneMapping, key: str) -> object:
     section, _, field = key.partition('.')
     values = data['machines'].get(section) if section in MACHINES else data.get(section)
     return values.get(field) if isinstance(values, Mapping) else None
 
 
-def _check_read(data: Mapping[str, Any], keys: Iterable[str]) -> None:
+def _check_read(data: SceneMapping, keys: Iterable[str]) -> None:
     """Refuse a value the user gave for one of ``keys`` that the scene never reads (unless it is the default)."""
     machines = [m for m in data['machines'] if isinstance(m, str)]
     effects = [e for e in data['effects'] if isinstance(e, str)]
@@ -295,19 +300,19 @@ def _check_read(data: Mapping[str, Any], keys: Iterable[str]) -> None:
             raise ParameterError(key, value, f'does nothing in scene {data["name"]!r}: {why}')
 
 
-def apply_overrides(data: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+def apply_overrides(data: Mapping[str, object], overrides: Mapping[str, object]) -> SceneMapping:
     """A copy of a complete scene mapping (:func:`scene_mapping`) with ``overrides`` applied, as ``--set`` does.
 
     The design studies vary keys of one merged scene this way, point by point; ``data`` is not changed.
     """
-    out = copy.deepcopy(dict(data))
+    out: SceneMapping = copy.deepcopy(dict(data))
     for key, value in overrides.items():
         _apply(out, key, value)
     _check_read(out, overrides)
     return out
 
 
-def set_press(machines: Mapping[str, Any], key: str, value: Any, where: str) -> None:
+def set_press(machines: Mapping[str, object], key: str, value: object, where: str) -> None:
     """Apply ``press.<field>``: ``press.n_c`` puts the folding cylinder at ``value`` rev/h and the knife at
     :data:`~folder_line.core.mechanisms.cyclogram.KNIFE_PER_CYLINDER` times it.
 
@@ -343,7 +348,7 @@ def set_press(machines: Mapping[str, Any], key: str, value: Any, where: str) -> 
     knife['n_k'] = KNIFE_PER_CYLINDER * n_c
 
 
-def _apply(data: dict[str, Any], key: str, value: Any) -> None:
+def _apply(data: SceneMapping, key: str, value: object) -> None:
     if key in ('seed', 'sample_rate'):
         data[key] = value
         return
@@ -388,7 +393,7 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
 
 def load_scene(
     name_or_path: str | os.PathLike[str],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     *,
     names: InputNames = InputNames(),
 ) -> Scene:
@@ -433,7 +438,7 @@ def _remember(key: Hashable, scene: Scene) -> None:
 
 def shared_scene(
     name_or_path: str | os.PathLike[str],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     *,
     names: InputNames = InputNames(),
 ) -> Scene:

@@ -22,8 +22,9 @@ from __future__ import annotations
 import errno
 import os
 import stat
+from collections.abc import Hashable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
 import yaml
 from yaml.constructor import ConstructorError
@@ -120,8 +121,8 @@ class BoundedLoader(yaml.SafeLoader):
         self._weights[id(node)] = weight
         return node
 
-    def construct_mapping(self, node: MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen: dict[Any, Node] = {}
+    def construct_mapping(self, node: MappingNode, deep: bool = False) -> dict[Hashable, object]:
+        seen: dict[Hashable, Node] = {}
         for key_node, _ in node.value:
             if key_node.tag == _MERGE_TAG:
                 continue
@@ -216,7 +217,7 @@ def _position(text: str, index: int) -> tuple[int, int]:
     return line, index - (text.rfind('\n', 0, index) + 1) + 1
 
 
-def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> Any:
+def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> object:
     """Parse one YAML document with :class:`BoundedLoader`.
 
     Parameters
@@ -261,6 +262,8 @@ def load_yaml(text: str, what: str, source: str, max_nodes: int = MAX_NODES) -> 
             loader.dispose()
 
 
-def load_yaml_file(path: str | os.PathLike[str], what: str, limit: int = TEXT_LIMIT, max_nodes: int = MAX_NODES) -> Any:
+def load_yaml_file(
+    path: str | os.PathLike[str], what: str, limit: int = TEXT_LIMIT, max_nodes: int = MAX_NODES
+) -> object:
     """:func:`read_text_bounded` then :func:`load_yaml`."""
     return load_yaml(read_text_bounded(path, what, limit), what, str(Path(path)), max_nodes)

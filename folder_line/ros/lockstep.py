@@ -31,14 +31,16 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TypeVar
 
 from rclpy.clock import Clock, ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from rclpy.time_source import TimeSource
+from rclpy.type_support import Msg
 from sensor_msgs.msg import TimeReference
 from std_msgs.msg import String
 
@@ -75,6 +77,9 @@ __all__ = [
     'WAIT_REPORT',
     'Participant',
 ]
+
+#: a message type, as rclpy's ``Publisher`` takes it
+_M = TypeVar('_M', bound=Msg)
 
 HEARTBEAT = 0.05  # wall s: a participant that waits repeats its latest acknowledgement this often
 #: a participant that runs ticks one after another says how far it got at least every this many ticks
@@ -223,7 +228,7 @@ class Participant:
 
     # ------------------------------------------------------------------ publishing
 
-    def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
+    def publish(self, publisher: Publisher[_M], msg: _M, stream: str | None = None) -> None:
         """Publish ``msg`` and count it (``messages``, its topic, and ``stream`` if given)."""
         publisher.publish(msg)
         counts = self.counts

@@ -37,13 +37,15 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import cast
 
 from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
 from sensor_msgs.msg import TimeReference
 
 from folder_line.core.supervision.lockstep import parse_counts, parse_ticks
 from folder_line.interfaces import KNOWN_PARTICIPANTS, NS_PER_S
+from folder_line.ros.message_fields import TimeReferenceLike
 from folder_line.ros.signing import open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 
@@ -164,7 +166,7 @@ def participant_names(text: str) -> tuple[str, ...]:
 
 
 @functools.cache
-def _typestore() -> Any:
+def _typestore() -> Typestore:
     return get_typestore(Stores.ROS2_KILTED)
 
 
@@ -172,9 +174,9 @@ def _typestore() -> Any:
 _cached_counts = functools.lru_cache(maxsize=256)(parse_counts)
 
 
-def _decode(data: bytes) -> Any:
-    try:
-        return _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference')
+def _decode(data: bytes) -> TimeReferenceLike:
+    try:  # the typestore decodes the type it is asked for (its signature says object)
+        return cast('TimeReferenceLike', _typestore().deserialize_cdr(data, 'sensor_msgs/msg/TimeReference'))
     except Exception as err:
         raise ValueError(f'not a sensor_msgs/TimeReference ({type(err).__name__}: {str(err)[:80]})') from None
 
@@ -201,7 +203,7 @@ def read_ticks(data: bytes) -> tuple[str, list[tuple[int, dict[str, int]]], int]
     return msg.header.frame_id, parse_ticks(source, stamp), time_msg_to_ns(msg.time_ref)
 
 
-def _open_ack(msg: Any, kind: str) -> str:
+def _open_ack(msg: TimeReferenceLike, kind: str) -> str:
     try:
         return open_text(msg.source, kind, msg.header.frame_id, msg.header.stamp, msg.time_ref)
     except ValueError as err:

@@ -46,6 +46,7 @@ from folder_line.ros.dds_profile import use_line_profile
 from folder_line.ros.parameters import signed_change
 from folder_line.ros.player import line_qos
 from folder_line.ros.recorder import LINE_TOPICS
+from folder_line.ros.runtime import SignalHandler
 from folder_line.ros.signing import line_signer
 from folder_line.ros.topics import COMMANDS_QOS
 
@@ -62,7 +63,7 @@ __all__ = [
     'monitor_session',
 ]
 
-MessageSink = Callable[[str, Any, float], None]
+MessageSink = Callable[[str, object, float], None]
 """``sink(topic, msg, wall)``: takes one message of ``topic`` written at wall time ``wall``, s."""
 
 QUEUE_DEPTH = 200
@@ -160,10 +161,10 @@ class MonitorNode(Node):
             for topic, cls in topics.items()
         }
 
-    def _callback(self, topic: str) -> Callable[[Any, MessageInfo], None]:
+    def _callback(self, topic: str) -> Callable[[object, MessageInfo], None]:
         keep_history = topic in LATCHED
 
-        def on_message(msg: Any, info: MessageInfo) -> None:
+        def on_message(msg: object, info: MessageInfo) -> None:
             written = info.get('source_timestamp', 0)
             if 0 < written < self.since_ns and not keep_history:
                 self.history[topic] += 1
@@ -181,7 +182,7 @@ class _Stop:
 
     def __init__(self) -> None:
         self.event = threading.Event()
-        self._previous: dict[int, Any] = {}
+        self._previous: dict[int, SignalHandler] = {}
 
     def __enter__(self) -> _Stop:
         if threading.current_thread() is threading.main_thread():
@@ -229,7 +230,7 @@ class MonitorSession:
         if not client.service_is_ready():
             return False
 
-        def answered(f: Any) -> None:
+        def answered(f: Any) -> None:  # Any: a done future (rclpy types its result Optional)
             response = f.result()
             on_answer(bool(response.success), str(response.message))
 

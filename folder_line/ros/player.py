@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, TextIO
+from typing import TextIO
 
 import rclpy
 from rclpy.context import Context
@@ -30,6 +30,7 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.type_support import Msg
 from rosgraph_msgs.msg import Clock
 
 from folder_line.bag.playback import PlayPlan, QosSpec, play_plan, raw_messages, recorded_qos, wall_offset
@@ -77,10 +78,11 @@ def _profile(spec: QosSpec) -> QoSProfile:
     )
 
 
-def message_class(msgtype: str) -> Any:
+def message_class(msgtype: str) -> type[Msg]:
     """The rclpy class of ``'pkg/msg/Type'``."""
     package, kind, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+    cls: type[Msg] = getattr(importlib.import_module(f'{package}.{kind}'), name)
+    return cls
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,7 @@ class _Player:
     def __init__(self, plan: PlayPlan, context: Context) -> None:
         self.node = Node(PLAYER, context=context)
         recorded = recorded_qos(plan.bag)
-        self.pubs: dict[str, Publisher[Any]] = {}
+        self.pubs: dict[str, Publisher[Msg]] = {}
         for topic, msgtype in plan.topics.items():
             qos = _profile(recorded[topic]) if topic in recorded else line_qos(topic)
             self.pubs[topic] = self.node.create_publisher(message_class(msgtype), topic, qos)

@@ -165,7 +165,7 @@ class LineRecorder(Node):
         #: the first error of the sink (a write the OS refused: disk full, ...); nothing is recorded after it
         self.write_error: OSError | None = None
         # the ERROR statuses seen (lost participants, violations, ...) and the operator's tunings
-        self.diagnostics: list[Any] = []
+        self.diagnostics: list[DiagnosticStatus] = []
         self._last_clock = -1
         # per producer: its acknowledgements not yet recorded, and per topic its messages not yet recorded
         self._acks: dict[str, deque[tuple[int, Mapping[str, int]]]] = {n: deque() for n in PRODUCER_TOPICS}

@@ -20,11 +20,11 @@ tick only when every participant, the recorder included, has finished the previo
 one, so a busy machine slows sim time down and never changes what is published.
 ``clock='wall'`` paces by the wall clock instead and counts late participants.
 
-The outcome is honest (:func:`outcome`): the run succeeds only when the line reached
-the end of ``duration`` in the state the scene expects (EXECUTE, as ``simulate``
-says) with no participant lost; otherwise one line names the state, the cause, the
-cycle and the node, and ``folder-line run`` exits non-zero. SIGTERM is handled like
-SIGINT: the bag is closed, ``run.json`` written and every child ended.
+The outcome is honest (:func:`folder_line.ros.run_summary.outcome`): the run succeeds
+only when the line reached the end of ``duration`` in the state the scene expects
+(EXECUTE, as ``simulate`` says) with no participant lost; otherwise one line names the
+state, the cause, the cycle and the node, and ``folder-line run`` exits non-zero. SIGTERM
+is handled like SIGINT: the bag is closed, ``run.json`` written and every child ended.
 
 Loss accounting: in-process, every node counts what it publishes (``published_counts()``),
 so ``run.json`` has ``published`` and ``lost`` (= published - recorded) per topic. With
@@ -45,13 +45,14 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from subprocess import Popen
 from typing import IO, TYPE_CHECKING, Any
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.executors import Executor
@@ -60,7 +61,6 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 from std_msgs.msg import String
 
-from folder_line.bag.metadata import files_text
 from folder_line.bag.statuses import accepted_tunings
 from folder_line.bag.writer import BagWriter
 from folder_line.config.run_config import BAG_DIR, SCENE_FILE, RunConfig, clock_parameters, node_parameters
@@ -80,6 +80,7 @@ from folder_line.ros.nodes import belt_conveyor, crank_drive, feed_transporter, 
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.recorder import LINE_TOPICS, LineRecorder
+from folder_line.ros.run_summary import BagAccount, ExpectedFromSimulate, RunSummary
 from folder_line.ros.runtime import events_executor
 from folder_line.ros.strangers import UNKNOWN_NODE
 
@@ -90,8 +91,6 @@ __all__ = [
     'RunResult',
     'add_machine_nodes',
     'other_line',
-    'outcome',
-    'print_run_summary',
     'ros_arg',
     'run_line',
 ]
@@ -105,10 +104,11 @@ _PROCESSES_LOSS = (
 
 @dataclass
 class RunResult:
-    """What a run produced: per-topic message counts and the summary written to ``run.json``."""
+    """What a run produced: the summary written to ``run.json``, per-topic message counts and, with node
+    processes, their exit codes."""
 
+    summary: RunSummary
     counts: dict[str, int] = field(default_factory=dict)
-    summary: dict[str, Any] = field(default_factory=dict)
     exit_codes: dict[str, int] = field(default_factory=dict)
 
 
@@ -348,7 +348,9 @@ class _LineRun:
     stream: IO[str]
     ctx: rclpy.Context
     executor: Executor
-    result: RunResult = field(default_factory=RunResult)
+    summary: RunSummary | None = None  # built by finish()
+    counts: dict[str, int] = field(default_factory=dict)  # per topic, received by the recorder
+    exit_codes: dict[str, int] = field(default_factory=dict)  # per node process
     procs: dict[str, Popen[bytes]] = field(default_factory=dict)
     nodes: list[MachineNode | LineClock] = field(default_factory=list)
     bag: BagWriter | None = None
@@ -431,7 +433,7 @@ class _LineRun:
         recorder.flush()
         if recorder.write_error is not None:  # the bag stays as far as it got, marked partial (repairable)
             raise recorder.write_error
-        self.result.counts = dict(recorder.counts)
+        self.counts = dict(recorder.counts)
         published = None if self.cfg.processes or self.cfg.external else _published_counts(self.nodes)
         bag.close(published)
         lost = dict(recorder.lost)
@@ -439,9 +441,8 @@ class _LineRun:
             lost.update({n: t for n, t in clock.lost.items() if n not in lost})
         rtf = None if clock is None else clock.rtf_achieved
         summary = _summary(self.cfg, scene, recorder, wall_s, self.interrupted, lost, rtf)
-        summary.update(_bag_summary(bag, published, recorder.unrecorded))
-        summary['partition'] = partition  # None: an open line (the user's own profiles file)
-        self.result.summary = summary
+        # partition None: an open line (the user's own profiles file)
+        self.summary = replace(summary, bag=_bag_account(bag, published, recorder.unrecorded), partition=partition)
 
     def end_processes(self) -> None:
         """Let the node processes end by themselves after a normal end (a lost one is ended at once), stop
@@ -450,7 +451,7 @@ class _LineRun:
         if procs and not self.interrupted and procs['line_clock'].poll() is not None:
             # the line ended: every node ends by itself after the announced last tick; a SIGINT while it is
             # ending would find the default handler back and kill it (exit -2, a KeyboardInterrupt traceback)
-            lost_nodes = set(self.result.summary.get('lost_participants') or ())
+            lost_nodes = set(self.summary.lost_participants if self.summary is not None else ())
             for name in (lost_nodes & set(procs)) - self.ended_lost:  # a stopped node holds shared-memory locks
                 _end_lost(procs[name])
             deadline = time.monotonic() + 15.0
@@ -468,7 +469,7 @@ class _LineRun:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait()
-            self.result.exit_codes[name] = proc.returncode
+            self.exit_codes[name] = proc.returncode
 
     def tear_down(self) -> None:
         """End the processes, the executor, the bag (if an error left it open) and the nodes."""
@@ -519,59 +520,18 @@ def run_line(cfg: RunConfig, stream: IO[str] = sys.stdout, names: InputNames | N
         run.tear_down()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    result = run.result
+    summary = run.summary
+    assert summary is not None  # finish() built it or raised
     if run.procs:
-        result.summary['exit_codes'] = result.exit_codes
-        clock_code = result.exit_codes.get('line_clock')
-        if clock_code not in (0, None) and not result.summary.get('lost_participants'):
-            result.summary['lost_participants'] = {'line_clock': result.summary['sim_time_reached_s']}
-    result.summary['outcome'] = outcome(result.summary)
-    write_json_atomic(cfg.out / 'run.json', result.summary)
-    return result
+        lost = summary.lost_participants
+        if run.exit_codes.get('line_clock') not in (0, None) and not lost:
+            lost = {'line_clock': summary.sim_time_reached_s}
+        summary = replace(summary, lost_participants=lost, exit_codes=run.exit_codes)
+    write_json_atomic(cfg.out / 'run.json', summary.as_json())
+    return RunResult(summary, run.counts, run.exit_codes)
 
 
-def outcome(summary: dict[str, Any]) -> dict[str, Any]:
-    """Whether the run ended as the scene expects, and if not, one line that says why.
-
-    ``ok`` only when sim time reached ``duration``, the run was not interrupted, no
-    participant was lost and the supervisor ended in the state ``simulate`` expects
-    (EXECUTE: the scenes start the line and nothing stops it unless a constraint is
-    violated, which ``simulate`` reports as a violation).
-    """
-    expected = 'EXECUTE' if summary['expected_from_simulate']['violations'] == 0 else None
-    problems: list[str] = []
-    lost = summary.get('lost_participants') or {}
-    for node, t in lost.items():
-        problems.append(f'participant {node} lost at {t:.6f} s')
-    if summary.get('interrupted'):
-        problems.append(f'interrupted ({summary["interrupted"]}) at {summary["sim_time_reached_s"]:.6f} s')
-    elif summary['sim_time_reached_s'] < summary['duration_s']:
-        problems.append(f'sim time stopped at {summary["sim_time_reached_s"]:.6f} s of {summary["duration_s"]:g} s')
-    state = summary['supervisor_state']
-    cause = summary.get('cause')
-    if expected is not None and state != expected:
-        what = f'line ended {state or "with no supervisor state"}'
-        if cause:
-            what += f': {cause}'
-        problems.insert(0, what)
-    elif expected is None and state == 'EXECUTE':
-        problems.append('simulate expects violations, yet the line ended in EXECUTE')
-    ok = not problems
-    return {
-        'ok': ok,
-        'expected_state': expected,
-        'state': state,
-        'message': (
-            f'line ended {state} as the scene expects'
-            + (" with the operator's tunings" if summary.get('tunings') else '')
-            + (f': {cause}' if ok and cause else '')
-            if ok
-            else '; '.join(problems)
-        ),
-    }
-
-
-def _tunings(statuses: Any) -> list[Tuning]:
+def _tunings(statuses: Iterable[DiagnosticStatus]) -> list[Tuning]:
     """The tunings the supervisor accepted, from its ``folder_line/supervisor/tuning`` statuses, by effective time."""
     recorded = accepted_tunings((st.name, {kv.key: kv.value for kv in st.values}) for st in statuses)
     return sorted((Tuning(effective, key, value) for _, key, value, effective in recorded), key=lambda tu: tu.t)
@@ -593,7 +553,8 @@ def _summary(
     interrupted: list[str],
     lost: dict[str, float],
     rtf: float | None,
-) -> dict[str, Any]:
+) -> RunSummary:
+    """The run's summary, without its bag (``rtf``: the clock's achieved real-time factor, if it ran here)."""
     tunings = _tunings(recorder.diagnostics)  # the operator's changes: simulate runs them too
     span = min(recorder.sim_time, cfg.duration) or cfg.duration
     # streamed: the expected figures of a long run take no more memory than a short one's
@@ -609,82 +570,44 @@ def _summary(
                 f' (node {node})' if node else ''
             )
             break
-    return {
-        'scene': scene.name,
-        'duration_s': cfg.duration,
-        'sim_time_reached_s': recorder.sim_time,
-        'wall_time_s': wall,
-        'rtf_requested': cfg.rtf if cfg.rtf > 0 else 'max',
-        'rtf_achieved': rtf if rtf is not None else recorder.rtf_achieved(),
-        'mode': 'processes' if cfg.processes else 'in-process',
-        'clock': cfg.clock,
-        'interrupted': ', '.join(interrupted) if interrupted else False,
-        'lost_participants': lost,
-        'cause': cause,
-        'messages': dict(sorted(recorder.counts.items())),
-        'events_received': dict(sorted(recorder.event_counts.items())),
-        'sheets_counted': recorder.sheet_count,
-        'supervisor_state': recorder.state,
-        'tunings': [{'t': tu.t, 'key': tu.key, 'value': tu.value} for tu in tunings],
-        'expected_from_simulate': {
-            'sheets_counted': expected['sheets_counted'],
-            'events': expected['events'],
-            'violations': expected['violations']['count'],
-        },
-    }
+    return RunSummary(
+        scene=scene.name,
+        duration_s=cfg.duration,
+        sim_time_reached_s=recorder.sim_time,
+        wall_time_s=wall,
+        rtf_requested=cfg.rtf if cfg.rtf > 0 else 'max',
+        rtf_achieved=rtf if rtf is not None else recorder.rtf_achieved(),
+        mode='processes' if cfg.processes else 'in-process',
+        clock=cfg.clock,
+        interrupted=', '.join(interrupted) if interrupted else None,
+        lost_participants=lost,
+        cause=cause,
+        messages=dict(sorted(recorder.counts.items())),
+        events_received=dict(sorted(recorder.event_counts.items())),
+        sheets_counted=recorder.sheet_count,
+        supervisor_state=recorder.state,
+        tunings=tuple(tunings),
+        expected_from_simulate=ExpectedFromSimulate(
+            sheets_counted=expected.sheets_counted,
+            events=expected.events,
+            violations=expected.violations.count,
+        ),
+    )
 
 
-def _bag_summary(bag: BagWriter, published: dict[str, int] | None, unrecorded: Mapping[str, int]) -> dict[str, Any]:
-    """``unrecorded``: per topic, messages of ticks after the last one recorded (a stopped line), not lost."""
+def _bag_account(bag: BagWriter, published: dict[str, int] | None, unrecorded: Mapping[str, int]) -> BagAccount:
+    """The closed bag's account (``published`` None: the publishers' counts are not known here; ``unrecorded``:
+    per topic, messages of ticks after the last one recorded, a stopped line's, not lost)."""
     recorded = dict(sorted(bag.counts.items()))
     after = {t: n for t, n in sorted(unrecorded.items()) if n}
-    out: dict[str, Any] = {
-        'bag': {'path': str(bag.path), 'files': len(bag.files), 'messages': recorded},
-        'published': None if published is None else {t: published.get(t, 0) for t in recorded},
-        'lost': None
+    return BagAccount(
+        path=str(bag.path),
+        files=len(bag.files),
+        messages=recorded,
+        published=None if published is None else {t: published.get(t, 0) for t in recorded},
+        lost=None if published is None else {t: published.get(t, 0) - n - after.get(t, 0) for t, n in recorded.items()},
+        after_last_tick=after,
+        loss_accounting=_PROCESSES_LOSS
         if published is None
-        else {t: published.get(t, 0) - n - after.get(t, 0) for t, n in recorded.items()},
-        'after_last_tick': after,
-    }
-    out['loss_accounting'] = (
-        _PROCESSES_LOSS
-        if published is None
-        else 'in-process: published counted by the nodes, recorded counted in the bag'
+        else 'in-process: published counted by the nodes, recorded counted in the bag',
     )
-    return out
-
-
-def print_run_summary(summary: dict[str, Any], out_dir: Path, stream: IO[str]) -> None:
-    """Human-readable end of ``folder-line run``."""
-    print(
-        f'scene {summary["scene"]}: {summary["sim_time_reached_s"]:.3f} s of line time in '
-        f'{summary["wall_time_s"]:.1f} s ({summary["mode"]}, {summary["clock"]} clock, rtf achieved '
-        f'{summary["rtf_achieved"]:.2f}, ceiling {summary["rtf_requested"]})',
-        file=stream,
-    )
-    tunings = summary.get('tunings') or []
-    print(
-        f'supervisor: {summary["supervisor_state"]}   sheets counted: {summary["sheets_counted"]} '
-        f'(simulate{" with the same tunings" if tunings else ""}: '
-        f'{summary["expected_from_simulate"]["sheets_counted"]})',
-        file=stream,
-    )
-    for tu in tunings:  # as simulate --tune takes them
-        print(
-            f'tuned: {tu["key"]} = {tu["value"]!r} from {tu["t"]:.9f} s '
-            f'(simulate --tune {tu["t"]!r}:{tu["key"]}={tu["value"]!r})',
-            file=stream,
-        )
-    print('messages received per topic:', file=stream)
-    for topic, n in summary['messages'].items():
-        print(f'  {topic:<40} {n}', file=stream)
-    if 'bag' in summary:
-        lost = summary.get('lost')
-        if lost is None:
-            print(f'lost messages: unknown ({summary.get("loss_accounting", "")})', file=stream)
-        elif any(lost.values()):
-            print('lost messages: ' + ', '.join(f'{t} {n}' for t, n in lost.items() if n), file=stream)
-        else:
-            print('lost messages: 0 on every topic', file=stream)
-        print(f'wrote {summary["bag"]["path"]} ({files_text(summary["bag"]["files"])})', file=stream)
-    print(f'wrote {out_dir / "run.json"}', file=stream)

@@ -22,7 +22,8 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from types import FrameType
+from typing import TypeAlias
 
 import rclpy
 from rclpy.duration import Duration
@@ -47,9 +48,13 @@ __all__ = [
     'STOP_GRACE',
     'STOP_SIGNALS',
     'TEARDOWN_TIMEOUT',
+    'SignalHandler',
     'events_executor',
     'run_node',
 ]
+
+SignalHandler: TypeAlias = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+"""What ``signal.signal`` returns and takes: a handler, ``SIG_DFL``/``SIG_IGN``, or None (one not set in Python)."""
 
 EXIT_OK = 0
 """Exit code of a node that stopped on request or finished."""
@@ -105,7 +110,7 @@ class _StopRequests:
         self.code: Callable[[], int] = lambda: EXIT_OK
         self._name = name
         self._own_process = own_process  # only a process's own node may end the process
-        self._alarm: Any = None  # the SIGALRM handler before this one armed its own
+        self._alarm: SignalHandler = None  # the SIGALRM handler before this one armed its own
 
     def is_set(self) -> bool:
         """Whether a stop was requested."""
@@ -255,7 +260,7 @@ def run_node(
         teardown_timeout = TEARDOWN_TIMEOUT
     watchdog = _TeardownWatchdog(name, teardown_timeout)
 
-    previous: dict[signal.Signals, Any] = {}
+    previous: dict[signal.Signals, SignalHandler] = {}
     if in_main_thread:
         for signum in STOP_SIGNALS:
             previous[signum] = signal.signal(signum, stop.on_signal)
@@ -286,7 +291,7 @@ def run_node(
     return EXIT_OK
 
 
-def _restore_signals(previous: dict[signal.Signals, Any], own_process: bool) -> None:
+def _restore_signals(previous: dict[signal.Signals, SignalHandler], own_process: bool) -> None:
     """Put back the handlers ``previous`` replaced; a node's own process ignores the stop signals instead
     (a late request from launch must not turn its exit into a death by signal)."""
     for signum, handler in previous.items():

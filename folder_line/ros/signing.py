@@ -29,9 +29,10 @@ import os
 import secrets
 import time
 from collections.abc import Iterable
-from typing import Any, Final
+from typing import Final
 
 from folder_line.ros.line_key import read_key
+from folder_line.ros.message_fields import StampLike
 
 __all__ = [
     'REQUEST_WINDOW',
@@ -103,17 +104,17 @@ def line_signer() -> Signer:
     return Signer(read_key(os.environ))
 
 
-def stamp_text(stamp: Any) -> str:
+def stamp_text(stamp: StampLike) -> str:
     """``builtin_interfaces/Time`` as ``'sec.nanosec'`` (rclpy's message or rosbags')."""
     return f'{stamp.sec}.{stamp.nanosec}'
 
 
-def sign_text(text: str, kind: str, frame_id: str = '', *stamps: Any) -> str:
+def sign_text(text: str, kind: str, frame_id: str = '', *stamps: StampLike) -> str:
     """:meth:`Signer.sign` of ``text`` under this process's key, over ``kind``, ``frame_id`` and ``stamps``."""
     return line_signer().sign(text, kind, frame_id, *map(stamp_text, stamps))
 
 
-def open_text(text: str, kind: str, frame_id: str = '', *stamps: Any) -> str:
+def open_text(text: str, kind: str, frame_id: str = '', *stamps: StampLike) -> str:
     """:meth:`Signer.open`, the inverse of :func:`sign_text` (``ValueError`` with the reason)."""
     return line_signer().open(text, kind, frame_id, *map(stamp_text, stamps))
 
@@ -131,11 +132,11 @@ def _value_text(value: object) -> str:
     return repr(list(value) if isinstance(value, tuple | list) else value)
 
 
-def _request_text(node: str, values: Iterable[tuple[str, Any]]) -> str:
+def _request_text(node: str, values: Iterable[tuple[str, object]]) -> str:
     return '\n'.join(sorted(f'{name}={_value_text(value)}' for name, value in values)) + f'\n@{node}'
 
 
-def sign_request(node: str, values: Iterable[tuple[str, Any]], signer: Signer | None = None) -> str:
+def sign_request(node: str, values: Iterable[tuple[str, object]], signer: Signer | None = None) -> str:
     """The value of :data:`SIGNATURE_PARAMETER` for setting ``values`` (name, value) on node ``node``
     (its name, without namespace) now: ``'<wall ns>.<nonce>.<signature>'``."""
     signer = line_signer() if signer is None else signer
@@ -155,7 +156,7 @@ class RequestGuard:
         self.signer = line_signer() if signer is None else signer
         self._seen: dict[str, float] = {}
 
-    def check(self, signature: object, values: Iterable[tuple[str, Any]]) -> str:
+    def check(self, signature: object, values: Iterable[tuple[str, object]]) -> str:
         """'' when ``signature`` signs ``values`` for this node, now and for the first time; else why not."""
         if not self.signer.keyed:
             return ''

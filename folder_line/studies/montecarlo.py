@@ -25,8 +25,8 @@ the scene, the duration and the number of samples: not on the workers or their o
 Bounded memory
 --------------
 A sample is streamed window by window (:class:`folder_line.core.line.stream.LineStream`,
-:data:`WINDOW` s at a time): its summary is ``simulate(...).summary()`` bit for bit, and of
-each constraint's margins it keeps the count, the violations, the extremes, the mean and the
+:data:`~folder_line.core.line.model.WINDOW` s at a time): its summary is ``simulate(...).summary()`` bit
+for bit, and of each constraint's margins it keeps the count, the violations, the extremes, the mean and the
 sum of squared deviations of all of them (combined window by window, then sample by sample in
 index order: Chan et al.'s pairwise update), and a uniform random sample of at most
 :data:`MARGIN_SAMPLE` margins: each margin draws a random 64-bit key (from the sample's seed
@@ -63,7 +63,6 @@ __all__ = [
     'CONFIDENCE',
     'MARGIN_SAMPLE',
     'QUANTILES',
-    'WINDOW',
     'ConstraintSample',
     'MarginStream',
     'Pool',
@@ -281,8 +280,8 @@ class SampleResult:
 def run_sample(task: SampleTask) -> SampleResult:
     """Parse ``task.source`` once, give it the sample's seed, stream it (events only) and report.
 
-    The run is streamed in windows of :data:`WINDOW` s (its summary is ``simulate(...).summary()``
-    bit for bit); each constraint's margins go through a :class:`MarginStream`.
+    The run is streamed in windows of :data:`~folder_line.core.line.model.WINDOW` s (its summary is
+    ``simulate(...).summary()`` bit for bit); each constraint's margins go through a :class:`MarginStream`.
     """
     scene = parse_scene(task.source)
     seed = sample_seed(scene.seed, task.index)
@@ -297,7 +296,7 @@ def run_sample(task: SampleTask) -> SampleResult:
     for rows in stream.finish():
         margins[rows.name].add(rows.margin)
     return SampleResult(
-        task.index, seed, flatten_metrics(stream.summary()), {name: m.done() for name, m in margins.items()}
+        task.index, seed, flatten_metrics(stream.summary().as_json()), {name: m.done() for name, m in margins.items()}
     )
 
 

@@ -32,6 +32,8 @@ from typing import IO, Any, NamedTuple
 import numpy as np
 
 from folder_line.config.scenes import apply_overrides
+from folder_line.core.line.layup_figures import Landing, LayupFigures
+from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.model import run_summary
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.layup import LayupParams
@@ -214,7 +216,7 @@ class Candidate:
         Smallest transmission angle of ``loop1`` and ``loop2`` over the turn, deg (None: does not close).
     geometry_ok : bool
         Every geometric constraint holds.
-    summary : dict or None
+    summary : LineSummary or None
         The simulation summary (None: not simulated).
     """
 
@@ -222,14 +224,22 @@ class Candidate:
     constraints: dict[str, float]
     transmission_deg: dict[str, float | None]
     geometry_ok: bool
-    summary: dict[str, Any] | None = field(default=None, repr=False)
+    summary: LineSummary | None = field(default=None, repr=False)
+
+    @property
+    def layup(self) -> LayupFigures | None:
+        """The layup's figures of the simulation (None: not simulated)."""
+        return None if self.summary is None else _layup_of(self.summary)
+
+    @property
+    def landing(self) -> Landing | None:
+        """Where the leaves of the simulation landed (None: not simulated, or no ``leaf_flight``)."""
+        return None if self.layup is None else self.layup.landing
 
     @property
     def landing_cv(self) -> float | None:
         """``layup.landing_cv`` of the simulation (None: not simulated or nothing landed)."""
-        if self.summary is None:
-            return None
-        cv = self.summary['layup'].get('landing_cv')
+        cv = None if self.landing is None else self.landing.histogram.cv
         return None if cv is None else float(cv)
 
     @property
@@ -247,12 +257,19 @@ class Candidate:
         cv = self.landing_cv
         if self.feasible and cv is not None:  # feasible includes a landing CV; said again for the type
             return cv
-        lay = self.summary['layup']
+        lay = _layup_of(self.summary)
         return float(
             PENALTY
-            + (lay['leaves_spilled'] + lay['leaves_damaged']) / max(lay['leaves'], 1)
+            + (lay.leaves_spilled + lay.leaves_damaged) / max(lay.leaves, 1)
             + (1.0 if self.landing_cv is None else 0.0)
         )
+
+
+def _layup_of(summary: LineSummary) -> LayupFigures:
+    """The layup's figures of a summary (KeyError: the scene has no layup)."""
+    if summary.layup is None:
+        raise KeyError('layup')
+    return summary.layup
 
 
 def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> dict[str, Any]:
@@ -334,8 +351,8 @@ def evaluate(
         if scene is None:
             scene = parse_scene(apply_overrides(mapping, {f'layup.{k}': v for k, v in values.items()}))
         summary = run_summary(scene, settings.duration)
-        lay = summary['layup']
-        constraints['no_spill_or_damage'] = -float(lay['leaves_spilled'] + lay['leaves_damaged'])
+        lay = _layup_of(summary)
+        constraints['no_spill_or_damage'] = -float(lay.leaves_spilled + lay.leaves_damaged)
     return Candidate(dict(values), constraints, dict(angles), ok, summary)
 
 

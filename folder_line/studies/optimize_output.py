@@ -27,12 +27,12 @@ def _broken(c: Candidate) -> list[str]:
 
 def _spill_room(c: Candidate, walls: tuple[float, float] | None) -> str:
     """How close the leaves of ``c`` land to the walls (how near the no-spill constraint is), as text."""
-    x = c.summary['layup'].get('landing_x') if c.summary is not None else None
-    if walls is None or not x:
+    x = c.landing.x if c.landing is not None else None
+    if walls is None or x is None:
         return ''
     return (
-        f'; leaves land {1e3 * (x["min"] - walls[0]):.0f} mm from the left wall and '
-        f'{1e3 * (walls[1] - x["max"]):.0f} mm from the right one'
+        f'; leaves land {1e3 * (x.min - walls[0]):.0f} mm from the left wall and '
+        f'{1e3 * (walls[1] - x.max):.0f} mm from the right one'
     )
 
 
@@ -71,19 +71,19 @@ def verdict(result: OptimizeResult, walls: tuple[float, float] | None = None) ->
 
 
 def _candidate(c: Candidate) -> dict[str, Any]:
-    lay = c.summary['layup'] if c.summary is not None else {}
+    lay, landing = c.layup, c.landing
     return {
         'values': c.values,
         'landing_cv': c.landing_cv,
         'feasible': c.feasible,
-        'leaves': lay.get('leaves'),
-        'leaves_landed': lay.get('leaves_landed'),
-        'leaves_spilled': lay.get('leaves_spilled'),
-        'leaves_damaged': lay.get('leaves_damaged'),
-        'landing_x': lay.get('landing_x'),
+        'leaves': None if lay is None else lay.leaves,
+        'leaves_landed': None if lay is None else lay.leaves_landed,
+        'leaves_spilled': None if lay is None else lay.leaves_spilled,
+        'leaves_damaged': None if lay is None else lay.leaves_damaged,
+        'landing_x': None if landing is None or landing.x is None else landing.x.as_json(),
         'constraints': c.constraints,
         'transmission_deg': c.transmission_deg,
-        'landing_histogram': lay.get('landing_histogram'),
+        'landing_histogram': None if landing is None else landing.histogram.as_json(),
     }
 
 
@@ -124,11 +124,10 @@ def result_document(
 
 def histogram_lines(result: OptimizeResult) -> list[str]:
     """The landing histograms before and after, side by side, as text lines (same bins, same scale)."""
-    hb = result.start.summary['layup'].get('landing_histogram') if result.start.summary else None
-    ha = result.best.summary['layup'].get('landing_histogram') if result.best.summary else None
-    if not hb or not ha:
+    lb, la = result.start.landing, result.best.landing
+    if lb is None or la is None:
         return ['no landing histogram (the start was not simulated)']
-    before, after, edges = hb['counts'], ha['counts'], hb['edges']
+    before, after, edges = lb.histogram.counts, la.histogram.counts, lb.histogram.edges
     top = max(max(before), max(after), 1)
     before_head = f'before (cv {_cv(result.start)})'
     lines = [f'{"landing x":<20}{before_head:<{_BAR + 9}}after (cv {_cv(result.best)})']
@@ -153,10 +152,9 @@ def landing_figure(result: OptimizeResult, path: str | os.PathLike[str], walls: 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8.0, 4.2))
     for cand, label, colour in ((result.start, 'before', 'tab:grey'), (result.best, 'after', 'tab:blue')):
-        if cand.summary is None or not cand.summary['layup'].get('landing_histogram'):
+        if cand.landing is None:
             continue
-        hist = cand.summary['layup']['landing_histogram']
-        edges, counts = hist['edges'], hist['counts']
+        edges, counts = cand.landing.histogram.edges, cand.landing.histogram.counts
         ax.stairs(
             counts,
             edges,

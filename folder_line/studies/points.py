@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from folder_line.config.scenes import apply_overrides
+from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.metrics import flatten_metrics, resolve_metric
 from folder_line.core.line.model import run_summary
 from folder_line.core.line.scene import parse_scene
@@ -89,8 +90,9 @@ def point_source(task: PointTask) -> dict[str, Any]:
     return apply_overrides(task.source, dict(task.overrides))
 
 
-def simulate_summary(source: Mapping[str, Any], duration: float) -> dict[str, Any]:
-    """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary.
+def simulate_summary(source: Mapping[str, Any], duration: float) -> LineSummary:
+    """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary (its
+    metrics: :func:`folder_line.core.line.metrics.flatten_metrics` of its ``as_json()``).
 
     The run is streamed (:func:`folder_line.core.line.model.run_summary`): its memory does not grow with
     ``duration`` (s), and the summary is ``simulate(...).summary()`` bit for bit.
@@ -112,7 +114,7 @@ def evaluate_point(task: PointTask) -> PointResult:
         The metric values (each in its own unit), or no values and the model's reason for refusing the point.
     """
     try:
-        flat = flatten_metrics(simulate_summary(point_source(task), task.duration))
+        flat = flatten_metrics(simulate_summary(point_source(task), task.duration).as_json())
     except FolderLineError as exc:  # the model refuses the point's values: a row that says why
         return _refusal(exc, len(task.metrics))
     values = tuple(flat.get(m) for m in task.metrics)

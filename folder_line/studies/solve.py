@@ -225,7 +225,7 @@ class _SignedDistance:
             path = self.cond.metric
             try:
                 summary = simulate_summary(apply_overrides(self.source, {self.key: x}), self.duration)
-                got = flatten_metrics(summary).get(path)
+                got = flatten_metrics(summary.as_json()).get(path)
             except FolderLineError as exc:
                 raise ParameterError(self.key, x, f'refused by the model while refining the boundary: {exc}') from None
             if got is None:
@@ -282,7 +282,7 @@ def solve_boundary(
         metric at its ends); a point of the refinement the model refuses.
     """
     check_key(source, key, '--find')
-    flat = flatten_metrics(summary := simulate_summary(source, duration))
+    flat = flatten_metrics(summary := simulate_summary(source, duration).as_json())
     path = resolve_metric(condition.metric, list(flat), '--where')
     cond = Condition(path, condition.op, condition.threshold)
     lo, hi = between if between is not None else _default_range(source, key)

@@ -161,7 +161,7 @@ def plan_sweep(
     for vary in varies:
         check_key(source, vary.key, '--vary')
     points = tuple(grid_points(varies))
-    summary = simulate_summary(source, duration)
+    summary = simulate_summary(source, duration).as_json()
     flat = flatten_metrics(summary)
     metrics = resolve_metrics(metric_names, flat)
     keys = tuple(v.key for v in varies)

@@ -10,6 +10,16 @@ import numpy as np
 import pytest
 
 from folder_line.accuracy import events as E
+from folder_line.accuracy.event_cases import (
+    DPS,
+    DRAG,
+    SPAN_LAYUP,
+    T_RAMP,
+    EventCase,
+    exit_states,
+    front_stops_case,
+    leaf_landing_case,
+)
 from folder_line.config.scenes import load_scene
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.drives import make_drive
@@ -21,19 +31,19 @@ EPS = float(np.finfo(float).eps)
 
 
 @pytest.fixture(scope='module')
-def cases() -> dict[str, E.EventCase]:
-    return {c.name: c for c in (E.front_stops_case(), E.leaf_landing_case())}
+def cases() -> dict[str, EventCase]:
+    return {c.name: c for c in (front_stops_case(), leaf_landing_case())}
 
 
 @pytest.fixture(params=E.CASES)
-def case(request: pytest.FixtureRequest, cases: dict[str, E.EventCase]) -> E.EventCase:
+def case(request: pytest.FixtureRequest, cases: dict[str, EventCase]) -> EventCase:
     return cases[request.param]
 
 
 # ------------------------------------------------------------------------------ reference
 
 
-def test_cases_have_many_events(case: E.EventCase) -> None:
+def test_cases_have_many_events(case: EventCase) -> None:
     assert case.n_events >= 25
     assert np.all(np.isfinite(case.t_start)) and np.all(case.t_start <= case.span)
     # every expected event lies in the span, after its watch started
@@ -41,8 +51,8 @@ def test_cases_have_many_events(case: E.EventCase) -> None:
     assert np.all(case.t_core[exp] > case.t_start[exp]) and np.all(case.t_core[exp] <= case.span)
 
 
-def test_reference_is_a_root_of_g_in_mpmath(case: E.EventCase) -> None:
-    with mp.workdps(E.DPS):
+def test_reference_is_a_root_of_g_in_mpmath(case: EventCase) -> None:
+    with mp.workdps(DPS):
         tiny = mp.mpf('1e-20')
         for k, r in enumerate(case.ref_mp):
             assert abs(case.g_mp(k, r)) < mp.mpf('1e-25')
@@ -51,14 +61,14 @@ def test_reference_is_a_root_of_g_in_mpmath(case: E.EventCase) -> None:
             assert abs(mp.mpf(case.ref_hi[k]) + mp.mpf(case.ref_lo[k]) - r) < mp.mpf('1e-28')
 
 
-def test_reference_matches_an_independent_closed_form(case: E.EventCase) -> None:
+def test_reference_matches_an_independent_closed_form(case: EventCase) -> None:
     # front stops: sqrt(2 t_ramp Θ_a) / Θ_a + t_ramp/2; leaf landing: Lambert W of the drag flight
-    with mp.workdps(E.DPS):
+    with mp.workdps(DPS):
         worst = max(abs(case.closed_form_mp(k) - r) for k, r in enumerate(case.ref_mp))
     assert worst < mp.mpf('1e-25')
 
 
-def test_reference_matches_the_core_event_table(case: E.EventCase) -> None:
+def test_reference_matches_the_core_event_table(case: EventCase) -> None:
     exp = case.expected
     diff = np.abs((case.t_core[exp] - case.ref_hi[exp]) - case.ref_lo[exp])
     assert diff.max() <= 1e-12
@@ -66,13 +76,13 @@ def test_reference_matches_the_core_event_table(case: E.EventCase) -> None:
     assert np.all(case.ref_hi[~exp] > case.span - 1e-12)
 
 
-def test_exact_method_is_the_core_event_table_bit_for_bit(case: E.EventCase) -> None:
+def test_exact_method_is_the_core_event_table_bit_for_bit(case: EventCase) -> None:
     t = case.exact(np.arange(case.ids.size))
     assert np.array_equal(t[case.expected], case.t_core[case.expected])
     assert np.all(t[~case.expected] > case.span)
 
 
-def test_g_vanishes_at_the_core_event_times(case: E.EventCase) -> None:
+def test_g_vanishes_at_the_core_event_times(case: EventCase) -> None:
     exp = np.flatnonzero(case.expected)
     gv = case.g(exp, case.t_core[exp])
     assert np.max(np.abs(gv)) < 1e-12  # m
@@ -84,20 +94,20 @@ def test_g_vanishes_at_the_core_event_times(case: E.EventCase) -> None:
         assert case.g_scalar(k, t) == pytest.approx(float(case.g(np.array([k]), np.array([t]))[0]), abs=1e-15)
 
 
-def test_front_stops_g_starts_at_minus_the_feed_length(cases: dict[str, E.EventCase]) -> None:
+def test_front_stops_g_starts_at_minus_the_feed_length(cases: dict[str, EventCase]) -> None:
     # at the hand-over the belt has carried the signature 0 m: g = -L_feed (0.230 m, cyclogram.yaml)
     c = cases['front stops']
     g0 = c.g(np.arange(c.ids.size), c.t_start)
     np.testing.assert_allclose(g0, -0.230, atol=1e-12)
     # half the events during the ramp (t < t_ramp), where g is quadratic in t
-    assert np.count_nonzero(c.t_core[c.expected] < E.T_RAMP) >= 10
+    assert np.count_nonzero(c.t_core[c.expected] < T_RAMP) >= 10
 
 
 def test_leaf_exit_states_reproduce_the_core() -> None:
-    scene = load_scene('layup', {'leaf_flight.drag': E.DRAG})
+    scene = load_scene('layup', {'leaf_flight.drag': DRAG})
     drive = make_drive(scene)
-    line = LayupLine(scene, drive, E.SPAN_LAYUP)
-    ids, fl = E.exit_states(line)
+    line = LayupLine(scene, drive, SPAN_LAYUP)
+    ids, fl = exit_states(line)
     lp = scene.machine('layup')
     ev = line.events
     exits = ev[ev['kind'] == event_kind('leaf_exit')]
@@ -121,7 +131,7 @@ def test_leaf_exit_states_reproduce_the_core() -> None:
 # ------------------------------------------------------------------------------ methods
 
 
-def test_sampling_reports_the_first_tick_at_or_after_the_event(case: E.EventCase) -> None:
+def test_sampling_reports_the_first_tick_at_or_after_the_event(case: EventCase) -> None:
     for rate in E.knob_settings(E.SAMPLING):
         det = E.detect(case, E.SAMPLING, rate)
         err = E.errors(case, det.t)
@@ -135,7 +145,7 @@ def test_sampling_reports_the_first_tick_at_or_after_the_event(case: E.EventCase
         np.testing.assert_allclose(ticks, np.round(ticks), rtol=0, atol=1e-6)
 
 
-def test_linear_interpolation_is_second_order(case: E.EventCase) -> None:
+def test_linear_interpolation_is_second_order(case: EventCase) -> None:
     err = {r: E.max_error(case, E.detect(case, E.INTERP, r).t) for r in E.knob_settings(E.INTERP)}
     samp = {r: E.max_error(case, E.detect(case, E.SAMPLING, r).t) for r in E.knob_settings(E.SAMPLING)}
     for r in (1e3, 3e3, 1e4, 3e4, 1e5):
@@ -147,7 +157,7 @@ def test_linear_interpolation_is_second_order(case: E.EventCase) -> None:
     assert 5.0 < samp[1e3] / samp[1e4] < 20.0
 
 
-def test_root_finding_is_within_xtol(case: E.EventCase) -> None:
+def test_root_finding_is_within_xtol(case: EventCase) -> None:
     errs = []
     for xtol in E.knob_settings(E.ROOT):
         det = E.detect(case, E.ROOT, xtol)
@@ -160,13 +170,13 @@ def test_root_finding_is_within_xtol(case: E.EventCase) -> None:
     assert E.detect(case, E.ROOT, 1e-12).evaluations < E.detect(case, E.SAMPLING, 1e3).evaluations
 
 
-def test_exact_method_is_at_rounding_level(case: E.EventCase) -> None:
+def test_exact_method_is_at_rounding_level(case: EventCase) -> None:
     for batch in E.knob_settings(E.EXACT):
         det = E.detect(case, E.EXACT, batch)
         assert E.max_error(case, det.t) <= 8.0 * EPS * case.span
 
 
-def test_no_missed_or_double_events_at_any_setting(case: E.EventCase) -> None:
+def test_no_missed_or_double_events_at_any_setting(case: EventCase) -> None:
     for method in E.METHODS:
         for quick in (False, True):
             for value in E.knob_settings(method, quick):
@@ -176,7 +186,7 @@ def test_no_missed_or_double_events_at_any_setting(case: E.EventCase) -> None:
                 assert np.all(np.isfinite(det.t[case.expected]))
 
 
-def _bouncing(case: E.EventCase, d: float) -> E.EventCase:
+def _bouncing(case: EventCase, d: float) -> EventCase:
     """The case with every object's g dipping below 0 for ``d`` s, ``d`` s after its event (a rebound)."""
     ref = case.ref_hi
 
@@ -190,14 +200,14 @@ def _bouncing(case: E.EventCase, d: float) -> E.EventCase:
     return dataclasses.replace(case, g=g, g_scalar=g_scalar)
 
 
-def test_double_events_are_failures(case: E.EventCase) -> None:
+def test_double_events_are_failures(case: EventCase) -> None:
     with pytest.raises(MeasurementError, match='more than once'):
         E.detect(_bouncing(case, 5e-4), E.SAMPLING, 1e4)
     with pytest.raises(MeasurementError, match='more than once'):
         E.detect(_bouncing(case, 0.02), E.ROOT, 1e-9)
 
 
-def test_missed_and_spurious_events_are_failures(case: E.EventCase) -> None:
+def test_missed_and_spurious_events_are_failures(case: EventCase) -> None:
     short = dataclasses.replace(case, span=0.6 * case.span)  # events after it cannot be detected
     for method, value in ((E.SAMPLING, 1e3), (E.INTERP, 1e4), (E.ROOT, 1e-6), (E.EXACT, 4.0)):
         with pytest.raises(MeasurementError, match='missed'):
@@ -219,7 +229,7 @@ def test_knob_ranges_match_the_issue() -> None:
     assert (max(E.knob_settings(E.ROOT)), min(E.knob_settings(E.ROOT))) == (1e-3, 1e-12)
 
 
-def test_rows_are_finite_and_their_errors_are_the_detections(cases: dict[str, E.EventCase]) -> None:
+def test_rows_are_finite_and_their_errors_are_the_detections(cases: dict[str, EventCase]) -> None:
     rows = E.measure_rows(list(cases.values()), quick=True, min_s=0.001, repeats=1)
     per_case = sum(len(E.knob_settings(m, True)) for m in E.METHODS)
     assert len(rows) == 2 * per_case

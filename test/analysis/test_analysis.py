@@ -22,6 +22,7 @@ import math
 import re
 import shutil
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,8 @@ from folder_line.analysis import (
     recorded_transitions,
     transitions_agree,
 )
+from folder_line.analysis.supervisor_replay import StateTransition
+from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.margin_text import MARGIN_MEANINGS, shown_unit
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.interfaces import (
@@ -157,31 +160,31 @@ def _check_png(path: Path) -> None:
     assert not list(path.parent.glob(f'.{path.name}.*.tmp'))
 
 
-def _check_numbers(result: AnalysisResult) -> dict[str, Any]:
+def _check_numbers(result: AnalysisResult) -> LineSummary:
     """report.md's numbers are simulate()'s for the line time reached (with the recorded commands)."""
     rec = result.recording
     expected = simulate(rec.scene, rec.t_end, sample_rate=0.0, commands=rec.commands).summary()
     report = result.report.read_text(encoding='utf-8')
     table = _report_table(report)
-    assert int(table['cycles']) == expected['cycles'] == result.summary['cycles']
-    assert int(table['sheets counted']) == expected['sheets_counted'] == result.summary['sheets_counted']
-    assert int(table['violations']) == expected['violations']['count']
+    assert int(table['cycles']) == expected.cycles == result.summary.cycles
+    assert int(table['sheets counted']) == expected.sheets_counted == result.summary.sheets_counted
+    assert int(table['violations']) == expected.violations.count
     rows = _report_constraints(report)
-    assert set(rows) == set(expected['min_margin']) and rows
-    for name, want in expected['min_margin'].items():
+    assert set(rows) == set(expected.min_margin) and rows
+    for name, want in expected.min_margin.items():
         got = rows[name]
-        factor, unit = shown_unit(want['unit'])
+        factor, unit = shown_unit(want.unit)
         unit = 'sheets' if name == 'one_per_cycle' else unit
         at = 'leaf' if name == 'chute_speed' else 'cycle'
         assert (got['shown_unit'], got['at'], got['evaluations'], got['violations']) == (
             unit,
             at,
-            want['evaluations'],
-            want['violations'],
+            want.evaluations,
+            want.violations,
         ), name
-        assert want['unit'] in ('s', 'm', 'm/s', 'sheets', '1'), name  # so the text shows ms, mm, m/s or a count
+        assert want.unit in ('s', 'm', 'm/s', 'sheets', '1'), name  # so the text shows ms, mm, m/s or a count
         # printed to 6 decimals of ms and mm; the recorded event times are the exact ones rounded to the ns
-        assert got['margin'] / factor == pytest.approx(want['margin'], rel=1e-5, abs=3e-9), name
+        assert got['margin'] / factor == pytest.approx(want.margin, rel=1e-5, abs=3e-9), name
     return expected
 
 
@@ -214,7 +217,7 @@ def _check_events(result: AnalysisResult, run: Path) -> None:
     # analyze's own comparison, window by window against the streamed line, says so too
     check = result.events_check
     assert check.agree and check.recorded == check.matched == rec.events.size, check.text()
-    assert result.summary['events_check']['agree'] is True
+    assert result.summary.events_check.agree is True
     assert "| recorded events equal to the line model's | yes |" in result.report.read_text(encoding='utf-8')
 
 
@@ -238,9 +241,9 @@ def test_folder_numbers_match_simulate(folder_live: tuple[Path, AnalysisResult])
     expected = _check_numbers(result)
     rec = result.recording
     assert rec.t_end == json.loads((run / 'run.json').read_text())['sim_time_reached_s'] == 2.0
-    assert expected['cycles'] == 27 and expected['sheets_counted'] == 26  # 2 s at T = 72 ms
-    assert rec.sheet_count == expected['sheets_counted']  # what sheet_counter published last
-    assert result.summary['violations']['count'] == 0
+    assert expected.cycles == 27 and expected.sheets_counted == 26  # 2 s at T = 72 ms
+    assert rec.sheet_count == expected.sheets_counted  # what sheet_counter published last
+    assert result.summary.violations.count == 0
     report = result.report.read_text(encoding='utf-8')
     assert 'No constraint was violated.' in report
     # lost messages: from run.json, 0 on every topic of an in-process run
@@ -339,30 +342,21 @@ def test_cyclogram_rows_follow_the_operations(folder_recorded: tuple[Path, Analy
     rec = result.recording
     ev = evaluate(rec)
     rows = cycle_rows(rec, ev, 5)
-    assert [r['cycle'] for r in rows] == [0, 1, 2, 3, 4]
+    assert [r.cycle for r in rows] == [0, 1, 2, 3, 4]
     tm = ev.timing
     for r in rows:
-        (s,) = r['sheets']
-        assert (
-            r['start']
-            <= s['handover']
-            < s['at_stops']
-            <= r['deadline']
-            < s['settled']
-            < r['contact']
-            < r['exit']
-            < s['release']
-        )
-        assert r['contact'] - r['start'] == pytest.approx(tm.T - tm.t_knife, abs=2e-9)  # constant drive
-        assert r['exit'] - r['contact'] == pytest.approx(tm.t_knife, abs=2e-9)
-        assert set(r['margins']) == {
+        (s,) = r.sheets
+        assert r.start <= s.handover < s.at_stops <= r.deadline < s.settled < r.contact < r.exit < s.release
+        assert r.contact - r.start == pytest.approx(tm.T - tm.t_knife, abs=2e-9)  # constant drive
+        assert r.exit - r.contact == pytest.approx(tm.t_knife, abs=2e-9)
+        assert set(r.margins) == {
             'feed_window',
             'settled_before_knife',
             'one_per_cycle',
             'rebound',
             'release_at_min_speed',
         }
-        assert r['margins']['feed_window'] == pytest.approx(r['deadline'] - s['at_stops'], abs=2e-9)
+        assert r.margins['feed_window'] == pytest.approx(r.deadline - s.at_stops, abs=2e-9)
 
 
 # --------------------------------------------------------------------------- layup
@@ -380,17 +374,19 @@ def test_layup_figures(layup_recorded: tuple[Path, AnalysisResult]) -> None:
 def test_layup_numbers_match_simulate(layup_live: tuple[Path, AnalysisResult]) -> None:
     _, result = layup_live
     expected = _check_numbers(result)
-    assert expected['sheets_counted'] > 10  # leaves landed
+    assert expected.sheets_counted > 10  # leaves landed
     rec = result.recording
-    assert rec.sheet_count == expected['sheets_counted']
+    assert rec.sheet_count == expected.sheets_counted
     # the landing histogram is the simulator's
     land = landing_data(rec)
     assert land is not None
-    assert land['counts'].tolist() == expected['landing_histogram']['counts']
-    np.testing.assert_array_equal(land['edges'], expected['landing_histogram']['edges'])
-    assert land['cv'] == pytest.approx(expected['landing_cv'], rel=1e-12)
+    assert expected.layup is not None and expected.layup.landing is not None
+    hist = expected.layup.landing.histogram
+    assert land.counts.tolist() == hist.counts
+    np.testing.assert_array_equal(land.edges, hist.edges)
+    assert land.cv == pytest.approx(hist.cv, rel=1e-12)
     # sheet_counter's landing_x topic carries the same x as the leaf_landed events
-    np.testing.assert_array_equal(np.sort(rec.landing_x), np.sort(land['x']))
+    np.testing.assert_array_equal(np.sort(rec.landing_x), np.sort(land.x))
 
 
 def test_layup_events_equal_the_line_model_to_the_ns(layup_live: tuple[Path, AnalysisResult]) -> None:
@@ -425,12 +421,13 @@ def test_replay_reproduces_the_recorded_states(faults_live: tuple[Path, Analysis
     live run's transitions (a late sheet in cycle 13 holds the line)."""
     _, result = faults_live
     s = result.summary
-    recorded = [t['to'] for t in recorded_transitions(result.recording.states)]
-    replayed = [t['to'] for t in s['transitions']]
-    assert s['replay_matches'] is True, (recorded, replayed, s.get('replay_violations'))
+    recorded = [t.target for t in recorded_transitions(result.recording.states)]
+    replayed = [t.target for t in s.transitions]
+    assert s.replay_matches is True, (recorded, replayed, s.replay_violations)
+    assert s.replay_violations is not None
     assert 'HOLDING' in replayed and replayed[-1] == recorded[-1] == 'HELD'
-    held = [v for v in s['replay_violations'] if v['action'] == 'hold']
-    assert held and held[0]['cycle'] == 13 and held[0]['constraint'] == 'feed_window'
+    held = [v for v in s.replay_violations if v.action == 'hold']
+    assert held and held[0].cycle == 13 and held[0].constraint == 'feed_window'
     # the hold is in the bag as a drive command, and the analysis judges with it: simulate agrees
     assert [c.kind for c in result.recording.commands] == ['hold']
     _check_numbers(result)
@@ -439,18 +436,21 @@ def test_replay_reproduces_the_recorded_states(faults_live: tuple[Path, Analysis
 
 
 def test_transitions_agree_allows_states_within_one_tick() -> None:
-    rec = [{'t': 0.03, 'to': 'EXECUTE'}, {'t': 1.2, 'to': 'HOLDING'}, {'t': 1.8, 'to': 'HELD'}]
-    rep = [{'t': 0.0, 'to': 'EXECUTE'}, {'t': 1.1, 'to': 'HOLDING'}, {'t': 1.75, 'to': 'HELD'}]
+    def to(t: float, state: str) -> StateTransition:
+        return StateTransition(t, '', state)
+
+    rec = [to(0.03, 'EXECUTE'), to(1.2, 'HOLDING'), to(1.8, 'HELD')]
+    rep = [to(0.0, 'EXECUTE'), to(1.1, 'HOLDING'), to(1.75, 'HELD')]
     assert transitions_agree(rep, rec)
     assert not transitions_agree(rep[:2], rec)  # ends elsewhere
-    assert not transitions_agree(rep, rec[:1] + rec[2:] + [{'t': 2.0, 'to': 'HOLDING'}])
-    assert not transitions_agree([dict(rep[0]), dict(rep[1], t=1.3), rep[2]], rec)  # decided after it showed
+    assert not transitions_agree(rep, rec[:1] + rec[2:] + [to(2.0, 'HOLDING')])
+    assert not transitions_agree([rep[0], replace(rep[1], t=1.3), rep[2]], rec)  # decided after it showed
     assert transitions_agree(rep, [rec[0], rec[2]])  # HOLDING within one tick
     # a state entered twice (EXECUTE again after an unhold): each showing has its own transition
-    again = [{'t': 2.5, 'to': 'UNHOLDING'}, {'t': 3.0, 'to': 'EXECUTE'}]
-    assert transitions_agree(rep + again, [*rec, dict(again[0], t=2.505), dict(again[1], t=3.005)])
-    assert not transitions_agree(rep + again, [*rec, dict(again[0], t=2.505), dict(again[1], t=2.9)])
-    assert recorded_transitions([(1, 'A'), (2, 'A'), (3_000_000_000, 'B')]) == [
+    again = [to(2.5, 'UNHOLDING'), to(3.0, 'EXECUTE')]
+    assert transitions_agree(rep + again, [*rec, replace(again[0], t=2.505), replace(again[1], t=3.005)])
+    assert not transitions_agree(rep + again, [*rec, replace(again[0], t=2.505), replace(again[1], t=2.9)])
+    assert [t.as_json() for t in recorded_transitions([(1, 'A'), (2, 'A'), (3_000_000_000, 'B')])] == [
         {'t': 1e-9, 'from': '', 'to': 'A'},
         {'t': 3.0, 'from': 'A', 'to': 'B'},
     ]

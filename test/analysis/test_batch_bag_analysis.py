@@ -18,12 +18,12 @@ def test_analyze_of_a_batch_bag_is_simulate(scene: str, duration: float, tmp_pat
     assert main(['simulate', '--scene', scene, '--duration', str(duration), '--bag', str(bag)]) == 0
     result = analyze(bag, tmp_path / 'analysis')
     sim = simulate(load_scene(scene), duration, sample_rate=0.0).summary()
-    assert result.summary['cycles'] == sim['cycles']
-    assert result.summary['sheets_counted'] == sim['sheets_counted']
-    assert result.summary['violations']['count'] == sim['violations']['count']
-    assert set(result.summary['min_margin']) == set(sim['min_margin'])
-    for name, m in sim['min_margin'].items():
-        got = result.summary['min_margin'][name]
-        assert (got['evaluations'], got['violations']) == (m['evaluations'], m['violations']), name
+    assert result.summary.cycles == sim.cycles
+    assert result.summary.sheets_counted == sim.sheets_counted
+    assert result.summary.violations.count == sim.violations.count
+    assert set(result.summary.min_margin) == set(sim.min_margin)
+    for name, m in sim.min_margin.items():
+        got = result.summary.min_margin[name]
+        assert (got.evaluations, got.violations) == (m.evaluations, m.violations), name
         # the bag's event times are whole nanoseconds: margins agree to that rounding
-        assert got['margin'] == pytest.approx(m['margin'], abs=1e-8), name
+        assert got.margin == pytest.approx(m.margin, abs=1e-8), name

@@ -17,7 +17,8 @@ from mcap_ros2.decoder import DecoderFactory
 
 from folder_line.analysis import exit_speed_data
 from folder_line.analysis.recording import Recording, read_recording
-from folder_line.analysis.replay import evaluate, recorded_transitions
+from folder_line.analysis.replay import evaluate
+from folder_line.analysis.supervisor_replay import recorded_transitions
 from folder_line.bag.metadata import segment_files
 from folder_line.cli.main import main
 from folder_line.interfaces import NS_PER_S, SUPERVISOR_STATE_TOPIC

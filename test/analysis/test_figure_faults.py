@@ -22,11 +22,11 @@ from folder_line.analysis import colours, figures, read_recording
 from folder_line.analysis.colours import QUANTITY_COLOURS
 from folder_line.analysis.figure_data import at_speed_time, exit_speed_data, off_speed
 from folder_line.analysis.figures import (
-    coincidence,
     efficiency_figure,
     exit_speeds_figure,
     pyplot,
 )
+from folder_line.analysis.paper_curves import coincidence
 from folder_line.analysis.recording import JOINT_SAMPLES, Recording
 from folder_line.analysis.replay import Evaluation, evaluate
 from folder_line.cli import report

@@ -29,17 +29,20 @@ import pytest
 from folder_line.analysis import analyze, cycle_rows, landing_data, read_recording
 from folder_line.analysis.animation import encode, extent
 from folder_line.analysis.animation.render import FRAME_WINDOW, fast_forward, sceneries
+from folder_line.analysis.event_check import EventCheck, compare_events
 from folder_line.analysis.figures import margin_bars
 from folder_line.analysis.recording import Recording
-from folder_line.analysis.replay import Evaluation, EventCheck, _CycleRows, compare_events, evaluate
+from folder_line.analysis.replay import Evaluation, _CycleRows, evaluate
 from folder_line.analysis.report import _window
 from folder_line.analysis.streaming import GRID_BINS, MarginHistogram, Thinned
 from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene, scene_mapping
+from folder_line.core.line.line_summary import ViolationRecord, Violations
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.line.scenery import Scenery
 from folder_line.core.line.stream import LineStream
+from folder_line.files.json_types import JsonObject
 from folder_line.interfaces import EVENT_KINDS
 
 from ._events_only import events_recording
@@ -66,17 +69,17 @@ def test_analyze_of_the_committed_runs_gives_the_numbers_of_before(case: str, tm
     run = Path(shutil.copytree(DATA / name, tmp_path / name))
     result = analyze(run, tmp_path / 'out', **kw)  # type: ignore[arg-type]
     want = BEFORE[case]
-    assert _json({k: result.summary[k] for k in want['summary']}) == want['summary']
+    assert _json({k: result.summary.as_json()[k] for k in want['summary']}) == want['summary']
     ev = result.evaluation
     shown = _window(result.recording, kw.get('t_from', 0.0))
-    assert _json(cycle_rows(shown, ev, 8)) == want['cycle_rows']
+    assert _json([r.as_json() for r in cycle_rows(shown, ev, 8)]) == want['cycle_rows']
     land = landing_data(shown)
     assert (land is None) == ('landing' not in want)
     if land is not None:
-        assert land['counts'].tolist() == want['landing']['counts']
-        assert land['edges'].tolist() == want['landing']['edges']
-        assert land['cv'] == want['landing']['cv']
-        assert sorted(land['x'].tolist()) == want['landing']['x'] and land['fraction'] == 1.0
+        assert land.counts.tolist() == want['landing']['counts']
+        assert land.edges.tolist() == want['landing']['edges']
+        assert land.cv == want['landing']['cv']
+        assert sorted(land.x.tolist()) == want['landing']['x'] and land.fraction == 1.0
     assert set(want['margin_bars']) == {n for n, m in ev.margins.items() if m.tally.evaluations}
     for cname, bars in want['margin_bars'].items():
         _, passed, violated = margin_bars(ev.margins[cname])
@@ -88,7 +91,7 @@ def test_analyze_of_the_committed_runs_gives_the_numbers_of_before(case: str, tm
     assert check.recorded_only == check.model_only == 0
     # folder_run was recorded before the streamed core: its rebounds differ in the last bit, nothing else
     assert check.largest_difference <= 1e-15
-    assert {d['kind'] for d in check.differences} <= {'bounce'}
+    assert {d.kind for d in check.differences} <= {'bounce'}
     assert (check.values_differ == 0) == check.agree
     assert "| recorded events equal to the line model's |" in result.report.read_text()
 
@@ -147,7 +150,7 @@ def test_the_windows_change_nothing_of_the_evaluation(run: Recording, t_from: fl
     assert one.windows == 1 and tiny.windows > 50
     _same_evaluation(one, tiny)
     assert cycle_rows(_window(run, t_from), one) == cycle_rows(_window(run, t_from), tiny)
-    assert one.summary['violations']['count'] == len(one.violations)
+    assert one.summary.violations.count == len(one.violations)
 
 
 def test_the_late_run_has_rows_judged_after_their_window() -> None:
@@ -155,7 +158,7 @@ def test_the_late_run_has_rows_judged_after_their_window() -> None:
     rec = RUNS['late']()
     assert _CycleRows(rec.events).lag > 0
     ev = evaluate(rec)
-    assert ev.summary['violations']['count'] > 0 and ev.first_violated is not None
+    assert ev.summary.violations.count > 0 and ev.first_violated is not None
     assert len(ev.first_cycles) == 8 and set(ev.around_violated) <= {ev.first_violated + d for d in (-1, 0, 1)}
 
 
@@ -165,15 +168,16 @@ def test_the_judged_numbers_are_simulate_s(run: Recording) -> None:
     ev = evaluate(exact, window=0.5)
     sim = simulate(run.scene, run.t_end, sample_rate=0.0)
     want = sim.summary(max_violations=10**6)
-    for key in ('cycles', 'sheets_counted', 'min_margin', 'min_margin_s', 'events'):
-        assert ev.summary[key] == want[key], key
+    got = ev.summary
+    assert (got.cycles, got.sheets_counted, got.events) == (want.cycles, want.sheets_counted, want.events)
+    assert got.min_margin == want.min_margin and got.min_margin_s == want.min_margin_s
     every = [
-        {'cycle': int(c.cycle[i]), 'constraint': c.name, 'margin': float(c.margin[i]), 'unit': c.unit}
+        ViolationRecord(int(c.cycle[i]), c.name, float(c.margin[i]), c.unit)
         for c in sim.constraints
         for i in np.flatnonzero(c.violated)
     ]
-    every.sort(key=lambda v: (v['cycle'], v['constraint']))
-    assert ev.summary['violations'] == {'count': want['violations']['count'], 'first': every}
+    every.sort(key=lambda v: (v.cycle, v.constraint))
+    assert got.violations == Violations(want.violations.count, every)
     for c in sim.constraints:
         h = ev.margins[c.name].histogram
         assert h.count == c.margin.size and h.violations == int(np.count_nonzero(c.violated))
@@ -184,8 +188,8 @@ def test_the_judged_numbers_are_simulate_s(run: Recording) -> None:
     assert decided == {(c.name, int(k)): float(t) for c, m in bad for k, t in zip(c.cycle[m], c.t[m], strict=True)}
 
 
-def _check_dict(check: EventCheck) -> dict[str, Any]:
-    out = check.as_dict()
+def _check_dict(check: EventCheck) -> JsonObject:
+    out = check.as_json()
     out.pop('windows')
     return out
 
@@ -228,13 +232,10 @@ def test_a_changed_recording_is_told_event_by_event() -> None:
         assert not check.agree
         assert (check.values_differ, check.recorded_only, check.model_only) == (1, 1, 2), check.text()
         assert check.matched == events.size - 2 and check.largest_difference > 0.0
-        got = {
-            (d['t'], d['kind'], d['sheet'], d['cycle'], d['recorded'] is not None, d['model'] is not None)
-            for d in check.differences
-        }
+        got = {(d.t, d.kind, d.sheet, d.cycle, d.recorded is not None, d.model is not None) for d in check.differences}
         assert got == want
-        (value,) = [d for d in check.differences if d['recorded'] is not None and d['model'] is not None]
-        assert (value['recorded'], value['model']) == (float(events['value'][10]), float(original['value'][10]))
+        (value,) = [d for d in check.differences if d.recorded is not None and d.model is not None]
+        assert (value.recorded, value.model) == (float(events['value'][10]), float(original['value'][10]))
 
 
 # --------------------------------------------------------------------------- the streamed figures' data

@@ -30,11 +30,11 @@ def test_to_is_the_run_that_ended_there(run: Path, tmp_path: Path) -> None:
     result = analyze(run, tmp_path / 'a', t_to=1.0)
     assert result.recording.t_end == 1.0
     sim = simulate(result.recording.scene, 1.0, commands=result.recording.commands, sample_rate=0.0).summary()
-    assert result.summary['cycles'] == sim['cycles']
-    assert result.summary['sheets_counted'] == sim['sheets_counted']
-    for name, m in sim['min_margin'].items():
-        assert result.summary['min_margin'][name]['evaluations'] == m['evaluations'], name
-        assert result.summary['min_margin'][name]['margin'] == pytest.approx(m['margin'], abs=1e-9), name
+    assert result.summary.cycles == sim.cycles
+    assert result.summary.sheets_counted == sim.sheets_counted
+    for name, m in sim.min_margin.items():
+        assert result.summary.min_margin[name].evaluations == m.evaluations, name
+        assert result.summary.min_margin[name].margin == pytest.approx(m.margin, abs=1e-9), name
 
 
 def test_from_and_to_split_the_run(run: Path, tmp_path: Path) -> None:
@@ -42,11 +42,11 @@ def test_from_and_to_split_the_run(run: Path, tmp_path: Path) -> None:
     whole = analyze(run, tmp_path / 'w')
     first = analyze(run, tmp_path / 'f', t_to=1.0)
     rest = analyze(run, tmp_path / 'r', t_from=1.0, csv=True)
-    assert first.summary['cycles'] + rest.summary['cycles'] == whole.summary['cycles']
-    assert first.summary['sheets_counted'] + rest.summary['sheets_counted'] == whole.summary['sheets_counted']
-    for name, m in whole.summary['min_margin'].items():
-        n = first.summary['min_margin'][name]['evaluations'] + rest.summary['min_margin'][name]['evaluations']
-        assert n == m['evaluations'], name
+    assert first.summary.cycles + rest.summary.cycles == whole.summary.cycles
+    assert first.summary.sheets_counted + rest.summary.sheets_counted == whole.summary.sheets_counted
+    for name, m in whole.summary.min_margin.items():
+        n = first.summary.min_margin[name].evaluations + rest.summary.min_margin[name].evaluations
+        assert n == m.evaluations, name
     assert 'window analysed: 1 .. 2 s' in rest.report.read_text()
     for topic in (EVENTS_TOPIC, DIAGNOSTICS_TOPIC, '/line/crank_drive/joint_states'):
         with (rest.out / 'csv' / csv_name(topic)).open(newline='') as fh:

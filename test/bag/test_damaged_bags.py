@@ -122,9 +122,9 @@ def test_a_repair_names_the_gap_and_analyze_judges_nothing_across_it(intact: Pat
 
     result = analyze(bag, out=tmp_path / 'analysis')
     s = result.summary
-    assert s['violations']['count'] == 0  # nothing invented: no missing sheet, no release never made
-    assert s['unjudged'] and s['gaps'] == [[gap.first_ns / NS_PER_S, gap.last_ns / NS_PER_S]]
-    assert s['replay_matches'] and [t['to'] for t in s['transitions']] == ['EXECUTE']
+    assert s.violations.count == 0  # nothing invented: no missing sheet, no release never made
+    assert s.unjudged and s.gaps == [gap]
+    assert s.replay_matches and [t.target for t in s.transitions] == ['EXECUTE']
     assert result.events_check.agree  # every event judged is the line model's
     assert 'a repaired bag with a gap of' in result.report.read_text()
     unjudged = result.recording.unjudged
@@ -134,8 +134,8 @@ def test_a_repair_names_the_gap_and_analyze_judges_nothing_across_it(intact: Pat
     )  # no contact judged
     # the control: the whole bag, every cycle judged
     whole = analyze(intact, out=tmp_path / 'whole').summary
-    assert whole['gaps'] == [] and whole['unjudged'] == '' and whole['violations']['count'] == 0
-    assert s['cycles'] == whole['cycles'] - unjudged.cycles.size
+    assert whole.gaps == [] and whole.unjudged == '' and whole.violations.count == 0
+    assert s.cycles == whole.cycles - unjudged.cycles.size
 
 
 def test_gaps_that_are_not_gaps_are_refused_in_one_line(tmp_path: Path) -> None:

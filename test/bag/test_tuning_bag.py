@@ -22,8 +22,8 @@ def test_a_tuned_batch_bag_replays_to_its_own_transitions(tmp_path: Path) -> Non
     (status,) = [v for _, name, v in rec.supervisor_status if name.endswith('/tuning')]
     assert float(status['effective']) == 3.0 and float(status['t']) < 3.0
     result = analyze(tmp_path / 'bag', tmp_path / 'analysis')
-    assert [t['to'] for t in result.summary['transitions']][-2:] == ['HOLDING', 'HELD']
-    assert result.summary['replay_matches'] is True
+    assert [t.target for t in result.summary.transitions][-2:] == ['HOLDING', 'HELD']
+    assert result.summary.replay_matches is True
 
 
 def test_simulate_refuses_a_tuning_the_scene_cannot_take(capsys: pytest.CaptureFixture[str]) -> None:

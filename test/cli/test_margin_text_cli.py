@@ -9,13 +9,16 @@ from types import SimpleNamespace
 
 import pytest
 
+from folder_line.analysis.event_check import EventCheck
 from folder_line.analysis.figures import _margin_text
 from folder_line.analysis.report import print_analysis
+from folder_line.analysis.summary import AnalysisSummary
 from folder_line.bag.statuses import violation_status
 from folder_line.cli.main import main
 from folder_line.cli.montecarlo import print_table
 from folder_line.cli.summary import print_summary
 from folder_line.cli.sweep import _range_text
+from folder_line.core.line.line_summary import LineSummary, MarginFigures, ViolationRecord, Violations
 from folder_line.core.line.margin_text import MARGIN_MEANINGS
 from folder_line.core.supervision.records import Violation
 
@@ -46,28 +49,28 @@ def test_simulate_prints_each_margin_in_its_own_unit_and_says_what_it_means(
         assert re.search(rf'^  {name} +{re.escape(meaning)}$', legend, re.MULTILINE), name
 
 
-def _summary(violations: list[dict[str, object]]) -> dict[str, object]:
-    return {
-        'scene': 'made up',
-        'duration_s': 1.0,
-        'seed': 1,
-        'effects': [],
-        'cycles': 3,
-        'sheets_counted': 3,
-        'violations': {'count': len(violations), 'first': violations},
-        'min_margin': {
-            'one_per_cycle': {'margin': -1.0, 'unit': 'sheets', 'cycle': 2, 'violations': 1, 'evaluations': 3},
-            'chute_speed': {'margin': -0.25, 'unit': 'm/s', 'cycle': 448, 'violations': 1, 'evaluations': 500},
+def _summary(violations: list[ViolationRecord]) -> LineSummary:
+    return LineSummary(
+        scene='made up',
+        duration_s=1.0,
+        seed=1,
+        effects=[],
+        cycles=3,
+        sheets_counted=3,
+        violations=Violations(len(violations), violations),
+        min_margin={
+            'one_per_cycle': MarginFigures(margin=-1.0, unit='sheets', cycle=2, violations=1, evaluations=3),
+            'chute_speed': MarginFigures(margin=-0.25, unit='m/s', cycle=448, violations=1, evaluations=500),
         },
-        'events': {},
-    }
+        events={},
+    )
 
 
 def test_violations_name_the_leaf_of_chute_speed_and_the_sheets_off() -> None:
     out = io.StringIO()
     first = [
-        {'cycle': 2, 'constraint': 'one_per_cycle', 'margin': -1.0, 'unit': 'sheets'},
-        {'cycle': 448, 'constraint': 'chute_speed', 'margin': -0.25, 'unit': 'm/s'},
+        ViolationRecord(cycle=2, constraint='one_per_cycle', margin=-1.0, unit='sheets'),
+        ViolationRecord(cycle=448, constraint='chute_speed', margin=-0.25, unit='m/s'),
     ]
     print_summary(_summary(first), out)
     text = out.getvalue()
@@ -142,9 +145,39 @@ def test_diagnostics_and_the_supervisors_text_name_the_leaf() -> None:
     assert violation_status(cycle)[1] == 'feed_window violated in cycle 13: hold'
 
 
+def _analysis_summary() -> AnalysisSummary:
+    """:func:`_summary` with no violation, as ``analyze`` holds it."""
+    return AnalysisSummary(
+        scene='made up',
+        duration_s=1.0,
+        seed=1,
+        effects=[],
+        cycles=3,
+        sheets_counted=3,
+        violations=Violations(0, []),
+        min_margin={
+            'one_per_cycle': MarginFigures(margin=-1.0, unit='sheets', cycle=2, evaluations=3, violations=1),
+            'chute_speed': MarginFigures(margin=-0.25, unit='m/s', cycle=448, evaluations=500, violations=1),
+        },
+        events={},
+        t_end=1.0,
+        t_from=0.0,
+        sheet_counter=None,
+        messages={},
+        lost=None,
+        events_check=EventCheck(0.0, 1.0),
+        recorded_transitions=[],
+        gaps=[],
+        unjudged='',
+        transitions=[],
+        replay_matches=None,
+        replay_violations=None,
+        transitions_source='',
+    )
+
+
 def test_analyze_prints_margins_in_the_same_units(tmp_path: Path) -> None:
-    summary = _summary([])
-    summary.update({'t_end': 1.0, 'transitions': []})
+    summary = _analysis_summary()
     result = SimpleNamespace(summary=summary, report=tmp_path / 'report.md', figures={}, csv={}, out=tmp_path)
     out = io.StringIO()
     print_analysis(result, out)  # type: ignore[arg-type]

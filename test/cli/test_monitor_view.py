@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from folder_line.cli.monitor_view import MonitorState, OperatorKeys
+from folder_line.cli.monitor_view import MonitorState
+from folder_line.cli.operator_keys import OperatorKeys
 
 
 def test_operator_keys_send_commands_and_confirm_stop_and_abort() -> None:

@@ -11,7 +11,8 @@ import pytest
 
 from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams, classify_fourbar
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU, classify_fourbar
 
 DURATION = '60'
 MIN_TRANSMISSION = 40.0

@@ -14,6 +14,7 @@ from folder_line.analysis.figures import FIGURES
 from folder_line.cli import plots
 from folder_line.cli.main import main
 from folder_line.config.scenes import load_scene
+from folder_line.core.line.line_summary import LineSummary, WindowSummary
 from folder_line.core.line.model import LineModel, simulate
 from folder_line.core.line.stream import LineStream
 from folder_line.core.types.events import event_kind
@@ -40,7 +41,7 @@ def test_each_scene_gets_its_figures_and_the_summary_of_the_same_run(
     # one streamed run gives the figures and the summary: simulate's, bit for bit
     assert drawn_json.read_text() == plain.read_text()
     expected = simulate(load_scene(scene), 4.0, sample_rate=0.0).summary()
-    assert json.loads(plain.read_text()) == json.loads(json.dumps(expected))
+    assert json.loads(plain.read_text()) == json.loads(json.dumps(expected.as_json()))
 
 
 def test_plots_with_bag_draws_that_bag(tmp_path: Path) -> None:
@@ -51,7 +52,7 @@ def test_plots_with_bag_draws_that_bag(tmp_path: Path) -> None:
 
 
 @pytest.fixture(scope='module')
-def line_long() -> tuple[plots.FigureData, dict, float]:
+def line_long() -> tuple[plots.FigureData, LineSummary | WindowSummary, float]:
     """A span of the line long enough that the figures keep a sample, not everything."""
     duration = 300.0
     data, summary = plots.collect(load_scene('line'), duration)
@@ -68,17 +69,17 @@ def test_what_the_figures_keep_is_bounded_and_its_counts_exact(line_long: tuple)
     assert np.all(np.diff(t) > 0) and t[0] >= 0.0 and t[-1] <= duration
     assert np.allclose(t * 200, np.round(t * 200), rtol=0, atol=1e-6)  # on the tick grid
     for name, h in data.margins.items():
-        m = summary['min_margin'][name]
-        assert (h.count, h.violated, h.low) == (m['evaluations'], m['violations'], m['margin'])
+        m = summary.min_margin[name]
+        assert (h.count, h.violated, h.low) == (m.evaluations, m.violations, m.margin)
         assert int(h.passed.sum() + h.failed.sum()) == h.count and h.passed.size <= plots.MARGIN_BINS
-    assert data.landed.tolist() == summary['landing_histogram']['counts']
-    exits = summary['events']['leaf_exit']
+    assert data.landed.tolist() == summary.layup.landing.histogram.counts
+    exits = summary.events['leaf_exit']
     assert data.exit_counts['C']['all'] + data.exit_counts['E']['all'] == exits
     for e in 'CE':
         at, off = data.exits[e, False], data.exits[e, True]
         assert at.count + off.count == data.exit_counts[e]['all'] and off.count == data.exit_counts[e]['early']
         assert at.column('v').size == min(plots.LEAF_SAMPLES, at.count) and off.column('v').size == off.count
-    assert data.landed_x.count == summary['events']['leaf_landed']
+    assert data.landed_x.count == summary.events['leaf_landed']
     assert data.landed_x.column('x').size == plots.LANDING_MARKS
 
 
@@ -131,22 +132,22 @@ def test_the_cyclogram_shows_the_first_cycles_and_the_first_violated_with_its_ne
     scene = load_scene('folder_faults')
     data, summary = plots.collect(scene, 30.0)
     rows = data.cyclogram.done()
-    first_bad = min(v['cycle'] for v in summary['violations']['first'])
-    assert [r['cycle'] for r in rows] == [*range(8), first_bad - 1, first_bad, first_bad + 1]
+    first_bad = min(v.cycle for v in summary.violations.first)
+    assert [r.cycle for r in rows] == [*range(8), first_bad - 1, first_bad, first_bad + 1]
     model = LineModel(scene, 30.0)
     ev = model.events
     for row in rows:
-        contact = ev[(ev['kind'] == event_kind('knife_contact')) & (ev['cycle'] == row['cycle'])]
-        assert row['contact'] == contact['t'][0]
-        hand = ev[(ev['kind'] == event_kind('sheet_handover')) & (ev['cycle'] == row['cycle'])]
-        assert [s['sheet'] for s in row['sheets']] == hand['sheet'].tolist()
-        for s in row['sheets']:
-            rel = ev[(ev['kind'] == event_kind('released_on_pile')) & (ev['sheet'] == s['sheet'])]
-            assert s['release'] == (rel['t'][0] if rel.size else None)
+        contact = ev[(ev['kind'] == event_kind('knife_contact')) & (ev['cycle'] == row.cycle)]
+        assert row.contact == contact['t'][0]
+        hand = ev[(ev['kind'] == event_kind('sheet_handover')) & (ev['cycle'] == row.cycle)]
+        assert [s.sheet for s in row.sheets] == hand['sheet'].tolist()
+        for s in row.sheets:
+            rel = ev[(ev['kind'] == event_kind('released_on_pile')) & (ev['sheet'] == s.sheet)]
+            assert s.release == (rel['t'][0] if rel.size else None)
         for c in model.constraints:
-            if c.name in row['margins']:
-                assert row['margins'][c.name] == c.margin[c.cycle == row['cycle']][0]
-    assert any(m < 0 for m in rows[-2]['margins'].values())
+            if c.name in row.margins:
+                assert row.margins[c.name] == c.margin[c.cycle == row.cycle][0]
+    assert any(m < 0 for m in rows[-2].margins.values())
 
 
 def test_from_draws_the_window(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -155,14 +156,14 @@ def test_from_draws_the_window(tmp_path: Path, capsys: pytest.CaptureFixture[str
     data, summary = plots.collect(scene, duration, start=start)
     assert data.joint('t').min() >= start and data.joint('t').max() <= start + duration
     for name, h in data.margins.items():
-        assert h.count == summary['min_margin'][name]['evaluations']
+        assert h.count == summary.min_margin[name].evaluations
     rows = data.cyclogram.done()
     stream = LineStream(scene)
     stream.advance(start + duration)
     timing = data.cyclogram.timing
-    began = stream.drive.time_of(np.array([rows[0]['cycle'] * timing.T + timing.knife.t_out]))[0]
+    began = stream.drive.time_of(np.array([rows[0].cycle * timing.T + timing.knife.t_out]))[0]
     assert began >= start  # the first cycle drawn is the first whose feed began in the window
-    assert data.cyclogram.cycles == summary['events']['knife_contact']
+    assert data.cyclogram.cycles == summary.events['knife_contact']
     out = tmp_path / 'plots'
     argv = ['simulate', '--scene', 'folder_faults', '--from', '40', '--duration', '20', '--plots', str(out)]
     assert main(argv) == 0

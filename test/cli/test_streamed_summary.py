@@ -17,6 +17,7 @@ from folder_line.cli import main as cli
 from folder_line.cli import simulate as simulate_cli
 from folder_line.cli import summary as summary_cli
 from folder_line.config.scenes import list_scenes, load_scene
+from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.model import simulate
 from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import Tuning
@@ -25,9 +26,9 @@ from folder_line.core.types.events import EVENT_KINDS
 SCENES = list_scenes()
 
 
-def _json(summary: dict[str, Any]) -> Any:
+def _json(summary: LineSummary) -> Any:
     """What ``--json`` holds of a summary (floats round-trip exactly)."""
-    return json.loads(json.dumps(summary))
+    return json.loads(json.dumps(summary.as_json()))
 
 
 def test_every_shipped_scene_is_tested() -> None:
@@ -67,7 +68,7 @@ def test_tunings_are_commands_of_the_streamed_run(tmp_path: Path, monkeypatch: p
         {'t': 7.5, 'key': 'press.n_c', 'value': 45000.0, 'unit': 'rev/h'},
     ]
     assert got == _json(kept)
-    assert kept['violations']['count'] > 0  # the slower feed does change the run
+    assert kept.violations.count > 0  # the slower feed does change the run
 
 
 def test_list_metrics_lists_the_streamed_summary(
@@ -77,7 +78,7 @@ def test_list_metrics_lists_the_streamed_summary(
     assert cli.main(['simulate', '--scene', 'layup', '--duration', '9', '--list-metrics']) == 0
     text = capsys.readouterr().out
     kept = simulate(load_scene('layup'), 9.0, sample_rate=0.0).summary()
-    assert '  layup.leaves_landed' in text and f'{float(kept["layup"]["leaves_landed"]):.10g}' in text
+    assert '  layup.leaves_landed' in text and f'{float(kept.layup.leaves_landed):.10g}' in text
     assert "metrics of scene 'layup' over 9 s" in text
 
 
@@ -90,11 +91,11 @@ def _direct_window(scene: str, start: float, end: float, commands: tuple = ()) -
     before = stream.advance(start) if start > 0.0 else None
     evaluated_before = {n: t.evaluations for n, t in stream.tallies.constraints.items()}
     kinds_before = stream.tallies.kinds.copy()
-    cycles_before = stream.summary()['cycles'] if before is not None else 0
+    cycles_before = stream.summary().cycles if before is not None else 0
     window = stream.advance(end)
     rows = [*window.constraints, *stream.finish()]
     after = stream.summary()
-    out: dict[str, Any] = {'cycles': after['cycles'] - cycles_before, 'constraints': {}}
+    out: dict[str, Any] = {'cycles': after.cycles - cycles_before, 'constraints': {}}
     kinds = stream.tallies.kinds - kinds_before
     out['events'] = {k: int(n) for k, n in zip(EVENT_KINDS, kinds.tolist(), strict=True) if n}
     for name in stream.tallies.constraints:
@@ -130,8 +131,8 @@ def test_from_s_is_the_window_of_a_run_from_0(
 
 @pytest.mark.parametrize('scene', SCENES)
 def test_from_0_is_the_run_itself(scene: str) -> None:
-    full = simulate(load_scene(scene), 15.0, sample_rate=0.0).summary()
-    window = summary_cli.window_summary(load_scene(scene), 0.0, 15.0, window=4.0)
+    full = simulate(load_scene(scene), 15.0, sample_rate=0.0).summary().as_json()
+    window = summary_cli.window_summary(load_scene(scene), 0.0, 15.0, window=4.0).as_json()
     assert {k: v for k, v in window.items() if k not in ('from_s', 'to_s')} == {k: full[k] for k in window if k in full}
     assert set(window) - set(full) == {'from_s', 'to_s'}
 
@@ -142,11 +143,11 @@ def test_windows_add_up_to_the_run() -> None:
     head = simulate(scene, 8.0, sample_rate=0.0).summary()
     tail = summary_cli.window_summary(scene, 8.0, 12.0, window=5.0)
     whole = simulate(scene, 20.0, sample_rate=0.0).summary()
-    assert {k: head['events'].get(k, 0) + tail['events'].get(k, 0) for k in whole['events']} == whole['events']
-    assert head['cycles'] + tail['cycles'] == whole['cycles']
-    assert head['sheets_counted'] + tail['sheets_counted'] == whole['sheets_counted']
-    counts = np.add(head['landing_histogram']['counts'], tail['landing_histogram']['counts'])
-    assert counts.tolist() == whole['landing_histogram']['counts']
+    assert {k: head.events.get(k, 0) + tail.events.get(k, 0) for k in whole.events} == whole.events
+    assert head.cycles + tail.cycles == whole.cycles
+    assert head.sheets_counted + tail.sheets_counted == whole.sheets_counted
+    counts = np.add(head.layup.landing.histogram.counts, tail.landing.counts)
+    assert counts.tolist() == whole.layup.landing.histogram.counts
 
 
 def test_a_tuning_before_from_acts_in_the_fast_forward(tmp_path: Path) -> None:

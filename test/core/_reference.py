@@ -20,7 +20,8 @@ from typing import Any
 import mpmath as mp
 import numpy as np
 
-from folder_line.core.mechanisms.layup import TAU, LayupParams
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 
 EPS = float(np.finfo(float).eps)
 #: the offsets from a dead centre or toggle, rad

@@ -17,6 +17,7 @@ from folder_line.cli import summary as summary_cli
 from folder_line.config.run_config import RunConfig, clock_parameters, node_parameters
 from folder_line.config.scenes import load_scene
 from folder_line.core import limits as L
+from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.model import LineModel, run_summary
 from folder_line.errors import ParameterError
 from folder_line.interfaces import KNOWN_PARTICIPANTS, MACHINE_NODES
@@ -170,7 +171,7 @@ def test_the_longest_duration_is_simulated_not_refused(
     The streamed summary itself is stubbed here (116 days of line time take hours)."""
     asked: list[tuple[float, float | None]] = []
 
-    def streamed(scene: object, duration: float, *, start: float | None = None, **kwargs: object) -> dict:
+    def streamed(scene: object, duration: float, *, start: float | None = None, **kwargs: object) -> LineSummary:
         asked.append((duration, start))
         return run_summary(load_scene('folder', {}), 0.01)
 

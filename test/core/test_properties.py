@@ -21,14 +21,9 @@ from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.chain import ChainPath
-from folder_line.core.mechanisms.layup import (
-    GRASHOF_REL_TOL,
-    TAU,
-    LayupModel,
-    LayupParams,
-    check_assembly,
-    classify_fourbar,
-)
+from folder_line.core.mechanisms.delivery_results import SECTION_DECELERATION, STATE_CARRIAGE_REVERSED, STATE_KV_ZERO
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams, check_assembly
+from folder_line.core.mechanisms.layup_angles import GRASHOF_REL_TOL, TAU, classify_fourbar
 from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics import loop
 from folder_line.core.numerics.roots import RTOL, brent, find_sign_changes
@@ -254,9 +249,9 @@ def test_delivery_ratios_stay_in_their_documented_ranges(
     assert np.all((s.eta >= 0.0) & (s.eta <= s.eta_O) & (s.eta_O <= 1.0))
     assert np.all((s.eta_A >= 0.0) & (s.eta_A <= 1.0) & (s.eta_B >= 0.0) & (s.eta_B <= 1.0))
     assert np.all((s.alpha >= 0.0) & (s.alpha <= math.radians(alpha_m) * (1 + 4 * EPS)))
-    first = s.section == dlv.SECTION_DECELERATION
+    first = s.section == SECTION_DECELERATION
     assert np.all(s.K_v[first] >= np.cos(s.beta[first]) * (1 - 4 * EPS))
-    assert not np.any(np.isin(s.state[first], (dlv.STATE_KV_ZERO, dlv.STATE_CARRIAGE_REVERSED)))
+    assert not np.any(np.isin(s.state[first], (STATE_KV_ZERO, STATE_CARRIAGE_REVERSED)))
     ok = s.ok
     assert np.allclose(s.eta[ok], (s.eta_O * s.eta_A * s.eta_B)[ok], rtol=1e-14, atol=0.0)
     assert np.all(s.p_AB[ok] >= s.p_AB_ideal[ok] * (1 - 4 * EPS)) and np.all(s.p_AB_ideal[ok] >= 1.0)

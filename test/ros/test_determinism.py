@@ -38,7 +38,7 @@ def n_ticks(duration: float) -> int:
 def run(out: Path, scene: str, processes: bool, duration: float) -> dict:
     result = run_line(RunConfig(scene=scene, duration=duration, rtf=0.0, out=out, processes=processes), io.StringIO())
     summary = json.loads((out / 'run.json').read_text())
-    assert summary == json.loads(json.dumps(result.summary))
+    assert summary == json.loads(json.dumps(result.summary.as_json()))
     return summary
 
 

@@ -74,6 +74,6 @@ def test_hold_unhold_and_a_refusal_against_a_running_line(
         _, err = line.proc.communicate(timeout=180)
         assert line.proc.returncode == 0, err
     result = analyze(out, tmp_path / 'analysis')
-    targets = [t['to'] for t in result.summary['transitions']]
+    targets = [t.target for t in result.summary.transitions]
     assert targets[-4:] == ['HOLDING', 'HELD', 'UNHOLDING', 'EXECUTE'], targets
-    assert result.summary['replay_matches'] is True
+    assert result.summary.replay_matches is True

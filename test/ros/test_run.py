@@ -79,10 +79,10 @@ def test_run_in_process(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> No
         assert messages[topic] == RATE * duration + 1, (topic, messages[topic])
     assert messages['/diagnostics'] == int(duration) + 1 and messages['/line/participants'] == 1
     batch = simulate(load_scene('folder'), duration, sample_rate=0.0).summary()
-    assert summary['sheets_counted'] == batch['sheets_counted'] == summary['expected_from_simulate']['sheets_counted']
+    assert summary['sheets_counted'] == batch.sheets_counted == summary['expected_from_simulate']['sheets_counted']
     assert summary['sheets_counted'] > 0
-    assert summary['events_received'] == batch['events']
-    assert messages[EVENTS_TOPIC] == sum(batch['events'].values())
+    assert summary['events_received'] == batch.events
+    assert messages[EVENTS_TOPIC] == sum(batch.events.values())
     assert summary['published'] == summary['bag']['messages'] and set(summary['lost'].values()) == {0}
     assert_bag_is_model(read_bag_mcap(tmp_path / 'bag'), 'folder', duration, RATE)
 

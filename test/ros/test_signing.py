@@ -107,8 +107,9 @@ def test_without_the_key_the_partition_alone_steers_and_forges_nothing(clean: Pa
     assert all('does not sign this change' in why for _, why in answers['operator_command made-up'])
     assert all('must first be signed' in why for _, why in answers['abort'])
 
-    assert result.summary['outcome']['ok'], result.summary['outcome']
-    assert result.summary['lost'] == dict.fromkeys(result.summary['lost'], 0)
+    assert result.summary.outcome.ok, result.summary.outcome
+    bag = result.summary.bag
+    assert bag is not None and bag.lost == dict.fromkeys(bag.lost or {}, 0)
     attacked, _ = line_records(out)
     reference, _ = line_records(clean)
     assert {r: n for r, n in attacked.items() if r[0] != DIAGNOSTICS_TOPIC} == {

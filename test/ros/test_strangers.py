@@ -74,7 +74,7 @@ def analysis(out: Path, tmp: Path) -> list[str]:
 def clean(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp('clean')
     result = run_line(RunConfig(scene='folder', duration=DURATION, rtf=1.0, out=out), io.StringIO())
-    assert result.summary['outcome']['ok'], result.summary['outcome']
+    assert result.summary.outcome.ok, result.summary.outcome
     return out
 
 
@@ -85,8 +85,9 @@ def test_a_stranger_without_the_key_cannot_feed_steer_or_falsify_the_line(clean:
     assert attack['heard'].get('/clock', 0) > 0  # watching the line stays open to anyone
     assert attack['calls'] > 0 and attack['answers'] == []  # no service of the line answered it
 
-    assert result.summary['outcome']['ok'], result.summary['outcome']  # what run's exit code 0 says
-    assert result.summary['lost'] == dict.fromkeys(result.summary['lost'], 0)
+    assert result.summary.outcome.ok, result.summary.outcome  # what run's exit code 0 says
+    bag = result.summary.bag
+    assert bag is not None and bag.lost == dict.fromkeys(bag.lost or {}, 0)
     attacked, statuses = line_records(out)
     reference, _ = line_records(clean)
     assert attacked == reference  # the same messages, byte for byte, at the same log and publish times

@@ -80,6 +80,6 @@ def test_lowering_v_tr_holds_at_the_cycle_simulate_says(
     )
 
     result = analyze(out, tmp_path / 'analysis')
-    targets = [t['to'] for t in result.summary['transitions']]
+    targets = [t.target for t in result.summary.transitions]
     assert targets[-2:] == ['HOLDING', 'HELD'], targets
-    assert result.summary['replay_matches'] is True
+    assert result.summary.replay_matches is True

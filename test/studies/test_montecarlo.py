@@ -60,7 +60,7 @@ def test_a_sample_is_the_scene_with_its_own_seed() -> None:
     assert got.seed == sample_seed(1, 3)
     assert np.array_equal(got.constraints['feed_window'].margins, fw.margin)
     assert got.constraints['feed_window'].violations == int(np.count_nonzero(fw.violated))
-    assert got.metrics['violations.count'] == direct.summary()['violations']['count']
+    assert got.metrics['violations.count'] == direct.summary().violations.count
 
 
 @pytest.mark.parametrize(('k', 'n'), [(0, 10), (3, 10), (10, 10), (83, 2760), (1, 1)])
@@ -194,4 +194,4 @@ def test_a_long_sample_keeps_a_bounded_number_of_margins(monkeypatch: pytest.Mon
     c = got.constraints['feed_window']
     assert c.margins.size == 100 < c.evaluations == fw.margin.size
     assert c.violations == int(np.count_nonzero(fw.violated)) and (c.low, c.high) == (fw.margin.min(), fw.margin.max())
-    assert got.metrics == flatten_metrics(direct.summary())  # the streamed summary: bit for bit
+    assert got.metrics == flatten_metrics(direct.summary().as_json())  # the streamed summary: bit for bit

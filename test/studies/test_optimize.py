@@ -90,7 +90,7 @@ def test_the_scene_geometry_is_feasible_and_simulated(layup: dict[str, Any]) -> 
     cand = evaluate(layup, {}, FAST)
     assert cand.geometry_ok and cand.feasible
     assert all(v >= 0.0 for v in cand.constraints.values())
-    assert cand.landing_cv == cand.summary['layup']['landing_cv']  # type: ignore[index]
+    assert cand.landing_cv == cand.summary.layup.landing.histogram.cv  # type: ignore[union-attr]
     # 40° is far from the shipped geometry's smallest transmission angles (68.4° and 67.1°)
     assert cand.constraints['transmission_deg'] == pytest.approx(min(cand.transmission_deg.values()) - 40.0)  # type: ignore[type-var]
 
@@ -100,7 +100,7 @@ def test_a_spilling_geometry_is_simulated_and_penalised(layup: dict[str, Any]) -
     fast = dict(layup, machines=dict(layup['machines'], layup=dict(layup['machines']['layup'], v_tr=4.4)))
     cand = evaluate(fast, {}, FAST)
     assert cand.geometry_ok and cand.summary is not None
-    spilled = cand.summary['layup']['leaves_spilled'] + cand.summary['layup']['leaves_damaged']
+    spilled = cand.summary.layup.leaves_spilled + cand.summary.layup.leaves_damaged  # type: ignore[union-attr]
     assert spilled > 0 and cand.constraints['no_spill_or_damage'] == -spilled
     assert not cand.feasible and cand.objective > 10.0
 

@@ -1,7 +1,7 @@
 """An animation drawn frame by frame from the streamed line and streamed to the encoder: :func:`render`.
 
 The line is a :class:`~folder_line.core.line.stream.LineStream`: it is fast-forwarded to the first
-frame's time in windows of :data:`FAST_FORWARD` s, keeping nothing (:func:`fast_forward`), then
+frame's time in windows of :data:`~folder_line.core.line.model.WINDOW` s, keeping nothing (:func:`fast_forward`), then
 advanced window by window (:data:`FRAME_WINDOW` s of line time at most) as the frames are drawn, each
 frame from the scenery of the window that holds its time (:func:`sceneries`). Its state at the first
 frame is kept (a checkpoint) and gone back to for each pass over the frames' span: one to fix the
@@ -32,7 +32,6 @@ from folder_line.core.line.stream import LineStream
 __all__ = [
     'EXTENT_SAMPLES',
     'EXTENT_SPAN',
-    'FAST_FORWARD',
     'FRAME_WINDOW',
     'Animation',
     'fast_forward',

@@ -53,13 +53,12 @@ from folder_line.core.limits import CARRIAGE_FORCE, MOTOR_SPEED, SPROCKET_RADIUS
 from folder_line.core.mechanisms.chain import ChainPath, ChainSchedule, chain_path, schedule
 from folder_line.core.mechanisms.delivery import (
     RETURN_SECTIONS,
-    STATE_OK,
     DeliveryParams,
     ReturnSection,
-    StateCoded,
     evaluate_stroke,
     evaluate_stroke_point,
 )
+from folder_line.core.mechanisms.delivery_results import STATE_OK, StateCoded
 from folder_line.core.mechanisms.scene_view import SceneView
 from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import find_sign_changes
@@ -124,7 +123,7 @@ class ChainFrictionState(StateCoded):
     K_v : ndarray
         Carriage speed over chain speed.
     state : ndarray of int8
-        :data:`folder_line.core.mechanisms.delivery.STATE_NAMES` index.
+        :data:`folder_line.core.mechanisms.delivery_results.STATE_NAMES` index.
     P_AB, P_ch : ndarray
         Rod force and chain pull, N.
     M_1 : ndarray

@@ -44,26 +44,26 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.effects import chain_friction
-from folder_line.core.effects.motor_segment import PERIODIC_TOL, MotorSegment, PeriodicTail, PeriodMarks
+from folder_line.core.effects.motor_figures import MotorFigures
+from folder_line.core.effects.motor_segment import MotorSegment, PeriodicTail, PeriodMarks
 from folder_line.core.limits import DURATION, LINE_DAMPING, MOTOR_INERTIA, MOTOR_SPEED, MOTOR_TORQUE
 from folder_line.core.mechanisms.drive import Command, check_commands
 from folder_line.core.mechanisms.scene_view import SceneView
 from folder_line.core.numerics import dense
-from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics.arrays import FloatArray
 from folder_line.core.numerics.constants import EPS
+from folder_line.core.numerics.dopri5_stepper import Dopri5Stepper
+from folder_line.core.numerics.rk4_stepper import RK4Stepper
+from folder_line.core.numerics.stepper import Breaks, Terminal
 from folder_line.core.numerics.validate import among, check_fields, in_range, non_negative, positive, within
 from folder_line.errors import ParameterError
 
 __all__ = [
     'METHODS',
-    'PERIODIC_TOL',
     'RK4_STABILITY',
     'RK4_STEP_LIMIT',
     'MotorDrive',
-    'MotorSegment',
     'Params',
-    'PeriodicTail',
     'build_drive',
     'motor_params',
     'stall_torque_for',
@@ -188,8 +188,8 @@ REACH = 3600.0
 class MotorDrive:
     """The master drive from the motor ODE (Drive protocol of :mod:`folder_line.core.mechanisms.drive`).
 
-    A list of :class:`MotorSegment` (motor on / off), switched at the scene's ``t_stop`` and at
-    the supervisor's commands, integrated as far as the line is asked for: a time beyond
+    A list of :class:`~folder_line.core.effects.motor_segment.MotorSegment` (motor on / off), switched at
+    the scene's ``t_stop`` and at the supervisor's commands, integrated as far as the line is asked for: a time beyond
     what is integrated integrates on (:meth:`extend`), so the steps never depend on where
     the line was asked (a step straddles every window end). :meth:`prune` forgets the steps
     before a time; a motor-on segment stops integrating once its period repeats.
@@ -282,12 +282,12 @@ class MotorDrive:
             t_bound = p.t_stop if t0 < p.t_stop else math.inf
             period = PeriodMarks(self._is_mark, p.omega_nom) if self.periodic else None
             use_breaks = self.load is not None or self.periodic
-            breaks = ig.Breaks(0, self._next_break, period) if use_breaks else None
+            breaks = Breaks(0, self._next_break, period) if use_breaks else None
             stepper = _stepper(p, self._rhs_on, t0, y0, t_bound, breaks, None)
             return MotorSegment(t0, t1, True, y0, stepper, period, t_bound)
         if y0[1] > 0.0:
-            brk = ig.Breaks(0, self._next_break) if self.load is not None else None
-            stepper = _stepper(p, self._rhs_brake, t0, y0, math.inf, brk, ig.Terminal(1, 0.0))
+            brk = Breaks(0, self._next_break) if self.load is not None else None
+            stepper = _stepper(p, self._rhs_brake, t0, y0, math.inf, brk, Terminal(1, 0.0))
             return MotorSegment(t0, t1, False, y0, stepper)
         return MotorSegment(t0, t1, False, y0, None)
 
@@ -490,28 +490,25 @@ class MotorDrive:
         th = self.theta(np.array([t0, t1]))
         return float((th[1] - th[0]) / (t1 - t0))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> MotorFigures:
         """Figures for reports: cost, steady λ, stop and rest times."""
-        out: dict[str, Any] = {
-            'method': self.params.method,
-            'nfev': self.nfev,
-            'steps': self.steps,
-            'rejected': self.rejected,
-            'theta_end': self.theta_end,
-            't_stop': self.t_stop,
-            't_rest': self.t_rest,
-            'lambda_free': self.params.omega_free / self.params.omega_nom,
-        }
-        if self.tail is not None:
-            out['t_periodic'] = float(self.tail.t_b)
-            out['lambda_steady'] = float(self.tail.dtheta / self.tail.period)
-        if self.load is not None:
-            out['load_mean'] = float(self.load.mean)
-            out['load_peak'] = float(self.load.peak)
-            out['lambda_estimate'] = steady_speed(self.params, self.load.mean) / self.params.omega_nom
-        if self.commanded:
-            out['switches'] = [[float(t), bool(on)] for t, on in self.switches]
-        return out
+        tail, load, p = self.tail, self.load, self.params
+        return MotorFigures(
+            method=p.method,
+            nfev=self.nfev,
+            steps=self.steps,
+            rejected=self.rejected,
+            theta_end=self.theta_end,
+            t_stop=self.t_stop,
+            t_rest=self.t_rest,
+            lambda_free=p.omega_free / p.omega_nom,
+            t_periodic=None if tail is None else float(tail.t_b),
+            lambda_steady=None if tail is None else float(tail.dtheta / tail.period),
+            load_mean=None if load is None else float(load.mean),
+            load_peak=None if load is None else float(load.peak),
+            lambda_estimate=None if load is None else steady_speed(p, load.mean) / p.omega_nom,
+            switches=[(float(t), bool(on)) for t, on in self.switches] if self.commanded else None,
+        )
 
 
 def _no_load(theta: float, piece: tuple[float, float]) -> float:
@@ -528,12 +525,12 @@ def _stepper(
     t0: float,
     y0: FloatArray,
     t_bound: float,
-    breaks: ig.Breaks | None,
-    terminal: ig.Terminal | None,
-) -> ig.RK4Stepper | ig.Dopri5Stepper:
+    breaks: Breaks | None,
+    terminal: Terminal | None,
+) -> RK4Stepper | Dopri5Stepper:
     if p.method == 'rk4':
-        return ig.RK4Stepper(fun, t0, y0, t_bound=t_bound, h=p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
-    return ig.Dopri5Stepper(
+        return RK4Stepper(fun, t0, y0, t_bound=t_bound, h=p.h, breaks=breaks, terminal=terminal, max_steps=MAX_STEPS)
+    return Dopri5Stepper(
         fun,
         t0,
         y0,

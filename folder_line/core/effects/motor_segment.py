@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from folder_line.core.numerics import dense
-from folder_line.core.numerics import integrators as ig
 from folder_line.core.numerics.arrays import FloatArray
+from folder_line.core.numerics.dopri5_stepper import Dopri5Stepper
+from folder_line.core.numerics.rk4_stepper import RK4Stepper
 
 __all__ = ['PERIODIC_TOL', 'MotorSegment', 'PeriodMarks', 'PeriodicTail']
 
@@ -91,7 +92,7 @@ class MotorSegment:
         t1: float,
         on: bool,
         y0: FloatArray,
-        stepper: ig.RK4Stepper | ig.Dopri5Stepper | None,
+        stepper: RK4Stepper | Dopri5Stepper | None,
         period: PeriodMarks | None = None,
         t_bound: float = math.inf,
     ) -> None:

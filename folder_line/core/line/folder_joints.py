@@ -17,6 +17,7 @@ from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.belt import BeltPhase
 from folder_line.core.mechanisms.cyclogram import CycleTiming
+from folder_line.core.mechanisms.delivery_results import DeliverySamples
 from folder_line.core.types.events import JointSamples, stack_samples
 
 if TYPE_CHECKING:
@@ -118,7 +119,7 @@ def _sprocket_torque(
     a0: np.ndarray,
     slack: np.ndarray,
     on0: np.ndarray,
-    st0: dlv.DeliverySamples | None,
+    st0: DeliverySamples | None,
 ) -> np.ndarray:
     """:func:`folder_line.core.effects.chain_friction.sprocket_torque` at the same Θ, bit for bit (the fast
     path of a node's tick: the carriage joint's stroke evaluation reused where it is the same), N m."""

@@ -88,6 +88,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from folder_line.core.line.folder_figures import FolderFigures
 from folder_line.core.line.folder_stream import FolderStream
 from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
@@ -123,7 +124,7 @@ def join_rows(
     return out
 
 
-class FolderLine(LinePart):
+class FolderLine(LinePart[FolderFigures]):
     """The folder (and its delivery) on a drive over ``[0, duration]``, in one window, kept.
 
     Parameters
@@ -143,8 +144,7 @@ class FolderLine(LinePart):
     events : ndarray of EVENT_DTYPE
         Sorted by time, kind, sheet.
     constraints : list of ConstraintSeries
-    summary : dict
-        JSON-ready figures.
+    summary : FolderFigures
     timing : CycleTiming
     plan : DeliveryPlan or None
     stream : FolderStream
@@ -181,7 +181,7 @@ class FolderLine(LinePart):
         return self.stream.sample_unit(unit, tt, theta, lam)
 
 
-def simulate_folder(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
+def simulate_folder(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult[FolderFigures]:
     """Simulate the folder (and its delivery) for ``duration`` seconds of line time.
 
     ``FolderLine(scene, drive, duration).result(t_samples)``: events, samples per unit on

@@ -4,15 +4,15 @@
 hand-over slots and the signatures fed, :func:`belt_phase` and :func:`feed` carry them
 to the stops, :func:`knife_cycles` and :func:`fates` fold, jam and release them,
 :func:`bounces`, :func:`fault_events` and :func:`sheet_events` make the event tables and
-:func:`summary` the JSON-ready figures. The timeline they follow is in
-:mod:`folder_line.core.line.folder_sim`'s docstring.
+:func:`summary` the figures (:class:`~folder_line.core.line.folder_figures.FolderFigures`). The
+timeline they follow is in :mod:`folder_line.core.line.folder_sim`'s docstring.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, SupportsFloat
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, SupportsFloat
 
 import numpy as np
 
@@ -26,6 +26,16 @@ from folder_line.core.effects import (
     stop_bounce,
 )
 from folder_line.core.line.delivery_plan import DeliveryPlan, delivery_plan
+from folder_line.core.line.folder_figures import (
+    BounceFigures,
+    CycleTimes,
+    DeliveryFigures,
+    FaultCounts,
+    FolderFigures,
+    ReleaseFigures,
+    Slack,
+    SlipFigures,
+)
 from folder_line.core.mechanisms.belt import BeltPhase, belt_intervals
 from folder_line.core.mechanisms.cyclogram import CycleTiming, cycle_timing
 from folder_line.core.mechanisms.delivery import stroke_minimum
@@ -119,8 +129,8 @@ class Stream:
 
     slots: np.ndarray  # hand-over slot (cycle) indices with a nominal hand-over by the end
     theta_nom: np.ndarray  # nominal hand-over phase of each slot
-    sheet_faults: Any  # faults.SheetFaults of the slots, or None without ``faults``
-    slowdowns: Any  # faults' belt slow-downs, or None
+    sheet_faults: faults.SheetFaults | None  # of the slots, or None without ``faults``
+    slowdowns: faults.Slowdowns | None  # faults' belt slow-downs, or None
     missing: np.ndarray  # per slot
     double: np.ndarray
     delay: np.ndarray  # per slot, nominal s
@@ -280,7 +290,7 @@ def feed(
     V_d: float,
     V_tr: float,
     L: float | np.ndarray,
-    slip: Any,
+    slip: feed_slip.Params | None,
     mu: np.ndarray | None = None,
 ) -> Sheets:
     """Arrival at the stops of every signature handed over (exact, vectorised).
@@ -332,7 +342,7 @@ def feed(
 
 def fault_events(s: Setup, st: Stream) -> list[np.ndarray]:
     """The ``fault_*`` and ``belt_slowdown_*`` events (none without ``faults``)."""
-    if s.faults is None:
+    if s.faults is None or st.sheet_faults is None or st.slowdowns is None:  # all three drawn with ``faults``
         return []
     slots, cyc, ids = st.slots, st.cycle, st.ids
     first_id = np.full(slots.size, -1, dtype=np.int64)
@@ -377,10 +387,10 @@ def fates(s: Setup, sheets: Sheets, knife: KnifeCycles) -> Fates:
     return Fates(folded, jammed, released, t_rel, released)
 
 
-def bounces(s: Setup, sheets: Sheets) -> tuple[list[np.ndarray], dict[str, Any]]:
+def bounces(s: Setup, sheets: Sheets) -> tuple[list[np.ndarray], BounceFigures | None]:
     """``bounce`` and ``settled`` events and the summary's ``stop_bounce`` figures (none without it)."""
     if s.bounce is None:
-        return [], {}
+        return [], None
     ids = sheets.sheet
     arr = np.flatnonzero(sheets.arrived)
     e = restitution(s, ids.size)
@@ -400,14 +410,12 @@ def bounces(s: Setup, sheets: Sheets) -> tuple[list[np.ndarray], dict[str, Any]]
     ]
     sk = arr[t_settled[arr] <= s.duration]
     tables.append(make_events('settled', t_settled[sk], sheet=ids[sk], cycle=sheets.cycle[sk]))
-    nominal = float(s.V_tr)
-    info = {
-        'bounces_at_V_tr': int(stop_bounce.bounce_count(s.bounce, nominal)),
-        'settle_time_at_V_tr': _json_float(stop_bounce.settle_time(s.bounce, nominal)),
-        'first_rebound_at_V_tr': _json_float(stop_bounce.first_rebound(s.bounce, nominal)),
-        'bounces_max': int(sched.count.max()) if sched.count.size else 0,
-        'settle_time_max': _json_float(sched.settle.max()) if sched.settle.size else 0.0,
-    }
+    info = _bounce_info(
+        s.bounce,
+        float(s.V_tr),
+        int(sched.count.max()) if sched.count.size else 0,
+        _json_float(sched.settle.max()) if sched.settle.size else 0.0,
+    )
     return tables, info
 
 
@@ -435,11 +443,10 @@ def summary(
     knife: KnifeCycles,
     fates: Fates,
     events: np.ndarray,
-    bounce_info: dict[str, Any],
-) -> dict[str, Any]:
-    """The JSON-ready figures of the folder (see the ``simulate`` verb of the CLI)."""
-    timing, V_tr, phase, plan = s.timing, s.V_tr, s.phase, s.plan
-    V_d, T, L = timing.V_d, timing.T, timing.L_feed
+    bounce_info: BounceFigures | None,
+) -> FolderFigures:
+    """The folder's figures (see the ``simulate`` verb of the CLI): :func:`static_summary` with the run's counts."""
+    timing, plan = s.timing, s.plan
     ids = sheets.sheet
     n_fed = int(ids.size)
     n_counted = int(np.count_nonzero(fates.counted))
@@ -447,149 +454,118 @@ def summary(
     gone = events['sheet'][events['kind'] == event_kind('released_on_pile')] if plan is not None else ids[fates.folded]
     handed = events['sheet'][events['kind'] == event_kind('sheet_handover')]
     in_machine = int(np.count_nonzero(~np.isin(handed, gone)))
-    t_feed = L / V_tr
-    summary: dict[str, Any] = {
-        'cycles': int(knife.k_c.size),
-        'cycles_started': int(_indices(timing.knife.t_out, T, s.theta_end).size),
-        'sheets_fed': n_fed,
-        'sheets_at_stops': int(np.count_nonzero(sheets.arrived)),
-        'sheets_folded': int(np.count_nonzero(fates.folded)),
-        'sheets_jammed': int(np.count_nonzero(fates.jammed)),
-        'sheets_counted': n_counted,
-        'sheets_in_machine': in_machine,
-        'sheets_balance_ok': bool(handed.size == n_fed and n_fed == n_counted + in_machine),
-        'V_d': _json_float(V_d),
-        'V_tr': _json_float(V_tr),
-        'v_tr_over_v_d': _json_float(V_tr / V_d),
-        'V_tr_min': _json_float(timing.V_tr_min),
-        'V_tr_min_over_V_d': _json_float(timing.ratio_min),
-        # the knife's table-occupation window: its duration and its crank angles
-        'knife_window_s': _json_float(timing.t_knife),
-        'knife_window_deg': _json_float(math.degrees(timing.knife.phi_out - timing.knife.phi_in)),
-        'knife_in_deg': _json_float(math.degrees(timing.knife.phi_in)),
-        'knife_out_deg': _json_float(math.degrees(timing.knife.phi_out)),
-        'timing': {
-            'T': _json_float(T),
-            't_in': _json_float(timing.knife.t_in),
-            't_out': _json_float(timing.knife.t_out),
-            't_knife': _json_float(timing.t_knife),
-            't_dwell': _json_float(timing.t_dwell),
-            't_fw': _json_float(timing.t_fw),
-            't_allowed': _json_float(timing.t_allowed),
-        },
-        # nominal speed, no faults: what each part of the cycle leaves over (s)
-        'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
-    }
-    if s.slip is not None:
-        cost = float(feed_slip.slip_cost(s.slip, V_d, V_tr, L))
-        summary['feed_slip'] = _slip_info(s, s.slip, cost)
-        summary['slack']['slip_cost'] = _json_float(cost)
-        t_feed += cost
-    summary['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
-    rest = (T - timing.t_knife) - phase - t_feed
-    summary['slack']['rest_at_stops'] = _json_float(rest)
-    if s.bounce is not None:
-        settle = bounce_info['settle_time_at_V_tr']
-        summary['slack']['settle_time'] = settle
-        summary['slack']['settled_margin'] = _json_float(rest - settle)
-        summary['stop_bounce'] = bounce_info
-    if plan is not None:
-        summary['release'] = {
-            'u_rel': _json_float(plan.u_rel),
-            'K_v': _json_float(plan.K_v_rel),
-            'chain_travel': _json_float(plan.travel_rel),
-            'v_A': _json_float(plan.v_A),
-            'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
-        }
-    if plan is not None and s.scene.has('chain_friction'):
-        summary['delivery'] = _delivery_info(s, plan)
+    fault_counts = None
     if s.faults is not None:
-        summary['faults'] = {
-            'missing': int(np.count_nonzero(st.missing)),
-            'double': int(np.count_nonzero(st.double)),
-            'late': int(np.count_nonzero(st.delay > 0.0)),
-            'slowdowns': int(np.asarray(st.slowdowns.t_start).size) if st.slowdowns is not None else 0,
-        }
-    return summary
+        fault_counts = FaultCounts(
+            missing=int(np.count_nonzero(st.missing)),
+            double=int(np.count_nonzero(st.double)),
+            late=int(np.count_nonzero(st.delay > 0.0)),
+            slowdowns=int(np.asarray(st.slowdowns.t_start).size) if st.slowdowns is not None else 0,
+        )
+    return replace(
+        static_summary(s),
+        cycles=int(knife.k_c.size),
+        cycles_started=int(_indices(timing.knife.t_out, timing.T, s.theta_end).size),
+        sheets_fed=n_fed,
+        sheets_at_stops=int(np.count_nonzero(sheets.arrived)),
+        sheets_folded=int(np.count_nonzero(fates.folded)),
+        sheets_jammed=int(np.count_nonzero(fates.jammed)),
+        sheets_counted=n_counted,
+        sheets_in_machine=in_machine,
+        sheets_balance_ok=bool(handed.size == n_fed and n_fed == n_counted + in_machine),
+        stop_bounce=bounce_info,
+        faults=fault_counts,
+    )
 
 
-def static_summary(s: Setup) -> dict[str, Any]:
-    """The folder's summary figures that do not depend on the run (the counts left at 0 for the caller),
-    in the order of :func:`summary`."""
-    timing, V_tr, phase, plan = s.timing, s.V_tr, s.phase, s.plan
-    V_d, T, L = timing.V_d, timing.T, timing.L_feed
-    out: dict[str, Any] = dict.fromkeys(
-        (
-            'cycles',
-            'cycles_started',
-            'sheets_fed',
-            'sheets_at_stops',
-            'sheets_folded',
-            'sheets_jammed',
-            'sheets_counted',
-            'sheets_in_machine',
-        ),
-        0,
-    )
-    out['sheets_balance_ok'] = True
-    t_feed = L / V_tr
-    out.update(
-        {
-            'V_d': _json_float(V_d),
-            'V_tr': _json_float(V_tr),
-            'v_tr_over_v_d': _json_float(V_tr / V_d),
-            'V_tr_min': _json_float(timing.V_tr_min),
-            'V_tr_min_over_V_d': _json_float(timing.ratio_min),
-            'knife_window_s': _json_float(timing.t_knife),
-            'knife_window_deg': _json_float(math.degrees(timing.knife.phi_out - timing.knife.phi_in)),
-            'knife_in_deg': _json_float(math.degrees(timing.knife.phi_in)),
-            'knife_out_deg': _json_float(math.degrees(timing.knife.phi_out)),
-            'timing': {
-                'T': _json_float(T),
-                't_in': _json_float(timing.knife.t_in),
-                't_out': _json_float(timing.knife.t_out),
-                't_knife': _json_float(timing.t_knife),
-                't_dwell': _json_float(timing.t_dwell),
-                't_fw': _json_float(timing.t_fw),
-                't_allowed': _json_float(timing.t_allowed),
-            },
-            'slack': {'feed_margin_ideal': _json_float(timing.t_allowed - phase - t_feed)},
-        }
-    )
-    if s.slip is not None:
-        cost = float(feed_slip.slip_cost(s.slip, V_d, V_tr, L))
-        out['feed_slip'] = _slip_info(s, s.slip, cost)
-        out['slack']['slip_cost'] = _json_float(cost)
-        t_feed += cost
-    out['slack']['feed_margin'] = _json_float(timing.t_allowed - phase - t_feed)
-    rest = (T - timing.t_knife) - phase - t_feed
-    out['slack']['rest_at_stops'] = _json_float(rest)
-    if s.bounce is not None:
-        nominal = float(V_tr)
-        settle = _json_float(stop_bounce.settle_time(s.bounce, nominal))
-        out['slack']['settle_time'] = settle
-        out['slack']['settled_margin'] = _json_float(rest - settle)
-        out['stop_bounce'] = {
-            'bounces_at_V_tr': int(stop_bounce.bounce_count(s.bounce, nominal)),
-            'settle_time_at_V_tr': settle,
-            'first_rebound_at_V_tr': _json_float(stop_bounce.first_rebound(s.bounce, nominal)),
-            'bounces_max': 0,
-            'settle_time_max': 0.0,
-        }
+def static_summary(s: Setup) -> FolderFigures:
+    """The folder's figures that do not depend on the run (the counts left at 0 for the caller)."""
+    timing, V_tr, plan = s.timing, s.V_tr, s.plan
+    V_d = timing.V_d
+    release = None
     if plan is not None:
-        out['release'] = {
-            'u_rel': _json_float(plan.u_rel),
-            'K_v': _json_float(plan.K_v_rel),
-            'chain_travel': _json_float(plan.travel_rel),
-            'v_A': _json_float(plan.v_A),
-            'carriage_speed': _json_float(plan.K_v_rel * plan.v_A),
-        }
-    if plan is not None and s.scene.has('chain_friction'):
-        out['delivery'] = _delivery_info(s, plan)
-    return out
+        release = ReleaseFigures(
+            u_rel=_json_float(plan.u_rel),
+            K_v=_json_float(plan.K_v_rel),
+            chain_travel=_json_float(plan.travel_rel),
+            v_A=_json_float(plan.v_A),
+            carriage_speed=_json_float(plan.K_v_rel * plan.v_A),
+        )
+    return FolderFigures(
+        cycles=0,
+        cycles_started=0,
+        sheets_fed=0,
+        sheets_at_stops=0,
+        sheets_folded=0,
+        sheets_jammed=0,
+        sheets_counted=0,
+        sheets_in_machine=0,
+        sheets_balance_ok=True,
+        V_d=_json_float(V_d),
+        V_tr=_json_float(V_tr),
+        v_tr_over_v_d=_json_float(V_tr / V_d),
+        V_tr_min=_json_float(timing.V_tr_min),
+        V_tr_min_over_V_d=_json_float(timing.ratio_min),
+        # the knife's table-occupation window: its duration and its crank angles
+        knife_window_s=_json_float(timing.t_knife),
+        knife_window_deg=_json_float(math.degrees(timing.knife.phi_out - timing.knife.phi_in)),
+        knife_in_deg=_json_float(math.degrees(timing.knife.phi_in)),
+        knife_out_deg=_json_float(math.degrees(timing.knife.phi_out)),
+        timing=CycleTimes(
+            T=_json_float(timing.T),
+            t_in=_json_float(timing.knife.t_in),
+            t_out=_json_float(timing.knife.t_out),
+            t_knife=_json_float(timing.t_knife),
+            t_dwell=_json_float(timing.t_dwell),
+            t_fw=_json_float(timing.t_fw),
+            t_allowed=_json_float(timing.t_allowed),
+        ),
+        slack=_slack(s),
+        feed_slip=None if s.slip is None else _slip_info(s, s.slip, _slip_cost(s, s.slip)),
+        stop_bounce=None if s.bounce is None else _bounce_info(s.bounce, float(V_tr)),
+        release=release,
+        delivery=_delivery_info(s, plan) if plan is not None and s.scene.has('chain_friction') else None,
+    )
 
 
-def _delivery_info(s: Setup, plan: DeliveryPlan) -> dict[str, Any]:
+def _slip_cost(s: Setup, slip: feed_slip.Params) -> float:
+    """The feed time the slip costs at nominal speed, s."""
+    return float(feed_slip.slip_cost(slip, s.timing.V_d, s.V_tr, s.timing.L_feed))
+
+
+def _slack(s: Setup) -> Slack:
+    """What each part of the cycle leaves over at nominal speed, no faults, s."""
+    timing, phase = s.timing, s.phase
+    t_feed = timing.L_feed / s.V_tr
+    ideal = _json_float(timing.t_allowed - phase - t_feed)
+    cost = None
+    if s.slip is not None:
+        cost = _slip_cost(s, s.slip)
+        t_feed += cost
+    rest = (timing.T - timing.t_knife) - phase - t_feed
+    settle = None if s.bounce is None else _json_float(stop_bounce.settle_time(s.bounce, float(s.V_tr)))
+    return Slack(
+        feed_margin_ideal=ideal,
+        feed_margin=_json_float(timing.t_allowed - phase - t_feed),
+        rest_at_stops=_json_float(rest),
+        slip_cost=None if cost is None else _json_float(cost),
+        settle_time=settle,
+        settled_margin=None if settle is None else _json_float(rest - settle),
+    )
+
+
+def _bounce_info(bounce: stop_bounce.Params, nominal: float, count: int = 0, settle: float = 0.0) -> BounceFigures:
+    """``stop_bounce``'s figures at the nominal belt speed ``nominal`` (m/s), with the run's largest."""
+    return BounceFigures(
+        bounces_at_V_tr=int(stop_bounce.bounce_count(bounce, nominal)),
+        settle_time_at_V_tr=_json_float(stop_bounce.settle_time(bounce, nominal)),
+        first_rebound_at_V_tr=_json_float(stop_bounce.first_rebound(bounce, nominal)),
+        bounces_max=count,
+        settle_time_max=settle,
+    )
+
+
+def _delivery_info(s: Setup, plan: DeliveryPlan) -> DeliveryFigures:
     """The summary's ``delivery`` figures with ``chain_friction``: the stroke's efficiency minimum and
     where it is, and the sprocket torque over a cycle.
 
@@ -603,25 +579,25 @@ def _delivery_info(s: Setup, plan: DeliveryPlan) -> dict[str, Any]:
     u, eta = stroke_minimum(plan.params, 'eta', return_section=cf.return_section)
     load = chain_friction.master_load(s.scene, 1.0)  # omega_nom 1 rad/s: torque x ratio, divided back (cached)
     torque = (load.peak / load.ratio, load.mean / load.ratio)
-    return {
-        'eta_min': _json_float(eta),
-        'eta_min_u': _json_float(u),
-        'eta_min_travel_m': _json_float(float(plan.path.arc(u))),
-        'sprocket_torque_peak_Nm': _json_float(torque[0]),
-        'sprocket_torque_mean_Nm': _json_float(torque[1]),
-    }
+    return DeliveryFigures(
+        eta_min=_json_float(eta),
+        eta_min_u=_json_float(u),
+        eta_min_travel_m=_json_float(float(plan.path.arc(u))),
+        sprocket_torque_peak_Nm=_json_float(torque[0]),
+        sprocket_torque_mean_Nm=_json_float(torque[1]),
+    )
 
 
-def _slip_info(s: Setup, slip: feed_slip.Params, cost: float) -> dict[str, Any]:
+def _slip_info(s: Setup, slip: feed_slip.Params, cost: float) -> SlipFigures:
     """The summary's ``feed_slip`` figures (``slip``: the scene's, ``s.slip``)."""
     timing, L = s.timing, s.timing.L_feed
-    info: dict[str, Any] = {
-        'accel': _json_float(slip.accel),
-        'slip_cost': _json_float(cost),
-        'feed_margin_with_slip': _json_float(timing.t_allowed - L / s.V_tr - cost),
-    }
     try:
-        info['V_tr_min_with_slip'] = _json_float(feed_slip.min_belt_speed(slip, timing.V_d, L, timing.t_allowed))
+        v_min: float | None = _json_float(feed_slip.min_belt_speed(slip, timing.V_d, L, timing.t_allowed))
     except ParameterError:
-        info['V_tr_min_with_slip'] = None
-    return info
+        v_min = None
+    return SlipFigures(
+        accel=_json_float(slip.accel),
+        slip_cost=_json_float(cost),
+        feed_margin_with_slip=_json_float(timing.t_allowed - L / s.V_tr - cost),
+        V_tr_min_with_slip=v_min,
+    )

@@ -16,8 +16,9 @@ for ever, in memory that does not grow with line time. Two calls drive it:
   whose signatures are all settled (:func:`folder_line.core.line.constraints.folder_evaluation`
   on that cycle's rows, in cycle order).
 
-Carried between windows (:class:`FolderState`): the next slot and sheet id, the
-positions of the random streams, the signatures in the machine (:data:`SHEET_DTYPE`),
+Carried between windows (:class:`~folder_line.core.line.folder_state.FolderState`): the next slot and
+sheet id, the positions of the random streams, the signatures in the machine
+(:data:`~folder_line.core.line.folder_state.SHEET_DTYPE`),
 the slots whose nominal time has not come, the knife's next contact and exit, the belt
 (slow-downs and speed steps), the events found and not yet handed out, the rows of the
 cycles not yet judged and the running counts. Every event is computed by the same
@@ -29,7 +30,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +47,7 @@ from folder_line.core.effects import (
 from folder_line.core.line import folder_joints, folder_steps
 from folder_line.core.line.constraints import FOLDER_CONSTRAINTS, folder_evaluation
 from folder_line.core.line.delivery_plan import DeliveryPlan
+from folder_line.core.line.folder_figures import FaultCounts, FolderFigures
 from folder_line.core.line.folder_state import _SLOT_DTYPE, SHEET_DTYPE, FolderState
 from folder_line.core.line.tuning import Tuning, belt_steps
 from folder_line.core.mechanisms import knife as knf
@@ -62,7 +65,7 @@ from folder_line.core.types.events import (
 if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
-__all__ = ['SHEET_DTYPE', 'FolderState', 'FolderStream', 'due_bound']
+__all__ = ['FolderStream', 'due_bound']
 
 #: smallest speed factor used to freeze the slip speeds at a hand-over (a drive at a standstill)
 _LAMBDA_FLOOR = 1e-9
@@ -616,32 +619,33 @@ class FolderStream:
 
     # ------------------------------------------------------------------ figures
 
-    def summary(self) -> dict[str, Any]:
-        """The JSON-ready figures of the folder as of the events handed out (the ``simulate`` summary)."""
+    def summary(self) -> FolderFigures:
+        """The figures of the folder as of the events handed out (the ``simulate`` summary's ``folder``)."""
         st, s = self.state, self.setup
         cnt = st.counts
         counted = cnt.released if self.plan is not None else cnt.folded
-        out = folder_steps.static_summary(s)
+        static = folder_steps.static_summary(s)
         in_machine = cnt.fed - counted
-        out.update(
-            {
-                'cycles': cnt.contacts,
-                'cycles_started': cnt.started,
-                'sheets_fed': cnt.fed,
-                'sheets_at_stops': cnt.at_stops,
-                'sheets_folded': cnt.folded,
-                'sheets_jammed': cnt.jammed,
-                'sheets_counted': counted,
-                'sheets_in_machine': in_machine,
-                'sheets_balance_ok': bool(cnt.fed == counted + in_machine and in_machine >= 0),
-            }
-        )
-        if s.bounce is not None:
-            out['stop_bounce']['bounces_max'] = cnt.bounces_max
-            out['stop_bounce']['settle_time_max'] = cnt.settle_max
+        bounce = static.stop_bounce
+        if bounce is not None:
+            bounce = replace(bounce, bounces_max=cnt.bounces_max, settle_time_max=cnt.settle_max)
+        fault_counts = None
         if s.faults is not None:
-            out['faults'] = {'missing': cnt.missing, 'double': cnt.double, 'late': cnt.late, 'slowdowns': cnt.slowdowns}
-        return out
+            fault_counts = FaultCounts(missing=cnt.missing, double=cnt.double, late=cnt.late, slowdowns=cnt.slowdowns)
+        return replace(
+            static,
+            cycles=cnt.contacts,
+            cycles_started=cnt.started,
+            sheets_fed=cnt.fed,
+            sheets_at_stops=cnt.at_stops,
+            sheets_folded=cnt.folded,
+            sheets_jammed=cnt.jammed,
+            sheets_counted=counted,
+            sheets_in_machine=in_machine,
+            sheets_balance_ok=bool(cnt.fed == counted + in_machine and in_machine >= 0),
+            stop_bounce=bounce,
+            faults=fault_counts,
+        )
 
     # ------------------------------------------------------------------ joint states
 

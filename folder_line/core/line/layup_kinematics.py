@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 
 __all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics']
 

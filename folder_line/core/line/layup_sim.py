@@ -84,7 +84,7 @@ import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.line.folder_sim import join_rows
-from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
+from folder_line.core.line.layup_figures import LayupFigures
 from folder_line.core.line.layup_stream import LayupStream
 from folder_line.core.line.tuning import Tuning
 from folder_line.core.mechanisms.drive import Drive
@@ -96,9 +96,6 @@ if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
 __all__ = [
-    'EXTREME_WINDOW',
-    'PHASE_BINS',
-    'LayupKinematics',
     'LayupLine',
     'LeafFlights',
     'leaf_stream',
@@ -151,7 +148,7 @@ class LeafFlights(NamedTuple):
     x_land: np.ndarray
 
 
-class LayupLine(LinePart):
+class LayupLine(LinePart[LayupFigures]):
     """The layup part of the line on a drive over ``[0, duration]``, in one window, kept.
 
     Parameters
@@ -170,7 +167,7 @@ class LayupLine(LinePart):
     events : ndarray of EVENT_DTYPE
         Sorted by time, kind, sheet.
     constraints : list of ConstraintSeries
-    summary : dict
+    summary : LayupFigures
     kinematics : LayupKinematics
     flights : LeafFlights or None
         Every exited leaf's flight with ``leaf_flight``, in exit order.
@@ -209,7 +206,7 @@ class LayupLine(LinePart):
         return self.stream.sample_unit(unit, tt, theta, lam)
 
 
-def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult:
+def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.ndarray) -> SubResult[LayupFigures]:
     """Simulate the layup part of the line: ``LayupLine(scene, drive, duration).result(t_samples)``.
 
     Returns
@@ -226,7 +223,8 @@ def simulate_layup(scene: Scene, drive: Drive, duration: float, t_samples: np.nd
           ``belts``, joint ``chute_belts``: belt travel since t = 0, m (v_tr Θ,
           less the travel lost in slow-downs), and belt speed v_tr λ f, m/s.
         * constraints: ``chute_speed`` per exited leaf (``cycle`` = leaf id), m/s, with belts.
-        * summary (JSON-ready; None where there is nothing to report): ``crank_cycles``,
+        * summary (:class:`~folder_line.core.line.layup_figures.LayupFigures`; its ``as_json()``, None
+          where there is nothing to report): ``crank_cycles``,
           ``leaves`` (entered), ``leaves_exited``, ``leaves_landed``, ``leaves_spilled``,
           ``leaves_damaged``, ``min_exit_speed``, ``max_exit_speed``, ``mean_exit_speed``
           (m/s), ``exit_speed_at_extremes``, ``exit_speed_by_phase`` (mean exit speed in 36

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -35,12 +35,23 @@ import numpy.typing as npt
 from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
 from folder_line.core.line.constraints import chute_speed_series
 from folder_line.core.line.folder_stream import due_bound
+from folder_line.core.line.layup_figures import (
+    ExtremeSpeed,
+    GuideFrictionFigures,
+    Landing,
+    LandingHistogram,
+    LayupFigures,
+    LeafStats,
+    PhaseSpeeds,
+    SwingSpeed,
+)
 from folder_line.core.line.layup_kinematics import EXTREME_WINDOW, PHASE_BINS, LayupKinematics
 from folder_line.core.line.running import BinnedSum, RunningStats
 from folder_line.core.line.tuning import Tuning, belt_steps
 from folder_line.core.mechanisms.belt import BeltPhase, BeltStream
 from folder_line.core.mechanisms.drive import Drive
-from folder_line.core.mechanisms.layup import TAU, LayupParams
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
 from folder_line.core.numerics import rng as rng_mod
 from folder_line.core.types.events import (
@@ -505,55 +516,40 @@ class LayupStream:
 
     # ------------------------------------------------------------------ figures
 
-    def summary(self, theta_end: float) -> dict[str, Any]:
-        """The layup's JSON-ready figures as of the events handed out (``theta_end``: Θ then, nominal s)."""
+    def summary(self, theta_end: float) -> LayupFigures:
+        """The layup's figures as of the events handed out (``theta_end``: Θ then, nominal s)."""
         fg = self.state.figures
-        kin = self.kinematics
         at_ext = {
-            e.kind: {'phi': e.phi, 'window_deg': math.degrees(EXTREME_WINDOW), 'exit_speed': acc.figures()}
+            e.kind: ExtremeSpeed(e.phi, math.degrees(EXTREME_WINDOW), LeafStats.of(acc))
             for e, acc in zip(self._extremes, fg.extremes, strict=True)
         }
         edges = np.linspace(0.0, TAU, PHASE_BINS + 1)
-        by_phase = fg.by_phase.means()
-        out: dict[str, Any] = {
-            'crank_cycles': math.floor(theta_end * kin.turns_rate),
-            'leaves': fg.entered,
-            'leaves_exited': fg.exited,
-            'leaves_landed': fg.landed,
-            'leaves_spilled': fg.spilled,
-            'leaves_damaged': fg.damaged,
-            'min_exit_speed': fg.speed.low if fg.speed.count else None,
-            'max_exit_speed': fg.speed.high if fg.speed.count else None,
-            'mean_exit_speed': fg.speed.mean,
-            'exit_speed_at_extremes': at_ext,
-            'exit_speed_by_phase': {'edges_deg': [float(math.degrees(x)) for x in edges], 'mean': by_phase},
-            'swing_speed': {'min': float(self._swing.min()), 'max': float(self._swing.max())},
-        }
+        landing = None
         if self.flight_on:
             cont = self.container
             counts = np.zeros(cont.bins, dtype=np.int64) if fg.histogram is None else fg.histogram
-            hist = leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right)
-            out.update(
-                {
-                    'landing_histogram': {
-                        'edges': [float(e) for e in hist.edges],
-                        'counts': [int(c) for c in hist.counts],
-                    },
-                    'landing_cv': hist.cv,
-                    'landing_x': fg.landing_x.figures(),
-                    'spilled_left': fg.spilled_left,
-                    'spilled_right': fg.spilled_right,
-                }
-            )
+            hist = LandingHistogram.of(leaf_flight.histogram_of_counts(counts, cont.x_left, cont.x_right))
+            landing = Landing(hist, LeafStats.of(fg.landing_x), fg.spilled_left, fg.spilled_right)
+        friction = None
         if self.friction_on:
             assert self.state.slider is not None
-            out['guide_friction'] = {
-                'steps': int(self.state.slider.steps),
-                'sticks': fg.sticks,
-                'slips': fg.slips,
-                'exit_speed_along': fg.along.figures(),
-            }
-        return out
+            friction = GuideFrictionFigures(int(self.state.slider.steps), fg.sticks, fg.slips, LeafStats.of(fg.along))
+        return LayupFigures(
+            crank_cycles=math.floor(theta_end * self.kinematics.turns_rate),
+            leaves=fg.entered,
+            leaves_exited=fg.exited,
+            leaves_landed=fg.landed,
+            leaves_spilled=fg.spilled,
+            leaves_damaged=fg.damaged,
+            min_exit_speed=fg.speed.low if fg.speed.count else None,
+            max_exit_speed=fg.speed.high if fg.speed.count else None,
+            mean_exit_speed=fg.speed.mean,
+            exit_speed_at_extremes=at_ext,
+            exit_speed_by_phase=PhaseSpeeds([float(math.degrees(x)) for x in edges], fg.by_phase.means()),
+            swing_speed=SwingSpeed(float(self._swing.min()), float(self._swing.max())),
+            landing=landing,
+            guide_friction=friction,
+        )
 
     # ------------------------------------------------------------------ joint states
 

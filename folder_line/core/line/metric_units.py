@@ -44,8 +44,8 @@ def metric_unit(path: str, summary: Mapping[str, Any] | None = None) -> str:
     path : str
         A dotted path of :func:`folder_line.core.line.metrics.flatten_metrics`.
     summary : mapping, optional
-        The summary it comes from: ``min_margin.<constraint>.margin`` takes the constraint's own unit
-        (``s``, ``m``, ``m/s``, ``sheets``; ``1`` is read as '').
+        The JSON document of the summary it comes from (``as_json()``): ``min_margin.<constraint>.margin``
+        takes the constraint's own unit (``s``, ``m``, ``m/s``, ``sheets``; ``1`` is read as '').
     """
     m = re.match(r'^(?:.*\.)?min_margin\.([^.]+)\.margin$', path)
     if m is not None and summary is not None:

@@ -1,8 +1,10 @@
 """Metrics: every numeric field of a simulation summary, named by its dotted path.
 
-``simulate --json`` writes :meth:`folder_line.core.line.model.LineResult.summary`; each
-of its numbers (not a bool, not inside a list) is a metric named by the keys that lead
-to it, joined by dots: ``violations.count``, ``min_margin_s.feed_window``,
+Metrics are read off the JSON document of a summary, as ``simulate --json`` writes it
+(``as_json()`` of a :class:`~folder_line.core.line.line_summary.LineSummary`, or of a
+:class:`~folder_line.core.line.line_summary.WindowSummary` with ``--from``): each of its
+numbers (not a bool, not inside a list) is a metric named by the keys that lead to it,
+joined by dots: ``violations.count``, ``min_margin_s.feed_window``,
 ``folder.V_tr_min``, ``layup.landing_cv``. A name may also be a unique dotted suffix of a
 path (``V_tr_min`` for ``folder.V_tr_min``), as an engineer says it.
 """
@@ -26,7 +28,8 @@ def flatten_metrics(summary: Mapping[str, Any], prefix: str = '') -> dict[str, f
     Parameters
     ----------
     summary : mapping
-        A JSON-ready summary (nested mappings, lists, numbers, strings, bools).
+        The JSON document of a summary (``LineSummary.as_json()``: nested mappings, lists, numbers,
+        strings, bools).
     prefix : str
         Path of ``summary`` itself inside a larger one ('' at the top).
 

@@ -24,15 +24,18 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import TYPE_CHECKING, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.limits import DURATION, SAMPLE_RATE
 from folder_line.core.line.cycles import MachineCycles
+from folder_line.core.line.folder_figures import FolderFigures
 from folder_line.core.line.folder_sim import join_rows
-from folder_line.core.line.stream import UNITS, LineStream, check_line_commands
+from folder_line.core.line.layup_figures import LayupFigures
+from folder_line.core.line.line_summary import LineSummary
+from folder_line.core.line.stream import LineStream
 from folder_line.core.line.tuning import LineCommand, tunings_of
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.types.events import EVENT_KINDS, ConstraintSeries, JointSamples
@@ -44,11 +47,9 @@ if TYPE_CHECKING:
     from folder_line.core.line.scene import Scene
 
 __all__ = [
-    'UNITS',
     'WINDOW',
     'LineModel',
     'LineResult',
-    'check_line_commands',
     'run_summary',
     'sample_times',
     'simulate',
@@ -72,11 +73,13 @@ class LineResult:
     events : ndarray of EVENT_DTYPE
         Exact events sorted by time.
     samples : dict of str to JointSamples
-        Unit (:data:`UNITS`) -> joint states on the sample grid.
+        Unit (:data:`~folder_line.core.line.stream.UNITS`) -> joint states on the sample grid.
     constraints : list of ConstraintSeries
         Per-cycle constraint margins.
-    parts : dict of str to dict
-        Per part (``'layup'``, ``'folder'``) its summary figures.
+    parts : dict of str to FolderFigures or LayupFigures
+        Per part (``'folder'``, ``'layup'``) its figures.
+    stream_summary : callable
+        ``max_violations -> LineSummary``: the stream's summary (:meth:`summary`).
     """
 
     scene: Scene
@@ -84,8 +87,8 @@ class LineResult:
     events: np.ndarray
     samples: dict[str, JointSamples]
     constraints: list[ConstraintSeries]
-    parts: dict[str, dict[str, Any]]
-    stream_summary: Callable[[int], dict[str, Any]]
+    parts: dict[str, FolderFigures | LayupFigures]
+    stream_summary: Callable[[int], LineSummary]
 
     def events_of(self, kind: str) -> np.ndarray:
         """Rows of one event kind."""
@@ -100,8 +103,8 @@ class LineResult:
         msg = f'constraint {name!r} not evaluated; evaluated: {", ".join(c.name for c in self.constraints)}'
         raise KeyError(msg)
 
-    def summary(self, max_violations: int = 10) -> dict[str, Any]:
-        """JSON-ready summary (see the ``simulate`` verb of the CLI): the stream's
+    def summary(self, max_violations: int = 10) -> LineSummary:
+        """The summary (see the ``simulate`` verb of the CLI; ``as_json()`` its document): the stream's
         (:meth:`folder_line.core.line.stream.LineStream.summary`)."""
         return self.stream_summary(max_violations)
 
@@ -144,8 +147,8 @@ class LineModel:
     events : ndarray of EVENT_DTYPE
         All events in ``[0, horizon]``, sorted by time (then kind, then sheet).
     constraints : list of ConstraintSeries
-    parts : dict of str to dict
-        Per part (``'folder'``, ``'layup'``) its summary figures.
+    parts : dict of str to FolderFigures or LayupFigures
+        Per part (``'folder'``, ``'layup'``) its figures.
     """
 
     def __init__(self, scene: Scene, horizon: float, commands: Iterable[LineCommand] = ()) -> None:
@@ -168,7 +171,11 @@ class LineModel:
         }
         self.constraints: list[ConstraintSeries] = join_rows(rows, names, empty)
         summary = self.stream.summary()
-        self.parts: dict[str, dict[str, Any]] = {name: summary[name] for name in self.stream.parts}
+        self.parts: dict[str, FolderFigures | LayupFigures] = {}
+        if summary.folder is not None:
+            self.parts['folder'] = summary.folder
+        if summary.layup is not None:
+            self.parts['layup'] = summary.layup
         self.pile = self.stream.pile
         self.cycles = MachineCycles(scene)
         self._theta_end = float(np.asarray(self.drive.theta(np.array([self.horizon])), dtype=float)[0])
@@ -186,7 +193,7 @@ class LineModel:
         Parameters
         ----------
         unit : {'drive', 'belts', 'feed', 'counter'}
-            A unit of :attr:`units` (:data:`UNITS`).
+            A unit of :attr:`units` (:data:`~folder_line.core.line.stream.UNITS`).
         t : array_like, shape (N,)
             Line times, s (a node's tick: one element).
 
@@ -307,7 +314,7 @@ def run_summary(
     commands: Iterable[LineCommand] = (),
     window: float = WINDOW,
     progress: Callable[[float], None] | None = None,
-) -> dict[str, Any]:
+) -> LineSummary:
     """The summary of ``duration`` s of line time, streamed in windows (memory independent of the duration).
 
     Parameters
@@ -324,7 +331,7 @@ def run_summary(
 
     Returns
     -------
-    dict
+    LineSummary
         ``simulate(scene, duration, sample_rate=0, commands=commands).summary()``, bit for bit.
     """
     duration = DURATION.check('duration', duration)

@@ -73,12 +73,6 @@ class RunningStats:
         """Their mean (None if none)."""
         return self.sum.value / self.count if self.count else None
 
-    def figures(self, what: str = 'leaves') -> dict[str, float] | None:
-        """``{what: count, 'mean', 'min', 'max'}``, or None if nothing was added."""
-        if not self.count:
-            return None
-        return {what: self.count, 'mean': float(self.sum.value / self.count), 'min': self.low, 'max': self.high}
-
 
 @dataclass
 class BinnedSum:

@@ -104,10 +104,10 @@ class Scene:
     machines: Mapping[str, MachineParams]
     drive: DriveSpec
     sheets: StreamParams
-    effects: Mapping[str, Any]
+    effects: Mapping[str, object]
     seed: int
     sample_rate: float
-    source: Mapping[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    source: Mapping[str, object] = field(default_factory=dict, compare=False, repr=False)
 
     def __hash__(self) -> int:
         return hash(
@@ -158,9 +158,9 @@ class Scene:
     @overload
     def effect_params(self, name: Literal['stop_bounce']) -> fx.stop_bounce.Params: ...
     @overload
-    def effect_params(self, name: str) -> Any: ...
+    def effect_params(self, name: str) -> object: ...
 
-    def effect_params(self, name: str) -> Any:
+    def effect_params(self, name: str) -> object:
         """Params of a listed effect, typed by name (ParameterError if the scene does not list it)."""
         try:
             return self.effects[name]
@@ -240,7 +240,7 @@ def check_press_speed(n_k: float, n_c: float) -> None:
         )
 
 
-def parse_scene(data: Mapping[str, Any]) -> Scene:
+def parse_scene(data: Mapping[str, object]) -> Scene:
     """Validate a complete scene mapping.
 
     Parameters
@@ -303,11 +303,11 @@ def _parse_machines(sections: object) -> dict[str, MachineParams]:
     return machines
 
 
-def _parse_effects(effects_in: object, name: str, machines: Mapping[str, MachineParams]) -> dict[str, Any]:
+def _parse_effects(effects_in: object, name: str, machines: Mapping[str, MachineParams]) -> dict[str, object]:
     """The scene's ``effects``: each a known effect whose machines scene ``name`` has, its parameters validated."""
     if not isinstance(effects_in, Mapping):
         raise ParameterError('effects', effects_in, 'must map effect names to their parameters')
-    effects: dict[str, Any] = {}
+    effects: dict[str, object] = {}
     for ename, evalues in effects_in.items():
         if ename not in EFFECTS:
             raise ParameterError('effects', ename, f'unknown effect; known: {", ".join(EFFECTS)}')

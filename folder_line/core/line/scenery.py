@@ -82,7 +82,8 @@ from folder_line.core.line.model import LineModel
 from folder_line.core.line.stream import LineStream
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.delivery_laws import LAWS
-from folder_line.core.mechanisms.layup import TAU, LayupParams
+from folder_line.core.mechanisms.layup import LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.mechanisms.pile import PileStream
 
 __all__ = [

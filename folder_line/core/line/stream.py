@@ -9,7 +9,7 @@ sheets (:class:`~folder_line.core.mechanisms.pile.PileStream`).
 times in ``(t_prev, t]``, sorted by time, kind, sheet, and the constraint rows judged
 with them; afterwards :meth:`LineStream.sample` gives the joint states at any time of
 the window (and up to ``keep`` s before it). The running :meth:`LineStream.summary`
-is that of the events handed out.
+(a :class:`~folder_line.core.line.line_summary.LineSummary`) is that of the events handed out.
 
 Every event and row comes out of the same elementwise computation whatever the
 windows, so a run cut into windows anywhere (a cycle, a flight, a ramp cut mid-way)
@@ -44,6 +44,13 @@ from folder_line.core.line import drives
 from folder_line.core.line.constraints import chute_speed_series
 from folder_line.core.line.folder_stream import FolderStream
 from folder_line.core.line.layup_stream import LayupStream
+from folder_line.core.line.line_summary import (
+    JudgedFigures,
+    LineSummary,
+    MarginFigures,
+    ViolationRecord,
+    Violations,
+)
 from folder_line.core.line.tuning import LineCommand, Tuning, check_tuning, tunings_of, values_from
 from folder_line.core.mechanisms.drive import Command, Drive, check_commands, theta_rate
 from folder_line.core.mechanisms.pile import T_LOWER, PileStream, counted_event
@@ -66,6 +73,7 @@ __all__ = [
     'LineStream',
     'Window',
     'check_line_commands',
+    'judged_figures',
 ]
 
 #: the line's machine units that carry joints, in publishing order (``folder_line.interfaces.NODE_OF_UNIT``)
@@ -498,54 +506,62 @@ class LineStream:
 
     # ------------------------------------------------------------------ summary
 
-    def summary(self, max_violations: int = MAX_VIOLATIONS) -> dict[str, Any]:
-        """JSON-ready summary of the events and rows handed out so far (the ``simulate`` summary)."""
+    def summary(self, max_violations: int = MAX_VIOLATIONS) -> LineSummary:
+        """The summary of the events and rows handed out so far (the ``simulate`` summary)."""
         scene = self.scene
-        parts: dict[str, dict[str, Any]] = {}
+        folder = layup = None
         if self.folder is not None:
-            parts['folder'] = self.folder.summary()
+            folder = self.folder.summary()
         if self.layup is not None:
             theta = float(np.asarray(self.drive.theta(np.array([max(self.t, 0.0)])), dtype=float)[0])
-            parts['layup'] = self.layup.summary(theta)
-        folder, layup = parts.get('folder', {}), parts.get('layup', {})
-        violations: list[dict[str, Any]] = []
-        count = 0
-        min_margin: dict[str, dict[str, Any]] = {}
-        for tally in self.tallies.constraints.values():
-            count += tally.violations
-            violations += [
-                {'cycle': cyc, 'constraint': tally.name, 'margin': m, 'unit': tally.unit}
-                for cyc, m in tally.first[:max_violations]
-            ]
-            if tally.evaluations:
-                min_margin[tally.name] = {
-                    'margin': tally.min_margin,
-                    'unit': tally.unit,
-                    'cycle': tally.min_cycle,
-                    'evaluations': tally.evaluations,
-                    'violations': tally.violations,
-                }
-        violations.sort(key=lambda v: (v['cycle'], v['constraint']))
-        out: dict[str, Any] = {
-            'scene': scene.name,
-            'duration_s': max(self.t, 0.0),
-            'seed': scene.seed,
-            'effects': list(scene.effects),
-            'cycles': folder.get('cycles', layup.get('crank_cycles', 0)),
-            'sheets_counted': folder.get('sheets_counted', layup.get('leaves_landed', 0)),
-            'violations': {'count': count, 'first': violations[:max_violations]},
-            'min_margin_s': {k: v['margin'] for k, v in min_margin.items() if v['unit'] == 's'},
-            'min_margin': min_margin,
-            'events': {k: int(n) for k, n in zip(EVENT_KINDS, self.tallies.kinds.tolist(), strict=True) if n},
-        }
-        if 'v_tr_over_v_d' in folder:
-            out['v_tr_over_v_d'] = folder['v_tr_over_v_d']
-        for part, figures in parts.items():
-            out[part] = figures
-        if 'landing_cv' in layup:
-            out['landing_cv'] = layup['landing_cv']
-            out['landing_histogram'] = layup.get('landing_histogram')
-        return out
+            layup = self.layup.summary(theta)
+        judged = judged_figures(self.tallies.constraints.values(), self.tallies.kinds, max_violations)
+        if folder is not None:
+            cycles, counted = folder.cycles, folder.sheets_counted
+        else:
+            cycles, counted = (layup.crank_cycles, layup.leaves_landed) if layup is not None else (0, 0)
+        return LineSummary(
+            scene=scene.name,
+            duration_s=max(self.t, 0.0),
+            seed=scene.seed,
+            effects=list(scene.effects),
+            cycles=cycles,
+            sheets_counted=counted,
+            violations=judged.violations,
+            min_margin=judged.min_margin,
+            events=judged.events,
+            folder=folder,
+            layup=layup,
+        )
+
+
+def judged_figures(
+    tallies: Iterable[ConstraintTally], kinds: np.ndarray, max_violations: int = MAX_VIOLATIONS
+) -> JudgedFigures:
+    """The violations, smallest margins and event counts of some constraint rows and events.
+
+    Parameters
+    ----------
+    tallies : iterable of ConstraintTally
+        The rows, per constraint (margins in each constraint's unit).
+    kinds : ndarray of int
+        Events per kind, indexed as :data:`folder_line.core.types.events.EVENT_KINDS`.
+    max_violations : int
+        Violations listed per constraint, and in all.
+    """
+    violations: list[ViolationRecord] = []
+    count = 0
+    min_margin: dict[str, MarginFigures] = {}
+    for tally in tallies:
+        count += tally.violations
+        violations += [ViolationRecord(cyc, tally.name, m, tally.unit) for cyc, m in tally.first[:max_violations]]
+        if tally.evaluations:
+            min_margin[tally.name] = MarginFigures(
+                tally.min_margin, tally.unit, tally.min_cycle, tally.evaluations, tally.violations
+            )
+    violations.sort(key=lambda v: (v.cycle, v.constraint))
+    events = {k: int(n) for k, n in zip(EVENT_KINDS, kinds.tolist(), strict=True) if n}
+    return JudgedFigures(Violations(count, violations[:max_violations]), min_margin, events)
 
 
 def _merge(unit: str, parts: list[JointSamples]) -> JointSamples:

@@ -114,20 +114,14 @@ import numpy.typing as npt
 
 from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms.delivery_results import (
-    SAMPLE_FIELDS,
     SECTION_ACCELERATION,
     SECTION_DECELERATION,
-    SECTION_NAMES,
     STATE_CARRIAGE_REVERSED,
     STATE_KV_ZERO,
-    STATE_NAMES,
     STATE_OK,
     STATE_SELF_LOCKING,
-    DeliveryForces,
     DeliveryPoint,
     DeliverySamples,
-    StateCoded,
-    state_names,
 )
 from folder_line.core.numerics.arrays import FloatArray, Int8Array
 from folder_line.core.numerics.roots import golden_section
@@ -139,27 +133,13 @@ __all__ = [
     'ETA_TOL',
     'KV_TOL',
     'RETURN_SECTIONS',
-    'SAMPLE_FIELDS',
-    'SECTION_ACCELERATION',
-    'SECTION_DECELERATION',
-    'SECTION_NAMES',
-    'STATE_CARRIAGE_REVERSED',
-    'STATE_KV_ZERO',
-    'STATE_NAMES',
-    'STATE_OK',
-    'STATE_SELF_LOCKING',
     'XI_TOL',
-    'DeliveryForces',
     'DeliveryParams',
-    'DeliveryPoint',
-    'DeliverySamples',
     'ReturnSection',
-    'StateCoded',
     'evaluate',
     'evaluate_point',
     'evaluate_stroke',
     'evaluate_stroke_point',
-    'state_names',
     'stroke_minimum',
 ]
 

@@ -49,7 +49,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from types import ModuleType
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -258,28 +259,31 @@ def _phi_array(phi: ArrayLike) -> NDArray[np.float64]:
 
 
 # The kernels take the namespace ``xp`` (``math`` for a float, ``numpy`` for an array) and
-# return what it computes (float or float64 array); the callers bind the result to that type.
-def _s(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
+# return what it computes: a float or a float64 array, as ``phi`` is.
+def _s(xp: ModuleType, r: float, L: float, e: float, phi: Phi) -> Phi:
     u = r * xp.sin(phi) - e
-    return r * xp.cos(phi) + xp.sqrt(L * L - u * u)
+    s: Phi = r * xp.cos(phi) + xp.sqrt(L * L - u * u)
+    return s
 
 
-def _ds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
+def _ds(xp: ModuleType, r: float, L: float, e: float, phi: Phi) -> Phi:
     sn, cs = xp.sin(phi), xp.cos(phi)
     u = r * sn - e
     w = xp.sqrt(L * L - u * u)
-    return -r * sn - u * r * cs / w
+    ds: Phi = -r * sn - u * r * cs / w
+    return ds
 
 
-def _dds(xp: Any, r: float, L: float, e: float, phi: Any) -> Any:
+def _dds(xp: ModuleType, r: float, L: float, e: float, phi: Phi) -> Phi:
     sn, cs = xp.sin(phi), xp.cos(phi)
     u = r * sn - e
     du = r * cs
     w = xp.sqrt(L * L - u * u)
-    return -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
+    dds: Phi = -r * cs - (du * du - u * r * sn) / w - (u * du) ** 2 / w**3
+    return dds
 
 
-def _of_angle(kernel: Callable[..., Any], params: KnifeParams, phi: Phi) -> Phi:
+def _of_angle(kernel: Callable[[ModuleType, float, float, float, Phi], Phi], params: KnifeParams, phi: Phi) -> Phi:
     """``kernel`` at crank angle(s) ``phi``: a float for a Python/NumPy scalar, else an array of its shape."""
     if isinstance(phi, (bool, float, int)):
         return float(kernel(math, params.r_k, params.L_k, params.e, as_float('phi', phi)))

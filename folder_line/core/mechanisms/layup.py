@@ -53,7 +53,6 @@ import numpy.typing as npt
 from folder_line.core.limits import CRANK_SPEED, LINEAR_SPEED
 from folder_line.core.mechanisms.layup_angles import (
     _PI,
-    GRASHOF_REL_TOL,
     TAU,
     _reduce_chunk,
     classify_fourbar,
@@ -67,21 +66,14 @@ from folder_line.core.numerics.validate import as_float, check_fields, non_negat
 from folder_line.errors import AssemblyError, ParameterError
 
 __all__ = [
-    'GRASHOF_REL_TOL',
     'LOOP1',
     'LOOP2',
-    'TAU',
-    'AssemblyMargins',
     'LayupModel',
     'LayupParams',
-    'LayupPoint',
-    'LayupState',
     'cached_model',
     'check_assembly',
-    'classify_fourbar',
     'layup_kinematics',
     'layup_point',
-    'reduce_angle',
 ]
 
 #: mechanism names used in AssemblyError

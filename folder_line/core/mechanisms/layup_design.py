@@ -25,7 +25,7 @@ is ``min(μ, π − μ)`` over the turn, the *transmission angle* of the usual r
 ``≥ 40°``. In the six-bar: loop 1 is the four-bar O2-O1-A-B (diagonal ``|A − O2|``, coupler
 ``l2``, rocker ``O2B``, μ1 at B); loop 2 is O3-O2-C-E driven by chute 3 (diagonal
 ``|C − O3|``, coupler ``l4``, rocker ``l5``, μ2 at E). Their sines are the toggle margins
-``margin1``, ``margin2`` of :class:`folder_line.core.mechanisms.layup.LayupState`.
+``margin1``, ``margin2`` of :class:`folder_line.core.mechanisms.layup_state.LayupState`.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from folder_line.core.mechanisms.layup import ASSEMBLY_SAMPLES, TAU, LayupParams
+from folder_line.core.mechanisms.layup import ASSEMBLY_SAMPLES, LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.mechanisms.layup_reach import sweep
 from folder_line.core.numerics.roots import golden_section
 
@@ -88,7 +89,7 @@ def crank_rocker_margin(ground: float, crank: float, coupler: float, rocker: flo
         ``min((p + q) − (s + l), min(ground, coupler, rocker) − crank)`` with ``s``, ``l`` the
         shortest and longest of the four links and ``p``, ``q`` the other two: positive exactly
         when the Grashof inequality ``s + l < p + q`` holds and the crank is the unique shortest
-        link (:func:`folder_line.core.mechanisms.layup.classify_fourbar` says ``'crank-rocker'``),
+        link (:func:`folder_line.core.mechanisms.layup_angles.classify_fourbar` says ``'crank-rocker'``),
         zero on the boundary, negative outside, continuous everywhere.
     """
     s, p, q, big = sorted((ground, crank, coupler, rocker))

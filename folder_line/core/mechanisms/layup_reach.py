@@ -12,7 +12,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from folder_line.core.mechanisms.layup import ASSEMBLY_SAMPLES, TAU, LayupParams, LayupPoint, cached_model
+from folder_line.core.mechanisms.layup import ASSEMBLY_SAMPLES, LayupParams, cached_model
+from folder_line.core.mechanisms.layup_angles import TAU
+from folder_line.core.mechanisms.layup_state import LayupPoint
 
 __all__ = [
     'Sweep',

@@ -41,7 +41,7 @@ from folder_line.core.types.events import EVENT_KINDS, JointSamples, stack_sampl
 
 __all__ = ['T_LOWER', 'UNIT', 'PileStream', 'PileTable', 'SteppedPile', 'counted_event', 'pile_table']
 
-#: the unit that owns the table (:data:`folder_line.core.line.model.UNITS`)
+#: the unit that owns the table (:data:`folder_line.core.line.stream.UNITS`)
 UNIT = 'counter'
 #: settle time τ over which the lift lowers the table by one sheet thickness, s (ours: well
 #: inside the folder's cycle of 0.072 s, so between two signatures the table rests)

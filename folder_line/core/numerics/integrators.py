@@ -2,11 +2,11 @@
 
 Methods
 -------
-:class:`RK4Stepper`, :func:`rk4`
+:class:`~folder_line.core.numerics.rk4_stepper.RK4Stepper`, :func:`rk4`
     The classic four-stage Runge-Kutta method with a fixed step ``h``. Dense output:
     the cubic Hermite interpolant of each step's end states and derivatives
     (C1 across steps; exact for solutions that are cubics; local error O(h^4)).
-:class:`Dopri5Stepper`, :func:`dopri5`
+:class:`~folder_line.core.numerics.dopri5_stepper.Dopri5Stepper`, :func:`dopri5`
     The Dormand-Prince 5(4) pair with the tableau, error norm and step-size control of
     scipy's ``RK45`` (``scipy/integrate/_ivp/rk.py``, ``common.py``): local
     extrapolation (steps taken with the 5th-order solution), error estimated for the
@@ -21,8 +21,9 @@ Steppers and streams
 --------------------
 The steppers are defined in :mod:`~folder_line.core.numerics.rk4_stepper` and
 :mod:`~folder_line.core.numerics.dopri5_stepper`, on the common parts of
-:mod:`~folder_line.core.numerics.stepper`; this module gathers them and has the one-call
-functions. A stepper (:class:`RK4Stepper`, :class:`Dopri5Stepper`) holds the whole state of the
+:mod:`~folder_line.core.numerics.stepper`; this module has the one-call functions. A stepper
+(:class:`~folder_line.core.numerics.rk4_stepper.RK4Stepper`,
+:class:`~folder_line.core.numerics.dopri5_stepper.Dopri5Stepper`) holds the whole state of the
 step loop as attributes: the current time, state and derivative, the piece of the
 breaks, rk4's grid origin and index on the piece, dopri5's proposed step size and whether
 its last attempt was rejected, the counters and the recorded steps.
@@ -72,7 +73,7 @@ gets ``y_j = value`` exactly.
 Failure is loud
 ---------------
 A non-finite state or derivative never passes silently. RK4 raises
-:class:`folder_line.errors.IntegrationError` (re-exported here) naming the step, the
+:class:`folder_line.errors.IntegrationError` naming the step, the
 time and the step size at the first non-finite stage (an unstable step on a stiff
 problem overflows after a few steps). DOPRI5 treats a non-finite trial as a
 rejection (the step shrinks, like scipy, which sees a NaN error norm); if the step
@@ -98,14 +99,8 @@ from folder_line.core.numerics.dense import DenseSolution
 from folder_line.core.numerics.dopri5_stepper import Dopri5Stepper
 from folder_line.core.numerics.rk4_stepper import RK4Stepper
 from folder_line.core.numerics.stepper import MAX_STEPS, Breaks, Fun, Terminal
-from folder_line.errors import IntegrationError  # re-exported: defined with the other errors
 
 __all__ = [
-    'Breaks',
-    'Dopri5Stepper',
-    'IntegrationError',
-    'RK4Stepper',
-    'Terminal',
     'dopri5',
     'rk4',
 ]
@@ -151,7 +146,7 @@ def rk4(
     terminal : Terminal, optional
         Stop where a component crosses a value.
     max_steps : int
-        Raise :class:`IntegrationError` when a run needs more steps than this.
+        Raise :class:`~folder_line.errors.IntegrationError` when a run needs more steps than this.
 
     Returns
     -------
@@ -202,7 +197,7 @@ def dopri5(
     breaks, terminal : optional
         As for :func:`rk4`.
     max_steps : int
-        Raise :class:`IntegrationError` after this many attempted steps.
+        Raise :class:`~folder_line.errors.IntegrationError` after this many attempted steps.
 
     Returns
     -------

@@ -32,7 +32,6 @@ from folder_line.errors import (
     NonFiniteValueError,
     NotBracketedError,
     ParameterError,
-    RootFindingError,
 )
 
 __all__ = [
@@ -40,10 +39,6 @@ __all__ = [
     'RTOL',
     'XTOL',
     'GoldenSection',
-    'NoConvergenceError',
-    'NonFiniteValueError',
-    'NotBracketedError',
-    'RootFindingError',
     'RootResult',
     'SignChanges',
     'brent',

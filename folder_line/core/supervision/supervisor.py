@@ -110,7 +110,7 @@ __all__ = ['SHEET_UNIT', 'TIMING_CONSTRAINTS', 'Supervisor']
 
 #: constraints whose violation is a timing fault of the process (-> HELD)
 TIMING_CONSTRAINTS = ('feed_window', 'settled_before_knife', 'rebound', 'chute_speed', 'release_at_min_speed')
-#: the machine unit (:data:`folder_line.core.line.model.UNITS`) whose participant publishes the sheets'
+#: the machine unit (:data:`folder_line.core.line.stream.UNITS`) whose participant publishes the sheets'
 #: events: the caller names that participant as ``sheet_source``
 SHEET_UNIT = 'feed'
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -152,7 +152,7 @@ class JointSamples:
     Attributes
     ----------
     unit : str
-        Machine unit, one of :data:`folder_line.core.line.model.UNITS`, e.g. ``'drive'``.
+        Machine unit, one of :data:`folder_line.core.line.stream.UNITS`, e.g. ``'drive'``.
     names : tuple of str
         Joint names, J of them.
     t : ndarray, shape (N,)
@@ -229,8 +229,12 @@ def stack_samples(
     return JointSamples(unit, tuple(names), t, pos, vel, eff)
 
 
+#: the figures of a part of the line (its summary: the folder's, the layup's)
+FiguresT = TypeVar('FiguresT')
+
+
 @dataclass(frozen=True, eq=False)
-class SubResult:
+class SubResult(Generic[FiguresT]):
     """What one part of the line (L, or F with D) hands back to :func:`folder_line.core.line.model.simulate`.
 
     Attributes
@@ -242,17 +246,17 @@ class SubResult:
         grid; joints of the same unit from several parts are concatenated by the caller.
     constraints : list of ConstraintSeries
         Constraints evaluated per cycle (or per leaf).
-    summary : dict
-        JSON-ready figures of this part (ints, floats, lists, dicts only).
+    summary : FiguresT
+        The figures of this part (``as_json()``: its block of the summary).
     """
 
     events: np.ndarray
     samples: dict[str, JointSamples]
     constraints: list[ConstraintSeries]
-    summary: dict[str, object]
+    summary: FiguresT
 
 
-class LinePart:
+class LinePart(Generic[FiguresT]):
     """Base of one part of the line (:class:`~folder_line.core.line.folder_sim.FolderLine`,
     :class:`~folder_line.core.line.layup_sim.LayupLine`): built once, sampled anywhere.
 
@@ -263,10 +267,10 @@ class LinePart:
     drive: Any
     events: np.ndarray
     constraints: list[ConstraintSeries]
-    summary: dict[str, object]
+    summary: FiguresT
     units: dict[str, tuple[str, ...]]
 
-    def result(self, t_samples: npt.ArrayLike) -> SubResult:
+    def result(self, t_samples: npt.ArrayLike) -> SubResult[FiguresT]:
         """Events, samples on ``t_samples`` (none if empty), constraints and summary."""
         t = np.asarray(t_samples, dtype=float)
         samples = self.sample(t) if t.size else {}

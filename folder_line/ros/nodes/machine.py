@@ -43,13 +43,15 @@ import math
 import time
 from array import array
 from collections.abc import Iterable, Mapping
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.task import Future
+from rclpy.type_support import Msg
 from sensor_msgs.msg import JointState, TimeReference
 from std_msgs.msg import String
 
@@ -105,6 +107,9 @@ __all__ = [
     'parse_overrides',
 ]
 
+#: a message type, as rclpy's ``Publisher`` takes it
+_M = TypeVar('_M', bound=Msg)
+
 
 MACHINE_SPECS: tuple[ParamSpec, ...] = (
     ParamSpec('scene', 'folder', 'Scene name (config/scenes) or path of a scene YAML file', read_only=True),
@@ -150,7 +155,7 @@ FAST_WINDOW = 600.0
 NODE_NAMES = InputNames(scene='scene', overrides='overrides')
 
 
-def parse_overrides(text: str) -> dict[str, Any]:
+def parse_overrides(text: str) -> dict[str, object]:
     """``'a.b=1;c=2'`` -> ``{'a.b': 1, 'c': 2}`` (empty items ignored; errors name ``overrides``)."""
     return parse_set((item.strip() for item in text.split(';') if item.strip()), NODE_NAMES)
 
@@ -165,7 +170,7 @@ def node_scene(scene: str, overrides: str = '') -> Scene:
 SIM_TIME_REASON = "a line node runs on the line's simulated time (/clock); it cannot be turned off"
 
 
-def _check_sim_time(values: Mapping[str, Any]) -> None:
+def _check_sim_time(values: Mapping[str, object]) -> None:
     # the scene and the overrides are read-only: loaded once, at start (MachineNode.__init__)
     if values.get('use_sim_time') is False:
         raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
@@ -339,7 +344,7 @@ class MachineNode(Node):
         if n == 0:
             self.get_logger().warning(f'rejected {kind}: {reason} (further rejections of this kind are only counted)')
 
-    def publish(self, publisher: Any, msg: Any, stream: str | None = None) -> None:
+    def publish(self, publisher: Publisher[_M], msg: _M, stream: str | None = None) -> None:
         """Publish and count (the tick's acknowledgement carries the counts)."""
         self.lockstep.publish(publisher, msg, stream)
 

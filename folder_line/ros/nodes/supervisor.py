@@ -78,7 +78,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -108,7 +108,6 @@ from folder_line.core.supervision.balance import Balance
 from folder_line.core.supervision.commands import DRIVE_COMMANDS
 from folder_line.core.supervision.packml import PackML
 from folder_line.core.supervision.records import Outcome, Violation
-from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
@@ -137,7 +136,7 @@ from folder_line.ros.signing import REQUEST_WINDOW, SIGNATURE_PARAMETER, open_te
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, PUBLISH_DEPTH, TUNE_QOS, joint_states_topic
 
-__all__ = ['RECORDS_KEPT', 'SERVICES', 'SPEED_REACHED', 'STATE_QOS', 'Supervisor', 'main']
+__all__ = ['RECORDS_KEPT', 'SERVICES', 'STATE_QOS', 'Supervisor', 'main']
 
 #: ns the supervisor's promise stays short of ``command_lead`` (a command's effective time travels rounded to ns)
 PROMISE_MARGIN = 1000
@@ -166,7 +165,7 @@ def _status_msg(status: Status) -> DiagnosticStatus:
     )
 
 
-def _non_finite(*arrays: Any) -> int:
+def _non_finite(*arrays: Sequence[float]) -> int:
     """NaN and inf values in ``arrays`` (sequences of float)."""
     # a NaN or an inf makes the sum non-finite, so a finite sum (the usual case, in C) needs no count;
     # a non-finite sum may come from an overflow of finite values, so the count itself is exact
@@ -477,7 +476,7 @@ class Supervisor(MachineNode):
         self.published_commands += 1
 
     def _publish_status(
-        self, what: str, ok: bool, message: str, values: dict[str, Any], stamp: float | None = None
+        self, what: str, ok: bool, message: str, values: dict[str, object], stamp: float | None = None
     ) -> None:
         logic = self.logic
         status = event_status(

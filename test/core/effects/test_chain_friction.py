@@ -13,7 +13,8 @@ import pytest
 from folder_line.core.effects import chain_friction as cf
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms import chain
-from folder_line.core.mechanisms.delivery import STATE_OK, evaluate, evaluate_stroke
+from folder_line.core.mechanisms.delivery import evaluate, evaluate_stroke
+from folder_line.core.mechanisms.delivery_results import STATE_OK
 from folder_line.errors import ParameterError
 
 from .._scenes import folder_scene

@@ -20,7 +20,7 @@ from folder_line.core.effects import guide_friction as gf
 from folder_line.core.effects import leaf_damage as ld
 from folder_line.core.effects import leaf_flight as lf
 from folder_line.core.effects import parse_effect_params
-from folder_line.core.line.layup_sim import LayupKinematics
+from folder_line.core.line.layup_kinematics import LayupKinematics
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
 from folder_line.core.numerics.roots import brentq
 from folder_line.errors import ParameterError

@@ -136,7 +136,7 @@ def test_redundant_and_late_commands_change_nothing(loaded: Scene) -> None:
     with pytest.raises(ParameterError, match='sorted'):
         md.build_drive(loaded, 10.0, commands=[Command(5.0, 'hold'), Command(1.0, 'unhold')])
     s = b.summary()
-    assert s['switches'] == [[5.0, False]] and 'switches' not in md.build_drive(loaded, 1.0).summary()
+    assert s.switches == [(5.0, False)] and md.build_drive(loaded, 1.0).summary().switches is None
 
 
 @pytest.fixture(scope='module')

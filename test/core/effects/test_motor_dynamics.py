@@ -283,7 +283,7 @@ def test_chain_load_lowers_the_mean_speed_to_the_estimate() -> None:
     assert lam_load == pytest.approx(1.0, abs=1e-4)
     s = with_load.summary()
     P = with_load.tail.period  # type: ignore[union-attr]
-    assert s['lambda_steady'] == pytest.approx(with_load.mean_rate(50.0, 50.0 + 100 * P), rel=1e-12)
+    assert s.lambda_steady == pytest.approx(with_load.mean_rate(50.0, 50.0 + 100 * P), rel=1e-12)
     # the ripple: the speed dips while a carriage is on the stroke
     t = np.linspace(50.0, 50.5, 5001)
     lam = with_load.rate(t)

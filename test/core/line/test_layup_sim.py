@@ -16,11 +16,14 @@ from scipy.integrate import quad
 
 from folder_line.config.params import config_dir, load_params, read_yaml_mapping
 from folder_line.core.effects import chute_belts, faults, guide_friction, leaf_damage, leaf_flight
-from folder_line.core.line.layup_sim import LayupKinematics, leaf_stream, simulate_layup
+from folder_line.core.line.layup_figures import LayupFigures
+from folder_line.core.line.layup_kinematics import LayupKinematics
+from folder_line.core.line.layup_sim import leaf_stream, simulate_layup
 from folder_line.core.line.model import sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
 from folder_line.core.mechanisms.drive import ConstantDrive, RampDrive
-from folder_line.core.mechanisms.layup import TAU, LayupModel
+from folder_line.core.mechanisms.layup import LayupModel
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.mechanisms.layup_reach import swing_extremes
 from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS
@@ -129,10 +132,10 @@ def test_with_belts_at_2_8_the_exit_speed_never_drops_below_2_8() -> None:
     res = run(sc, 60.0)
     speeds = events(res, 'leaf_exit')['value']
     assert speeds.min() >= 2.8
-    assert res.summary['min_exit_speed'] >= 2.8
+    assert res.summary.min_exit_speed >= 2.8
     assert speeds[0] == pytest.approx(2.8, abs=1e-12)  # leaf 0 leaves exactly at the extreme
-    assert res.summary['max_exit_speed'] == pytest.approx(math.hypot(res.summary['swing_speed']['max'], 2.8), rel=1e-3)
-    assert res.summary['leaves_damaged'] == 0
+    assert res.summary.max_exit_speed == pytest.approx(math.hypot(res.summary.swing_speed.max, 2.8), rel=1e-3)
+    assert res.summary.leaves_damaged == 0
     cons = res.constraints[0]
     assert cons.name == 'chute_speed' and cons.unit == 'm/s'
     assert (cons.margin >= 0.8 - 1e-12).all()  # v_min = 2.0
@@ -146,9 +149,9 @@ def test_without_belts_the_exit_speed_reaches_zero_at_the_swing_extremes(kind: s
     enter = events(res, 'leaf_enter')
     assert_allclose(exit_['t'], enter['t'], rtol=0, atol=0)  # dropped at the exit at entry time
     assert exit_['value'][0] < 1e-9
-    assert res.summary['min_exit_speed'] < 1e-9
-    assert res.summary['exit_speed_at_extremes'][kind]['exit_speed']['min'] < 1e-9
-    assert res.summary['max_exit_speed'] == pytest.approx(res.summary['swing_speed']['max'], rel=1e-3)
+    assert res.summary.min_exit_speed < 1e-9
+    assert res.summary.exit_speed_at_extremes[kind].exit_speed.min < 1e-9
+    assert res.summary.max_exit_speed == pytest.approx(res.summary.swing_speed.max, rel=1e-3)
     # and the leaf falls straight from the exit (no velocity): lands at the exit x
     landed = events(res, 'leaf_landed')
     x_exit = LayupModel(P).point(EXT[0 if kind == 'extended' else 1].phi)
@@ -199,7 +202,7 @@ def test_damage_at_exactly_v_damage_counts_and_violates() -> None:
     exit_ = events(res, 'leaf_exit')
     assert exit_['value'][0] == 2.8
     dmg = events(res, 'leaf_damaged')
-    assert dmg.size == exit_.size == res.summary['leaves_damaged']  # every speed >= 2.8
+    assert dmg.size == exit_.size == res.summary.leaves_damaged  # every speed >= 2.8
     cons = res.constraints[0]
     assert (cons.margin < 0.0).all()
     assert cons.margin[0] == -(2.8 - np.nextafter(2.8, 0.0))
@@ -209,15 +212,15 @@ def test_paper_belt_speeds_damage() -> None:
     """5.6 m/s belts damage every leaf, 2.8 m/s none (v_damage 4.5)."""
     fast = run(scene({**BELTS, **DAMAGE}, layup={'v_tr': 5.6}), 30.0)
     slow = run(scene({**BELTS, **DAMAGE}), 30.0)
-    assert fast.summary['leaves_damaged'] == fast.summary['leaves_exited'] > 400
-    assert slow.summary['leaves_damaged'] == 0
+    assert fast.summary.leaves_damaged == fast.summary.leaves_exited > 400
+    assert slow.summary.leaves_damaged == 0
     assert fast.constraints[0].violated.all() and not slow.constraints[0].violated.any()
 
 
 # ---------------------------------------------------------------------------- landing histograms
 
 
-def _hist(effects: dict[str, Any], duration: float = 3600.0) -> dict[str, Any]:
+def _hist(effects: dict[str, Any], duration: float = 3600.0) -> LayupFigures:
     # an interval incommensurate with the 2 s crank turn, so the leaves sample every crank phase
     res = run(scene({**effects, **FLIGHT}, sheets={'interval': 0.0617, 'jitter': 0.0}), duration)
     return res.summary
@@ -235,35 +238,35 @@ def test_landing_histograms_with_and_without_belts() -> None:
     """
     with_b = _hist(BELTS)
     without = _hist({})
-    assert with_b['landing_cv'] < 0.8 * without['landing_cv']
-    assert with_b['landing_cv'] == pytest.approx(0.518, abs=0.01)
-    assert without['landing_cv'] == pytest.approx(0.716, abs=0.01)
-    cb_, cn = np.array(with_b['landing_histogram']['counts']), np.array(without['landing_histogram']['counts'])
+    assert with_b.landing.histogram.cv < 0.8 * without.landing.histogram.cv
+    assert with_b.landing.histogram.cv == pytest.approx(0.518, abs=0.01)
+    assert without.landing.histogram.cv == pytest.approx(0.716, abs=0.01)
+    cb_, cn = np.array(with_b.landing.histogram.counts), np.array(without.landing.histogram.counts)
     assert cn[0] == 0 and cn[-1] == 0 and cb_[0] > 0 and cb_[-1] > 0  # walls reached only with belts
     assert cn[1] > 3 * np.median(cn) and cn[-2] > 3 * np.median(cn)  # edge peaks without belts
     assert cb_[:3].max() < 0.7 * cn[:3].max() and cb_[-3:].max() < 0.7 * cn[-3:].max()  # flattened by belts
     for c in (cb_, cn):
         assert c[13:18].mean() > 2.5 * np.median(c)  # the mid-container pile
-    assert with_b['leaves_spilled'] == without['leaves_spilled'] == 0
+    assert with_b.leaves_spilled == without.leaves_spilled == 0
 
 
 def test_histogram_is_json_and_consistent() -> None:
     s = run(scene({**BELTS, **FLIGHT}, sheets={'jitter': 0.5}), 30.0).summary
-    json.dumps(s, allow_nan=False)
-    h = s['landing_histogram']
-    assert len(h['edges']) == CONTAINER['bins'] + 1 and len(h['counts']) == CONTAINER['bins']
-    assert sum(h['counts']) == s['leaves_landed']
-    assert h['edges'][0] == CONTAINER['x_left'] and h['edges'][-1] == pytest.approx(CONTAINER['x_right'])
+    json.dumps(s.as_json(), allow_nan=False)
+    h = s.landing.histogram
+    assert len(h.edges) == CONTAINER['bins'] + 1 and len(h.counts) == CONTAINER['bins']
+    assert sum(h.counts) == s.leaves_landed
+    assert h.edges[0] == CONTAINER['x_left'] and h.edges[-1] == pytest.approx(CONTAINER['x_right'])
 
 
 def test_narrow_container_spills() -> None:
     res = run(scene({**BELTS, **FLIGHT}, container={'x_left': 0.0, 'x_right': 0.5}), 20.0)
     sp = events(res, 'leaf_spilled')
     ld = events(res, 'leaf_landed')
-    assert sp.size == res.summary['leaves_spilled'] > 0 and ld.size == res.summary['leaves_landed'] > 0
+    assert sp.size == res.summary.leaves_spilled > 0 and ld.size == res.summary.leaves_landed > 0
     assert ((sp['value'] < 0.0) | (sp['value'] > 0.5)).all()
     assert ((ld['value'] >= 0.0) & (ld['value'] <= 0.5)).all()
-    assert res.summary['spilled_left'] + res.summary['spilled_right'] == sp.size
+    assert res.summary.landing.spilled_left + res.summary.landing.spilled_right == sp.size
 
 
 def test_floor_above_an_exit_is_rejected() -> None:
@@ -314,11 +317,11 @@ def test_guide_friction_exit_speeds_vs_crank_phase() -> None:
     assert extreme.sum() > 50 and mid.sum() > 50
     assert speed[extreme].mean() < speed[mid].mean() - 0.05
     assert transit[extreme].mean() > transit[mid].mean() + 0.005
-    by_phase = np.array(summary['exit_speed_by_phase']['mean'], dtype=float)
+    by_phase = np.array(summary.exit_speed_by_phase.mean, dtype=float)
     slowest = math.radians(10.0 * int(np.argmin(by_phase)) + 5.0)
     before = [np.remainder(e - slowest, TAU) for e in (e0, e1)]
     assert min(before) <= math.radians(60.0)
-    assert summary['guide_friction']['sticks'] == 0
+    assert summary.guide_friction.sticks == 0
     _, speed0, transit0, _ = exits(0.0)
     assert speed.mean() < speed0.mean() - 0.3 and transit.mean() > transit0.mean() + 0.02
 
@@ -335,7 +338,7 @@ def test_guide_friction_stick_slip_events_in_the_line() -> None:
     for i in np.unique(st['sheet'])[:20]:
         assert (sl['t'][sl['sheet'] == i] > st['t'][st['sheet'] == i][:1]).all()
         assert st['cycle'][st['sheet'] == i][0] == math.floor(st['t'][st['sheet'] == i][0] / 2.0)
-    assert res.summary['guide_friction']['sticks'] == st.size
+    assert res.summary.guide_friction.sticks == st.size
 
 
 def test_belts_win_over_guide_friction(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -378,7 +381,7 @@ def test_effects_not_listed_are_never_called(monkeypatch: pytest.MonkeyPatch, li
     res = run(scene(listed), 5.0, t_samples=sample_times(5.0, 20.0))
     assert events(res, 'leaf_exit').size > 50
     if 'leaf_flight' not in listed:
-        assert res.summary['leaves_landed'] == 0 and 'landing_cv' not in res.summary
+        assert res.summary.leaves_landed == 0 and res.summary.landing is None
     if 'chute_belts' not in listed:
         assert 'belts' not in res.samples and res.constraints == []
 
@@ -496,7 +499,7 @@ def test_determinism_bit_for_bit() -> None:
     b = run(scene(eff, seed=7), 60.0)
     c = run(scene(eff, seed=8), 60.0)
     assert a.events.tobytes() == b.events.tobytes()
-    assert json.dumps(a.summary) == json.dumps(b.summary)
+    assert json.dumps(a.summary.as_json()) == json.dumps(b.summary.as_json())
     ta, tc = events(a, 'leaf_enter')['t'], events(c, 'leaf_enter')['t']
     assert not np.array_equal(ta[:100], tc[:100])
     fr = {**FRICTION, **FLIGHT}
@@ -507,28 +510,28 @@ def test_through_the_line_orchestrator() -> None:
     sc = scene({**BELTS, **FLIGHT, **DAMAGE}, rate=10.0)
     res = simulate(sc, 30.0)
     s = res.summary()
-    json.dumps(s, allow_nan=False)
-    assert s['cycles'] == 15
-    assert s['sheets_counted'] == res.parts['layup']['leaves_landed'] > 400
-    assert 'landing_cv' in s
+    json.dumps(s.as_json(), allow_nan=False)
+    assert s.cycles == 15
+    assert s.sheets_counted == res.parts['layup'].leaves_landed > 400
+    assert 'landing_cv' in s.as_json()
     assert np.isfinite(res.events['t']).all() and np.isfinite(res.events['value']).all()
     assert (np.diff(res.events['t']) >= 0).all()
-    assert res.constraint('chute_speed').margin.size == res.parts['layup']['leaves_exited']
+    assert res.constraint('chute_speed').margin.size == res.parts['layup'].leaves_exited
 
 
 def test_events_end_with_the_run() -> None:
     res = run(scene({**BELTS, **FLIGHT}), 5.0)
     assert res.events['t'].max() <= 5.0
     s = res.summary
-    assert s['leaves'] > s['leaves_exited'] > s['leaves_landed']  # some still on a chute / in the air
+    assert s.leaves > s.leaves_exited > s.leaves_landed  # some still on a chute / in the air
 
 
 @pytest.mark.parametrize('effects', [{**BELTS, **FLIGHT, **DAMAGE}, {**FRICTION, **FLIGHT}, {**FLIGHT}])
 def test_a_run_without_leaves(effects: dict[str, Any]) -> None:
     res = run(scene(effects, sheets={'phase': 0.5}), 0.1, t_samples=np.array([0.0, 0.05]))
-    assert res.events.size == 0 and res.summary['leaves'] == 0
-    assert res.summary['min_exit_speed'] is None
-    json.dumps(res.summary, allow_nan=False)
+    assert res.events.size == 0 and res.summary.leaves == 0
+    assert res.summary.min_exit_speed is None
+    json.dumps(res.summary.as_json(), allow_nan=False)
     assert res.samples['drive'].position.shape == (2, 3)
 
 
@@ -536,10 +539,10 @@ def test_one_hour_with_belts() -> None:
     """An hour of the layup with belts, flight and damage lays every leaf (what it costs is measured side by
     side with the other effects by bench/bench_line.py, not here: a timed test fails on a loaded machine)."""
     res = run(scene({**BELTS, **FLIGHT, **DAMAGE}), 3600.0)
-    assert res.summary['leaves'] == 57601
+    assert res.summary.leaves == 57601
 
 
 def test_one_hour_with_guide_friction() -> None:
     """An hour of the layup with guide friction (its cost: bench/bench_line.py)."""
     res = run(scene({**FRICTION, **FLIGHT, **DAMAGE}), 3600.0)
-    assert res.summary['leaves_exited'] > 57500
+    assert res.summary.leaves_exited > 57500

@@ -19,15 +19,16 @@ from folder_line.core.effects import chain_friction
 from folder_line.core.effects import motor_dynamics as md
 from folder_line.core.limits import DURATION as LINE_TIME
 from folder_line.core.line.folder_stream import FolderStream
-from folder_line.core.line.model import UNITS, LineModel, LineResult, sample_times, simulate
+from folder_line.core.line.model import LineModel, LineResult, sample_times, simulate
 from folder_line.core.line.scene import Scene, parse_scene
-from folder_line.core.line.stream import LineStream
+from folder_line.core.line.stream import UNITS, LineStream
 from folder_line.core.mechanisms import delivery as dlv
 from folder_line.core.mechanisms import delivery_laws
 from folder_line.core.mechanisms import knife as knf
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
-from folder_line.core.mechanisms.layup import TAU, LayupModel
+from folder_line.core.mechanisms.layup import LayupModel
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.types.events import event_kind
 from folder_line.errors import AssemblyError, ParameterError
 from folder_line.interfaces import EVENT_KINDS
@@ -138,7 +139,9 @@ def test_result_is_simulate(runs: dict[str, Any]) -> None:
     shorter = model.result(3.0, 0.0)
     plain = simulate(model.scene, 3.0, sample_rate=0.0)
     assert shorter.duration == 3.0 and shorter.samples == {}
-    assert shorter.events.tobytes() == plain.events.tobytes() and shorter.summary() == plain.summary()
+    assert (
+        shorter.events.tobytes() == plain.events.tobytes() and shorter.summary().as_json() == plain.summary().as_json()
+    )
 
 
 # ------------------------------------------------------------------ events and cycles
@@ -274,9 +277,9 @@ def test_hold_at_the_cycle_boundary_stops_the_folder_with_no_sheet_lost(hold_run
     # at the standstill, every sheet fed is delivered or still in the machine, none jammed
     stop = LineModel(scene, t_still + 1.0, hold_run['cmds'][:1])
     s = stop.parts['folder']
-    assert s['sheets_balance_ok'] and s['sheets_jammed'] == 0
-    assert s['sheets_fed'] == s['sheets_counted'] + s['sheets_in_machine']
-    assert 0 < s['sheets_in_machine'] <= 4  # at the stops / on the chain, waiting
+    assert s.sheets_balance_ok and s.sheets_jammed == 0
+    assert s.sheets_fed == s.sheets_counted + s.sheets_in_machine
+    assert 0 < s.sheets_in_machine <= 4  # at the stops / on the chain, waiting
     assert all(int(np.count_nonzero(c.violated)) == 0 for c in stop.constraints)
     # the sheet stream stops with the line: no handover after the standstill phase
     hand = _of(stop.events, 'sheet_handover')
@@ -300,7 +303,7 @@ def test_unhold_resumes_and_every_held_sheet_is_delivered(hold_run: dict[str, An
     np.testing.assert_allclose(np.diff(after['t']), T, rtol=0, atol=1e-12)
     assert np.all(np.diff(exits['cycle']) == 1)  # no cycle skipped or repeated across the hold
     s = m.parts['folder']
-    assert s['sheets_balance_ok'] and s['sheets_jammed'] == 0
+    assert s.sheets_balance_ok and s.sheets_jammed == 0
     assert all(int(np.count_nonzero(c.violated)) == 0 for c in m.constraints)
     # every sheet handed over before the hold reaches the pile once the line runs again
     hand = _of(m.events, 'sheet_handover')
@@ -309,7 +312,7 @@ def test_unhold_resumes_and_every_held_sheet_is_delivered(hold_run: dict[str, An
     assert np.all(np.isin(early, released))
     assert np.array_equal(np.sort(released), np.arange(released.size))
     # the hold costs the line (t_unhold - t_hold) minus what the ramps give back, in cycles
-    lost = plain.parts['folder']['cycles'] - s['cycles']
+    lost = plain.parts['folder'].cycles - s.cycles
     dt = t_u - hold_run['t_hold'] - 0.5 * hold_run['scene'].drive.t_brake + 0.5 * up
     assert abs(lost - dt / T) <= 1.0
 
@@ -332,7 +335,7 @@ def test_layup_hold_stops_crank_and_belts(runs: dict[str, Any]) -> None:
 def test_commands_reach_simulate(hold_run: dict[str, Any]) -> None:
     res = simulate(hold_run['scene'], 30.0, sample_rate=0.0, commands=hold_run['cmds'])
     assert res.events.tobytes() == hold_run['model'].events.tobytes()
-    assert res.summary()['folder']['sheets_balance_ok']
+    assert res.summary().folder.sheets_balance_ok
     with pytest.raises(Exception, match='sorted'):
         LineModel(hold_run['scene'], 10.0, hold_run['cmds'][::-1])
     assert set(EVENT_KINDS) >= {'knife_exit', 'released_on_pile'}
@@ -713,4 +716,4 @@ class TestRandomScenes:
             assert js.effort is None or np.all(np.isfinite(js.effort))
         for c in res.constraints:
             assert np.all(np.isfinite(c.margin))
-        assert finite_tree(res.summary())
+        assert finite_tree(res.summary().as_json())

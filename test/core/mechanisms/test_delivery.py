@@ -17,11 +17,6 @@ from folder_line.config.params import load_params
 from folder_line.core.mechanisms import delivery as dl
 from folder_line.core.mechanisms import delivery_laws as dlaws
 from folder_line.core.mechanisms.delivery import (
-    STATE_CARRIAGE_REVERSED,
-    STATE_KV_ZERO,
-    STATE_NAMES,
-    STATE_OK,
-    STATE_SELF_LOCKING,
     DeliveryParams,
     evaluate,
     evaluate_point,
@@ -30,6 +25,16 @@ from folder_line.core.mechanisms.delivery import (
     stroke_minimum,
 )
 from folder_line.core.mechanisms.delivery_laws import ProfileLaw, register_law
+from folder_line.core.mechanisms.delivery_results import (
+    SAMPLE_FIELDS,
+    STATE_CARRIAGE_REVERSED,
+    STATE_KV_ZERO,
+    STATE_NAMES,
+    STATE_OK,
+    STATE_SELF_LOCKING,
+    DeliverySamples,
+    state_names,
+)
 from folder_line.errors import ParameterError
 
 REF: dict[str, Any] = dict(
@@ -391,7 +396,7 @@ def test_speeds_and_forces_scale() -> None:
 # -------------------------------------------------------------------- hard regions and states
 
 
-def _finite_everywhere(s: dl.DeliverySamples) -> None:
+def _finite_everywhere(s: DeliverySamples) -> None:
     for name in FLOAT_FIELDS:
         assert np.all(np.isfinite(getattr(s, name))), name
     assert np.all((s.eta >= 0.0) & (s.eta <= 1.0))
@@ -565,20 +570,18 @@ def test_positions_outside_the_section_are_errors_rounding_is_clipped() -> None:
 def test_shapes_sections_and_names() -> None:
     u = np.linspace(0.0, 2.0, 12).reshape(3, 4)
     s = evaluate_stroke(ref(), u)
-    for name in dl.SAMPLE_FIELDS:
+    for name in SAMPLE_FIELDS:
         assert getattr(s, name).shape == (3, 4), name
     assert s.state.dtype == np.int8 and s.section.dtype == np.int8
     np.testing.assert_array_equal(s.section, (u > 1.0).astype(np.int8))
     np.testing.assert_array_equal(s.xi, np.where(u <= 1.0, u, 2.0 - u))
     assert np.all(s.beta[u > 1.0] <= 0.0) and np.all(s.beta[u <= 1.0] >= 0.0)
     cols = s.columns()
-    assert set(cols) == set(dl.SAMPLE_FIELDS) | {'state_name', 'section_name'}
+    assert set(cols) == set(SAMPLE_FIELDS) | {'state_name', 'section_name'}
     assert all(c.shape == (12,) for c in cols.values())
     assert set(cols['section_name']) == {'deceleration', 'acceleration'}
     assert (
-        list(dl.state_names([0, 1, 2, 3]))
-        == list(STATE_NAMES)
-        == ['ok', 'self_locking', 'kv_zero', 'carriage_reversed']
+        list(state_names([0, 1, 2, 3])) == list(STATE_NAMES) == ['ok', 'self_locking', 'kv_zero', 'carriage_reversed']
     )
     assert float(evaluate(ref(), 0.5).eta) == evaluate(ref(), [0.5]).eta[0]  # 0-d input -> 0-d arrays
     assert evaluate(ref(), 0.5).eta.shape == ()
@@ -681,12 +684,12 @@ FRICTIONLESS = {key: 0.0 for key in ('f_Ap', 'f_Bp', 'f_A', 'f_B', 'f_O', 'r_A',
 STROKE = np.concatenate([np.linspace(0.0, 2.0, 4001), [1.0 - 1e-15, 1.0 + 1e-15, 2.0 - 1e-12]])
 
 
-def all_finite(s: dl.DeliverySamples) -> bool:
+def all_finite(s: DeliverySamples) -> bool:
     return all(np.all(np.isfinite(getattr(s, f.name))) for f in dataclasses.fields(s))
 
 
-def non_ok_zeroed(s: dl.DeliverySamples) -> bool:
-    bad = s.state != dl.STATE_OK
+def non_ok_zeroed(s: DeliverySamples) -> bool:
+    bad = s.state != STATE_OK
     return all(
         np.all(getattr(s, n)[bad] == 0.0)
         for n in ('eta', 'eta_A', 'eta_B', 'p_AB', 'p_ch', 'm_1', 'p_AB_ideal', 'p_ch_ideal', 'm_1_ideal')
@@ -707,8 +710,8 @@ class TestDeliveryLimits:
             s = dl.evaluate_stroke(p, STROKE, return_section=mode)
             assert all_finite(s) and non_ok_zeroed(s)
             end = np.abs(s.u - 1.0) < 1e-12  # psi = 1: alpha = alpha_m
-            assert np.all(s.state[end] == dl.STATE_SELF_LOCKING) or (not friction and alpha_m == 89.9999)
-            ok = s.state == dl.STATE_OK
+            assert np.all(s.state[end] == STATE_SELF_LOCKING) or (not friction and alpha_m == 89.9999)
+            ok = s.state == STATE_OK
             assert ok.any()  # most of the stroke still works
             with mp.workdps(40):
                 sa = mp.sin(mp.radians(mp.mpf(alpha_m)))
@@ -720,7 +723,7 @@ class TestDeliveryLimits:
                 )
         if not friction and alpha_m == 89.9999:  # cos(alpha_m) = 1.7e-6 > COS_ALPHA_TOL: ok, force ~ 5.7e5 P_k
             pt = dl.evaluate_point(p, 1.0)
-            assert pt.state == dl.STATE_OK and pt.p_AB == pytest.approx(1.0 / math.cos(math.radians(alpha_m)), rel=1e-4)
+            assert pt.state == STATE_OK and pt.p_AB == pytest.approx(1.0 / math.cos(math.radians(alpha_m)), rel=1e-4)
         with pytest.raises(ParameterError, match='alpha_m_deg'):
             delivery(alpha_m_deg=90.0)
 
@@ -751,20 +754,20 @@ class TestDeliveryLimits:
         # K_v(xi*) = cos(beta) (1 - tan(alpha) tan|beta|) ~ -rel cos(beta) near the touch
         assert abs(pt.K_v + rel * math.cos(pt.beta)) <= 1e-6 * abs(rel) + 1e-13
         if abs(pt.K_v) < dl.KV_TOL:
-            expect = dl.STATE_KV_ZERO
+            expect = STATE_KV_ZERO
         elif pt.K_v < 0.0:
-            expect = dl.STATE_CARRIAGE_REVERSED
+            expect = STATE_CARRIAGE_REVERSED
         else:  # eq. (3): eta_B = 1 - f_Bp |tan a| - f_B r_B |sin b| / (K_v cos^2 a) <= 0 locks by friction
             ca = math.cos(pt.alpha)
             eta_b = 1.0 - p.f_Bp * math.tan(pt.alpha) - p.f_B * p.r_B * abs(math.sin(pt.beta)) / (pt.K_v * ca * ca)
-            expect = dl.STATE_SELF_LOCKING if eta_b <= 0.0 else dl.STATE_OK
+            expect = STATE_SELF_LOCKING if eta_b <= 0.0 else STATE_OK
         assert pt.state == expect
         if rel == 0.0:
-            assert pt.state == dl.STATE_KV_ZERO
+            assert pt.state == STATE_KV_ZERO
         u = np.concatenate([STROKE, u_star + np.linspace(-1e-4, 1e-4, 201)])
         s = dl.evaluate_stroke(p, u)
         assert all_finite(s) and non_ok_zeroed(s)
-        reversed_ = s.state == dl.STATE_CARRIAGE_REVERSED
+        reversed_ = s.state == STATE_CARRIAGE_REVERSED
         assert reversed_.any() == (rel > 1e-9)
         assert np.all(s.K_v[reversed_] <= -dl.KV_TOL)
 
@@ -780,13 +783,13 @@ class TestDeliveryLimits:
         with mp.workdps(40):
             eta_ref = float(1 - mp.mpf(f_bp) * mp.tan(mp.radians(mp.mpf(alpha_m))))
         if eta_ref > dl.ETA_TOL * 2:
-            assert pt.state == dl.STATE_OK
+            assert pt.state == STATE_OK
             assert pt.eta == pytest.approx(eta_ref, rel=1e-15 / eta_ref + 1e-12)
             assert pt.p_AB == pytest.approx(
                 1.0 / (math.cos(math.radians(alpha_m)) * eta_ref), rel=1e-15 / eta_ref + 1e-12
             )
         elif eta_ref < dl.ETA_TOL / 2:
-            assert pt.state == dl.STATE_SELF_LOCKING and pt.eta == 0.0 and pt.p_AB == 0.0
+            assert pt.state == STATE_SELF_LOCKING and pt.eta == 0.0 and pt.p_AB == 0.0
         s = dl.evaluate(p, np.linspace(0.0, 1.0, 2001))
         assert all_finite(s) and non_ok_zeroed(s)
         assert np.all((s.eta >= 0.0) & (s.eta <= 1.0))

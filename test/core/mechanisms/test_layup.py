@@ -25,16 +25,15 @@ from folder_line.core.mechanisms import layup as L
 from folder_line.core.mechanisms.layup import (
     LOOP1,
     LOOP2,
-    TAU,
     LayupModel,
     LayupParams,
     check_assembly,
-    classify_fourbar,
     layup_kinematics,
     layup_point,
-    reduce_angle,
 )
+from folder_line.core.mechanisms.layup_angles import TAU, classify_fourbar, reduce_angle
 from folder_line.core.mechanisms.layup_reach import sweep, swing_extremes
+from folder_line.core.mechanisms.layup_state import LayupPoint, LayupState
 from folder_line.core.numerics.loop import (
     TOGGLE_TOL,
     circle_point_acceleration,
@@ -62,7 +61,7 @@ def raw(**over: float) -> SimpleNamespace:
     return SimpleNamespace(**{**BASE, **over})
 
 
-def residuals(p: LayupParams, s: L.LayupState) -> np.ndarray:
+def residuals(p: LayupParams, s: LayupState) -> np.ndarray:
     """Loop-closure residuals, m, from the six-bar's definitions (module docstring of core/mechanisms/layup.py)."""
     ax = p.a + p.R_kr * np.cos(s.phi)
     ay = p.b + p.R_kr * np.sin(s.phi)
@@ -78,7 +77,7 @@ def residuals(p: LayupParams, s: L.LayupState) -> np.ndarray:
     )
 
 
-def d3_deg(s: L.LayupState | L.LayupPoint) -> np.ndarray:
+def d3_deg(s: LayupState | LayupPoint) -> np.ndarray:
     """Angle at C between C->O2 and C->E (the paper's δ3), degrees, from positions."""
     ux, uy = -np.asarray(s.xC), -np.asarray(s.yC)
     vx, vy = np.asarray(s.xE) - s.xC, np.asarray(s.yE) - s.yC
@@ -318,7 +317,7 @@ def test_scalar_path_equals_vectorised_path() -> None:
     rng = np.random.default_rng(7)
     phi = np.concatenate([DENSE[::7], rng.uniform(-1e3, 1e3, 300), [math.pi, -math.pi, 0.0, -0.0]])
     s = M.arrays(phi)
-    names = L.LayupPoint._fields
+    names = LayupPoint._fields
     vec = np.stack([getattr(s, n) for n in names])
     sca = np.array([M.point(float(x)) for x in phi]).T
     assert_allclose(sca, vec, rtol=1e-12, atol=1e-12)
@@ -625,7 +624,7 @@ def test_perturbed_geometries_either_fail_validation_or_are_finite_and_closed(
     assert s.margin1.min() > 0 and s.margin2.min() > 0
     for x in phis[:5]:
         assert_allclose(
-            list(m.point(x)), [float(getattr(m.arrays(x), n)) for n in L.LayupPoint._fields], rtol=1e-12, atol=1e-12
+            list(m.point(x)), [float(getattr(m.arrays(x), n)) for n in LayupPoint._fields], rtol=1e-12, atol=1e-12
         )
 
 

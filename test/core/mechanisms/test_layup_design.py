@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from folder_line.config.params import load_params
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams, check_assembly, classify_fourbar
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams, check_assembly
+from folder_line.core.mechanisms.layup_angles import TAU, classify_fourbar
 from folder_line.core.mechanisms.layup_design import (
     crank_rocker_margin,
     exit_clearance,

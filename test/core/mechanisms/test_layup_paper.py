@@ -10,7 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from folder_line.config.params import load_params
-from folder_line.core.mechanisms.layup import TAU, LayupModel, LayupParams
+from folder_line.core.mechanisms.layup import LayupModel, LayupParams
+from folder_line.core.mechanisms.layup_angles import TAU
 from folder_line.core.mechanisms.layup_paper import beta5, paper_frame, paper_speeds
 from folder_line.errors import ParameterError
 

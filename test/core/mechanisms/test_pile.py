@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from folder_line.config.scenes import load_scene, scene_mapping
-from folder_line.core.line.model import UNITS, LineModel
+from folder_line.core.line.model import LineModel
 from folder_line.core.line.scene import parse_scene
+from folder_line.core.line.stream import UNITS
 from folder_line.core.mechanisms.pile import T_LOWER, UNIT, PileTable, counted_event, pile_table
 from folder_line.errors import ParameterError
 from folder_line.interfaces import EVENT_KINDS

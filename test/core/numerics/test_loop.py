@@ -12,7 +12,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from folder_line.core.mechanisms.layup import TAU, classify_fourbar
+from folder_line.core.mechanisms.layup_angles import TAU, classify_fourbar
 from folder_line.core.numerics.loop import (
     TOGGLE_TOL,
     Intersection,

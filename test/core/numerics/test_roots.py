@@ -15,15 +15,18 @@ from numpy.testing import assert_allclose, assert_array_equal
 from folder_line.core.numerics.roots import (
     RTOL,
     XTOL,
-    NoConvergenceError,
-    NonFiniteValueError,
-    NotBracketedError,
     brent,
     brentq,
     find_sign_changes,
     golden_section,
 )
-from folder_line.errors import FolderLineError, ParameterError
+from folder_line.errors import (
+    FolderLineError,
+    NoConvergenceError,
+    NonFiniteValueError,
+    NotBracketedError,
+    ParameterError,
+)
 
 from .._reference import EPS
 

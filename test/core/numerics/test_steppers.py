@@ -15,15 +15,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from folder_line.core.numerics.dense import DenseSolution
-from folder_line.core.numerics.integrators import (
-    Breaks,
-    Dopri5Stepper,
-    IntegrationError,
-    RK4Stepper,
-    Terminal,
-    dopri5,
-    rk4,
-)
+from folder_line.core.numerics.dopri5_stepper import Dopri5Stepper
+from folder_line.core.numerics.integrators import dopri5, rk4
+from folder_line.core.numerics.rk4_stepper import RK4Stepper
+from folder_line.core.numerics.stepper import Breaks, Terminal
+from folder_line.errors import IntegrationError
 
 Stepper = RK4Stepper | Dopri5Stepper
 

@@ -148,12 +148,12 @@ def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free
     assert b.state == 'HELD' and b.t == t_held and b.ok
     summary = LineModel(SCENE, 3.0, sup.commands).parts['folder']
     assert (b.fed, b.delivered, b.in_machine) == (
-        summary['sheets_fed'],
-        summary['sheets_counted'],
-        summary['sheets_in_machine'],
+        summary.sheets_fed,
+        summary.sheets_counted,
+        summary.sheets_in_machine,
     )
     assert b.fed == b.delivered + b.in_machine and b.in_machine > 0
-    assert b.detail['jammed'] == 0 and b.detail['folded'] == summary['sheets_folded']
+    assert b.detail['jammed'] == 0 and b.detail['folded'] == summary.sheets_folded
 
 
 # --------------------------------------------------------------------------- starvation -> SUSPENDED

@@ -29,6 +29,7 @@ from std_srvs.srv import Trigger
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.model import LineModel
 from folder_line.core.mechanisms.drive import Command
+from folder_line.core.supervision.settings import SPEED_REACHED
 from folder_line.interfaces import (
     COMMANDS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -47,7 +48,7 @@ from folder_line.ros.nodes.feed_transporter import FeedTransporter
 from folder_line.ros.nodes.line_clock import LineClock
 from folder_line.ros.nodes.machine import MachineNode
 from folder_line.ros.nodes.sheet_counter import SheetCounter
-from folder_line.ros.nodes.supervisor import SERVICES, SPEED_REACHED, STATE_QOS, Supervisor
+from folder_line.ros.nodes.supervisor import SERVICES, STATE_QOS, Supervisor
 from folder_line.ros.signing import sign_text, without_signature
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
 from folder_line.ros.topics import COMMANDS_QOS, joint_states_topic
