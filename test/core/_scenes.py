@@ -1,4 +1,4 @@
-"""Test scenes shared by the delivery-chain tests (not a test module)."""
+"""Test scenes and effect parameters shared by the core's tests (not a test module)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,17 @@ from typing import Any
 
 from folder_line.config.params import config_dir, load_params, read_yaml_mapping
 from folder_line.core.line.scene import Scene, parse_scene
+
+#: seeded faults of every kind, frequent enough to show in a few seconds of line time
+FAULTS: dict[str, float] = {
+    'p_missing': 0.05,
+    'p_double': 0.05,
+    'p_late': 0.05,
+    'late_delay': 0.004,
+    'p_slowdown': 0.05,
+    'slowdown_factor': 0.6,
+    'slowdown_duration': 0.15,
+}
 
 
 def folder_scene(

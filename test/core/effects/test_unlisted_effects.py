@@ -21,17 +21,10 @@ from folder_line.core.effects import EFFECTS
 from folder_line.core.line.model import simulate
 from folder_line.core.line.scene import Scene, parse_scene
 
+from .._scenes import FAULTS
+
 PACKAGE = Path(folder_line.__file__).resolve().parent
 
-FAULTS = {
-    'p_missing': 0.05,
-    'p_double': 0.05,
-    'p_late': 0.05,
-    'late_delay': 0.004,
-    'p_slowdown': 0.05,
-    'slowdown_factor': 0.6,
-    'slowdown_duration': 0.15,
-}
 #: the effects the shipped ``line`` scene does not list, with parameters that make each do something
 EXTRA: dict[str, Mapping[str, object]] = {
     'faults': FAULTS,

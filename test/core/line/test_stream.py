@@ -28,15 +28,7 @@ from folder_line.core.line.tuning import LineCommand, Tuning
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.types.events import EVENT_KINDS
 
-FAULTS = {
-    'p_missing': 0.05,
-    'p_double': 0.05,
-    'p_late': 0.05,
-    'late_delay': 0.004,
-    'p_slowdown': 0.05,
-    'slowdown_factor': 0.6,
-    'slowdown_duration': 0.15,
-}
+from .._scenes import FAULTS
 
 #: scenes beyond the shipped ones: name -> (shipped base, effects added, effects dropped, machines changed)
 EXTRA: dict[str, tuple[str, dict[str, Any], tuple[str, ...], dict[str, Any]]] = {
