@@ -198,9 +198,13 @@ def parse_participants(text: str) -> tuple[str, ...]:
         raise ParameterError('participants', text, str(err)) from None
 
 
+#: why line_clock refuses simulated time
+_WALL_CLOCK = 'line_clock publishes /clock and runs on the wall clock'
+
+
 def _check(values: Mapping[str, Any]) -> None:
     if values.get('use_sim_time') is True:
-        raise ParameterError('use_sim_time', True, 'line_clock publishes /clock and runs on the wall clock')
+        raise ParameterError('use_sim_time', True, _WALL_CLOCK)
     parse_participants(values['participants'])
     rtf = values['rtf']
     if 0.0 < rtf < MIN_RTF:
@@ -243,10 +247,29 @@ class LineClock(Node):
             self.destroy_node()
             raise
 
+    @classmethod
+    def refuse_start(cls, given: Mapping[str, object]) -> None:
+        """Refuse, before any node is made, a start this node would refuse, with its own words.
+
+        Parameters
+        ----------
+        given : mapping of str to object
+            The starting values the command line gives (:func:`folder_line.ros.ros_args.command_line_values`).
+
+        Raises
+        ------
+        ParameterError
+            What the node's start would raise first: ``use_sim_time`` true, a value its spec refuses,
+            values its cross-check refuses.
+        """
+        if given.get('use_sim_time') is True:
+            raise ParameterError('use_sim_time', True, _WALL_CLOCK)
+        _check({spec.name: spec.check(given.get(spec.name, spec.default)) for spec in SPECS})
+
     def _make(self) -> None:
         """Check the parameters, then make the clock's entities (after ``Node.__init__``)."""
         if self.get_parameter('use_sim_time').value:
-            raise ParameterError('use_sim_time', True, 'line_clock publishes /clock and runs on the wall clock')
+            raise ParameterError('use_sim_time', True, _WALL_CLOCK)
         v = self.values = declare_parameters(self, SPECS, cross_check=_check)
         self._init_state(v)
         self._pub = self.create_publisher(ClockMsg, CLOCK_TOPIC, CLOCK_QOS)
