@@ -227,6 +227,7 @@ FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {
     ('analysis/figures.py', 'matplotlib.pyplot'): 'imported after matplotlib.use("Agg")',
     ('analysis/animation/frames.py', 'matplotlib.collections'): 'imported after pyplot() chose the Agg back end',
     ('analysis/animation/frames.py', 'matplotlib.patches'): 'imported after pyplot() chose the Agg back end',
+    ('analysis/landing_drawing.py', 'matplotlib.ticker'): 'matplotlib loads on use, after pyplot() chose the back end',
     ('accuracy/output.py', 'matplotlib'): 'matplotlib loads on use, after pyplot() chose the back end',
     ('config/params.py', 'ament_index_python.packages'): 'present only on a ROS 2 install: tried, not required',
     ('studies/runner.py', 'dask.distributed'): 'slow to import (~0.5 s): only the verbs that fan out load it',

@@ -31,7 +31,7 @@ import json
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
@@ -39,7 +39,13 @@ from rosbags.typesys import Stores, get_typestore
 from folder_line.files.atomic import check_output_file, write_chunks_atomic
 from folder_line.interfaces import DIAGNOSTICS_TOPIC, EVENTS_TOPIC, NS_PER_S, parse_event_source
 
-__all__ = ['CsvCollector', 'csv_name', 'flatten_message', 'message_rows']
+if TYPE_CHECKING:  # the message classes of the typestore the bags are read with (folder_line.bag.types)
+    from rosbags.typesys.stores.ros2_kilted import builtin_interfaces__msg__Time as Time
+
+__all__ = ['CsvCollector', 'Row', 'csv_name', 'flatten_message', 'message_rows']
+
+#: a row of a CSV: column -> a scalar of the message (a number, a string), or of its parsed event
+Row: TypeAlias = dict[str, object]
 
 _TIME = 'builtin_interfaces/msg/Time'
 #: rows written per chunk of a CSV file
@@ -53,7 +59,7 @@ def _field_names(msgtype: str) -> tuple[str, ...]:
     return tuple(name for name, _ in store.fielddefs[msgtype][1])
 
 
-def _is_message(value: Any) -> bool:
+def _is_message(value: object) -> bool:
     return hasattr(value, '__msgtype__') and dataclasses.is_dataclass(value)
 
 
@@ -61,12 +67,15 @@ def _join(prefix: str, name: str) -> str:
     return f'{prefix}.{name}' if prefix else name
 
 
-def _seconds(stamp: Any) -> float:
+def _seconds(stamp: Time) -> float:
     return (int(stamp.sec) * NS_PER_S + int(stamp.nanosec)) / NS_PER_S
 
 
-def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
-    """Add ``value``'s columns, named under ``prefix``, to ``out`` (see :func:`flatten_message`)."""
+def _flatten(value: Any, prefix: str, out: Row) -> None:
+    """Add ``value``'s columns, named under ``prefix``, to ``out`` (see :func:`flatten_message`).
+
+    ``value`` is a message or a field of one, of any type: read by its definition's names.
+    """
     if _is_message(value):
         _flatten_message(value, prefix, out)
     elif isinstance(value, np.ndarray):
@@ -78,7 +87,7 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
         out[prefix or 'data'] = value
 
 
-def _flatten_message(value: Any, prefix: str, out: dict[str, Any]) -> None:
+def _flatten_message(value: Any, prefix: str, out: Row) -> None:
     """A message's columns: a time in seconds, a joint state's by joint, any other's field by field."""
     mt = value.__msgtype__
     if mt == _TIME:
@@ -100,7 +109,7 @@ def _flatten_message(value: Any, prefix: str, out: dict[str, Any]) -> None:
         _flatten(getattr(value, name), _join(prefix, name), out)
 
 
-def _flatten_sequence(value: list[Any] | tuple[Any, ...], prefix: str, out: dict[str, Any]) -> None:
+def _flatten_sequence(value: list[Any] | tuple[Any, ...], prefix: str, out: Row) -> None:
     """A sequence's columns: a ``diagnostic_msgs/KeyValue`` list by key, any other item by item."""
     if value and all(_is_message(v) and v.__msgtype__ == 'diagnostic_msgs/msg/KeyValue' for v in value):
         for kv in value:
@@ -110,20 +119,21 @@ def _flatten_sequence(value: list[Any] | tuple[Any, ...], prefix: str, out: dict
         _flatten(v, f'{prefix}[{i}]', out)
 
 
-def flatten_message(msg: Any) -> dict[str, Any]:
+def flatten_message(msg: object) -> Row:
     """A bag message (rosbags) as ``{column: scalar}``.
 
     Nested fields are joined with ``.``, a time is seconds (``header.stamp``), sequences
     indexed (``status[0].level``); joint states are named by joint (``position.knife_crank``;
     the ``name`` list itself is dropped) and ``diagnostic_msgs/KeyValue`` lists by key.
     """
-    out: dict[str, Any] = {}
+    out: Row = {}
     _flatten(msg, '', out)
     return out
 
 
-def message_rows(topic: str, t_ns: int, msg: Any) -> list[dict[str, Any]]:
-    """The CSV rows of one message: ``t`` (log time, s) and its columns (see the module's docstring).
+def message_rows(topic: str, t_ns: int, msg: Any) -> list[Row]:
+    """The CSV rows of one message (of the topic's type): ``t`` (log time, s) and its columns (see the
+    module's docstring).
 
     One row per message, but one per status on ``/diagnostics``.
     """
@@ -132,7 +142,7 @@ def message_rows(topic: str, t_ns: int, msg: Any) -> list[dict[str, Any]]:
         stamp = _seconds(msg.header.stamp)
         rows = []
         for st in msg.status:
-            row: dict[str, Any] = {
+            row: Row = {
                 't': t,
                 'header.stamp': stamp,
                 'name': str(st.name),
@@ -174,7 +184,7 @@ class CsvCollector:
         self.columns: dict[str, dict[str, None]] = {}
         self.counts: dict[str, int] = {}
 
-    def __call__(self, topic: str, t_ns: int, msg: Any) -> None:
+    def __call__(self, topic: str, t_ns: int, msg: object) -> None:
         fh = self._spool.get(topic)
         if fh is None:
             fh = self._spool[topic] = tempfile.TemporaryFile('w+', encoding='utf-8')  # noqa: SIM115 - closed in close()
@@ -230,6 +240,6 @@ class CsvCollector:
         self._spool.clear()
 
 
-def _cell(value: Any) -> Any:
+def _cell(value: object) -> object:
     """A value as the CSV shows it: floats with ``repr`` precision (round-trip exact)."""
     return repr(value) if isinstance(value, float) else value

@@ -50,12 +50,14 @@ import io
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from folder_line.analysis.colours import PHASE_COLOURS, QUANTITY_COLOURS
+from folder_line.analysis.efficiency_drawing import EfficiencyPoints, EfficiencyText, draw_efficiency, efficiency_rows
 from folder_line.analysis.exit_speed_points import ExitSpeedPoints, ExitSpeedText, draw_exit_speeds
 from folder_line.analysis.figure_data import (
     GANTT_CYCLES,
@@ -68,18 +70,20 @@ from folder_line.analysis.figure_data import (
     leaf_exit_data,
     off_speed,
 )
-from folder_line.analysis.paper_curves import stroke_curves
+from folder_line.analysis.landing_drawing import LandingText, draw_landing
+from folder_line.analysis.margin_drawing import MarginLook, MarginPanel, draw_margins, margins_size
 from folder_line.analysis.recording import RecordedJoints, Recording
 from folder_line.analysis.replay import ConstraintMargins, Evaluation
-from folder_line.core.effects import chain_friction
 from folder_line.core.line.margin_text import CONSTRAINT_UNITS, MARGIN_LABELS, format_margin
-from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.cyclogram import CycleTiming
 from folder_line.files.atomic import write_bytes_atomic
 from folder_line.interfaces import NODE_OF_UNIT
 
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (pyplot)
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 __all__ = [
-    'DISPLAY_UNITS',
     'DPI',
     'FIGURES',
     'OPERATIONS',
@@ -111,7 +115,7 @@ DPI = 110
 # --------------------------------------------------------------------------- drawing
 
 
-def pyplot() -> Any:
+def pyplot() -> Any:  # the module matplotlib.pyplot: a module is no type
     """``matplotlib.pyplot`` on the non-interactive Agg back end (no display needed)."""
     # imported here, not with the module: matplotlib takes a while to import and its back end
     # must be chosen before pyplot is imported; importing the analysis does neither
@@ -123,7 +127,7 @@ def pyplot() -> Any:
     return plt
 
 
-def save_figure(fig: Any, path: str | os.PathLike[str], dpi: int = DPI) -> Path:
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = DPI) -> Path:
     """Write ``fig`` as a PNG to ``path`` atomically (:func:`folder_line.files.atomic.write_bytes_atomic`)
     and close it; a failure leaves no partial file behind."""
     try:
@@ -148,7 +152,7 @@ def _sampling(joints: RecordedJoints, drawn: int | None = None) -> str:
     return text
 
 
-def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation) -> None:
+def _leaf_exits(ax: Axes, rec: Recording, ev: Evaluation) -> None:
     """The leaves' exit speeds at their crank angles; those off speed (start-up, holds) hollow
     (:func:`~folder_line.analysis.figure_data.leaf_exit_data`: every exit counted, at most
     :data:`~folder_line.analysis.figure_data.LEAF_POINTS` drawn)."""
@@ -172,7 +176,7 @@ def _leaf_exits(ax: Any, rec: Recording, ev: Evaluation) -> None:
             ax.plot(data.deg[mine & early], data.value[mine & early], marker, ms=6, color=colour, mfc='none')
 
 
-def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
+def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Figure | None:
     """The figure of ``exit_speeds.png``: the recorded exit speeds over the model's, or None without a layup.
 
     The samples taken before the drive reached speed (:func:`~folder_line.analysis.figure_data.at_speed_time`)
@@ -200,6 +204,7 @@ def exit_speeds_figure(rec: Recording, ev: Evaluation) -> Any | None:
         belt = 'no belts'
     sampling = f'{_sampling(rec.joints[NODE_OF_UNIT["drive"]], data["t"].size)} over {rec.t_end:.3f} s'
     text = ExitSpeedText('recorded', sampling, belt, holds_after=' after it')
+    fig: Figure
     fig, (ax1, ax2) = pyplot().subplots(2, 1, figsize=(9, 8), sharex=True)
     draw_exit_speeds((ax1, ax2), rec.scene, points, text, lambda ax: _leaf_exits(ax, rec, ev))
     fig.tight_layout()
@@ -211,7 +216,7 @@ def _plot_exit_speeds(rec: Recording, ev: Evaluation, out: Path) -> Path | None:
     return None if fig is None else save_figure(fig, out / 'exit_speeds.png')
 
 
-def efficiency_figure(rec: Recording, ev: Evaluation) -> Any | None:
+def efficiency_figure(rec: Recording, ev: Evaluation) -> Figure | None:
     """The figure of ``efficiency.png``: η, ``K_v`` (and the sprocket torque) at the recorded carriage
     positions over the model's curves, or None without a delivery.
 
@@ -223,64 +228,15 @@ def efficiency_figure(rec: Recording, ev: Evaluation) -> Any | None:
     data = efficiency_data(rec, ev)
     if data is None:
         return None
-    plt = pyplot()
     plan = ev.plan
     assert plan is not None  # efficiency data comes from a delivery
-    with_torque = data['torque'].size > 0
-    rows = 3 if with_torque else 2
-    fig, axes = plt.subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
-    ax_eta, ax_kv = axes[0], axes[1]
-    stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
-    ax_eta.plot(
-        data['u'],
-        data['eta'],
-        'o',
-        ms=3,
-        color='k',
-        alpha=0.6,
-        label=f'at the recorded carriage positions ({data["u"].size} drawn)',
-    )
-    m = data['moving']
-    ax_kv.plot(
-        data['u'][m],
-        data['K_v'][m],
-        'o',
-        ms=3,
-        color='k',
-        alpha=0.6,
-        label='recorded carriage speed / chain speed',
-    )
-    release = QUANTITY_COLOURS['release']
-    for ax in axes:
-        ax.axvline(plan.u_rel, color=release, ls='--', lw=1)
-    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color=release, va='bottom', fontsize=8)
-    ax_eta.set_ylabel('efficiency $\\eta$')
-    ax_eta.set_title(
-        f'D: efficiency along the stroke (paper Fig. 2); min eta at the drawn samples {data["eta"].min():.3f}, '
-        f'of the model {delivery.stroke_minimum(plan.params, "eta")[1]:.3f}\n'
-        f'{_sampling(rec.joints[NODE_OF_UNIT["feed"]])} over {rec.t_end:.3f} s'
-        if data['eta'].size
-        else 'D: efficiency along the stroke (paper Fig. 2)',
-        fontsize=10,
-    )
-    ax_eta.legend(fontsize=8, loc='lower left')
-    ax_kv.set_ylabel('carriage speed ratio $K_v$')
-    ax_kv.legend(fontsize=8, loc='lower left')
-    if with_torque:
-        ax_t = axes[2]
-        sch = plan.schedule
-        theta = sch.theta_enter0 + np.linspace(0.0, sch.T, 4001, endpoint=False)
-        a0, slack = sch.stroke_travel(theta)
-        on = a0 <= sch.S + slack
-        u_m = plan.path.position(np.clip(a0[on], 0.0, sch.S))
-        tq = np.asarray(chain_friction.sprocket_torque(rec.scene, theta[on]), dtype=float)
-        order = np.argsort(u_m)
-        ax_t.plot(u_m[order], tq[order], color=QUANTITY_COLOURS['torque'], label='model: all carriages on the stroke')
-        ax_t.plot(data['u'], data['torque'], 'o', ms=3, color='k', alpha=0.6, label='recorded (effort on chain)')
-        ax_t.set_ylabel('sprocket torque $M_1$, N m')
-        ax_t.legend(fontsize=8, loc='upper right')
-        ax_t.grid(alpha=0.3)
-    axes[-1].set_xlabel('stroke position u of the newest carriage (deceleration 0..1, acceleration 1..2)')
+    points = EfficiencyPoints(data['u'], data['eta'], data['K_v'], data['moving'], data['torque'])
+    sampling = f'{_sampling(rec.joints[NODE_OF_UNIT["feed"]])} over {rec.t_end:.3f} s'
+    text = EfficiencyText('recorded', 'drawn', 'the drawn samples', sampling, 'recorded (effort on chain)', 10)
+    rows = efficiency_rows(points)
+    fig: Figure
+    fig, axes = pyplot().subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
+    draw_efficiency(axes, rec.scene, plan, points, text)
     fig.tight_layout()
     return fig
 
@@ -325,12 +281,13 @@ def _plot_cyclogram(rec: Recording, ev: Evaluation, out: Path, n: int) -> Path |
     return save_figure(cyclogram_figure(rows, timing, title), out / 'cyclogram.png')
 
 
-def cyclogram_figure(rows: Sequence[CycleRow], timing: CycleTiming, title: str, unjudged: str = '') -> Any:
+def cyclogram_figure(rows: Sequence[CycleRow], timing: CycleTiming, title: str, unjudged: str = '') -> Figure:
     """The cyclogram of the cycles ``rows`` (:func:`~folder_line.analysis.figure_data.cycle_rows`'s) under
     the nominal cycle of ``timing`` (a :class:`~folder_line.core.mechanisms.cyclogram.CycleTiming`), titled
     ``title``; ``unjudged`` is written for a cycle without margins."""
     plt = pyplot()
     ms = 1e3
+    fig: Figure
     fig, ax = plt.subplots(figsize=(12, 2.2 + 0.55 * (len(rows) + 1)))
     colours = {letter: colour for letter, _, colour in OPERATIONS}
     x_max = timing.T * ms
@@ -373,7 +330,7 @@ def cyclogram_figure(rows: Sequence[CycleRow], timing: CycleTiming, title: str, 
     return fig
 
 
-def _cycle_bars(ax: Any, i: int, row: CycleRow, colours: Mapping[str, str]) -> float:
+def _cycle_bars(ax: Axes, i: int, row: CycleRow, colours: Mapping[str, str]) -> float:
     """The operations of one cycle drawn on row ``i``; the latest time drawn, ms from the cycle's start."""
     ms = 1e3
     t0 = row.start
@@ -419,10 +376,6 @@ def _cycle_bars(ax: Any, i: int, row: CycleRow, colours: Mapping[str, str]) -> f
     return max(x_max, float((row.deadline - t0) * ms))
 
 
-#: a quantity's display scale and unit, by its SI unit
-DISPLAY_UNITS = {'s': (1e3, 'ms'), 'm': (1e3, 'mm')}
-
-
 def _margin_bins(low: float, high: float, unit: str, bins: int = 30) -> np.ndarray:
     """Histogram edges for margins from ``low`` to ``high``: whole numbers for ``sheets``; one bin about the
     value where the margins are equal to rounding (relative spread <= 1e-6)."""
@@ -454,48 +407,36 @@ def margin_bars(margins: ConstraintMargins) -> tuple[np.ndarray, np.ndarray, np.
     return edges, passed, violated
 
 
+#: the layout of a recorded run's ``margins.png``
+_MARGINS = MarginLook(5.2, 3.0, 0.4, pad=None, one_bar_pad=1.0)
+
+
+def _margin_hist(margins: ConstraintMargins, ax: Axes, scale: float) -> np.ndarray:
+    """One constraint's bars (:func:`margin_bars`), passed and violated stacked; their edges, display unit."""
+    nv = margins.histogram.violations
+    edges, passed, violated = margin_bars(margins)
+    edges = edges * scale
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    ax.hist(
+        [centres, centres],
+        bins=edges.tolist(),  # the same edges, as the sequence matplotlib's types ask for
+        weights=[passed, violated],
+        stacked=True,
+        color=['C0', 'tab:red'],
+        label=['passed', f'violated ({nv})' if nv else '_nolegend_'],
+    )
+    return edges
+
+
 def _plot_margins(ev: Evaluation, out: Path) -> Path:
-    plt = pyplot()
-    series = list(ev.margins.values())
-    n = max(len(series), 1)
-    cols = 2 if n > 1 else 1
-    nrows = math.ceil(n / cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(5.2 * cols, 3.0 * nrows + 0.4), squeeze=False)
-    for ax in axes.ravel()[len(series) :]:
-        ax.axis('off')
-    if not series:
-        axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
-    for ax, c in zip(axes.ravel(), series, strict=False):
-        scale, unit = DISPLAY_UNITS.get(c.unit, (1.0, c.unit))
-        h = c.histogram
-        nv = h.violations
-        ax.set_title(f'{c.name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')
-        ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
-        ax.set_ylabel('count')
-        if h.count == 0:
-            ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
-            continue
-        edges, passed, violated = margin_bars(c)
-        edges = edges * scale
-        centres = 0.5 * (edges[:-1] + edges[1:])
-        ax.hist(
-            [centres, centres],
-            bins=edges,
-            weights=[passed, violated],
-            stacked=True,
-            color=['C0', 'tab:red'],
-            label=['passed', f'violated ({nv})' if nv else '_nolegend_'],
+    panels = [
+        MarginPanel(
+            c.name, c.unit, c.histogram.count, c.histogram.violations, c.histogram.low, partial(_margin_hist, c)
         )
-        if edges[0] <= 0.0 <= edges[-1]:
-            ax.axvline(0.0, color='k', lw=1)
-        low = h.low * scale
-        ax.axvline(low, color='tab:orange', ls='--', lw=1, label=f'min {low:.4g}')
-        ax.legend(fontsize=7)
-        ax.ticklabel_format(axis='x', style='sci', scilimits=(-3, 4), useOffset=False)
-        if edges.size == 2:  # equal margins (to rounding): one bar
-            width = edges[1] - edges[0]
-            ax.set_xlim(edges[0] - width, edges[1] + width)
-    fig.tight_layout()
+        for c in ev.margins.values()
+    ]
+    fig = pyplot().figure(figsize=margins_size(len(panels), _MARGINS))
+    draw_margins(fig, panels, _MARGINS)
     return save_figure(fig, out / 'margins.png')
 
 
@@ -503,52 +444,16 @@ def _plot_landing(rec: Recording, out: Path) -> Path | None:
     data = landing_data(rec)
     if data is None:
         return None
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    edges, counts = data.edges, data.counts
+    fig, ax = pyplot().subplots(figsize=(9, 4.5))
     thinned = data.fraction < 1.0
-    ax.bar(
-        edges[:-1],
-        counts,
-        width=np.diff(edges),
-        align='edge',
-        color='C0',
-        edgecolor='white',
-        label=f'landed ({int(counts.sum())})',
-    )
-    if data.spilled.size:
-        ax.plot(
-            data.spilled,
-            np.zeros(data.spilled.size),
-            'x',
-            color='tab:red',
-            ms=8,
-            mew=2,
-            label=f'spilled over a wall ({data.spilled_count})',
-        )
-    ax.plot(
-        data.x,
-        np.full(data.x.size, -0.04 * max(counts.max(initial=1), 1)),
-        '|',
-        color='k',
-        ms=10,
-        label=f'landing x of a pseudo-random 1/{round(1 / data.fraction)} of the leaves'
+    text = LandingText(
+        spilled=f'spilled over a wall ({data.spilled_count})',
+        rug=f'landing x of a pseudo-random 1/{round(1 / data.fraction)} of the leaves'
         if thinned
         else 'landing x of each leaf',
+        span=f' over {rec.t_end:.3f} s',
     )
-    for wall in (data.x_left, data.x_right):
-        ax.axvline(wall, color='k', lw=3)
-    width = data.x_right - data.x_left
-    ax.set_xlim(data.x_left - 0.1 * width, data.x_right + 0.1 * width)
-    cv = 'n/a' if data.cv is None else f'{data.cv:.3f}'
-    ax.set_title(
-        f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}) over {rec.t_end:.3f} s',
-        fontsize=10,
-    )
-    ax.set_xlabel('x on the container floor, m (thick lines: the walls)')
-    ax.set_ylabel('leaves per bin')
-    ax.yaxis.set_major_locator(plt.MaxNLocator(integer=True))
-    ax.legend(fontsize=8, loc='upper right')
+    draw_landing(ax, data, text)
     fig.tight_layout()
     return save_figure(fig, out / 'landing.png')
 

@@ -10,11 +10,11 @@ supervisor's state and the events, laid out as the Foxglove app exports a layout
 from __future__ import annotations
 
 import json
-from typing import Any
 
 from folder_line.core.line.scene import Scene
 from folder_line.core.line.scenery import LINE_FRAME
 from folder_line.core.line.stream import LineStream
+from folder_line.files.json_types import JsonObject, JsonValue
 from folder_line.interfaces import (
     DIAGNOSTICS_TOPIC,
     EVENTS_TOPIC,
@@ -33,7 +33,7 @@ CONSTRAINT_PREFIX = 'folder_line/'
 _TIME = 'receiveTime'
 
 
-def _plot(title: str, paths: list[tuple[str, str]]) -> dict[str, Any]:
+def _plot(title: str, paths: list[tuple[str, str]]) -> JsonObject:
     """A Plot panel's configuration: ``paths`` of (message path, legend label), against line time."""
     return {
         'title': title,
@@ -47,7 +47,7 @@ def _plot(title: str, paths: list[tuple[str, str]]) -> dict[str, Any]:
     }
 
 
-def _column(ids: list[str]) -> str | dict[str, Any]:
+def _column(ids: list[str]) -> str | JsonObject:
     """Panels one above the other, in equal parts (a mosaic of nested splits)."""
     if len(ids) == 1:
         return ids[0]
@@ -59,7 +59,7 @@ def _column(ids: list[str]) -> str | dict[str, Any]:
     }
 
 
-def foxglove_layout(scene: Scene) -> dict[str, Any]:
+def foxglove_layout(scene: Scene) -> JsonObject:
     """The layout of ``scene``'s line.
 
     Left, the 3D panel on ``/line/markers`` in frame ``line``; right, a tab per node of its joint
@@ -78,14 +78,14 @@ def foxglove_layout(scene: Scene) -> dict[str, Any]:
         The layout, as the Foxglove app's *Import from file* takes it.
     """
     stream = LineStream(scene)
-    config: dict[str, Any] = {
+    config: JsonObject = {
         '3D!line': {
             'followTf': LINE_FRAME,
             'topics': {MARKERS_TOPIC: {'visible': True}},
             'layers': {'grid': {'layerId': 'foxglove.Grid', 'visible': True, 'frameId': LINE_FRAME, 'size': 10}},
         },
     }
-    tabs = []
+    tabs: list[JsonValue] = []
     for node, unit in UNIT_OF_NODE.items():
         names = stream.units.get(unit, ())
         topic = joint_states_topic(node)
@@ -97,7 +97,7 @@ def foxglove_layout(scene: Scene) -> dict[str, Any]:
             )
         if panels:
             tabs.append({'title': node, 'layout': _column(panels)})
-    margins = []
+    margins: list[str] = []
     for name, tally in stream.tallies.constraints.items():
         status = f'{DIAGNOSTICS_TOPIC}.status[:]{{name=="{CONSTRAINT_PREFIX}{name}"}}'
         margins.append(f'Plot!margin_{name}')
@@ -117,7 +117,7 @@ def foxglove_layout(scene: Scene) -> dict[str, Any]:
     }
     config['Plot!rate'] = _plot('sheets per second', [(f'{SHEET_RATE_TOPIC}.data', 'rate')])
     config['RawMessages!events'] = {'topicPath': EVENTS_TOPIC, 'diffEnabled': False, 'expansion': 'all'}
-    below = {
+    below: JsonObject = {
         'direction': 'row',
         'first': 'StateTransitions!supervisor',
         'second': {'direction': 'row', 'first': 'Plot!rate', 'second': 'RawMessages!events', 'splitPercentage': 50},

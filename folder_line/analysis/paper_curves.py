@@ -13,12 +13,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from folder_line.analysis.colours import QUANTITY_COLOURS
 from folder_line.core.mechanisms import delivery, layup, layup_reach
+from folder_line.core.mechanisms.delivery_results import DeliverySamples
+from folder_line.core.mechanisms.layup_state import LayupState
+
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn (folder_line.analysis.figures.pyplot)
+    from matplotlib.axes import Axes
 
 __all__ = ['COINCIDE_FRACTION', 'coincidence', 'exit_speed_curves', 'stroke_curves']
 
@@ -52,8 +57,14 @@ def _within(gap: float | None, other: str) -> str:
 
 
 def exit_speed_curves(
-    ax_swing: Any, ax_abs: Any, params: Any, v_tr: float, *, n: int = 721, show_swing_on_abs: bool = True
-) -> Any:
+    ax_swing: Axes,
+    ax_abs: Axes,
+    params: layup.LayupParams,
+    v_tr: float,
+    *,
+    n: int = 721,
+    show_swing_on_abs: bool = True,
+) -> LayupState:
     """The layup's exit speeds against the crank angle at nominal speed (paper L, figs. 4-5).
 
     Draws ``v_C``, ``v_E`` (m/s, signed: the exits' swing speed across the chutes) on
@@ -86,14 +97,32 @@ def exit_speed_curves(
     va_c = np.sqrt(st.vC * st.vC + v_tr * v_tr)
     va_e = np.sqrt(st.vE * st.vE + v_tr * v_tr)
     every = max(n // 24, 2)  # a marker every 15 deg; E's halfway between C's
-    c_style = {'color': QUANTITY_COLOURS['vC'], 'lw': 3.5, 'alpha': 0.55, 'marker': 'o', 'ms': 6}
-    e_style = {'color': QUANTITY_COLOURS['vE'], 'ls': '--', 'lw': 1.4, 'marker': 's', 'ms': 4}
     for ax, c, e, c_name, c_label, e_label in (
         (ax_swing, st.vC, st.vE, '$v_C$', '$v_C$ (exit of transporter 3)', '$v_E$ (exit of transporter 4)'),
         (ax_abs, va_c, va_e, '$v_{aC}$', r'$v_{aC}=\sqrt{v_C^2+v_{tr}^2}$', r'$v_{aE}=\sqrt{v_E^2+v_{tr}^2}$'),
     ):
-        ax.plot(deg, c, markevery=(0, every), label=c_label, **c_style)
-        ax.plot(deg, e, markevery=(every // 2, every), label=e_label + _within(coincidence(c, e), c_name), **e_style)
+        ax.plot(
+            deg,
+            c,
+            markevery=(0, every),
+            label=c_label,
+            color=QUANTITY_COLOURS['vC'],
+            lw=3.5,
+            alpha=0.55,
+            marker='o',
+            ms=6,
+        )
+        ax.plot(
+            deg,
+            e,
+            markevery=(every // 2, every),
+            label=e_label + _within(coincidence(c, e), c_name),
+            color=QUANTITY_COLOURS['vE'],
+            ls='--',
+            lw=1.4,
+            marker='s',
+            ms=4,
+        )
     ax_swing.axhline(0.0, color='k', lw=0.5)
     if show_swing_on_abs:
         ax_abs.plot(deg, np.abs(st.vC), color=QUANTITY_COLOURS['vC_no_belts'], lw=0.8, label='$|v_C|$ without belts')
@@ -106,14 +135,14 @@ def exit_speed_curves(
 
 
 def stroke_curves(
-    ax_eta: Any,
-    ax_kv: Any | None,
-    params: Any,
+    ax_eta: Axes,
+    ax_kv: Axes | None,
+    params: delivery.DeliveryParams,
     modes: Sequence[delivery.ReturnSection] = ('paper_mirror', 'geometric'),
     *,
     n: int = 2001,
     pairs: bool = True,
-) -> Any:
+) -> DeliverySamples | None:
     """The delivery's efficiency (and carriage speed ratio) along the stroke (paper D, fig. 2).
 
     Draws ``eta(u)`` for each return-section mode on ``ax_eta`` (with ``eta_A``,
@@ -124,8 +153,8 @@ def stroke_curves(
 
     Returns
     -------
-    DeliverySamples
-        The first mode's curve.
+    DeliverySamples or None
+        The first mode's curve (None without a mode).
     """
     u = np.linspace(0.0, 2.0, n)
     styles = ('-', '--', '-.', ':')

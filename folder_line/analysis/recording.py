@@ -19,9 +19,10 @@ import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from folder_line.analysis.gap_cycles import Unjudged, unjudged, without_unjudged
 from folder_line.analysis.streaming import stamp_priority
@@ -33,6 +34,7 @@ from folder_line.core.line.tuning import LineCommand, command_of
 from folder_line.core.types.events import EVENT_DTYPE, event_kind
 from folder_line.errors import InputFileError
 from folder_line.files.atomic import describe_path
+from folder_line.files.json_types import JsonObject
 from folder_line.files.yamlio import METADATA_LIMIT, load_yaml, read_text_bounded
 from folder_line.interfaces import (
     CLOCK_TOPIC,
@@ -48,6 +50,17 @@ from folder_line.interfaces import (
     parse_event_source,
     stamp_ns,
 )
+
+if TYPE_CHECKING:  # the message classes of the typestore the bags are read with (folder_line.bag.types)
+    from rosbags.typesys.stores.ros2_kilted import (
+        diagnostic_msgs__msg__DiagnosticArray as DiagnosticArray,
+    )
+    from rosbags.typesys.stores.ros2_kilted import (
+        sensor_msgs__msg__JointState as JointState,
+    )
+    from rosbags.typesys.stores.ros2_kilted import (
+        sensor_msgs__msg__TimeReference as TimeReference,
+    )
 
 __all__ = ['JOINT_SAMPLES', 'SUPERVISOR_STATUS_PREFIX', 'RecordedJoints', 'Recording', 'read_recording']
 
@@ -177,7 +190,7 @@ class Recording:
     """
 
     bag: BagContents
-    run: dict[str, Any] | None
+    run: JsonObject | None
     scene: Scene
     t_end: float
     duration: float
@@ -201,7 +214,7 @@ class Recording:
         return rows
 
 
-def _run_duration(run: Mapping[str, Any] | None, t_end: float) -> float:
+def _run_duration(run: JsonObject | None, t_end: float) -> float:
     """The run's duration (``run.json``'s ``duration_s``, else the line time reached), at least ``t_end``, s."""
     duration = t_end
     value = None if run is None else run.get('duration_s')
@@ -210,7 +223,7 @@ def _run_duration(run: Mapping[str, Any] | None, t_end: float) -> float:
     return max(duration, t_end)
 
 
-def _resolve(path: str | os.PathLike[str]) -> tuple[Path, dict[str, Any] | None]:
+def _resolve(path: str | os.PathLike[str]) -> tuple[Path, JsonObject | None]:
     """(bag directory, run.json or None) of a run directory or a bag directory."""
     bag_dir = BAG_DIR
     p = Path(path)
@@ -246,13 +259,13 @@ class _Grow:
     end: memory is the data's, with no Python object per message and no copy while growing (an
     hour of a 200 Hz topic is 720 000 rows)."""
 
-    def __init__(self, dtype: Any) -> None:
+    def __init__(self, dtype: npt.DTypeLike) -> None:
         self.dtype = dtype
         self.chunks: list[np.ndarray] = []
         self.chunk = np.zeros(_CHUNK, dtype=dtype)
         self.i = 0
 
-    def add(self, row: Any) -> None:
+    def add(self, row: npt.ArrayLike) -> None:
         if self.i == _CHUNK:
             self.chunks.append(self.chunk)
             self.chunk = np.zeros(_CHUNK, dtype=self.dtype)
@@ -327,7 +340,9 @@ class _Joints:
         self.has_eff = True
         sampler.nodes.append(self)
 
-    def add(self, msg: Any, stamp_ns: int, position: np.ndarray, velocity: np.ndarray, effort: np.ndarray) -> None:
+    def add(
+        self, msg: JointState, stamp_ns: int, position: np.ndarray, velocity: np.ndarray, effort: np.ndarray
+    ) -> None:
         """Append ``msg`` (stamped ``stamp_ns``, its three arrays already as float arrays) to the block."""
         j = len(self.names)
         if position.size != j or velocity.size != j or tuple(msg.name) != self.names:
@@ -413,7 +428,7 @@ class _Decoder:
         self.landing = _Grow(float)
 
     def message(self, topic: str, t_ns: int, msg: Any) -> None:
-        """Keep what the analysis needs of one message (logged at ``t_ns``)."""
+        """Keep what the analysis needs of one message (logged at ``t_ns``; of the topic's type)."""
         if topic == CLOCK_TOPIC:
             self.clock_end = max(self.clock_end, stamp_ns(msg.clock))
         elif topic == EVENTS_TOPIC:
@@ -433,7 +448,7 @@ class _Decoder:
         elif topic == LANDING_TOPIC:
             self.landing.add(float(msg.data))
 
-    def _event(self, msg: Any) -> None:
+    def _event(self, msg: TimeReference) -> None:
         """An event of ``/line/events`` (counted in ``bad_events`` if its source is not one)."""
         try:
             kind, sheet, cycle, value = parse_event_source(msg.source)
@@ -444,7 +459,7 @@ class _Decoder:
         self.ev_ns.add(t_ev)
         self.ev_rows.add((0.0, EVENT_KINDS.index(kind), sheet, cycle, value))  # t set later, from the ns
 
-    def _joint_states(self, topic: str, node: str, msg: Any) -> None:
+    def _joint_states(self, topic: str, node: str, msg: JointState) -> None:
         """A node's joint states: sampled from ``t_from`` on, their NaN and inf counted."""
         t_ns = stamp_ns(msg.header.stamp)
         three = [np.asarray(a, dtype=float) for a in (msg.position, msg.velocity, msg.effort)]
@@ -460,7 +475,7 @@ class _Decoder:
             if bad:
                 self.bad_values.append((t_ns / NS_PER_S, topic, bad))
 
-    def _diagnostics(self, msg: Any) -> None:
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
         """A ``/diagnostics`` message: its stamp, and the supervisor's statuses in it."""
         t_ns = stamp_ns(msg.header.stamp)
         self.diag_ns.add(t_ns)
@@ -495,7 +510,7 @@ def _bag_scene(contents: BagContents, path: str | os.PathLike[str]) -> Scene:
 
 def read_recording(
     path: str | os.PathLike[str],
-    on_message: Callable[[str, int, Any], None] | None = None,
+    on_message: Callable[[str, int, object], None] | None = None,
     *,
     t_to: float | None = None,
     t_from: float = 0.0,

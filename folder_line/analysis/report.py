@@ -37,7 +37,7 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, cast
 
 import numpy as np
 
@@ -362,7 +362,7 @@ def analyze(
     collector = CsvCollector() if csv else None
     start_ns = round(start * NS_PER_S)
 
-    def collect(topic: str, t_ns: int, msg: Any) -> None:
+    def collect(topic: str, t_ns: int, msg: object) -> None:
         if collector is not None and t_ns >= start_ns:
             collector(topic, t_ns, msg)
 
@@ -426,7 +426,7 @@ def _summary(rec: Recording, ev: Evaluation, check: EventCheck, t_from: float) -
         t_from=t_from,
         sheet_counter=rec.sheet_count,
         messages={t: s.count for t, s in rec.bag.topics.items()},
-        lost=None if rec.run is None else rec.run.get('lost'),
+        lost=None if rec.run is None else cast('dict[str, int] | None', rec.run.get('lost')),  # as run writes it
         events_check=check,
         recorded_transitions=recorded,
         gaps=list(rec.gaps),

@@ -17,7 +17,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TypeAlias
 
 from folder_line.analysis.recording import Recording
 from folder_line.bag.statuses import accepted_tunings
@@ -30,6 +30,7 @@ __all__ = [
     'KEY_SUPERVISOR',
     'SUPERVISOR_DEFAULTS',
     'StateTransition',
+    'SupervisorValue',
     'recorded_transitions',
     'replay_transitions',
     'supervisor_parameters',
@@ -84,15 +85,22 @@ def recorded_transitions(states: Sequence[tuple[int, str]]) -> list[StateTransit
     return out
 
 
+#: a value of the supervisor node's parameters (a rate, a lead, a switch, a policy)
+SupervisorValue: TypeAlias = float | bool | str
 #: the live supervisor node's parameters as ``folder-line run`` starts it (its defaults, and the
 #: rate of :class:`folder_line.ros.run.RunConfig`); a bag's custom data ``folder_line.supervisor``
 #: (JSON) overrides them. test/test_analysis.py keeps them equal to the node's.
-SUPERVISOR_DEFAULTS: dict[str, Any] = {'rate': 200.0, 'command_lead': 0.1, 'enforce': True, 'double_sheet': 'hold'}
+SUPERVISOR_DEFAULTS: dict[str, SupervisorValue] = {
+    'rate': 200.0,
+    'command_lead': 0.1,
+    'enforce': True,
+    'double_sheet': 'hold',
+}
 #: custom data key of the supervisor's parameters in a bag
 KEY_SUPERVISOR = 'folder_line.supervisor'
 
 
-def supervisor_parameters(rec: Recording) -> dict[str, Any]:
+def supervisor_parameters(rec: Recording) -> dict[str, SupervisorValue]:
     """The live supervisor's parameters: :data:`SUPERVISOR_DEFAULTS`, updated from the bag if it has them."""
     params = dict(SUPERVISOR_DEFAULTS)
     text = rec.bag.custom.get(KEY_SUPERVISOR)
@@ -107,7 +115,7 @@ def supervisor_parameters(rec: Recording) -> dict[str, Any]:
 
 
 def replay_transitions(
-    rec: Recording, params: Mapping[str, Any] | None = None
+    rec: Recording, params: Mapping[str, SupervisorValue] | None = None
 ) -> tuple[list[StateTransition], Supervisor]:
     """Replay the recorded inputs through :func:`folder_line.core.supervision.offline.replay`.
 
@@ -149,15 +157,6 @@ def replay_transitions(
         for _, name, v in rec.supervisor_status
         if name.endswith('/violation') and str(v.get('constraint', '')).startswith('lost:')
     ]
-    kwargs: dict[str, Any] = {
-        'periods': {},
-        'lead': float(p['command_lead']),
-        'check_period': period,
-        'enforce': bool(p['enforce']),
-        'double': str(p['double_sheet']),
-        'state': 'STARTING',
-        't_start': t_start,
-    }
     events, until = rec.events, max(rec.t_end, t_start)
     if rec.gaps:  # what the supervisor did after a gap depends on what it saw in it: replayed up to the first
         until = min(until, max(rec.gaps[0].first_ns / NS_PER_S, t_start))
@@ -170,7 +169,13 @@ def replay_transitions(
         lost=[x for x in lost if x[0] <= until],
         tunings=[x for x in tunings if x[0] <= until],
         until=until,
-        **kwargs,
+        periods={},
+        lead=float(p['command_lead']),
+        check_period=period,
+        enforce=bool(p['enforce']),
+        double=str(p['double_sheet']),
+        state='STARTING',
+        t_start=t_start,
     )
     out = [StateTransition(float(tr.t), tr.source, tr.target, tr.cause) for tr in sup.transitions]
     return out, sup

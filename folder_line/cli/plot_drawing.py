@@ -6,28 +6,29 @@ What each figure keeps of the line, and so what it shows, is told in :mod:`folde
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from folder_line.analysis.colours import QUANTITY_COLOURS
+from folder_line.analysis.efficiency_drawing import EfficiencyPoints, EfficiencyText, draw_efficiency, efficiency_rows
 from folder_line.analysis.exit_speed_points import ExitSpeedPoints, ExitSpeedText, draw_exit_speeds
-from folder_line.analysis.figures import (
-    DISPLAY_UNITS,
-    cyclogram_figure,
-    pyplot,
-    save_figure,
-)
-from folder_line.analysis.paper_curves import stroke_curves
-from folder_line.core.effects import chain_friction, leaf_flight
+from folder_line.analysis.figure_data import Landings
+from folder_line.analysis.figures import cyclogram_figure, pyplot, save_figure
+from folder_line.analysis.landing_drawing import LandingText, draw_landing
+from folder_line.analysis.margin_drawing import MarginLook, MarginPanel, draw_margins, margins_size
+from folder_line.core.effects import leaf_flight
 from folder_line.core.line.delivery_plan import delivery_plan
 from folder_line.core.line.margin_text import format_margin
 from folder_line.core.mechanisms import delivery
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 
 if TYPE_CHECKING:
-    from folder_line.cli.plots import FigureData
+    from matplotlib.axes import Axes
+
+    from folder_line.cli.plots import FigureData, StreamedHistogram
 
 __all__ = ['draw']
 
@@ -64,7 +65,7 @@ def _exit_speeds(data: FigureData, out: Path) -> Path | None:
     return save_figure(fig, out / 'exit_speeds.png')
 
 
-def _leaf_exits(ax: Any, data: FigureData) -> None:
+def _leaf_exits(ax: Axes, data: FigureData) -> None:
     for name, marker in (('C', 'v'), ('E', '^')):
         n = data.exit_counts[name]
         if not n['all']:
@@ -102,45 +103,14 @@ def _efficiency(data: FigureData, out: Path) -> Path | None:
     moving = v_chain[on] > 0.0
     kv = np.divide(v[on], v_chain[on], out=np.zeros(u.size), where=moving)
     torque = data.joint('torque')[on] if 'torque' in data.joints else np.zeros(0)
-    plt = pyplot()
-    rows = 3 if torque.size else 2
-    fig, axes = plt.subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
-    ax_eta, ax_kv = axes[0], axes[1]
-    stroke_curves(ax_eta, ax_kv, plan.params, ('geometric',), pairs=True)
-    ax_eta.plot(u, eta, 'o', ms=3, color='k', alpha=0.6, label=f'at the simulated carriage positions ({u.size} ticks)')
-    ax_kv.plot(u[moving], kv[moving], 'o', ms=3, color='k', alpha=0.6, label='simulated carriage speed / chain speed')
-    release = QUANTITY_COLOURS['release']
-    for ax in axes:
-        ax.axvline(plan.u_rel, color=release, ls='--', lw=1)
-    ax_eta.text(plan.u_rel, ax_eta.get_ylim()[0], ' release', color=release, va='bottom', fontsize=8)
-    ax_eta.set_ylabel('efficiency $\\eta$')
-    title = 'D: efficiency along the stroke (paper Fig. 2)'
-    if eta.size:
-        title += (
-            f'; min eta at the ticks drawn {eta.min():.3f}, of the model '
-            f'{delivery.stroke_minimum(plan.params, "eta")[1]:.3f}\n'
-            f'simulated at {data.ticks.text(int(t.size))}, {u.size} of them with a carriage on the stroke; '
-            f'{_span(data)}'
-        )
-    ax_eta.set_title(title, fontsize=9)
-    ax_eta.legend(fontsize=8, loc='lower left')
-    ax_kv.set_ylabel('carriage speed ratio $K_v$')
-    ax_kv.legend(fontsize=8, loc='lower left')
-    if torque.size:
-        ax_t = axes[2]
-        sch = plan.schedule
-        theta = sch.theta_enter0 + np.linspace(0.0, sch.T, 4001, endpoint=False)
-        a0, slack = sch.stroke_travel(theta)
-        stroke = a0 <= sch.S + slack
-        u_m = plan.path.position(np.clip(a0[stroke], 0.0, sch.S))
-        tq = np.asarray(chain_friction.sprocket_torque(scene, theta[stroke]), dtype=float)
-        order = np.argsort(u_m)
-        ax_t.plot(u_m[order], tq[order], color=QUANTITY_COLOURS['torque'], label='model: all carriages on the stroke')
-        ax_t.plot(u, torque, 'o', ms=3, color='k', alpha=0.6, label='simulated (effort on the chain)')
-        ax_t.set_ylabel('sprocket torque $M_1$, N m')
-        ax_t.legend(fontsize=8, loc='upper right')
-        ax_t.grid(alpha=0.3)
-    axes[-1].set_xlabel('stroke position u of the newest carriage (deceleration 0..1, acceleration 1..2)')
+    points = EfficiencyPoints(u, eta, kv, moving, torque)
+    sampling = (
+        f'simulated at {data.ticks.text(int(t.size))}, {u.size} of them with a carriage on the stroke; {_span(data)}'
+    )
+    text = EfficiencyText('simulated', 'ticks', 'the ticks drawn', sampling, 'simulated (effort on the chain)', 9)
+    rows = efficiency_rows(points)
+    fig, axes = pyplot().subplots(rows, 1, figsize=(9, 3.1 * rows + 0.6), sharex=True)
+    draw_efficiency(axes, scene, plan, points, text)
     fig.tight_layout()
     return save_figure(fig, out / 'efficiency.png')
 
@@ -162,73 +132,63 @@ def _cyclogram(data: FigureData, out: Path) -> Path | None:
     return save_figure(fig, out / 'cyclogram.png')
 
 
+def _bars(h: StreamedHistogram, name: str, unit_in: str, ax: Axes, scale: float) -> np.ndarray:
+    """One constraint's bars: passed and violated stacked, one bar about the value where the margins are
+    equal to rounding (said on the panel), a log count axis where a bin would not show; their edges."""
+    nv = h.violated
+    edges = h.edges * scale
+    flat = unit_in != 'sheets' and h.high - h.low <= 1e-6 * max(abs(h.low), abs(h.high))
+    if flat:  # equal to rounding: one bar about the value
+        mid = 0.5 * (h.low + h.high) * scale
+        half = max(abs(mid) * 0.02, 1e-12)
+        edges = np.array([mid - half, mid + half])
+        passed, failed = np.array([h.count - nv]), np.array([nv])
+        ax.text(
+            0.5,
+            0.5,
+            f'all {h.count} equal to {format_margin(h.low, unit_in, name)}\n(to rounding: one bar about it)',
+            ha='center',
+            va='center',
+            transform=ax.transAxes,
+            fontsize=8,
+            bbox={'facecolor': 'white', 'alpha': 0.8, 'edgecolor': 'none'},
+        )
+    else:
+        passed, failed = h.passed, h.failed
+    width = np.diff(edges)
+    nonzero = np.concatenate((passed, failed))
+    nonzero = nonzero[nonzero > 0]
+    if nonzero.size and nonzero.min() * 100 < nonzero.max():  # a bin under 1 % of the tallest: invisible
+        ax.set_yscale('log')
+        ax.set_ylabel('count (log scale)')
+    ax.bar(edges[:-1], passed, width=width, align='edge', color='C0', label='passed')
+    if nv:
+        ax.bar(edges[:-1], failed, width=width, bottom=passed, align='edge', color='tab:red', label=f'violated ({nv})')
+    return edges
+
+
 def _margins(data: FigureData, out: Path) -> Path:
-    plt = pyplot()
-    names = list(data.margins)
-    n = max(len(names), 1)
-    cols = 2 if n > 1 else 1
-    nrows = math.ceil(n / cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(5.4 * cols, 3.1 * nrows + 0.7), squeeze=False)
-    for ax in axes.ravel()[len(names) :]:
-        ax.axis('off')
-    if not names:
-        axes[0, 0].text(0.5, 0.5, 'no constraint evaluated in this scene', ha='center', va='center')
-    for ax, name in zip(axes.ravel(), names, strict=False):
-        h = data.margins[name]
-        unit_in = data.units[name]
-        scale, unit = DISPLAY_UNITS.get(unit_in, (1.0, unit_in))
-        nv = h.violated
-        ax.set_title(f'{name}: {h.count} evaluations, {nv} violated', fontsize=9, color='tab:red' if nv else 'k')
-        ax.set_xlabel(f'margin, {unit}' if unit not in ('', '1') else 'margin (dimensionless)')
-        ax.set_ylabel('count')
-        if h.count == 0:
-            ax.text(0.5, 0.5, 'no evaluation', ha='center', va='center', transform=ax.transAxes)
-            continue
-        edges = h.edges * scale
-        flat = unit_in != 'sheets' and h.high - h.low <= 1e-6 * max(abs(h.low), abs(h.high))
-        if flat:  # equal to rounding: one bar about the value
-            mid = 0.5 * (h.low + h.high) * scale
-            half = max(abs(mid) * 0.02, 1e-12)
-            edges = np.array([mid - half, mid + half])
-            passed, failed = np.array([h.count - nv]), np.array([nv])
-            ax.text(
-                0.5,
-                0.5,
-                f'all {h.count} equal to {format_margin(h.low, unit_in, name)}\n(to rounding: one bar about it)',
-                ha='center',
-                va='center',
-                transform=ax.transAxes,
-                fontsize=8,
-                bbox={'facecolor': 'white', 'alpha': 0.8, 'edgecolor': 'none'},
-            )
-        else:
-            passed, failed = h.passed, h.failed
-        width = np.diff(edges)
-        nonzero = np.concatenate((passed, failed))
-        nonzero = nonzero[nonzero > 0]
-        if nonzero.size and nonzero.min() * 100 < nonzero.max():  # a bin under 1 % of the tallest: invisible
-            ax.set_yscale('log')
-            ax.set_ylabel('count (log scale)')
-        ax.bar(edges[:-1], passed, width=width, align='edge', color='C0', label='passed')
-        if nv:
-            ax.bar(
-                edges[:-1], failed, width=width, bottom=passed, align='edge', color='tab:red', label=f'violated ({nv})'
-            )
-        if edges[0] <= 0.0 <= edges[-1]:
-            ax.axvline(0.0, color='k', lw=1)
-        low = h.low * scale
-        ax.axvline(low, color='tab:orange', ls='--', lw=1, label=f'min {low:.4g}')
-        ax.legend(fontsize=7)
-        ax.ticklabel_format(axis='x', style='sci', scilimits=(-3, 4), useOffset=False)
-        span = edges[-1] - edges[0]
-        ax.set_xlim(edges[0] - 0.05 * span, edges[-1] + 0.05 * span)
-    fig.suptitle(
-        f'margins of every constraint judged in {_span(data)}: exact counts in bins of a streamed histogram '
+    panels = [
+        MarginPanel(name, data.units[name], h.count, h.violated, h.low, partial(_bars, h, name, data.units[name]))
+        for name, h in data.margins.items()
+    ]
+    look = MarginLook(
+        5.4,
+        3.1,
+        0.7,
+        pad=0.05,
+        one_bar_pad=0.05,
+        title=f'margins of every constraint judged in {_span(data)}: exact counts in bins of a streamed histogram '
         '(widths double as the range grows)',
-        fontsize=9,
     )
-    fig.tight_layout()
+    fig = pyplot().figure(figsize=margins_size(len(panels), look))
+    draw_margins(fig, panels, look)
     return save_figure(fig, out / 'margins.png')
+
+
+def _drawn(count: int, drawn: int) -> float:
+    """The fraction of ``count`` items ``drawn`` (1 of none)."""
+    return drawn / count if count else 1.0
 
 
 def _landing(data: FigureData, out: Path) -> Path | None:
@@ -236,50 +196,28 @@ def _landing(data: FigureData, out: Path) -> Path | None:
     if cont is None:
         return None
     hist = leaf_flight.histogram_of_counts(data.landed, cont.x_left, cont.x_right)
-    edges, counts = np.asarray(hist.edges), np.asarray(hist.counts)
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    ax.bar(
-        edges[:-1],
-        counts,
-        width=np.diff(edges),
-        align='edge',
-        color='C0',
-        edgecolor='white',
-        label=f'landed ({int(counts.sum())})',
+    x, spilled = data.landed_x.column('x'), data.spilled_x.column('x')
+    landings = Landings(
+        x=x,
+        spilled=spilled,
+        landed=data.landed_x.count,
+        spilled_count=data.spilled_x.count,
+        fraction=min(_drawn(data.landed_x.count, x.size), _drawn(data.spilled_x.count, spilled.size)),
+        edges=np.asarray(hist.edges),
+        counts=np.asarray(hist.counts),
+        cv=hist.cv,
+        x_left=cont.x_left,
+        x_right=cont.x_right,
     )
-    spilled = data.spilled_x.column('x')
-    if data.spilled_x.count:
-        drawn = '' if spilled.size == data.spilled_x.count else f'; {spilled.size} drawn'
-        ax.plot(
-            spilled,
-            np.zeros(spilled.size),
-            'x',
-            color='tab:red',
-            ms=8,
-            mew=2,
-            label=f'spilled over a wall ({data.spilled_x.count}{drawn})',
-        )
-    x = data.landed_x.column('x')
+    drawn = '' if spilled.size == data.spilled_x.count else f'; {spilled.size} drawn'
     rug = (
         'landing x of each leaf'
         if x.size == data.landed_x.count
         else f'landing x of {x.size} leaves (a pseudo-random sample)'
     )
-    ax.plot(x, np.full(x.size, -0.04 * max(counts.max(initial=1), 1)), '|', color='k', ms=10, label=rug)
-    for wall in (cont.x_left, cont.x_right):
-        ax.axvline(wall, color='k', lw=3)
-    width = cont.x_right - cont.x_left
-    ax.set_xlim(cont.x_left - 0.1 * width, cont.x_right + 0.1 * width)
-    cv = 'n/a' if hist.cv is None else f'{hist.cv:.3f}'
-    ax.set_title(
-        f'L: leaf landing across the container ({len(counts)} bins, CV of the counts {cv}), {_span(data)}',
-        fontsize=10,
-    )
-    ax.set_xlabel('x on the container floor, m (thick lines: the walls)')
-    ax.set_ylabel('leaves per bin')
-    ax.yaxis.set_major_locator(plt.MaxNLocator(integer=True))
-    ax.legend(fontsize=8, loc='upper right')
+    text = LandingText(f'spilled over a wall ({data.spilled_x.count}{drawn})', rug, f', {_span(data)}')
+    fig, ax = pyplot().subplots(figsize=(9, 4.5))
+    draw_landing(ax, landings, text)
     fig.tight_layout()
     return save_figure(fig, out / 'landing.png')
 

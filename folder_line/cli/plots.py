@@ -44,10 +44,9 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -65,7 +64,7 @@ from folder_line.core.line.tuning import LineCommand
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import target_rate
 from folder_line.core.supervision.settings import CHECK_PERIOD, SPEED_REACHED
-from folder_line.core.types.events import ConstraintSeries, event_kind
+from folder_line.core.types.events import ConstraintSeries, JointSamples, event_kind
 from folder_line.errors import OutputError
 from folder_line.files.atomic import check_output_dir, claim_output_dir
 from folder_line.interfaces import NS_PER_S
@@ -272,7 +271,7 @@ class TickGrid:
         return f'{grid}, {drawn} drawn (a pseudo-random 1/{2**self.level})'
 
 
-def _column(js: Any, name: str, quantity: str = 'position') -> np.ndarray:
+def _column(js: JointSamples, name: str, quantity: str = 'position') -> np.ndarray:
     data = getattr(js, quantity)
     out: np.ndarray = data[:, js.names.index(name)]
     return out
@@ -300,7 +299,7 @@ class _Cyclogram:
         self.held: list[tuple[float, np.ndarray]] = []  # (window end, its events of the kinds)
         self.first: list[int] = []  # the first n cycles judged at the knife
         self.contact: dict[int, float] = {}  # cycle -> its knife contact, for the cycles wanted
-        self.rows: dict[int, dict[str, Any]] = {}  # cycle -> its row, once taken
+        self.rows: dict[int, CycleRow] = {}  # cycle -> its row, once taken (releases and margins added when done)
         self.release: dict[int, float] = {}  # sheet -> released on the pile, for the sheets of the rows
         self.margins: dict[int, dict[str, float]] = {}  # cycle -> constraint -> margin, for the cycles wanted
         self.held_rows: list[tuple[float, list[ConstraintSeries]]] = []
@@ -396,22 +395,11 @@ class _Cyclogram:
             t_a = first_time('at_stops', 'sheet', sid)
             rel = first_time('released_on_pile', 'sheet', sid)
             self.release[sid] = math.nan if rel is None else rel
-            sheets.append(
-                {
-                    'sheet': sid,
-                    'handover': float(s['t']),
-                    'at_stops': t_a,
-                    'settled': first_time('settled', 'sheet', sid) if bouncing else t_a,
-                }
-            )
-        self.rows[k] = {
-            'cycle': k,
-            'start': t0,
-            'contact': tc,
-            'exit': first_time('knife_exit', 'cycle', k),
-            'deadline': float(np.asarray(drive.time_of(np.asarray([th_dead])), dtype=float)[0]),
-            'sheets': sheets,
-        }
+            settled = first_time('settled', 'sheet', sid) if bouncing else t_a
+            sheets.append(SheetTimes(sid, float(s['t']), t_a, settled, None))
+        exit_ = first_time('knife_exit', 'cycle', k)
+        deadline = float(np.asarray(drive.time_of(np.asarray([th_dead])), dtype=float)[0])
+        self.rows[k] = CycleRow(k, t0, tc, exit_, deadline, sheets, {})
 
     def done(self) -> list[CycleRow]:
         """The rows drawn, by cycle: with each sheet's release (None if not released in the span) and the margins."""
@@ -421,19 +409,10 @@ class _Cyclogram:
                 continue
             row = self.rows[c]
             sheets = [
-                SheetTimes(
-                    s['sheet'],
-                    s['handover'],
-                    s['at_stops'],
-                    s['settled'],
-                    None if math.isnan(self.release.get(s['sheet'], math.nan)) else self.release[s['sheet']],
-                )
-                for s in row['sheets']
+                replace(s, release=None if math.isnan(self.release.get(s.sheet, math.nan)) else self.release[s.sheet])
+                for s in row.sheets
             ]
-            margins = dict(self.margins.get(c, {}))
-            out.append(
-                CycleRow(row['cycle'], row['start'], row['contact'], row['exit'], row['deadline'], sheets, margins)
-            )
+            out.append(replace(row, sheets=sheets, margins=dict(self.margins.get(c, {}))))
         return out
 
 
@@ -577,7 +556,7 @@ def collect(
     *,
     start: float | None = None,
     commands: Sequence[LineCommand] = (),
-    progress: Any = None,
+    progress: Callable[[float], None] | None = None,
 ) -> tuple[FigureData, LineSummary | WindowSummary]:
     """Stream the line over ``duration`` s (from ``start`` on: ``--from``) keeping the figures' data.
 

@@ -10,7 +10,6 @@ named it.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from folder_line.config.keys import KeyInfo, inert_keys, scene_keys
 from folder_line.config.scenes import apply_overrides
@@ -19,7 +18,7 @@ from folder_line.errors import ParameterError
 __all__ = ['check_key', 'key_info', 'key_unit', 'scene_value']
 
 
-def key_info(source: Mapping[str, Any], key: str, option: str) -> KeyInfo:
+def key_info(source: Mapping[str, object], key: str, option: str) -> KeyInfo:
     """What ``simulate --list-keys`` says of ``key`` in the scene ``source``.
 
     Parameters
@@ -53,12 +52,12 @@ def key_info(source: Mapping[str, Any], key: str, option: str) -> KeyInfo:
     raise ParameterError(option, key, f'{head} has no parameter {key.partition(".")[2]!r}{has}')
 
 
-def check_key(source: Mapping[str, Any], key: str, option: str) -> None:
+def check_key(source: Mapping[str, object], key: str, option: str) -> None:
     """Refuse, before any work, a key the scene does not have (:func:`key_info`)."""
     key_info(source, key, option)
 
 
-def scene_value(source: Mapping[str, Any], key: str) -> Any:
+def scene_value(source: Mapping[str, object], key: str) -> object:
     """The value the scene itself gives ``key`` (its file, the defaults and ``--set`` merged), or None."""
     try:
         return key_info(source, key, 'key').value
@@ -66,7 +65,7 @@ def scene_value(source: Mapping[str, Any], key: str) -> Any:
         return None
 
 
-def key_unit(source: Mapping[str, Any], key: str) -> str:
+def key_unit(source: Mapping[str, object], key: str) -> str:
     """Unit of a scene key (``'m/s'`` for ``feed_transporter.V_tr``); '' for a ratio, a count or a name."""
     try:
         return key_info(source, key, 'key').unit

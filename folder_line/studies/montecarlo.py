@@ -48,15 +48,26 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import IO, Any
+from typing import IO
 
 import numpy as np
 
+from folder_line.config.scenes import SceneMapping
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.core.line.model import WINDOW
 from folder_line.core.line.scene import parse_scene
 from folder_line.core.line.stream import LineStream
 from folder_line.errors import ParameterError
+from folder_line.studies.montecarlo_figures import (
+    EVERY_MARGIN,
+    Aggregate,
+    ConstraintStats,
+    MarginDistribution,
+    MarginHistogram,
+    MetricStats,
+    MonteCarloResult,
+    Proportion,
+)
 from folder_line.studies.runner import Cluster, for_each_result
 
 __all__ = [
@@ -116,7 +127,7 @@ class SampleTask:
 
     Attributes
     ----------
-    source : dict
+    source : SceneMapping
         The complete merged scene mapping (:func:`folder_line.config.scenes.scene_mapping`,
         or ``dict(scene.source)``); parsed on the worker.
     duration : float
@@ -125,7 +136,7 @@ class SampleTask:
         The sample's index (its seed is :func:`sample_seed` of the scene's seed and it).
     """
 
-    source: dict[str, Any]
+    source: SceneMapping
     duration: float
     index: int
 
@@ -316,9 +327,8 @@ def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[flo
     return lo, hi
 
 
-def _proportion(k: int, n: int) -> dict[str, Any]:
-    lo, hi = clopper_pearson(k, n)
-    return {'p': k / n if n else None, 'ci95': [lo, hi], 'k': k, 'n': n}
+def _proportion(k: int, n: int) -> Proportion:
+    return Proportion(k / n if n else None, clopper_pearson(k, n), k, n)
 
 
 @dataclass
@@ -369,10 +379,10 @@ class Pool:
                 pooled.complete = False
             pooled.keys, pooled.margins = keys[keep], margins[keep]
 
-    def result(self) -> dict[str, Any]:
+    def result(self) -> Aggregate:
         """The aggregate of the samples pooled (:func:`aggregate`)."""
         indices = sorted(self.metrics)
-        constraints: dict[str, Any] = {}
+        constraints: dict[str, ConstraintStats] = {}
         for name in sorted(self.constraints, key=lambda n: self.order[n]):
             pooled = self.constraints[name]
             rows = [pooled.scalars[i] for i in indices if i in pooled.scalars]
@@ -383,43 +393,43 @@ class Pool:
                 moments = _chan(moments, (n, mean, m2))
             low = min((r[2] for r in rows if r[0]), default=math.inf)
             high = max((r[3] for r in rows if r[0]), default=-math.inf)
-            constraints[name] = {
-                'unit': pooled.unit,
-                'p_cycle': _proportion(violations, evaluations),
-                'p_run': _proportion(sum(1 for r in rows if r[1] > 0), len(rows)),
-                'margin': _distribution(pooled.margins, moments, low, high, pooled.complete),
-            }
+            constraints[name] = ConstraintStats(
+                pooled.unit,
+                _proportion(violations, evaluations),
+                _proportion(sum(1 for r in rows if r[1] > 0), len(rows)),
+                _distribution(pooled.margins, moments, low, high, pooled.complete),
+            )
         paths: dict[str, list[float]] = {}
         for i in indices:
             for path, value in self.metrics[i].items():
                 paths.setdefault(path, []).append(value)
         metrics = {
-            path: {
-                'mean': float(np.mean(v)),
-                'std': float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
-                'min': float(np.min(v)),
-                'max': float(np.max(v)),
-                'n': len(v),
-            }
+            path: MetricStats(
+                float(np.mean(v)),
+                float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
+                float(np.min(v)),
+                float(np.max(v)),
+                len(v),
+            )
             for path, v in paths.items()
             if all(math.isfinite(x) for x in v)
         }
-        return {
-            'samples': len(indices),
-            'seeds': [self.seeds[i] for i in indices],
-            'interval': f'Clopper-Pearson (exact binomial), {CONFIDENCE:.0%}',
-            'constraints': constraints,
-            'metrics': metrics,
-        }
+        return Aggregate(
+            len(indices),
+            tuple(self.seeds[i] for i in indices),
+            f'Clopper-Pearson (exact binomial), {CONFIDENCE:.0%}',
+            constraints,
+            metrics,
+        )
 
 
 def _distribution(
     kept: np.ndarray, moments: tuple[int, float, float], low: float, high: float, complete: bool
-) -> dict[str, Any]:
+) -> MarginDistribution:
     """The margin distribution: count, mean, std, extremes exact; quantiles and histogram of the margins kept."""
     count, mean, m2 = moments
     if count == 0 or kept.size == 0:
-        return {'count': 0}
+        return MarginDistribution(0)
     lo, hi = low, high
     if hi - lo <= _FLAT_ULPS * float(np.spacing(max(abs(lo), abs(hi)))):
         # one value up to rounding (a constraint no variation reaches): one narrow band around it, as
@@ -429,22 +439,22 @@ def _distribution(
     counts, edges = np.histogram(kept, bins=HIST_BINS, range=(lo, hi))
     quantiles = {f'{q:g}': float(v) for q, v in zip(QUANTILES, np.quantile(kept, QUANTILES), strict=True)}
     quantiles['0'], quantiles['1'] = low, high  # exact, kept or not
-    return {
-        'count': int(count),
-        'kept': int(kept.size),
-        'method': 'every margin'
+    return MarginDistribution(
+        count=int(count),
+        kept=int(kept.size),
+        method=EVERY_MARGIN
         if complete
         else f'a uniform random sample of {kept.size} of the {count} margins (those of the smallest random keys)',
-        'mean': float(mean),
-        'std': float(math.sqrt(m2 / (count - 1))) if count > 1 else 0.0,
-        'min': low,
-        'max': high,
-        'quantiles': quantiles,
-        'histogram': {'counts': [int(c) for c in counts], 'edges': [float(e) for e in edges]},
-    }
+        mean=float(mean),
+        std=float(math.sqrt(m2 / (count - 1))) if count > 1 else 0.0,
+        min=low,
+        max=high,
+        quantiles=quantiles,
+        histogram=MarginHistogram(tuple(int(c) for c in counts), tuple(float(e) for e in edges)),
+    )
 
 
-def aggregate(results: Sequence[SampleResult]) -> dict[str, Any]:
+def aggregate(results: Sequence[SampleResult]) -> Aggregate:
     """Pool samples into violation probabilities, margin distributions and metric statistics (:class:`Pool`).
 
     Parameters
@@ -454,11 +464,11 @@ def aggregate(results: Sequence[SampleResult]) -> dict[str, Any]:
 
     Returns
     -------
-    dict
-        JSON-ready: ``samples``, ``seeds``, ``interval`` (how the intervals are made), ``constraints``
-        (per name: ``unit``, ``p_cycle`` and ``p_run`` each ``{p, ci95, k, n}``, ``margin`` the
-        distribution: ``count``, ``kept``, ``method``, ``mean``, ``std``, ``min``, ``max``,
-        ``quantiles``, ``histogram``) and ``metrics`` (per path: ``mean``, ``std``, ``min``, ``max``, ``n``).
+    Aggregate
+        ``samples``, ``seeds``, ``interval`` (how the intervals are made), ``constraints`` (per name:
+        ``unit``, ``p_cycle`` and ``p_run`` each a :class:`~folder_line.studies.montecarlo_figures.Proportion`,
+        ``margin`` the distribution) and ``metrics`` (per path: ``mean``, ``std``, ``min``, ``max``, ``n``);
+        its ``as_json()`` is JSON-ready.
     """
     pool = Pool()
     for r in sorted(results, key=lambda r: r.index):
@@ -467,13 +477,13 @@ def aggregate(results: Sequence[SampleResult]) -> dict[str, Any]:
 
 
 def monte_carlo(
-    source: dict[str, Any], duration: float, samples: int, cluster: Cluster, progress: IO[str] | None = None
-) -> dict[str, Any]:
+    source: SceneMapping, duration: float, samples: int, cluster: Cluster, progress: IO[str] | None = None
+) -> MonteCarloResult:
     """Run ``samples`` seeds of a scene on a Dask cluster and :func:`aggregate` them.
 
     Parameters
     ----------
-    source : dict
+    source : SceneMapping
         Complete merged scene mapping (picklable; :class:`SampleTask`).
     duration : float
         Line time of each sample, s.
@@ -486,7 +496,7 @@ def monte_carlo(
 
     Returns
     -------
-    dict
+    MonteCarloResult
         :func:`aggregate`'s, with ``scene``, ``seed`` (the scene's) and ``duration_s``.
 
     Raises
@@ -501,6 +511,4 @@ def monte_carlo(
     tasks = [SampleTask(plain, float(duration), i) for i in range(samples)]
     pool = Pool()
     for_each_result(run_sample, tasks, cluster, lambda _, r: pool.add(r), label='samples', progress=progress)
-    out = {'scene': scene.name, 'seed': scene.seed, 'duration_s': float(duration)}
-    out.update(pool.result())
-    return out
+    return MonteCarloResult(scene.name, scene.seed, float(duration), pool.result())

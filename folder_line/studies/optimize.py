@@ -27,11 +27,11 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import IO, Any, NamedTuple
+from typing import IO, TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from folder_line.config.scenes import apply_overrides
+from folder_line.config.scenes import SceneMapping, apply_overrides
 from folder_line.core.line.layup_figures import Landing, LayupFigures
 from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.model import run_summary
@@ -41,6 +41,9 @@ from folder_line.core.mechanisms.layup_design import crank_rocker_margin, exit_c
 from folder_line.core.numerics.validate import build
 from folder_line.errors import FolderLineError, ParameterError
 from folder_line.studies.grid import parse_bounds
+
+if TYPE_CHECKING:
+    from scipy.optimize import OptimizeResult as ScipyResult
 
 __all__ = [
     'CONSTRAINTS',
@@ -128,7 +131,7 @@ def parse_design_vary(items: Sequence[str], option: str = '--vary') -> tuple[Bou
 
 
 def default_bounds(
-    layup: Mapping[str, Any], keys: Sequence[str] = DEFAULT_KEYS, span: float = DEFAULT_SPAN
+    layup: Mapping[str, float], keys: Sequence[str] = DEFAULT_KEYS, span: float = DEFAULT_SPAN
 ) -> tuple[Bound, ...]:
     """Bounds ``value · (1 ± span)`` around the scene's own values of ``keys``.
 
@@ -272,7 +275,7 @@ def _layup_of(summary: LineSummary) -> LayupFigures:
     return summary.layup
 
 
-def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> dict[str, Any]:
+def _layup_section(mapping: SceneMapping, values: Mapping[str, float]) -> dict[str, float]:
     section = dict(mapping['machines']['layup'])
     section.update(values)
     return section
@@ -282,7 +285,7 @@ def _layup_section(mapping: Mapping[str, Any], values: Mapping[str, float]) -> d
 _Geometry = tuple[dict[str, float], dict[str, float | None], bool]
 
 
-def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: float) -> _Geometry:
+def _geometry(mapping: SceneMapping, values: Mapping[str, float], mu_min: float) -> _Geometry:
     """The geometric margins of a candidate (cheap, no simulation), its transmission angles, and whether all hold."""
     section = _layup_section(mapping, values)
     try:
@@ -315,7 +318,7 @@ def _geometry(mapping: Mapping[str, Any], values: Mapping[str, float], mu_min: f
 
 
 def evaluate(
-    mapping: Mapping[str, Any],
+    mapping: SceneMapping,
     values: Mapping[str, float],
     settings: OptimizeSettings,
     *,
@@ -389,7 +392,7 @@ class OptimizeResult:
     start: Candidate
     best: Candidate
     scene: Scene
-    mapping: dict[str, Any]
+    mapping: SceneMapping
     evaluations: dict[str, int]
     message: str
     nit: int
@@ -421,7 +424,7 @@ class OptimizeResult:
         return [k for k, tol in ACTIVE_TOL.items() if k in c.constraints and c.constraints[k] <= tol]
 
 
-def check_scene(mapping: Mapping[str, Any]) -> Scene:
+def check_scene(mapping: SceneMapping) -> Scene:
     """Validate the scene an optimisation starts from; returns it parsed.
 
     Raises
@@ -442,7 +445,7 @@ def check_scene(mapping: Mapping[str, Any]) -> Scene:
 
 
 def optimize_layup(
-    mapping: Mapping[str, Any],
+    mapping: SceneMapping,
     bounds: Sequence[Bound],
     settings: OptimizeSettings = OptimizeSettings(),
     *,
@@ -537,7 +540,7 @@ class _Search:
     and the progress callback), with the candidates they have seen and what they counted."""
 
     def __init__(
-        self, mapping: Mapping[str, Any], keys: list[str], settings: OptimizeSettings, progress: IO[str] | None
+        self, mapping: SceneMapping, keys: list[str], settings: OptimizeSettings, progress: IO[str] | None
     ) -> None:
         self.mapping = mapping
         self.keys = keys
@@ -577,7 +580,7 @@ class _Search:
                 self.counts['spill_or_damage'] += cand.constraints['no_spill_or_damage'] < 0.0
         return cand.objective
 
-    def report(self, intermediate_result: Any) -> None:
+    def report(self, intermediate_result: ScipyResult) -> None:
         """One line per generation on the progress stream: the best CV so far."""
         self.generation += 1
         if self.progress is not None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any
 
 from folder_line.analysis.figures import pyplot, save_figure
 from folder_line.studies.optimize import ACTIVE_TOL, CONSTRAINTS, Candidate, OptimizeResult
@@ -70,7 +69,7 @@ def verdict(result: OptimizeResult, walls: tuple[float, float] | None = None) ->
     )
 
 
-def _candidate(c: Candidate) -> dict[str, Any]:
+def _candidate(c: Candidate) -> dict[str, object]:
     lay, landing = c.layup, c.landing
     return {
         'values': c.values,
@@ -89,7 +88,7 @@ def _candidate(c: Candidate) -> dict[str, Any]:
 
 def result_document(
     result: OptimizeResult, scene_file: str | None = None, walls: tuple[float, float] | None = None
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """The JSON-ready record of an optimisation (``optimize.json``); ``walls`` as for :func:`verdict`."""
     r, s = result, result.settings
     return {

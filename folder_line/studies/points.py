@@ -16,9 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
-from folder_line.config.scenes import apply_overrides
+from folder_line.config.scenes import SceneMapping, apply_overrides
 from folder_line.core.line.line_summary import LineSummary
 from folder_line.core.line.metrics import flatten_metrics, resolve_metric
 from folder_line.core.line.model import run_summary
@@ -53,7 +52,7 @@ class PointTask:
     ----------
     source : mapping
         The complete scene mapping (:func:`folder_line.config.scenes.scene_mapping`), not yet validated.
-    overrides : tuple of (str, value)
+    overrides : tuple of (str, float)
         The point's ``--set`` overrides, in the order of the varied keys.
     duration : float
         Line time simulated, s.
@@ -61,8 +60,8 @@ class PointTask:
         Metric paths into the summary (:func:`folder_line.core.line.metrics.flatten_metrics`).
     """
 
-    source: Mapping[str, Any]
-    overrides: tuple[tuple[str, Any], ...]
+    source: Mapping[str, object]
+    overrides: tuple[tuple[str, float | int], ...]
     duration: float
     metrics: tuple[str, ...]
 
@@ -85,12 +84,12 @@ class PointResult:
     status: str
 
 
-def point_source(task: PointTask) -> dict[str, Any]:
+def point_source(task: PointTask) -> SceneMapping:
     """The point's complete scene mapping: the task's mapping with its overrides applied."""
     return apply_overrides(task.source, dict(task.overrides))
 
 
-def simulate_summary(source: Mapping[str, Any], duration: float) -> LineSummary:
+def simulate_summary(source: Mapping[str, object], duration: float) -> LineSummary:
     """Parse a complete scene mapping, simulate ``duration`` s of line time and return the summary (its
     metrics: :func:`folder_line.core.line.metrics.flatten_metrics` of its ``as_json()``).
 

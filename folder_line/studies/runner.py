@@ -18,7 +18,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import IO, Any, TypeVar
+from typing import IO, TypeVar
 
 from folder_line.errors import ParameterError
 
@@ -217,10 +217,10 @@ def run_tasks(
     Exception
         The first exception a task raised, re-raised here with its own type and message.
     """
-    results: list[Any] = [None] * len(tasks)
+    results: dict[int, R] = {}
 
     def keep(i: int, result: R) -> None:
         results[i] = result
 
     for_each_result(fn, tasks, cluster, keep, label=label, progress=progress)
-    return results
+    return [results[i] for i in range(len(tasks))]

@@ -29,7 +29,7 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import IO, Any
+from typing import IO
 
 import numpy as np
 
@@ -144,7 +144,7 @@ class SolveResult:
     scan: tuple[tuple[float, float | None], ...]
     evaluations: int
 
-    def document(self) -> dict[str, Any]:
+    def document(self) -> dict[str, object]:
         """The JSON of ``--json``."""
         return {
             'value': self.value,
@@ -163,7 +163,7 @@ class SolveResult:
         }
 
 
-def _default_range(source: Mapping[str, Any], key: str) -> tuple[float, float]:
+def _default_range(source: Mapping[str, object], key: str) -> tuple[float, float]:
     x0 = scene_value(source, key)
     if isinstance(x0, bool) or not isinstance(x0, int | float) or x0 == 0 or not math.isfinite(x0):
         raise ParameterError(
@@ -209,7 +209,7 @@ class _SignedDistance:
     holds, at a value of the key; each value simulated once (``known`` seeds it), counted in :attr:`count`."""
 
     def __init__(
-        self, source: Mapping[str, Any], key: str, duration: float, cond: Condition, known: dict[float, float]
+        self, source: Mapping[str, object], key: str, duration: float, cond: Condition, known: dict[float, float]
     ) -> None:
         self.source = source
         self.key = key
@@ -237,7 +237,7 @@ class _SignedDistance:
 
 
 def solve_boundary(
-    source: Mapping[str, Any],
+    source: Mapping[str, object],
     key: str,
     condition: Condition,
     duration: float,

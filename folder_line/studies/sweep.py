@@ -13,13 +13,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import IO, Any
+from typing import IO
 
+from folder_line.config.scenes import SceneMapping
 from folder_line.core.line.metric_units import metric_unit
 from folder_line.core.line.metrics import flatten_metrics
 from folder_line.studies.grid import Vary, grid_points
 from folder_line.studies.keys import check_key, key_unit, scene_value
 from folder_line.studies.montecarlo import Pool, SampleResult
+from folder_line.studies.montecarlo_figures import ConstraintStats
 from folder_line.studies.paper import paper_point
 from folder_line.studies.points import (
     OK,
@@ -56,7 +58,7 @@ class SweepPlan:
     ----------
     scene : str
         The scene's name.
-    source : mapping
+    source : SceneMapping
         The complete scene mapping (the ``--set`` overrides applied).
     duration : float
         Line time per point, s.
@@ -68,7 +70,7 @@ class SweepPlan:
         Metric paths.
     units : mapping of str to str
         Unit of each varied key and each metric ('' for counts and ratios).
-    scene_point : dict
+    scene_point : dict of str to object
         The scene's own values of the varied keys (None where not known).
     scene_metrics : tuple of float or None
         The metrics at the scene's own point.
@@ -80,13 +82,13 @@ class SweepPlan:
     """
 
     scene: str
-    source: Mapping[str, Any]
+    source: SceneMapping
     duration: float
     varies: tuple[Vary, ...]
     points: tuple[dict[str, float | int], ...]
     metrics: tuple[str, ...]
     units: Mapping[str, str]
-    scene_point: dict[str, Any]
+    scene_point: dict[str, object]
     scene_metrics: tuple[float | None, ...]
     paper_point: dict[str, float] | None
     samples: int | None = None
@@ -110,14 +112,14 @@ class SweepResult:
     plan : SweepPlan
     results : tuple of PointResult
         The metrics at each point (with samples: their means).
-    monte_carlo : tuple of (dict or None) or None
+    monte_carlo : tuple of (dict of str to ConstraintStats or None) or None
         With ``plan.samples``: per point, :func:`folder_line.studies.montecarlo.aggregate`'s ``constraints``
         (None where the model refused the point).
     """
 
     plan: SweepPlan
     results: tuple[PointResult, ...]
-    monte_carlo: tuple[dict[str, Any] | None, ...] | None = None
+    monte_carlo: tuple[dict[str, ConstraintStats] | None, ...] | None = None
 
     @property
     def refused(self) -> int:
@@ -126,7 +128,7 @@ class SweepResult:
 
 
 def plan_sweep(
-    source: Mapping[str, Any],
+    source: SceneMapping,
     varies: Sequence[Vary],
     metric_names: Sequence[str],
     duration: float,
@@ -205,17 +207,17 @@ def run_sweep(plan: SweepPlan, cluster: Cluster, progress: IO[str] | None = None
 
     for_each_result(evaluate_point_sample, tasks, cluster, take, label='sweep samples', progress=progress)
     points: list[PointResult] = []
-    pooled: list[dict[str, Any] | None] = []
+    pooled: list[dict[str, ConstraintStats] | None] = []
     for k in range(len(plan.points)):
         if k in refusals:
             points.append(refusals[k][1])
             pooled.append(None)
             continue
         agg = pools[k].result()
-        means = tuple(agg['metrics'][m]['mean'] if m in agg['metrics'] else None for m in plan.metrics)
+        means = tuple(agg.metrics[m].mean if m in agg.metrics else None for m in plan.metrics)
         missing = [m for m, v in zip(plan.metrics, means, strict=True) if v is None]
         points.append(PointResult(means, OK if not missing else f'missing: {", ".join(missing)}'))
-        pooled.append(agg['constraints'])
+        pooled.append(agg.constraints)
     return SweepResult(plan, tuple(points), tuple(pooled))
 
 
@@ -223,10 +225,10 @@ def run_sweep(plan: SweepPlan, cluster: Cluster, progress: IO[str] | None = None
 PROBABILITY_COLUMNS = ('p_violation', 'p_violation_lo', 'p_violation_hi')
 
 
-def sweep_columns(result: SweepResult) -> dict[str, list[Any]]:
+def sweep_columns(result: SweepResult) -> dict[str, list[float | int | str | None]]:
     """The table of ``sweep.csv``: each varied key, each metric (empty where refused), ``status``."""
     plan = result.plan
-    columns: dict[str, list[Any]] = {k: [p[k] for p in plan.points] for k in plan.keys}
+    columns: dict[str, list[float | int | str | None]] = {k: [p[k] for p in plan.points] for k in plan.keys}
     for i, metric in enumerate(plan.metrics):
         columns[metric] = [r.values[i] for r in result.results]
     if result.monte_carlo is not None:
@@ -234,15 +236,15 @@ def sweep_columns(result: SweepResult) -> dict[str, list[Any]]:
         for pooled in result.monte_carlo:
             names += [c for c in pooled or {} if c not in names]
         for c in names:
-            cells = [None if p is None or c not in p else p[c]['p_cycle'] for p in result.monte_carlo]
-            columns[f'{PROBABILITY_COLUMNS[0]}.{c}'] = [None if x is None else x['p'] for x in cells]
-            columns[f'{PROBABILITY_COLUMNS[1]}.{c}'] = [None if x is None else x['ci95'][0] for x in cells]
-            columns[f'{PROBABILITY_COLUMNS[2]}.{c}'] = [None if x is None else x['ci95'][1] for x in cells]
+            cells = [None if p is None or c not in p else p[c].p_cycle for p in result.monte_carlo]
+            columns[f'{PROBABILITY_COLUMNS[0]}.{c}'] = [None if x is None else x.p for x in cells]
+            columns[f'{PROBABILITY_COLUMNS[1]}.{c}'] = [None if x is None else x.ci95[0] for x in cells]
+            columns[f'{PROBABILITY_COLUMNS[2]}.{c}'] = [None if x is None else x.ci95[1] for x in cells]
     columns[STATUS] = [r.status for r in result.results]
     return columns
 
 
-def sweep_document(result: SweepResult, command: str, files: Sequence[str]) -> dict[str, Any]:
+def sweep_document(result: SweepResult, command: str, files: Sequence[str]) -> dict[str, object]:
     """``sweep.json``: the command, the scene, the keys and metrics with their units, the marked points."""
     plan = result.plan
     return {

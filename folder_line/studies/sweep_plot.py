@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +25,10 @@ from folder_line.core.line.margin_text import MARGIN_AXIS_NOTES, margin_constrai
 from folder_line.studies.paper import PAPER_NOTES, paper_rule
 from folder_line.studies.points import OK
 from folder_line.studies.sweep import SweepPlan, SweepResult
+
+if TYPE_CHECKING:  # matplotlib is imported when a plot is drawn (folder_line.analysis.figures.pyplot)
+    from matplotlib.artist import Artist
+    from matplotlib.axes import Axes
 
 __all__ = ['plot_sweep', 'plotted_keys']
 
@@ -86,7 +90,7 @@ def _title(metric: str) -> str:
     return f'{metric}  ({note})' if note else metric
 
 
-def _mark_text(key: str, value: Any, unit: str) -> str:
+def _mark_text(key: str, value: object, unit: str) -> str:
     return f'{key} = {value:.6g} {unit}'.rstrip() if isinstance(value, int | float) else f'{key} = {value}'
 
 
@@ -110,7 +114,7 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
     fig, axes = plt.subplots(n, 1, figsize=(7.0, 1.2 + 2.1 * n), sharex=True, squeeze=False)
     scene_x, paper = plan.scene_point.get(key), plan.paper_point
     key_unit = plan.units[key]
-    legend: dict[str, Any] = {}
+    legend: dict[str, Artist] = {}
     for i, (ax, metric) in enumerate(zip(axes[:, 0], plan.metrics, strict=False)):
         factor, unit = _shown(metric, plan.units[metric])
         y = _values(result, i) * factor
@@ -172,7 +176,7 @@ def _curves(result: SweepResult, key: str, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _pair(result_plan: SweepPlan, keys: Sequence[str], values: Mapping[str, Any]) -> str:
+def _pair(result_plan: SweepPlan, keys: Sequence[str], values: Mapping[str, object]) -> str:
     """``'V_tr 9.3 m/s, n_k 50000 rev/h'``: a point's two values by the keys' short names."""
     return ', '.join(f'{k.rpartition(".")[2]} {values[k]:.6g} {result_plan.units[k]}'.rstrip() for k in keys)
 
@@ -194,11 +198,11 @@ def _grid(result: SweepResult, keys: Sequence[str], values: np.ndarray) -> tuple
     return xs, ys, z
 
 
-def _marks(ax: Any, result: SweepResult, keys: Sequence[str], xs: np.ndarray, ys: np.ndarray) -> list[Any]:
+def _marks(ax: Axes, result: SweepResult, keys: Sequence[str], xs: np.ndarray, ys: np.ndarray) -> list[Artist]:
     """Drawn over the heat map: the points where a swept constraint is violated and the paper's rule;
     their legend handles."""
     plan = result.plan
-    handles: list[Any] = []
+    handles: list[Artist] = []
     feasible = _feasible(result)
     if feasible is not None:
         bad = [p for p, f, r in zip(plan.points, feasible, result.results, strict=True) if f < 0.5 and r.status == OK]
@@ -223,15 +227,16 @@ def _marks(ax: Any, result: SweepResult, keys: Sequence[str], xs: np.ndarray, ys
     return handles
 
 
-def _points(ax: Any, plan: SweepPlan, keys: Sequence[str]) -> list[Any]:
+def _points(ax: Axes, plan: SweepPlan, keys: Sequence[str]) -> list[Artist]:
     """The scene's point and the paper's, drawn over the heat map; their legend handles."""
-    handles: list[Any] = []
+    handles: list[Artist] = []
     scene = plan.scene_point
-    if all(isinstance(scene.get(k), int | float) for k in keys):
+    x, y = scene.get(keys[0]), scene.get(keys[1])
+    if isinstance(x, int | float) and isinstance(y, int | float):
         handles.append(
             ax.plot(
-                scene[keys[0]],
-                scene[keys[1]],
+                x,
+                y,
                 '*',
                 ms=16,
                 mfc='tab:green',
@@ -272,7 +277,7 @@ def _heat_map(result: SweepResult, keys: Sequence[str], path: Path) -> Path:
     if unit == 'sheets':  # whole sheets
         bar.locator = plt.matplotlib.ticker.MaxNLocator(integer=True)
         bar.update_ticks()
-    handles: list[Any] = []
+    handles: list[Artist] = []
     line = plt.matplotlib.lines.Line2D
     if finite.size and lo < 0.0 < hi:
         ax.contour(xs, ys, z, levels=[0.0], colors='k', linewidths=2.0)

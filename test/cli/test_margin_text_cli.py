@@ -21,6 +21,13 @@ from folder_line.cli.sweep import _range_text
 from folder_line.core.line.line_summary import LineSummary, MarginFigures, ViolationRecord, Violations
 from folder_line.core.line.margin_text import MARGIN_MEANINGS
 from folder_line.core.supervision.records import Violation
+from folder_line.studies.montecarlo_figures import (
+    Aggregate,
+    ConstraintStats,
+    MarginDistribution,
+    MonteCarloResult,
+    Proportion,
+)
 
 
 def _margin_rows(text: str) -> dict[str, str]:
@@ -82,26 +89,20 @@ def test_violations_name_the_leaf_of_chute_speed_and_the_sheets_off() -> None:
 
 
 def test_monte_carlo_table_in_the_same_units_with_the_legend() -> None:
-    def entry(unit: str, q: tuple[float, float, float]) -> dict[str, object]:
-        return {
-            'unit': unit,
-            'p_cycle': {'p': 0.0, 'ci95': [0.0, 0.01]},
-            'p_run': {'k': 0, 'n': 4},
-            'margin': {'count': 10, 'quantiles': {'0.01': q[0], '0.5': q[1], '0.99': q[2]}},
-        }
+    def entry(unit: str, q: tuple[float, float, float]) -> ConstraintStats:
+        return ConstraintStats(
+            unit,
+            Proportion(0.0, (0.0, 0.01), 0, 40),
+            Proportion(0.0, (0.0, 0.6), 0, 4),
+            MarginDistribution(10, quantiles={'0.01': q[0], '0.5': q[1], '0.99': q[2]}),
+        )
 
-    result = {
-        'scene': 'folder_jitter',
-        'samples': 4,
-        'duration_s': 2.0,
-        'seed': 1,
-        'interval': 'Clopper-Pearson',
-        'constraints': {
-            'feed_window': entry('s', (-3e-5, 1e-4, 2e-4)),
-            'one_per_cycle': entry('sheets', (-1.0, 0.0, 0.0)),
-            'rebound': entry('m', (0.000918875, 0.000918875, 0.000918875)),
-        },
+    constraints = {
+        'feed_window': entry('s', (-3e-5, 1e-4, 2e-4)),
+        'one_per_cycle': entry('sheets', (-1.0, 0.0, 0.0)),
+        'rebound': entry('m', (0.000918875, 0.000918875, 0.000918875)),
     }
+    result = MonteCarloResult('folder_jitter', 1, 2.0, Aggregate(4, (), 'Clopper-Pearson', constraints, {}))
     out = io.StringIO()
     print_table(result, out)
     lines = out.getvalue().splitlines()

@@ -73,9 +73,9 @@ def test_the_table_says_when_the_quantiles_are_of_a_sample(monkeypatch: pytest.M
     """Past MARGIN_SAMPLE margins pooled, the quantiles are of a uniform sample: --json and the table say so."""
     monkeypatch.setattr(mc, 'MARGIN_SAMPLE', 50)  # the pool's, in this process (the workers' keep theirs)
     result = mc.monte_carlo(scene_mapping('folder_jitter'), 2.0, 3, Cluster(workers=1))
-    fw = result['constraints']['feed_window']['margin']
-    assert fw['kept'] == 50 < fw['count'] and fw['method'].startswith('a uniform random sample of 50 of the')
-    assert sum(fw['histogram']['counts']) == 50
+    fw = result.aggregate.constraints['feed_window'].margin
+    assert fw.kept == 50 < fw.count and fw.method.startswith('a uniform random sample of 50 of the')
+    assert sum(fw.histogram.counts) == 50
     text = io.StringIO()
     print_table(result, text)
     assert 'margin quantiles of feed_window' in text.getvalue()

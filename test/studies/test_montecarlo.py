@@ -76,16 +76,17 @@ def test_aggregate_pools_cycles_and_runs() -> None:
         return SampleResult(i, i, {'x': float(i)}, {'w': c})
 
     out = aggregate([sample(1, [0.5, 1.0, 2.0]), sample(0, [-1.0, 1.0, 3.0, -2.0])])
-    w = out['constraints']['w']
-    assert w['p_cycle']['k'] == 2 and w['p_cycle']['n'] == 7 and w['p_cycle']['p'] == pytest.approx(2 / 7)
-    assert w['p_run']['k'] == 1 and w['p_run']['n'] == 2
-    assert w['margin']['quantiles']['0.5'] == 1.0 and w['margin']['quantiles']['0'] == -2.0
-    assert sum(w['margin']['histogram']['counts']) == 7 == w['margin']['kept'] == w['margin']['count']
-    assert w['margin']['method'] == 'every margin'
-    assert w['margin']['mean'] == pytest.approx(np.mean([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0]), rel=1e-15)
-    assert w['margin']['std'] == pytest.approx(np.std([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0], ddof=1), rel=1e-15)
-    assert out['metrics']['x'] == {'mean': 0.5, 'std': pytest.approx(2**-0.5), 'min': 0.0, 'max': 1.0, 'n': 2}
-    json.dumps(out)  # JSON-ready
+    w = out.constraints['w']
+    assert w.p_cycle.k == 2 and w.p_cycle.n == 7 and w.p_cycle.p == pytest.approx(2 / 7)
+    assert w.p_run.k == 1 and w.p_run.n == 2
+    assert w.margin.quantiles['0.5'] == 1.0 and w.margin.quantiles['0'] == -2.0
+    assert sum(w.margin.histogram.counts) == 7 == w.margin.kept == w.margin.count
+    assert w.margin.method == 'every margin'
+    assert w.margin.mean == pytest.approx(np.mean([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0]), rel=1e-15)
+    assert w.margin.std == pytest.approx(np.std([0.5, 1.0, 2.0, -1.0, 1.0, 3.0, -2.0], ddof=1), rel=1e-15)
+    x = out.metrics['x']
+    assert (x.mean, x.std, x.min, x.max, x.n) == (0.5, pytest.approx(2**-0.5), 0.0, 1.0, 2)
+    json.dumps(out.as_json())  # JSON-ready
 
 
 @pytest.fixture(scope='module')
@@ -102,20 +103,20 @@ def nominal() -> tuple[float, int]:
 def test_violation_probability_is_phi_of_minus_margin_over_sigma(nominal: tuple[float, int], sigma: float) -> None:
     margin_mm, cycles = nominal
     out = monte_carlo(_jitter_source(sigma), DURATION, SAMPLES, Cluster(workers=2))
-    p = out['constraints']['feed_window']['p_cycle']
+    p = out.aggregate.constraints['feed_window'].p_cycle
     expected = float(norm.cdf(-margin_mm / sigma))
-    assert p['n'] == SAMPLES * cycles
-    lo, hi = p['ci95']
+    assert p.n == SAMPLES * cycles
+    lo, hi = p.ci95
     assert lo <= expected <= hi
     assert hi - lo < 0.5 * expected  # tight enough to mean something
-    assert out['constraints']['feed_window']['margin']['std'] > 0.0
+    assert out.aggregate.constraints['feed_window'].margin.std > 0.0
 
 
 def test_one_or_two_workers_give_identical_aggregates() -> None:
     source = _jitter_source(1.0)
     one = monte_carlo(source, 2.0, 8, Cluster(workers=1))
     two = monte_carlo(source, 2.0, 8, Cluster(workers=2))
-    assert json.dumps(one) == json.dumps(two)
+    assert json.dumps(one.as_json()) == json.dumps(two.as_json())
 
 
 def test_margins_equal_up_to_rounding_make_one_narrow_band() -> None:
@@ -124,10 +125,10 @@ def test_margins_equal_up_to_rounding_make_one_narrow_band() -> None:
     results = [run_sample(SampleTask(scene_mapping('folder'), 0.5, i)) for i in range(2)]
     spread = results[0].constraints['settled_before_knife'].margins
     assert 0.0 < np.ptp(spread) < 1e-12  # the case this guards
-    margin = aggregate(results)['constraints']['settled_before_knife']['margin']
-    counts, edges = margin['histogram']['counts'], margin['histogram']['edges']
-    assert sum(counts) == margin['count'] and np.all(np.diff(edges) > 0)
-    assert edges[0] <= margin['quantiles']['0'] and margin['quantiles']['1'] <= edges[-1]
+    margin = aggregate(results).constraints['settled_before_knife'].margin
+    counts, edges = margin.histogram.counts, margin.histogram.edges
+    assert sum(counts) == margin.count and np.all(np.diff(edges) > 0)
+    assert edges[0] <= margin.quantiles['0'] and margin.quantiles['1'] <= edges[-1]
 
 
 # --------------------------------------------------------------------------- bounded memory
@@ -172,15 +173,15 @@ def test_the_pool_is_a_uniform_sample_of_every_margin_whatever_the_order_of_arri
     for r in reversed(results):
         backward.add(r)
     a, b = forward.result(), backward.result()
-    assert json.dumps(a) == json.dumps(b)
-    margin = a['constraints']['w']['margin']
-    assert margin['count'] == 12_000 and margin['kept'] == 500 and margin['method'].startswith('a uniform random')
-    assert sum(margin['histogram']['counts']) == 500
-    assert margin['quantiles']['0'] == margin['min'] == min(r.constraints['w'].low for r in results)
-    assert margin['quantiles']['1'] == margin['max']
+    assert json.dumps(a.as_json()) == json.dumps(b.as_json())
+    margin = a.constraints['w'].margin
+    assert margin.count == 12_000 and margin.kept == 500 and margin.method.startswith('a uniform random')
+    assert sum(margin.histogram.counts) == 500
+    assert margin.quantiles['0'] == margin.min == min(r.constraints['w'].low for r in results)
+    assert margin.quantiles['1'] == margin.max
     everything = np.concatenate([r.constraints['w'].margins for r in results])
-    assert margin['mean'] == pytest.approx(np.mean([r.constraints['w'].mean for r in results]), rel=1e-12)
-    assert abs(margin['quantiles']['0.5'] - np.median(everything)) < 0.2  # the median of a uniform sample of 500
+    assert margin.mean == pytest.approx(np.mean([r.constraints['w'].mean for r in results]), rel=1e-12)
+    assert abs(margin.quantiles['0.5'] - np.median(everything)) < 0.2  # the median of a uniform sample of 500
 
 
 def test_a_long_sample_keeps_a_bounded_number_of_margins(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -26,7 +26,6 @@ import re
 import tempfile
 from collections.abc import Callable, Generator, Iterable, Iterator
 from pathlib import Path
-from typing import Any
 
 import imageio_ffmpeg
 import numpy as np
@@ -111,7 +110,7 @@ def check_size(width: int, height: int, given: object = None) -> tuple[int, int]
     return width, height
 
 
-def _ffmpeg_options(fmt: str, palette: Path | None = None) -> dict[str, Any]:
+def _ffmpeg_options(fmt: str, palette: Path | None = None) -> dict[str, object]:
     """``imageio_ffmpeg.write_frames`` keywords of one format (a GIF with ``palette``: mapped to it)."""
     if fmt == 'mp4':
         return {
@@ -190,7 +189,7 @@ class VideoWriter:
     def __init__(self, tmp: Path, fmt: str, size: tuple[int, int], fps: float, palette: Path | None = None) -> None:
         self.size = size
         self.frames = 0
-        self._gen: Generator[None, Any, None] = imageio_ffmpeg.write_frames(
+        self._gen: Generator[None, np.ndarray | None, None] = imageio_ffmpeg.write_frames(
             str(tmp), size, fps=fps, ffmpeg_log_level='error', **_ffmpeg_options(fmt, palette)
         )
         self._gen.send(None)  # starts ffmpeg

@@ -24,12 +24,16 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from folder_line.analysis.animation.timeline import OverlayText
 from folder_line.analysis.figures import pyplot
+
+if TYPE_CHECKING:  # matplotlib is imported when a frame is drawn (folder_line.analysis.figures.pyplot)
+    from matplotlib.artist import Artist
+    from matplotlib.axes import Axes
 
 __all__ = [
     'DETAIL_MACHINES',
@@ -303,9 +307,9 @@ def _gather(shapes: Sequence[ShapeLike], pt_per_m: float) -> _Gathered:
 class _Panel:
     """One axes of a frame: its limits and scale, and the moving artists it holds now."""
 
-    ax: Any
+    ax: Axes
     pt_per_m: float
-    dynamic: list[Any]
+    dynamic: list[Artist]
 
 
 def _fit(
@@ -465,11 +469,11 @@ class FrameDrawer:
         ax.text(bx + 0.5 * bar, bz + gap, _length_text(bar), ha='center', va='bottom', fontsize=8 * fs)
         return _Panel(ax, pt_per_m, [])
 
-    def _shapes(self, panel: _Panel, shapes: Sequence[ShapeLike]) -> list[Any]:
+    def _shapes(self, panel: _Panel, shapes: Sequence[ShapeLike]) -> list[Artist]:
         """The moving artists of one frame in one panel: one collection per kind of shape (a pale line over a
         dark one)."""
         g = _gather(shapes, panel.pt_per_m)
-        out: list[Any] = []
+        out: list[Artist] = []
         ax = panel.ax
         if g.boxes:
             boxes = [self._rectangle((lo[0], lo[1]), hi[0] - lo[0], hi[1] - lo[1]) for lo, hi in g.boxes]
@@ -488,7 +492,13 @@ class FrameDrawer:
         if g.dots:
             xy = np.vstack(g.dots)
             sc = ax.scatter(
-                xy[:, 0], xy[:, 1], s=g.dot_size, c=g.dot_rgba, edgecolors=g.dot_edge, linewidths=0.6, animated=True
+                xy[:, 0],
+                xy[:, 1],
+                s=g.dot_size,
+                c=g.dot_rgba,
+                edgecolors=g.dot_edge,  # type: ignore[arg-type]  # RGBA sequences: matplotlib's types want tuples
+                linewidths=0.6,
+                animated=True,
             )
             sc.set_zorder(3)
             out.append(sc)

@@ -33,7 +33,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
 
 from folder_line.core.effects import (
     arrival_jitter,
@@ -50,7 +49,7 @@ from folder_line.core.effects import (
     speed_ripple,
     stop_bounce,
 )
-from folder_line.core.numerics.validate import build
+from folder_line.core.numerics.validate import Dataclass, build
 from folder_line.errors import ParameterError
 
 __all__ = ['EFFECTS', 'EffectSpec', 'effect_spec', 'parse_effect_params']
@@ -81,9 +80,9 @@ class EffectSpec:
         return self.module.__name__.rpartition('.')[2]
 
     @property
-    def params(self) -> type[Any]:
+    def params(self) -> type[Dataclass]:
         """The effect's frozen parameter dataclass."""
-        cls: type[Any] = self.module.Params
+        cls: type[Dataclass] = self.module.Params
         return cls
 
 
@@ -114,7 +113,7 @@ def effect_spec(name: str) -> EffectSpec:
     return EFFECTS[name]
 
 
-def parse_effect_params(name: str, values: Mapping[str, Any] | None) -> Any:
+def parse_effect_params(name: str, values: Mapping[str, object] | None) -> Dataclass:
     """Validated ``Params`` of effect ``name`` from the scene's mapping (None: no parameters given).
 
     Raises

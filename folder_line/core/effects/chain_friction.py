@@ -44,7 +44,6 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -410,7 +409,7 @@ class MasterLoad:
         return total * self._scale
 
 
-_LOADS: dict[tuple[Any, ...], MasterLoad] = {}
+_LOADS: dict[tuple[object, ...], MasterLoad] = {}
 
 
 def master_load(scene: SceneView, omega_nom: float | None = None) -> MasterLoad:

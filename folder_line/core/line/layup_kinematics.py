@@ -11,13 +11,13 @@ drive's speed factor λ = dΘ/dt follow by linearity from the nominal ones:
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from folder_line.core.mechanisms.drive import Drive
 from folder_line.core.mechanisms.layup import LayupModel, LayupParams
 from folder_line.core.mechanisms.layup_angles import TAU
+from folder_line.core.mechanisms.layup_state import LayupState
 
 __all__ = ['EXTREME_WINDOW', 'PHASE_BINS', 'LayupKinematics']
 
@@ -61,7 +61,7 @@ class LayupKinematics:
         phi = TAU * (turns - np.floor(turns))
         return np.where(phi >= TAU, 0.0, phi)
 
-    def state(self, t: np.ndarray) -> tuple[np.ndarray, Any, np.ndarray, np.ndarray]:
+    def state(self, t: np.ndarray) -> tuple[np.ndarray, LayupState, np.ndarray, np.ndarray]:
         """(φ in [0, 2π), nominal LayupState with accelerations, λ, λ') at times t."""
         t = np.asarray(t, dtype=float)
         phi = self.wrap(self.turns(t))
@@ -87,6 +87,7 @@ class LayupKinematics:
         sin = np.where(c4, (st.xE - p.O2O3) / p.l5, st.xC / p.l3)
         cos = np.where(c4, -st.yE / p.l5, -st.yC / p.l3)
         w0 = np.where(c4, st.omega5, st.omega3)
+        assert st.eps3 is not None and st.eps5 is not None  # :meth:`state` computes the accelerations
         e0 = np.where(c4, st.eps5, st.eps3)
         omega = w0 * lam
         eps = e0 * lam * lam + w0 * lamd

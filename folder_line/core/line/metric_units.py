@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Any
 
 __all__ = ['metric_unit']
 
@@ -36,7 +35,7 @@ _RULES: tuple[tuple[re.Pattern[str], str], ...] = tuple(
 )
 
 
-def metric_unit(path: str, summary: Mapping[str, Any] | None = None) -> str:
+def metric_unit(path: str, summary: Mapping[str, object] | None = None) -> str:
     """The unit of the metric ``path`` ('' for a count, a ratio or where unknown).
 
     Parameters
@@ -49,7 +48,8 @@ def metric_unit(path: str, summary: Mapping[str, Any] | None = None) -> str:
     """
     m = re.match(r'^(?:.*\.)?min_margin\.([^.]+)\.margin$', path)
     if m is not None and summary is not None:
-        entry = summary.get('min_margin', {}).get(m.group(1), {})
+        margins = summary.get('min_margin', {})
+        entry = margins.get(m.group(1), {}) if isinstance(margins, Mapping) else {}
         unit = str(entry.get('unit', '')) if isinstance(entry, Mapping) else ''
         return '' if unit == '1' else unit
     for pattern, unit in _RULES:

@@ -12,7 +12,6 @@ path (``V_tr_min`` for ``folder.V_tr_min``), as an engineer says it.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from folder_line.errors import ParameterError
 
@@ -22,7 +21,7 @@ __all__ = ['flatten_metrics', 'resolve_metric']
 _NOT_METRICS = frozenset({'seed'})
 
 
-def flatten_metrics(summary: Mapping[str, Any], prefix: str = '') -> dict[str, float]:
+def flatten_metrics(summary: Mapping[str, object], prefix: str = '') -> dict[str, float]:
     """Every numeric leaf of ``summary`` by its dotted path, in the summary's order.
 
     Parameters

@@ -71,9 +71,9 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from folder_line.core.effects import leaf_flight
 from folder_line.core.line.folder_stream import FolderStream
@@ -164,7 +164,7 @@ class Shape:
 _RGBA32: dict[tuple[float, ...], tuple[float, float, float, float]] = {}
 
 
-def _shape(machine: str, part: str, kind: str, points: Any, width: float, rgba: tuple[float, ...]) -> Shape:
+def _shape(machine: str, part: str, kind: str, points: npt.ArrayLike, width: float, rgba: tuple[float, ...]) -> Shape:
     p = np.array(points, dtype=np.float64).reshape(-1, 3)
     p.setflags(write=False)
     colour = _RGBA32.get(rgba)
@@ -174,7 +174,7 @@ def _shape(machine: str, part: str, kind: str, points: Any, width: float, rgba: 
     return Shape(machine, part, kind, p, float(width), colour)
 
 
-def _xz(x: Any, z: Any, origin: tuple[float, float, float]) -> np.ndarray:
+def _xz(x: npt.ArrayLike, z: npt.ArrayLike, origin: tuple[float, float, float]) -> np.ndarray:
     """Points (x, z) of a planar frame placed at ``origin``, shape (N, 3)."""
     xx = np.asarray(x, dtype=float).reshape(-1)
     zz = np.asarray(z, dtype=float).reshape(-1)

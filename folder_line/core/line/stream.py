@@ -33,17 +33,18 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import TYPE_CHECKING, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from folder_line.core.line import drives
 from folder_line.core.line.constraints import chute_speed_series
+from folder_line.core.line.folder_state import FolderState
 from folder_line.core.line.folder_stream import FolderStream
-from folder_line.core.line.layup_stream import LayupStream
+from folder_line.core.line.layup_stream import LayupState, LayupStream
 from folder_line.core.line.line_summary import (
     JudgedFigures,
     LineSummary,
@@ -71,6 +72,8 @@ __all__ = [
     'Checkpoint',
     'ConstraintTally',
     'LineStream',
+    'StreamDriveFactory',
+    'StreamParts',
     'Window',
     'check_line_commands',
     'judged_figures',
@@ -80,6 +83,8 @@ __all__ = [
 UNITS = ('drive', 'belts', 'feed', 'counter')
 #: violations listed per constraint in a summary
 MAX_VIOLATIONS = 10
+#: ``(scene, commands, previous drive) -> Drive``: how a :class:`LineStream` makes its master drive
+StreamDriveFactory = Callable[['Scene', tuple[LineCommand, ...], Drive | None], Drive]
 
 
 def check_line_commands(commands: Iterable[LineCommand]) -> tuple[LineCommand, ...]:
@@ -172,6 +177,18 @@ class _Tallies:
 
 
 @dataclass(frozen=True, eq=False)
+class StreamParts:
+    """What a :class:`Checkpoint` copies of a stream: each part's state, the pile, the running figures and
+    the line time before the window that :meth:`LineStream.sample` may still be asked for (``t_keep``, s)."""
+
+    folder: FolderState | None
+    layup: LayupState | None
+    pile: PileStream
+    tallies: _Tallies
+    t_keep: float
+
+
+@dataclass(frozen=True, eq=False)
 class Checkpoint:
     """The state of a :class:`LineStream` at the end of a window (:meth:`LineStream.checkpoint`).
 
@@ -183,12 +200,16 @@ class Checkpoint:
         Line time the work was done to, s (``t`` plus the stream's lookahead).
     commands : tuple of Command or Tuning
         The commands the state was computed under.
+    parts : StreamParts
+        A copy of the parts' state.
+    drive : Drive
+        A copy of the master drive.
     """
 
     t: float
     computed: float
     commands: tuple[LineCommand, ...]
-    parts: dict[str, Any]
+    parts: StreamParts
     drive: Drive
 
 
@@ -235,7 +256,7 @@ class LineStream:
         *,
         keep: float = 0.0,
         judge: bool = True,
-        drive_factory: Any = None,
+        drive_factory: StreamDriveFactory | None = None,
     ) -> None:
         self.scene = scene
         self._factory = drive_factory or drives.make_drive
@@ -272,9 +293,9 @@ class LineStream:
 
     # ------------------------------------------------------------------ parts
 
-    def _parts_of_units(self) -> dict[str, list[Any]]:
+    def _parts_of_units(self) -> dict[str, list[FolderStream | LayupStream | PileStream]]:
         """Unit -> the parts that sample its joints, the units in :data:`UNITS` order."""
-        units: dict[str, list[Any]] = {}
+        units: dict[str, list[FolderStream | LayupStream | PileStream]] = {}
         for p in [self.folder, self.layup, self.pile]:
             if p is not None:
                 for unit in p.units:
@@ -437,14 +458,14 @@ class LineStream:
 
     def checkpoint(self) -> Checkpoint:
         """A copy of the state at the end of the last window (bounded in size, like the state)."""
-        parts = {
-            'folder': None if self.folder is None else self.folder.state,
-            'layup': None if self.layup is None else self.layup.state,
-            'pile': self.pile,
-            'tallies': self.tallies,
-            't_keep': self._t_keep,
-        }
-        memo: dict[int, Any] = {id(self.drive): self.drive, id(self.scene): self.scene}
+        parts = StreamParts(
+            None if self.folder is None else self.folder.state,
+            None if self.layup is None else self.layup.state,
+            self.pile,
+            self.tallies,
+            self._t_keep,
+        )
+        memo: dict[int, object] = {id(self.drive): self.drive, id(self.scene): self.scene}
         slider = None if self.layup is None else self.layup.state.slider
         if slider is not None:  # the kinematics are the stream's own, not state
             memo[id(slider.kin)], memo[id(slider.kin1)] = slider.kin, slider.kin1
@@ -465,14 +486,17 @@ class LineStream:
         parts = copy.deepcopy(cp.parts, {id(self.scene): self.scene})
         self.drive = copy.deepcopy(cp.drive)
         self.t, self.computed, self.commands = cp.t, cp.computed, cp.commands
-        self._t_keep = parts['t_keep']
+        self._t_keep = parts.t_keep
         self._before = []
-        self.pile = parts['pile']
+        self.pile = parts.pile
         self._unit_parts = self._parts_of_units()  # the pile is a new object
-        self.tallies = parts['tallies']
-        for name, p in self.parts.items():
-            p.set_drive(self.drive)
-            p.restore(parts[name])
+        self.tallies = parts.tallies
+        if self.folder is not None and parts.folder is not None:
+            self.folder.set_drive(self.drive)
+            self.folder.restore(parts.folder)
+        if self.layup is not None and parts.layup is not None:
+            self.layup.set_drive(self.drive)
+            self.layup.restore(parts.layup)
         if new != self.commands:
             self.commands = new
             self._apply_commands()

@@ -45,7 +45,8 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NoReturn, Protocol
+from types import ModuleType
+from typing import NoReturn, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -59,7 +60,7 @@ from folder_line.core.mechanisms.layup_angles import (
     reduce_angle,
 )
 from folder_line.core.mechanisms.layup_state import _ROWS, AssemblyMargins, LayupPoint, LayupState
-from folder_line.core.numerics.dyad import DyadLinks, heron, heron_into, joint, joint_into
+from folder_line.core.numerics.dyad import DyadLinks, F, heron, heron_into, joint, joint_into
 from folder_line.core.numerics.loop import TOGGLE_TOL
 from folder_line.core.numerics.roots import golden_section
 from folder_line.core.numerics.validate import as_float, check_fields, non_negative, positive
@@ -324,7 +325,7 @@ class LayupModel:
         """
         return self._discriminants(np, np.maximum, reduce_angle(np.asarray(phi, dtype=float)))
 
-    def _discriminants(self, xp: Any, maximum: Any, phi: Any) -> tuple[Any, Any]:
+    def _discriminants(self, xp: ModuleType, maximum: Callable[[F, float], F], phi: F) -> tuple[F, F]:
         """Both loops' normalised discriminants with the namespace ``xp`` (``math`` for a float,
         ``numpy`` for an array; ``maximum`` its elementwise max) at reduced crank angle(s)."""
         loop1, loop2 = self._loop1, self._loop2

@@ -132,7 +132,7 @@ def check_fields(obj: object, prefix: str, **checks: Check) -> None:
 class Dataclass(Protocol):
     """Any dataclass type (what :func:`build` builds)."""
 
-    __dataclass_fields__: ClassVar[dict[str, Any]]
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[object]]]
 
 
 D = TypeVar('D', bound=Dataclass)
@@ -142,6 +142,7 @@ def _dotted(key: str, name: object) -> str:
     return f'{key}.{name}' if key else str(name)
 
 
+# Any: a file's keys may be of any type (a YAML key may be a number), and Mapping is invariant in its key
 def check_keys(values: Mapping[Any, object], known: Iterable[str], key: str, what: str) -> None:
     """Refuse the first key of ``values`` that is not in ``known``.
 

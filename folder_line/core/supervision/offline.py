@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,10 +23,38 @@ from folder_line.core.supervision.supervisor import Supervisor
 from folder_line.core.types.events import EVENT_DTYPE
 from folder_line.errors import ParameterError
 
-__all__ = ['REPLAY_WINDOW', 'replay', 'run_closed_loop']
+__all__ = ['REPLAY_WINDOW', 'ReplayInputs', 'replay', 'run_closed_loop']
 
 #: line time :func:`replay` feeds and ticks at once, s (a multiple of the live check period)
 REPLAY_WINDOW = 60.0
+
+
+@dataclass(frozen=True, eq=False)
+class ReplayInputs:
+    """What :func:`run_closed_loop` fed its supervisor: the input of :func:`replay`.
+
+    Attributes
+    ----------
+    events : ndarray of EVENT_DTYPE
+        The events, in the order fed.
+    heard : dict of str to ndarray
+        Node -> the stamps at which it was heard, s.
+    clock : ndarray
+        Stamps of the clock messages, s (empty without ``clock_ticks``).
+    bad_values : list of (float, str, int)
+        ``(stamp, topic, count)`` of the non-finite values fed.
+    operator : list of (float, str)
+        Operator commands ``(t, command)`` as given.
+    until : float
+        Line time fed to, s.
+    """
+
+    events: np.ndarray
+    heard: dict[str, np.ndarray]
+    clock: np.ndarray
+    bad_values: list[tuple[float, str, int]]
+    operator: list[tuple[float, str]]
+    until: float
 
 
 def replay(
@@ -40,7 +69,7 @@ def replay(
     tunings: Iterable[tuple[float, str, float, float]] = (),
     until: float | None = None,
     window: float = REPLAY_WINDOW,
-    **params: Any,
+    **params: Any,  # Supervisor's keyword parameters, checked there
 ) -> Supervisor:
     """Run a :class:`~folder_line.core.supervision.supervisor.Supervisor` over a recorded stream.
 
@@ -175,8 +204,8 @@ def run_closed_loop(
     operator: Iterable[tuple[float, str]] = (),
     silent: Mapping[str, float] | None = None,
     bad_values: Iterable[tuple[float, str, int]] = (),
-    **params: Any,
-) -> tuple[Supervisor, LineStream, dict[str, Any]]:
+    **params: Any,  # Supervisor's keyword parameters, checked there
+) -> tuple[Supervisor, LineStream, ReplayInputs]:
     """The live loop offline: the streamed line's events fed step by step, the supervisor's commands fed back.
 
     Every ``step`` s of line time: the events of the stream (under the commands issued
@@ -206,10 +235,9 @@ def run_closed_loop(
 
     Returns
     -------
-    (Supervisor, LineStream, dict)
-        The supervisor, the stream (under every command issued), and what was fed (``events``, ``heard``,
-        ``clock``, ``bad_values``, ``operator`` as given to the supervisor, ``until``): the input
-        of :func:`replay`.
+    (Supervisor, LineStream, ReplayInputs)
+        The supervisor, the stream (under every command issued), and what was fed: the input of
+        :func:`replay`.
     """
     sup = Supervisor(scene, **params)
     stream = LineStream(scene)
@@ -250,14 +278,14 @@ def run_closed_loop(
         if new:
             stream.set_commands(sup.commands)
         prev = W
-    inputs = {
-        'events': np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
-        'heard': {n: np.asarray(v) for n, v in heard.items()},
-        'clock': np.asarray(clock),
-        'bad_values': bad_given,
-        'operator': given,
-        'until': prev,
-    }
+    inputs = ReplayInputs(
+        np.concatenate(fed) if fed else np.zeros(0, dtype=EVENT_DTYPE),
+        {n: np.asarray(v) for n, v in heard.items()},
+        np.asarray(clock),
+        bad_given,
+        given,
+        prev,
+    )
     return sup, stream, inputs
 
 

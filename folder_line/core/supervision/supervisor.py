@@ -79,7 +79,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any
 
 import numpy as np
 
@@ -113,6 +112,9 @@ TIMING_CONSTRAINTS = ('feed_window', 'settled_before_knife', 'rebound', 'chute_s
 #: the machine unit (:data:`folder_line.core.line.stream.UNITS`) whose participant publishes the sheets'
 #: events: the caller names that participant as ``sheet_source``
 SHEET_UNIT = 'feed'
+#: what a decision acts on: the evaluation due (``'eval'``), None (``'complete'``), or the topic and count
+#: of bad values, the participant and its wall time waited, or the stale node and its last stamp
+_DecisionArg = Due | tuple[str, float] | None
 
 
 class Supervisor:
@@ -439,11 +441,11 @@ class Supervisor:
         self.now = W
         return [c for _, c in self._drive.issued[n_before:]]
 
-    def _next_decision(self, W: float, i: int) -> tuple[float, str, Any] | None:
+    def _next_decision(self, W: float, i: int) -> tuple[float, str, _DecisionArg] | None:
         """The earliest decision due by ``W`` (``(time, what, its argument)``; None if none). At equal
         times the end of the acting state comes first, then the evaluation ``self._due[i]``, then bad
         values and lost participants, then stale nodes."""
-        cands: list[tuple[float, int, str, Any]] = []
+        cands: list[tuple[float, int, str, _DecisionArg]] = []
         if i < len(self._due):
             it = self._due[i]
             cands.append((it.t, 1, 'eval', it))
@@ -465,11 +467,11 @@ class Supervisor:
         when, _, what, arg = min(cands, key=lambda x: (x[0], x[1]))
         return when, what, arg
 
-    def _decide(self, what: str, arg: Any, when: float) -> None:
+    def _decide(self, what: str, arg: _DecisionArg, when: float) -> None:
         """Take the decision ``what`` (:meth:`_next_decision`) at ``when``."""
-        if what == 'eval':
+        if isinstance(arg, Due):  # 'eval'
             self._on_item(arg, when)
-        elif what == 'complete':
+        elif arg is None:  # 'complete'
             tr = self._acting.end(self.packml, when)
             if tr.target in STOP_STATES:
                 self.balances.append(self.balance(when, tr.target))

@@ -20,10 +20,11 @@ from hypothesis import strategies as st
 from folder_line.config.scenes import load_scene
 from folder_line.core.line.constraints import evaluate_layup_constraints, folder_evaluation
 from folder_line.core.line.model import LineModel
+from folder_line.core.line.stream import LineStream
 from folder_line.core.mechanisms.cyclogram import cycle_timing
 from folder_line.core.mechanisms.drive import Command
 from folder_line.core.supervision.commands import DRIVE_COMMANDS, STOP_STATES
-from folder_line.core.supervision.offline import replay, run_closed_loop
+from folder_line.core.supervision.offline import ReplayInputs, replay, run_closed_loop
 from folder_line.core.supervision.packml import ACTING, COMMANDS
 from folder_line.core.supervision.supervisor import SHEET_UNIT, TIMING_CONSTRAINTS, Supervisor
 from folder_line.core.types.events import EVENT_DTYPE, event_kind
@@ -82,7 +83,7 @@ def free() -> LineModel:
 
 
 @pytest.fixture(scope='module')
-def hold_run() -> tuple[Supervisor, LineModel, dict[str, Any]]:
+def hold_run() -> tuple[Supervisor, LineStream, ReplayInputs]:
     return run_closed_loop(SCENE, 3.0, **KW)
 
 
@@ -119,22 +120,22 @@ def test_the_model_rebuilt_with_the_hold_stands_still_and_keeps_every_sheet(free
     assert model.commands == rebuilt.commands == sup.commands
     # what was fed live is exactly the rebuilt model's stream (a command changes nothing before its time)
     stream = rebuilt.events_between(-math.inf, 3.0)
-    assert np.sort(fed['events'], order=['t', 'kind', 'sheet']).tobytes() == stream.tobytes()
+    assert np.sort(fed.events, order=['t', 'kind', 'sheet']).tobytes() == stream.tobytes()
     # and before the hold it is the free model's
     t_hold = sup.commands[0].t
     before = free.events_between(-math.inf, t_hold)
     assert stream[stream['t'] < t_hold].tobytes() == before[before['t'] < t_hold].tobytes()
     # replaying the rebuilt model's events gives the same transitions, commands and balances
-    again = replay(SCENE, stream, heard=fed['heard'], until=3.0, **KW)
+    again = replay(SCENE, stream, heard=fed.heard, until=3.0, **KW)
     assert again.transitions == sup.transitions and again.commands == sup.commands
     assert again.balances == sup.balances and again.violations == sup.violations
     # fed and ticked in windows of any length (a multiple of the check period), or at once: the same
     for window in (0.05, 0.75, 1e9):
-        other = replay(SCENE, stream, heard=fed['heard'], until=3.0, window=window, **KW)
+        other = replay(SCENE, stream, heard=fed.heard, until=3.0, window=window, **KW)
         assert other.transitions == sup.transitions and other.commands == sup.commands, window
         assert other.balances == sup.balances and other.violations == sup.violations, window
     with pytest.raises(ParameterError, match='window'):
-        replay(SCENE, stream, heard=fed['heard'], until=3.0, window=0.0, **KW)
+        replay(SCENE, stream, heard=fed.heard, until=3.0, window=0.0, **KW)
     # the drive stands still from HELD on: no rate, no phase, no machine event
     t_held = sup.transitions[-1].t
     t = np.linspace(t_held, 3.0, 200)
@@ -308,7 +309,7 @@ def test_nan_in_a_message_or_in_an_event_aborts_at_its_stamp(free: LineModel) ->
 
 
 @pytest.fixture(scope='module')
-def rich_run() -> tuple[Supervisor, dict[str, Any]]:
+def rich_run() -> tuple[Supervisor, ReplayInputs]:
     """Hold, unhold, starvation, a dead node, clear, a NaN: everything in one run."""
     ops = [(2.0, 'unhold'), (5.8, 'clear'), (5.85, 'start'), (5.9, 'reset')]
     sup, _, fed = run_closed_loop(
@@ -352,11 +353,11 @@ def test_replay_reproduces_the_live_run(rich_run: Any) -> None:
     sup, fed = rich_run
     again = replay(
         SCENE,
-        fed['events'],
-        heard=fed['heard'],
-        bad_values=fed['bad_values'],
-        operator=fed['operator'],
-        until=fed['until'],
+        fed.events,
+        heard=fed.heard,
+        bad_values=fed.bad_values,
+        operator=fed.operator,
+        until=fed.until,
         **KW,
     )
     _same(again, sup)
@@ -369,12 +370,12 @@ def test_any_batching_gives_the_same_decisions(rich_run: Any, seed: int, n_ticks
     """Events fed in random chunks, shuffled, partly ahead of the watermark; ticks at random times."""
     sup, fed = rich_run
     rng = np.random.default_rng(seed)
-    until = fed['until']
-    ops = list(fed['operator'])
+    until = fed.until
+    ops = list(fed.operator)
     ticks = sorted(set(np.round(rng.uniform(0.0, until, n_ticks), 4).tolist()) | {t for t, _ in ops} | {until})
-    ev = fed['events'][rng.permutation(fed['events'].size)]
-    heard = {n: np.asarray(v) for n, v in fed['heard'].items()}
-    bad = list(fed['bad_values'])
+    ev = fed.events[rng.permutation(fed.events.size)]
+    heard = {n: np.asarray(v) for n, v in fed.heard.items()}
+    bad = list(fed.bad_values)
     done_ev = np.zeros(ev.size, dtype=bool)
     done_h = {n: np.zeros(v.size, dtype=bool) for n, v in heard.items()}
     other = Supervisor(SCENE, **KW)
@@ -612,10 +613,10 @@ def test_with_clock_ticks_a_coarse_clock_does_not_make_nodes_stale() -> None:
     sup, _, fed = run_closed_loop(SCENE, 1.0, silent={'feed_transporter': 0.5}, **{**KW, 'clock_ticks': True})
     again = replay(
         SCENE,
-        fed['events'],
-        heard=fed['heard'],
-        clock=fed['clock'],
-        until=fed['until'],
+        fed.events,
+        heard=fed.heard,
+        clock=fed.clock,
+        until=fed.until,
         **{**KW, 'clock_ticks': True},
     )
     _same(again, sup)
