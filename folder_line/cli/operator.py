@@ -48,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
         domain = os.environ.get('ROS_DOMAIN_ID', '0') or '0'
         print_error(
             f'{args.verb}: no supervisor answered /line/supervisor/{args.verb} on ROS domain {domain} within '
-            f'{args.timeout:g} s (is the line running, on this domain, {key_hint()}?)'
+            f'{args.timeout:g} s (is the line running, on this domain, {key_hint()}? On a busy host an answer can '
+            "also be lost, the command taken: the supervisor's state shows it, folder-line monitor)"
         )
         return EXIT_NO_ANSWER
     print(f'{args.verb}: {"accepted" if answer.accepted else "refused"}: {answer.message}')

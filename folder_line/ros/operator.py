@@ -88,13 +88,23 @@ def _session() -> Iterator[tuple[Node, SingleThreadedExecutor]]:
         rclpy.try_shutdown(context=context)
 
 
+#: wall time a request waits once its service is found, s: the server must also have found this process's
+#: reply reader by the time it answers, or the answer is lost (rmw_fastrtps waits only 100 ms for it,
+#: ros2/rmw_fastrtps#467); discovery finds both sides at about the same time, but not at once on a busy host
+REPLY_MATCH_WAIT = 0.5
+
+
 def _until(executor: SingleThreadedExecutor, ready: Callable[[], bool], timeout: float) -> bool:
-    """Spin until ``ready()`` (discovery runs while the executor spins); False after ``timeout`` s."""
+    """Spin until ``ready()`` (discovery runs while the executor spins), then :data:`REPLY_MATCH_WAIT` more;
+    False after ``timeout`` s."""
     deadline = time.monotonic() + timeout
     while not ready():
         if time.monotonic() >= deadline:
             return False
         executor.spin_once(timeout_sec=0.05)
+    settled = time.monotonic() + REPLY_MATCH_WAIT
+    while time.monotonic() < settled:
+        executor.spin_once(timeout_sec=max(0.0, min(0.05, settled - time.monotonic())))
     return True
 
 
