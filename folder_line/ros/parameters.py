@@ -28,6 +28,7 @@ __all__ = [
     'ParamSpec',
     'ParamValue',
     'declare_parameters',
+    'given_values',
     'guard_changes',
     'make_screen',
     'make_validator',
@@ -444,6 +445,19 @@ def starting_values(node: Node, specs: Sequence[ParamSpec]) -> dict[str, ParamVa
     for spec in specs:
         node.undeclare_parameter(spec.name)
     return {spec.name: spec.check(given[spec.name]) for spec in specs}
+
+
+def given_values(specs: Iterable[ParamSpec], given: Mapping[str, object]) -> dict[str, ParamValue]:
+    """The value each of ``specs`` starts at with the command line's values ``given``
+    (:func:`folder_line.ros.ros_args.command_line_values`), else its default, checked by the spec: what
+    :func:`starting_values` finds on a node, found before any node is made.
+
+    Raises
+    ------
+    ParameterError
+        A value its spec refuses.
+    """
+    return {spec.name: spec.check(given.get(spec.name, spec.default)) for spec in specs}
 
 
 def sim_time_overrides(

@@ -11,7 +11,7 @@ optional key present only where the run has it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 from folder_line.core.line.folder_figures import FolderFigures
 from folder_line.core.line.layup_figures import LandingHistogram, LayupFigures
@@ -39,7 +39,7 @@ class ViolationRecord:
 
     def as_json(self) -> dict[str, object]:
         """``{'cycle', 'constraint', 'margin', 'unit'}``."""
-        return {'cycle': self.cycle, 'constraint': self.constraint, 'margin': self.margin, 'unit': self.unit}
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -67,13 +67,7 @@ class MarginFigures:
 
     def as_json(self) -> dict[str, object]:
         """``{'margin', 'unit', 'cycle', 'evaluations', 'violations'}``."""
-        return {
-            'margin': self.margin,
-            'unit': self.unit,
-            'cycle': self.cycle,
-            'evaluations': self.evaluations,
-            'violations': self.violations,
-        }
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -111,7 +105,7 @@ class TuningRecord:
 
     def as_json(self) -> dict[str, object]:
         """``{'t', 'key', 'value', 'unit'}``."""
-        return {'t': self.t, 'key': self.key, 'value': self.value, 'unit': self.unit}
+        return asdict(self)
 
 
 def _in_seconds(min_margin: dict[str, MarginFigures]) -> dict[str, float]:

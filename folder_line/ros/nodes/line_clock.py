@@ -105,7 +105,7 @@ from folder_line.ros.lockstep_messages import (
     participant_names,
     read_ack,
 )
-from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes
+from folder_line.ros.parameters import ParamSpec, declare_parameters, given_values, guard_changes
 from folder_line.ros.runtime import run_node
 from folder_line.ros.strangers import foreign_publishers
 from folder_line.ros.time_msg import ns_to_time_msg
@@ -264,7 +264,7 @@ class LineClock(Node):
         """
         if given.get('use_sim_time') is True:
             raise ParameterError('use_sim_time', True, _WALL_CLOCK)
-        _check({spec.name: spec.check(given.get(spec.name, spec.default)) for spec in SPECS})
+        _check(given_values(SPECS, given))
 
     def _make(self) -> None:
         """Check the parameters, then make the clock's entities (after ``Node.__init__``)."""

@@ -86,7 +86,7 @@ from folder_line.interfaces import (
 )
 from folder_line.ros.lockstep import LINE_QOS, Participant
 from folder_line.ros.lockstep_messages import Announcement
-from folder_line.ros.parameters import ParamSpec, declare_parameters, guard_changes, starting_values
+from folder_line.ros.parameters import ParamSpec, declare_parameters, given_values, guard_changes, starting_values
 from folder_line.ros.runtime import run_node
 from folder_line.ros.signing import open_text, sign_text
 from folder_line.ros.time_msg import ns_to_time_msg, time_msg_to_ns
@@ -408,7 +408,7 @@ class MachineNode(Node):
         """
         if given.get('use_sim_time') is False:
             raise ParameterError('use_sim_time', False, SIM_TIME_REASON)
-        values = {spec.name: spec.check(given.get(spec.name, spec.default)) for spec in MACHINE_SPECS + cls.EXTRA_SPECS}
+        values = given_values(MACHINE_SPECS + cls.EXTRA_SPECS, given)
         scene = node_scene(str(values['scene']), str(values['overrides']))
         for spec in cls.tunable_specs(scene):
             _check_tunable_start(cls.NODE_NAME, spec, spec.check(given.get(spec.name, spec.default)), scene)
